@@ -1,0 +1,7 @@
+"""Allow ``python -m thermolab``."""
+
+import sys
+
+from thermolab.cli import main
+
+sys.exit(main())

@@ -1,0 +1,109 @@
+"""The ``thermolab`` command line.
+
+Each subcommand lives in a module of its own that exposes ``register(subparsers)``;
+the module adds its parser and sets ``handler`` to a function taking the parsed
+arguments and returning the exit status. Heavy imports (NumPy, Numba, the server)
+happen inside the handlers so that ``thermolab --help`` stays instant.
+
+Every error a user can cause ends as one line on standard error and a non-zero
+exit status, never a traceback: :class:`~thermolab.errors.ThermoLabError` and
+:class:`CliError` give status 1 (2 for usage errors, as argparse does), an
+interrupted command 130, and anything unexpected status 70 with a one-line
+"internal error" message (``THERMOLAB_DEBUG=1`` shows the traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+from collections.abc import Callable, Sequence
+
+from thermolab import __version__
+from thermolab.errors import ThermoLabError
+
+__all__ = ["CliError", "main"]
+
+# Modules that contribute a subcommand, in the order ``--help`` lists them. A
+# module that does not exist yet is skipped, so the layers can land one by one.
+_SUBCOMMAND_MODULES = ("identify", "reproduce", "run", "serve", "user")
+
+
+class CliError(Exception):
+    """An error to report as one line, with the exit status to use."""
+
+    def __init__(self, message: str, status: int = 1) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+Handler = Callable[[argparse.Namespace], int]
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argparse parser whose errors are one line and exit status 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise CliError(f"{self.prog}: {message} (see '{self.prog} --help')", status=2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Build the full ``thermolab`` argument parser."""
+    parser = _Parser(
+        prog="thermolab",
+        description="ThermoLab: identify the model of a temperature control system.",
+    )
+    parser.add_argument("--version", action="version", version=f"thermolab {__version__}")
+    parser.add_argument(
+        "--data-dir",
+        default=None,
+        help="folder for the lab's database and records (default: a per-user folder, "
+        "or $THERMOLAB_DATA_DIR)",
+    )
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for name in _SUBCOMMAND_MODULES:
+        try:
+            module = importlib.import_module(f"thermolab.cli.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name == f"thermolab.cli.{name}":
+                continue
+            raise
+        module.register(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line and return its exit status."""
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        handler: Handler | None = getattr(args, "handler", None)
+        if handler is None:
+            parser.print_help(sys.stderr)
+            return 2
+        return handler(args)
+    except CliError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return exc.status
+    except ThermoLabError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        # Output piped into `head` and the like: not an error worth a message.
+        return 0
+    except Exception as exc:
+        if os.environ.get("THERMOLAB_DEBUG"):
+            raise
+        print(
+            f"internal error: {type(exc).__name__}: {exc} (set THERMOLAB_DEBUG=1 for details)",
+            file=sys.stderr,
+        )
+        return 70
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

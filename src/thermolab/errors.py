@@ -1,0 +1,53 @@
+"""Exceptions shared by every layer.
+
+Each subclasses the built-in exception a caller would naturally catch
+(``ValueError`` for bad data or parameters, ``RuntimeError`` for a device that
+misbehaves), so code that knows nothing of ThermoLab still handles them. The
+message always says what was wrong and what is allowed: the command line prints
+it as one line, the server returns it as the reason of a 4xx answer.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "InsufficientExcitationError",
+    "InvalidDataError",
+    "InvalidParameterError",
+    "RigError",
+    "RigFaultError",
+    "RigTimeoutError",
+    "SignalSpecError",
+    "ThermoLabError",
+]
+
+
+class ThermoLabError(Exception):
+    """Base class of every error ThermoLab raises on purpose."""
+
+
+class InvalidDataError(ThermoLabError, ValueError):
+    """A record cannot be used: NaN/inf, mismatched lengths, too few samples, bad time axis."""
+
+
+class InsufficientExcitationError(InvalidDataError):
+    """The data do not determine the parameters (input held constant, output settled)."""
+
+
+class InvalidParameterError(ThermoLabError, ValueError):
+    """A method or signal parameter is outside its allowed range."""
+
+
+class SignalSpecError(InvalidParameterError):
+    """A signal specification string (``square:4:6:0.1`` ...) cannot be parsed."""
+
+
+class RigError(ThermoLabError, RuntimeError):
+    """A rig could not do what was asked."""
+
+
+class RigFaultError(RigError):
+    """A rig reported a fault (over-temperature, garbage from the device, unplugged)."""
+
+
+class RigTimeoutError(RigFaultError):
+    """A rig did not answer within its timeout."""

@@ -1,0 +1,1 @@
+"""The lab service: access control, storage and the HTTP/WebSocket API."""

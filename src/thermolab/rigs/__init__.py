@@ -1,0 +1,1 @@
+"""Rigs: one interface for the digital twin and every hardware driver."""

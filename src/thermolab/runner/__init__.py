@@ -1,0 +1,1 @@
+"""The experiment runner: samples a rig, applies inputs, feeds identifiers."""

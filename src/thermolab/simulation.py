@@ -1,0 +1,1 @@
+"""Exact discrete simulation of the paper's plant (eq. 4)."""

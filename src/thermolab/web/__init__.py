@@ -1,0 +1,1 @@
+"""The browser interface: static files served by the lab service."""

@@ -1,0 +1,49 @@
+"""The layer rule: numerics import no web, database or hardware code."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+
+NUMERIC_MODULES = [
+    "thermolab.ident",
+    "thermolab.signals",
+    "thermolab.simulation",
+    "thermolab.reproduction",
+]
+FORBIDDEN_PREFIXES = [
+    "fastapi",
+    "starlette",
+    "sqlalchemy",
+    "alembic",
+    "serial",
+    "uvicorn",
+    "websockets",
+    "thermolab.rigs",
+    "thermolab.runner",
+    "thermolab.lab",
+    "thermolab.web",
+]
+
+
+def test_numerics_import_no_web_database_or_hardware_code() -> None:
+    # A fresh interpreter, so that modules other tests imported cannot hide a leak.
+    code = textwrap.dedent(
+        f"""
+        import importlib, json, sys
+        for name in {NUMERIC_MODULES!r}:
+            try:
+                importlib.import_module(name)
+            except ModuleNotFoundError as exc:
+                if exc.name != name:  # a missing layer is fine, a missing dependency is not
+                    raise
+        forbidden = {FORBIDDEN_PREFIXES!r}
+        print(json.dumps(sorted(
+            m for m in sys.modules if any(m == f or m.startswith(f + ".") for f in forbidden)
+        )))
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert json.loads(out.stdout) == []
