@@ -15,6 +15,7 @@ __all__ = [
     "InvalidParameterError",
     "RigError",
     "RigFaultError",
+    "RigStateError",
     "RigTimeoutError",
     "SignalSpecError",
     "ThermoLabError",
@@ -47,6 +48,10 @@ class RigError(ThermoLabError, RuntimeError):
 
 class RigFaultError(RigError):
     """A rig reported a fault (over-temperature, garbage from the device, unplugged)."""
+
+
+class RigStateError(RigError):
+    """A rig operation is not allowed in the rig's current lifecycle state (closed, faulted...)."""
 
 
 class RigTimeoutError(RigFaultError):

@@ -1,0 +1,503 @@
+"""The rig interface: what every rig (digital twin, hardware driver) provides.
+
+A rig has one actuator input ``u`` (volts for the paper's box, percent of
+heater power for a TCLab kit) and one sensor output ``y``. The interface is the
+:class:`Rig` protocol; :class:`BaseRig` implements the parts every rig shares
+and that must not be got wrong twice: the lifecycle state machine, input
+validation, the output limit, and the safe state on every way out.
+
+Lifecycle (:class:`RigState`)::
+
+    IDLE --power_on()--> POWERED --power_off()--> IDLE
+    IDLE/POWERED --fault--> FAULTED --clear_fault()--> IDLE
+    any --close()--> CLOSED   (terminal)
+
+In every state but POWERED the actuator is at the rig's safe input value.
+An operation that is not allowed in the current state raises
+:class:`~thermolab.errors.RigStateError` naming the state and what to do;
+``power_off()`` and ``close()`` are always allowed and idempotent.
+"""
+
+from __future__ import annotations
+
+import abc
+import enum
+import math
+import threading
+from dataclasses import asdict, dataclass
+from types import TracebackType
+from typing import Any, Protocol, Self, runtime_checkable
+
+from thermolab.errors import (
+    InvalidParameterError,
+    RigError,
+    RigFaultError,
+    RigStateError,
+    RigTimeoutError,
+)
+from thermolab.rigs.clock import Clock
+
+__all__ = [
+    "BaseRig",
+    "Reading",
+    "Rig",
+    "RigError",
+    "RigFaultError",
+    "RigInfo",
+    "RigState",
+    "RigStateError",
+    "RigTimeoutError",
+]
+
+
+class RigState(enum.Enum):
+    """Lifecycle state of a rig.
+
+    Attributes
+    ----------
+    IDLE
+        Open and readable; the actuator is held at its safe value and
+        ``apply`` is refused.
+    POWERED
+        ``apply`` drives the actuator.
+    FAULTED
+        A fault is latched (see ``fault()``); the actuator is at its safe value,
+        ``apply`` and ``power_on`` are refused until ``clear_fault()``.
+    CLOSED
+        Released for good; only ``close()``, ``power_off()``, ``fault()``,
+        ``describe()`` and ``state`` still work.
+    """
+
+    IDLE = "idle"
+    POWERED = "powered"
+    FAULTED = "faulted"
+    CLOSED = "closed"
+
+
+# Which transitions the state machine allows; anything else is a programming error.
+_TRANSITIONS: dict[RigState, frozenset[RigState]] = {
+    RigState.IDLE: frozenset({RigState.POWERED, RigState.FAULTED, RigState.CLOSED}),
+    RigState.POWERED: frozenset({RigState.IDLE, RigState.FAULTED, RigState.CLOSED}),
+    RigState.FAULTED: frozenset({RigState.IDLE, RigState.CLOSED}),
+    RigState.CLOSED: frozenset(),
+}
+
+
+@dataclass(frozen=True, slots=True)
+class RigInfo:
+    """What a rig is and what it accepts.
+
+    Attributes
+    ----------
+    name : str
+        Human-readable name (``"paper twin"``, ``"TCLab on /dev/ttyACM0"``).
+    kind : str
+        Implementation family: ``"twin"`` or ``"tclab"``.
+    input_min, input_max : float
+        The allowed range of ``apply(u)``, inclusive.
+    input_unit : str
+        Unit of the input (``"V"``, ``"%"``).
+    output_unit : str
+        Unit of the output (``"V"``, ``"degC"``).
+    safe_input : float
+        The input value the rig is left at when idle, faulted or closed.
+    output_limit : float or None
+        Output above which the rig faults and goes to its safe state
+        (over-temperature); ``None`` when the rig has none.
+    description : str
+        One sentence for a user interface (``""`` if none).
+
+    Examples
+    --------
+    >>> info = RigInfo("demo", "twin", -10.0, 10.0, "V", "V", 0.0, None)
+    >>> info.input_range
+    (-10.0, 10.0)
+    >>> info.to_dict()["input_unit"]
+    'V'
+    """
+
+    name: str
+    kind: str
+    input_min: float
+    input_max: float
+    input_unit: str
+    output_unit: str
+    safe_input: float
+    output_limit: float | None
+    description: str = ""
+
+    @property
+    def input_range(self) -> tuple[float, float]:
+        """``(input_min, input_max)``."""
+        return (self.input_min, self.input_max)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the fields as a JSON-ready dictionary."""
+        return asdict(self)
+
+
+@dataclass(frozen=True, slots=True)
+class Reading:
+    """One sensor reading.
+
+    Attributes
+    ----------
+    value : float
+        The output in the rig's output unit.
+    t : float
+        The rig clock's time when the reading was taken, as the host knows it.
+        (A twin with sample-time jitter samples its state at a slightly
+        different, undisclosed instant, as a real acquisition board does.)
+
+    Examples
+    --------
+    >>> Reading(1.25, 3.0)
+    Reading(value=1.25, t=3.0)
+    """
+
+    value: float
+    t: float
+
+
+@runtime_checkable
+class Rig(Protocol):
+    """The interface every rig implements.
+
+    Notes
+    -----
+    Use as a context manager; leaving the ``with`` block, by any way, closes
+    the rig and leaves its actuator at the safe input value.
+    """
+
+    @property
+    def state(self) -> RigState:
+        """The lifecycle state."""
+        ...
+
+    @property
+    def powered(self) -> bool:
+        """``True`` when ``apply`` drives the actuator (state POWERED)."""
+        ...
+
+    @property
+    def clock(self) -> Clock:
+        """The clock that timestamps readings (and drives a twin's physics)."""
+        ...
+
+    def describe(self) -> RigInfo:
+        """Return what the rig is and what it accepts."""
+        ...
+
+    def power_on(self) -> None:
+        """Allow ``apply`` to drive the actuator (IDLE -> POWERED)."""
+        ...
+
+    def power_off(self) -> None:
+        """Put the actuator at its safe value and refuse ``apply`` (idempotent)."""
+        ...
+
+    def apply(self, u: float) -> float:
+        """Set the actuator input; return the value actually applied."""
+        ...
+
+    def read(self) -> Reading:
+        """Read the sensor output, with the clock time of the reading."""
+        ...
+
+    def fault(self) -> str | None:
+        """Return the reason of a latched fault, or ``None``."""
+        ...
+
+    def clear_fault(self) -> None:
+        """Acknowledge a fault and return to IDLE if its cause is gone."""
+        ...
+
+    def close(self) -> None:
+        """Put the actuator at its safe value and release the rig (idempotent)."""
+        ...
+
+    def __enter__(self) -> Self: ...
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None: ...
+
+
+class BaseRig(abc.ABC):
+    """Shared behaviour of every rig: state machine, validation, safe state.
+
+    Subclasses implement four hooks and never deal with states themselves:
+
+    * ``_apply_input(u) -> float``: drive the actuator with a validated,
+      in-range ``u``; return the value actually applied.
+    * ``_read_output() -> Reading``: take one reading.
+    * ``_make_safe()``: put the actuator at the safe value. Called on
+      power-off, fault and close; must be best-effort and must not raise.
+    * ``_release()``: free resources (port, threads). Called once, after
+      ``_make_safe``; must not raise.
+
+    A hook that raises :class:`~thermolab.errors.RigFaultError` latches the
+    fault: the state becomes FAULTED, the actuator is made safe, and the error
+    propagates. A reading above ``output_limit`` does the same.
+
+    Parameters
+    ----------
+    info : RigInfo
+        The description returned by :meth:`describe`.
+    clock : Clock
+        The clock of the rig.
+
+    Notes
+    -----
+    All public methods hold one re-entrant lock, so a watchdog thread, a
+    runner and a server may share a rig.
+    """
+
+    def __init__(self, info: RigInfo, clock: Clock) -> None:
+        if not (info.input_min <= info.safe_input <= info.input_max):
+            raise InvalidParameterError(
+                f"safe input {info.safe_input} is outside the input range "
+                f"[{info.input_min}, {info.input_max}]"
+            )
+        self._info = info
+        self._clock = clock
+        self._state = RigState.IDLE
+        self._fault: str | None = None
+        self._lock = threading.RLock()
+
+    # -- hooks -------------------------------------------------------------
+
+    @abc.abstractmethod
+    def _apply_input(self, u: float) -> float:
+        """Drive the actuator with ``u`` (validated); return the value applied."""
+
+    @abc.abstractmethod
+    def _read_output(self) -> Reading:
+        """Take one reading from the sensor."""
+
+    @abc.abstractmethod
+    def _make_safe(self) -> None:
+        """Best-effort: put the actuator at its safe value. Must not raise."""
+
+    @abc.abstractmethod
+    def _release(self) -> None:
+        """Free resources. Must not raise."""
+
+    def _check_fault_cleared(self) -> None:
+        """Raise :class:`RigFaultError` if the cause of the fault persists.
+
+        The default re-reads the output and checks it against the limit.
+        """
+        reading = self._read_output()
+        self._check_limit(reading)
+
+    # -- properties ------------------------------------------------------------
+
+    @property
+    def state(self) -> RigState:
+        """The lifecycle state."""
+        return self._state
+
+    @property
+    def powered(self) -> bool:
+        """``True`` in state POWERED."""
+        return self._state is RigState.POWERED
+
+    @property
+    def clock(self) -> Clock:
+        """The clock of the rig."""
+        return self._clock
+
+    # -- public interface --------------------------------------------------------
+
+    def describe(self) -> RigInfo:
+        """Return the rig's :class:`RigInfo`."""
+        return self._info
+
+    def fault(self) -> str | None:
+        """Return the reason of the latched fault, or ``None``."""
+        return self._fault
+
+    def power_on(self) -> None:
+        """Enter POWERED; ``apply`` then drives the actuator.
+
+        Raises
+        ------
+        RigStateError
+            If the rig is faulted or closed.
+        """
+        with self._lock:
+            if self._state is RigState.POWERED:
+                return
+            if self._state is RigState.FAULTED:
+                raise RigStateError(
+                    f"cannot power on {self._info.name!r}: it is faulted ({self._fault}); "
+                    "call clear_fault() once the cause is gone"
+                )
+            self._transition(RigState.POWERED)
+
+    def power_off(self) -> None:
+        """Put the actuator at its safe value and leave POWERED (idempotent, never raises)."""
+        with self._lock:
+            self._make_safe()
+            if self._state is RigState.POWERED:
+                self._transition(RigState.IDLE)
+
+    def apply(self, u: float) -> float:
+        """Drive the actuator.
+
+        Parameters
+        ----------
+        u : float
+            Input in the rig's input unit, within ``describe().input_range``.
+
+        Returns
+        -------
+        float
+            The value actually applied (after the rig's own clipping or
+            rounding, e.g. actuator saturation or the firmware's 3 decimals).
+
+        Raises
+        ------
+        RigStateError
+            If the rig is not POWERED (idle, faulted or closed).
+        InvalidParameterError
+            If ``u`` is not finite or outside the input range.
+        RigFaultError
+            If the device faults while applying (the fault is latched and the
+            actuator made safe).
+        """
+        with self._lock:
+            if self._state is not RigState.POWERED:
+                raise RigStateError(self._refusal("apply an input"))
+            info = self._info
+            try:
+                value = float(u)
+            except (TypeError, ValueError):
+                raise InvalidParameterError(
+                    f"input must be a number in [{info.input_min:g}, {info.input_max:g}] "
+                    f"{info.input_unit}, got {u!r}"
+                ) from None
+            if not (math.isfinite(value) and info.input_min <= value <= info.input_max):
+                raise InvalidParameterError(
+                    f"input {value!r} {info.input_unit} is outside the range of "
+                    f"{info.name!r}: [{info.input_min:g}, {info.input_max:g}] {info.input_unit}"
+                )
+            try:
+                return self._apply_input(value)
+            except RigFaultError as exc:
+                self._latch(str(exc))
+                raise
+
+    def read(self) -> Reading:
+        """Take one reading.
+
+        Allowed in IDLE, POWERED and FAULTED (watching a rig cool down after an
+        over-temperature fault is useful).
+
+        Returns
+        -------
+        Reading
+            The value and the clock time of the reading.
+
+        Raises
+        ------
+        RigStateError
+            If the rig is closed.
+        RigFaultError
+            If the device faults or the reading exceeds the output limit (the
+            fault is latched and the actuator made safe).
+        """
+        with self._lock:
+            if self._state is RigState.CLOSED:
+                raise RigStateError(self._refusal("read"))
+            try:
+                reading = self._read_output()
+                if self._state is not RigState.FAULTED:
+                    self._check_limit(reading)
+            except RigFaultError as exc:
+                self._latch(str(exc))
+                raise
+            return reading
+
+    def clear_fault(self) -> None:
+        """Acknowledge a latched fault and return to IDLE.
+
+        No effect when no fault is latched.
+
+        Raises
+        ------
+        RigFaultError
+            If the cause persists (the fault stays latched).
+        RigStateError
+            If the rig is closed.
+        """
+        with self._lock:
+            if self._state is RigState.CLOSED:
+                raise RigStateError(self._refusal("clear a fault"))
+            if self._state is not RigState.FAULTED:
+                return
+            self._check_fault_cleared()
+            self._fault = None
+            self._transition(RigState.IDLE)
+
+    def close(self) -> None:
+        """Make the actuator safe and release the rig (idempotent, never raises)."""
+        with self._lock:
+            if self._state is RigState.CLOSED:
+                return
+            try:
+                self._make_safe()
+            finally:
+                self._transition(RigState.CLOSED)
+                self._release()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self._info.name!r} {self._state.value}>"
+
+    # -- helpers for subclasses ------------------------------------------------
+
+    def _latch(self, reason: str) -> None:
+        """Latch a fault: record the reason, make the actuator safe, enter FAULTED."""
+        with self._lock:
+            self._make_safe()
+            if self._state in (RigState.IDLE, RigState.POWERED):
+                self._fault = reason
+                self._transition(RigState.FAULTED)
+
+    def _check_limit(self, reading: Reading) -> None:
+        limit = self._info.output_limit
+        if limit is not None and not reading.value <= limit:
+            raise RigFaultError(
+                f"{self._info.name}: output {reading.value:.3f} {self._info.output_unit} "
+                f"exceeds the limit of {limit:g} {self._info.output_unit}; actuator switched off"
+            )
+
+    def _transition(self, new: RigState) -> None:
+        if new not in _TRANSITIONS[self._state]:
+            raise RigStateError(
+                f"{self._info.name}: illegal state transition {self._state.value} -> {new.value}"
+            )
+        self._state = new
+
+    def _refusal(self, action: str) -> str:
+        name = self._info.name
+        if self._state is RigState.CLOSED:
+            return f"cannot {action}: rig {name!r} is closed"
+        if self._state is RigState.FAULTED:
+            return f"cannot {action}: rig {name!r} is faulted ({self._fault})"
+        return f"cannot {action}: rig {name!r} is {self._state.value}; call power_on() first"
