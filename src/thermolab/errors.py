@@ -17,7 +17,9 @@ __all__ = [
     "RigFaultError",
     "RigStateError",
     "RigTimeoutError",
+    "RunStateError",
     "SignalSpecError",
+    "SubscriberCutError",
     "ThermoLabError",
 ]
 
@@ -56,3 +58,11 @@ class RigStateError(RigError):
 
 class RigTimeoutError(RigFaultError):
     """A rig did not answer within its timeout."""
+
+
+class RunStateError(ThermoLabError, RuntimeError):
+    """An experiment run was asked for a transition its state does not allow (END before START)."""
+
+
+class SubscriberCutError(ThermoLabError, RuntimeError):
+    """An event subscriber fell too far behind a run and was disconnected from it."""
