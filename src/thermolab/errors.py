@@ -10,9 +10,13 @@ it as one line, the server returns it as the reason of a 4xx answer.
 from __future__ import annotations
 
 __all__ = [
+    "AccessDeniedError",
+    "ConfigError",
+    "ConflictError",
     "InsufficientExcitationError",
     "InvalidDataError",
     "InvalidParameterError",
+    "NotFoundError",
     "RigError",
     "RigFaultError",
     "RigStateError",
@@ -66,3 +70,19 @@ class RunStateError(ThermoLabError, RuntimeError):
 
 class SubscriberCutError(ThermoLabError, RuntimeError):
     """An event subscriber fell too far behind a run and was disconnected from it."""
+
+
+class ConfigError(InvalidParameterError):
+    """A lab configuration file (TOML) is malformed or has a bad value; the message names the key."""
+
+
+class NotFoundError(ThermoLabError, LookupError):
+    """A named thing (user, rig, run) does not exist."""
+
+
+class ConflictError(ThermoLabError, RuntimeError):
+    """The request clashes with the current state (duplicate user, rig out of service)."""
+
+
+class AccessDeniedError(ThermoLabError, PermissionError):
+    """The caller is known but not allowed to do this (a student acting on another's control)."""
