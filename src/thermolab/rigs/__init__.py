@@ -3,13 +3,23 @@
 See :mod:`thermolab.rigs.base` for the interface (:class:`Rig`,
 :class:`BaseRig`, :class:`RigInfo`, :class:`Reading`, :class:`RigState`) and
 :mod:`thermolab.rigs.clock` for the clocks every rig and the runner share.
+The implementations are the digital twin (:mod:`thermolab.rigs.twin`) and the
+TCLab driver (:mod:`thermolab.rigs.tclab`); :func:`open_rig` opens either from
+a one-line specification. The TCLab firmware emulator
+(:mod:`thermolab.rigs.tclab_emulator`, POSIX only: it needs a pseudo-terminal)
+is imported from its module.
 """
 
 from thermolab.errors import RigError, RigFaultError, RigStateError, RigTimeoutError
+from thermolab.rigs._factory import RIG_SPECS, open_rig
 from thermolab.rigs.base import BaseRig, Reading, Rig, RigInfo, RigState
 from thermolab.rigs.clock import Clock, RealClock, ScaledClock, VirtualClock, make_clock
+from thermolab.rigs.tclab import TCLabRig, TCLabVersion, find_tclab
+from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_preset
 
 __all__ = [
+    "PRESETS",
+    "RIG_SPECS",
     "BaseRig",
     "Clock",
     "Reading",
@@ -22,6 +32,13 @@ __all__ = [
     "RigStateError",
     "RigTimeoutError",
     "ScaledClock",
+    "TCLabRig",
+    "TCLabVersion",
+    "TwinParams",
+    "TwinRig",
     "VirtualClock",
+    "find_tclab",
     "make_clock",
+    "open_rig",
+    "twin_preset",
 ]

@@ -1,0 +1,501 @@
+"""Driver for a TCLab kit (firmware 2.0.1) over USB serial.
+
+:class:`TCLabRig` drives heater 1 and reads sensor 1 of a TCLab kit as a rig
+(input 0-100 % of heater power, output °C); heater 2 is held off. It speaks the
+firmware 2.0.1 protocol as stated in NOTES.md §6 through pyserial: 115200 baud,
+``CMD value\\r\\n`` commands, one reply line per command ending in ``\\r\\n``.
+
+The firmware has no over-temperature cut-off and no watchdog, so the driver
+provides both:
+
+* a reading of sensor 1 above ``max_temperature`` (or an implausibly low one,
+  the sign of a disconnected sensor) switches both heaters off and latches a
+  fault;
+* a watchdog thread switches the heaters off and latches a fault when the host
+  has neither applied an input nor read the sensor for ``watchdog`` seconds of
+  the rig's clock while a heater is on;
+* the heaters are switched off when the process ends: on normal exit and
+  after an unhandled exception (``atexit``), and on SIGTERM and SIGINT (a
+  handler switches every open kit off at once, then lets the process unwind
+  normally, so ``with`` blocks and ``finally`` clauses still run). SIGKILL
+  cannot be caught: the heater keeps its last setting until the board is
+  reset (opening the port again resets it, and ThermoLab switches the heaters
+  off on every connection), so a lab that runs unattended should run under a
+  supervisor that restarts it.
+
+Every exchange has a timeout; a kit that does not answer raises
+:class:`~thermolab.errors.RigTimeoutError`, one that answers garbage or
+disappears (unplugged) :class:`~thermolab.errors.RigFaultError`, and in each
+case the driver makes a best-effort attempt to switch the heaters off. Nothing
+waits longer than the timeout.
+"""
+
+from __future__ import annotations
+
+import atexit
+import contextlib
+import math
+import re
+import signal
+import threading
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from types import FrameType
+from typing import Any
+
+import serial
+import serial.tools.list_ports
+
+from thermolab.errors import InvalidParameterError, RigError, RigFaultError, RigTimeoutError
+from thermolab.rigs.base import BaseRig, Reading, RigInfo
+from thermolab.rigs.clock import Clock, RealClock
+
+__all__ = ["TCLabRig", "TCLabVersion", "find_tclab"]
+
+_VERSION_RE = re.compile(r"^TCLab Firmware (\d+)\.(\d+)\.(\d+)\s*(.*)$")
+#: Below this a TMP36 reading means a broken or disconnected sensor, not a cold room.
+_MIN_PLAUSIBLE_TEMPERATURE = -20.0
+
+
+@dataclass(frozen=True, slots=True)
+class TCLabVersion:
+    """A kit's answer to ``VER``.
+
+    Attributes
+    ----------
+    major, minor, patch : int
+        Firmware version.
+    board : str
+        Board name (``"Arduino Uno"``, ``"Arduino Leonardo"``...).
+
+    Examples
+    --------
+    >>> TCLabVersion.parse("TCLab Firmware 2.0.1 Arduino Uno")
+    TCLabVersion(major=2, minor=0, patch=1, board='Arduino Uno')
+    >>> TCLabVersion.parse("hello") is None
+    True
+    """
+
+    major: int
+    minor: int
+    patch: int
+    board: str
+
+    @classmethod
+    def parse(cls, reply: str) -> TCLabVersion | None:
+        """Parse a ``VER`` reply; ``None`` if it is not a TCLab's."""
+        match = _VERSION_RE.match(reply.strip())
+        if match is None:
+            return None
+        major, minor, patch, board = match.groups()
+        return cls(int(major), int(minor), int(patch), board)
+
+    @property
+    def text(self) -> str:
+        """``"2.0.1"``."""
+        return f"{self.major}.{self.minor}.{self.patch}"
+
+
+def _open_port(port: str, baudrate: float, timeout: float) -> serial.Serial:
+    try:
+        return serial.Serial(
+            port, int(baudrate), timeout=timeout, write_timeout=timeout, exclusive=True
+        )
+    except (serial.SerialException, OSError, ValueError) as exc:
+        raise RigError(f"cannot open serial port {port!r}: {exc}") from None
+
+
+def _probe(port: str, baudrate: int, timeout: float, reset_wait: float) -> str:
+    """Open ``port``, ask ``VER`` and return the reply line (``""`` if none)."""
+    with _open_port(port, baudrate, timeout) as link:
+        time.sleep(reset_wait)  # a physical board reset, not simulated time
+        link.reset_input_buffer()
+        link.write(b"VER\r\n")
+        return bytes(link.read_until(b"\n")).decode("ascii", errors="replace").strip()
+
+
+def find_tclab(
+    candidates: Sequence[str] | None = None,
+    *,
+    baudrate: int = 115200,
+    timeout: float = 1.0,
+    reset_wait: float = 2.0,
+) -> tuple[str, TCLabVersion]:
+    """Find a TCLab kit by asking every serial port ``VER``.
+
+    Every candidate port is probed (in parallel, so the boards' reset waits
+    overlap), not only ports with a known USB id: clones and other boards
+    carry other ids.
+
+    Parameters
+    ----------
+    candidates : sequence of str, optional
+        Ports to probe, in order of preference; default: every serial port
+        the operating system lists.
+    baudrate : int
+        Baud rate (115200 for firmware 2.x).
+    timeout : float
+        Seconds to wait for each reply.
+    reset_wait : float
+        Seconds to wait after opening a port (a board resets when its port
+        opens, about 2 s).
+
+    Returns
+    -------
+    tuple of (str, TCLabVersion)
+        The first candidate that answered as a TCLab, and its version.
+
+    Raises
+    ------
+    RigError
+        If no port answered as a TCLab (the message says what each port did).
+    """
+    ports = (
+        list(candidates)
+        if candidates is not None
+        else [info.device for info in serial.tools.list_ports.comports()]
+    )
+    if not ports:
+        raise RigError("no TCLab found: there is no serial port on this machine")
+
+    def attempt(port: str) -> str | Exception:
+        try:
+            return _probe(port, baudrate, timeout, reset_wait)
+        except Exception as exc:  # a port that fails only rules itself out
+            return exc
+
+    with ThreadPoolExecutor(max_workers=min(len(ports), 16)) as pool:
+        outcomes = list(pool.map(attempt, ports))
+    reports = []
+    for port, outcome in zip(ports, outcomes, strict=True):
+        if isinstance(outcome, Exception):
+            reports.append(f"{port} ({outcome})")
+            continue
+        version = TCLabVersion.parse(outcome)
+        if version is not None:
+            return port, version
+        reports.append(f"{port} (" + (f"answered {outcome!r}" if outcome else "no answer") + ")")
+    raise RigError("no TCLab found; probed " + "; ".join(reports))
+
+
+class TCLabRig(BaseRig):
+    """A TCLab kit as a rig: heater 1 (0-100 %) in, sensor 1 (°C) out.
+
+    Parameters
+    ----------
+    port : str, optional
+        Serial port (``/dev/ttyACM0``, ``COM3``); ``None``: auto-detect with
+        :func:`find_tclab`.
+    clock : Clock, optional
+        Clock that timestamps readings and runs the watchdog (default
+        :class:`~thermolab.rigs.clock.RealClock`).
+    timeout : float
+        Seconds to wait for each reply (default 1.0).
+    reset_wait : float
+        Seconds to wait after opening the port for the board's reset (2.0).
+    max_temperature : float
+        Over-temperature cut-off of sensor 1 in °C (default 90).
+    watchdog : float or None
+        Seconds (of ``clock``) of host silence after which a heater that is
+        on is switched off and a fault latched (default 10); ``None``: off.
+    baudrate : int
+        115200 for firmware 2.x.
+    candidates : sequence of str, optional
+        Ports to probe when ``port`` is ``None`` (default: all).
+    min_firmware : tuple of int
+        Oldest accepted firmware version (default ``(2, 0, 0)``); version 3
+        and later are refused too (an unknown protocol).
+
+    Raises
+    ------
+    RigError
+        If the port cannot be opened, no kit is found, or the firmware is not
+        supported.
+    RigTimeoutError
+        If the kit does not answer.
+    InvalidParameterError
+        For a non-positive timeout or watchdog.
+
+    Notes
+    -----
+    A reading's time is the clock's time halfway between sending ``T1`` and
+    receiving the reply. ``apply`` returns the heater value the firmware
+    echoes (clipped, three decimals).
+    """
+
+    def __init__(
+        self,
+        port: str | None = None,
+        *,
+        clock: Clock | None = None,
+        timeout: float = 1.0,
+        reset_wait: float = 2.0,
+        max_temperature: float = 90.0,
+        watchdog: float | None = 10.0,
+        baudrate: int = 115200,
+        candidates: Sequence[str] | None = None,
+        min_firmware: tuple[int, int, int] = (2, 0, 0),
+    ) -> None:
+        if not (math.isfinite(timeout) and timeout > 0):
+            raise InvalidParameterError(f"timeout must be a positive number, got {timeout!r}")
+        if not (math.isfinite(reset_wait) and reset_wait >= 0):
+            raise InvalidParameterError(f"reset_wait must be a number >= 0, got {reset_wait!r}")
+        if watchdog is not None and not (math.isfinite(watchdog) and watchdog > 0):
+            raise InvalidParameterError(
+                f"watchdog must be a positive number of seconds or None, got {watchdog!r}"
+            )
+        if not math.isfinite(max_temperature):
+            raise InvalidParameterError(
+                f"max_temperature must be a finite number, got {max_temperature!r}"
+            )
+        clock = clock if clock is not None else RealClock()
+        if port is None:
+            port, _ = find_tclab(
+                candidates, baudrate=baudrate, timeout=timeout, reset_wait=reset_wait
+            )
+        self.port = port
+        self._timeout = timeout
+        self._link: serial.Serial | None = None
+        self._heater = 0.0
+        self._last_host = clock.now()
+        self._watchdog_period = watchdog
+        self._watchdog_stop = threading.Event()
+        self._watchdog_thread: threading.Thread | None = None
+        super().__init__(
+            RigInfo(
+                name=f"TCLab on {port}",
+                kind="tclab",
+                input_min=0.0,
+                input_max=100.0,
+                input_unit="%",
+                output_unit="degC",
+                safe_input=0.0,
+                output_limit=float(max_temperature),
+                description="A TCLab kit: heater 1 (0-100 %) and sensor 1 (°C).",
+            ),
+            clock,
+        )
+        self._link = _open_port(port, baudrate, timeout)
+        try:
+            time.sleep(reset_wait)  # a physical board reset, not simulated time
+            reply = self._exchange("VER")
+            version = TCLabVersion.parse(reply)
+            if version is None:
+                raise RigError(f"{port} is not a TCLab: it answered {reply!r} to VER")
+            if not (min_firmware <= (version.major, version.minor, version.patch)) or (
+                version.major >= 3
+            ):
+                raise RigError(
+                    f"TCLab firmware {version.text} on {port} is not supported; "
+                    f"this driver needs 2.x (at least {'.'.join(map(str, min_firmware))}): "
+                    "flash TCLab firmware 2.0.1"
+                )
+            self.version = version
+            self._switch_off()
+        except BaseException:
+            self._close_link()
+            raise
+        if watchdog is not None:
+            self._watchdog_thread = threading.Thread(
+                target=self._watch, name=f"tclab-watchdog {port}", daemon=True
+            )
+            self._watchdog_thread.start()
+        _register(self)
+
+    # -- serial exchange ---------------------------------------------------------
+
+    def _exchange(self, command: str) -> str:
+        """Send one command and return its reply line, within the timeout."""
+        with self._lock:
+            link = self._link
+            if link is None:
+                raise RigFaultError(f"TCLab on {self.port}: the port is closed")
+            try:
+                link.reset_input_buffer()  # drop stale replies (after a timeout, say)
+                link.write(f"{command}\r\n".encode("ascii"))
+                raw = bytes(link.read_until(b"\r\n"))
+            except serial.SerialTimeoutException:
+                raise RigTimeoutError(
+                    f"TCLab on {self.port}: could not send {command!r} within "
+                    f"{self._timeout:g} s; heaters switched off"
+                ) from None
+            except (serial.SerialException, OSError) as exc:
+                raise RigFaultError(
+                    f"TCLab on {self.port} is gone (unplugged?) during {command!r}: {exc}"
+                ) from None
+            if not raw.endswith(b"\r\n"):
+                if raw:
+                    raise RigFaultError(
+                        f"TCLab on {self.port} answered an incomplete line {raw!r} to "
+                        f"{command!r}; heaters switched off"
+                    )
+                raise RigTimeoutError(
+                    f"TCLab on {self.port} did not answer {command!r} within "
+                    f"{self._timeout:g} s; heaters switched off"
+                )
+            try:
+                return raw.decode("ascii").strip()
+            except UnicodeDecodeError:
+                raise RigFaultError(
+                    f"TCLab on {self.port} answered garbage {raw!r} to {command!r}; "
+                    "heaters switched off"
+                ) from None
+
+    def _number(self, command: str) -> float:
+        reply = self._exchange(command)
+        try:
+            value = float(reply)
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value):
+            raise RigFaultError(
+                f"TCLab on {self.port} answered {reply!r} to {command!r}, not a number; "
+                "heaters switched off"
+            )
+        return value
+
+    def _switch_off(self) -> None:
+        reply = self._exchange("X")
+        if reply.upper() != "STOP":
+            raise RigFaultError(
+                f"TCLab on {self.port} answered {reply!r} to X instead of 'Stop'; "
+                "heaters may still be on"
+            )
+        self._heater = 0.0
+
+    # -- hooks ----------------------------------------------------------------------
+
+    def _apply_input(self, u: float) -> float:
+        self._last_host = self.clock.now()
+        echo = self._number(f"Q1 {u:.3f}")
+        if abs(echo - u) > 0.0015:
+            raise RigFaultError(
+                f"TCLab on {self.port} echoed {echo!r} for heater 1 set to {u:.3f}; "
+                "heaters switched off"
+            )
+        self._heater = echo
+        return echo
+
+    def _read_output(self) -> Reading:
+        before = self.clock.now()
+        self._last_host = before
+        value = self._number("T1")
+        t = 0.5 * (before + self.clock.now())
+        if value < _MIN_PLAUSIBLE_TEMPERATURE:
+            raise RigFaultError(
+                f"TCLab on {self.port}: sensor 1 reads {value:.3f} °C, below "
+                f"{_MIN_PLAUSIBLE_TEMPERATURE:g} °C: disconnected or broken sensor; "
+                "heaters switched off"
+            )
+        return Reading(value, t)
+
+    def _make_safe(self) -> None:
+        if self._link is None:
+            return
+        try:
+            self._switch_off()
+        except Exception:
+            # The kit did not confirm; still try the explicit heater commands.
+            self._emergency_off()
+
+    def _release(self) -> None:
+        self._watchdog_stop.set()
+        thread = self._watchdog_thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout=2.0)
+        self._close_link()
+        _unregister(self)
+
+    def _close_link(self) -> None:
+        link, self._link = self._link, None
+        if link is not None:
+            with contextlib.suppress(Exception):
+                link.close()
+
+    def _emergency_off(self) -> None:
+        """Write heater-off commands without waiting for replies (signal-handler safe)."""
+        link = self._link
+        if link is None:
+            return
+        with contextlib.suppress(Exception):
+            link.write(b"Q1 0\r\nQ2 0\r\nX\r\n")
+            link.flush()
+
+    # -- watchdog ---------------------------------------------------------------------
+
+    @property
+    def heater(self) -> float:
+        """Heater 1 setting as last confirmed by the kit, percent."""
+        return self._heater
+
+    def _watch(self) -> None:
+        assert self._watchdog_period is not None
+        period = self._watchdog_period
+        # Poll often in real time: with a fast virtual clock, seconds pass quickly.
+        while not self._watchdog_stop.wait(0.02):
+            silent_for = self.clock.now() - self._last_host
+            if self.powered and self._heater > 0.0 and silent_for > period:
+                with self._lock:
+                    if self.powered and self.clock.now() - self._last_host > period:
+                        self._latch(
+                            f"TCLab on {self.port}: watchdog: no command from the host for "
+                            f"{silent_for:.1f} s (limit {period:g} s); heaters switched off"
+                        )
+
+    def _check_fault_cleared(self) -> None:
+        reading = self._read_output()
+        self._check_limit(reading)
+
+
+# -- heaters off when the process ends ---------------------------------------------
+
+# Strong references: a kit that was never closed must still be switched off at exit.
+_open_rigs: set[TCLabRig] = set()
+_registry_lock = threading.Lock()
+_exit_hooks_installed = False
+_SignalHandler = Callable[[int, FrameType | None], Any] | int | None
+
+
+def _register(rig: TCLabRig) -> None:
+    global _exit_hooks_installed
+    with _registry_lock:
+        _open_rigs.add(rig)
+        if _exit_hooks_installed:
+            return
+        _exit_hooks_installed = True
+    atexit.register(_close_all)
+    if threading.current_thread() is threading.main_thread():
+        for signum in (signal.SIGTERM, signal.SIGINT):
+            previous: _SignalHandler = signal.getsignal(signum)
+            signal.signal(signum, _make_signal_handler(previous))
+
+
+def _unregister(rig: TCLabRig) -> None:
+    with _registry_lock:
+        _open_rigs.discard(rig)
+
+
+def _close_all() -> None:
+    with _registry_lock:
+        rigs = list(_open_rigs)
+    for rig in rigs:
+        rig.close()
+
+
+def _make_signal_handler(previous: _SignalHandler) -> Callable[[int, FrameType | None], None]:
+    def handler(signum: int, frame: FrameType | None) -> None:
+        # Heaters off first, without waiting for locks or replies; then unwind as before.
+        for rig in list(_open_rigs):
+            rig._emergency_off()
+        if callable(previous):
+            previous(signum, frame)
+        elif previous == signal.SIG_IGN:
+            return
+        elif signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        else:
+            raise SystemExit(128 + signum)
+
+    return handler
