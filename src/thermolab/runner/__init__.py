@@ -1,1 +1,59 @@
-"""The experiment runner: samples a rig, applies inputs, feeds identifiers."""
+"""The experiment runner: samples a rig, applies inputs, feeds identifiers.
+
+See :class:`Experiment` (one run), :mod:`thermolab.runner.events` (what a run
+publishes and how subscribers receive it without delaying sampling),
+:mod:`thermolab.runner.interlocks` (output limits, input range, watchdog),
+:mod:`thermolab.runner.recorder` (incremental CSV records) and
+:mod:`thermolab.runner.state` (the run's state machine).
+"""
+
+from thermolab.runner.events import (
+    AsyncSubscription,
+    EstimateEvent,
+    Event,
+    EventBus,
+    FaultEvent,
+    Policy,
+    SampleEvent,
+    StateEvent,
+    Subscription,
+)
+from thermolab.runner.experiment import (
+    Experiment,
+    InputSignal,
+    MethodResult,
+    OnlineIdentifier,
+    RunResult,
+)
+from thermolab.runner.interlocks import Interlocks, Watchdog
+from thermolab.runner.recorder import CSV_COLUMNS, CsvRecorder, Recorder
+from thermolab.runner.state import EndReason, RunState, RunStateMachine
+from thermolab.runner.termination import Terminated, interrupt_signal, termination_signals
+
+__all__ = [
+    "CSV_COLUMNS",
+    "AsyncSubscription",
+    "CsvRecorder",
+    "EndReason",
+    "EstimateEvent",
+    "Event",
+    "EventBus",
+    "Experiment",
+    "FaultEvent",
+    "InputSignal",
+    "Interlocks",
+    "MethodResult",
+    "OnlineIdentifier",
+    "Policy",
+    "Recorder",
+    "RunResult",
+    "RunState",
+    "RunStateMachine",
+    "SampleEvent",
+    "StateEvent",
+    "Subscription",
+    "Terminated",
+    "Watchdog",
+    "interrupt_signal",
+    "termination_signals",
+]

@@ -1,0 +1,765 @@
+"""Events of a run and the bus that delivers them without ever delaying sampling.
+
+A run publishes four kinds of event, in the order they happen:
+:class:`StateEvent` (a lifecycle transition), :class:`SampleEvent` (one sample
+taken), :class:`EstimateEvent` (an identifier produced an estimate) and
+:class:`FaultEvent` (something went wrong). Every event carries ``seq``, a
+number that grows by one per event of the run, so a consumer can see a gap.
+
+Delivery
+--------
+Each subscriber has its own bounded queue. :meth:`EventBus.publish` only
+appends to those queues (a lock and a deque append per subscriber): it never
+waits for a consumer, so a slow or blocked subscriber cannot delay the
+sampling loop. When a subscriber's queue is full, its policy decides:
+
+``"cut"`` (default)
+    The subscriber has fallen too far behind: it is disconnected and marked
+    (``cut`` is true, ``cut_reason`` says why). It still receives the events
+    already queued, then :class:`~thermolab.errors.SubscriberCutError`. A
+    server answers by resynchronising the client from a snapshot.
+``"drop_oldest"``
+    The oldest queued event is discarded to make room and ``dropped`` counts
+    it (the ``seq`` gap shows where). For consumers that only want the latest
+    state, such as a progress bar.
+
+Three ways to consume:
+
+* :meth:`EventBus.subscribe`: a thread-safe pull queue (``get``, iteration).
+* :meth:`EventBus.subscribe_callback`: a function called on a thread of its
+  own, in event order.
+* :meth:`EventBus.subscribe_async`: an async iterator for an asyncio event
+  loop while the run executes in a worker thread (hardware I/O blocks). The
+  publisher wakes the loop with ``loop.call_soon_threadsafe`` only when the
+  consumer is waiting, so a burst of events costs one wake-up.
+
+When the run is over the bus is closed: consumers receive what is queued and
+then the end of the stream.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import threading
+from collections import deque
+from collections.abc import AsyncIterator, Callable, Iterator
+from dataclasses import dataclass
+from typing import Any, ClassVar, Literal, Protocol, runtime_checkable
+
+from thermolab.errors import InvalidParameterError, SubscriberCutError
+from thermolab.runner.state import RunState
+
+__all__ = [
+    "AsyncSubscription",
+    "EstimateEvent",
+    "Event",
+    "EventBus",
+    "FaultEvent",
+    "Policy",
+    "SampleEvent",
+    "StateEvent",
+    "Subscription",
+    "SupportsToDict",
+]
+
+Policy = Literal["cut", "drop_oldest"]
+"""What happens when a subscriber's queue is full (see the module notes)."""
+
+_POLICIES: tuple[Policy, ...] = ("cut", "drop_oldest")
+
+
+@runtime_checkable
+class SupportsToDict(Protocol):
+    """Anything with a JSON-ready ``to_dict()`` (an identifier's estimate)."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return a JSON-ready dictionary."""
+        ...
+
+
+@dataclass(frozen=True, slots=True)
+class SampleEvent:
+    """One sample taken.
+
+    Attributes
+    ----------
+    seq : int
+        Event number within the run.
+    k : int
+        Sample index (0 for the first sample).
+    t : float
+        Scheduled time of the sample, ``k * dt`` seconds after START.
+    t_read : float
+        When the rig took the reading, seconds after START.
+    u : float
+        Input applied from this sample until the next one.
+    y : float
+        Output read at this sample.
+    jitter : float
+        ``t_read - t`` (seconds; the acquisition's timing error).
+    lateness : float
+        How long after its deadline the loop woke for this sample (>= 0).
+    """
+
+    kind: ClassVar[str] = "sample"
+    seq: int
+    k: int
+    t: float
+    t_read: float
+    u: float
+    y: float
+    jitter: float
+    lateness: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return a JSON-ready dictionary with ``kind`` first.
+
+        Examples
+        --------
+        >>> SampleEvent(3, 0, 0.0, 0.001, 5.0, 0.25, 0.001, 0.0).to_dict()["kind"]
+        'sample'
+        """
+        return {
+            "kind": self.kind,
+            "seq": self.seq,
+            "k": self.k,
+            "t": self.t,
+            "t_read": self.t_read,
+            "u": self.u,
+            "y": self.y,
+            "jitter": self.jitter,
+            "lateness": self.lateness,
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class EstimateEvent:
+    """An identifier produced an estimate.
+
+    Attributes
+    ----------
+    seq : int
+        Event number within the run.
+    k : int
+        Index of the sample whose update produced it (the last sample at END).
+    method : str
+        The name the identifier was given in the run (``"wlsm"``...).
+    estimate : SupportsToDict
+        The identifier's estimate object.
+    final : bool
+        ``True`` for the estimate computed at END (``finish()``).
+    """
+
+    kind: ClassVar[str] = "estimate"
+    seq: int
+    k: int
+    method: str
+    estimate: SupportsToDict
+    final: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return a JSON-ready dictionary with ``kind`` first."""
+        return {
+            "kind": self.kind,
+            "seq": self.seq,
+            "k": self.k,
+            "method": self.method,
+            "final": self.final,
+            "estimate": self.estimate.to_dict(),
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class StateEvent:
+    """The run changed state.
+
+    Attributes
+    ----------
+    seq : int
+        Event number within the run.
+    state : RunState
+        The new state.
+    previous : RunState
+        The state left.
+    reason : str or None
+        For terminal states, the end reason's value (``"completed"``,
+        ``"rig_fault"``...); otherwise ``None``.
+    message : str
+        One human-readable line (empty when there is nothing to say).
+    """
+
+    kind: ClassVar[str] = "state"
+    seq: int
+    state: RunState
+    previous: RunState
+    reason: str | None = None
+    message: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return a JSON-ready dictionary with ``kind`` first.
+
+        Examples
+        --------
+        >>> StateEvent(0, RunState.RUNNING, RunState.IDLE).to_dict()
+        {'kind': 'state', 'seq': 0, 'state': 'running', 'previous': 'idle',
+         'reason': None, 'message': ''}
+        """
+        return {
+            "kind": self.kind,
+            "seq": self.seq,
+            "state": self.state.value,
+            "previous": self.previous.value,
+            "reason": self.reason,
+            "message": self.message,
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class FaultEvent:
+    """Something went wrong.
+
+    Attributes
+    ----------
+    seq : int
+        Event number within the run.
+    k : int
+        Index of the sample being taken (or about to be) when it happened.
+    source : str
+        ``"rig"``, ``"interlock"``, ``"watchdog"``, ``"identifier"``,
+        ``"recorder"`` or ``"subscriber"``.
+    message : str
+        One line saying what happened.
+    fatal : bool
+        ``True`` if the run stops because of it; ``False`` when only one part
+        stopped (an identifier that could not estimate; the others go on).
+    """
+
+    kind: ClassVar[str] = "fault"
+    seq: int
+    k: int
+    source: str
+    message: str
+    fatal: bool = True
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return a JSON-ready dictionary with ``kind`` first."""
+        return {
+            "kind": self.kind,
+            "seq": self.seq,
+            "k": self.k,
+            "source": self.source,
+            "message": self.message,
+            "fatal": self.fatal,
+        }
+
+
+Event = SampleEvent | EstimateEvent | StateEvent | FaultEvent
+"""Any event a run publishes."""
+
+
+class _Queue:
+    """A bounded queue filled by the publisher and drained by one consumer.
+
+    The lock is held only for a deque operation, never while a consumer runs.
+    Subclasses decide how a waiting consumer is woken (:meth:`_wake`).
+    """
+
+    def __init__(self, bus: EventBus, name: str, maxsize: int, policy: Policy) -> None:
+        if isinstance(maxsize, bool) or not isinstance(maxsize, int) or maxsize < 1:
+            raise InvalidParameterError(
+                f"a subscriber's queue size must be an integer >= 1, got {maxsize!r}"
+            )
+        if policy not in _POLICIES:
+            raise InvalidParameterError(
+                f"unknown subscriber policy {policy!r}; allowed: {', '.join(_POLICIES)}"
+            )
+        self.name = name
+        self.maxsize = maxsize
+        self.policy: Policy = policy
+        self._bus = bus
+        self._items: deque[Event] = deque()
+        self._lock = threading.Lock()
+        self._closed = False
+        self._cut_reason: str | None = None
+        self._dropped = 0
+        self._delivered = 0
+
+    # -- state visible to the consumer and to the run ----------------------------
+
+    @property
+    def cut(self) -> bool:
+        """``True`` if the subscriber fell too far behind and was disconnected."""
+        return self._cut_reason is not None
+
+    @property
+    def cut_reason(self) -> str | None:
+        """Why the subscriber was cut, or ``None``."""
+        return self._cut_reason
+
+    @property
+    def dropped(self) -> int:
+        """Events discarded under the ``"drop_oldest"`` policy."""
+        return self._dropped
+
+    @property
+    def closed(self) -> bool:
+        """``True`` once no more events will be queued (end of run, cut or unsubscribed)."""
+        return self._closed
+
+    @property
+    def pending(self) -> int:
+        """Events queued and not yet consumed."""
+        return len(self._items)
+
+    def close(self) -> None:
+        """Unsubscribe: no more events are queued; what is queued can still be read."""
+        self._bus._remove(self)
+        self._finish(None)
+
+    # -- publisher side ------------------------------------------------------------
+
+    def _put(self, event: Event) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            items = self._items
+            if len(items) >= self.maxsize:
+                if self.policy == "cut":
+                    self._closed = True
+                    self._cut_reason = (
+                        f"subscriber {self.name!r} fell {len(items)} events behind "
+                        f"(its queue holds {self.maxsize}) and was disconnected"
+                    )
+                    self._wake()
+                    cut = True
+                else:
+                    items.popleft()
+                    self._dropped += 1
+                    items.append(event)
+                    cut = False
+            else:
+                items.append(event)
+                self._wake()
+                return
+        if cut:
+            self._bus._remove(self)
+
+    def _finish(self, cut_reason: str | None) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            if cut_reason is not None:
+                self._cut_reason = cut_reason
+            self._wake()
+
+    def _wake(self) -> None:
+        """Wake a waiting consumer; called with the lock held."""
+        raise NotImplementedError
+
+    def _take(self) -> Event | None:
+        """Pop the next event (lock held); ``None`` if there is none yet.
+
+        Raises
+        ------
+        SubscriberCutError
+            If the queue is empty and the subscriber was cut.
+        """
+        if self._items:
+            self._delivered += 1
+            return self._items.popleft()
+        if self._cut_reason is not None:
+            raise SubscriberCutError(self._cut_reason)
+        return None
+
+    def __repr__(self) -> str:
+        status = "cut" if self.cut else "closed" if self._closed else "open"
+        return f"<{type(self).__name__} {self.name!r} {status} pending={len(self._items)}>"
+
+
+class Subscription(_Queue):
+    """A subscriber's bounded queue, consumed from any thread.
+
+    Created by :meth:`EventBus.subscribe` (or :meth:`EventBus.subscribe_callback`,
+    which consumes it on a thread of its own).
+
+    Examples
+    --------
+    >>> bus = EventBus()
+    >>> sub = bus.subscribe(maxsize=8)
+    >>> bus.publish(StateEvent(bus.next_seq(), RunState.RUNNING, RunState.IDLE))
+    >>> bus.close()
+    >>> [event.kind for event in sub]
+    ['state']
+    """
+
+    def __init__(self, bus: EventBus, name: str, maxsize: int, policy: Policy) -> None:
+        super().__init__(bus, name, maxsize, policy)
+        self._ready = threading.Condition(self._lock)
+
+    def _wake(self) -> None:
+        self._ready.notify()
+
+    def get(self, timeout: float | None = None) -> Event | None:
+        """Return the next event, waiting for it if needed.
+
+        Parameters
+        ----------
+        timeout : float or None
+            Seconds to wait at most (``None``: until an event or the end).
+
+        Returns
+        -------
+        Event or None
+            The next event; ``None`` if the timeout passed or the stream has
+            ended (``closed`` tells which).
+
+        Raises
+        ------
+        SubscriberCutError
+            Once the queued events are consumed, if the subscriber was cut.
+        """
+        with self._ready:
+            event = self._take()
+            if event is not None or self._closed:
+                return event
+            self._ready.wait(timeout)
+            return self._take()
+
+    def drain(self) -> list[Event]:
+        """Return every queued event without waiting (possibly none).
+
+        Raises
+        ------
+        SubscriberCutError
+            If nothing is queued and the subscriber was cut.
+        """
+        with self._lock:
+            events = list(self._items)
+            self._items.clear()
+            self._delivered += len(events)
+            if not events and self._cut_reason is not None:
+                raise SubscriberCutError(self._cut_reason)
+            return events
+
+    def __iter__(self) -> Iterator[Event]:
+        """Yield events until the stream ends (raises if the subscriber is cut)."""
+        while True:
+            with self._ready:
+                while True:
+                    event = self._take()
+                    if event is not None:
+                        break
+                    if self._closed:
+                        return
+                    self._ready.wait()
+            yield event
+
+
+class AsyncSubscription(_Queue):
+    """A subscriber's bounded queue consumed by an asyncio event loop.
+
+    The run publishes from its own thread; the consumer awaits in the loop.
+    Created by :meth:`EventBus.subscribe_async`.
+
+    Examples
+    --------
+    >>> async def watch(bus):
+    ...     sub = bus.subscribe_async()
+    ...     bus.publish(StateEvent(bus.next_seq(), RunState.RUNNING, RunState.IDLE))
+    ...     bus.close()
+    ...     return [event.kind async for event in sub]
+    >>> asyncio.run(watch(EventBus()))
+    ['state']
+    """
+
+    def __init__(
+        self,
+        bus: EventBus,
+        name: str,
+        maxsize: int,
+        policy: Policy,
+        loop: asyncio.AbstractEventLoop,
+    ) -> None:
+        super().__init__(bus, name, maxsize, policy)
+        self._loop = loop
+        self._waiter: asyncio.Future[None] | None = None
+        self._wake_scheduled = False
+
+    def _wake(self) -> None:
+        # Only the transition "consumer waiting -> event available" costs a
+        # cross-thread call; events that arrive while the consumer is busy are
+        # simply queued.
+        if self._waiter is None or self._wake_scheduled:
+            return
+        self._wake_scheduled = True
+        try:
+            self._loop.call_soon_threadsafe(self._resolve)
+        except RuntimeError:
+            # The loop is closed: its consumer is gone for good.
+            self._closed = True
+            self._cut_reason = f"subscriber {self.name!r}: its event loop is closed"
+
+    def _resolve(self) -> None:
+        waiter = self._waiter
+        if waiter is not None and not waiter.done():
+            waiter.set_result(None)
+
+    async def get(self) -> Event | None:
+        """Return the next event, awaiting it if needed; ``None`` at the end of the stream.
+
+        Raises
+        ------
+        SubscriberCutError
+            Once the queued events are consumed, if the subscriber was cut.
+        """
+        while True:
+            with self._lock:
+                event = self._take()
+                if event is not None or self._closed:
+                    return event
+                waiter = self._loop.create_future()
+                self._waiter = waiter
+                self._wake_scheduled = False
+            try:
+                await waiter
+            finally:
+                with self._lock:
+                    self._waiter = None
+
+    def __aiter__(self) -> AsyncIterator[Event]:
+        return self._iterate()
+
+    async def _iterate(self) -> AsyncIterator[Event]:
+        while True:
+            event = await self.get()
+            if event is None:
+                return
+            yield event
+
+
+class _CallbackRunner:
+    """Consumes a :class:`Subscription` on a daemon thread, calling a function per event."""
+
+    def __init__(
+        self,
+        bus: EventBus,
+        subscription: Subscription,
+        callback: Callable[[Event], object],
+        fatal_errors: bool,
+    ) -> None:
+        self._bus = bus
+        self._subscription = subscription
+        self._callback = callback
+        self._fatal_errors = fatal_errors
+        self.thread = threading.Thread(
+            target=self._run, name=f"thermolab-subscriber-{subscription.name}", daemon=True
+        )
+
+    def _run(self) -> None:
+        sub = self._subscription
+        try:
+            for event in sub:
+                self._callback(event)
+        except SubscriberCutError:
+            return
+        except Exception as exc:
+            message = f"subscriber {sub.name!r} raised {type(exc).__name__}: {exc}"
+            sub.close()
+            if self._fatal_errors:
+                self._bus._fail(message, exc)
+
+
+class EventBus:
+    """Fan-out of a run's events to any number of bounded subscriber queues.
+
+    Publishing is safe from any thread and never blocks on a consumer.
+
+    Examples
+    --------
+    >>> bus = EventBus()
+    >>> fast = bus.subscribe(maxsize=100, name="fast")
+    >>> slow = bus.subscribe(maxsize=2, name="slow")
+    >>> for _ in range(3):
+    ...     bus.publish(StateEvent(bus.next_seq(), RunState.RUNNING, RunState.IDLE))
+    >>> fast.pending, slow.cut
+    (3, True)
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        # Copy-on-write tuple: publish() iterates it without taking the lock.
+        self._queues: tuple[_Queue, ...] = ()
+        self._counter = itertools.count()
+        self._names = itertools.count(1)
+        self._closed = False
+        self._failure: tuple[str, BaseException] | None = None
+
+    @property
+    def active(self) -> bool:
+        """``True`` if any subscriber is connected (publishers may skip building events)."""
+        return bool(self._queues)
+
+    @property
+    def subscribers(self) -> tuple[Subscription | AsyncSubscription, ...]:
+        """The connected subscriptions."""
+        return tuple(q for q in self._queues if isinstance(q, Subscription | AsyncSubscription))
+
+    @property
+    def closed(self) -> bool:
+        """``True`` after :meth:`close`."""
+        return self._closed
+
+    @property
+    def failure(self) -> tuple[str, BaseException] | None:
+        """``(message, exception)`` of a callback subscriber whose error is fatal, or ``None``."""
+        return self._failure
+
+    def next_seq(self) -> int:
+        """Return the next event number (thread-safe, starts at 0)."""
+        return next(self._counter)
+
+    def subscribe(
+        self, *, maxsize: int = 1024, policy: Policy = "cut", name: str | None = None
+    ) -> Subscription:
+        """Add a pull subscriber.
+
+        Parameters
+        ----------
+        maxsize : int, optional
+            Events the queue holds before the policy applies (default 1024).
+        policy : {"cut", "drop_oldest"}, optional
+            What to do when the queue is full (default ``"cut"``).
+        name : str, optional
+            For messages (default ``"subscriber-N"``).
+
+        Returns
+        -------
+        Subscription
+            Already closed if the bus is closed.
+
+        Raises
+        ------
+        InvalidParameterError
+            If ``maxsize`` or ``policy`` is invalid.
+        """
+        sub = Subscription(self, self._name(name), maxsize, policy)
+        self._add(sub)
+        return sub
+
+    def subscribe_callback(
+        self,
+        callback: Callable[[Event], object],
+        *,
+        maxsize: int = 1024,
+        policy: Policy = "cut",
+        name: str | None = None,
+        fatal_errors: bool = True,
+    ) -> Subscription:
+        """Call ``callback(event)`` for every event, on a daemon thread of its own.
+
+        Parameters
+        ----------
+        callback : callable
+            Called once per event, in order. It may block: only its own queue
+            fills up.
+        maxsize, policy, name
+            As for :meth:`subscribe`.
+        fatal_errors : bool, optional
+            If ``True`` (default) an exception from ``callback`` is recorded in
+            :attr:`failure`, and a run publishing on this bus stops (FAULTED,
+            actuator safe). If ``False`` the subscriber is only disconnected.
+
+        Returns
+        -------
+        Subscription
+            The queue the thread consumes (for ``cut``, ``dropped``, ``close()``).
+        """
+        sub = Subscription(self, self._name(name), maxsize, policy)
+        runner = _CallbackRunner(self, sub, callback, fatal_errors)
+        self._add(sub)
+        runner.thread.start()
+        return sub
+
+    def subscribe_async(
+        self,
+        *,
+        loop: asyncio.AbstractEventLoop | None = None,
+        maxsize: int = 1024,
+        policy: Policy = "cut",
+        name: str | None = None,
+    ) -> AsyncSubscription:
+        """Add a subscriber consumed by an asyncio event loop.
+
+        Parameters
+        ----------
+        loop : asyncio.AbstractEventLoop, optional
+            The consumer's loop (default: the running loop; required when
+            called outside a coroutine).
+        maxsize, policy, name
+            As for :meth:`subscribe`.
+
+        Returns
+        -------
+        AsyncSubscription
+            An async iterator of events.
+
+        Raises
+        ------
+        InvalidParameterError
+            If no loop is given and none is running.
+        """
+        if loop is None:
+            try:
+                loop = asyncio.get_running_loop()
+            except RuntimeError:
+                raise InvalidParameterError(
+                    "subscribe_async() needs an event loop: call it from a coroutine or pass loop="
+                ) from None
+        sub = AsyncSubscription(self, self._name(name), maxsize, policy, loop)
+        self._add(sub)
+        return sub
+
+    def publish(self, event: Event) -> None:
+        """Queue ``event`` for every subscriber; never waits for a consumer.
+
+        Parameters
+        ----------
+        event : Event
+            The event (numbered with :meth:`next_seq`).
+        """
+        for queue in self._queues:
+            queue._put(event)
+
+    def close(self) -> None:
+        """End the stream: subscribers get what is queued, then the end (idempotent)."""
+        with self._lock:
+            self._closed = True
+            queues, self._queues = self._queues, ()
+        for queue in queues:
+            queue._finish(None)
+
+    # -- internals -------------------------------------------------------------
+
+    def _name(self, name: str | None) -> str:
+        return name if name is not None else f"subscriber-{next(self._names)}"
+
+    def _add(self, queue: _Queue) -> None:
+        with self._lock:
+            if not self._closed:
+                self._queues = (*self._queues, queue)
+                return
+        queue._finish(None)
+
+    def _remove(self, queue: _Queue) -> None:
+        with self._lock:
+            self._queues = tuple(q for q in self._queues if q is not queue)
+
+    def _fail(self, message: str, exc: BaseException) -> None:
+        with self._lock:
+            if self._failure is None:
+                self._failure = (message, exc)
+
+    def __repr__(self) -> str:
+        return f"<EventBus subscribers={len(self._queues)} closed={self._closed}>"

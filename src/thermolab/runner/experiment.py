@@ -1,0 +1,914 @@
+"""One experiment run: sample a rig on a drift-free schedule, drive it, identify it live.
+
+:class:`Experiment` is the paper's application without its panels: START
+(:meth:`Experiment.run` or :meth:`Experiment.start`) begins recording, the
+input comes from a signal or a set point that can change while running,
+every sample feeds any set of online identifiers at once, and END
+(:meth:`Experiment.end`) closes the test early; otherwise it closes after the
+requested number of samples.
+
+The loop, once per sample ``k``:
+
+1. waits until the deadline ``t0 + k·dt`` (computed from the start, never by
+   adding up sleeps, so errors never accumulate); a sample taken late is still
+   taken, with its lateness recorded — nothing is skipped;
+2. reads the output ``y(k)`` and checks it against the interlocks;
+3. computes the input ``u(k)`` (the signal at ``k·dt``, or the set point),
+   checks its range and applies it; it holds until the next sample, as the
+   zero-order hold of eq. 4 assumes;
+4. records the sample (memory and the recorder, flushed), publishes it, and
+   feeds ``(u(k), y(k))`` to every identifier, publishing their estimates.
+
+On every way out — all samples taken, END, a rig fault, an interlock, the
+watchdog, an exception, :meth:`Experiment.abort`, SIGINT/SIGTERM — the rig is
+powered off (actuator at its safe value) before anything else happens.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import threading
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+import numpy.typing as npt
+
+from thermolab.errors import InvalidParameterError, RigError, RunStateError, ThermoLabError
+from thermolab.rigs import Rig, RigInfo, VirtualClock
+from thermolab.runner.events import (
+    EstimateEvent,
+    EventBus,
+    FaultEvent,
+    SampleEvent,
+    StateEvent,
+    SupportsToDict,
+)
+from thermolab.runner.interlocks import Interlocks, Watchdog
+from thermolab.runner.recorder import Recorder
+from thermolab.runner.state import EndReason, RunState, RunStateMachine
+from thermolab.runner.termination import interrupt_signal
+
+__all__ = [
+    "Experiment",
+    "InputSignal",
+    "MethodResult",
+    "OnlineIdentifier",
+    "RunResult",
+]
+
+_FloatArray = npt.NDArray[np.float64]
+
+
+@runtime_checkable
+class InputSignal(Protocol):
+    """An input defined in time: anything with ``value(t) -> float``.
+
+    :class:`thermolab.signals.Signal` (``parse_signal("square:4:6:0.1")``) is one.
+    """
+
+    def value(self, t: float) -> float:
+        """Return the input at ``t`` seconds after START."""
+        ...
+
+
+@runtime_checkable
+class OnlineIdentifier(Protocol):
+    """What the runner needs of an online identifier (see :mod:`thermolab.ident.online`).
+
+    ``update`` is called once per sample, in order; ``finish`` once at END.
+    """
+
+    def update(self, u: float, y: float) -> SupportsToDict | None:
+        """Take one sample; return a new estimate or ``None``."""
+        ...
+
+    def finish(self) -> SupportsToDict | None:
+        """Return the estimate at END (or ``None``)."""
+        ...
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the identifier's configuration and state as a dictionary."""
+        ...
+
+
+_REQUEST_RANK = {EndReason.ENDED: 0, EndReason.ABORTED: 1, EndReason.WATCHDOG: 2}
+
+
+class _TripError(Exception):
+    """Internal: stop the run for an interlock or the watchdog."""
+
+    def __init__(self, reason: EndReason, source: str, message: str) -> None:
+        super().__init__(message)
+        self.reason = reason
+        self.source = source
+        self.message = message
+
+
+@dataclass(frozen=True, eq=False)
+class MethodResult:
+    """What one identifier produced during a run.
+
+    Attributes
+    ----------
+    name : str
+        The identifier's name in the run.
+    k : numpy.ndarray
+        Sample index of each estimate in ``estimates`` (int64).
+    estimates : tuple
+        Every estimate ``update`` returned, in order, then the one ``finish``
+        returned (if any).
+    final : object or None
+        The estimate ``finish`` returned at END (SRM's only result), or
+        ``None`` (the run was aborted or failed, or the method had nothing to add).
+    error : str or None
+        Why the method stopped early (not enough excitation...), or ``None``.
+    """
+
+    name: str
+    k: npt.NDArray[np.int64]
+    estimates: tuple[SupportsToDict, ...]
+    final: SupportsToDict | None
+    error: str | None = None
+
+    @property
+    def latest(self) -> SupportsToDict | None:
+        """The final estimate, else the last one produced, else ``None``."""
+        if self.final is not None:
+            return self.final
+        return self.estimates[-1] if self.estimates else None
+
+    def to_dict(self, *, trajectory: bool = False) -> dict[str, Any]:
+        """Return a JSON-ready dictionary.
+
+        Parameters
+        ----------
+        trajectory : bool, optional
+            Include every estimate (default: only the count and the latest).
+
+        Returns
+        -------
+        dict
+        """
+        latest = self.latest
+        out: dict[str, Any] = {
+            "name": self.name,
+            "estimates": len(self.estimates),
+            "latest": None if latest is None else latest.to_dict(),
+            "final": self.final is not None,
+            "error": self.error,
+        }
+        if trajectory:
+            out["trajectory"] = [
+                {"k": int(k), **e.to_dict()} for k, e in zip(self.k, self.estimates, strict=True)
+            ]
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class RunResult:
+    """Everything a run recorded.
+
+    Attributes
+    ----------
+    rig : RigInfo
+        The rig that was sampled.
+    dt : float
+        Sample period in seconds.
+    samples_requested : int
+        The number of samples asked for.
+    t, u, y : numpy.ndarray
+        Scheduled time ``k·dt``, applied input and read output of each sample taken.
+    t_read : numpy.ndarray
+        When each reading was taken, seconds after START.
+    jitter : numpy.ndarray
+        ``t_read - t``.
+    lateness : numpy.ndarray
+        How long after its deadline the loop woke for each sample (>= 0).
+    busy : numpy.ndarray
+        Wall-clock seconds the loop spent on each sample (rig I/O, checks,
+        recording, events, identifiers): the runner's real-time budget.
+    state : RunState
+        FINISHED, FAULTED or ABORTED.
+    end_reason : EndReason
+        Why the run ended.
+    message : str
+        One line about the end (empty for a normal completion).
+    late : int
+        Samples whose lateness exceeded the tolerance.
+    missed : int
+        Deadlines that passed while a sample was overdue (``sum(lateness // dt)``).
+    late_tolerance : float
+        The lateness (seconds) above which a sample counts as late.
+    methods : dict of str to MethodResult
+        Each identifier's results, by name.
+    signal : int or None
+        The signal that interrupted the run (SIGINT, SIGTERM), else ``None``.
+    error : BaseException or None
+        The exception that ended the run (rig fault, error), else ``None``.
+    """
+
+    rig: RigInfo
+    dt: float
+    samples_requested: int
+    t: _FloatArray
+    u: _FloatArray
+    y: _FloatArray
+    t_read: _FloatArray
+    jitter: _FloatArray
+    lateness: _FloatArray
+    busy: _FloatArray
+    state: RunState
+    end_reason: EndReason
+    message: str
+    late: int
+    missed: int
+    late_tolerance: float
+    methods: dict[str, MethodResult] = field(default_factory=dict)
+    signal: int | None = None
+    error: BaseException | None = None
+
+    @property
+    def samples(self) -> int:
+        """The number of samples taken."""
+        return len(self.t)
+
+    @property
+    def ok(self) -> bool:
+        """``True`` if the run FINISHED (completed or ended by END)."""
+        return self.state is RunState.FINISHED
+
+    def to_dict(self, *, samples: bool = False, trajectories: bool = False) -> dict[str, Any]:
+        """Return a JSON-ready dictionary.
+
+        Parameters
+        ----------
+        samples : bool, optional
+            Include the sample arrays as lists (default ``False``).
+        trajectories : bool, optional
+            Include every estimate of every method (default ``False``).
+
+        Returns
+        -------
+        dict
+        """
+        out: dict[str, Any] = {
+            "rig": self.rig.to_dict(),
+            "dt": self.dt,
+            "samples_requested": self.samples_requested,
+            "samples": self.samples,
+            "state": self.state.value,
+            "end_reason": self.end_reason.value,
+            "message": self.message,
+            "late": self.late,
+            "missed": self.missed,
+            "late_tolerance": self.late_tolerance,
+            "max_lateness": float(self.lateness.max()) if self.samples else 0.0,
+            "signal": self.signal,
+            "methods": {
+                name: m.to_dict(trajectory=trajectories) for name, m in self.methods.items()
+            },
+        }
+        if samples:
+            for key in ("t", "u", "y", "t_read", "jitter", "lateness"):
+                out[key] = getattr(self, key).tolist()
+        return out
+
+
+class Experiment:
+    """One run of an experiment on a rig.
+
+    Parameters
+    ----------
+    rig : Rig
+        The rig to sample; its clock is the run's clock. The caller owns it
+        (opens and closes it); the run powers it on at START and off at the end.
+    dt : float
+        Sample period in seconds (> 0).
+    samples : int
+        Number of samples requested (>= 1); END may stop the run earlier.
+    signal : InputSignal, optional
+        The input as a function of time since START (``signal.value(k·dt)``).
+    set_point : float, optional
+        A constant input instead (manual mode). With neither, the set point
+        is the rig's safe input until :meth:`set_input` changes it.
+    identifiers : mapping of str to OnlineIdentifier, optional
+        Online identifiers fed every sample, by name (``{"srm": ..., "wlsm": ...}``).
+    recorder : Recorder, optional
+        Receives every sample as it is taken (e.g. :class:`CsvRecorder`).
+    interlocks : Interlocks, optional
+        Output limits and watchdog (default :class:`Interlocks()`: 10 s watchdog).
+    late_tolerance : float, optional
+        Lateness in seconds above which a sample counts as late (default ``dt / 10``).
+    events : EventBus, optional
+        The bus to publish on (default: a new one, :attr:`events`).
+
+    Raises
+    ------
+    InvalidParameterError
+        If ``dt``, ``samples``, ``late_tolerance`` or the set point is invalid,
+        or both a signal and a set point are given.
+
+    Examples
+    --------
+    >>> from thermolab.rigs import VirtualClock
+    >>> from thermolab.rigs.twin import TwinRig
+    >>> with TwinRig("paper", clock=VirtualClock()) as rig:
+    ...     result = Experiment(rig, dt=1.0, samples=2000, set_point=10.0).run()
+    >>> result.end_reason, result.samples, round(float(result.y[-1]), 4)
+    (<EndReason.COMPLETED: 'completed'>, 2000, 1.4004)
+    >>> rig.applied_input  # the actuator is back at the safe value
+    0.0
+    """
+
+    def __init__(
+        self,
+        rig: Rig,
+        dt: float,
+        samples: int,
+        *,
+        signal: InputSignal | None = None,
+        set_point: float | None = None,
+        identifiers: Mapping[str, OnlineIdentifier] | None = None,
+        recorder: Recorder | None = None,
+        interlocks: Interlocks | None = None,
+        late_tolerance: float | None = None,
+        events: EventBus | None = None,
+    ) -> None:
+        if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0):
+            raise InvalidParameterError(f"dt must be a positive number of seconds, got {dt!r}")
+        if isinstance(samples, bool) or not isinstance(samples, int | np.integer) or samples < 1:
+            raise InvalidParameterError(f"samples must be an integer >= 1, got {samples!r}")
+        if signal is not None and set_point is not None:
+            raise InvalidParameterError("give either a signal or a set point, not both")
+        if late_tolerance is None:
+            late_tolerance = dt / 10.0
+        if not (math.isfinite(late_tolerance) and late_tolerance >= 0):
+            raise InvalidParameterError(
+                f"late_tolerance must be a number of seconds >= 0, got {late_tolerance!r}"
+            )
+        self._rig = rig
+        self._info = rig.describe()
+        self._clock = rig.clock
+        self._dt = float(dt)
+        self._samples = int(samples)
+        self._late_tolerance = float(late_tolerance)
+        self._interlocks = interlocks if interlocks is not None else Interlocks()
+        self._recorder = recorder
+        self._identifiers = dict(identifiers or {})
+        for name, ident in self._identifiers.items():
+            if not isinstance(ident, OnlineIdentifier):
+                raise InvalidParameterError(
+                    f"identifier {name!r} ({type(ident).__name__}) lacks update/finish/to_dict"
+                )
+        self._signal = signal
+        self._manual: float | None = None
+        if signal is None:
+            self._manual = self._checked_input(
+                self._info.safe_input if set_point is None else set_point
+            )
+        self.events = events if events is not None else EventBus()
+        self._machine = RunStateMachine("run")
+        self._request: tuple[EndReason, str] | None = None
+        self._request_lock = threading.Lock()
+        self._k = 0
+        self._t0 = math.nan
+        self._done = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._result: RunResult | None = None
+        n = self._samples
+        self._t = np.empty(n)
+        self._u = np.empty(n)
+        self._y = np.empty(n)
+        self._t_read = np.empty(n)
+        self._jitter = np.empty(n)
+        self._lateness = np.empty(n)
+        self._busy = np.empty(n)
+        self._late = 0
+        self._missed = 0
+        self._traj_k: dict[str, list[int]] = {name: [] for name in self._identifiers}
+        self._traj: dict[str, list[SupportsToDict]] = {name: [] for name in self._identifiers}
+        self._final: dict[str, SupportsToDict | None] = dict.fromkeys(self._identifiers)
+        self._method_errors: dict[str, str] = {}
+
+    # -- properties ----------------------------------------------------------------
+
+    @property
+    def rig(self) -> Rig:
+        """The rig being sampled."""
+        return self._rig
+
+    @property
+    def dt(self) -> float:
+        """Sample period in seconds."""
+        return self._dt
+
+    @property
+    def samples(self) -> int:
+        """Number of samples requested."""
+        return self._samples
+
+    @property
+    def state(self) -> RunState:
+        """The run's current state."""
+        return self._machine.state
+
+    @property
+    def k(self) -> int:
+        """Number of samples taken so far."""
+        return self._k
+
+    @property
+    def set_point(self) -> float | None:
+        """The manual input, or ``None`` while a signal drives the rig."""
+        return self._manual
+
+    @property
+    def result(self) -> RunResult | None:
+        """The result once the run is over, else ``None``."""
+        return self._result
+
+    # -- control (thread-safe) -----------------------------------------------------------
+
+    def set_input(self, u: float) -> None:
+        """Switch to manual input ``u`` (a set point), from the next sample on.
+
+        Parameters
+        ----------
+        u : float
+            The input, within the rig's input range.
+
+        Raises
+        ------
+        InvalidParameterError
+            If ``u`` is not finite or outside the rig's input range (the input
+            in force is unchanged).
+        RunStateError
+            If the run is already over.
+        """
+        value = self._checked_input(u)
+        self._refuse_when_over("change the input")
+        self._manual = value
+
+    def set_signal(self, signal: InputSignal) -> None:
+        """Let ``signal`` drive the input from the next sample on (time since START).
+
+        Parameters
+        ----------
+        signal : InputSignal
+            Anything with ``value(t) -> float``.
+
+        Raises
+        ------
+        InvalidParameterError
+            If ``signal`` has no ``value`` method.
+        RunStateError
+            If the run is already over.
+        """
+        if not isinstance(signal, InputSignal):
+            raise InvalidParameterError(
+                f"a signal needs a value(t) method, got {type(signal).__name__}"
+            )
+        self._refuse_when_over("change the input")
+        self._signal = signal
+        self._manual = None
+
+    def end(self) -> None:
+        """END: stop sampling after the current sample and compute the final estimates.
+
+        No effect once the run is ending or over.
+
+        Raises
+        ------
+        RunStateError
+            If the run has not started (there is nothing to end).
+        """
+        if self._machine.state is RunState.IDLE:
+            raise RunStateError("cannot END a run that has not started; START it first")
+        self._post_request(EndReason.ENDED, "ended by request")
+
+    def abort(self, message: str = "aborted by request") -> None:
+        """Stop at once: actuator safe, no final estimates, state ABORTED.
+
+        A run not yet started is aborted without touching the rig. No effect
+        once the run is over.
+
+        Parameters
+        ----------
+        message : str, optional
+            Why (recorded in the result and the state event).
+        """
+        with self._request_lock:
+            if self._machine.state is RunState.IDLE:
+                self._machine.transition(RunState.ABORTED)
+                self._publish_state(RunState.ABORTED, RunState.IDLE, EndReason.ABORTED, message)
+                self._result = self._make_result(EndReason.ABORTED, message, None, None)
+                self.events.close()
+                self._done.set()
+                return
+        self._post_request(EndReason.ABORTED, message)
+
+    def wait(self, timeout: float | None = None) -> RunResult | None:
+        """Wait for the run to be over; return its result (``None`` on timeout).
+
+        Parameters
+        ----------
+        timeout : float, optional
+            Seconds to wait at most (default: until the end).
+
+        Returns
+        -------
+        RunResult or None
+        """
+        self._done.wait(timeout)
+        return self._result
+
+    # -- running -----------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """START in a worker thread and return at once (for a server).
+
+        Follow with :meth:`wait`. Exceptions end the run (safe state) and are
+        kept in ``result.error``; they are not raised.
+
+        Raises
+        ------
+        RunStateError
+            If the run was already started.
+        """
+        if self._machine.state is not RunState.IDLE or self._thread is not None:
+            raise RunStateError(f"cannot START: the run is {self._machine.state.value}")
+        # Not a daemon: the interpreter waits for the run's safe end rather than
+        # killing it with the actuator driven.
+        self._thread = threading.Thread(target=self._execute, name="thermolab-run")
+        self._thread.start()
+
+    def run(self) -> RunResult:
+        """START and run in the calling thread until the end; return the result.
+
+        Returns
+        -------
+        RunResult
+            Also for a rig fault, an interlock or the watchdog (``state`` FAULTED).
+
+        Raises
+        ------
+        RunStateError
+            If the run was already started.
+        KeyboardInterrupt, Terminated
+            After the safe state, if the run was interrupted (``result`` is set).
+        Exception
+            After the safe state, an unexpected error from an identifier, a
+            recorder or a subscriber callback (``result`` is set).
+        """
+        if self._thread is not None:
+            raise RunStateError("cannot START: the run was started in a worker thread")
+        result = self._execute()
+        if result.error is not None and (
+            result.end_reason is EndReason.ERROR or result.signal is not None
+        ):
+            raise result.error
+        return result
+
+    def snapshot(self) -> RunResult:
+        """Return what has been recorded so far (the result once the run is over).
+
+        Safe to call from any thread while the run goes on (for a watcher that
+        joins late: subscribe first, then take the snapshot, and skip events
+        whose ``k`` it already has).
+
+        Returns
+        -------
+        RunResult
+            With ``end_reason`` and ``message`` describing the present state.
+        """
+        if self._result is not None:
+            return self._result
+        state = self.state
+        return self._make_result(
+            EndReason.ENDED, f"snapshot while {state.value}", None, None, state
+        )
+
+    # -- internals ---------------------------------------------------------------------------
+
+    def _checked_input(self, u: float) -> float:
+        try:
+            value = float(u)
+        except (TypeError, ValueError):
+            raise InvalidParameterError(f"the input must be a number, got {u!r}") from None
+        problem = Interlocks.check_input(value, self._info)
+        if problem is not None:
+            raise InvalidParameterError(problem)
+        return value
+
+    def _refuse_when_over(self, action: str) -> None:
+        state = self._machine.state
+        if state.terminal or state is RunState.ENDING:
+            raise RunStateError(f"cannot {action}: the run is {state.value}")
+
+    def _post_request(self, reason: EndReason, message: str) -> None:
+        # The most serious request wins: the watchdog over abort, abort over END.
+        with self._request_lock:
+            current = self._request
+            if current is None or _REQUEST_RANK[reason] > _REQUEST_RANK[current[0]]:
+                self._request = (reason, message)
+
+    def _publish_state(
+        self, new: RunState, previous: RunState, reason: EndReason | None, message: str
+    ) -> None:
+        bus = self.events
+        if bus.active:
+            bus.publish(
+                StateEvent(
+                    bus.next_seq(), new, previous, None if reason is None else reason.value, message
+                )
+            )
+
+    def _publish_fault(self, source: str, message: str, *, fatal: bool = True) -> None:
+        bus = self.events
+        if bus.active:
+            bus.publish(FaultEvent(bus.next_seq(), self._k, source, message, fatal))
+
+    def _transition(
+        self, new: RunState, reason: EndReason | None = None, message: str = ""
+    ) -> None:
+        previous = self._machine.transition(new)
+        self._publish_state(new, previous, reason, message)
+
+    def _on_watchdog(self, stalled: float) -> None:
+        message = (
+            f"watchdog: the sampling loop made no progress for {stalled:.1f} s "
+            f"(limit {self._interlocks.watchdog:g} s); actuator switched to its safe value"
+        )
+        self._post_request(EndReason.WATCHDOG, message)
+        self._power_off()
+        self._publish_fault("watchdog", message)
+
+    def _power_off(self) -> None:
+        """Put the actuator at its safe value, whatever happens; close the rig if that fails."""
+        for _ in range(3):
+            try:
+                self._rig.power_off()
+                return
+            except Exception:
+                break
+            except BaseException:
+                # A second Ctrl-C while making safe: finish making safe first.
+                continue
+        with contextlib.suppress(BaseException):
+            self._rig.close()
+
+    def _execute(self) -> RunResult:
+        """START, the sampling loop and the way out; never raises (the error is in the result)."""
+        with self._request_lock:
+            self._machine.transition(RunState.RUNNING)
+        self._publish_state(RunState.RUNNING, RunState.IDLE, None, "")
+        reason = EndReason.COMPLETED
+        message = ""
+        error: BaseException | None = None
+        source = ""
+        watchdog: Watchdog | None = None
+        if self._interlocks.watchdog is not None:
+            watchdog = Watchdog(self._interlocks.watchdog, self._on_watchdog)
+        try:
+            try:
+                if self._recorder is not None:
+                    self._recorder.open()
+                self._rig.power_on()
+                if watchdog is not None:
+                    watchdog.start()
+                self._t0 = self._clock.now()
+                reason, message = self._loop(watchdog)
+            finally:
+                # The safe state comes first, before any bookkeeping can fail.
+                self._power_off()
+                if watchdog is not None:
+                    watchdog.stop()
+        except _TripError as trip:
+            reason, message, source = trip.reason, trip.message, trip.source
+        except RigError as exc:
+            reason, message, source, error = EndReason.RIG_FAULT, f"rig fault: {exc}", "rig", exc
+        except BaseException as exc:
+            error = exc
+            if interrupt_signal(exc) is not None:
+                reason, message = EndReason.ABORTED, f"interrupted ({exc or type(exc).__name__})"
+            else:
+                reason, source = EndReason.ERROR, "error"
+                message = f"{type(exc).__name__}: {exc}"
+        with self._request_lock:
+            request = self._request
+        if request is not None and request[0] is EndReason.WATCHDOG:
+            # Whatever the stalled loop ran into afterwards, the watchdog came first.
+            reason, message, source = EndReason.WATCHDOG, request[1], ""
+        if source:
+            self._publish_fault(source, message)
+        self._finish_run(reason, message, error)
+        assert self._result is not None
+        return self._result
+
+    def _finish_run(self, reason: EndReason, message: str, error: BaseException | None) -> None:
+        try:
+            self._transition(RunState.ENDING, None, message)
+            if reason is not EndReason.ERROR and reason is not EndReason.ABORTED:
+                self._finish_identifiers()
+        except BaseException as exc:
+            if error is None:
+                error = exc
+                reason = EndReason.ABORTED if interrupt_signal(exc) else EndReason.ERROR
+                message = f"{type(exc).__name__} while ending: {exc}"
+        finally:
+            if self._recorder is not None:
+                try:
+                    self._recorder.close()
+                except Exception as exc:
+                    if error is None:
+                        error, reason = exc, EndReason.ERROR
+                        message = f"the record could not be closed: {exc}"
+            signum = interrupt_signal(error) if error is not None else None
+            self._result = self._make_result(reason, message, error, signum)
+            final = reason.final_state
+            previous = self._machine.transition(final)
+            self._publish_state(final, previous, reason, message)
+            self.events.close()
+            self._done.set()
+
+    def _finish_identifiers(self) -> None:
+        k = max(self._k - 1, 0)
+        bus = self.events
+        for name, ident in self._identifiers.items():
+            if name in self._method_errors:
+                continue
+            try:
+                estimate = ident.finish()
+            except ThermoLabError as exc:
+                self._method_failed(name, exc)
+                continue
+            self._final[name] = estimate
+            if estimate is not None:
+                self._traj_k[name].append(k)
+                self._traj[name].append(estimate)
+                if bus.active:
+                    bus.publish(EstimateEvent(bus.next_seq(), k, name, estimate, True))
+
+    def _method_failed(self, name: str, exc: Exception) -> None:
+        message = f"{name}: {exc}"
+        self._method_errors[name] = message
+        self._publish_fault("identifier", message, fatal=False)
+
+    def _make_result(
+        self,
+        reason: EndReason,
+        message: str,
+        error: BaseException | None,
+        signum: int | None,
+        state: RunState | None = None,
+    ) -> RunResult:
+        n = self._k
+        methods = {
+            name: MethodResult(
+                name=name,
+                k=np.array(self._traj_k[name][: len(self._traj[name])], dtype=np.int64),
+                estimates=tuple(self._traj[name]),
+                final=self._final[name],
+                error=self._method_errors.get(name),
+            )
+            for name in self._identifiers
+        }
+        return RunResult(
+            rig=self._info,
+            dt=self._dt,
+            samples_requested=self._samples,
+            t=self._t[:n].copy(),
+            u=self._u[:n].copy(),
+            y=self._y[:n].copy(),
+            t_read=self._t_read[:n].copy(),
+            jitter=self._jitter[:n].copy(),
+            lateness=self._lateness[:n].copy(),
+            busy=self._busy[:n].copy(),
+            state=reason.final_state if state is None else state,
+            end_reason=reason,
+            message=message,
+            late=self._late,
+            missed=self._missed,
+            late_tolerance=self._late_tolerance,
+            methods=methods,
+            signal=signum,
+            error=error,
+        )
+
+    def _loop(self, watchdog: Watchdog | None) -> tuple[EndReason, str]:
+        """Take the samples; return why sampling stopped (exceptions stop it too)."""
+        # Everything the loop touches is a local: this is the runner's hot path.
+        rig, info, clock, bus, recorder = (
+            self._rig,
+            self._info,
+            self._clock,
+            self.events,
+            self._recorder,
+        )
+        dt, n, t0 = self._dt, self._samples, self._t0
+        out_max = self._interlocks.output_max
+        out_min = self._interlocks.output_min
+        in_min, in_max = info.input_min, info.input_max
+        tolerance = self._late_tolerance
+        t_arr, u_arr, y_arr = self._t, self._u, self._y
+        t_read_arr, jitter_arr, late_arr, busy_arr = (
+            self._t_read,
+            self._jitter,
+            self._lateness,
+            self._busy,
+        )
+        active = list(self._identifiers.items())
+        traj_k, traj = self._traj_k, self._traj
+        # A virtual clock jumps to the deadline at once; any other clock is waited
+        # on in slices so that END and abort are honoured within a quarter period.
+        sliced = not isinstance(clock, VirtualClock)
+        slice_ = dt / 4.0
+        perf = time.perf_counter
+        for k in range(n):
+            t_k = k * dt
+            deadline = t0 + t_k
+            now = clock.now()
+            if now < deadline:
+                if watchdog is not None:
+                    watchdog.pause()
+                if sliced:
+                    while now < deadline and self._request is None:
+                        clock.sleep_until(min(deadline, now + slice_))
+                        now = clock.now()
+                else:
+                    clock.sleep_until(deadline)
+                    now = clock.now()
+                if watchdog is not None:
+                    watchdog.resume()
+            request = self._request
+            if request is not None:
+                return request
+            failure = bus.failure
+            if failure is not None:
+                raise failure[1]
+            wake = perf()
+            lateness = now - deadline if now > deadline else 0.0
+
+            reading = rig.read()
+            y = float(reading.value)
+            if not (
+                (out_max is None or y <= out_max)
+                and (out_min is None or y >= out_min)
+                and math.isfinite(y)
+            ):
+                problem = self._interlocks.check_output(y, info.output_unit)
+                raise _TripError(EndReason.INTERLOCK, "interlock", f"interlock: {problem}")
+
+            u = self._manual
+            if u is None:
+                assert self._signal is not None  # manual is None only while a signal drives
+                u = float(self._signal.value(t_k))
+            if not in_min <= u <= in_max:
+                problem = Interlocks.check_input(u, info)
+                raise _TripError(EndReason.INTERLOCK, "interlock", f"interlock: {problem}")
+            u = float(rig.apply(u))
+
+            t_read = reading.t - t0
+            jitter = t_read - t_k
+            t_arr[k] = t_k
+            u_arr[k] = u
+            y_arr[k] = y
+            t_read_arr[k] = t_read
+            jitter_arr[k] = jitter
+            late_arr[k] = lateness
+            if recorder is not None:
+                recorder.write(k, t_k, u, y, t_read, jitter, lateness)
+            self._k = k + 1
+            if lateness > tolerance:
+                self._late += 1
+                self._missed += int(lateness // dt)
+            if bus.active:
+                bus.publish(SampleEvent(bus.next_seq(), k, t_k, t_read, u, y, jitter, lateness))
+
+            for name, ident in active:
+                try:
+                    estimate = ident.update(u, y)
+                except ThermoLabError as exc:
+                    self._method_failed(name, exc)
+                    active = [(m, i) for m, i in active if m != name]
+                    continue
+                if estimate is not None:
+                    traj_k[name].append(k)
+                    traj[name].append(estimate)
+                    if bus.active:
+                        bus.publish(EstimateEvent(bus.next_seq(), k, name, estimate, False))
+
+            busy_arr[k] = perf() - wake
+            if watchdog is not None:
+                watchdog.beat()
+        return (EndReason.COMPLETED, "")
+
+    def __repr__(self) -> str:
+        return (
+            f"<Experiment {self._info.name!r} dt={self._dt:g} "
+            f"{self._k}/{self._samples} {self.state.value}>"
+        )
