@@ -1,1 +1,41 @@
-"""Identification of a first-order (or ARX) model from sampled input/output data."""
+"""Identification of a first-order (or ARX) model from sampled input/output data.
+
+The paper's four methods, each a function returning a result object:
+
+* :func:`least_squares` — batch least squares (LSM, eq. 12) → :class:`LeastSquaresResult`;
+* :func:`block_least_squares` — an estimate per block of samples (LSM(2), LSM(3)) →
+  :class:`Trajectory`;
+* :func:`moving_window_least_squares` — a FIFO window, an estimate per sample (MALSM) →
+  :class:`Trajectory`;
+* :func:`weighted_least_squares` — recursive least squares with a forgetting
+  factor, in the paper's form and the standard one (WLSM) → :class:`Trajectory`;
+* the step response method lives in :mod:`thermolab.ident.step`.
+
+Sample-by-sample forms of every method, for a running experiment, are in
+:mod:`thermolab.ident.online`. Models and the ``W <-> (K, tau)`` conversion are in
+:mod:`thermolab.ident.models`.
+"""
+
+from .batch import LeastSquaresResult, block_least_squares, least_squares
+from .models import (
+    FIRST_ORDER,
+    INVALID_REASONS,
+    ArxModel,
+    ArxOrder,
+    FirstOrderModel,
+    discrete_to_first_order,
+)
+from .trajectory import Trajectory
+
+__all__ = [
+    "FIRST_ORDER",
+    "INVALID_REASONS",
+    "ArxModel",
+    "ArxOrder",
+    "FirstOrderModel",
+    "LeastSquaresResult",
+    "Trajectory",
+    "block_least_squares",
+    "discrete_to_first_order",
+    "least_squares",
+]

@@ -1,0 +1,473 @@
+"""Batch least squares (the paper's eq. 12): over a whole record, and over blocks."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from thermolab.errors import InvalidParameterError
+
+from . import _regression as _reg
+from . import _validation as _v
+from .models import ArxModel, ArxOrder, FirstOrderModel
+from .trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+__all__ = ["LeastSquaresResult", "block_least_squares", "least_squares"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def _json(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+@dataclass(frozen=True, eq=False)
+class LeastSquaresResult:
+    """The batch least-squares estimate of a record and its diagnostics.
+
+    Attributes
+    ----------
+    W : numpy.ndarray
+        Estimated parameters, named by ``param_names`` (``[a, b]`` for first order,
+        ``[..., c]`` with ``offset="fit"``).
+    param_names : tuple of str
+        Names of ``W``'s entries.
+    order : ArxOrder
+        Model structure.
+    offset : str or float
+        How the operating point was handled (see :func:`least_squares`).
+    dt : float
+        Sample period in seconds.
+    model : FirstOrderModel
+        ``K`` (DC gain) and ``tau`` (dominant time constant), or the reason the
+        estimate has none (``model.reason``).
+    arx : ArxModel
+        The full discrete model (in the offset frame: deviations from ``y_shift``).
+    stderr : numpy.ndarray
+        Standard errors of ``W``: ``sqrt(diag(s² (DᵀD)⁻¹))`` with ``s²`` the
+        residual variance over ``n_rows - n_params`` degrees of freedom (NaN when
+        there are none).
+    K_stderr, tau_stderr : float
+        Standard errors of ``K`` and ``tau`` propagated from the covariance of
+        ``W`` to first order (delta method); NaN when the model is not valid.
+    cond : float
+        2-norm condition number of the regressor matrix ``D``.
+    cond_scaled : float
+        Condition number of ``D`` with unit-norm columns: what limits accuracy
+        (about ``cond_scaled * 1e-16`` relative error in ``W`` for exact data).
+    k : numpy.ndarray of int
+        Sample index of each target ``y[k]`` (``order.lag + 1 .. n-1``).
+    y_measured, y_one_step, y_simulated : numpy.ndarray
+        Measured targets, one-step predictions ``D W`` and the free-run
+        simulation of the model from the record's first samples driven by ``u``,
+        all in absolute volts, aligned with ``k``.
+    residuals : numpy.ndarray
+        ``y_measured - y_one_step``.
+    fit_one_step, fit_simulation : float
+        NRMSE fit in percent, ``100 (1 - ||y - ŷ|| / ||y - mean(y)||)``: 100 is
+        perfect, 0 is no better than the mean; NaN when the output is constant,
+        ``-inf`` when the simulation diverges.
+    n_samples : int
+        Samples in the record.
+    ambient : float
+        The operating point: ``c / (1 - sum(a))`` with ``offset="fit"``, otherwise
+        the output value removed (0 for ``offset="none"``).
+    y_shift : float
+        The value subtracted from ``y`` before regressing (``y[0]`` for
+        ``"initial"``, the given value for a float, else 0).
+    """
+
+    W: FloatArray
+    param_names: tuple[str, ...]
+    order: ArxOrder
+    offset: str | float
+    dt: float
+    model: FirstOrderModel
+    arx: ArxModel
+    stderr: FloatArray
+    K_stderr: float
+    tau_stderr: float
+    cond: float
+    cond_scaled: float
+    k: npt.NDArray[np.intp]
+    y_measured: FloatArray
+    y_one_step: FloatArray
+    y_simulated: FloatArray
+    residuals: FloatArray
+    fit_one_step: float
+    fit_simulation: float
+    n_samples: int
+    ambient: float
+    y_shift: float
+
+    @property
+    def K(self) -> float:  # noqa: N802 - the paper's symbol
+        """Static (DC) gain; NaN when the model has no first-order meaning."""
+        return self.model.K
+
+    @property
+    def tau(self) -> float:
+        """Time constant in seconds; NaN when the model has no first-order meaning."""
+        return self.model.tau
+
+    @property
+    def n_rows(self) -> int:
+        """Number of regression rows (targets)."""
+        return int(self.k.size)
+
+    def to_dict(self, *, arrays: bool = False) -> dict[str, Any]:
+        """A JSON-safe summary (NaN and inf become ``None``).
+
+        Parameters
+        ----------
+        arrays : bool, optional
+            Also include ``k``, ``y_measured``, ``y_one_step``, ``y_simulated`` and
+            ``residuals``. Default False.
+
+        Returns
+        -------
+        dict
+            ``method`` (``"lsm"``), ``dt``, ``K``, ``tau``, ``valid``, ``reason``,
+            ``W``, ``param_names``, ``stderr``, ``K_stderr``, ``tau_stderr``,
+            ``cond``, ``cond_scaled``, ``fit_one_step``, ``fit_simulation``,
+            ``n_samples``, ``n_rows``, ``order``, ``offset``, ``ambient``.
+        """
+        out: dict[str, Any] = {
+            "method": "lsm",
+            "dt": self.dt,
+            "K": _json(self.K),
+            "tau": _json(self.tau),
+            "valid": self.model.valid,
+            "reason": self.model.reason,
+            "W": [_json(x) for x in self.W],
+            "param_names": list(self.param_names),
+            "stderr": [_json(x) for x in self.stderr],
+            "K_stderr": _json(self.K_stderr),
+            "tau_stderr": _json(self.tau_stderr),
+            "cond": _json(self.cond),
+            "cond_scaled": _json(self.cond_scaled),
+            "fit_one_step": _json(self.fit_one_step),
+            "fit_simulation": _json(self.fit_simulation),
+            "n_samples": self.n_samples,
+            "n_rows": self.n_rows,
+            "order": self.order.to_dict(),
+            "offset": self.offset,
+            "ambient": _json(self.ambient),
+        }
+        if arrays:
+            for name in ("y_measured", "y_one_step", "y_simulated", "residuals"):
+                arr: FloatArray = getattr(self, name)
+                out[name] = [_json(x) for x in arr.tolist()]
+            out["k"] = self.k.tolist()
+        return out
+
+    def plot(self, *, title: str | None = None) -> Figure:
+        """Measured output beside the one-step prediction and the free-run simulation.
+
+        Parameters
+        ----------
+        title : str, optional
+            Figure title; default gives ``K``, ``tau`` and the two fits.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            A figure not attached to pyplot (save it with ``fig.savefig(path)``).
+
+        Raises
+        ------
+        ImportError
+            If matplotlib is not installed (``pip install 'thermolab[plot]'``).
+        """
+        from ._plotting import plot_least_squares
+
+        return plot_least_squares(self, title=title)
+
+
+def _nrmse_fit(y: FloatArray, yhat: FloatArray) -> float:
+    with np.errstate(all="ignore"):
+        spread = float(np.linalg.norm(y - y.mean()))
+        if spread == 0.0:
+            return math.nan
+        err = float(np.linalg.norm(y - yhat))
+        if not math.isfinite(err):
+            return -math.inf
+        return 100.0 * (1.0 - err / spread)
+
+
+def _simulate(reg: _reg.Regression, W: FloatArray, y_shifted0: FloatArray) -> FloatArray:
+    """Free-run simulation of the identified model over the targets, in the offset frame."""
+    from scipy.signal import lfilter, lfiltic
+
+    na = reg.order.na
+    lag = reg.order.lag
+    drive = reg.D[:, na:] @ W[na:]
+    den = np.concatenate([[1.0], -W[:na]])
+    past = y_shifted0[lag - na + 1 : lag + 1][::-1]
+    zi = lfiltic([1.0], den, past)
+    with np.errstate(all="ignore"):
+        out: FloatArray = lfilter([1.0], den, drive, zi=zi)[0]
+    return out
+
+
+def _propagated_stderr(
+    W: FloatArray, cov: FloatArray, order: ArxOrder, dt: float, model: FirstOrderModel
+) -> tuple[float, float]:
+    """Delta-method standard errors of the DC gain and of the dominant time constant."""
+    if not model.valid or not np.isfinite(cov).all():
+        return math.nan, math.nan
+    na, nb = order.na, order.nb
+    a, b = W[:na], W[na : na + nb]
+    den = 1.0 - float(a.sum())
+    g_K = np.zeros(W.size)
+    g_K[:na] = float(b.sum()) / den**2
+    g_K[na : na + nb] = 1.0 / den
+    p = math.exp(-dt / model.tau)  # the dominant pole
+    # Implicit differentiation of A(p) = p^na - sum a_i p^(na-i) = 0.
+    powers = np.array([p ** (na - i) for i in range(1, na + 1)])
+    dA = na * p ** (na - 1) - sum(a[i - 1] * (na - i) * p ** (na - i - 1) for i in range(1, na))
+    g_tau = np.zeros(W.size)
+    g_tau[:na] = dt / (p * math.log(p) ** 2) * powers / dA
+    var_K = float(g_K @ cov @ g_K)
+    var_tau = float(g_tau @ cov @ g_tau)
+    return math.sqrt(max(var_K, 0.0)), math.sqrt(max(var_tau, 0.0))
+
+
+def least_squares(
+    u: npt.ArrayLike,
+    y: npt.ArrayLike,
+    dt: float,
+    *,
+    order: ArxOrder | None = None,
+    offset: str | float = "initial",
+) -> LeastSquaresResult:
+    """Batch least squares over the whole record: the paper's LSM, eq. 12.
+
+    Solves ``min ||Y - D W||`` with ``Y(k) = y[k+1]`` and ``D(k) = [y[k], u[k]]``
+    (first order) by the SVD of ``D`` with unit-norm columns — the same
+    ``W = (DᵀD)⁻¹DᵀY`` as eq. 12 without forming ``DᵀD`` or any inverse, so an
+    ill-conditioned record loses ``cond(D)`` digits, not ``cond(D)²``.
+
+    Parameters
+    ----------
+    u, y : array_like
+        Input and output samples in absolute volts, one per sample period, same length.
+    dt : float
+        Sample period in seconds, > 0.
+    order : ArxOrder, optional
+        Model structure; default first order (eq. 4).
+    offset : {"initial", "fit", "none"} or float, optional
+        How the operating point is handled:
+
+        * ``"initial"`` (default): ``y[0]`` is the ambient equilibrium at 0 V
+          input and is subtracted from ``y`` (right for a record that starts
+          from rest, the paper's procedure);
+        * ``"fit"``: a constant term ``c`` is estimated with the other
+          parameters; ``ambient = c / (1 - sum(a))``;
+        * ``"none"``: the paper's raw form (correct only when the ambient is 0 V);
+        * a float: the known ambient output in volts, subtracted from ``y``.
+
+    Returns
+    -------
+    LeastSquaresResult
+        ``W``, ``model`` (``K``, ``tau``), standard errors, condition numbers,
+        residuals and fit percentages.
+
+    Raises
+    ------
+    InvalidDataError
+        If ``u`` or ``y`` holds NaN/inf, they differ in length, or there are fewer
+        samples than the order needs (``lag + 1 + n_params``).
+    InsufficientExcitationError
+        If ``D`` is rank-deficient: the input was held constant (e.g. kept at 0 V)
+        or the output never moved, so ``DᵀD`` is singular.
+    InvalidParameterError
+        If ``dt``, ``order`` or ``offset`` is not allowed.
+
+    Notes
+    -----
+    The model may come out unstable (``a >= 1``) on a badly excited noisy
+    record; that is a result, not an error: ``model.valid`` is False and
+    ``model.reason`` says why.
+
+    Examples
+    --------
+    The paper's LSM(1): a 0→10 V step on the reference model, 2000 samples.
+
+    >>> import numpy as np
+    >>> from thermolab.simulation import REFERENCE_MODEL
+    >>> u = np.full(2001, 10.0)
+    >>> y = REFERENCE_MODEL.simulate(u)
+    >>> r = least_squares(u, y, 1.0)
+    >>> round(r.K, 6), round(r.tau, 6), round(r.fit_simulation, 3)
+    (0.14009, 250.126233, 100.0)
+
+    The same step from a warm ambient of 2.5 V gives the same model:
+
+    >>> r = least_squares(u, y + 2.5, 1.0)
+    >>> round(r.K, 6), round(r.tau, 6), r.ambient
+    (0.14009, 250.126233, 2.5)
+    """
+    u_arr, y_arr = _v.as_record(u, y)
+    step = _v.check_dt(dt)
+    ord_ = _v.check_order(order)
+    off = _v.check_offset(offset)
+    p = ord_.na + ord_.nb + int(off == "fit")
+    _v.check_min_samples(
+        y_arr.size, ord_.lag + 1 + p, f"least squares of {p} parameters with order {ord_}"
+    )
+    reg = _reg.build(u_arr, y_arr, ord_, off)
+    sol = _reg.solve(reg.D, reg.Y)
+    if not sol.ok:
+        raise _reg.excitation_error(reg, u_arr, sol.s)
+    W = sol.W
+    m = reg.Y.size
+    one_step = reg.D @ W
+    residuals = reg.Y - one_step
+    dof = m - p
+    sigma2 = float(residuals @ residuals) / dof if dof > 0 else math.nan
+    # (DᵀD)⁻¹ = N⁻¹ V Σ⁻² Vᵀ N⁻¹ with N the column norms of the equilibration.
+    Vs = sol.Vt.T / sol.s
+    inv_gram = (Vs @ Vs.T) / np.outer(sol.norms, sol.norms)
+    cov = sigma2 * inv_gram
+    stderr = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    na, nb = ord_.na, ord_.nb
+    c = float(W[-1]) if reg.constant else 0.0
+    arx = ArxModel(
+        a=tuple(float(x) for x in W[:na]),
+        b=tuple(float(x) for x in W[na : na + nb]),
+        dt=step,
+        delay=ord_.delay,
+        c=c,
+    )
+    model = arx.first_order()
+    K_se, tau_se = _propagated_stderr(W, cov, ord_, step, model)
+    sim = _simulate(reg, W, y_arr - reg.y_shift)
+    s_raw = np.linalg.svd(reg.D, compute_uv=False)
+    ambient = arx.ambient if reg.constant else reg.y_shift
+    return LeastSquaresResult(
+        W=W,
+        param_names=ord_.param_names(constant=reg.constant),
+        order=ord_,
+        offset=off,
+        dt=step,
+        model=model,
+        arx=arx,
+        stderr=stderr,
+        K_stderr=K_se,
+        tau_stderr=tau_se,
+        cond=float(s_raw[0] / s_raw[-1]),
+        cond_scaled=float(sol.s[0] / sol.s[-1]),
+        k=np.arange(reg.first_target, y_arr.size),
+        y_measured=reg.Y + reg.y_shift,
+        y_one_step=one_step + reg.y_shift,
+        y_simulated=sim + reg.y_shift,
+        residuals=residuals,
+        fit_one_step=_nrmse_fit(reg.Y, one_step),
+        fit_simulation=_nrmse_fit(reg.Y, sim),
+        n_samples=int(y_arr.size),
+        ambient=float(ambient),
+        y_shift=reg.y_shift,
+    )
+
+
+def block_rows(order: ArxOrder, block: int, n_params: int, n_samples: int) -> tuple[int, int]:
+    """``(rows per block, number of full blocks)``, checking the block is big enough."""
+    rows = block - 1 - order.lag
+    if rows < n_params:
+        raise InvalidParameterError(
+            f"block must be >= {order.lag + 1 + n_params} samples to give {n_params} regression "
+            f"rows for {n_params} parameters with order {order}, got {block}"
+        )
+    _v.check_min_samples(n_samples, block, f"one block of {block} samples")
+    return rows, n_samples // block
+
+
+def block_least_squares(
+    u: npt.ArrayLike,
+    y: npt.ArrayLike,
+    dt: float,
+    block: int = 100,
+    *,
+    order: ArxOrder | None = None,
+    offset: str | float = "initial",
+) -> Trajectory:
+    """Least squares over consecutive non-overlapping blocks: the paper's LSM(2) and LSM(3).
+
+    Block ``j`` is the samples ``j*block .. (j+1)*block - 1``; its estimate uses
+    the regression rows whose samples all lie inside the block
+    (``block - 1 - order.lag`` rows) and is placed at the block's last sample.
+    A trailing partial block gives no estimate. Each block is solved like
+    :func:`least_squares` (SVD, no inverse), all blocks in one batched call.
+
+    Parameters
+    ----------
+    u, y : array_like
+        Input and output samples in absolute volts, same length.
+    dt : float
+        Sample period in seconds, > 0.
+    block : int, optional
+        Samples per block, default 100; at least ``order.lag + 1 + n_params``.
+    order : ArxOrder, optional
+        Model structure; default first order.
+    offset : {"initial", "fit", "none"} or float, optional
+        As in :func:`least_squares`; ``"initial"`` takes the ambient from the
+        record's first sample, for every block.
+
+    Returns
+    -------
+    Trajectory
+        Estimates at samples ``block-1, 2*block-1, ...`` and NaN between them
+        (``reason_code`` 1); a block whose regression is singular (not excited)
+        has reason code 2.
+
+    Raises
+    ------
+    InvalidDataError
+        If the data are not finite, differ in length, or hold less than one block.
+    InvalidParameterError
+        If ``block``, ``dt``, ``order`` or ``offset`` is not allowed.
+
+    Examples
+    --------
+    The paper's LSM(3): a 4↔6 V square wave at 0.1 Hz, an estimate every 100 samples.
+
+    >>> import numpy as np
+    >>> from thermolab.simulation import REFERENCE_MODEL
+    >>> u = np.where((np.arange(2000) // 5) % 2 == 0, 6.0, 4.0)
+    >>> tr = block_least_squares(u, REFERENCE_MODEL.simulate(u), 1.0, block=100)
+    >>> np.flatnonzero(tr.valid)[:3], round(tr.stats()["tau"]["min"], 6)
+    (array([ 99, 199, 299]), 250.126233)
+    """
+    u_arr, y_arr = _v.as_record(u, y)
+    step = _v.check_dt(dt)
+    ord_ = _v.check_order(order)
+    off = _v.check_offset(offset)
+    size = _v.integer("block", block, 1, "samples per block")
+    p = ord_.na + ord_.nb + int(off == "fit")
+    rows, n_blocks = block_rows(ord_, size, p, y_arr.size)
+    reg = _reg.build(u_arr, y_arr, ord_, off)
+    idx = np.arange(n_blocks)[:, None] * size + np.arange(rows)[None, :]
+    sol = _reg.solve(reg.D[idx], reg.Y[idx])
+    W = np.full((y_arr.size, p), np.nan)
+    at = np.arange(1, n_blocks + 1) * size - 1
+    W[at] = sol.W
+    not_excited = np.zeros(y_arr.size, dtype=bool)
+    not_excited[at[~sol.ok]] = True
+    return Trajectory(
+        method="blockls",
+        dt=step,
+        W=W,
+        order=ord_,
+        offset=off,
+        param_names=ord_.param_names(constant=reg.constant),
+        not_excited=not_excited,
+        params={"block": size},
+    )

@@ -1,0 +1,557 @@
+"""Model structures and the conversion between discrete parameters and (K, tau).
+
+The paper identifies the discrete first-order model of eq. 4,
+
+    y[k+1] = a y[k] + b u[k],    a = exp(-dt/tau),    b = (1 - a) K,
+
+and reports the continuous gain ``K`` and time constant ``tau``. The way back,
+``tau = -dt / ln(a)`` and ``K = b / (1 - a)``, only means something for
+``0 < a < 1``; this module gives a result that *says* so for every other ``a``
+(an unstable or integrating model, a sign-alternating one, a diverged estimate)
+instead of raising from deep inside or returning a silent NaN.
+
+A general ARX order (:class:`ArxOrder`) uses the same positive sign convention:
+
+    y[k+1] = a1 y[k] + ... + a_na y[k-na+1]
+             + b1 u[k-delay] + ... + b_nb u[k-delay-nb+1]  (+ c)
+
+so that first order with no delay is exactly eq. 4 and ``W = [a, b]``. For any
+order, ``K`` is the DC gain ``sum(b) / (1 - sum(a))`` and ``tau`` the time
+constant of the dominant pole, which must be real and in (0, 1).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from thermolab.errors import InvalidParameterError
+
+__all__ = [
+    "FIRST_ORDER",
+    "INVALID_REASONS",
+    "ArxModel",
+    "ArxOrder",
+    "FirstOrderModel",
+    "discrete_to_first_order",
+]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int8]
+
+# Reason codes shared by every trajectory (index into INVALID_REASONS).
+VALID = 0
+NO_ESTIMATE = 1
+NOT_EXCITED = 2
+UNSTABLE = 3
+NON_POSITIVE_POLE = 4
+COMPLEX_POLE = 5
+NON_FINITE = 6
+
+#: Why an estimate has no first-order meaning, indexed by ``Trajectory.reason_code``.
+INVALID_REASONS: tuple[str | None, ...] = (
+    None,
+    "no estimate yet: not enough samples have arrived",
+    "not excited: the regressor matrix is singular (input held constant or output settled)",
+    "unstable or integrating model: a pole on or outside the unit circle (a >= 1), "
+    "so there is no time constant",
+    "dominant pole <= 0: a sampled first-order lag has 0 < a < 1, so there is no time constant",
+    "dominant pole is complex: the model oscillates and has no first-order time constant",
+    "non-finite estimate: the parameters overflowed or diverged",
+)
+
+
+def _check_int(name: str, value: object, minimum: int, maximum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise InvalidParameterError(f"{name} must be an integer, got {value!r}")
+    v = int(value)
+    if not minimum <= v <= maximum:
+        raise InvalidParameterError(f"{name} must be between {minimum} and {maximum}, got {v}")
+    return v
+
+
+def _check_real(name: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise InvalidParameterError(f"{name} must be a real number, got {value!r}")
+    return float(value)
+
+
+def _check_dt(dt: object) -> float:
+    v = _check_real("dt", dt)
+    if not (math.isfinite(v) and v > 0.0):
+        raise InvalidParameterError(f"dt (sample period) must be finite and > 0 seconds, got {v!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class ArxOrder:
+    """The structure of an ARX model: ``na`` output lags, ``nb`` input lags, a dead time.
+
+    ``y[k+1] = a1 y[k] + ... + a_na y[k-na+1] + b1 u[k-delay] + ... + b_nb u[k-delay-nb+1]``.
+
+    Parameters
+    ----------
+    na : int, optional
+        Number of past outputs (1 to 10). Default 1.
+    nb : int, optional
+        Number of past inputs (1 to 10). Default 1.
+    delay : int, optional
+        Dead time in samples *beyond* the one sample every sampled plant has
+        (0 to 1000). Default 0: ``u[k]`` first shows in ``y[k+1]``, as in eq. 4.
+        (:func:`thermolab.simulation.simulate_arx` counts the total delay, so its
+        ``delay`` is this one plus 1.)
+
+    Raises
+    ------
+    InvalidParameterError
+        If a value is not an integer in its range.
+
+    Examples
+    --------
+    >>> ArxOrder()
+    ArxOrder(na=1, nb=1, delay=0)
+    >>> ArxOrder(2, 2, 3).lag, ArxOrder(2, 2, 3).param_names()
+    (4, ('a1', 'a2', 'b1', 'b2'))
+    """
+
+    na: int = 1
+    nb: int = 1
+    delay: int = 0
+
+    def __post_init__(self) -> None:
+        _check_int("na (number of output lags)", self.na, 1, 10)
+        _check_int("nb (number of input lags)", self.nb, 1, 10)
+        _check_int("delay (dead time in samples)", self.delay, 0, 1000)
+
+    @property
+    def lag(self) -> int:
+        """Index of the first sample that can be a regressor row's newest sample.
+
+        Row ``k`` regresses ``y[k+1]`` on samples back to ``k - lag``; the first
+        usable ``k`` is ``lag``.
+        """
+        return max(self.na - 1, self.delay + self.nb - 1)
+
+    @property
+    def is_first_order(self) -> bool:
+        """True for eq. 4's structure (``na = nb = 1``, no dead time)."""
+        return self.na == 1 and self.nb == 1 and self.delay == 0
+
+    def param_names(self, *, constant: bool = False) -> tuple[str, ...]:
+        """Names of the entries of ``W``, in order.
+
+        Parameters
+        ----------
+        constant : bool, optional
+            Append ``"c"``, the constant term of ``offset="fit"``.
+
+        Returns
+        -------
+        tuple of str
+            ``("a", "b")`` for first order, else ``("a1", ..., "b1", ...)``.
+
+        Examples
+        --------
+        >>> ArxOrder().param_names(constant=True)
+        ('a', 'b', 'c')
+        """
+        if self.is_first_order:
+            names: tuple[str, ...] = ("a", "b")
+        else:
+            names = tuple(f"a{i + 1}" for i in range(self.na)) + tuple(
+                f"b{j + 1}" for j in range(self.nb)
+            )
+        return (*names, "c") if constant else names
+
+    def to_dict(self) -> dict[str, int]:
+        """``{"na", "nb", "delay"}``."""
+        return {"na": self.na, "nb": self.nb, "delay": self.delay}
+
+
+#: Eq. 4's structure: ``y[k+1] = a y[k] + b u[k]``.
+FIRST_ORDER = ArxOrder()
+
+
+@dataclass(frozen=True)
+class FirstOrderModel:
+    """A first-order lag ``K / (tau s + 1)``, or the reason a discrete model is not one.
+
+    Parameters
+    ----------
+    K : float
+        Static gain (output volts per input volt). NaN when ``reason`` is set.
+    tau : float
+        Time constant in seconds, > 0. NaN when ``reason`` is set.
+    reason : str or None, optional
+        Why the model has no first-order meaning (``None``: it has one). Set by
+        :meth:`from_discrete`; leave it out when building a model by hand.
+
+    Raises
+    ------
+    InvalidParameterError
+        If ``reason`` is None and ``K`` is not finite or ``tau`` is not finite and > 0.
+
+    Examples
+    --------
+    >>> m = FirstOrderModel(K=0.140090, tau=250.126233)
+    >>> a, b = m.to_discrete(1.0)
+    >>> round(a, 9), round(b, 9)
+    (0.99601, 0.000558959)
+    >>> back = FirstOrderModel.from_discrete(a, b, 1.0)
+    >>> round(back.K, 6), round(back.tau, 6)
+    (0.14009, 250.126233)
+    >>> bad = FirstOrderModel.from_discrete(1.003, 0.001, 1.0)
+    >>> bad.valid
+    False
+    >>> bad.reason
+    'a = 1.003 >= 1: the identified model is unstable or integrating and has no time constant'
+    """
+
+    K: float
+    tau: float
+    reason: str | None = None
+
+    def __post_init__(self) -> None:
+        K = _check_real("K", self.K)
+        tau = _check_real("tau", self.tau)
+        if self.reason is None:
+            if not math.isfinite(K):
+                raise InvalidParameterError(f"K (static gain) must be finite, got {K!r}")
+            if not (math.isfinite(tau) and tau > 0.0):
+                raise InvalidParameterError(
+                    f"tau (time constant) must be finite and > 0 seconds, got {tau!r}"
+                )
+
+    @property
+    def valid(self) -> bool:
+        """True when the model is a genuine first-order lag."""
+        return self.reason is None
+
+    def to_discrete(self, dt: float) -> tuple[float, float]:
+        """The exact zero-order-hold discretisation (eq. 4).
+
+        Parameters
+        ----------
+        dt : float
+            Sample period in seconds, > 0.
+
+        Returns
+        -------
+        (a, b) : tuple of float
+            ``a = exp(-dt/tau)``, ``b = (1 - a) K``.
+
+        Raises
+        ------
+        InvalidParameterError
+            If ``dt`` is not > 0, or the model is not valid (the message gives its reason).
+
+        Examples
+        --------
+        >>> FirstOrderModel(2.0, 10.0).to_discrete(1.0)  # doctest: +NUMBER
+        (0.904837, 0.190325)
+        """
+        step = _check_dt(dt)
+        if self.reason is not None:
+            raise InvalidParameterError(f"this model has no discretisation: {self.reason}")
+        a = math.exp(-step / self.tau)
+        return a, -math.expm1(-step / self.tau) * self.K
+
+    @classmethod
+    def from_discrete(cls, a: float, b: float, dt: float) -> FirstOrderModel:
+        """Convert eq. 4's ``(a, b)`` to ``(K, tau)``, or say why that is impossible.
+
+        Parameters
+        ----------
+        a, b : float
+            Discrete pole and input coefficient.
+        dt : float
+            Sample period in seconds, > 0.
+
+        Returns
+        -------
+        FirstOrderModel
+            Valid when ``0 < a < 1`` and both are finite; otherwise ``K`` and
+            ``tau`` are NaN and ``reason`` names the problem with the value of ``a``.
+
+        Raises
+        ------
+        InvalidParameterError
+            If ``dt`` is not finite and > 0 (a bad argument, not a bad model).
+
+        Examples
+        --------
+        >>> FirstOrderModel.from_discrete(-0.2, 0.5, 1.0).reason
+        'a = -0.2 <= 0: a sampled first-order lag has 0 < a < 1; this model has no time constant'
+        """
+        step = _check_dt(dt)
+        a_v = _check_real("a", a)
+        b_v = _check_real("b", b)
+        reason = _first_order_reason(a_v, b_v)
+        if reason is not None:
+            return cls(math.nan, math.nan, reason)
+        return cls(b_v / (1.0 - a_v), -step / math.log(a_v))
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"K", "tau", "valid", "reason"}`` (NaN as ``None``, JSON-safe)."""
+        return {
+            "K": _json_float(self.K),
+            "tau": _json_float(self.tau),
+            "valid": self.valid,
+            "reason": self.reason,
+        }
+
+
+def _first_order_reason(a: float, b: float) -> str | None:
+    if not (math.isfinite(a) and math.isfinite(b)):
+        return f"a = {a:.6g}, b = {b:.6g}: the estimate is not finite (it diverged or overflowed)"
+    if a >= 1.0:
+        return (
+            f"a = {a:.6g} >= 1: the identified model is unstable or integrating "
+            "and has no time constant"
+        )
+    if a <= 0.0:
+        return (
+            f"a = {a:.6g} <= 0: a sampled first-order lag has 0 < a < 1; "
+            "this model has no time constant"
+        )
+    return None
+
+
+def _json_float(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+@dataclass(frozen=True)
+class ArxModel:
+    """A discrete ARX model in the positive convention of :class:`ArxOrder`.
+
+    Parameters
+    ----------
+    a : tuple of float
+        Output coefficients ``a1 .. a_na`` (at least one).
+    b : tuple of float
+        Input coefficients ``b1 .. b_nb`` (at least one).
+    dt : float
+        Sample period in seconds.
+    delay : int, optional
+        Dead time beyond one sample (see :class:`ArxOrder`). Default 0.
+    c : float, optional
+        Constant term (``offset="fit"``); 0 otherwise.
+
+    Raises
+    ------
+    InvalidParameterError
+        If a coefficient list is empty, ``dt`` is not > 0 or ``delay`` is out of range.
+
+    Examples
+    --------
+    >>> m = ArxModel(a=(0.9,), b=(0.2,), dt=1.0, c=0.25)
+    >>> round(m.K, 6), round(m.tau, 6), round(m.ambient, 6)
+    (2.0, 9.491222, 2.5)
+    >>> ArxModel(a=(0.0, -0.25), b=(1.0,), dt=1.0).first_order().reason
+    'dominant pole is complex (0+0.5j): the model oscillates and has no first-order time constant'
+    """
+
+    a: tuple[float, ...]
+    b: tuple[float, ...]
+    dt: float
+    delay: int = 0
+    c: float = 0.0
+
+    def __post_init__(self) -> None:
+        if len(self.a) == 0 or len(self.b) == 0:
+            raise InvalidParameterError("an ARX model needs at least one a and one b coefficient")
+        _check_dt(self.dt)
+        ArxOrder(len(self.a), len(self.b), self.delay)
+
+    @property
+    def order(self) -> ArxOrder:
+        """The model's structure."""
+        return ArxOrder(len(self.a), len(self.b), self.delay)
+
+    @property
+    def poles(self) -> npt.NDArray[np.complex128]:
+        """Roots of ``z**na - a1 z**(na-1) - ... - a_na``, largest modulus first."""
+        roots = np.roots(np.concatenate([[1.0], -np.asarray(self.a, dtype=np.float64)]))
+        return np.asarray(roots[np.argsort(-np.abs(roots), kind="stable")], dtype=np.complex128)
+
+    @property
+    def K(self) -> float:  # noqa: N802 - the paper's symbol
+        """DC gain ``sum(b) / (1 - sum(a))`` (NaN when not a first-order-like model)."""
+        return self.first_order().K
+
+    @property
+    def tau(self) -> float:
+        """Time constant of the dominant pole in seconds (NaN when it has none)."""
+        return self.first_order().tau
+
+    @property
+    def ambient(self) -> float:
+        """Equilibrium output at zero input, ``c / (1 - sum(a))`` (NaN if ``sum(a) = 1``)."""
+        den = 1.0 - math.fsum(self.a)
+        return self.c / den if den != 0.0 else math.nan
+
+    def first_order(self) -> FirstOrderModel:
+        """The first-order summary: DC gain and dominant time constant, or why not.
+
+        Returns
+        -------
+        FirstOrderModel
+            Valid when every pole is inside the unit circle and the dominant one
+            is real and in (0, 1).
+
+        Examples
+        --------
+        >>> ArxModel(a=(1.2, -0.35), b=(0.1, 0.05), dt=2.0).first_order()  # doctest: +NUMBER
+        FirstOrderModel(K=1.0, tau=5.607347, reason=None)
+        """
+        if len(self.a) == 1 and len(self.b) == 1:
+            return FirstOrderModel.from_discrete(self.a[0], self.b[0], self.dt)
+        coeffs = [*self.a, *self.b]
+        if not all(math.isfinite(x) for x in coeffs):
+            return FirstOrderModel(math.nan, math.nan, INVALID_REASONS[NON_FINITE])
+        poles = self.poles
+        p = poles[0]
+        if abs(p) >= 1.0:
+            return FirstOrderModel(
+                math.nan,
+                math.nan,
+                f"pole {_fmt_complex(p)} has |p| = {abs(p):.6g} >= 1: the model is unstable "
+                "or integrating and has no time constant",
+            )
+        if len(poles) > 1 and abs(poles[1]) == abs(p) and poles[1] != p:
+            return FirstOrderModel(
+                math.nan,
+                math.nan,
+                f"dominant pole is complex ({_fmt_complex(p)}): the model oscillates and has no "
+                "first-order time constant",
+            )
+        if p.imag != 0.0:
+            return FirstOrderModel(
+                math.nan,
+                math.nan,
+                f"dominant pole is complex ({_fmt_complex(p)}): the model oscillates and has no "
+                "first-order time constant",
+            )
+        if p.real <= 0.0:
+            return FirstOrderModel(
+                math.nan,
+                math.nan,
+                f"dominant pole {p.real:.6g} <= 0: the model alternates sign each sample and has "
+                "no time constant",
+            )
+        gain = math.fsum(self.b) / (1.0 - math.fsum(self.a))
+        return FirstOrderModel(gain, -self.dt / math.log(p.real))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe description: coefficients, order, ``K``, ``tau``, ``ambient``."""
+        fo = self.first_order()
+        return {
+            "a": [float(x) for x in self.a],
+            "b": [float(x) for x in self.b],
+            "c": float(self.c),
+            "delay": self.delay,
+            "dt": self.dt,
+            "K": _json_float(fo.K),
+            "tau": _json_float(fo.tau),
+            "valid": fo.valid,
+            "reason": fo.reason,
+            "ambient": _json_float(self.ambient),
+        }
+
+
+def _fmt_complex(p: complex) -> str:
+    return f"{p.real:.6g}{p.imag:+.6g}j" if p.imag != 0.0 else f"{p.real:.6g}"
+
+
+def discrete_to_first_order(
+    W: npt.ArrayLike, dt: float, order: ArxOrder | None = None
+) -> tuple[FloatArray, FloatArray, IntArray]:
+    """Vectorised ``W -> (K, tau)`` for a whole trajectory of estimates.
+
+    Parameters
+    ----------
+    W : array_like, shape (n, n_params) or (n_params,)
+        Parameter vectors ``[a1..a_na, b1..b_nb]`` (a trailing constant ``c``,
+        if present, is ignored). Rows of NaN are "no estimate".
+    dt : float
+        Sample period in seconds, > 0.
+    order : ArxOrder, optional
+        The structure of ``W``; default first order (``W = [a, b]``).
+
+    Returns
+    -------
+    K, tau : numpy.ndarray of float, shape (n,)
+        DC gain and dominant time constant; NaN where the row has no first-order meaning.
+    code : numpy.ndarray of int8, shape (n,)
+        0 where valid, else the index of the reason in :data:`INVALID_REASONS`.
+
+    Raises
+    ------
+    InvalidParameterError
+        If ``dt`` is not > 0 or ``W`` has fewer columns than the order needs.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> K, tau, code = discrete_to_first_order([[0.9, 0.2], [1.01, 0.1], [np.nan, np.nan]], 1.0)
+    >>> K.round(6), tau.round(6), code
+    (array([ 2., nan, nan]), array([9.491222,      nan,      nan]), array([0, 3, 1], dtype=int8))
+    """
+    step = _check_dt(dt)
+    ord_ = FIRST_ORDER if order is None else order
+    arr = np.asarray(W, dtype=np.float64)
+    if arr.ndim == 1:
+        arr = arr[None, :]
+    n_dyn = ord_.na + ord_.nb
+    if arr.ndim != 2 or arr.shape[1] < n_dyn:
+        raise InvalidParameterError(
+            f"W must have shape (n, >= {n_dyn}) for order {ord_}, got {np.shape(W)}"
+        )
+    a = arr[:, : ord_.na]
+    b = arr[:, ord_.na : n_dyn]
+    n = arr.shape[0]
+    code = np.zeros(n, dtype=np.int8)
+    K = np.full(n, np.nan)
+    tau = np.full(n, np.nan)
+    missing = np.isnan(arr[:, :n_dyn]).all(axis=1)
+    finite = np.isfinite(arr[:, :n_dyn]).all(axis=1)
+    code[~finite] = NON_FINITE
+    code[missing] = NO_ESTIMATE
+    if ord_.na == 1:
+        pole = a[:, 0].copy()
+        pole[~finite] = np.nan
+        with np.errstate(invalid="ignore"):
+            code[finite & (pole >= 1.0)] = UNSTABLE
+            code[finite & (pole <= 0.0)] = NON_POSITIVE_POLE
+    else:
+        pole = np.full(n, np.nan)
+        rows = np.flatnonzero(finite)
+        if rows.size:
+            comp = np.zeros((rows.size, ord_.na, ord_.na))
+            comp[:, 0, :] = a[rows]
+            idx = np.arange(ord_.na - 1)
+            comp[:, idx + 1, idx] = 1.0
+            eig = np.linalg.eigvals(comp)
+            mod = np.abs(eig)
+            order_idx = np.argsort(-mod, axis=1, kind="stable")
+            eig_sorted = np.take_along_axis(eig, order_idx, axis=1)
+            mod_sorted = np.take_along_axis(mod, order_idx, axis=1)
+            dom = eig_sorted[:, 0]
+            rcode = np.zeros(rows.size, dtype=np.int8)
+            pair = (mod_sorted[:, 1] == mod_sorted[:, 0]) & (eig_sorted[:, 1] != dom)
+            rcode[(dom.imag != 0.0) | pair] = COMPLEX_POLE
+            rcode[(rcode == 0) & (dom.real <= 0.0)] = NON_POSITIVE_POLE
+            rcode[mod_sorted[:, 0] >= 1.0] = UNSTABLE
+            code[rows] = rcode
+            pole[rows] = np.where(rcode == 0, dom.real, np.nan)
+    ok = code == VALID
+    sum_a = a[ok].sum(axis=1)
+    sum_b = b[ok].sum(axis=1)
+    K[ok] = sum_b / (1.0 - sum_a)
+    tau[ok] = -step / np.log(pole[ok])
+    return K, tau, code

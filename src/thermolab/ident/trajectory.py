@@ -1,0 +1,344 @@
+"""The result of the block and recursive methods: estimates aligned with the samples."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from thermolab.errors import InvalidParameterError
+
+from .models import INVALID_REASONS, ArxOrder, FirstOrderModel, discrete_to_first_order
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+__all__ = ["Trajectory"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def _json(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def _json_list(a: npt.NDArray[Any]) -> list[Any]:
+    obj = a.astype(object)
+    obj[~np.isfinite(a)] = None
+    out: list[Any] = obj.tolist()
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """Parameter estimates of a block or recursive method, one row per sample.
+
+    Alignment: row ``k`` holds the estimate that became available when sample
+    ``k`` arrived (the newest target ``y[k]`` it uses), so the arrays have one
+    entry per sample of the record and ``trajectory.k`` is ``0 .. n-1``.
+    Samples before the first estimate, and estimates with no first-order
+    meaning, hold NaN in ``K`` and ``tau``; ``valid`` says which rows hold a
+    usable estimate and ``reason_code`` / :attr:`invalid_reason` why the others
+    do not. ``W`` is NaN only where there is no estimate at all (an unstable
+    model still has its ``W``).
+
+    Parameters
+    ----------
+    method : str
+        ``"blockls"``, ``"malsm"``, ``"wlsm"`` (or ``"lsm"``/``"srm"`` from an
+        online identifier).
+    dt : float
+        Sample period in seconds.
+    W : numpy.ndarray, shape (n_samples, n_params)
+        Discrete parameters, columns named by ``param_names``.
+    order : ArxOrder
+        Model structure of ``W``.
+    offset : str or float
+        The offset mode the estimates were made with.
+    param_names : tuple of str
+        Names of ``W``'s columns.
+    not_excited : numpy.ndarray of bool, optional
+        Rows whose regression was singular (their ``W`` is NaN).
+    params : dict, optional
+        The method's settings (``window``, ``gamma`` ...), for reports.
+
+    Notes
+    -----
+    ``K``, ``tau``, ``valid`` and ``reason_code`` are derived from ``W`` with
+    :func:`~thermolab.ident.models.discrete_to_first_order` when the trajectory
+    is built.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> W = np.array([[np.nan, np.nan], [0.9, 0.2], [0.9, 0.2], [1.1, 0.2]])
+    >>> tr = Trajectory("malsm", 1.0, W, ArxOrder(), "initial", ("a", "b"))
+    >>> tr.K.round(3), tr.valid
+    (array([nan,  2.,  2., nan]), array([False,  True,  True, False]))
+    >>> tr.invalid_reason[3][:30]
+    'unstable or integrating model:'
+    """
+
+    method: str
+    dt: float
+    W: FloatArray
+    order: ArxOrder
+    offset: str | float
+    param_names: tuple[str, ...]
+    not_excited: npt.NDArray[np.bool_] | None = None
+    params: dict[str, Any] = field(default_factory=dict)
+    K: FloatArray = field(init=False)
+    tau: FloatArray = field(init=False)
+    reason_code: npt.NDArray[np.int8] = field(init=False)
+
+    def __post_init__(self) -> None:
+        K, tau, code = discrete_to_first_order(self.W, self.dt, self.order)
+        if self.not_excited is not None:
+            code[self.not_excited] = 2
+        object.__setattr__(self, "K", K)
+        object.__setattr__(self, "tau", tau)
+        object.__setattr__(self, "reason_code", code)
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples (rows)."""
+        return int(self.W.shape[0])
+
+    @property
+    def k(self) -> npt.NDArray[np.intp]:
+        """Sample index of each row, ``0 .. n_samples-1``."""
+        return np.arange(self.n_samples)
+
+    @property
+    def valid(self) -> npt.NDArray[np.bool_]:
+        """True where the row holds an estimate with a first-order meaning."""
+        out: npt.NDArray[np.bool_] = self.reason_code == 0
+        return out
+
+    @property
+    def invalid_reason(self) -> npt.NDArray[np.object_]:
+        """Per row, ``None`` when valid, else why not (a sentence)."""
+        reasons = np.array(INVALID_REASONS, dtype=object)
+        out: npt.NDArray[np.object_] = reasons[self.reason_code]
+        return out
+
+    @property
+    def first_estimate(self) -> int | None:
+        """Sample index of the first row holding an estimate (valid or not), or None."""
+        has = ~np.isnan(self.W).all(axis=1) if self.W.shape[1] else np.zeros(0, bool)
+        idx = np.flatnonzero(has)
+        return int(idx[0]) if idx.size else None
+
+    @property
+    def final(self) -> FirstOrderModel:
+        """The model at the last sample (its ``reason`` says why when it is not valid)."""
+        if self.n_samples == 0:
+            return FirstOrderModel(math.nan, math.nan, INVALID_REASONS[1])
+        code = int(self.reason_code[-1])
+        if code:
+            return FirstOrderModel(math.nan, math.nan, INVALID_REASONS[code])
+        return FirstOrderModel(float(self.K[-1]), float(self.tau[-1]))
+
+    def _series(self, name: str) -> FloatArray:
+        if name == "K":
+            return self.K
+        if name == "tau":
+            return self.tau
+        raise InvalidParameterError(f"parameter must be 'K' or 'tau', got {name!r}")
+
+    def _stabilisation(self, x: FloatArray, last: int) -> float:
+        tail = x[-last:]
+        tail = tail[np.isfinite(tail)]
+        return float(tail.mean()) if tail.size else math.nan
+
+    def converged_at(self, tol: float = 0.01, last: int = 2000) -> dict[str, int | None]:
+        """First sample after which each estimate stays within ±tol of its stabilisation value.
+
+        Parameters
+        ----------
+        tol : float, optional
+            Relative tolerance, > 0 (default 0.01: the paper's ±1 %).
+        last : int, optional
+            The stabilisation value is the mean of the valid estimates over the
+            last ``last`` samples (all of them if the record is shorter). Default 2000.
+
+        Returns
+        -------
+        dict
+            ``{"K": k or None, "tau": k or None}``: the smallest sample index
+            ``k`` such that every row from ``k`` to the end is valid and within
+            ``±tol·|stabilisation value|``; None when even the last row is not
+            (or there is no valid estimate).
+
+        Raises
+        ------
+        InvalidParameterError
+            If ``tol`` is not > 0 or ``last`` is not a positive integer.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> a = np.array([0.5, 0.8, 0.9, 0.9, 0.9])
+        >>> W = np.column_stack([a, 0.2 * (1 - a)])
+        >>> tr = Trajectory("wlsm", 1.0, W, ArxOrder(), "initial", ("a", "b"))
+        >>> tr.converged_at(tol=0.01, last=3)
+        {'K': 0, 'tau': 2}
+        """
+        _check_tol_last(tol, last)
+        out: dict[str, int | None] = {}
+        for name in ("K", "tau"):
+            x = self._series(name)
+            ref = self._stabilisation(x, last)
+            if not math.isfinite(ref):
+                out[name] = None
+                continue
+            with np.errstate(invalid="ignore"):
+                inside = np.abs(x - ref) <= tol * abs(ref)
+            outside = np.flatnonzero(~inside)
+            if outside.size == 0:
+                out[name] = 0
+            elif outside[-1] == x.size - 1:
+                out[name] = None
+            else:
+                out[name] = int(outside[-1]) + 1
+        return out
+
+    def stats(self, last: int = 2000) -> dict[str, dict[str, float]]:
+        """Mean, maximum and minimum of the valid estimates over the last ``last`` samples.
+
+        Parameters
+        ----------
+        last : int, optional
+            Number of final samples to summarise (all when the record is shorter).
+            Default 2000, as in the paper's tables.
+
+        Returns
+        -------
+        dict
+            ``{"K": {"mean", "max", "min"}, "tau": {...}}``; NaN when no valid
+            estimate falls in the range.
+
+        Raises
+        ------
+        InvalidParameterError
+            If ``last`` is not a positive integer.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> a = np.array([0.5, 0.8, 0.9, 0.9, 0.9])
+        >>> W = np.column_stack([a, 0.2 * (1 - a)])
+        >>> Trajectory("wlsm", 1.0, W, ArxOrder(), "initial", ("a", "b")).stats(last=3)["K"]
+        {'mean': 0.2, 'max': 0.2, 'min': 0.2}
+        """
+        _check_tol_last(0.01, last)
+        out: dict[str, dict[str, float]] = {}
+        for name in ("K", "tau"):
+            tail = self._series(name)[-last:]
+            tail = tail[np.isfinite(tail)]
+            if tail.size:
+                out[name] = {
+                    "mean": float(tail.mean()),
+                    "max": float(tail.max()),
+                    "min": float(tail.min()),
+                }
+            else:
+                out[name] = {"mean": math.nan, "max": math.nan, "min": math.nan}
+        return out
+
+    def to_dict(
+        self, *, arrays: bool = True, tol: float = 0.01, last: int = 2000
+    ) -> dict[str, Any]:
+        """A JSON-safe summary (NaN and inf become ``None``).
+
+        Parameters
+        ----------
+        arrays : bool, optional
+            Include the per-sample arrays ``K``, ``tau``, ``W``, ``valid`` and
+            ``reason_code`` (with ``reasons`` to decode it). Default True.
+        tol, last : optional
+            Passed to :meth:`converged_at` and :meth:`stats`.
+
+        Returns
+        -------
+        dict
+            ``method``, ``dt``, ``order``, ``offset``, ``params``, ``param_names``,
+            ``n_samples``, ``first_estimate``, ``final`` (``{"K", "tau", "valid",
+            "reason"}``), ``stats``, ``converged_at`` and, with ``arrays``, the arrays.
+
+        Examples
+        --------
+        >>> import json, numpy as np
+        >>> W = np.array([[np.nan, np.nan], [0.9, 0.2]])
+        >>> d = Trajectory("malsm", 1.0, W, ArxOrder(), "initial", ("a", "b")).to_dict()
+        >>> d["K"], d["final"]["K"], json.loads(json.dumps(d)) == d
+        ([None, 2.0], 2.0, True)
+        """
+        stats = self.stats(last)
+        out: dict[str, Any] = {
+            "method": self.method,
+            "dt": self.dt,
+            "order": self.order.to_dict(),
+            "offset": self.offset,
+            "params": {k: _json_param(v) for k, v in self.params.items()},
+            "param_names": list(self.param_names),
+            "n_samples": self.n_samples,
+            "first_estimate": self.first_estimate,
+            "final": self.final.to_dict(),
+            "stats": {p: {s: _json(v) for s, v in d.items()} for p, d in stats.items()},
+            "converged_at": self.converged_at(tol, last),
+        }
+        if arrays:
+            out["K"] = _json_list(self.K)
+            out["tau"] = _json_list(self.tau)
+            out["W"] = _json_list(self.W)
+            out["valid"] = self.valid.tolist()
+            out["reason_code"] = self.reason_code.tolist()
+            out["reasons"] = list(INVALID_REASONS)
+        return out
+
+    def plot(self, *, reference: FirstOrderModel | None = None, title: str | None = None) -> Figure:
+        """Parameter convergence, ``K`` and ``tau`` against the sample, like the paper's Figs. 9-11.
+
+        Parameters
+        ----------
+        reference : FirstOrderModel, optional
+            Draw its ``K`` and ``tau`` as dashed lines (the true plant, when known).
+        title : str, optional
+            Figure title; default names the method and its settings.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            A figure not attached to pyplot (save it with ``fig.savefig(path)``).
+
+        Raises
+        ------
+        ImportError
+            If matplotlib is not installed (``pip install 'thermolab[plot]'``).
+        """
+        from ._plotting import plot_trajectory
+
+        return plot_trajectory(self, reference=reference, title=title)
+
+
+def _json_param(v: Any) -> Any:
+    if isinstance(v, float):
+        return _json(v)
+    if isinstance(v, np.ndarray):
+        return _json_list(v)
+    if isinstance(v, tuple | list):
+        return [_json_param(x) for x in v]
+    return v
+
+
+def _check_tol_last(tol: object, last: object) -> None:
+    if isinstance(tol, bool) or not isinstance(tol, int | float) or not (0.0 < tol < math.inf):
+        raise InvalidParameterError(
+            f"tol must be a relative tolerance > 0 (e.g. 0.01), got {tol!r}"
+        )
+    if isinstance(last, bool) or not isinstance(last, int | np.integer) or last < 1:
+        raise InvalidParameterError(f"last must be a positive number of samples, got {last!r}")
