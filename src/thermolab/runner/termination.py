@@ -45,13 +45,15 @@ def interrupt_signal(exc: BaseException) -> int | None:
     -------
     int or None
         ``SIGINT`` for :class:`KeyboardInterrupt`, the signal of a
-        :class:`Terminated`, otherwise ``None``.
+        :class:`Terminated`, ``N`` for ``SystemExit(128 + N)``, otherwise ``None``.
 
     Examples
     --------
     >>> interrupt_signal(KeyboardInterrupt()) == signal.SIGINT
     True
     >>> interrupt_signal(Terminated()) == signal.SIGTERM
+    True
+    >>> interrupt_signal(SystemExit(143)) == signal.SIGTERM
     True
     >>> interrupt_signal(ValueError()) is None
     True
@@ -60,6 +62,10 @@ def interrupt_signal(exc: BaseException) -> int | None:
         return int(signal.SIGINT)
     if isinstance(exc, Terminated):
         return exc.signum
+    # A handler that exits the conventional way (the TCLab driver's, say) raises
+    # SystemExit(128 + signum).
+    if isinstance(exc, SystemExit) and isinstance(exc.code, int) and 128 < exc.code < 128 + 65:
+        return exc.code - 128
     return None
 
 
