@@ -25,6 +25,8 @@ from .models import (
     FirstOrderModel,
     discrete_to_first_order,
 )
+from .step import IdentificationWarning, StepResponseResult, step_response
+from .recursive import moving_window_least_squares, weighted_least_squares
 from .trajectory import Trajectory
 
 __all__ = [
@@ -33,9 +35,12 @@ __all__ = [
     "ArxModel",
     "ArxOrder",
     "FirstOrderModel",
+    "IdentificationWarning",
     "LeastSquaresResult",
+    "StepResponseResult",
     "Trajectory",
     "block_least_squares",
     "discrete_to_first_order",
     "least_squares",
+    "step_response",
 ]
