@@ -1,0 +1,108 @@
+// The HTTP API (issue 4, /openapi.json): one place that knows how requests are
+// made and how the server's errors look, so every view shows the server's own
+// message (`detail`) as it comes.
+
+/** An HTTP answer that was not 2xx, carrying the server's message. */
+export class ApiError extends Error {
+  /**
+   * @param {number} status
+   * @param {string} message
+   * @param {unknown} body
+   */
+  constructor(status, message, body) {
+    super(message);
+    this.name = "ApiError";
+    this.status = status;
+    this.body = body;
+  }
+}
+
+/**
+ * The human-readable message of an error body: FastAPI answers either
+ * `{"detail": "text"}` or, for a request that fails validation,
+ * `{"detail": [{"loc": [...], "msg": "..."}]}`.
+ * @param {unknown} body
+ * @param {string} fallback
+ */
+export function errorMessage(body, fallback) {
+  if (body && typeof body === "object" && "detail" in body) {
+    const detail = /** @type {any} */ (body).detail;
+    if (typeof detail === "string" && detail) return detail;
+    if (Array.isArray(detail) && detail.length) {
+      return detail
+        .map((d) => {
+          if (!d || typeof d !== "object") return String(d);
+          const loc = Array.isArray(d.loc) ? d.loc.filter((p) => p !== "body").join(".") : "";
+          return loc ? `${loc}: ${d.msg}` : String(d.msg);
+        })
+        .join("; ");
+    }
+  }
+  if (typeof body === "string" && body.trim()) return body.trim();
+  return fallback;
+}
+
+/** Called on any 401, so that the app can go back to the login page. */
+let onUnauthorized = () => {};
+
+export function setUnauthorizedHandler(fn) {
+  onUnauthorized = fn;
+}
+
+/**
+ * Make a request to the API and return its decoded JSON (or null for 204).
+ * @param {string} method
+ * @param {string} path starting with /api/
+ * @param {unknown} [body] sent as JSON
+ * @param {{signal?: AbortSignal, quiet401?: boolean}} [opts]
+ */
+export async function request(method, path, body, opts = {}) {
+  /** @type {RequestInit} */
+  const init = {
+    method,
+    credentials: "same-origin",
+    headers: { Accept: "application/json" },
+    signal: opts.signal,
+  };
+  if (body !== undefined) {
+    init.headers["Content-Type"] = "application/json";
+    init.body = JSON.stringify(body);
+  }
+  let res;
+  try {
+    res = await fetch(path, init);
+  } catch (err) {
+    if (err && err.name === "AbortError") throw err;
+    throw new ApiError(0, "The lab server cannot be reached. Check the network connection.", null);
+  }
+  const type = res.headers.get("Content-Type") || "";
+  let data = null;
+  if (res.status !== 204) {
+    data = type.includes("json") ? await res.json().catch(() => null) : await res.text();
+  }
+  if (!res.ok) {
+    if (res.status === 401 && !opts.quiet401) onUnauthorized();
+    throw new ApiError(res.status, errorMessage(data, `${res.status} ${res.statusText}`), data);
+  }
+  return data;
+}
+
+const enc = encodeURIComponent;
+
+/** The endpoints the interface uses, by name. */
+export const api = {
+  session: () => request("GET", "/api/session", undefined, { quiet401: true }),
+  login: (username, password) => request("POST", "/api/session", { username, password }, { quiet401: true }),
+  logout: () => request("DELETE", "/api/session", undefined, { quiet401: true }),
+  rigs: (opts) => request("GET", "/api/rigs", undefined, opts),
+  rig: (rig, opts) => request("GET", `/api/rigs/${enc(rig)}`, undefined, opts),
+  askControl: (rig) => request("POST", `/api/rigs/${enc(rig)}/control`),
+  releaseControl: (rig) => request("DELETE", `/api/rigs/${enc(rig)}/control`),
+  setInput: (rig, u) => request("PUT", `/api/rigs/${enc(rig)}/input`, { u }),
+  startRun: (rig, spec) => request("POST", `/api/rigs/${enc(rig)}/runs`, spec),
+  stopRun: (rig) => request("POST", `/api/rigs/${enc(rig)}/runs/current/stop`),
+  runs: (query = "", opts) => request("GET", `/api/runs${query}`, undefined, opts),
+  run: (id, opts) => request("GET", `/api/runs/${enc(id)}`, undefined, opts),
+  csvUrl: (id) => `/api/runs/${enc(id)}/samples.csv`,
+  cameraUrl: (rig) => `/api/rigs/${enc(rig)}/camera`,
+};

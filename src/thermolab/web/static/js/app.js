@@ -1,0 +1,176 @@
+// The single-page application: session, hash router, navigation.
+//
+// Each view is a module exporting mount(container, params, ctx) that returns a
+// cleanup function; the router calls it when leaving the page, so sockets,
+// timers and observers never outlive their page (memory stays bounded however
+// long the tab stays open).
+
+import { api, ApiError, setUnauthorizedHandler } from "./api.js";
+import { announce, h, replaceChildren, setText } from "./dom.js";
+
+/** Routes: pattern → view module loader. The first match wins. */
+const ROUTES = [
+  { pattern: /^\/login$/, view: () => import("./views/login.js"), title: "Log in", open: true },
+  { pattern: /^\/$/, view: () => import("./views/lobby.js"), title: "Rigs", nav: "lobby" },
+  { pattern: /^\/rig\/([^/]+)$/, view: () => import("./views/rig.js"), title: "Rig", nav: "lobby" },
+  { pattern: /^\/runs$/, view: () => import("./views/runs.js"), title: "My runs", nav: "runs" },
+  { pattern: /^\/runs\/compare$/, view: () => import("./views/compare.js"), title: "Compare runs", nav: "runs" },
+  { pattern: /^\/runs\/([^/]+)$/, view: () => import("./views/run.js"), title: "Run", nav: "runs" },
+  { pattern: /^\/teacher$/, view: () => import("./views/teacher.js"), title: "Teacher", nav: "teacher" },
+];
+
+/** Shared state handed to every view. */
+export const ctx = {
+  /** @type {{username: string, role: string} | null} */
+  user: null,
+  navigate,
+  afterLogin,
+  /** Set the page title (the document title and the first heading's text). */
+  setTitle(text) {
+    document.title = `${text} · ThermoLab`;
+  },
+};
+
+let cleanup = null;
+let renderToken = 0;
+
+/** Parse "#/path?a=1" into a path and its query. */
+export function parseHash(hash) {
+  const raw = hash.replace(/^#/, "") || "/";
+  const q = raw.indexOf("?");
+  const path = q === -1 ? raw : raw.slice(0, q);
+  const query = new URLSearchParams(q === -1 ? "" : raw.slice(q + 1));
+  return { path: path.startsWith("/") ? path : `/${path}`, query };
+}
+
+export function navigate(path) {
+  if (window.location.hash === `#${path}`) void render();
+  else window.location.hash = path;
+}
+
+async function loadSession() {
+  try {
+    ctx.user = normaliseUser(await api.session());
+  } catch (err) {
+    if (!(err instanceof ApiError) || (err.status !== 401 && err.status !== 404)) throw err;
+    ctx.user = null;
+  }
+  updateChrome();
+}
+
+/** The session answer may wrap the user or be the user itself. */
+export function normaliseUser(data) {
+  if (!data || typeof data !== "object") return null;
+  const u = data.user && typeof data.user === "object" ? data.user : data;
+  if (typeof u.username !== "string") return null;
+  return { ...u, username: u.username, role: u.role ?? "student" };
+}
+
+function updateChrome() {
+  const nav = document.getElementById("nav");
+  const who = document.getElementById("who");
+  const loggedIn = ctx.user !== null;
+  nav.hidden = !loggedIn;
+  who.hidden = !loggedIn;
+  document.getElementById("nav-teacher").hidden = !(loggedIn && ctx.user.role === "teacher");
+  setText(document.getElementById("who-name"), loggedIn ? `${ctx.user.username} (${ctx.user.role})` : "");
+}
+
+function markNav(name) {
+  for (const a of document.querySelectorAll("[data-nav]")) {
+    if (a.dataset.nav === name) a.setAttribute("aria-current", "page");
+    else a.removeAttribute("aria-current");
+  }
+}
+
+async function render() {
+  const token = ++renderToken;
+  const { path, query } = parseHash(window.location.hash);
+  const route = ROUTES.find((r) => r.pattern.test(path));
+  const main = document.getElementById("main");
+  if (cleanup) {
+    const fn = cleanup;
+    cleanup = null;
+    try {
+      fn();
+    } catch (err) {
+      console.error(err);
+    }
+  }
+  if (!route) {
+    replaceChildren(main, h("h1", null, "Not found"), h("p", null, h("a", { href: "#/" }, "Back to the rigs")));
+    ctx.setTitle("Not found");
+    return;
+  }
+  if (!route.open && ctx.user === null) {
+    const back = path === "/" ? "" : `?next=${encodeURIComponent(path + (query.toString() ? `?${query}` : ""))}`;
+    navigate(`/login${back}`);
+    return;
+  }
+  markNav(route.nav ?? "");
+  ctx.setTitle(route.title);
+  const params = path.match(route.pattern).slice(1).map(decodeURIComponent);
+  let mod;
+  try {
+    mod = await route.view();
+  } catch (err) {
+    replaceChildren(main, h("p", { class: "error" }, `This page could not be loaded: ${err}`));
+    return;
+  }
+  if (token !== renderToken) return; // the user moved on while the module loaded
+  main.replaceChildren();
+  const result = mod.mount(main, { params, query }, ctx);
+  cleanup = typeof result === "function" ? result : null;
+  // Move focus to the new page so keyboard and screen-reader users start there.
+  const heading = main.querySelector("h1");
+  if (heading) {
+    heading.setAttribute("tabindex", "-1");
+    heading.focus({ preventScroll: false });
+  } else {
+    main.focus();
+  }
+}
+
+async function logout() {
+  try {
+    await api.logout();
+  } catch {
+    // Logging out of an expired session is still logging out.
+  }
+  ctx.user = null;
+  updateChrome();
+  announce("You are logged out.");
+  navigate("/login");
+}
+
+/** Called by the login view after a successful login. */
+async function afterLogin(next) {
+  await loadSession();
+  navigate(next && next.startsWith("/") && !next.startsWith("/login") ? next : "/");
+}
+
+async function start() {
+  setUnauthorizedHandler(() => {
+    if (ctx.user === null) return;
+    ctx.user = null;
+    updateChrome();
+    announce("Your session has ended; please log in again.", "alert");
+    navigate("/login");
+  });
+  document.getElementById("logout").addEventListener("click", logout);
+  window.addEventListener("hashchange", () => void render());
+  try {
+    await loadSession();
+  } catch (err) {
+    replaceChildren(
+      document.getElementById("main"),
+      h("h1", null, "ThermoLab"),
+      h("p", { class: "error", role: "alert" }, `The lab server cannot be reached: ${err.message ?? err}`),
+      h("button", { type: "button", onclick: () => window.location.reload() }, "Try again"),
+    );
+    return;
+  }
+  await render();
+}
+
+if (typeof window !== "undefined" && document.getElementById("main")) void start();

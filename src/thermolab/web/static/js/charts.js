@@ -1,0 +1,104 @@
+// Charts on uPlot, redrawn at most once per animation frame.
+//
+// Data arrive at up to 10 samples/s (and in bursts of thousands when a gap is
+// replayed); each arrival only marks the chart dirty. The next animation frame
+// pulls the current data from the chart's `source` (zero-copy ring-buffer
+// views) and redraws once. A hidden tab gets no frames, so it does no drawing
+// at all, and catches up with one redraw when shown again.
+
+import uPlot from "../vendor/uplot/uPlot.esm.js";
+import { h } from "./dom.js";
+
+/** Colours that stay distinguishable for the common colour-vision deficiencies (Okabe–Ito). */
+export const COLORS = ["#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000"];
+
+export class Chart {
+  /**
+   * @param {HTMLElement} parent
+   * @param {object} opts
+   * @param {string} opts.label       accessible name of the chart
+   * @param {string} opts.xLabel
+   * @param {string} opts.yLabel
+   * @param {{label: string, color?: string, dash?: number[], width?: number, points?: boolean}[]} opts.series
+   * @param {() => ArrayLike<number>[]} opts.source   [x, y1, y2...] for the next draw
+   * @param {number} [opts.height]
+   * @param {string} [opts.description] longer text for screen readers
+   */
+  constructor(parent, opts) {
+    this._source = opts.source;
+    this._raf = 0;
+    this._destroyed = false;
+    const descId = `chart-desc-${Math.random().toString(36).slice(2)}`;
+    this.el = h(
+      "figure",
+      { class: "chart", role: "group", "aria-label": opts.label, "aria-describedby": opts.description ? descId : null },
+      opts.description ? h("p", { class: "visually-hidden", id: descId }, opts.description) : null,
+    );
+    this._plotHost = h("div", { class: "chart-plot", "aria-hidden": "true" });
+    this.el.append(this._plotHost);
+    parent.append(this.el);
+    const width = Math.max(200, this._plotHost.clientWidth || parent.clientWidth || 320);
+    const series = [
+      { label: opts.xLabel },
+      ...opts.series.map((s, i) => ({
+        label: s.label,
+        stroke: s.color ?? COLORS[i % COLORS.length],
+        width: s.width ?? 1.5,
+        dash: s.dash,
+        points: { show: s.points ?? false },
+        spanGaps: false,
+      })),
+    ];
+    this.plot = new uPlot(
+      {
+        width,
+        height: opts.height ?? 220,
+        series,
+        scales: { x: { time: false } },
+        axes: [
+          { label: opts.xLabel, size: 40, labelSize: 18 },
+          { label: opts.yLabel, size: 60, labelSize: 18 },
+        ],
+        legend: { show: true, live: false },
+        cursor: { drag: { x: false, y: false } },
+      },
+      this._empty(series.length),
+      this._plotHost,
+    );
+    // Follow the width of the page (phones rotate; panels open and close).
+    this._ro = new ResizeObserver((entries) => {
+      const w = Math.floor(entries[0].contentRect.width);
+      if (w > 0 && Math.abs(w - this.plot.width) > 1) this.plot.setSize({ width: w, height: this.plot.height });
+    });
+    this._ro.observe(this._plotHost);
+    this.invalidate();
+  }
+
+  _empty(n) {
+    return Array.from({ length: n }, () => new Float64Array(0));
+  }
+
+  /** Ask for a redraw on the next animation frame (cheap to call at any rate). */
+  invalidate() {
+    if (this._raf || this._destroyed) return;
+    this._raf = requestAnimationFrame(() => {
+      this._raf = 0;
+      if (this._destroyed) return;
+      this.draw();
+    });
+  }
+
+  /** Redraw now from the source. */
+  draw() {
+    const data = this._source();
+    this.plot.setData(data, true);
+  }
+
+  destroy() {
+    this._destroyed = true;
+    if (this._raf) cancelAnimationFrame(this._raf);
+    this._ro.disconnect();
+    this.plot.destroy();
+    this.el.remove();
+  }
+}

@@ -1,0 +1,106 @@
+// Small DOM helpers. Text always goes in through textContent (never innerHTML),
+// so names and messages from the server cannot inject markup.
+
+/**
+ * Create an element: h("button", {type: "button", onclick: f}, "Text", child).
+ * Attributes starting with "on" become listeners; `class`, `for`, `aria-*`,
+ * `data-*` and the rest are set as attributes; false/null/undefined are skipped.
+ * @param {string} tag
+ * @param {Record<string, any> | null} [attrs]
+ * @param {...(Node | string | number | null | undefined | false | Array<any>)} children
+ * @returns {HTMLElement}
+ */
+export function h(tag, attrs, ...children) {
+  const el = document.createElement(tag);
+  if (attrs) {
+    for (const [key, value] of Object.entries(attrs)) {
+      if (value === false || value === null || value === undefined) continue;
+      if (key.startsWith("on") && typeof value === "function") {
+        el.addEventListener(key.slice(2), value);
+      } else if (key === "value" && "value" in el) {
+        el.value = String(value);
+      } else if (key === "checked" || key === "disabled" || key === "hidden") {
+        el[key] = Boolean(value);
+      } else {
+        el.setAttribute(key, value === true ? "" : String(value));
+      }
+    }
+  }
+  append(el, children);
+  return el;
+}
+
+function append(el, children) {
+  for (const child of children) {
+    if (child === null || child === undefined || child === false) continue;
+    if (Array.isArray(child)) append(el, child);
+    else el.append(child instanceof Node ? child : String(child));
+  }
+}
+
+/** Replace an element's children. */
+export function replaceChildren(el, ...children) {
+  el.replaceChildren();
+  append(el, children);
+}
+
+/** Set text only when it changed (avoids needless screen-reader chatter and layout). */
+export function setText(el, text) {
+  const s = String(text);
+  if (el.textContent !== s) el.textContent = s;
+}
+
+let uid = 0;
+/** A unique id for label/description wiring. */
+export function nextId(prefix = "id") {
+  uid += 1;
+  return `${prefix}-${uid}`;
+}
+
+let politeTimer = null;
+/**
+ * Say something to screen-reader users (and show nothing). Polite messages
+ * wait for the reader to finish; `alert` ones interrupt.
+ * @param {string} message
+ * @param {"polite" | "alert"} [urgency]
+ */
+export function announce(message, urgency = "polite") {
+  const el = document.getElementById(urgency === "alert" ? "announce-alert" : "announce-polite");
+  if (!el) return;
+  // Clearing first makes a repeated identical message be read again.
+  el.textContent = "";
+  if (politeTimer !== null) clearTimeout(politeTimer);
+  politeTimer = setTimeout(() => {
+    el.textContent = message;
+    politeTimer = null;
+  }, 50);
+}
+
+/** "m:ss" (or "h:mm:ss") for a number of seconds; "–" when unknown. */
+export function duration(seconds) {
+  if (seconds === null || seconds === undefined || !Number.isFinite(seconds)) return "–";
+  const s = Math.max(0, Math.round(seconds));
+  const hh = Math.floor(s / 3600);
+  const mm = Math.floor((s % 3600) / 60);
+  const ss = String(s % 60).padStart(2, "0");
+  return hh ? `${hh}:${String(mm).padStart(2, "0")}:${ss}` : `${mm}:${ss}`;
+}
+
+/** Spoken form of a duration: "4 minutes 5 seconds". */
+export function durationWords(seconds) {
+  if (seconds === null || seconds === undefined || !Number.isFinite(seconds)) return "unknown";
+  const s = Math.max(0, Math.round(seconds));
+  const m = Math.floor(s / 60);
+  const r = s % 60;
+  const parts = [];
+  if (m) parts.push(`${m} minute${m === 1 ? "" : "s"}`);
+  if (r || !m) parts.push(`${r} second${r === 1 ? "" : "s"}`);
+  return parts.join(" ");
+}
+
+/** Local date and time of an ISO instant, or "–". */
+export function when(iso) {
+  if (!iso) return "–";
+  const d = new Date(iso);
+  return Number.isNaN(d.getTime()) ? String(iso) : d.toLocaleString();
+}

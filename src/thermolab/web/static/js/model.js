@@ -1,0 +1,106 @@
+// First-order model arithmetic for display: the discrete form of eq. 4, the
+// prediction drawn over the data, and the figures of the paper's Tables I/II.
+// The identification itself happens on the server; nothing here estimates.
+
+/** The paper's reference model, eq. 16 (step method on the real rig, T = 1 s). */
+export const REFERENCE_MODEL = Object.freeze({ K: 0.14009, tau: 250.126233 });
+
+/** The paper's initial WLSM parameters W0 = [a, b] (Ks = 0.0269905, Ts = 26.73742 s). */
+export const PAPER_W0 = Object.freeze({ a: 0.96329, b: 9.9082e-4 });
+
+/**
+ * Discrete parameters of K/(tau s + 1) sampled with a zero-order hold at dt.
+ * @returns {{a: number, b: number}}
+ */
+export function toDiscrete(K, tau, dt) {
+  const a = Math.exp(-dt / tau);
+  return { a, b: (1 - a) * K };
+}
+
+/**
+ * Continuous parameters from the discrete ones; null where the discrete model
+ * has no first-order meaning (a outside (0, 1)).
+ * @returns {{K: number, tau: number} | null}
+ */
+export function fromDiscrete(a, b, dt) {
+  if (!(a > 0 && a < 1) || !Number.isFinite(b) || !(dt > 0)) return null;
+  return { K: b / (1 - a), tau: -dt / Math.log(a) };
+}
+
+/**
+ * The model's free-run response to the recorded input. The first output of the
+ * run is taken as the equilibrium at 0 V (the identification's default
+ * "initial" offset), so yhat[k] = y0 + x[k] with x[k+1] = a x[k] + b u[k].
+ * `x0` is the state at the first sample given: 0 when `u` starts at the run's
+ * first sample, else (a window of a long run) the measured y minus y0 there.
+ * @param {ArrayLike<number>} u
+ * @param {number} y0
+ * @param {{K: number, tau: number}} model
+ * @param {number} dt
+ * @param {Float64Array} [out] reused when long enough
+ * @param {number} [x0]
+ */
+export function predict(u, y0, model, dt, out, x0 = 0) {
+  const n = u.length;
+  const y = out && out.length >= n ? out.subarray(0, n) : new Float64Array(n);
+  if (n === 0) return y;
+  const { a, b } = toDiscrete(model.K, model.tau, dt);
+  let x = Number.isFinite(x0) ? x0 : 0;
+  for (let k = 0; k < n; k += 1) {
+    y[k] = y0 + x;
+    const uk = u[k];
+    x = a * x + b * (Number.isFinite(uk) ? uk : 0);
+  }
+  return y;
+}
+
+/**
+ * The first index after which every value stays within ±tol (relative) of
+ * `target`, or null if the last value is outside (never converged).
+ * @param {ArrayLike<number>} values
+ * @param {number} target
+ */
+export function convergedAt(values, target, tol = 0.01) {
+  if (!Number.isFinite(target) || values.length === 0) return null;
+  const band = Math.abs(target) * tol;
+  for (let i = values.length - 1; i >= 0; i -= 1) {
+    const v = values[i];
+    if (!(Math.abs(v - target) <= band)) return i + 1 < values.length ? i + 1 : null;
+  }
+  return 0;
+}
+
+/** mean, max and min over the finite values; null when there are none. */
+export function stats(values) {
+  let n = 0;
+  let sum = 0;
+  let max = -Infinity;
+  let min = Infinity;
+  for (const v of values) {
+    if (!Number.isFinite(v)) continue;
+    n += 1;
+    sum += v;
+    if (v > max) max = v;
+    if (v < min) min = v;
+  }
+  return n ? { mean: sum / n, max, min, n } : null;
+}
+
+/** Absolute and relative deviation of a value from a reference. */
+export function deviation(value, reference) {
+  if (!Number.isFinite(value) || !Number.isFinite(reference)) return null;
+  const d = value - reference;
+  return { abs: d, rel: reference === 0 ? Number.NaN : d / reference };
+}
+
+/**
+ * Format a number for a table cell with `digits` significant digits; an
+ * en dash for missing values.
+ */
+export function fmt(v, digits = 6) {
+  if (v === null || v === undefined || !Number.isFinite(v)) return "–";
+  if (v === 0) return "0";
+  const mag = Math.abs(v);
+  if (mag >= 1e6 || mag < 1e-4) return v.toExponential(Math.max(0, digits - 1));
+  return Number(v.toPrecision(digits)).toString();
+}

@@ -1,0 +1,78 @@
+// Runs: the body of POST /api/rigs/{rig}/runs built from a panel, and the run
+// objects of GET /api/runs/{run} read into one shape for the views.
+
+const METHOD_TITLES = {
+  srm: "Step response (SRM)",
+  lsm: "Least squares (LSM)",
+  blockls: "Block least squares",
+  malsm: "Moving-window LS (MALSM)",
+  wlsm: "Weighted LS (WLSM)",
+};
+
+/** Methods whose estimates form a trajectory (Ks(k), Ts(k) charts). */
+export const RECURSIVE = new Set(["blockls", "malsm", "wlsm"]);
+
+export function methodTitle(method) {
+  if (method === "srm-lsm") return "step response + least squares";
+  return METHOD_TITLES[method] ?? String(method);
+}
+
+/** The square wave of the Automatic option: ten times slower than sampling. */
+export function automaticSignal(low, high, dt) {
+  const freq = 1 / (10 * dt);
+  return `square:${low}:${high}:${Number(freq.toPrecision(12))}`;
+}
+
+/**
+ * The body of POST /api/rigs/{rig}/runs for a panel's checked values.
+ * @param {{id: string}} panel
+ * @param {Record<string, number>} v  checked values (dt, n, setpoint | low/high, window, gamma, pmax, a0, b0)
+ * @param {boolean} automatic
+ */
+export function buildRunSpec(panel, v, automatic) {
+  const spec = { dt: v.dt, n_samples: v.n };
+  if (automatic) spec.signal = automaticSignal(v.low, v.high, v.dt);
+  else spec.setpoint = v.setpoint;
+  if (panel.id === "srm-lsm") {
+    spec.methods = [{ method: "srm" }, { method: "lsm" }];
+  } else if (panel.id === "malsm") {
+    spec.methods = [{ method: "malsm", window: v.window }];
+  } else if (panel.id === "wlsm") {
+    spec.methods = [{ method: "wlsm", gamma: v.gamma, pmax: v.pmax, w0: [v.a0, v.b0] }];
+  } else {
+    throw new RangeError(`unknown panel ${panel.id}`);
+  }
+  return spec;
+}
+
+/** Which panel a run belongs to, from its methods. */
+export function panelOfRun(run) {
+  const names = new Set((run?.methods ?? []).map((m) => (typeof m === "string" ? m : (m.method ?? m.name))));
+  if (names.has("wlsm")) return "wlsm";
+  if (names.has("malsm")) return "malsm";
+  return "srm-lsm";
+}
+
+/** The method name of an entry of a run's `methods` list. */
+export function methodName(m) {
+  return typeof m === "string" ? m : String(m.method ?? m.name ?? "");
+}
+
+/**
+ * A run as the views use it; `estimates` (latest per method) is filled live.
+ * @param {any} r
+ */
+export function readRun(r) {
+  if (!r || typeof r !== "object") return null;
+  return {
+    ...r,
+    id: r.id,
+    status: String(r.status ?? "running"),
+    dt: Number(r.dt ?? 1),
+    n_samples: r.n_samples ?? null,
+    signal: r.signal ?? null,
+    methods: Array.isArray(r.methods) ? r.methods : [],
+    samples: Number(r.samples_stored ?? r.samples ?? 0),
+    estimates: new Map(),
+  };
+}

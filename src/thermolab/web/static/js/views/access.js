@@ -1,0 +1,169 @@
+// The access panel of a rig page: who controls, the queue, my place in it, the
+// controller's remaining time, and the buttons to ask for or give up control.
+// Changes that matter to me are announced to screen readers (live region).
+
+import { api } from "../api.js";
+import { announce, duration, durationWords, h, setText } from "../dom.js";
+
+export class AccessPanel {
+  /**
+   * @param {HTMLElement} parent
+   * @param {string} rigId
+   * @param {{onError: (msg: string) => void, onChange: () => void}} hooks
+   */
+  constructor(parent, rigId, hooks) {
+    this.rigId = rigId;
+    this.hooks = hooks;
+    this.access = null;
+    this.rigState = "off";
+    this._deadline = null; // ms timestamp when the controller's time runs out
+    this._warned = new Set();
+    this._busy = false;
+    this.role = h("p", { class: "access-role", "data-testid": "access-role" });
+    this.facts = h("dl", { class: "facts" });
+    this.fields = {};
+    for (const [key, label] of [
+      ["controller", "Controller"],
+      ["timeLeft", "Control time left"],
+      ["watchers", "Watching"],
+      ["queueSize", "In the queue"],
+      ["position", "Your place"],
+      ["wait", "Estimated wait"],
+    ]) {
+      const dd = h("dd", { "data-field": key });
+      this.fields[key] = dd;
+      this.facts.append(h("dt", { "data-for": key }, label), dd);
+    }
+    this.askButton = h("button", { type: "button", class: "primary", "data-action": "ask" }, "Ask for control");
+    this.leaveButton = h("button", { type: "button", "data-action": "leave" }, "Leave the queue");
+    this.releaseButton = h("button", { type: "button", "data-action": "release" }, "Release control");
+    this.askButton.addEventListener("click", () => this._act("ask"));
+    this.leaveButton.addEventListener("click", () => this._act("leave"));
+    this.releaseButton.addEventListener("click", () => this._act("release"));
+    this.el = h(
+      "section",
+      { class: "card access", "aria-labelledby": "access-heading" },
+      h("h2", { id: "access-heading" }, "Access"),
+      this.role,
+      this.facts,
+      h("div", { class: "buttons" }, this.askButton, this.leaveButton, this.releaseButton),
+    );
+    parent.append(this.el);
+    this._tick = setInterval(() => this._renderTime(), 1000);
+  }
+
+  get isController() {
+    return this.access?.role === "controller";
+  }
+
+  /** New access state (hello, `access` message, or an action's answer). */
+  update(access) {
+    const before = this.access;
+    this.access = access;
+    this._deadline = access.timeLeft === null ? null : Date.now() + access.timeLeft * 1000;
+    if (access.role !== "controller") this._warned.clear();
+    this._announceChange(before, access);
+    this.render();
+    this.hooks.onChange();
+  }
+
+  setRigState(state) {
+    this.rigState = state;
+    this.render();
+  }
+
+  _announceChange(before, now) {
+    if (!before) return;
+    const rig = this.rigId;
+    if (now.role !== before.role) {
+      if (now.role === "controller") announce(`You have control of ${rig}. The controls are unlocked.`);
+      else if (before.role === "controller") announce(`Your control of ${rig} has ended. The controls are locked.`);
+      else if (now.role === "queued" || now.queuePosition) {
+        announce(`You are number ${now.queuePosition} in the queue for ${rig}.`);
+      } else if (before.role === "queued") announce(`You left the queue for ${rig}.`);
+      return;
+    }
+    if (now.queuePosition && before.queuePosition && now.queuePosition !== before.queuePosition) {
+      announce(`You are now number ${now.queuePosition} in the queue.`);
+    }
+    if (now.controller !== before.controller && now.role !== "controller") {
+      announce(now.controller ? `${now.controller} now controls ${rig}.` : `Nobody controls ${rig} now.`);
+    }
+  }
+
+  _secondsLeft() {
+    return this._deadline === null ? null : Math.max(0, (this._deadline - Date.now()) / 1000);
+  }
+
+  _renderTime() {
+    const left = this._secondsLeft();
+    const dd = this.fields.timeLeft;
+    setText(dd, left === null ? "–" : duration(left));
+    dd.setAttribute("aria-label", left === null ? "no time limit running" : durationWords(left));
+    if (this.isController && left !== null) {
+      // A few spoken warnings, not a ticking announcement every second.
+      for (const mark of [60, 10]) {
+        if (left <= mark && left > mark - 2 && !this._warned.has(mark)) {
+          this._warned.add(mark);
+          announce(`${durationWords(mark)} of control left.`);
+        }
+      }
+    }
+    if (this.access?.estimatedTimeUntilControl !== null && this.access?.estimatedTimeUntilControl !== undefined) {
+      setText(this.fields.wait, duration(this.access.estimatedTimeUntilControl));
+    }
+  }
+
+  render() {
+    const a = this.access;
+    if (!a) {
+      setText(this.role, "Connecting…");
+      return;
+    }
+    const roleText = {
+      controller: "You control this rig.",
+      queued: `You are waiting for control: number ${a.queuePosition ?? "?"} in the queue.`,
+      watcher: "You are watching (read-only).",
+      teacher: "You are watching as a teacher.",
+    };
+    setText(this.role, roleText[a.role] ?? (a.queuePosition ? roleText.queued : roleText.watcher));
+    this.role.dataset.role = a.role;
+    setText(this.fields.controller, a.controller ?? "nobody");
+    setText(this.fields.watchers, String(a.watchers));
+    setText(this.fields.queueSize, String(a.queueSize));
+    const queued = a.role === "queued" || (a.queuePosition !== null && a.role !== "controller");
+    setText(this.fields.position, queued ? `${a.queuePosition}` : "–");
+    setText(this.fields.wait, queued ? duration(a.estimatedTimeUntilControl) : "–");
+    this._renderTime();
+    const usable = !["fault", "out_of_service"].includes(this.rigState);
+    this.askButton.hidden = a.role === "controller" || queued;
+    this.askButton.disabled = this._busy || !usable;
+    this.leaveButton.hidden = !queued;
+    this.leaveButton.disabled = this._busy;
+    this.releaseButton.hidden = a.role !== "controller";
+    this.releaseButton.disabled = this._busy;
+  }
+
+  async _act(what) {
+    if (this._busy) return;
+    this._busy = true;
+    this.render();
+    const focusAfter = what === "ask" ? null : this.askButton;
+    try {
+      const answer = what === "ask" ? await api.askControl(this.rigId) : await api.releaseControl(this.rigId);
+      this.hooks.onAnswer?.(answer);
+    } catch (err) {
+      this.hooks.onError(err.message);
+    } finally {
+      this._busy = false;
+      this.render();
+      // Keep keyboard focus on a visible button after the one pressed hides.
+      const visible = [this.releaseButton, this.leaveButton, this.askButton].find((b) => !b.hidden);
+      if (document.activeElement === document.body || document.activeElement?.hidden) (focusAfter && !focusAfter.hidden ? focusAfter : visible)?.focus();
+    }
+  }
+
+  destroy() {
+    clearInterval(this._tick);
+  }
+}

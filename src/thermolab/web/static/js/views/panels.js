@@ -1,0 +1,482 @@
+// The paper's three panels (section II, Figs. 6–8), as tabs:
+//   1. step response + least squares (SRM and LSM together),
+//   2. moving-window least squares (MALSM),
+//   3. weighted least squares (WLSM: adds γ, pmax and the initial parameters).
+// Each takes the sample time, the number of samples and an initial set point
+// (or the Automatic square wave); START begins the run, the set point can be
+// changed while it runs, END closes it and the model is shown.
+//
+// Every field shows its allowed range and is checked before anything is sent;
+// the server's own message is shown when it refuses. The forms are locked for
+// anyone who is not the controller, and unlock as soon as they are.
+
+import { h, nextId, setText } from "../dom.js";
+import { fmt, fromDiscrete, PAPER_W0 } from "../model.js";
+import { checkAll, checkNumber, rangeText } from "../validate.js";
+import { methodTitle, panelOfRun } from "../runspec.js";
+
+/**
+ * @typedef {import("../validate.js").FieldSpec & {name: string, value: number | string,
+ *   hint?: string, step?: string, automaticOnly?: boolean, manualOnly?: boolean}} FieldDef
+ */
+
+/** Field definitions of each panel; ranges come from the rig's limits. */
+export function panelDefinitions(limits) {
+  const u = { min: limits.inputMin, max: limits.inputMax, unit: limits.inputUnit };
+  const common = [
+    { name: "dt", label: "Sample time T", min: limits.dtMin, max: limits.dtMax, unit: "s", value: 1, step: "any" },
+    { name: "n", label: "Number of samples", min: limits.nMin, max: limits.nMax, integer: true, value: 2000, step: "1" },
+  ];
+  const setpoint = (value) => ({ name: "setpoint", label: "Initial set point", ...u, value, step: "any", manualOnly: true });
+  const auto = (lo, hi) => [
+    { name: "low", label: "Automatic: minimum", ...u, value: lo, step: "any", automaticOnly: true },
+    { name: "high", label: "Automatic: maximum", ...u, value: hi, step: "any", automaticOnly: true },
+  ];
+  return [
+    {
+      id: "srm-lsm",
+      number: 1,
+      title: "Step response + least squares",
+      short: "1 · Step + LS",
+      intro:
+        "Set the sample time, the number of samples (at least 2000 for the step method) and the initial set point; press START, then change the set point to make the step (at least 1 V), and END when the output has settled. Start from a cold rig.",
+      fields: [...common, setpoint(0), ...auto(4, 6)],
+      methods: ["srm", "lsm"],
+      stepHint: 10,
+    },
+    {
+      id: "malsm",
+      number: 2,
+      title: "Moving-window least squares",
+      short: "2 · Moving window",
+      intro:
+        "An estimate at every sample over the last N samples (a FIFO window). Vary the set point while it runs, or use the Automatic square wave.",
+      fields: [
+        ...common,
+        { name: "window", label: "Window", min: limits.windowMin, max: limits.windowMax, integer: true, unit: "samples", value: 100, step: "1" },
+        setpoint(5),
+        ...auto(4, 6),
+      ],
+      methods: ["malsm"],
+      automaticDefault: true,
+      stepHint: 6,
+    },
+    {
+      id: "wlsm",
+      number: 3,
+      title: "Weighted least squares",
+      short: "3 · Weighted LS",
+      intro:
+        "Recursive least squares with forgetting factor γ and initial covariance pmax·I, started from the initial parameters W0 = [a0, b0] (the paper's W0 gives Ks = 0.0269905, Ts = 26.74 s).",
+      fields: [
+        ...common,
+        { name: "gamma", label: "Forgetting factor γ", min: 0, max: 1, exclusiveMin: true, exclusiveMax: true, value: 0.96, step: "any" },
+        { name: "pmax", label: "pmax (diagonal of P)", min: 0, max: 1e12, exclusiveMin: true, value: 10000, step: "any" },
+        { name: "a0", label: "Initial a0", min: -1e6, max: 1e6, value: PAPER_W0.a, step: "any" },
+        { name: "b0", label: "Initial b0", min: -1e6, max: 1e6, value: PAPER_W0.b, step: "any" },
+        setpoint(2),
+        ...auto(0, 4),
+      ],
+      methods: ["wlsm"],
+      automaticDefault: true,
+      stepHint: 4,
+    },
+  ];
+}
+
+export class Panels {
+  /**
+   * @param {HTMLElement} parent
+   * @param {object} limits  see panelDefinitions
+   * @param {{start: (panel: object, values: Record<string, number>, automatic: boolean) => Promise<void>,
+   *   setpoint: (u: number) => Promise<void>, end: () => Promise<void>}} actions
+   */
+  constructor(parent, limits, actions) {
+    this.limits = limits;
+    this.actions = actions;
+    this.defs = panelDefinitions(limits);
+    this.locked = true;
+    this.lockReason = "";
+    this.run = null; // the current (or last shown) run, normalised
+    this.tabs = [];
+    this.views = [];
+    const tablist = h("div", { role: "tablist", class: "tabs", "aria-label": "Identification panels" });
+    this.notice = h("p", { class: "lock-notice", "data-testid": "lock-notice", role: "status" });
+    this.el = h(
+      "section",
+      { class: "card panels", "aria-labelledby": "panels-heading" },
+      h("h2", { id: "panels-heading" }, "Identification"),
+      this.notice,
+      tablist,
+    );
+    this.defs.forEach((def, i) => {
+      const tabId = `tab-${def.id}`;
+      const panelId = `panel-${def.id}`;
+      const tab = h(
+        "button",
+        { type: "button", role: "tab", id: tabId, "aria-controls": panelId, "aria-selected": "false", tabindex: "-1", "data-panel": def.id },
+        def.short,
+      );
+      tab.addEventListener("click", () => this.select(i, true));
+      tab.addEventListener("keydown", (ev) => this._tabKey(ev, i));
+      tablist.append(tab);
+      this.tabs.push(tab);
+      const view = this._panel(def, panelId, tabId);
+      this.views.push(view);
+      this.el.append(view.el);
+    });
+    parent.append(this.el);
+    this.select(0, false);
+    this.setLocked(true, "Connecting…");
+  }
+
+  _tabKey(ev, i) {
+    const n = this.tabs.length;
+    const to = { ArrowRight: (i + 1) % n, ArrowLeft: (i - 1 + n) % n, Home: 0, End: n - 1 }[ev.key];
+    if (to === undefined) return;
+    ev.preventDefault();
+    this.select(to, true);
+  }
+
+  select(index, focus) {
+    this.tabs.forEach((tab, i) => {
+      const on = i === index;
+      tab.setAttribute("aria-selected", String(on));
+      tab.tabIndex = on ? 0 : -1;
+      this.views[i].el.hidden = !on;
+    });
+    this.selected = index;
+    if (focus) this.tabs[index].focus();
+  }
+
+  selectById(id) {
+    const i = this.defs.findIndex((d) => d.id === id);
+    if (i >= 0) this.select(i, false);
+  }
+
+  _panel(def, panelId, tabId) {
+    const view = { def, inputs: {}, errors: {}, results: null };
+    const form = h("form", { novalidate: true, class: "panel-form", "data-panel-form": def.id });
+    const fieldset = h("fieldset", null, h("legend", null, `Panel ${def.number}: ${def.title}`));
+    const autoId = nextId("auto");
+    const autoBox = h("input", { type: "checkbox", id: autoId, name: "automatic", checked: Boolean(def.automaticDefault) });
+    const autoHint = h("span", { class: "hint", id: `${autoId}-hint` });
+    for (const f of def.fields) {
+      if (f.automaticOnly && !view.autoRow) {
+        view.autoRow = h(
+          "div",
+          { class: "field check" },
+          autoBox,
+          h("label", { for: autoId }, "Automatic (square wave)"),
+          autoHint,
+        );
+        autoBox.setAttribute("aria-describedby", autoHint.id);
+        fieldset.append(view.autoRow);
+      }
+      fieldset.append(this._field(view, f));
+    }
+    view.automatic = autoBox;
+    const updateAuto = () => {
+      const on = autoBox.checked;
+      for (const f of def.fields) {
+        const row = view.inputs[f.name].closest(".field");
+        if (f.automaticOnly) row.hidden = !on;
+        if (f.manualOnly) row.hidden = on;
+      }
+      const dt = Number(view.inputs.dt.value);
+      const freq = dt > 0 ? 1 / (10 * dt) : Number.NaN;
+      setText(autoHint, `A square wave between the minimum and maximum at ${fmt(freq, 3)} Hz (ten times slower than sampling).`);
+    };
+    autoBox.addEventListener("change", updateAuto);
+    view.inputs.dt.addEventListener("input", updateAuto);
+    view.updateAuto = updateAuto;
+    view.startButton = h("button", { type: "submit", class: "primary", "data-action": "start" }, "START");
+    view.formError = h("p", { class: "error", role: "alert", "data-testid": "form-error" });
+    fieldset.append(h("div", { class: "buttons" }, view.startButton));
+    form.append(fieldset, view.formError);
+    form.addEventListener("submit", (ev) => {
+      ev.preventDefault();
+      void this._start(view);
+    });
+    view.fieldset = fieldset;
+
+    // Run controls: change the set point while running, END.
+    const spId = nextId("sp");
+    const spSpec = { label: "Set point", min: this.limits.inputMin, max: this.limits.inputMax, unit: this.limits.inputUnit };
+    view.spInput = h("input", {
+      id: spId,
+      name: "setpoint-live",
+      type: "text",
+      inputmode: this.limits.inputMin >= 0 ? "decimal" : null,
+      value: def.stepHint,
+      "aria-describedby": `${spId}-range ${spId}-err`,
+    });
+    view.spError = h("span", { class: "field-error", id: `${spId}-err` });
+    view.spButton = h("button", { type: "submit", "data-action": "setpoint" }, "Change set point");
+    view.endButton = h("button", { type: "button", class: "danger", "data-action": "end" }, "END");
+    view.spSpec = spSpec;
+    const runForm = h(
+      "form",
+      { novalidate: true, class: "run-controls", "data-run-form": def.id },
+      h(
+        "fieldset",
+        null,
+        h("legend", null, "While the run is going"),
+        h(
+          "div",
+          { class: "field" },
+          h("label", { for: spId }, "Set point"),
+          view.spInput,
+          h("span", { class: "hint", id: `${spId}-range` }, `Allowed: ${rangeText(spSpec)}`),
+          view.spError,
+        ),
+        h("div", { class: "buttons" }, view.spButton, view.endButton),
+      ),
+    );
+    runForm.addEventListener("submit", (ev) => {
+      ev.preventDefault();
+      void this._setpoint(view);
+    });
+    view.endButton.addEventListener("click", () => void this._end(view));
+    view.runFieldset = runForm.querySelector("fieldset");
+
+    view.results = h("div", { class: "results", "data-testid": `results-${def.id}` });
+    view.status = h("p", { class: "run-status", "data-testid": `run-status-${def.id}` });
+    view.el = h(
+      "div",
+      { role: "tabpanel", id: panelId, "aria-labelledby": tabId, class: "panel", tabindex: "0", "data-panel-view": def.id },
+      h("p", { class: "panel-intro" }, def.intro),
+      form,
+      runForm,
+      h("h3", null, "Model"),
+      view.status,
+      view.results,
+    );
+    updateAuto();
+    this._renderResults(view);
+    return view;
+  }
+
+  _field(view, f) {
+    const id = `${view.def.id}-${f.name}`;
+    const input = h("input", {
+      id,
+      name: f.name,
+      type: "text",
+      // iOS's decimal keypad has no minus sign: offer it only where negatives are not allowed.
+      inputmode: f.min >= 0 ? (f.integer ? "numeric" : "decimal") : null,
+      value: f.value,
+      autocomplete: "off",
+      "aria-describedby": `${id}-range ${id}-err`,
+    });
+    const err = h("span", { class: "field-error", id: `${id}-err` });
+    view.inputs[f.name] = input;
+    view.errors[f.name] = err;
+    input.addEventListener("input", () => {
+      if (input.getAttribute("aria-invalid") === "true") this._showFieldError(view, f.name, null);
+    });
+    return h(
+      "div",
+      { class: "field" },
+      h("label", { for: id }, f.label + (f.unit && f.unit !== "samples" ? ` (${f.unit})` : "")),
+      input,
+      h("span", { class: "hint", id: `${id}-range` }, `Allowed: ${rangeText(f)}`),
+      err,
+    );
+  }
+
+  _showFieldError(view, name, message) {
+    const input = view.inputs[name];
+    if (message) {
+      input.setAttribute("aria-invalid", "true");
+      setText(view.errors[name], message);
+    } else {
+      input.removeAttribute("aria-invalid");
+      setText(view.errors[name], "");
+    }
+  }
+
+  /** Check the panel's fields; returns the values or null (errors shown, focus on the first). */
+  _check(view) {
+    const automatic = view.automatic.checked;
+    const specs = {};
+    const texts = {};
+    for (const f of view.def.fields) {
+      if ((f.automaticOnly && !automatic) || (f.manualOnly && automatic)) {
+        this._showFieldError(view, f.name, null);
+        continue;
+      }
+      specs[f.name] = f;
+      texts[f.name] = view.inputs[f.name].value;
+    }
+    const { values, errors } = checkAll(texts, specs);
+    if (!errors.window && values.window !== undefined && values.n !== undefined && values.window > values.n) {
+      errors.window = `Window must not exceed the number of samples (${values.n}).`;
+    }
+    if (automatic && !errors.low && !errors.high && !(values.low < values.high)) {
+      errors.high = "Automatic: the maximum must be greater than the minimum.";
+    }
+    if (!errors.a0 && !errors.b0 && values.a0 !== undefined) {
+      const dt = values.dt ?? 1;
+      if (!fromDiscrete(values.a0, values.b0, dt)) {
+        errors.a0 = "Initial a0 must be between 0 and 1 (exclusive) for a first-order model.";
+      }
+    }
+    let first = null;
+    for (const f of view.def.fields) {
+      const msg = errors[f.name] ?? null;
+      if (specs[f.name] || msg) this._showFieldError(view, f.name, msg);
+      if (msg && !first) first = view.inputs[f.name];
+    }
+    if (first) {
+      setText(view.formError, "Please correct the highlighted fields; nothing was sent.");
+      first.focus();
+      return null;
+    }
+    setText(view.formError, "");
+    return { values, automatic };
+  }
+
+  async _start(view) {
+    if (this.locked) return;
+    const checked = this._check(view);
+    if (!checked) return;
+    view.startButton.disabled = true;
+    try {
+      await this.actions.start(view.def, checked.values, checked.automatic);
+      setText(view.formError, "");
+    } catch (err) {
+      setText(view.formError, err.message);
+    } finally {
+      this._renderLock();
+    }
+  }
+
+  async _setpoint(view) {
+    const r = checkNumber(view.spInput.value, view.spSpec);
+    if (!r.ok) {
+      view.spInput.setAttribute("aria-invalid", "true");
+      setText(view.spError, r.error);
+      view.spInput.focus();
+      return;
+    }
+    view.spInput.removeAttribute("aria-invalid");
+    setText(view.spError, "");
+    view.spButton.disabled = true;
+    try {
+      await this.actions.setpoint(r.value);
+      setText(view.spError, "");
+    } catch (err) {
+      setText(view.spError, err.message);
+    } finally {
+      this._renderLock();
+    }
+  }
+
+  async _end(view) {
+    view.endButton.disabled = true;
+    try {
+      await this.actions.end();
+    } catch (err) {
+      setText(view.spError, err.message);
+    } finally {
+      this._renderLock();
+    }
+  }
+
+  /** Lock (watching) or unlock (controlling) every control, without a reload. */
+  setLocked(locked, reason = "") {
+    this.locked = locked;
+    this.lockReason = reason;
+    this._renderLock();
+  }
+
+  /** The current run (normalised by runspec.readRun) or null. */
+  setRun(run) {
+    this.run = run;
+    if (run) {
+      const panel = panelOfRun(run);
+      const i = this.defs.findIndex((d) => d.id === panel);
+      if (i >= 0) this._renderResults(this.views[i]);
+    }
+    this._renderLock();
+  }
+
+  /** A new estimate (live protocol) of the current run. */
+  estimatesChanged() {
+    if (!this.run) return;
+    const i = this.defs.findIndex((d) => d.id === panelOfRun(this.run));
+    if (i >= 0) this._renderResults(this.views[i]);
+  }
+
+  _renderLock() {
+    const running = this.run?.status === "running";
+    setText(this.notice, this.locked ? this.lockReason : "");
+    this.notice.hidden = !this.locked;
+    const runPanel = this.run ? panelOfRun(this.run) : null;
+    for (const view of this.views) {
+      view.fieldset.disabled = this.locked || running;
+      view.startButton.disabled = this.locked || running;
+      const mine = running && runPanel === view.def.id;
+      view.runFieldset.disabled = this.locked || !mine;
+      const automaticRun = mine && Boolean(this.run.signal);
+      view.spInput.disabled = view.spButton.disabled = this.locked || !mine || automaticRun;
+      view.endButton.disabled = this.locked || !mine;
+      view.runFieldset.closest("form").hidden = !mine;
+      if (!mine) {
+        setText(view.status, running ? `A ${methodTitle(runPanel)} run is going (panel ${this.defs.find((d) => d.id === runPanel)?.number ?? "?"}).` : this._idleStatus(view));
+      } else {
+        const k = this.run.samples ?? 0;
+        const n = this.run.n_samples;
+        setText(view.status, `Run #${this.run.id} running: sample ${k}${n ? ` of ${n}` : ""}${automaticRun ? " (Automatic square wave)" : ""}.`);
+      }
+    }
+  }
+
+  _idleStatus(view) {
+    if (this.run && panelOfRun(this.run) === view.def.id) {
+      return `Run #${this.run.id} ${this.run.status}${this.run.end_reason ? ` (${this.run.end_reason})` : ""}.`;
+    }
+    return "No run yet in this panel.";
+  }
+
+  /** Progress of the current run (called on every sample; cheap). */
+  progress(k) {
+    if (!this.run || this.run.status !== "running") return;
+    this.run.samples = k + 1;
+    const i = this.defs.findIndex((d) => d.id === panelOfRun(this.run));
+    const view = this.views[i];
+    if (!view) return;
+    const n = this.run.n_samples;
+    setText(view.status, `Run #${this.run.id} running: sample ${k + 1}${n ? ` of ${n}` : ""}${this.run.signal ? " (Automatic square wave)" : ""}.`);
+  }
+
+  _renderResults(view) {
+    const run = this.run && panelOfRun(this.run) === view.def.id ? this.run : null;
+    const rows = view.def.methods.map((m) => {
+      const est = run?.estimates?.get(m) ?? null;
+      return h(
+        "tr",
+        { "data-method": m },
+        h("th", { scope: "row" }, methodTitle(m)),
+        h("td", { "data-field": "K" }, est ? fmt(est.K) : "–"),
+        h("td", { "data-field": "tau" }, est ? fmt(est.tau) : "–"),
+        h("td", { "data-field": "k" }, est && Number.isFinite(est.k) ? String(est.k) : "–"),
+        h("td", { "data-field": "status" }, est ? (est.final ? "final (at END)" : est.valid ? "live" : (est.reason ?? "no first-order meaning")) : "waiting"),
+      );
+    });
+    view.results.replaceChildren(
+      h(
+        "table",
+        { class: "estimates" },
+        h("caption", { class: "visually-hidden" }, `${view.def.title}: current estimates`),
+        h(
+          "thead",
+          null,
+          h("tr", null, h("th", { scope: "col" }, "Method"), h("th", { scope: "col" }, "Ks"), h("th", { scope: "col" }, "Ts (s)"), h("th", { scope: "col" }, "at sample"), h("th", { scope: "col" }, "status")),
+        ),
+        h("tbody", null, rows),
+      ),
+    );
+  }
+}

@@ -1,0 +1,409 @@
+"""Unit tests of the interface's JavaScript modules, run in a real Chromium.
+
+Each test imports modules from the static folder (served over HTTP, no lab
+behind it) and checks their behaviour: the ring buffers that bound memory, the
+live client's reconnection and gap filling (against a scripted WebSocket and
+fake timers, so nothing waits), input checking, the model arithmetic, and the
+run request each panel builds.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from numpy.testing import assert_allclose
+
+from thermolab.web import STATIC_DIR
+
+pytestmark = pytest.mark.browser
+
+
+def run_js(page: Any, body: str) -> Any:
+    """Run an async function body in the page and return its (JSON) result."""
+    return page.evaluate(f"async () => {{ {body} }}")
+
+
+def test_every_module_loads(module_page: Any) -> None:
+    modules = sorted(
+        "/" + p.relative_to(STATIC_DIR).as_posix()
+        for p in (STATIC_DIR / "js").rglob("*.js")
+        if p.name != "app.js"
+    )
+    assert "/js/views/rig.js" in modules
+    failed = run_js(
+        module_page,
+        f"""
+        const out = [];
+        for (const m of {modules!r}) {{
+          try {{ await import(m); }} catch (e) {{ out.push(m + ': ' + e); }}
+        }}
+        return out;
+        """,
+    )
+    assert failed == []
+
+
+def test_ring_buffer_keeps_the_newest_rows_in_order_in_fixed_memory(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        """
+        const { RingBuffer } = await import('/js/ring.js');
+        const rb = new RingBuffer(5, ['t', 'y']);
+        const bytes = () => [...rb._cols.values()].reduce((s, c) => s + c.byteLength, 0);
+        const before = bytes();
+        const empty = [...rb.column('t')];
+        for (let i = 0; i < 3; i++) rb.push({ t: i, y: 10 * i });
+        const partial = [...rb.column('t')];
+        for (let i = 3; i < 100003; i++) rb.push({ t: i, y: 10 * i });
+        const view = rb.column('y');
+        const out = {
+          empty, partial, t: [...rb.column('t')], y: [...view], length: rb.length,
+          last: rb.last('t'), sameMemory: bytes() === before, isView: view.buffer === rb._cols.get('y').buffer,
+        };
+        rb.push({ t: 100003 });  // missing column -> NaN
+        out.missing = Number.isNaN(rb.last('y'));
+        rb.setColumn('y', [1, 2]);
+        out.set = [...rb.column('y')].slice(-2);
+        rb.clear();
+        out.cleared = rb.length;
+        let threw = false;
+        try { new RingBuffer(0, ['t']); } catch (e) { threw = e instanceof RangeError; }
+        out.threw = threw;
+        return out;
+        """,
+    )
+    assert r["empty"] == []
+    assert r["partial"] == [0, 1, 2]
+    assert r["t"] == [99998, 99999, 100000, 100001, 100002]
+    assert r["y"] == [10 * t for t in r["t"]]
+    assert r["length"] == 5
+    assert r["last"] == 100002
+    assert r["sameMemory"] is True
+    assert r["isView"] is True
+    assert r["missing"] is True
+    assert r["set"] == [1, 2]
+    assert r["cleared"] == 0
+    assert r["threw"] is True
+
+
+def test_decimating_buffer_bounds_a_whole_trajectory(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        """
+        const { DecimatingBuffer } = await import('/js/ring.js');
+        const b = new DecimatingBuffer(100, ['k', 'K']);
+        for (let k = 0; k < 100000; k++) b.push({ k, K: k / 10 });
+        const k = [...b.column('k')];
+        const K = [...b.column('K')];
+        let sorted = true;
+        for (let i = 1; i < k.length; i++) if (!(k[i] > k[i - 1])) sorted = false;
+        return { n: k.length, first: k[0], last: k[k.length - 1], lastK: K[K.length - 1],
+                 sorted, stride: b.stride, cap: b._cols.get('k').length,
+                 evenlySpaced: k.slice(0, -1).every((v, i) => v === i * b.stride) };
+        """,
+    )
+    assert r["n"] <= 101  # capacity plus the newest offered row
+    assert r["n"] >= 50
+    assert r["first"] == 0
+    assert r["last"] == 99999
+    assert r["lastK"] == pytest.approx(9999.9)
+    assert r["sorted"] is True
+    assert r["evenlySpaced"] is True
+    assert r["cap"] == 100
+
+
+def test_backoff_grows_exponentially_with_jitter_and_a_cap(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        """
+        const { backoffDelay } = await import('/js/live.js');
+        const lo = [0, 1, 2, 3, 10, 40].map((a) => backoffDelay(a, { baseMs: 500, maxMs: 15000, random: () => 0 }));
+        const hi = [0, 1, 2, 3, 10, 40].map((a) => backoffDelay(a, { baseMs: 500, maxMs: 15000, random: () => 0.999999 }));
+        return { lo, hi };
+        """,
+    )
+    assert_allclose(r["lo"], [250, 500, 1000, 2000, 7500, 7500])
+    assert_allclose(r["hi"], [500, 1000, 2000, 4000, 15000, 15000], rtol=1e-5)
+
+
+# A scripted WebSocket and manual timers: the live client is driven step by step.
+FAKES = """
+const sockets = [];
+class FakeWS {
+  constructor(url) { this.url = url; this.sent = []; this.closed = null; sockets.push(this); }
+  send(d) { this.sent.push(JSON.parse(d)); }
+  close(code, reason) { this.closed = { code, reason }; }
+  open() { this.onopen && this.onopen({}); }
+  msg(o) { this.onmessage && this.onmessage({ data: JSON.stringify(o) }); }
+  drop(code = 1006) { this.onclose && this.onclose({ code, reason: '' }); }
+}
+let now = 0;
+let timers = [];
+let nextId = 1;
+const T = {
+  setTimeout(fn, ms) { const id = nextId++; timers.push({ id, at: now + ms, fn }); return id; },
+  clearTimeout(id) { timers = timers.filter((t) => t.id !== id); },
+};
+function advance(ms) {
+  const end = now + ms;
+  for (;;) {
+    timers.sort((a, b) => a.at - b.at);
+    const t = timers[0];
+    if (!t || t.at > end) break;
+    timers.shift();
+    now = t.at;
+    t.fn();
+  }
+  now = end;
+}
+const got = [];
+const statuses = [];
+const { LiveClient } = await import('/js/live.js');
+const client = new LiveClient('rig-1', {
+  onMessage: (m) => got.push(m),
+  onStatus: (s) => statuses.push(s.state + (s.delayMs !== undefined ? ':' + Math.round(s.delayMs) : '')),
+}, {
+  WebSocketImpl: FakeWS, timers: T, now: () => now, random: () => 0.5,
+  url: (rig, since) => rig + (since === null ? '' : '?since=' + since),
+  pingMs: 5000, baseMs: 1000, maxMs: 8000,
+});
+"""
+
+
+def test_live_client_fills_the_gap_after_a_drop_and_drops_duplicates(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        FAKES
+        + """
+        client.start();
+        const s0 = sockets[0];
+        s0.open();
+        s0.msg({ type: 'hello', seq: 10, rig: {}, access: {}, run: null });
+        s0.msg({ type: 'sample', seq: 11, k: 0, t: 0, u: 1, y: 2, run: 7 });
+        s0.msg({ type: 'sample', seq: 12, k: 1, t: 1, u: 1, y: 2, run: 7 });
+        s0.drop();                       // network gone
+        const waiting = statuses[statuses.length - 1];
+        advance(749);
+        const before = sockets.length;
+        advance(1);                      // the retry fires (1000 ms nominal, 750 with jitter 0.5)
+        const s1 = sockets[1];
+        s1.open();
+        s1.msg({ type: 'hello', seq: 15, rig: {}, access: {}, run: null });
+        // The replay overlaps what we had (seq 12) and fills 13..15.
+        s1.msg({ type: 'samples', seq: 14, items: [
+          { seq: 12, k: 1, t: 1, u: 1, y: 2, run: 7 },
+          { seq: 13, k: 2, t: 2, u: 1, y: 2, run: 7 },
+          { seq: 14, k: 3, t: 3, u: 1, y: 2, run: 7 }] });
+        s1.msg({ type: 'estimate', seq: 15, run: 7, method: 'wlsm', k: 3, K: 1, tau: 2 });
+        s1.msg({ type: 'estimate', seq: 15, run: 7, method: 'wlsm', k: 3, K: 1, tau: 2 });
+        s1.msg({ type: 'access', access: { role: 'watcher' } });  // not part of the stream
+        return { urls: sockets.map((s) => s.url), waiting, before, statuses,
+                 seqs: got.map((m) => m.type + ':' + (m.seq ?? '-')), lastSeq: client.lastSeq,
+                 attempt: client.attempt };
+        """,
+    )
+    assert r["urls"] == ["rig-1", "rig-1?since=12"]
+    assert r["waiting"] == "waiting:750"
+    assert r["before"] == 1
+    assert r["seqs"] == [
+        "hello:10",
+        "sample:11",
+        "sample:12",
+        "hello:15",
+        "sample:13",
+        "sample:14",
+        "estimate:15",
+        "access:-",
+    ]
+    assert r["lastSeq"] == 15
+    assert r["attempt"] == 0
+
+
+def test_live_client_backs_off_while_the_server_is_down(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        FAKES
+        + """
+        client.start();
+        for (let i = 0; i < 6; i++) { sockets[sockets.length - 1].drop(); advance(60000); }
+        return statuses.filter((s) => s.startsWith('waiting'));
+        """,
+    )
+    # 1000 * 2^n capped at 8000, times 0.75 (equal jitter with random 0.5).
+    assert r == [
+        "waiting:750",
+        "waiting:1500",
+        "waiting:3000",
+        "waiting:6000",
+        "waiting:6000",
+        "waiting:6000",
+    ]
+
+
+def test_live_client_pings_and_treats_a_silent_link_as_dead(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        FAKES
+        + """
+        client.start();
+        const s0 = sockets[0];
+        s0.open();
+        s0.msg({ type: 'hello', seq: 1, rig: {}, access: {}, run: null });
+        advance(5000);
+        const pings = s0.sent.length;
+        s0.msg({ type: 'pong' });
+        advance(5000);
+        const pings2 = s0.sent.length;
+        // Now the server goes silent (half-open TCP): no close event ever comes.
+        advance(20000);
+        return { pings, pings2, closed: s0.closed, sockets: sockets.length,
+                 second: sockets[1] && sockets[1].url, sent: s0.sent[0] };
+        """,
+    )
+    assert r["pings"] == 1
+    assert r["pings2"] == 2
+    assert r["sent"] == {"type": "ping"}
+    assert r["closed"]["code"] == 4000
+    assert r["sockets"] == 2
+    assert r["second"] == "rig-1?since=1"
+
+
+def test_live_client_gives_up_on_unauthorized_and_stops_cleanly(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        FAKES
+        + """
+        client.start();
+        sockets[0].drop(4401);
+        advance(60000);
+        const afterAuth = { n: sockets.length, state: client.state, timers: timers.length };
+        const c2 = new LiveClient('r', { onMessage() {} }, { WebSocketImpl: FakeWS, timers: T, now: () => now });
+        c2.start();
+        sockets[sockets.length - 1].open();
+        c2.stop();
+        return { afterAuth, stoppedTimers: timers.length, closed: sockets[sockets.length - 1].closed };
+        """,
+    )
+    assert r["afterAuth"] == {"n": 1, "state": "closed", "timers": 0}
+    assert r["stoppedTimers"] == 0
+    assert r["closed"]["code"] == 1000
+
+
+def test_number_checks_refuse_bad_values_with_the_allowed_range(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        """
+        const { checkNumber, rangeText } = await import('/js/validate.js');
+        const u = { label: 'Set point', min: -10, max: 10, unit: 'V' };
+        const n = { label: 'Number of samples', min: 10, max: 100000, integer: true };
+        const g = { label: 'γ', min: 0, max: 1, exclusiveMin: true, exclusiveMax: true };
+        const cases = [['5', u], [' -2.5 ', u], ['−3', u], ['1e1', u], ['10.01', u], ['', u],
+                       ['abc', u], ['0x10', u], ['NaN', u], ['Infinity', u], ['2000', n],
+                       ['2000.5', n], ['5', n], ['0.96', g], ['1', g], ['0', g], ['3,5', u]];
+        return { results: cases.map(([t, s]) => checkNumber(t, s)), range: rangeText(u), grange: rangeText(g) };
+        """,
+    )
+    res = r["results"]
+    assert res[0] == {"ok": True, "value": 5}
+    assert res[1] == {"ok": True, "value": -2.5}
+    assert res[2] == {"ok": True, "value": -3}
+    assert res[3] == {"ok": True, "value": 10}
+    assert res[4]["ok"] is False
+    assert "−10 to 10 V" in res[4]["error"]
+    assert "10.01" in res[4]["error"]
+    assert "required" in res[5]["error"]
+    for bad in res[6:10]:
+        assert bad["ok"] is False
+        assert "number" in bad["error"]
+    assert res[10] == {"ok": True, "value": 2000}
+    assert "whole number" in res[11]["error"]
+    assert res[12]["ok"] is False
+    assert res[13] == {"ok": True, "value": 0.96}
+    assert res[14]["ok"] is False
+    assert res[15]["ok"] is False
+    assert res[16] == {"ok": True, "value": 3.5}
+    assert r["range"] == "−10 to 10 V"
+    assert r["grange"] == "more than 0 and less than 1"
+
+
+def test_model_arithmetic_matches_eq_4(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        """
+        const m = await import('/js/model.js');
+        const d = m.toDiscrete(0.14009, 250.126233, 1);
+        const back = m.fromDiscrete(d.a, d.b, 1);
+        const w0 = m.fromDiscrete(m.PAPER_W0.a, m.PAPER_W0.b, 1);
+        const u = new Float64Array(3000).fill(10);
+        const y = m.predict(u, 0.5, { K: 0.14009, tau: 250.126233 }, 1);
+        const y2 = m.predict([10, 10], 0.5, { K: 2, tau: 1 }, 1, undefined, 1);
+        return {
+          a: d.a, b: d.b, back, w0, y0: y[0], y1: y[1], yEnd: y[2999],
+          y2: [...y2], none: m.fromDiscrete(1.2, 0.1, 1),
+          conv: [m.convergedAt([5, 3, 1.005, 0.999, 1.0], 1.0), m.convergedAt([1, 1], 1),
+                 m.convergedAt([1, 2], 1)],
+          stats: m.stats([1, NaN, 3, 2]),
+          fmt: [m.fmt(0.1400901234), m.fmt(250.126233), m.fmt(NaN), m.fmt(1e-6, 3)],
+        };
+        """,
+    )
+    import math
+
+    a = math.exp(-1 / 250.126233)
+    assert_allclose([r["a"], r["b"]], [a, (1 - a) * 0.14009], rtol=1e-14)
+    assert_allclose([r["back"]["K"], r["back"]["tau"]], [0.14009, 250.126233], rtol=1e-12)
+    assert_allclose([r["w0"]["K"], r["w0"]["tau"]], [0.0269905, 26.73742], rtol=2e-6)
+    assert r["y0"] == 0.5
+    assert_allclose(r["y1"], 0.5 + (1 - a) * 0.14009 * 10, rtol=1e-14)
+    assert_allclose(r["yEnd"], 0.5 + 1.4009 * (1 - a**2999), rtol=1e-12)
+    a2 = math.exp(-1)
+    assert_allclose(r["y2"], [1.5, 0.5 + a2 + (1 - a2) * 20], rtol=1e-14)
+    assert r["none"] is None
+    assert r["conv"] == [2, 0, None]
+    assert r["stats"] == {"mean": 2, "max": 3, "min": 1, "n": 3}
+    assert r["fmt"] == ["0.14009", "250.126", "–", "1.00e-6"]
+
+
+def test_each_panel_builds_its_run_request(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        """
+        const { buildRunSpec, automaticSignal, panelOfRun } = await import('/js/runspec.js');
+        const p1 = buildRunSpec({ id: 'srm-lsm' }, { dt: 1, n: 2000, setpoint: 0 }, false);
+        const p2 = buildRunSpec({ id: 'malsm' }, { dt: 0.5, n: 500, window: 100, low: 4, high: 6 }, true);
+        const p3 = buildRunSpec({ id: 'wlsm' }, { dt: 1, n: 3000, gamma: 0.96, pmax: 1e4, a0: 0.96329,
+                                                 b0: 9.9082e-4, low: 0, high: 4 }, true);
+        return { p1, p2, p3, sig: automaticSignal(4, 6, 1),
+                 panels: [panelOfRun(p1), panelOfRun(p2), panelOfRun(p3)] };
+        """,
+    )
+    assert r["sig"] == "square:4:6:0.1"
+    assert r["p1"]["dt"] == 1
+    assert r["p1"]["setpoint"] == 0
+    assert "signal" not in r["p1"]
+    assert r["p2"]["signal"] == "square:4:6:0.2"
+    assert r["panels"] == ["srm-lsm", "malsm", "wlsm"]
+
+
+def test_csv_and_error_messages_are_read_as_the_server_sends_them(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        """
+        const { parseCsv } = await import('/js/csv.js');
+        const { errorMessage } = await import('/js/api.js');
+        const t = parseCsv('t,u,y,jitter\\r\\n0,0,0.5,0\\n1,10,0.51,\\n\\n2,10,x,0\\n', ['k', 't', 'u', 'y']);
+        return {
+          k: [...t.k], y: [...t.y].map((v) => Number.isNaN(v) ? null : v),
+          e1: errorMessage({ detail: 'rig is in use' }, 'x'),
+          e2: errorMessage({ detail: [{ loc: ['body', 'dt'], msg: 'must be > 0' },
+                                      { loc: ['body', 'methods', 0, 'gamma'], msg: 'too big' }] }, 'x'),
+          e3: errorMessage(null, '500 Internal Server Error'),
+        };
+        """,
+    )
+    assert r["k"] == [0, 1, 2]
+    assert r["y"] == [0.5, 0.51, None]
+    assert r["e1"] == "rig is in use"
+    assert r["e2"] == "dt: must be > 0; methods.0.gamma: too big"
+    assert r["e3"] == "500 Internal Server Error"
