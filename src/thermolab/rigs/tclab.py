@@ -54,6 +54,17 @@ from thermolab.rigs.clock import Clock, RealClock
 
 __all__ = ["TCLabRig", "TCLabVersion", "find_tclab"]
 
+try:  # POSIX: pyserial lets termios errors (EIO from an unplugged device) escape
+    import termios
+
+    _PORT_ERRORS: tuple[type[BaseException], ...] = (
+        serial.SerialException,
+        OSError,
+        termios.error,
+    )
+except ImportError:  # pragma: no cover - Windows
+    _PORT_ERRORS = (serial.SerialException, OSError)
+
 _VERSION_RE = re.compile(r"^TCLab Firmware (\d+)\.(\d+)\.(\d+)\s*(.*)$")
 #: Below this a TMP36 reading means a broken or disconnected sensor, not a cold room.
 _MIN_PLAUSIBLE_TEMPERATURE = -20.0
@@ -258,6 +269,8 @@ class TCLabRig(BaseRig):
         self.port = port
         self._timeout = timeout
         self._link: serial.Serial | None = None
+        self._desync = False
+        self._sync_count = 0
         self._heater = 0.0
         self._last_host = clock.now()
         self._watchdog_period = watchdog
@@ -309,39 +322,78 @@ class TCLabRig(BaseRig):
     def _exchange(self, command: str) -> str:
         """Send one command and return its reply line, within the timeout."""
         with self._lock:
-            link = self._link
-            if link is None:
-                raise RigFaultError(f"TCLab on {self.port}: the port is closed")
+            if self._desync:
+                self._resync()
+            # Until a well-formed reply arrives, a late answer may still be on its way.
+            self._desync = True
+            raw = self._send_and_read(command)
             try:
-                link.reset_input_buffer()  # drop stale replies (after a timeout, say)
-                link.write(f"{command}\r\n".encode("ascii"))
-                raw = bytes(link.read_until(b"\r\n"))
-            except serial.SerialTimeoutException:
-                raise RigTimeoutError(
-                    f"TCLab on {self.port}: could not send {command!r} within "
-                    f"{self._timeout:g} s; heaters switched off"
-                ) from None
-            except (serial.SerialException, OSError) as exc:
-                raise RigFaultError(
-                    f"TCLab on {self.port} is gone (unplugged?) during {command!r}: {exc}"
-                ) from None
-            if not raw.endswith(b"\r\n"):
-                if raw:
-                    raise RigFaultError(
-                        f"TCLab on {self.port} answered an incomplete line {raw!r} to "
-                        f"{command!r}; heaters switched off"
-                    )
-                raise RigTimeoutError(
-                    f"TCLab on {self.port} did not answer {command!r} within "
-                    f"{self._timeout:g} s; heaters switched off"
-                )
-            try:
-                return raw.decode("ascii").strip()
+                reply = raw.decode("ascii").strip()
             except UnicodeDecodeError:
                 raise RigFaultError(
                     f"TCLab on {self.port} answered garbage {raw!r} to {command!r}; "
                     "heaters switched off"
                 ) from None
+            self._desync = False
+            return reply
+
+    def _send_and_read(self, command: str) -> bytes:
+        link = self._link
+        if link is None:
+            raise RigFaultError(f"TCLab on {self.port}: the port is closed")
+        try:
+            link.reset_input_buffer()  # drop replies that arrived after an earlier timeout
+            link.write(f"{command}\r\n".encode("ascii"))
+            raw = bytes(link.read_until(b"\r\n"))
+        except serial.SerialTimeoutException:
+            raise RigTimeoutError(
+                f"TCLab on {self.port}: could not send {command!r} within "
+                f"{self._timeout:g} s; heaters switched off"
+            ) from None
+        except _PORT_ERRORS as exc:
+            raise RigFaultError(
+                f"TCLab on {self.port} is gone (unplugged?) during {command!r}: {exc}"
+            ) from None
+        if not raw.endswith(b"\r\n"):
+            if raw:
+                raise RigFaultError(
+                    f"TCLab on {self.port} answered an incomplete line {raw!r} to "
+                    f"{command!r}; heaters switched off"
+                )
+            raise RigTimeoutError(
+                f"TCLab on {self.port} did not answer {command!r} within "
+                f"{self._timeout:g} s; heaters switched off"
+            )
+        return raw
+
+    def _resync(self) -> None:
+        """Realign replies with commands after a failed exchange.
+
+        A reply that arrives after its timeout would otherwise be taken as the
+        answer to the next command. The firmware echoes an unknown command
+        upper-cased, so an unknown command carrying a fresh number is a marker:
+        every line before its echo is stale. Unknown commands also switch the
+        heaters off, which is right here: a failed exchange has latched a fault.
+        """
+        self._sync_count += 1
+        marker = f"SYNC{self._sync_count}"
+        link = self._link
+        deadline = time.monotonic() + self._timeout
+        raw = self._send_and_read(marker)
+        while raw.strip() != marker.encode("ascii"):
+            if time.monotonic() > deadline or link is None:
+                raise RigTimeoutError(
+                    f"TCLab on {self.port} did not echo {marker!r} within {self._timeout:g} s; "
+                    "its replies cannot be trusted; heaters switched off"
+                )
+            try:
+                raw = bytes(link.read_until(b"\r\n"))
+            except _PORT_ERRORS as exc:
+                raise RigFaultError(
+                    f"TCLab on {self.port} is gone (unplugged?) during {marker!r}: {exc}"
+                ) from None
+        self._heater = 0.0
+        self._desync = False
 
     def _number(self, command: str) -> float:
         reply = self._exchange(command)
@@ -350,6 +402,7 @@ class TCLabRig(BaseRig):
         except ValueError:
             value = math.nan
         if not math.isfinite(value):
+            self._desync = True
             raise RigFaultError(
                 f"TCLab on {self.port} answered {reply!r} to {command!r}, not a number; "
                 "heaters switched off"
@@ -359,6 +412,7 @@ class TCLabRig(BaseRig):
     def _switch_off(self) -> None:
         reply = self._exchange("X")
         if reply.upper() != "STOP":
+            self._desync = True
             raise RigFaultError(
                 f"TCLab on {self.port} answered {reply!r} to X instead of 'Stop'; "
                 "heaters may still be on"
@@ -371,6 +425,7 @@ class TCLabRig(BaseRig):
         self._last_host = self.clock.now()
         echo = self._number(f"Q1 {u:.3f}")
         if abs(echo - u) > 0.0015:
+            self._desync = True
             raise RigFaultError(
                 f"TCLab on {self.port} echoed {echo!r} for heater 1 set to {u:.3f}; "
                 "heaters switched off"
@@ -419,6 +474,7 @@ class TCLabRig(BaseRig):
         link = self._link
         if link is None:
             return
+        self._desync = True  # their replies will arrive unread
         with contextlib.suppress(Exception):
             link.write(b"Q1 0\r\nQ2 0\r\nX\r\n")
             link.flush()

@@ -80,8 +80,16 @@ class TCLabEmulator:
         Every command received (upper-cased, stripped), in order.
     silent : bool
         When set, commands are read and obeyed but never answered.
-    garbage : bool
-        When set, every reply is replaced by a line of bytes that are not ASCII.
+    garbage : bool or str
+        ``True``: every reply is replaced by a line of bytes that are not
+        ASCII; a string: every reply is replaced by that text (an answer that
+        is well-formed but wrong).
+    reply_delay : float
+        Seconds of real time to wait before each reply (a slow or stalled
+        kit whose answers arrive after the host's timeout).
+    sensor_disconnected : bool
+        When set, both sensors read -50.000 °C, what a TMP36 channel reads at
+        ADC code 0 (the sensor unplugged).
 
     Examples
     --------
@@ -109,7 +117,9 @@ class TCLabEmulator:
         self.version = version
         self.commands: list[str] = []
         self.silent = False
-        self.garbage = False
+        self.garbage: bool | str = False
+        self.sensor_disconnected = False
+        self.reply_delay = 0.0
         self._lock = threading.Lock()
         seeds = [None, None] if seed is None else [seed, seed + 1]
         # The emulator is the kit, not the host: no over-temperature limit of its own.
@@ -223,9 +233,13 @@ class TCLabEmulator:
                 replies = self._execute(command)
                 if self.silent:
                     continue
-                if self.garbage:
+                if isinstance(self.garbage, str):
+                    replies = [self.garbage] * len(replies)
+                elif self.garbage:
                     replies = ["\x00\xff\xfe?\x93"]
                 payload = "".join(f"{r}\r\n" for r in replies).encode("latin-1")
+                if self.reply_delay > 0.0 and self._stop.wait(self.reply_delay):
+                    return
                 with contextlib.suppress(OSError):
                     os.write(self._master, payload)
 
@@ -264,6 +278,8 @@ class TCLabEmulator:
             return [name]
 
     def _temperature(self, n: int) -> str:
+        if self.sensor_disconnected:
+            return "-50.000"
         return f"{self._heaters[n - 1].read().value:.3f}"
 
     def _set_heater(self, index: int, value: float) -> None:

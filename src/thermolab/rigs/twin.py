@@ -627,9 +627,10 @@ class TwinRig(BaseRig):
         if elapsed > 0.0:
             p = self.params
             rho = math.exp(-elapsed / p.colored_noise_time)
-            self._colored_value = rho * self._colored_value + p.colored_noise_std * math.sqrt(
-                1.0 - rho * rho
-            ) * self._colored()
+            self._colored_value = (
+                rho * self._colored_value
+                + p.colored_noise_std * math.sqrt(1.0 - rho * rho) * self._colored()
+            )
             self._colored_t = t
         return self._colored_value
 
