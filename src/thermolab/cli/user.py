@@ -1,0 +1,174 @@
+"""``thermolab user``: manage the lab's accounts.
+
+``add NAME --role student|teacher``, ``list``, ``passwd NAME``, ``remove NAME``.
+Passwords are asked twice on the terminal, or read as one line from standard
+input with ``--password-stdin`` (scripts: ``printf '%s\\n' "$PW" | thermolab
+user add ana --role student --password-stdin``). The accounts live in the lab's
+database (the data folder's SQLite file, or ``--database-url``), so this works
+while the server runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import getpass
+import sys
+from typing import TYPE_CHECKING, Any
+
+from thermolab.cli.serve import add_database_options, lab_config_from_args
+
+if TYPE_CHECKING:
+    from thermolab.lab.db import Database
+    from thermolab.lab.users import UserService
+
+__all__ = ["register"]
+
+_EXAMPLES = """\
+examples:
+  thermolab user add tina --role teacher
+  printf '%s\\n' "$PASSWORD" | thermolab user add ana --role student --password-stdin
+  thermolab user list
+  thermolab user passwd ana
+  thermolab user remove ana
+"""
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``user`` subcommand to the ``thermolab`` parser.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The subparsers of the top-level parser.
+    """
+    parser = subparsers.add_parser(
+        "user",
+        help="manage the lab's accounts (add, list, passwd, remove)",
+        description="Manage the accounts of the lab.",
+        epilog=_EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    actions = parser.add_subparsers(
+        dest="action", metavar="ACTION", parser_class=type(parser), required=True
+    )
+
+    add = actions.add_parser("add", help="create an account")
+    add.add_argument("name", metavar="NAME", help="user name (letters, digits, . _ @ -)")
+    add.add_argument("--role", required=True, help="student or teacher")
+    _password_option(add)
+    add_database_options(add)
+    add.set_defaults(handler=_add)
+
+    listing = actions.add_parser("list", help="list the accounts")
+    add_database_options(listing)
+    listing.set_defaults(handler=_list)
+
+    passwd = actions.add_parser("passwd", help="change a password (ends the user's logins)")
+    passwd.add_argument("name", metavar="NAME")
+    _password_option(passwd)
+    add_database_options(passwd)
+    passwd.set_defaults(handler=_passwd)
+
+    remove = actions.add_parser(
+        "remove", help="remove an account with its logins, queue places and runs"
+    )
+    remove.add_argument("name", metavar="NAME")
+    add_database_options(remove)
+    remove.set_defaults(handler=_remove)
+
+
+def _password_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--password-stdin",
+        action="store_true",
+        help="read the password as one line from standard input instead of asking",
+    )
+
+
+def _users(args: argparse.Namespace) -> tuple[Database, UserService]:
+    from thermolab.lab.clock import SystemClock
+    from thermolab.lab.db import Database
+    from thermolab.lab.security import default_password_hasher
+    from thermolab.lab.users import UserService
+
+    config = lab_config_from_args(args)
+    db = Database(config.database, pool_size=1)
+    db.upgrade()
+    return db, UserService(db, SystemClock(), default_password_hasher())
+
+
+def _read_password(args: argparse.Namespace, name: str) -> str:
+    from thermolab.cli import CliError
+    from thermolab.lab.security import validate_password
+
+    if args.password_stdin:
+        line = sys.stdin.readline()
+        password = line.removesuffix("\n").removesuffix("\r")
+        if not password:
+            raise CliError("no password on standard input (expected one line)")
+    else:
+        if not sys.stdin.isatty():
+            raise CliError(
+                "standard input is not a terminal, so the password cannot be asked: "
+                "pipe it with --password-stdin"
+            )
+        password = getpass.getpass(f"Password for {name}: ")
+        validate_password(password)
+        if getpass.getpass("Repeat the password: ") != password:
+            raise CliError("the two passwords differ; nothing was changed")
+    return validate_password(password)
+
+
+def _add(args: argparse.Namespace) -> int:
+    from thermolab.lab.security import normalize_username
+    from thermolab.lab.users import parse_role
+
+    name = normalize_username(args.name)
+    role = parse_role(args.role)
+    db, users = _users(args)
+    try:
+        password = _read_password(args, name)
+        user = users.add(name, password, role)
+    finally:
+        db.close()
+    print(f"added {user.role.value} {user.username!r}")
+    return 0
+
+
+def _list(args: argparse.Namespace) -> int:
+    db, users = _users(args)
+    try:
+        accounts = users.list()
+    finally:
+        db.close()
+    if not accounts:
+        print("no accounts yet; add one with: thermolab user add NAME --role teacher")
+        return 0
+    width = max(8, *(len(u.username) for u in accounts))
+    print(f"{'username':<{width}}  {'role':<7}  created (UTC)")
+    for user in accounts:
+        created = user.created_at.strftime("%Y-%m-%d %H:%M")
+        print(f"{user.username:<{width}}  {user.role.value:<7}  {created}")
+    return 0
+
+
+def _passwd(args: argparse.Namespace) -> int:
+    db, users = _users(args)
+    try:
+        user = users.get(args.name)
+        password = _read_password(args, user.username)
+        users.set_password(user.username, password)
+    finally:
+        db.close()
+    print(f"changed the password of {user.username!r}; their logins have ended")
+    return 0
+
+
+def _remove(args: argparse.Namespace) -> int:
+    db, users = _users(args)
+    try:
+        user = users.remove(args.name)
+    finally:
+        db.close()
+    print(f"removed {user.role.value} {user.username!r}")
+    return 0

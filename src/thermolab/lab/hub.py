@@ -1,0 +1,333 @@
+"""The lab's hands on its rigs: power, safe state, inputs, readings.
+
+The database says what a rig *should* be doing (powered or not, cooling,
+who controls it); :class:`RigHub` makes the rig do it. After every change of
+access state the lab calls :meth:`RigHub.reconcile` with the rig's current
+state read back from the database, under a per-rig lock, so the rig always
+ends up matching the latest committed state whatever order requests finish
+in. Slow device I/O (a TCLab resets for about 2 s when its port opens) never
+happens while a database lock is held.
+
+A rig's driver is opened by an *opener* (``RigConfig -> Rig``, any object of
+the :class:`thermolab.rigs.Rig` interface). Without one, the hub still
+publishes the rig's input range from its kind and configuration, and records
+that inputs were not applied to a device.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from datetime import datetime
+
+from thermolab.errors import ConfigError, RigError, ThermoLabError
+from thermolab.lab.config import LabConfig, RigConfig, parse_rig_spec
+from thermolab.lab.models import PowerState
+from thermolab.rigs import Rig, make_clock, open_rig
+
+__all__ = [
+    "DesiredState",
+    "PublishedRig",
+    "RigHub",
+    "RigOpener",
+    "device_opener",
+    "published_defaults",
+]
+
+log = logging.getLogger(__name__)
+
+RigOpener = Callable[[RigConfig], Rig]
+"""Opens the driver of a configured rig (the digital twin, a TCLab on its port)."""
+
+
+def device_opener(speedup: float = 1.0) -> RigOpener:
+    """Return the opener of real rigs: :func:`thermolab.rigs.open_rig` on the rig's spec.
+
+    Twins run ``speedup`` times faster than real time; hardware always runs
+    in real time.
+
+    Examples
+    --------
+    >>> opener = device_opener()
+    >>> with opener(RigConfig("a", "A", "sim:tclab")) as rig:
+    ...     rig.describe().input_unit
+    '%'
+    """
+
+    def open_configured(rig: RigConfig) -> Rig:
+        simulated = parse_rig_spec(rig.spec)[0] == "sim"
+        clock = make_clock(speedup if simulated else 1.0)
+        return open_rig(rig.spec, clock=clock)
+
+    return open_configured
+
+
+@dataclass(frozen=True, slots=True)
+class PublishedRig:
+    """What the lab tells users a rig accepts.
+
+    Attributes
+    ----------
+    input_min, input_max : float
+        The allowed input range (the rig's own, narrowed by the configuration).
+    input_unit, output_unit : str
+    safe_input : float
+        Input the rig rests at without a controller.
+    live : bool
+        ``True`` when a driver is attached and inputs reach a device.
+    """
+
+    input_min: float
+    input_max: float
+    input_unit: str
+    output_unit: str
+    safe_input: float
+    live: bool
+
+
+@dataclass(frozen=True, slots=True)
+class DesiredState:
+    """What the database says a rig should be doing.
+
+    Attributes
+    ----------
+    power : PowerState
+    controller_session : int or None
+        The active control session, if any; a change puts the input back to safe.
+    """
+
+    power: PowerState
+    controller_session: int | None
+
+
+def published_defaults(rig: RigConfig) -> PublishedRig:
+    """Return the published range of a rig without opening it.
+
+    The paper's box takes -10..10 V and reports volts; TCLab kits (and their
+    twin) take 0..100 % heater power and report degrees Celsius. A configured
+    ``input_range`` narrows the range.
+
+    Raises
+    ------
+    ConfigError
+        If the configured range is not inside the rig's own.
+
+    Examples
+    --------
+    >>> tclab = published_defaults(RigConfig("a", "A", "sim:tclab"))
+    >>> tclab.input_min, tclab.input_max, tclab.input_unit, tclab.output_unit
+    (0.0, 100.0, '%', 'degC')
+    """
+    kind, arg = parse_rig_spec(rig.spec)
+    if kind == "tclab" or arg == "tclab":
+        base = PublishedRig(0.0, 100.0, "%", "degC", 0.0, False)
+    else:
+        base = PublishedRig(-10.0, 10.0, "V", "V", 0.0, False)
+    return _narrow(base, rig)
+
+
+def _narrow(base: PublishedRig, rig: RigConfig) -> PublishedRig:
+    if rig.input_range is None:
+        return base
+    low, high = rig.input_range
+    if low < base.input_min or high > base.input_max:
+        raise ConfigError(
+            f"rig {rig.id!r}: input_range [{low:g}, {high:g}] goes beyond the rig's own range "
+            f"[{base.input_min:g}, {base.input_max:g}] {base.input_unit}"
+        )
+    safe = min(max(base.safe_input, low), high)
+    return PublishedRig(low, high, base.input_unit, base.output_unit, safe, base.live)
+
+
+class _Slot:
+    """One rig as the hub holds it."""
+
+    def __init__(self, config: RigConfig) -> None:
+        self.config = config
+        self.lock = threading.RLock()
+        self.driver: Rig | None = None
+        self.published = published_defaults(config)
+        self.powered = False
+        self.controller_session: int | None = None
+        self.output: float | None = None
+        self.output_at: datetime | None = None
+        self.fault: str | None = None
+
+
+class RigHub:
+    """Live rigs of the lab, kept in line with the database.
+
+    Parameters
+    ----------
+    config : LabConfig
+    opener : RigOpener or None
+        Opens a rig's driver; ``None`` runs the lab without devices (inputs are
+        validated and recorded but reach no rig).
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> from thermolab.lab.config import default_config
+    >>> hub = RigHub(default_config(Path("/tmp/lab")), opener=None)
+    >>> hub.published("twin").input_max
+    10.0
+    >>> hub.apply("twin", 2.5, controller_session=1) is None  # no device attached
+    True
+    """
+
+    def __init__(self, config: LabConfig, opener: RigOpener | None) -> None:
+        self._opener = opener
+        self._slots = {rig.id: _Slot(rig) for rig in config.rigs}
+
+    def open_all(self) -> dict[str, str]:
+        """Open every rig's driver and put it in its safe state.
+
+        Returns
+        -------
+        dict
+            Rig id -> fault message, for the rigs that could not be opened.
+        """
+        faults: dict[str, str] = {}
+        for rig_id, slot in self._slots.items():
+            with slot.lock:
+                if self._opener is None or slot.driver is not None:
+                    continue
+                try:
+                    driver = self._opener(slot.config)
+                    driver.power_off()
+                    info = driver.describe()
+                    base = PublishedRig(
+                        info.input_min,
+                        info.input_max,
+                        info.input_unit,
+                        info.output_unit,
+                        info.safe_input,
+                        True,
+                    )
+                    slot.published = _narrow(base, slot.config)
+                    slot.driver = driver
+                except (ThermoLabError, OSError) as exc:
+                    slot.fault = f"cannot open {slot.config.spec!r}: {exc}"
+                    faults[rig_id] = slot.fault
+                    log.warning("rig %s: %s", rig_id, slot.fault)
+        return faults
+
+    def published(self, rig_id: str) -> PublishedRig:
+        """Return what rig ``rig_id`` accepts (KeyError for an unknown rig)."""
+        return self._slots[rig_id].published
+
+    def output(self, rig_id: str) -> float | None:
+        """Return the latest reading of the rig's output, if any."""
+        return self._slots[rig_id].output
+
+    def fault(self, rig_id: str) -> str | None:
+        """Return the rig's pending fault, if any."""
+        slot = self._slots[rig_id]
+        return slot.fault
+
+    def clear_fault(self, rig_id: str) -> None:
+        """Forget a fault (a teacher cleared it); the driver is asked to clear its own."""
+        slot = self._slots[rig_id]
+        with slot.lock:
+            slot.fault = None
+            if slot.driver is not None:
+                try:
+                    slot.driver.clear_fault()
+                except RigError as exc:
+                    slot.fault = str(exc)
+
+    @contextmanager
+    def locked(self, rig_id: str) -> Iterator[None]:
+        """Hold the rig's lock (to read the database state and reconcile as one step)."""
+        with self._slots[rig_id].lock:
+            yield
+
+    def reconcile(self, rig_id: str, desired: DesiredState, cooldown_input: float | None) -> None:
+        """Make the rig match ``desired``.
+
+        Powers the rig on or off; on a change of controller (or none) puts the
+        input at its safe value; while cooling holds ``cooldown_input``.
+        Errors of the device become the rig's fault (see :meth:`fault`).
+        """
+        slot = self._slots[rig_id]
+        with slot.lock:
+            driver = slot.driver
+            try:
+                if desired.power is PowerState.OFF:
+                    if driver is not None and slot.powered:
+                        driver.power_off()
+                    slot.powered = False
+                    slot.controller_session = None
+                    return
+                if not slot.powered:
+                    if driver is not None:
+                        driver.power_on()
+                    slot.powered = True
+                    slot.controller_session = None
+                    self._apply(slot, slot.published.safe_input)
+                if desired.power is PowerState.COOLING:
+                    slot.controller_session = None
+                    target = slot.published.safe_input if cooldown_input is None else cooldown_input
+                    self._apply(
+                        slot, min(max(target, slot.published.input_min), slot.published.input_max)
+                    )
+                elif desired.controller_session != slot.controller_session:
+                    slot.controller_session = desired.controller_session
+                    self._apply(slot, slot.published.safe_input)
+            except RigError as exc:
+                slot.fault = str(exc)
+                slot.powered = False
+                slot.controller_session = None
+                log.warning("rig %s: %s", rig_id, exc)
+
+    def apply(self, rig_id: str, u: float, *, controller_session: int) -> float | None:
+        """Apply a controller's input; return the value applied, or ``None`` if not applied.
+
+        Not applied when no device is attached, the rig is not powered, or the
+        control session is no longer the rig's (it ended meanwhile).
+        """
+        slot = self._slots[rig_id]
+        with slot.lock:
+            if slot.driver is None or not slot.powered:
+                return None
+            if slot.controller_session != controller_session:
+                return None
+            try:
+                return self._apply(slot, u)
+            except RigError as exc:
+                slot.fault = str(exc)
+                slot.powered = False
+                slot.controller_session = None
+                return None
+
+    def poll(self, now: datetime) -> None:
+        """Take a reading of every attached rig (keeps :meth:`output` fresh)."""
+        for slot in self._slots.values():
+            with slot.lock:
+                if slot.driver is None or slot.fault is not None:
+                    continue
+                try:
+                    slot.output = slot.driver.read().value
+                    slot.output_at = now
+                except RigError as exc:
+                    slot.fault = str(exc)
+                    slot.powered = False
+                    slot.controller_session = None
+
+    def close(self) -> None:
+        """Close every driver, leaving each actuator at its safe value."""
+        for slot in self._slots.values():
+            with slot.lock:
+                if slot.driver is not None:
+                    slot.driver.close()
+                    slot.driver = None
+                slot.powered = False
+
+    @staticmethod
+    def _apply(slot: _Slot, u: float) -> float | None:
+        if slot.driver is None:
+            return None
+        return slot.driver.apply(u)

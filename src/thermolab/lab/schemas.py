@@ -1,0 +1,344 @@
+"""JSON bodies of the lab's HTTP API (pydantic models, camelCase on the wire).
+
+Request bodies refuse unknown fields and values of the wrong type, so a typo
+is a 422 naming the field rather than a silently ignored setting.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+from pydantic.alias_generators import to_camel
+
+from thermolab.lab.access import QueueSlot, RigView
+from thermolab.lab.models import ControlSession
+from thermolab.lab.presence import Watcher
+from thermolab.lab.service import InputResult
+from thermolab.lab.users import Principal, UserInfo
+
+__all__ = [
+    "AccessOut",
+    "ControlSessionOut",
+    "CooldownOut",
+    "CredentialsIn",
+    "ErrorOut",
+    "ExtendIn",
+    "InputIn",
+    "InputOut",
+    "InputRangeOut",
+    "KickIn",
+    "LimitsOut",
+    "NewUserIn",
+    "PasswordIn",
+    "QueueSlotOut",
+    "RigOut",
+    "ServiceIn",
+    "SessionOut",
+    "UserOut",
+    "ValidationErrorOut",
+    "WatcherOut",
+]
+
+
+class _In(BaseModel):
+    model_config = ConfigDict(
+        alias_generator=to_camel, populate_by_name=True, extra="forbid", strict=True
+    )
+
+
+class _Out(BaseModel):
+    model_config = ConfigDict(alias_generator=to_camel, populate_by_name=True)
+
+
+# -- errors --------------------------------------------------------------------------------
+
+
+class ErrorOut(_Out):
+    """Every 4xx answer: ``detail`` says what was wrong and what is allowed."""
+
+    detail: str
+
+
+class ValidationErrorOut(_Out):
+    """A 422 for a malformed body: ``detail`` in words, ``errors`` one per problem."""
+
+    detail: str
+    errors: list[dict[str, Any]]
+
+
+# -- sessions and users ----------------------------------------------------------------------
+
+
+class CredentialsIn(_In):
+    """Login: user name and password."""
+
+    username: Annotated[str, Field(min_length=1, max_length=64)]
+    password: Annotated[str, Field(min_length=1, max_length=1024)]
+
+
+class SessionOut(_Out):
+    """Who is logged in."""
+
+    username: str
+    role: Literal["student", "teacher"]
+    expires_at: datetime | None
+
+    @classmethod
+    def of(cls, who: Principal) -> SessionOut:
+        """Build from a principal."""
+        return cls(username=who.username, role=who.role.value, expires_at=who.expires_at)
+
+
+class UserOut(_Out):
+    """An account."""
+
+    username: str
+    role: Literal["student", "teacher"]
+    created_at: datetime
+
+    @classmethod
+    def of(cls, user: UserInfo) -> UserOut:
+        """Build from a user record."""
+        return cls(username=user.username, role=user.role.value, created_at=user.created_at)
+
+
+class NewUserIn(_In):
+    """A new account (teachers only)."""
+
+    username: Annotated[str, Field(min_length=1, max_length=64)]
+    password: Annotated[str, Field(min_length=8, max_length=1024)]
+    role: Literal["student", "teacher"]
+
+
+class PasswordIn(_In):
+    """A new password; users changing their own also give the current one."""
+
+    password: Annotated[str, Field(min_length=8, max_length=1024)]
+    current_password: Annotated[str | None, Field(max_length=1024)] = None
+
+
+# -- rigs ---------------------------------------------------------------------------------------
+
+
+class InputRangeOut(_Out):
+    """What the rig's input accepts, and where it is."""
+
+    min: float
+    max: float
+    unit: str
+    safe: float
+    last: float | None = Field(description="the controller's last input (null: the safe input)")
+    live: bool = Field(description="true when inputs reach a device")
+
+
+class CooldownOut(_Out):
+    """Cool-down between turns."""
+
+    mode: Literal["none", "ambient"]
+    tolerance: float
+    max_seconds: float
+
+
+class LimitsOut(_Out):
+    """Time limits of the rig, in seconds."""
+
+    control_time_limit: float
+    idle_limit: float | None
+    client_timeout: float
+    power_off_grace: float
+    cooldown: CooldownOut
+
+
+class AccessOut(_Out):
+    """The rig's access state as the caller sees it (Go-Lab Smart Device names)."""
+
+    role: Literal["controller", "queued", "watcher"]
+    queue_size: int
+    queue_position: int | None
+    estimated_time_until_control: float | None = Field(
+        description="seconds; an upper bound assuming every turn ahead runs in full"
+    )
+    time_left: float | None
+    idle_time_left: float | None
+    controller: str | None
+    watchers: int
+
+
+class QueueSlotOut(_Out):
+    """A queued user (teachers see the queue)."""
+
+    username: str
+    position: int
+    joined_at: datetime
+    last_seen: datetime
+
+    @classmethod
+    def of(cls, slot: QueueSlot) -> QueueSlotOut:
+        """Build from a queue slot."""
+        return cls(
+            username=slot.username,
+            position=slot.position,
+            joined_at=slot.joined_at,
+            last_seen=slot.last_heartbeat_at,
+        )
+
+
+class WatcherOut(_Out):
+    """A watching user (teachers see the list)."""
+
+    username: str
+    connections: int
+    last_seen: datetime
+
+    @classmethod
+    def of(cls, watcher: Watcher) -> WatcherOut:
+        """Build from a watcher."""
+        return cls(
+            username=watcher.username,
+            connections=watcher.connections,
+            last_seen=watcher.last_seen,
+        )
+
+
+class RigOut(_Out):
+    """A rig: what it is, its state, limits, and access as the caller sees it."""
+
+    id: str
+    title: str
+    kind: str
+    state: Literal["off", "starting", "free", "in_use", "cooldown", "fault", "out_of_service"]
+    in_service: bool
+    fault: str | None
+    input: InputRangeOut
+    output_unit: str
+    limits: LimitsOut
+    access: AccessOut
+    queue: list[QueueSlotOut] | None = Field(description="teachers only")
+    watcher_list: list[WatcherOut] | None = Field(description="teachers only")
+
+    @classmethod
+    def of(cls, view: RigView) -> RigOut:
+        """Build from a rig view."""
+        cfg, pub, acc = view.config, view.published, view.access
+        return cls(
+            id=view.id,
+            title=view.title,
+            kind=view.kind,
+            state=view.state,
+            in_service=view.in_service,
+            fault=view.fault,
+            input=InputRangeOut(
+                min=pub.input_min,
+                max=pub.input_max,
+                unit=pub.input_unit,
+                safe=pub.safe_input,
+                last=view.last_input,
+                live=pub.live,
+            ),
+            output_unit=pub.output_unit,
+            limits=LimitsOut(
+                control_time_limit=cfg.control_time_limit,
+                idle_limit=cfg.idle_limit,
+                client_timeout=view.client_timeout,
+                power_off_grace=cfg.power_off_grace,
+                cooldown=CooldownOut(
+                    mode=cfg.cooldown.mode,
+                    tolerance=cfg.cooldown.tolerance,
+                    max_seconds=cfg.cooldown.max_seconds,
+                ),
+            ),
+            access=AccessOut(
+                role=acc.role,
+                queue_size=acc.queue_size,
+                queue_position=acc.queue_position,
+                estimated_time_until_control=acc.estimated_time_until_control,
+                time_left=acc.time_left,
+                idle_time_left=acc.idle_time_left,
+                controller=acc.controller,
+                watchers=acc.watchers,
+            ),
+            queue=None if view.queue is None else [QueueSlotOut.of(q) for q in view.queue],
+            watcher_list=None
+            if view.watcher_list is None
+            else [WatcherOut.of(w) for w in view.watcher_list],
+        )
+
+
+class InputIn(_In):
+    """A new input for the rig, in its input unit (volts for the paper's box)."""
+
+    u: Annotated[float, Field(allow_inf_nan=False, description="the new input value")]
+
+
+class InputOut(_Out):
+    """An accepted input command."""
+
+    rig: str
+    u: float
+    applied: float | None = Field(description="the value the device applied; null if none")
+    at: datetime
+
+    @classmethod
+    def of(cls, result: InputResult) -> InputOut:
+        """Build from an input result."""
+        return cls(rig=result.rig_id, u=result.u, applied=result.applied, at=result.at)
+
+
+class ExtendIn(_In):
+    """Move the controller's time limit (negative cuts it)."""
+
+    seconds: Annotated[float, Field(allow_inf_nan=False, ge=-86400, le=86400)]
+
+
+class KickIn(_In):
+    """Whom to kick: a user name, or nobody named for the controller."""
+
+    username: Annotated[str | None, Field(max_length=64)] = None
+
+
+class ServiceIn(_In):
+    """Take a rig in or out of service."""
+
+    in_service: bool
+
+
+class ControlSessionOut(_Out):
+    """One turn at a rig's controls, with how it ended."""
+
+    id: int
+    rig: str
+    username: str
+    started_at: datetime
+    deadline: datetime
+    ended_at: datetime | None
+    end_reason: (
+        Literal[
+            "released",
+            "time_limit",
+            "idle",
+            "client_gone",
+            "kicked",
+            "rig_fault",
+            "server_restart",
+        ]
+        | None
+    )
+    ended_by: str | None
+
+    @classmethod
+    def of(cls, row: ControlSession) -> ControlSessionOut:
+        """Build from a control session row."""
+        return cls.model_validate(
+            {
+                "id": row.id,
+                "rig": row.rig_id,
+                "username": row.username,
+                "started_at": row.started_at,
+                "deadline": row.deadline,
+                "ended_at": row.ended_at,
+                "end_reason": row.end_reason,
+                "ended_by": row.ended_by,
+            }
+        )

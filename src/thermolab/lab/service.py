@@ -1,0 +1,209 @@
+"""The lab as one object: database, accounts, sessions, access model and live rigs.
+
+:class:`Lab` wires the services together for the HTTP app and the command
+line; :func:`thermolab.lab.app.create_app` serves one over HTTP.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from dataclasses import dataclass, field
+from datetime import datetime, timedelta
+
+from argon2 import PasswordHasher
+
+from thermolab.lab.access import AccessService, RigView
+from thermolab.lab.clock import LabClock, SystemClock
+from thermolab.lab.config import LabConfig
+from thermolab.lab.db import Database
+from thermolab.lab.hub import DesiredState, RigHub, RigOpener
+from thermolab.lab.presence import Presence
+from thermolab.lab.security import LoginThrottle, default_password_hasher
+from thermolab.lab.users import Principal, SessionService, UserInfo, UserService
+
+__all__ = ["InputResult", "Lab", "StartupReport"]
+
+log = logging.getLogger(__name__)
+
+_PURGE_INTERVAL = timedelta(minutes=10)
+
+
+@dataclass(frozen=True, slots=True)
+class StartupReport:
+    """What :meth:`Lab.start` found.
+
+    Attributes
+    ----------
+    teachers : int
+        Teacher accounts in the database (0: tell the operator how to add one).
+    faults : dict
+        Rig id -> why the rig could not be opened.
+    """
+
+    teachers: int
+    faults: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, slots=True)
+class InputResult:
+    """An input command as the lab handled it.
+
+    Attributes
+    ----------
+    rig_id : str
+    u : float
+        The value asked for.
+    applied : float or None
+        The value the device applied, or ``None`` when it reached no device.
+    at : datetime
+        When the command was accepted.
+    command_id : int
+    """
+
+    rig_id: str
+    u: float
+    applied: float | None
+    at: datetime
+    command_id: int
+
+
+class Lab:
+    """A running lab.
+
+    Parameters
+    ----------
+    config : LabConfig
+    clock : LabClock, optional
+        Wall clock (default :class:`~thermolab.lab.clock.SystemClock`).
+    hasher : PasswordHasher, optional
+        Argon2 hasher (default: argon2-cffi's recommended parameters).
+    opener : RigOpener, optional
+        Opens rig drivers; ``None`` runs without devices.
+    database : Database, optional
+        Default: the database named by the configuration.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from thermolab.lab.config import default_config
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     lab = Lab(default_config(Path(tmp)))
+    ...     report = lab.start()
+    ...     lab.close()
+    >>> report.teachers
+    0
+    """
+
+    def __init__(
+        self,
+        config: LabConfig,
+        *,
+        clock: LabClock | None = None,
+        hasher: PasswordHasher | None = None,
+        opener: RigOpener | None = None,
+        database: Database | None = None,
+    ) -> None:
+        self.config = config
+        self.clock: LabClock = clock or SystemClock()
+        self.db = database or Database(config.database)
+        policy = config.access
+        self.presence = Presence(self.clock, timeout=policy.client_timeout)
+        self.hub = RigHub(config, opener)
+        self.users = UserService(self.db, self.clock, hasher or default_password_hasher())
+        self.sessions = SessionService(
+            self.db,
+            self.clock,
+            lifetime=policy.session_lifetime,
+            idle_timeout=policy.session_idle_timeout,
+        )
+        self.throttle = LoginThrottle(
+            self.clock,
+            failures_per_user=policy.login_failures_per_user,
+            attempts_per_address=policy.login_attempts_per_address,
+            window=policy.login_window,
+        )
+        self.access = AccessService(
+            self.db, config, self.clock, self.hub, self.presence, on_change=self._reconcile
+        )
+        self._last_purge: datetime | None = None
+        self._sweep_lock = threading.Lock()
+        self._report: StartupReport | None = None
+
+    def start(self) -> StartupReport:
+        """Migrate the database, put every rig in its safe state, end what a restart ended.
+
+        Calling it again returns the first report and does nothing else.
+        """
+        if self._report is not None:
+            return self._report
+        self.db.upgrade()
+        faults = self.hub.open_all()
+        self.access.startup()
+        for rig in self.config.rigs:
+            self._reconcile(rig.id)
+        for rig_id, message in faults.items():
+            self.access.report_fault(rig_id, message)
+        self._report = StartupReport(teachers=self.users.count_teachers(), faults=faults)
+        return self._report
+
+    def sweep(self) -> list[str]:
+        """Apply run-out limits, hand rigs over, power idle rigs off; return rigs changed.
+
+        The server calls this about once a second; tests call it after moving
+        their clock.
+        """
+        with self._sweep_lock:
+            now = self.clock.now()
+            self.hub.poll(now)
+            for rig in self.config.rigs:
+                fault = self.hub.fault(rig.id)
+                if fault is not None:
+                    self.access.report_fault(rig.id, fault)
+            changed = self.access.sweep()
+            if self._last_purge is None or now - self._last_purge >= _PURGE_INTERVAL:
+                self._last_purge = now
+                self.sessions.purge_expired()
+            return changed
+
+    def apply_input(self, rig_id: str, who: Principal, u: float) -> InputResult:
+        """Validate, record and apply a controller's input (see ``AccessService.record_input``)."""
+        record = self.access.record_input(rig_id, who, u)
+        applied = self.hub.apply(rig_id, record.u, controller_session=record.control_session)
+        if applied is not None:
+            self.access.mark_applied(record.id)
+        fault = self.hub.fault(rig_id)
+        if fault is not None:
+            self.access.report_fault(rig_id, fault)
+        return InputResult(rig_id, record.u, applied, record.at, record.id)
+
+    def set_service(self, rig_id: str, who: Principal, in_service: bool) -> RigView:
+        """Take a rig in or out of service; clears its fault (teachers only)."""
+        self.config.rig(rig_id)
+        if who.is_teacher:
+            self.hub.clear_fault(rig_id)
+        return self.access.set_service(rig_id, who, in_service)
+
+    def remove_user(self, username: str) -> UserInfo:
+        """Remove an account; rigs it controlled go to the next in their queues."""
+        info = self.users.remove(username)
+        self.access.sweep()
+        for rig in self.config.rigs:
+            self._reconcile(rig.id)
+        return info
+
+    def close(self) -> None:
+        """Leave every rig safe and close the database connections."""
+        self.hub.close()
+        self.db.close()
+
+    def _reconcile(self, rig_id: str) -> None:
+        cfg = self.config.rig(rig_id)
+        with self.hub.locked(rig_id):
+            snap = self.access.snapshot(rig_id)
+            desired = DesiredState(
+                power=snap.power,
+                controller_session=snap.controller.id if snap.controller is not None else None,
+            )
+            self.hub.reconcile(rig_id, desired, cfg.cooldown.input)

@@ -1,0 +1,410 @@
+"""User accounts and login sessions.
+
+:class:`UserService` keeps accounts (the ``thermolab user`` command and the
+teachers' API use it); :class:`SessionService` turns a user name and password
+into a server-side session and a cookie token back into the user it belongs
+to. Both work on the :class:`~thermolab.lab.db.Database` directly, so the
+command line can manage accounts while the server runs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime, timedelta
+
+from argon2 import PasswordHasher
+from argon2.exceptions import InvalidHashError, VerificationError
+from sqlalchemy import delete, func, select
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+from thermolab.errors import ConflictError, InvalidParameterError, NotFoundError
+from thermolab.lab.clock import LabClock
+from thermolab.lab.db import Database
+from thermolab.lab.models import (
+    ControlSession,
+    EndReason,
+    LoginSession,
+    QueueEntry,
+    Role,
+    User,
+)
+from thermolab.lab.security import (
+    MAX_PASSWORD_LENGTH,
+    AuthenticationError,
+    hash_token,
+    new_token,
+    normalize_username,
+    validate_password,
+)
+
+__all__ = ["Principal", "SessionService", "UserInfo", "UserService", "parse_role"]
+
+# A last-seen time is rewritten at most this often, so that reads stay reads.
+_TOUCH_INTERVAL = timedelta(seconds=60)
+
+
+def parse_role(role: str) -> Role:
+    """Return the :class:`~thermolab.lab.models.Role` called ``role``.
+
+    Raises
+    ------
+    InvalidParameterError
+        If it is not ``student`` or ``teacher``.
+
+    Examples
+    --------
+    >>> parse_role("teacher")
+    <Role.TEACHER: 'teacher'>
+    """
+    try:
+        return Role(role)
+    except ValueError:
+        raise InvalidParameterError(
+            f"role {role!r} is not known; use 'student' or 'teacher'"
+        ) from None
+
+
+@dataclass(frozen=True, slots=True)
+class UserInfo:
+    """An account, without its password hash.
+
+    Attributes
+    ----------
+    id : int
+    username : str
+    role : Role
+    created_at : datetime
+    """
+
+    id: int
+    username: str
+    role: Role
+    created_at: datetime
+
+    @classmethod
+    def of(cls, user: User) -> UserInfo:
+        """Build from a :class:`~thermolab.lab.models.User` row."""
+        return cls(user.id, user.username, Role(user.role), user.created_at)
+
+
+@dataclass(frozen=True, slots=True)
+class Principal:
+    """The user behind a request, and the login session it came with.
+
+    Attributes
+    ----------
+    user_id : int
+    username : str
+    role : Role
+    session_id : int or None
+        The login session (``None`` for work done outside a request).
+    expires_at : datetime or None
+        When the login session ends at the latest.
+    """
+
+    user_id: int
+    username: str
+    role: Role
+    session_id: int | None = None
+    expires_at: datetime | None = None
+
+    @property
+    def is_teacher(self) -> bool:
+        """``True`` for a teacher."""
+        return self.role is Role.TEACHER
+
+
+class UserService:
+    """Create, list, change and remove accounts.
+
+    Parameters
+    ----------
+    db : Database
+    clock : LabClock
+    hasher : PasswordHasher
+        Argon2 hasher (tests pass a cheap one).
+    """
+
+    def __init__(self, db: Database, clock: LabClock, hasher: PasswordHasher) -> None:
+        self._db = db
+        self._clock = clock
+        self._hasher = hasher
+
+    def add(self, username: str, password: str, role: Role | str) -> UserInfo:
+        """Create an account.
+
+        Raises
+        ------
+        InvalidParameterError
+            For a bad user name, password or role.
+        ConflictError
+            If the user name is taken.
+        """
+        name = normalize_username(username)
+        role = parse_role(role) if isinstance(role, str) else role
+        password_hash = self._hasher.hash(validate_password(password))
+        now = self._clock.now()
+        try:
+            with self._db.write() as session:
+                if session.scalar(select(User.id).where(User.username == name)) is not None:
+                    raise ConflictError(f"user {name!r} already exists")
+                user = User(
+                    username=name,
+                    role=role.value,
+                    password_hash=password_hash,
+                    created_at=now,
+                    password_changed_at=now,
+                )
+                session.add(user)
+                session.flush()
+                return UserInfo.of(user)
+        except IntegrityError:
+            raise ConflictError(f"user {name!r} already exists") from None
+
+    def get(self, username: str) -> UserInfo:
+        """Return the account called ``username``.
+
+        Raises
+        ------
+        NotFoundError
+            If there is none.
+        """
+        with self._db.read() as session:
+            return UserInfo.of(self._find(session, username))
+
+    def list(self) -> list[UserInfo]:
+        """Return every account, by user name."""
+        with self._db.read() as session:
+            return [UserInfo.of(u) for u in session.scalars(select(User).order_by(User.username))]
+
+    def count_teachers(self) -> int:
+        """Return how many teacher accounts exist."""
+        with self._db.read() as session:
+            return (
+                session.scalar(
+                    select(func.count()).select_from(User).where(User.role == Role.TEACHER.value)
+                )
+                or 0
+            )
+
+    def set_password(
+        self, username: str, password: str, *, keep_session: int | None = None
+    ) -> None:
+        """Change a password; every login of the user ends but ``keep_session``.
+
+        Raises
+        ------
+        NotFoundError
+            If there is no such user.
+        InvalidParameterError
+            If the password is too short or too long.
+        """
+        password_hash = self._hasher.hash(validate_password(password))
+        with self._db.write() as session:
+            user = self._find(session, username)
+            user.password_hash = password_hash
+            user.password_changed_at = self._clock.now()
+            session.execute(
+                delete(LoginSession).where(
+                    LoginSession.user_id == user.id, LoginSession.id != (keep_session or -1)
+                )
+            )
+
+    def remove(self, username: str) -> UserInfo:
+        """Remove an account with its logins, queue places and runs.
+
+        A control session the user holds ends (reason ``kicked``, by "account
+        removed"); the lab hands the rig to the next in the queue at its next
+        look at the rig. The lab's history of who used which rig keeps the
+        name.
+
+        Raises
+        ------
+        NotFoundError
+            If there is no such user.
+        """
+        now = self._clock.now()
+        with self._db.write() as session:
+            user = self._find(session, username)
+            rig_ids = set(
+                session.scalars(
+                    select(ControlSession.rig_id).where(
+                        ControlSession.user_id == user.id, ControlSession.ended_at.is_(None)
+                    )
+                )
+            ) | set(
+                session.scalars(
+                    select(QueueEntry.rig_id).where(
+                        QueueEntry.user_id == user.id, QueueEntry.left_at.is_(None)
+                    )
+                )
+            )
+            # Same lock order as everyone else (rig rows, sorted) so that no deadlock is possible.
+            for rig_id in sorted(rig_ids):
+                self._db.lock_rig(session, rig_id)
+            for control in session.scalars(
+                select(ControlSession).where(
+                    ControlSession.user_id == user.id, ControlSession.ended_at.is_(None)
+                )
+            ):
+                control.ended_at = now
+                control.end_reason = EndReason.KICKED.value
+                control.ended_by = "account removed"
+            info = UserInfo.of(user)
+            session.delete(user)
+            return info
+
+    def verify(self, username: str, password: str) -> UserInfo:
+        """Check a user name and password.
+
+        Raises
+        ------
+        AuthenticationError
+            If either is wrong (the message does not say which).
+        """
+        try:
+            name = normalize_username(username)
+        except InvalidParameterError:
+            name = None
+        with self._db.read() as session:
+            user = (
+                session.scalars(select(User).where(User.username == name)).one_or_none()
+                if name is not None
+                else None
+            )
+            stored = user.password_hash if user is not None else None
+        ok = False
+        if len(password) <= MAX_PASSWORD_LENGTH:
+            try:
+                # Hash even for an unknown user, so timing does not tell which names exist.
+                ok = self._hasher.verify(stored or _DUMMY_HASH.get(self._hasher), password)
+            except (VerificationError, InvalidHashError):
+                ok = False
+        if user is None or stored is None or not ok:
+            raise AuthenticationError("wrong user name or password")
+        if self._hasher.check_needs_rehash(stored):
+            with self._db.write() as session:
+                row = session.get(User, user.id)
+                if row is not None and row.password_hash == stored:
+                    row.password_hash = self._hasher.hash(password)
+        return UserInfo.of(user)
+
+    @staticmethod
+    def _find(session: Session, username: str) -> User:
+        try:
+            name = normalize_username(username)
+        except InvalidParameterError:
+            name = username
+        user = session.scalars(select(User).where(User.username == name)).one_or_none()
+        if user is None:
+            raise NotFoundError(f"no user called {username!r}")
+        return user
+
+
+class _DummyHashes:
+    """One throw-away hash per hasher, verified against when the user is unknown."""
+
+    def __init__(self) -> None:
+        self._hashes: dict[int, str] = {}
+
+    def get(self, hasher: PasswordHasher) -> str:
+        key = id(hasher)
+        if key not in self._hashes:
+            self._hashes[key] = hasher.hash("not a password anyone has")
+        return self._hashes[key]
+
+
+_DUMMY_HASH = _DummyHashes()
+
+
+class SessionService:
+    """Server-side login sessions.
+
+    Parameters
+    ----------
+    db : Database
+    clock : LabClock
+    lifetime : float
+        Seconds a session lasts at most.
+    idle_timeout : float
+        Seconds without a request after which a session ends.
+    """
+
+    def __init__(
+        self, db: Database, clock: LabClock, *, lifetime: float, idle_timeout: float
+    ) -> None:
+        self._db = db
+        self._clock = clock
+        self._lifetime = timedelta(seconds=lifetime)
+        self._idle = timedelta(seconds=idle_timeout)
+
+    def create(
+        self, user: UserInfo, *, client_address: str | None = None, user_agent: str | None = None
+    ) -> tuple[str, Principal]:
+        """Open a session for ``user``; return the token for the cookie and the principal."""
+        token = new_token()
+        now = self._clock.now()
+        with self._db.write() as session:
+            row = LoginSession(
+                token_hash=hash_token(token),
+                user_id=user.id,
+                created_at=now,
+                last_seen_at=now,
+                expires_at=now + self._lifetime,
+                client_address=(client_address or None) and client_address[:64],
+                user_agent=(user_agent or None) and user_agent[:256],
+            )
+            session.add(row)
+            session.flush()
+            return token, Principal(user.id, user.username, user.role, row.id, row.expires_at)
+
+    def resolve(self, token: str | None) -> Principal | None:
+        """Return who a cookie token belongs to, or ``None`` if it is not a live session."""
+        if not token or len(token) > 128:
+            return None
+        digest = hash_token(token)
+        now = self._clock.now()
+        with self._db.read() as session:
+            found = session.execute(
+                select(LoginSession, User)
+                .join(User, User.id == LoginSession.user_id)
+                .where(LoginSession.token_hash == digest)
+            ).one_or_none()
+            if found is None:
+                return None
+            login, user = found.tuple()
+            expired = now >= login.expires_at or now - login.last_seen_at >= self._idle
+            stale = now - login.last_seen_at >= _TOUCH_INTERVAL
+            principal = Principal(
+                user.id, user.username, Role(user.role), login.id, login.expires_at
+            )
+        if expired:
+            self.end(token)
+            return None
+        if stale:
+            with self._db.write() as session:
+                row = session.get(LoginSession, principal.session_id)
+                if row is not None:
+                    row.last_seen_at = now
+        return principal
+
+    def end(self, token: str | None) -> None:
+        """End the session of ``token`` (no error if there is none)."""
+        if not token:
+            return
+        with self._db.write() as session:
+            digest = hash_token(token)
+            session.execute(delete(LoginSession).where(LoginSession.token_hash == digest))
+
+    def purge_expired(self) -> int:
+        """Delete expired sessions; return how many."""
+        now = self._clock.now()
+        with self._db.write() as session:
+            result = session.execute(
+                delete(LoginSession).where(
+                    (LoginSession.expires_at <= now)
+                    | (LoginSession.last_seen_at <= now - self._idle)
+                )
+            )
+            return int(getattr(result, "rowcount", 0) or 0)
