@@ -101,6 +101,10 @@ export const api = {
   setInput: (rig, u) => request("PUT", `/api/rigs/${enc(rig)}/input`, { u }),
   startRun: (rig, spec) => request("POST", `/api/rigs/${enc(rig)}/runs`, spec),
   stopRun: (rig) => request("POST", `/api/rigs/${enc(rig)}/runs/current/stop`),
+  extendControl: (rig, seconds) => request("POST", `/api/rigs/${enc(rig)}/control/extend`, { seconds }),
+  kick: (rig, username) =>
+    request("POST", `/api/rigs/${enc(rig)}/control/kick`, username ? { username } : {}),
+  setService: (rig, inService) => request("PUT", `/api/rigs/${enc(rig)}/service`, { inService }),
   runs: (query = "", opts) => request("GET", `/api/runs${query}`, undefined, opts),
   run: (id, opts) => request("GET", `/api/runs/${enc(id)}`, undefined, opts),
   csvUrl: (id) => `/api/runs/${enc(id)}/samples.csv`,

@@ -35,7 +35,8 @@ export class Chart {
       opts.description ? h("p", { class: "visually-hidden", id: descId }, opts.description) : null,
     );
     this._plotHost = h("div", { class: "chart-plot", "aria-hidden": "true" });
-    this.el.append(this._plotHost);
+    this._emptyNote = h("p", { class: "chart-empty" }, opts.emptyText ?? "Waiting for data…");
+    this.el.append(this._plotHost, this._emptyNote);
     parent.append(this.el);
     const width = Math.max(200, this._plotHost.clientWidth || parent.clientWidth || 320);
     const series = [
@@ -91,6 +92,7 @@ export class Chart {
   /** Redraw now from the source. */
   draw() {
     const data = this._source();
+    this._emptyNote.hidden = data[0].length > 0;
     this.plot.setData(data, true);
   }
 

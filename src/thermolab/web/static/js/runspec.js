@@ -59,20 +59,36 @@ export function methodName(m) {
 }
 
 /**
- * A run as the views use it; `estimates` (latest per method) is filled live.
+ * A run as the views use it (RunOut of /openapi.json); `estimates` (the
+ * latest estimate per method) is filled live by the rig page.
  * @param {any} r
  */
 export function readRun(r) {
   if (!r || typeof r !== "object") return null;
+  const pick = (camel, snake, d = null) => r[camel] ?? r[snake] ?? d;
   return {
-    ...r,
+    raw: r,
     id: r.id,
+    rig: pick("rig", "rigId"),
+    user: pick("username", "user"),
     status: String(r.status ?? "running"),
     dt: Number(r.dt ?? 1),
-    n_samples: r.n_samples ?? null,
+    nSamples: pick("nSamples", "n_samples"),
     signal: r.signal ?? null,
+    setpoint: r.setpoint ?? null,
     methods: Array.isArray(r.methods) ? r.methods : [],
-    samples: Number(r.samples_stored ?? r.samples ?? 0),
+    startedAt: pick("startedAt", "started_at"),
+    endedAt: pick("endedAt", "ended_at"),
+    endReason: pick("endReason", "end_reason"),
+    samples: Number(pick("samplesStored", "samples_stored", 0)),
+    results: Array.isArray(r.results) ? r.results : [],
     estimates: new Map(),
   };
+}
+
+/** What drove the input: the signal, or the manual set point. */
+export function inputText(run) {
+  if (run.signal) return run.signal;
+  if (run.setpoint !== null && run.setpoint !== undefined) return `set point ${run.setpoint} V (manual)`;
+  return "manual";
 }

@@ -18,31 +18,25 @@ export function stateLabel(state) {
 }
 
 /**
- * The access state as seen by this user (live protocol `access`, also inside
- * GET /api/rigs/{rig}).
- * @returns {{role: string, queueSize: number, queuePosition: number | null,
- *   estimatedTimeUntilControl: number | null, timeLeft: number | null,
- *   controller: string | null, watchers: number, watcherNames: string[] | null,
- *   queue: string[] | null}}
+ * The access state as seen by this user: `access` of GET /api/rigs/{rig}
+ * (AccessOut in /openapi.json) and of the live protocol's `access` message.
+ * @returns {{role: "controller" | "queued" | "watcher", queueSize: number,
+ *   queuePosition: number | null, estimatedTimeUntilControl: number | null,
+ *   timeLeft: number | null, idleTimeLeft: number | null, controller: string | null,
+ *   watchers: number}}
  */
 export function readAccess(a) {
   const src = a && typeof a === "object" ? a : {};
-  const watchers = src.watchers;
   return {
-    role: typeof src.role === "string" ? src.role : "watcher",
+    role: src.role === "controller" || src.role === "queued" ? src.role : "watcher",
     queueSize: numberOr(src.queueSize, 0),
     queuePosition: numberOr(src.queuePosition, null),
     estimatedTimeUntilControl: numberOr(src.estimatedTimeUntilControl, null),
     timeLeft: numberOr(src.timeLeft, null),
-    controller: typeof src.controller === "string" ? src.controller : (src.controller?.username ?? null),
-    watchers: Array.isArray(watchers) ? watchers.length : numberOr(watchers, 0),
-    watcherNames: Array.isArray(watchers) ? watchers.map(nameOf) : (Array.isArray(src.watcherNames) ? src.watcherNames : null),
-    queue: Array.isArray(src.queue) ? src.queue.map(nameOf) : null,
+    idleTimeLeft: numberOr(src.idleTimeLeft, null),
+    controller: typeof src.controller === "string" ? src.controller : null,
+    watchers: numberOr(src.watchers, 0),
   };
-}
-
-function nameOf(x) {
-  return typeof x === "string" ? x : (x?.username ?? String(x));
 }
 
 function numberOr(v, fallback) {
@@ -50,25 +44,30 @@ function numberOr(v, fallback) {
 }
 
 /**
- * A rig as the interface needs it (GET /api/rigs items, GET /api/rigs/{rig},
- * the `rig` of a hello message).
+ * A rig (RigOut in /openapi.json: GET /api/rigs items, GET /api/rigs/{rig},
+ * the answers of the control routes, the `rig` of a hello message).
  */
 export function readRig(r) {
   const src = r && typeof r === "object" ? r : {};
-  const info = src.info && typeof src.info === "object" ? src.info : src;
-  const range = src.input_range ?? info.input_range ?? [info.input_min ?? -10, info.input_max ?? 10];
+  const input = src.input && typeof src.input === "object" ? src.input : {};
   return {
-    id: String(src.id ?? src.name ?? ""),
-    title: String(src.title ?? src.id ?? src.name ?? ""),
+    id: String(src.id ?? ""),
+    title: String(src.title ?? src.id ?? ""),
+    kind: String(src.kind ?? ""),
     state: String(src.state ?? "off"),
-    detail: typeof src.detail === "string" ? src.detail : (src.fault ?? null),
-    inputMin: Number(range[0]),
-    inputMax: Number(range[1]),
-    inputUnit: String(info.input_unit ?? "V"),
-    outputUnit: String(info.output_unit ?? "V"),
-    safeInput: numberOr(info.safe_input, 0),
+    inService: src.inService !== false,
+    detail: typeof src.fault === "string" ? src.fault : null,
+    inputMin: numberOr(input.min, -10),
+    inputMax: numberOr(input.max, 10),
+    inputUnit: String(input.unit ?? "V"),
+    safeInput: numberOr(input.safe, 0),
+    lastInput: numberOr(input.last, null),
+    live: input.live !== false,
+    outputUnit: String(src.outputUnit ?? "V"),
     limits: src.limits && typeof src.limits === "object" ? src.limits : {},
     access: readAccess(src.access),
-    raw: src,
+    // Teachers only (null for students).
+    queue: Array.isArray(src.queue) ? src.queue : null,
+    watcherList: Array.isArray(src.watcherList) ? src.watcherList : null,
   };
 }

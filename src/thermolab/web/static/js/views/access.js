@@ -17,6 +17,7 @@ export class AccessPanel {
     this.access = null;
     this.rigState = "off";
     this._deadline = null; // ms timestamp when the controller's time runs out
+    this._idleDeadline = null; // ms timestamp when control ends for want of a command
     this._warned = new Set();
     this._busy = false;
     this.role = h("p", { class: "access-role", "data-testid": "access-role" });
@@ -25,6 +26,7 @@ export class AccessPanel {
     for (const [key, label] of [
       ["controller", "Controller"],
       ["timeLeft", "Control time left"],
+      ["idleLeft", "Idle limit in"],
       ["watchers", "Watching"],
       ["queueSize", "In the queue"],
       ["position", "Your place"],
@@ -61,6 +63,7 @@ export class AccessPanel {
     const before = this.access;
     this.access = access;
     this._deadline = access.timeLeft === null ? null : Date.now() + access.timeLeft * 1000;
+    this._idleDeadline = access.idleTimeLeft === null ? null : Date.now() + access.idleTimeLeft * 1000;
     if (access.role !== "controller") this._warned.clear();
     this._announceChange(before, access);
     this.render();
@@ -96,6 +99,9 @@ export class AccessPanel {
   }
 
   _renderTime() {
+    const idle = this._idleDeadline ? Math.max(0, (this._idleDeadline - Date.now()) / 1000) : null;
+    setText(this.fields.idleLeft, idle === null ? "–" : duration(idle));
+    this.fields.idleLeft.title = "Control ends after this long without a command (a run in progress counts as activity).";
     const left = this._secondsLeft();
     const dd = this.fields.timeLeft;
     setText(dd, left === null ? "–" : duration(left));
@@ -109,15 +115,13 @@ export class AccessPanel {
         }
       }
     }
-    if (this.access?.estimatedTimeUntilControl !== null && this.access?.estimatedTimeUntilControl !== undefined) {
-      setText(this.fields.wait, duration(this.access.estimatedTimeUntilControl));
-    }
   }
 
   render() {
     const a = this.access;
     if (!a) {
       setText(this.role, "Connecting…");
+      for (const b of [this.askButton, this.leaveButton, this.releaseButton]) b.hidden = true;
       return;
     }
     const roleText = {
@@ -133,7 +137,9 @@ export class AccessPanel {
     setText(this.fields.queueSize, String(a.queueSize));
     const queued = a.role === "queued" || (a.queuePosition !== null && a.role !== "controller");
     setText(this.fields.position, queued ? `${a.queuePosition}` : "–");
-    setText(this.fields.wait, queued ? duration(a.estimatedTimeUntilControl) : "–");
+    // For a watcher the server gives the wait they would have if they asked now.
+    setText(this.facts.querySelector('[data-for="wait"]'), queued ? "Estimated wait" : "Wait if you ask now");
+    setText(this.fields.wait, a.role === "controller" ? "–" : duration(a.estimatedTimeUntilControl));
     this._renderTime();
     const usable = !["fault", "out_of_service"].includes(this.rigState);
     this.askButton.hidden = a.role === "controller" || queued;

@@ -427,7 +427,7 @@ export class Panels {
         setText(view.status, running ? `A ${methodTitle(runPanel)} run is going (panel ${this.defs.find((d) => d.id === runPanel)?.number ?? "?"}).` : this._idleStatus(view));
       } else {
         const k = this.run.samples ?? 0;
-        const n = this.run.n_samples;
+        const n = this.run.nSamples;
         setText(view.status, `Run #${this.run.id} running: sample ${k}${n ? ` of ${n}` : ""}${automaticRun ? " (Automatic square wave)" : ""}.`);
       }
     }
@@ -435,7 +435,7 @@ export class Panels {
 
   _idleStatus(view) {
     if (this.run && panelOfRun(this.run) === view.def.id) {
-      return `Run #${this.run.id} ${this.run.status}${this.run.end_reason ? ` (${this.run.end_reason})` : ""}.`;
+      return `Run #${this.run.id} ${this.run.status}${this.run.endReason ? ` (${this.run.endReason})` : ""}.`;
     }
     return "No run yet in this panel.";
   }
@@ -447,7 +447,7 @@ export class Panels {
     const i = this.defs.findIndex((d) => d.id === panelOfRun(this.run));
     const view = this.views[i];
     if (!view) return;
-    const n = this.run.n_samples;
+    const n = this.run.nSamples;
     setText(view.status, `Run #${this.run.id} running: sample ${k + 1}${n ? ` of ${n}` : ""}${this.run.signal ? " (Automatic square wave)" : ""}.`);
   }
 

@@ -20,6 +20,8 @@ export const WINDOW = 2000;
 /** Points kept per convergence trajectory (decimated beyond). */
 const TRAJECTORY_POINTS = 4000;
 const CAMERA_MS = 1000;
+/** Reading the rig over HTTP while the live socket is down. */
+const POLL_MS = 3000;
 
 export function mount(main, { params }, ctx) {
   const rigId = params[0];
@@ -51,6 +53,33 @@ class RigPage {
     window.addEventListener("online", this._online);
     this.client.start();
     this._startCamera();
+    void this._poll();
+  }
+
+  /**
+   * Read the rig over HTTP: at once (limits and access before the socket's
+   * hello), then every few seconds while the live socket is not open, so the
+   * page stays current and the user's place stays alive (any request for the
+   * rig counts as presence) through a socket outage.
+   */
+  async _poll() {
+    if (this._destroyed) return;
+    if (this.client.state !== "open" || !this.rig) {
+      try {
+        const rig = readRig(await api.rig(this.rigId));
+        if (this._destroyed) return;
+        if (this.client.state !== "open" || !this.rig) {
+          this._setRig(rig);
+          this.access.update(rig.access);
+        }
+      } catch (err) {
+        if (err.status === 404) {
+          this._error(err.message);
+          return;
+        }
+      }
+    }
+    this._pollTimer = setTimeout(() => void this._poll(), POLL_MS);
   }
 
   // -- layout ---------------------------------------------------------------------------
@@ -72,17 +101,27 @@ class RigPage {
     grid.append(side, charts);
 
     // Live image.
-    this.camera = h("img", { class: "camera", alt: `Live image of rig ${this.rigId}`, width: "320", height: "240" });
-    this.cameraNote = h("p", { class: "muted small" });
-    side.append(h("section", { class: "card", "aria-labelledby": "camera-heading" }, h("h2", { id: "camera-heading" }, "Live image"), this.camera, this.cameraNote));
+    this.camera = h("img", { class: "camera", alt: `Live image of rig ${this.rigId}`, width: "320", height: "240", hidden: true });
+    this.cameraNote = h("p", { class: "muted small" }, "No image yet.");
+    side.append(
+      h(
+        "section",
+        { class: "card", "aria-labelledby": "camera-heading" },
+        h("h2", { id: "camera-heading" }, "Live image"),
+        h("div", { class: "camera-box" }, this.camera, this.cameraNote),
+      ),
+    );
 
     // Access.
     this.access = new AccessPanel(side, this.rigId, {
       onError: (m) => this._error(m),
       onChange: () => this._updateLock(),
+      // The control routes answer with the rig as the caller now sees it.
       onAnswer: (answer) => {
-        if (answer && typeof answer === "object" && (answer.access || answer.role)) {
-          this.access.update(readAccess(answer.access ?? answer));
+        if (answer && typeof answer === "object" && answer.access) {
+          const rig = readRig(answer);
+          this._setState(rig.state, rig.detail);
+          this.access.update(rig.access);
         }
       },
     });
@@ -172,7 +211,7 @@ class RigPage {
         if (this.client.state === "open") setText(conn, "");
       }, 2000);
     } else if (s.state === "waiting") {
-      setText(conn, `Connection lost; trying again in ${Math.ceil(s.delayMs / 1000)} s…`);
+      setText(conn, `Live updates interrupted; reconnecting in ${Math.ceil(s.delayMs / 1000)} s (the page is refreshed every few seconds meanwhile).`);
     } else if (s.state === "closed" && s.code) {
       setText(conn, "");
       if (s.code === 4404) this._error(`There is no rig called ${this.rigId}.`);
@@ -289,7 +328,7 @@ class RigPage {
       if (this.run && this.run.id === run.id) run.estimates = this.run.estimates;
       this.run = run;
       this.panels.setRun(run);
-      announce(`Run ${run.id} ended${run.end_reason ? `: ${run.end_reason}` : ""}.`);
+      announce(`Run ${run.id} ended${run.endReason ? `: ${run.endReason}` : ""}.`);
     }
     this._updateOverlayChoices();
     this._noteSegment();
@@ -522,11 +561,13 @@ class RigPage {
         if (this._destroyed) return;
         const url = URL.createObjectURL(blob);
         this.camera.src = url;
+        this.camera.hidden = false;
         // Object URLs hold their image until revoked: keep exactly one alive.
         if (lastUrl) URL.revokeObjectURL(lastUrl);
         lastUrl = url;
         setText(this.cameraNote, "");
       } catch {
+        this.camera.hidden = true;
         setText(this.cameraNote, "No image at the moment.");
       }
       next();
@@ -542,6 +583,7 @@ class RigPage {
     this.client.stop();
     window.removeEventListener("online", this._online);
     clearTimeout(this._cameraTimer);
+    clearTimeout(this._pollTimer);
     clearTimeout(this._bannerTimer);
     this._revokeCamera?.();
     if (this._uiFrame) cancelAnimationFrame(this._uiFrame);

@@ -1,0 +1,199 @@
+// The teacher's view: every rig with its controller, queue and watchers;
+// extend or cut a turn, end it, remove someone from a queue, take a rig out of
+// service (or back); and every student's runs.
+
+import { api } from "../api.js";
+import { announce, duration, h, setText, when } from "../dom.js";
+import { readRig, stateLabel } from "../shapes.js";
+import { checkNumber, rangeText } from "../validate.js";
+import { runsTable } from "./runs.js";
+
+const POLL_MS = 3000;
+const EXTEND = { label: "Seconds", min: -86400, max: 86400, unit: "s" };
+
+export function mount(main, _params, ctx) {
+  if (ctx.user?.role !== "teacher") {
+    main.append(h("h1", null, "Teacher"), h("p", { class: "error" }, "This page is for teachers."));
+    return null;
+  }
+  const status = h("p", { class: "muted", role: "status" });
+  const list = h("div", { class: "teacher-rigs" });
+  const runsBox = h("div", { class: "table-wrap", tabindex: "0", role: "region", "aria-label": "Every student's runs" });
+  main.append(
+    h("h1", null, "Teacher"),
+    h("p", { class: "lede" }, "Every rig with its controller, queue and watchers. Changes take effect at once and are recorded with your name."),
+    status,
+    list,
+    h("section", { class: "card", "aria-labelledby": "all-runs" }, h("h2", { id: "all-runs" }, "Every student's runs"), runsBox),
+  );
+  const abort = new AbortController();
+  const cards = new Map();
+  let timer = null;
+
+  async function refresh() {
+    try {
+      const data = await api.rigs({ signal: abort.signal });
+      const rigs = (Array.isArray(data) ? data : []).map(readRig);
+      for (const rig of rigs) {
+        let card = cards.get(rig.id);
+        if (!card) {
+          card = new RigCard(rig.id, refreshSoon);
+          cards.set(rig.id, card);
+          list.append(card.el);
+        }
+        card.update(rig);
+      }
+      setText(status, "");
+    } catch (err) {
+      if (err.name === "AbortError") return;
+      setText(status, `Could not load the rigs: ${err.message}`);
+    }
+    if (!abort.signal.aborted) timer = setTimeout(refresh, POLL_MS);
+  }
+
+  function refreshSoon() {
+    clearTimeout(timer);
+    void refresh();
+  }
+
+  async function loadRuns() {
+    try {
+      const runs = await api.runs("", { signal: abort.signal });
+      runsBox.replaceChildren(runsTable(Array.isArray(runs) ? runs : (runs?.runs ?? []), { showUser: true }));
+    } catch (err) {
+      if (err.name === "AbortError") return;
+      runsBox.replaceChildren(h("p", { class: "error" }, `Could not load the runs: ${err.message}`));
+    }
+  }
+
+  void refresh();
+  void loadRuns();
+  return () => {
+    abort.abort();
+    clearTimeout(timer);
+  };
+}
+
+class RigCard {
+  constructor(rigId, changed) {
+    this.rigId = rigId;
+    this.changed = changed;
+    const hid = `teacher-rig-${rigId}`;
+    this.title = h("a", { href: `#/rig/${encodeURIComponent(rigId)}` });
+    this.badge = h("span", { class: "badge" });
+    this.facts = h("dl", { class: "facts" });
+    this.f = {};
+    for (const [key, label] of [["controller", "Controller"], ["timeLeft", "Turn ends in"], ["watchers", "Watching"], ["fault", "Fault"]]) {
+      this.f[key] = h("dd");
+      this.facts.append(h("dt", null, label), this.f[key]);
+    }
+    this.message = h("p", { class: "error", role: "alert" });
+    const secId = `${hid}-seconds`;
+    this.seconds = h("input", { id: secId, value: "60", "aria-describedby": `${secId}-hint`, autocomplete: "off" });
+    this.extendButton = h("button", { type: "submit" }, "Extend / cut the turn");
+    const extendForm = h(
+      "form",
+      { novalidate: true, class: "field inline" },
+      h("label", { for: secId }, "Seconds to add"),
+      this.seconds,
+      this.extendButton,
+      h("span", { class: "hint", id: `${secId}-hint` }, `${rangeText(EXTEND)}; negative cuts the turn`),
+    );
+    extendForm.addEventListener("submit", (ev) => {
+      ev.preventDefault();
+      const r = checkNumber(this.seconds.value, EXTEND);
+      if (!r.ok) {
+        this.seconds.setAttribute("aria-invalid", "true");
+        setText(this.message, r.error);
+        this.seconds.focus();
+        return;
+      }
+      this.seconds.removeAttribute("aria-invalid");
+      void this.act(() => api.extendControl(rigId, r.value), r.value >= 0 ? `Turn on ${rigId} extended by ${r.value} s.` : `Turn on ${rigId} cut by ${-r.value} s.`);
+    });
+    this.endButton = h("button", { type: "button", class: "danger" }, "End this turn");
+    this.endButton.addEventListener("click", () => void this.act(() => api.kick(rigId, null), `The turn on ${rigId} was ended.`));
+    this.serviceButton = h("button", { type: "button" });
+    this.serviceButton.addEventListener("click", () => {
+      const out = this.rig?.inService;
+      void this.act(() => api.setService(rigId, !out), out ? `${rigId} is out of service.` : `${rigId} is back in service.`);
+    });
+    this.controlBox = h("div", null, extendForm, h("div", { class: "buttons" }, this.endButton));
+    this.queue = h("ol", { class: "queue-list" });
+    this.watchers = h("ul", { class: "watcher-list" });
+    this.el = h(
+      "section",
+      { class: "card teacher-rig", "aria-labelledby": hid, "data-rig": rigId },
+      h("h2", { id: hid }, this.title, " ", this.badge),
+      this.facts,
+      this.message,
+      this.controlBox,
+      h("h3", null, "Queue"),
+      this.queue,
+      h("h3", null, "Watchers"),
+      this.watchers,
+      h("div", { class: "buttons" }, this.serviceButton),
+    );
+    this._queueKey = "";
+    this._watchKey = "";
+  }
+
+  async act(fn, done) {
+    setText(this.message, "");
+    try {
+      const answer = await fn();
+      if (answer && answer.access) this.update(readRig(answer));
+      announce(done);
+    } catch (err) {
+      setText(this.message, err.message);
+    }
+    this.changed();
+  }
+
+  update(rig) {
+    this.rig = rig;
+    setText(this.title, rig.title || rig.id);
+    setText(this.badge, stateLabel(rig.state));
+    this.badge.dataset.state = rig.state;
+    const a = rig.access;
+    setText(this.f.controller, a.controller ?? "nobody");
+    // A teacher who is not the controller gets no timeLeft; the queue's first
+    // place shows how long the current turn (plus cool-down) can still run.
+    const first = rig.queue?.[0];
+    setText(this.f.timeLeft, a.controller ? (a.timeLeft !== null ? duration(a.timeLeft) : first ? "see the queue" : "–") : "–");
+    setText(this.f.watchers, String(a.watchers));
+    setText(this.f.fault, rig.detail ?? "none");
+    this.controlBox.hidden = !a.controller;
+    setText(this.serviceButton, rig.inService ? "Take out of service" : "Put back in service");
+    this.serviceButton.className = rig.inService ? "danger" : "primary";
+    const queue = rig.queue ?? [];
+    const qKey = JSON.stringify(queue.map((q) => [q.username, q.position]));
+    if (qKey !== this._queueKey) {
+      this._queueKey = qKey;
+      const hadFocus = this.queue.contains(document.activeElement);
+      this.queue.replaceChildren(
+        ...(queue.length
+          ? queue.map((q) =>
+              h(
+                "li",
+                null,
+                `${q.username} (since ${when(q.joinedAt)}) `,
+                h("button", { type: "button", class: "link-button", "aria-label": `Remove ${q.username} from the queue`, onclick: () => void this.act(() => api.kick(this.rigId, q.username), `${q.username} removed from the queue.`) }, "Remove"),
+              ),
+            )
+          : [h("li", { class: "muted" }, "empty")]),
+      );
+      if (hadFocus) this.queue.querySelector("button")?.focus();
+    }
+    const watchers = rig.watcherList ?? [];
+    const wKey = JSON.stringify(watchers.map((w) => [w.username, w.connections]));
+    if (wKey !== this._watchKey) {
+      this._watchKey = wKey;
+      this.watchers.replaceChildren(
+        ...(watchers.length
+          ? watchers.map((w) => h("li", null, `${w.username}${w.connections > 1 ? ` (${w.connections} windows)` : ""}`))
+          : [h("li", { class: "muted" }, "nobody")]),
+      );
+    }
+  }
+}
