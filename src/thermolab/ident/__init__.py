@@ -25,8 +25,8 @@ from .models import (
     FirstOrderModel,
     discrete_to_first_order,
 )
-from .step import IdentificationWarning, StepResponseResult, step_response
 from .recursive import moving_window_least_squares, weighted_least_squares
+from .step import IdentificationWarning, StepResponseResult, step_response
 from .trajectory import Trajectory
 
 __all__ = [
@@ -42,5 +42,7 @@ __all__ = [
     "block_least_squares",
     "discrete_to_first_order",
     "least_squares",
+    "moving_window_least_squares",
     "step_response",
+    "weighted_least_squares",
 ]

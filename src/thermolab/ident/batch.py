@@ -13,7 +13,7 @@ from thermolab.errors import InvalidParameterError
 
 from . import _regression as _reg
 from . import _validation as _v
-from .models import ArxModel, ArxOrder, FirstOrderModel
+from .models import NOT_EXCITED, ArxModel, ArxOrder, FirstOrderModel
 from .trajectory import Trajectory
 
 if TYPE_CHECKING:
@@ -459,8 +459,8 @@ def block_least_squares(
     W = np.full((y_arr.size, p), np.nan)
     at = np.arange(1, n_blocks + 1) * size - 1
     W[at] = sol.W
-    not_excited = np.zeros(y_arr.size, dtype=bool)
-    not_excited[at[~sol.ok]] = True
+    status = np.zeros(y_arr.size, dtype=np.int8)
+    status[at[~sol.ok]] = NOT_EXCITED
     return Trajectory(
         method="blockls",
         dt=step,
@@ -468,6 +468,6 @@ def block_least_squares(
         order=ord_,
         offset=off,
         param_names=ord_.param_names(constant=reg.constant),
-        not_excited=not_excited,
+        status=status,
         params={"block": size},
     )

@@ -512,6 +512,8 @@ def discrete_to_first_order(
         raise InvalidParameterError(
             f"W must have shape (n, >= {n_dyn}) for order {ord_}, got {np.shape(W)}"
         )
+    if ord_.na == 1 and ord_.nb == 1:
+        return _first_order_arrays(arr[:, 0], arr[:, 1], step)
     a = arr[:, : ord_.na]
     b = arr[:, ord_.na : n_dyn]
     n = arr.shape[0]
@@ -554,4 +556,25 @@ def discrete_to_first_order(
     sum_b = b[ok].sum(axis=1)
     K[ok] = sum_b / (1.0 - sum_a)
     tau[ok] = -step / np.log(pole[ok])
+    return K, tau, code
+
+
+def _first_order_arrays(
+    a: FloatArray, b: FloatArray, dt: float
+) -> tuple[FloatArray, FloatArray, IntArray]:
+    """Eq. 4 backwards for whole columns, in a few full-array passes (no fancy indexing)."""
+    with np.errstate(all="ignore"):
+        K = b / (1.0 - a)
+        tau = np.log(a)
+        np.divide(-dt, tau, out=tau)
+        code = (a >= 1.0).astype(np.int8)  # 1 for now, UNSTABLE below
+        code *= UNSTABLE
+        code += (a <= 0.0).astype(np.int8) * NON_POSITIVE_POLE
+        bad = ~(np.isfinite(a) & np.isfinite(b))
+        if bad.any():
+            code[bad] = NON_FINITE
+            code[np.isnan(a) & np.isnan(b)] = NO_ESTIMATE
+    invalid = code != VALID
+    np.copyto(K, np.nan, where=invalid)
+    np.copyto(tau, np.nan, where=invalid)
     return K, tau, code

@@ -60,8 +60,10 @@ class Trajectory:
         The offset mode the estimates were made with.
     param_names : tuple of str
         Names of ``W``'s columns.
-    not_excited : numpy.ndarray of bool, optional
-        Rows whose regression was singular (their ``W`` is NaN).
+    status : numpy.ndarray of int8, optional
+        Per-row codes from the method that override the ones derived from ``W``
+        where non-zero (2: the regression was singular, 6: the recursion
+        diverged); see :data:`~thermolab.ident.models.INVALID_REASONS`.
     params : dict, optional
         The method's settings (``window``, ``gamma`` ...), for reports.
 
@@ -88,7 +90,7 @@ class Trajectory:
     order: ArxOrder
     offset: str | float
     param_names: tuple[str, ...]
-    not_excited: npt.NDArray[np.bool_] | None = None
+    status: npt.NDArray[np.int8] | None = None
     params: dict[str, Any] = field(default_factory=dict)
     K: FloatArray = field(init=False)
     tau: FloatArray = field(init=False)
@@ -96,8 +98,9 @@ class Trajectory:
 
     def __post_init__(self) -> None:
         K, tau, code = discrete_to_first_order(self.W, self.dt, self.order)
-        if self.not_excited is not None:
-            code[self.not_excited] = 2
+        if self.status is not None:
+            override = self.status != 0
+            code[override] = self.status[override]
         object.__setattr__(self, "K", K)
         object.__setattr__(self, "tau", tau)
         object.__setattr__(self, "reason_code", code)
@@ -168,10 +171,11 @@ class Trajectory:
         Returns
         -------
         dict
-            ``{"K": k or None, "tau": k or None}``: the smallest sample index
-            ``k`` such that every row from ``k`` to the end is valid and within
-            ``±tol·|stabilisation value|``; None when even the last row is not
-            (or there is no valid estimate).
+            ``{"K": k or None, "tau": k or None}``: the sample index ``k`` of the
+            first estimate such that it and every later estimate are valid and
+            within ``±tol·|stabilisation value|``; None when even the last
+            estimate is not (or there is no valid estimate). Rows holding no
+            estimate (before the first one, between blocks) are skipped.
 
         Raises
         ------
@@ -188,6 +192,9 @@ class Trajectory:
         {'K': 0, 'tau': 2}
         """
         _check_tol_last(tol, last)
+        # Rows between block estimates hold no estimate (code 1); they neither break
+        # nor make convergence. Every other row must be valid and inside the band.
+        has_estimate = self.reason_code != 1
         out: dict[str, int | None] = {}
         for name in ("K", "tau"):
             x = self._series(name)
@@ -197,13 +204,10 @@ class Trajectory:
                 continue
             with np.errstate(invalid="ignore"):
                 inside = np.abs(x - ref) <= tol * abs(ref)
-            outside = np.flatnonzero(~inside)
-            if outside.size == 0:
-                out[name] = 0
-            elif outside[-1] == x.size - 1:
-                out[name] = None
-            else:
-                out[name] = int(outside[-1]) + 1
+            outside = np.flatnonzero(has_estimate & ~inside)
+            after = outside[-1] + 1 if outside.size else 0
+            rows = np.flatnonzero(has_estimate[after:])
+            out[name] = int(after + rows[0]) if rows.size else None
         return out
 
     def stats(self, last: int = 2000) -> dict[str, dict[str, float]]:
