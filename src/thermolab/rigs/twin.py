@@ -42,7 +42,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
 from thermolab.errors import InvalidParameterError, RigFaultError, RigTimeoutError
 from thermolab.rigs.base import BaseRig, Reading, RigInfo
@@ -50,7 +49,6 @@ from thermolab.rigs.clock import Clock, RealClock
 
 __all__ = ["PRESETS", "TwinParams", "TwinRig", "twin_preset"]
 
-_FloatArray = npt.NDArray[np.float64]
 
 #: Quantisation step of a 16-bit ±10 V acquisition board (NOTES.md §1).
 DAQ16_STEP = 20.0 / 65536.0
@@ -330,13 +328,18 @@ def twin_preset(name: str) -> TwinParams:
 
 @dataclass(frozen=True, slots=True)
 class _Modes:
-    """Modal form of the state matrix for one fan level (cached)."""
+    """Modal form of the state matrix for one fan level (cached).
+
+    Plain tuples, not arrays: with one or two states, Python floats are several
+    times faster than NumPy's per-call overhead, and the twin is evaluated at
+    every sample of an as-fast-as-possible run.
+    """
 
     eigenvalues: tuple[float, ...]
-    vectors: _FloatArray
-    vectors_inv: _FloatArray
-    steady_per_lamp: _FloatArray  # steady state per unit of lamp input
-    drift_response: npt.NDArray[np.complex128]  # state response phasor to unit drift
+    vectors: tuple[tuple[float, ...], ...]  # vectors[j][i]: state j of mode i
+    vectors_inv: tuple[tuple[float, ...], ...]
+    steady_per_lamp: tuple[float, ...]  # steady state per unit of lamp input
+    drift_response: tuple[complex, ...]  # state response phasor to unit drift
 
 
 class _ThermalModel:
@@ -350,9 +353,8 @@ class _ThermalModel:
         self._modes_cache: dict[float, _Modes] = {}
         start = params.initial_output if params.initial_output is not None else params.ambient
         self._anchor_t = 0.0
-        self._anchor_state = np.full(self._n, start - params.ambient)
+        self._anchor_state: tuple[float, ...] = (start - params.ambient,) * self._n
         self._input = params.safe_input
-        self._segment_started = False
         self._set_segment()
 
     def _modes(self, fan: float) -> _Modes:
@@ -372,27 +374,25 @@ class _ThermalModel:
             e = np.array([loss, 0.0])
         eigenvalues, vectors = np.linalg.eig(M)
         # A heat balance with distinct lags has real, distinct, negative eigenvalues.
-        eigenvalues = eigenvalues.real
         vectors = vectors.real
+        drift = np.linalg.solve(1j * self._omega * np.eye(self._n) - M, e.astype(complex))
         modes = _Modes(
-            eigenvalues=tuple(float(v) for v in eigenvalues),
-            vectors=vectors,
-            vectors_inv=np.linalg.inv(vectors),
-            steady_per_lamp=-np.linalg.solve(M, b),
-            drift_response=np.linalg.solve(
-                1j * self._omega * np.eye(self._n) - M, e.astype(complex)
-            ),
+            eigenvalues=tuple(float(v) for v in eigenvalues.real),
+            vectors=tuple(tuple(float(x) for x in row) for row in vectors),
+            vectors_inv=tuple(tuple(float(x) for x in row) for row in np.linalg.inv(vectors)),
+            steady_per_lamp=tuple(float(x) for x in -np.linalg.solve(M, b)),
+            drift_response=tuple(complex(x) for x in drift),
         )
         if len(self._modes_cache) > 256:  # a sine input visits many fan levels
             self._modes_cache.clear()
         self._modes_cache[fan] = modes
         return modes
 
-    def _drift_state(self, modes: _Modes, t: float) -> _FloatArray:
+    def _drift_state(self, modes: _Modes, t: float) -> tuple[float, ...]:
         if self._p.drift_amplitude == 0.0:
-            return np.zeros(self._n)
+            return (0.0,) * self._n
         phasor = self._p.drift_amplitude * cmath.exp(1j * (self._omega * t + self._phase))
-        return (modes.drift_response * phasor).imag
+        return tuple((r * phasor).imag for r in modes.drift_response)
 
     def _set_segment(self) -> None:
         """Precompute the scalar coefficients of the output for the current input."""
@@ -400,24 +400,30 @@ class _ThermalModel:
         lamp, fan = max(u, 0.0), max(-u, 0.0)
         modes = self._modes(fan)
         self._seg_modes = modes
-        self._seg_steady = modes.steady_per_lamp * lamp
-        z = modes.vectors_inv @ (
-            self._anchor_state - self._seg_steady - self._drift_state(modes, self._anchor_t)
-        )
+        self._seg_steady = tuple(s * lamp for s in modes.steady_per_lamp)
+        drift = self._drift_state(modes, self._anchor_t)
+        free = [
+            x - s - d for x, s, d in zip(self._anchor_state, self._seg_steady, drift, strict=True)
+        ]
+        z = tuple(sum(r * f for r, f in zip(row, free, strict=True)) for row in modes.vectors_inv)
         self._seg_z = z
-        self._seg_weights = tuple(float(w) for w in modes.vectors[-1, :] * z)
-        self._seg_const = self._p.ambient + float(self._seg_steady[-1])
-        drift_out = complex(modes.drift_response[-1]) * self._p.drift_amplitude
+        self._seg_weights = tuple(v * zi for v, zi in zip(modes.vectors[-1], z, strict=True))
+        self._seg_const = self._p.ambient + self._seg_steady[-1]
+        drift_out = modes.drift_response[-1] * self._p.drift_amplitude
         self._seg_drift_amp = abs(drift_out)
         self._seg_drift_phase = self._phase + cmath.phase(drift_out)
 
-    def state_at(self, t: float) -> _FloatArray:
+    def state_at(self, t: float) -> tuple[float, ...]:
         """Deviation state at ``t`` (not before the last input change)."""
         modes = self._seg_modes
         dt = max(t - self._anchor_t, 0.0)
-        decay = np.array([math.exp(lam * dt) for lam in modes.eigenvalues])
-        return (
-            self._seg_steady + self._drift_state(modes, t) + modes.vectors @ (decay * self._seg_z)
+        decayed = [
+            zi * math.exp(lam * dt) for lam, zi in zip(modes.eigenvalues, self._seg_z, strict=True)
+        ]
+        drift = self._drift_state(modes, t)
+        return tuple(
+            s + d + sum(v * c for v, c in zip(row, decayed, strict=True))
+            for s, d, row in zip(self._seg_steady, drift, modes.vectors, strict=True)
         )
 
     def output_at(self, t: float) -> float:
