@@ -37,6 +37,10 @@ LEVEL_63 = -math.expm1(-1.0)
 _OTHER_STEP_FRACTION = 0.1
 # Samples the tail fit needs at least (three parameters and something to spare).
 _MIN_TAIL = 6
+# Tail samples the search for the time constant looks at (the final polish uses all).
+_SEARCH_POINTS = 4096
+# Tail samples the final fit uses at most, evenly spread (plenty to average noise).
+_POLISH_POINTS = 50_000
 
 
 class IdentificationWarning(UserWarning):
@@ -591,32 +595,37 @@ def _fit_exponential_tail(
     # tau far below a sample or far beyond the record is not determined by the data.
     lo, hi = math.log(step / 20.0), math.log(20.0 * max(span, width))
 
-    def solve(log_tau: float) -> tuple[float, FloatArray]:
-        e = np.exp(-x / math.exp(log_tau))
-        design = np.column_stack([np.ones_like(x), -e])
-        coef, *_ = np.linalg.lstsq(design, yr, rcond=None)
-        resid = yr - design @ coef
-        return float(resid @ resid), coef
+    # The search for tau looks at a few thousand samples of the tail and the final
+    # fit at up to 50 000, so a long record costs little more than a short one.
+    xs, ys = _spread(x, _SEARCH_POINTS), _spread(yr, _SEARCH_POINTS)
+
+    def sse(log_tau: float) -> float:
+        return _separable_fit(xs, ys, log_tau)[0]
 
     grid = np.linspace(lo, hi, 64)
-    sse = np.array([solve(g)[0] for g in grid])
-    i = int(np.argmin(sse))
+    costs = np.array([sse(g) for g in grid])
+    i = int(np.argmin(costs))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-    best = minimize_scalar(lambda g: solve(g)[0], bounds=(a, b), method="bounded")
-    log_tau = float(best.x) if best.fun <= sse[i] else float(grid[i])
-    cost, coef = solve(log_tau)
+    best = minimize_scalar(sse, bounds=(a, b), method="bounded")
+    log_tau = float(best.x) if best.fun <= costs[i] else float(grid[i])
     # Brent's tolerance is relative to log(tau); Levenberg-Marquardt on all three
     # parameters polishes the solution to rounding, which the 63.2 % crossing needs.
+    xp, yp = _spread(x, _POLISH_POINTS), _spread(yr, _POLISH_POINTS)
+    cost, d0, c0 = _separable_fit(xp, yp, log_tau)
+
+    def residual(p: FloatArray) -> FloatArray:
+        r: FloatArray = p[0] - p[1] * np.exp(-xp * math.exp(-p[2])) - yp
+        return r
+
+    def jacobian(p: FloatArray) -> FloatArray:
+        rate = math.exp(-p[2])
+        e = np.exp(-xp * rate)
+        return np.column_stack([np.ones_like(xp), -e, -p[1] * e * xp * rate])
+
     polished = least_squares(
-        lambda p: p[0] - p[1] * np.exp(-x * np.exp(-p[2])) - yr,
-        np.array([coef[0], coef[1], log_tau]),
-        jac=lambda p: np.column_stack(
-            [
-                np.ones_like(x),
-                -np.exp(-x * np.exp(-p[2])),
-                -p[1] * np.exp(-x * np.exp(-p[2])) * x * np.exp(-p[2]),
-            ]
-        ),
+        residual,
+        np.array([d0, c0, log_tau]),
+        jac=jacobian,
         method="lm",
         xtol=1e-15,
         ftol=1e-15,
@@ -625,10 +634,31 @@ def _fit_exponential_tail(
     if polished.success and 2.0 * polished.cost <= cost and lo <= polished.x[2] < hi:
         d, log_tau = float(polished.x[0]), float(polished.x[2])
     else:
-        d = float(coef[0])
+        d = d0
     if not math.isfinite(d) or log_tau >= hi - 1e-9:
         return None
     return d, math.exp(log_tau)
+
+
+def _spread(a: FloatArray, m: int) -> FloatArray:
+    """At most ``m`` samples of ``a``, evenly spread, first and last included."""
+    if a.size <= m:
+        return a
+    return a[np.linspace(0, a.size - 1, m).astype(np.intp)]
+
+
+def _separable_fit(x: FloatArray, y: FloatArray, log_tau: float) -> tuple[float, float, float]:
+    """Least squares of ``y ~ d - c exp(-x/tau)`` for a fixed tau: ``(sse, d, c)``."""
+    e = np.exp(-x * math.exp(-log_tau))
+    e_mean, y_mean = float(e.mean()), float(y.mean())
+    ec, yc = e - e_mean, y - y_mean
+    see = float(ec @ ec)
+    sey = float(ec @ yc)
+    syy = float(yc @ yc)
+    if see <= 0.0:
+        return syy, y_mean, 0.0
+    slope = sey / see
+    return max(syy - slope * sey, 0.0), y_mean - slope * e_mean, -slope
 
 
 def _crossing_time(tr: FloatArray, z: FloatArray, z_noise: float) -> tuple[float | None, float]:
