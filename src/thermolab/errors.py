@@ -13,6 +13,7 @@ __all__ = [
     "AccessDeniedError",
     "ConfigError",
     "ConflictError",
+    "IdentifierStateError",
     "InsufficientExcitationError",
     "InvalidDataError",
     "InvalidParameterError",
@@ -42,6 +43,10 @@ class InsufficientExcitationError(InvalidDataError):
 
 class InvalidParameterError(ThermoLabError, ValueError):
     """A method or signal parameter is outside its allowed range."""
+
+
+class IdentifierStateError(ThermoLabError, RuntimeError):
+    """An online identifier was used out of order (a sample after ``finish()``)."""
 
 
 class SignalSpecError(InvalidParameterError):
