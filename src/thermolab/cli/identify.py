@@ -24,8 +24,9 @@ if TYPE_CHECKING:
     import numpy as np
     import numpy.typing as npt
 
-__all__ = ["register"]
+__all__ = ["METHODS", "Record", "read_record", "register", "run"]
 
+#: The methods ``--method`` accepts, with the names the table prints.
 METHODS = {
     "srm": "step response",
     "lsm": "batch least squares",
@@ -125,7 +126,26 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 
 def run(args: argparse.Namespace) -> int:
-    """Handle ``thermolab identify``."""
+    """Handle ``thermolab identify``: read the file, identify, print; return the exit status.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (see :func:`register`).
+
+    Returns
+    -------
+    int
+        0 on success.
+
+    Raises
+    ------
+    CliError
+        For a bad file, an option the method does not take, or a figure that
+        cannot be written (the dispatcher prints it as one line).
+    thermolab.errors.ThermoLabError
+        From the method, for data or parameters it refuses.
+    """
     method: str = args.method
     for option, methods in _APPLIES.items():
         if getattr(args, option) is not None and method not in methods:
@@ -161,7 +181,13 @@ def run(args: argparse.Namespace) -> int:
 
 @dataclass(frozen=True)
 class Record:
-    """The columns of a CSV record."""
+    """The columns of a CSV record.
+
+    Attributes
+    ----------
+    t, u, y : numpy.ndarray
+        Times (s, strictly increasing), inputs and outputs (V), all finite.
+    """
 
     t: npt.NDArray[np.float64]
     u: npt.NDArray[np.float64]
@@ -181,7 +207,37 @@ class Record:
 
 
 def read_record(path: Path) -> Record:
-    """Read ``t``, ``u`` and ``y`` from a CSV file, or raise a one-line :class:`CliError`."""
+    """Read ``t``, ``u`` and ``y`` from a CSV file.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        A UTF-8 CSV file whose first non-comment line is a header naming at least
+        ``t``, ``u`` and ``y`` (case and spaces ignored); lines starting with ``#``
+        and blank lines are skipped.
+
+    Returns
+    -------
+    Record
+        The three columns as float arrays.
+
+    Raises
+    ------
+    CliError
+        One line naming the file and, for a bad cell, its line, sample and
+        column: missing or unreadable file, not UTF-8 text, missing columns,
+        fewer than 3 rows, a short row, a cell that is not a finite number, or
+        ``t`` not strictly increasing.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = pathlib.Path(folder) / "run.csv"
+    ...     _ = path.write_text("t,u,y\\n0,0,1\\n1,5,1\\n2,5,1.5\\n")
+    ...     print(read_record(path).u)
+    [0. 5. 5.]
+    """
     import numpy as np
 
     try:
