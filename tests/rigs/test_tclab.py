@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import os
+import select
 import signal
 import subprocess
 import sys
 import textwrap
 import threading
 import time
+import tty
 from collections.abc import Callable, Iterator
 
 import pytest
@@ -27,8 +29,6 @@ class _OtherDevice:
 
     def __init__(self) -> None:
         self._master, self._slave = os.openpty()
-        import tty
-
         tty.setraw(self._slave)
         self.port = os.ttyname(self._slave)
         self._stop = threading.Event()
@@ -36,8 +36,6 @@ class _OtherDevice:
         self._thread.start()
 
     def _serve(self) -> None:
-        import select
-
         while not self._stop.is_set():
             ready, _, _ = select.select([self._master], [], [], 0.02)
             if ready:

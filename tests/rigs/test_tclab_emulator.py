@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import signal
+import subprocess
+import sys
 from collections.abc import Iterator
 
 import pytest
 import serial
 
 from thermolab.rigs.clock import VirtualClock
+from thermolab.rigs.tclab import TCLabRig
 from thermolab.rigs.tclab_emulator import TCLabEmulator
 
 
@@ -114,3 +118,26 @@ def test_misbehaviour_switches(link: tuple[TCLabEmulator, serial.Serial, Virtual
 
     with pytest.raises(serial.SerialException):
         ask_again()
+
+
+def test_the_emulator_runs_as_a_program_for_rehearsal() -> None:
+    with subprocess.Popen(
+        [sys.executable, "-m", "thermolab.rigs.tclab_emulator", "--speedup", "50", "--seed", "1"],
+        stdout=subprocess.PIPE,
+        text=True,
+    ) as program:
+        try:
+            assert program.stdout is not None
+            banner = program.stdout.readline()
+            assert banner.startswith("TCLab emulator on /dev/")
+            port = banner.split()[3]
+            with TCLabRig(port, reset_wait=0.0, timeout=1.0, watchdog=None) as rig:
+                assert rig.version.text == "2.0.1"
+                assert 15.0 < rig.read().value < 30.0
+            program.send_signal(signal.SIGINT)
+            program.communicate(timeout=10)
+            assert program.returncode == 0
+        finally:
+            if program.poll() is None:
+                program.kill()
+                program.communicate()
