@@ -418,16 +418,20 @@ def malsm2_chunk(
     ints: IntArray,
     W_out: FloatArray,
     code_out: CodeArray,
-) -> None:
+) -> tuple[int, float, float]:
     """First-order MALSM for targets ``ys[start:stop]`` (row ``[ys[t-1], u[t-1]]``).
 
     ``buf`` (rows x 3) is the FIFO of ``[y[k], u[k], y[k+1]]``; ``acc`` holds
     the shifted sums ``S1 S2 St S11 S12 S22 S1t S2t`` and the shifts ``h1 h2 ht``;
     ``ints`` the counters. The 2x2 normal equations are solved by Cramer's rule;
     the window is singular when ``det <= RCOND_MIN * M11 * M22`` (the general
-    kernel's equilibrated pivot test).
+    kernel's equilibrated pivot test). Returns the last row's ``(status, a, b)``,
+    which spares the online identifier three array reads per sample.
     """
     L = buf.shape[0]
+    status = 1
+    wa = np.nan
+    wb = np.nan
     count = ints[_COUNT]
     head = ints[_HEAD]
     since = ints[_SINCE]
@@ -462,6 +466,9 @@ def malsm2_chunk(
             head = 0
         count += 1
         if count < L:
+            status = 1
+            wa = np.nan
+            wb = np.nan
             code_out[t] = 1
             W_out[t, 0] = np.nan
             W_out[t, 1] = np.nan
@@ -478,19 +485,23 @@ def malsm2_chunk(
         det = m11 * m22 - m12 * m12
         if m11 > 0.0 and m22 > 0.0 and det > RCOND_MIN * (m11 * m22):
             inv = 1.0 / det
-            W_out[t, 0] = (m22 * g1 - m12 * g2) * inv
-            W_out[t, 1] = (m11 * g2 - m12 * g1) * inv
-            code_out[t] = 0
+            status = 0
+            wa = (m22 * g1 - m12 * g2) * inv
+            wb = (m11 * g2 - m12 * g1) * inv
         else:
-            W_out[t, 0] = np.nan
-            W_out[t, 1] = np.nan
-            code_out[t] = 2
+            status = 2
+            wa = np.nan
+            wb = np.nan
+        W_out[t, 0] = wa
+        W_out[t, 1] = wb
+        code_out[t] = status
     ints[_COUNT] = count
     ints[_HEAD] = head
     ints[_SINCE] = since
     acc[0], acc[1], acc[2] = s1, s2, st
     acc[3], acc[4], acc[5], acc[6], acc[7] = s11, s12, s22, s1t, s2t
     acc[8], acc[9], acc[10] = h1, h2, ht
+    return status, wa, wb
 
 
 @njit(cache=True, error_model="numpy")
@@ -505,8 +516,11 @@ def wlsm2_chunk(
     P: FloatArray,
     W_out: FloatArray,
     code_out: CodeArray,
-) -> None:
-    """First-order :func:`wlsm_chunk`: the same operations in the same order, unrolled."""
+) -> tuple[int, float, float]:
+    """First-order :func:`wlsm_chunk`: the same operations in the same order, unrolled.
+
+    Returns the last row's ``(status, a, b)``.
+    """
     w_a = W[0]
     w_b = W[1]
     p11 = P[0, 0]
@@ -516,8 +530,14 @@ def wlsm2_chunk(
     # x - x is 0 for every finite x and NaN for inf or NaN: one test for all six.
     alive = (w_a - w_a) + (w_b - w_b) + (p11 - p11) + (p12 - p12) + (p21 - p21) + (p22 - p22) == 0.0
     alpha = 1.0 - gamma
+    status = 0
+    out_a = w_a
+    out_b = w_b
     for t in range(start, stop):
         if not alive:
+            status = 6
+            out_a = np.nan
+            out_b = np.nan
             code_out[t] = 6
             W_out[t, 0] = np.nan
             W_out[t, 1] = np.nan
@@ -554,19 +574,23 @@ def wlsm2_chunk(
             p22 - p22
         ) == 0.0
         if alive:
-            W_out[t, 0] = w_a
-            W_out[t, 1] = w_b
-            code_out[t] = 0
+            status = 0
+            out_a = w_a
+            out_b = w_b
         else:
-            W_out[t, 0] = np.nan
-            W_out[t, 1] = np.nan
-            code_out[t] = 6
+            status = 6
+            out_a = np.nan
+            out_b = np.nan
+        W_out[t, 0] = out_a
+        W_out[t, 1] = out_b
+        code_out[t] = status
     W[0] = w_a
     W[1] = w_b
     P[0, 0] = p11
     P[0, 1] = p12
     P[1, 0] = p21
     P[1, 1] = p22
+    return status, out_a, out_b
 
 
 def malsm_state(

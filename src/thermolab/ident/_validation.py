@@ -93,15 +93,18 @@ def integer(name: str, value: object, minimum: int, what: str) -> int:
 
 
 def check_order(order: object) -> ArxOrder:
-    """``None`` (first order) or an :class:`ArxOrder`."""
+    """``None`` (first order), an :class:`ArxOrder`, a ``(na, nb, delay)`` tuple or a dict."""
     if order is None:
         return ArxOrder()
     if isinstance(order, ArxOrder):
         return order
     if isinstance(order, tuple | list) and len(order) == 3:
         return ArxOrder(*order)
+    if isinstance(order, Mapping) and set(order) <= {"na", "nb", "delay"}:
+        return ArxOrder(**order)
     raise InvalidParameterError(
-        f"order must be None (first order), an ArxOrder or a (na, nb, delay) tuple, got {order!r}"
+        "order must be None (first order), an ArxOrder, a (na, nb, delay) tuple or a "
+        f"{{'na', 'nb', 'delay'}} dict, got {order!r}"
     )
 
 
