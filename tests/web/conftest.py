@@ -1,17 +1,31 @@
-"""Fixtures for the browser interface's tests: a headless Chromium and the static files.
+"""Fixtures for the browser interface's tests: a headless Chromium, the static files, a lab.
 
 Browser tests use the system Chromium (``/usr/bin/chromium``) through Playwright;
 they never download a browser. Where either is missing they skip and say why.
+
+The end-to-end tests run a real lab, started the way a teacher would: users
+are created with ``thermolab user add ... --password-stdin`` and the lab runs
+as ``thermolab --data-dir DIR serve --config lab.toml --port PORT --speedup X``
+in a subprocess, so they exercise the shipped command line, the real app and
+the twin rigs, with nothing mocked.
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import http.server
 import os
 import shutil
+import socket
+import subprocess
+import sys
 import threading
+import time
+import urllib.error
+import urllib.request
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -68,7 +82,7 @@ class _QuietHandler(http.server.SimpleHTTPRequestHandler):
         ".css": "text/css",
     }
 
-    def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - base signature
+    def log_message(self, format: str, *args: Any) -> None:
         pass
 
 
@@ -107,3 +121,159 @@ def artifacts() -> Path:
     """Folder for screenshots (git-ignored)."""
     ARTIFACTS.mkdir(exist_ok=True)
     return ARTIFACTS
+
+
+# -- a running lab ------------------------------------------------------------------------
+
+# Twin rigs run this many times faster than real time: a 2000-sample run at
+# T = 1 s takes 2000 / SPEEDUP seconds.
+SPEEDUP = 200.0
+
+USERS = {
+    "alice": "student",
+    "bob": "student",
+    "carol": "student",
+    "dave": "student",
+    "erin": "student",
+    "tess": "teacher",
+}
+
+# One rig per test that takes control, so the tests do not depend on each other's order.
+CONFIG = """\
+title = "ThermoLab e2e"
+
+[[rigs]]
+id = "twin"
+title = "Digital twin of the paper's box"
+spec = "sim"
+
+[[rigs]]
+id = "twin-keys"
+title = "Twin for the keyboard test"
+spec = "sim"
+
+[[rigs]]
+id = "twin-phone"
+title = "Twin for the phone test"
+spec = "sim"
+"""
+
+
+def password(user: str) -> str:
+    """The test password of a user."""
+    return f"pw-{user}-0123"
+
+
+@dataclass(frozen=True)
+class LabServer:
+    """A running lab: its base URL and data folder."""
+
+    url: str
+    data_dir: Path
+    log: Path
+
+    def password(self, user: str) -> str:
+        """The password ``user`` was created with."""
+        return password(user)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+def _thermolab(data_dir: Path, *args: str) -> list[str]:
+    return [sys.executable, "-m", "thermolab", "--data-dir", str(data_dir), *args]
+
+
+@contextlib.contextmanager
+def running_lab(data_dir: Path) -> Iterator[LabServer]:
+    """Create the users, start ``thermolab serve``, wait until it answers; stop it after."""
+    config = data_dir / "lab.toml"
+    config.write_text(CONFIG, encoding="utf-8")
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    # The first account creates the database; the others can then be added side by side.
+    users = list(USERS.items())
+    _add_users(data_dir, users[:1], env)
+    _add_users(data_dir, users[1:], env)
+    port = _free_port()
+    log = data_dir / "server.log"
+    with log.open("w", encoding="utf-8") as out:
+        proc = subprocess.Popen(
+            _thermolab(
+                data_dir,
+                "serve",
+                "--config",
+                str(config),
+                "--port",
+                str(port),
+                "--speedup",
+                str(SPEEDUP),
+            ),
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            env=env,
+        )
+        url = f"http://127.0.0.1:{port}"
+        try:
+            _wait_until_up(url, proc, log)
+            yield LabServer(url, data_dir, log)
+        finally:
+            proc.terminate()
+            try:
+                proc.wait(15)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(5)
+
+
+def _add_users(data_dir: Path, users: list[tuple[str, str]], env: dict[str, str]) -> None:
+    procs = [
+        (
+            user,
+            subprocess.Popen(
+                _thermolab(data_dir, "user", "add", user, "--role", role, "--password-stdin"),
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT,
+                text=True,
+                env=env,
+            ),
+        )
+        for user, role in users
+    ]
+    failed = []
+    for user, proc in procs:
+        out, _ = proc.communicate(password(user) + "\n", timeout=60)
+        if proc.returncode != 0:
+            failed.append(f"{user}: {out.strip()}")
+    if failed:
+        raise RuntimeError("thermolab user add failed: " + "; ".join(failed))
+
+
+def _wait_until_up(url: str, proc: subprocess.Popen[bytes], log: Path) -> None:
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            raise RuntimeError(
+                f"thermolab serve exited with {proc.returncode}:\n{log.read_text()[-3000:]}"
+            )
+        try:
+            urllib.request.urlopen(f"{url}/api/session", timeout=2).close()
+            return
+        except urllib.error.HTTPError as exc:
+            if exc.code == 401:  # up, and refusing us as it should
+                return
+        except OSError:
+            pass
+        time.sleep(0.2)  # real time: waiting for a process to start, not simulated time
+    raise RuntimeError(f"thermolab serve did not answer within 60 s:\n{log.read_text()[-3000:]}")
+
+
+@pytest.fixture(scope="session")
+def lab(tmp_path_factory: pytest.TempPathFactory, browser: Any) -> Iterator[LabServer]:
+    """A lab with three twin rigs and the users of USERS, for the whole session."""
+    with running_lab(tmp_path_factory.mktemp("lab")) as server:
+        yield server

@@ -59,7 +59,8 @@ def test_ring_buffer_keeps_the_newest_rows_in_order_in_fixed_memory(module_page:
         const view = rb.column('y');
         const out = {
           empty, partial, t: [...rb.column('t')], y: [...view], length: rb.length,
-          last: rb.last('t'), sameMemory: bytes() === before, isView: view.buffer === rb._cols.get('y').buffer,
+          last: rb.last('t'), sameMemory: bytes() === before,
+          isView: view.buffer === rb._cols.get('y').buffer,
         };
         rb.push({ t: 100003 });  // missing column -> NaN
         out.missing = Number.isNaN(rb.last('y'));
@@ -118,8 +119,10 @@ def test_backoff_grows_exponentially_with_jitter_and_a_cap(module_page: Any) -> 
         module_page,
         """
         const { backoffDelay } = await import('/js/live.js');
-        const lo = [0, 1, 2, 3, 10, 40].map((a) => backoffDelay(a, { baseMs: 500, maxMs: 15000, random: () => 0 }));
-        const hi = [0, 1, 2, 3, 10, 40].map((a) => backoffDelay(a, { baseMs: 500, maxMs: 15000, random: () => 0.999999 }));
+        const at = (random) => [0, 1, 2, 3, 10, 40].map(
+          (a) => backoffDelay(a, { baseMs: 500, maxMs: 15000, random }));
+        const lo = at(() => 0);
+        const hi = at(() => 0.999999);
         return { lo, hi };
         """,
     )
@@ -162,7 +165,8 @@ const statuses = [];
 const { LiveClient } = await import('/js/live.js');
 const client = new LiveClient('rig-1', {
   onMessage: (m) => got.push(m),
-  onStatus: (s) => statuses.push(s.state + (s.delayMs !== undefined ? ':' + Math.round(s.delayMs) : '')),
+  onStatus: (s) => statuses.push(
+    s.state + (s.delayMs !== undefined ? ':' + Math.round(s.delayMs) : '')),
 }, {
   WebSocketImpl: FakeWS, timers: T, now: () => now, random: () => 0.5,
   url: (rig, since) => rig + (since === null ? '' : '?since=' + since),
@@ -278,11 +282,13 @@ def test_live_client_gives_up_on_unauthorized_and_stops_cleanly(module_page: Any
         sockets[0].drop(4401);
         advance(60000);
         const afterAuth = { n: sockets.length, state: client.state, timers: timers.length };
-        const c2 = new LiveClient('r', { onMessage() {} }, { WebSocketImpl: FakeWS, timers: T, now: () => now });
+        const c2 = new LiveClient('r', { onMessage() {} },
+                                  { WebSocketImpl: FakeWS, timers: T, now: () => now });
         c2.start();
         sockets[sockets.length - 1].open();
         c2.stop();
-        return { afterAuth, stoppedTimers: timers.length, closed: sockets[sockets.length - 1].closed };
+        const closed = sockets[sockets.length - 1].closed;
+        return { afterAuth, stoppedTimers: timers.length, closed };
         """,
     )
     assert r["afterAuth"] == {"n": 1, "state": "closed", "timers": 0}
@@ -301,7 +307,8 @@ def test_number_checks_refuse_bad_values_with_the_allowed_range(module_page: Any
         const cases = [['5', u], [' -2.5 ', u], ['−3', u], ['1e1', u], ['10.01', u], ['', u],
                        ['abc', u], ['0x10', u], ['NaN', u], ['Infinity', u], ['2000', n],
                        ['2000.5', n], ['5', n], ['0.96', g], ['1', g], ['0', g], ['3,5', u]];
-        return { results: cases.map(([t, s]) => checkNumber(t, s)), range: rangeText(u), grange: rangeText(g) };
+        return { results: cases.map(([t, s]) => checkNumber(t, s)),
+                 range: rangeText(u), grange: rangeText(g) };
         """,
     )
     res = r["results"]
@@ -371,9 +378,11 @@ def test_each_panel_builds_its_run_request(module_page: Any) -> None:
         """
         const { buildRunSpec, automaticSignal, panelOfRun } = await import('/js/runspec.js');
         const p1 = buildRunSpec({ id: 'srm-lsm' }, { dt: 1, n: 2000, setpoint: 0 }, false);
-        const p2 = buildRunSpec({ id: 'malsm' }, { dt: 0.5, n: 500, window: 100, low: 4, high: 6 }, true);
-        const p3 = buildRunSpec({ id: 'wlsm' }, { dt: 1, n: 3000, gamma: 0.96, pmax: 1e4, a0: 0.96329,
-                                                 b0: 9.9082e-4, low: 0, high: 4 }, true);
+        const p2 = buildRunSpec({ id: 'malsm' },
+                                { dt: 0.5, n: 500, window: 100, low: 4, high: 6 }, true);
+        const p3 = buildRunSpec({ id: 'wlsm' }, { dt: 1, n: 3000, gamma: 0.96, pmax: 1e4,
+                                                 a0: 0.96329, b0: 9.9082e-4, low: 0, high: 4 },
+                                true);
         return { p1, p2, p3, sig: automaticSignal(4, 6, 1),
                  panels: [panelOfRun(p1), panelOfRun(p2), panelOfRun(p3)] };
         """,
@@ -392,12 +401,14 @@ def test_csv_and_error_messages_are_read_as_the_server_sends_them(module_page: A
         """
         const { parseCsv } = await import('/js/csv.js');
         const { errorMessage } = await import('/js/api.js');
-        const t = parseCsv('t,u,y,jitter\\r\\n0,0,0.5,0\\n1,10,0.51,\\n\\n2,10,x,0\\n', ['k', 't', 'u', 'y']);
+        const text = 't,u,y,jitter\\r\\n0,0,0.5,0\\n1,10,0.51,\\n\\n2,10,x,0\\n';
+        const t = parseCsv(text, ['k', 't', 'u', 'y']);
         return {
           k: [...t.k], y: [...t.y].map((v) => Number.isNaN(v) ? null : v),
           e1: errorMessage({ detail: 'rig is in use' }, 'x'),
           e2: errorMessage({ detail: [{ loc: ['body', 'dt'], msg: 'must be > 0' },
-                                      { loc: ['body', 'methods', 0, 'gamma'], msg: 'too big' }] }, 'x'),
+                                      { loc: ['body', 'methods', 0, 'gamma'],
+                                        msg: 'too big' }] }, 'x'),
           e3: errorMessage(null, '500 Internal Server Error'),
         };
         """,

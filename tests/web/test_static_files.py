@@ -36,7 +36,8 @@ def test_index_refers_only_to_files_in_the_package() -> None:
     local = [r for r in refs if not r.startswith("data:")]
     assert local, "index.html refers to no files"
     for ref in local:
-        assert "://" not in ref and not ref.startswith("//"), f"external reference {ref}"
+        assert "://" not in ref, f"external reference {ref}"
+        assert not ref.startswith("//"), f"external reference {ref}"
         assert (STATIC_DIR / ref).is_file(), f"index.html refers to a missing file {ref}"
 
 

@@ -1,0 +1,332 @@
+"""End-to-end: students and a teacher in a real Chromium against a real lab.
+
+The lab is ``thermolab serve`` with twin rigs at high speed-up (see conftest).
+Each test that takes control uses a rig of its own. Screenshots go to
+``test-artifacts/`` (git-ignored).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+pytestmark = pytest.mark.browser
+
+ROLE = "[data-testid=access-role]"
+LOCK = "[data-testid=lock-notice]"
+
+
+@pytest.fixture
+def people(browser: Any, lab: Any) -> Iterator[dict[str, Any]]:
+    """Browser contexts opened by a test, closed after it (each user its own cookies)."""
+    opened: dict[str, Any] = {}
+    yield opened
+    for page in opened.values():
+        page.context.close()
+
+
+def log_in(browser: Any, lab: Any, user: str, *, width: int = 1280, height: int = 900) -> Any:
+    """A fresh browser context for ``user``, logged in through the login form."""
+    context = browser.new_context(viewport={"width": width, "height": height})
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    page.errors = errors
+    page.goto(f"{lab.url}/")
+    page.fill("#login-username", user)
+    page.fill("#login-password", lab.password(user))
+    page.click("form button[type=submit]")
+    page.wait_for_selector("#nav:not([hidden])")
+    return page
+
+
+def open_rig(page: Any, lab: Any, rig: str) -> None:
+    page.goto(f"{lab.url}/#/rig/{rig}")
+    page.wait_for_function(
+        "sel => { const e = document.querySelector(sel); return e && e.dataset.role; }", arg=ROLE
+    )
+
+
+def role_of(page: Any) -> str:
+    return str(page.get_attribute(ROLE, "data-role"))
+
+
+def wait_role(page: Any, role: str, timeout: float = 15_000) -> None:
+    page.wait_for_function(
+        "([sel, role]) => document.querySelector(sel)?.dataset.role === role",
+        arg=[ROLE, role],
+        timeout=timeout,
+    )
+
+
+def assert_locked(page: Any) -> None:
+    """Every control of the three panels is disabled and the notice says why."""
+    assert page.is_visible(LOCK)
+    state = page.evaluate(
+        """() => {
+          const host = document.querySelector('.panels');
+          const controls = [...host.querySelectorAll('input, button:not([role=tab]), select')];
+          return { n: controls.length, enabled: controls.filter((c) => !c.matches(':disabled')).map(
+            (c) => c.name || c.dataset.action || c.textContent) };
+        }"""
+    )
+    assert state["n"] > 10
+    assert state["enabled"] == []
+
+
+def assert_unlocked(page: Any) -> None:
+    assert not page.is_visible(LOCK)
+    assert page.is_enabled("[data-panel-form=srm-lsm] button[data-action=start]")
+    assert page.is_enabled("#srm-lsm-dt")
+
+
+def test_watchers_queue_and_take_over_without_reloading(
+    browser: Any, lab: Any, people: dict[str, Any], artifacts: Path
+) -> None:
+    alice = people["alice"] = log_in(browser, lab, "alice")
+    bob = people["bob"] = log_in(browser, lab, "bob")
+    carol = people["carol"] = log_in(browser, lab, "carol")
+    for page in (alice, bob, carol):
+        open_rig(page, lab, "twin")
+        assert role_of(page) == "watcher"
+        assert_locked(page)
+
+    # Alice takes the free rig; Bob asks while she holds it and joins the queue.
+    alice.click("button[data-action=ask]")
+    wait_role(alice, "controller")
+    assert_unlocked(alice)
+    bob.click("button[data-action=ask]")
+    wait_role(bob, "queued")
+    assert "number 1 in the queue" in bob.inner_text(ROLE)
+    assert "number 1 in the queue" in bob.inner_text(LOCK)
+    assert_locked(bob)
+    assert_locked(carol)
+    bob.wait_for_function(
+        "() => document.querySelector('[data-field=controller]')?.textContent === 'alice'"
+    )
+
+    # The lobby as a fourth student sees it: states, controller, watchers, queue.
+    dave = people["dave"] = log_in(browser, lab, "dave")
+    dave.wait_for_selector(".rig-card[data-rig=twin] [data-field=queue]:text('1 waiting')")
+    card = dave.inner_text(".rig-card[data-rig=twin]")
+    assert "In use" in card
+    assert "alice" in card
+    dave.screenshot(path=str(artifacts / "lobby.png"), full_page=True)
+
+    # Alice releases: Bob's page unlocks by itself (no reload) and says so.
+    bob.evaluate("() => { window.__sameDocument = true; }")
+    alice.click("button[data-action=release]")
+    wait_role(alice, "watcher")
+    wait_role(bob, "controller")
+    assert bob.evaluate("() => window.__sameDocument") is True
+    assert_unlocked(bob)
+    bob.wait_for_function(
+        "() => document.getElementById('announce-polite').textContent.includes('You have control')"
+    )
+    assert_locked(alice)
+    assert_locked(carol)
+
+    # The three panels, as the controller sees them.
+    for number, panel in ((1, "srm-lsm"), (2, "malsm"), (3, "wlsm")):
+        bob.click(f"[role=tab][data-panel={panel}]")
+        bob.wait_for_selector(f"[data-panel-view={panel}]:visible")
+        bob.locator(".panels").screenshot(path=str(artifacts / f"panel-{number}.png"))
+
+    bob.click("button[data-action=release]")
+    wait_role(bob, "watcher")
+    for page in (alice, bob, carol):
+        assert page.errors == []
+
+
+def test_bad_values_are_refused_before_sending(
+    browser: Any, lab: Any, people: dict[str, Any]
+) -> None:
+    erin = people["erin"] = log_in(browser, lab, "erin")
+    open_rig(erin, lab, "twin-phone")
+    erin.click("button[data-action=ask]")
+    wait_role(erin, "controller")
+    sent: list[str] = []
+    erin.on("request", lambda r: sent.append(r.method) if "/runs" in r.url else None)
+    cases = [
+        ("#srm-lsm-dt", "abc", "must be a number"),
+        ("#srm-lsm-dt", "0", "Sample time T must be"),
+        ("#srm-lsm-n", "20.5", "whole number"),
+        ("#srm-lsm-setpoint", "11", "−10 to 10 V"),
+    ]
+    for field, value, message in cases:
+        erin.fill(field, value)
+        erin.click("[data-panel-form=srm-lsm] button[data-action=start]")
+        error = erin.inner_text(f"{field}-err")
+        assert message in error
+        assert erin.get_attribute(field, "aria-invalid") == "true"
+        assert erin.evaluate("() => document.activeElement.id") == field[1:]
+        erin.fill(field, {"#srm-lsm-dt": "1", "#srm-lsm-n": "2000"}.get(field, "0"))
+    # Panel 3: γ must be inside (0, 1); the initial a0 must give a first-order model.
+    erin.click("[role=tab][data-panel=wlsm]")
+    erin.fill("#wlsm-gamma", "1")
+    erin.click("[data-panel-form=wlsm] button[data-action=start]")
+    assert "less than 1" in erin.inner_text("#wlsm-gamma-err")
+    erin.fill("#wlsm-gamma", "0.96")
+    erin.fill("#wlsm-a0", "1.5")
+    erin.click("[data-panel-form=wlsm] button[data-action=start]")
+    assert "between 0 and 1" in erin.inner_text("#wlsm-a0-err")
+    assert sent == []
+    erin.click("button[data-action=release]")
+    wait_role(erin, "watcher")
+
+
+def test_a_phone_screen_needs_no_sideways_scrolling(
+    browser: Any, lab: Any, people: dict[str, Any], artifacts: Path
+) -> None:
+    phone = people["phone"] = log_in(browser, lab, "dave", width=375, height=740)
+    overflow = "() => document.documentElement.scrollWidth - window.innerWidth"
+    phone.wait_for_selector(".rig-card")
+    assert phone.evaluate(overflow) <= 0
+    open_rig(phone, lab, "twin-phone")
+    assert phone.evaluate(overflow) <= 0
+    phone.screenshot(path=str(artifacts / "phone-rig.png"), full_page=True)
+    # Buttons and fields are large enough to hit with a finger (44 px).
+    small = phone.evaluate(
+        """() => [...document.querySelectorAll('main button:not(.link-button), main input, main select')]
+            .filter((e) => e.offsetParent !== null)
+            .filter((e) => e.getBoundingClientRect().height < 43.5 && e.type !== 'checkbox')
+            .map((e) => e.id || e.name || e.textContent)"""
+    )
+    assert small == []
+    for name in ("1 · Step + LS", "2 · Moving window", "3 · Weighted LS"):
+        box = phone.get_by_role("tab", name=name).bounding_box()
+        assert box is not None
+        assert box["x"] >= 0
+        assert box["x"] + box["width"] <= 375
+    phone.goto(f"{lab.url}/#/runs")
+    phone.wait_for_selector("h1:text('My runs')")
+    assert phone.evaluate(overflow) <= 0
+
+
+def test_everything_works_from_the_keyboard_alone(
+    browser: Any, lab: Any, artifacts: Path
+) -> None:
+    context = browser.new_context(viewport={"width": 1280, "height": 900})
+    page = context.new_page()
+    try:
+        page.goto(f"{lab.url}/#/rig/twin-keys")
+        page.wait_for_selector("#login-username")
+        # Login by keyboard: the page puts focus on its heading; Tab to the fields.
+        tab_to(page, "#login-username")
+        page.keyboard.type("erin")
+        page.keyboard.press("Tab")
+        page.keyboard.type(lab.password("erin"))
+        page.keyboard.press("Enter")
+        # Back to the page asked for, focus on its heading.
+        page.wait_for_selector("[data-testid=access-role][data-role]")
+        assert page.evaluate("() => document.activeElement.tagName") == "H1"
+
+        tab_to(page, "button[data-action=ask]")
+        assert_focus_visible(page)
+        page.keyboard.press("Enter")
+        wait_role(page, "controller")
+
+        # Tabs: arrow keys move between the three panels.
+        tab_to(page, "[role=tab][aria-selected=true]")
+        page.keyboard.press("ArrowRight")
+        assert page.evaluate("() => document.activeElement.dataset.panel") == "malsm"
+        assert page.is_visible("[data-panel-view=malsm]")
+        page.keyboard.press("ArrowRight")
+        page.keyboard.press("ArrowRight")
+        assert page.evaluate("() => document.activeElement.dataset.panel") == "srm-lsm"
+
+        # Fields reachable and editable by keyboard; a bad value is refused with focus on it.
+        tab_to(page, "#srm-lsm-n")
+        assert_focus_visible(page)
+        page.keyboard.press("Control+A")
+        page.keyboard.type("12.5")
+        page.keyboard.press("Enter")  # submits the panel's form
+        assert page.evaluate("() => document.activeElement.id") == "srm-lsm-n"
+        assert "whole number" in page.inner_text("#srm-lsm-n-err")
+        page.screenshot(path=str(artifacts / "keyboard.png"))
+
+        tab_to(page, "button[data-action=release]", backwards=True)
+        page.keyboard.press("Enter")
+        wait_role(page, "watcher")
+    finally:
+        context.close()
+
+
+def tab_to(page: Any, selector: str, *, backwards: bool = False, limit: int = 80) -> None:
+    """Press Tab (or Shift+Tab) until ``selector`` has the focus."""
+    key = "Shift+Tab" if backwards else "Tab"
+    for _ in range(limit):
+        if page.evaluate("sel => document.activeElement?.matches(sel) ?? false", selector):
+            return
+        page.keyboard.press(key)
+    raise AssertionError(f"{selector} not reached with {key} in {limit} presses")
+
+
+def assert_focus_visible(page: Any) -> None:
+    """The focused element shows a focus ring (outline) that is actually drawn."""
+    style = page.evaluate(
+        """() => { const s = getComputedStyle(document.activeElement);
+                   return { style: s.outlineStyle, width: parseFloat(s.outlineWidth) }; }"""
+    )
+    assert style["style"] != "none"
+    assert style["width"] >= 2
+
+
+def test_the_teacher_sees_every_rig_and_manages_turns(
+    browser: Any, lab: Any, people: dict[str, Any], artifacts: Path
+) -> None:
+    student = people["alice"] = log_in(browser, lab, "alice")
+    open_rig(student, lab, "twin-keys")
+    student.click("button[data-action=ask]")
+    wait_role(student, "controller")
+    teacher = people["tess"] = log_in(browser, lab, "tess")
+    teacher.click("#nav-teacher a")
+    card = "[data-rig=twin-keys].teacher-rig"
+    teacher.wait_for_selector(f"{card} dd:text('alice')")
+    assert re.search(r"alice", teacher.inner_text(f"{card} .watcher-list"))
+    teacher.screenshot(path=str(artifacts / "teacher.png"), full_page=True)
+
+    # Extend the turn by a minute: the student's countdown moves up.
+    before = student_time_left(student)
+    teacher.fill(f"{card} input", "60")
+    teacher.click(f"{card} button[type=submit]")
+    student.wait_for_function(
+        "t => { const s = document.querySelector('[data-field=timeLeft]').textContent.split(':');"
+        " return s.length === 2 && (+s[0] * 60 + +s[1]) > t + 30; }",
+        arg=before,
+        timeout=10_000,
+    )
+    # A bad value is refused before sending.
+    teacher.fill(f"{card} input", "1e9")
+    teacher.click(f"{card} button[type=submit]")
+    assert "−86400 to 86400" in teacher.inner_text(f"{card} .error")
+
+    # End the turn: the student is back to watching, controls locked, without a reload.
+    teacher.click(f"{card} button:text('End this turn')")
+    wait_role(student, "watcher")
+    assert_locked(student)
+
+    # Out of service and back.
+    teacher.click(f"{card} button:text('Take out of service')")
+    student.wait_for_selector("[data-testid=rig-state]:text('Out of service')", timeout=10_000)
+    assert student.is_hidden("button[data-action=ask]") or student.is_disabled(
+        "button[data-action=ask]"
+    )
+    teacher.click(f"{card} button:text('Put back in service')")
+    student.wait_for_function(
+        "() => document.querySelector('[data-testid=rig-state]').textContent !== 'Out of service'",
+        timeout=10_000,
+    )
+
+
+def student_time_left(page: Any) -> float:
+    page.wait_for_function(
+        "() => /^\\d+:\\d\\d$/.test(document.querySelector('[data-field=timeLeft]').textContent)"
+    )
+    text = page.inner_text("[data-field=timeLeft]")
+    minutes, seconds = text.split(":")
+    return int(minutes) * 60 + int(seconds)
