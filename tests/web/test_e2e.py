@@ -191,7 +191,8 @@ def test_a_phone_screen_needs_no_sideways_scrolling(
     phone.screenshot(path=str(artifacts / "phone-rig.png"), full_page=True)
     # Buttons and fields are large enough to hit with a finger (44 px).
     small = phone.evaluate(
-        """() => [...document.querySelectorAll('main button:not(.link-button), main input, main select')]
+        """() => [...document.querySelectorAll(
+                'main button:not(.link-button), main input, main select')]
             .filter((e) => e.offsetParent !== null)
             .filter((e) => e.getBoundingClientRect().height < 43.5 && e.type !== 'checkbox')
             .map((e) => e.id || e.name || e.textContent)"""
@@ -207,9 +208,7 @@ def test_a_phone_screen_needs_no_sideways_scrolling(
     assert phone.evaluate(overflow) <= 0
 
 
-def test_everything_works_from_the_keyboard_alone(
-    browser: Any, lab: Any, artifacts: Path
-) -> None:
+def test_everything_works_from_the_keyboard_alone(browser: Any, lab: Any, artifacts: Path) -> None:
     context = browser.new_context(viewport={"width": 1280, "height": 900})
     page = context.new_page()
     try:
