@@ -1018,6 +1018,9 @@ def _run_wlsm(row: Table1Row, options: Table1Options, index: int) -> RowResult:
         )
     else:
         length, cut = n, tr
+        # "Converging" inside the very samples that define the stabilisation value
+        # is no convergence: report it as none.
+        conv = {name: None if k is None or k > n - after else k for name, k in conv.items()}
         notes.append(
             f"did not converge within {n} samples (±1 % of the mean of the last {after}); "
             f"statistics over the last {after} samples of the {n}"
