@@ -317,3 +317,16 @@ def test_row_lookup_names_the_rows_run(exact: Table1Result) -> None:
     sub = reproduce_table1(runs=["SRM"])
     with pytest.raises(InvalidParameterError, match="was not run; this result has SRM"):
         sub.row("LSM(1)")
+
+
+def test_a_record_the_method_refuses_is_reported_in_its_row() -> None:
+    # 1 V of noise drowns the 1.4 V step: the SRM refuses it, the table goes on.
+    result = reproduce_table1(runs=["SRM", "LSM(1)"], noise=1.0)
+    srm = result.row("SRM")
+    assert math.isnan(srm.ours.K.mean)
+    assert srm.notes[0].startswith("no estimate: the output does not respond to the step")
+    assert not srm.digits_match
+    assert math.isfinite(result.row("LSM(1)").ours.K.mean)
+    line = next(x for x in result.format().splitlines() if x.startswith("SRM"))
+    assert line.split()[3:] == ["-", "0.140042", "-", "x"]
+    assert result.to_dict()["rows"][0]["K"] == {"mean": None, "max": None, "min": None}

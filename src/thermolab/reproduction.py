@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 import numpy.typing as npt
 
-from thermolab.errors import InvalidParameterError
+from thermolab.errors import InvalidDataError, InvalidParameterError
 from thermolab.ident import (
     FIRST_ORDER,
     FirstOrderModel,
@@ -797,12 +797,10 @@ class Table1Result:
                 items = list(zip(ours_s.items(), paper_s.items(), strict=True))
                 for (stat, ours), (_, paper) in items[:1] if single else items:
                     mark = "=" if _printed(ours) == paper else "x"
-                    # A deviation that rounds to zero prints as +0, not -0.
-                    dev = ours - paper if abs(ours - paper) >= 5e-7 else 0.0
                     lines.append(
                         f"{r.run if first else '':<8} {pname:<5} "
-                        f"{'value' if single else stat:<5} {ours:>13.6f} {paper:>13.6f} "
-                        f"{dev:>+13.6f} {mark}"
+                        f"{'value' if single else stat:<5} {_number(ours):>13} "
+                        f"{_number(paper):>13} {_number(ours - paper, sign=True):>13} {mark}"
                     )
                     first = False
                     pname = ""
@@ -827,7 +825,7 @@ class Table1Result:
             "factor of 3.2 of the paper's; x differs (see docs/reproduction.md)",
             "conv: samples until the estimate stays within ±1 % of its stabilisation value; "
             "WLSM statistics over the "
-            f"{self.options.after_convergence} samples after convergence",
+            f"{_samples(self.options.after_convergence)} after convergence",
         ]
         digits = [r.run for r in self.rows if r.digits_match]
         order = [r.run for r in self.rows if r.convergence_order_match]
@@ -947,6 +945,19 @@ def reproduce_table1(
 
 
 def _run_row(row: Table1Row, options: Table1Options) -> RowResult:
+    try:
+        return _run_method(row, options)
+    except InvalidDataError as exc:
+        if not options.disturbs_output:
+            raise  # the exact simulation must always be identifiable: a bug, say so
+        # Under heavy noise or coarse quantisation a method may refuse the record;
+        # that is a finding of the variant, reported in its row.
+        none = Stats.single(math.nan)
+        conv = Convergence(None, None) if row.method == "wlsm" else None
+        return RowResult(row, Figures(none, none, conv), row.samples, (f"no estimate: {exc}",))
+
+
+def _run_method(row: Table1Row, options: Table1Options) -> RowResult:
     index = list(_RUNS).index(row.run)
     if row.method == "wlsm":
         return _run_wlsm(row, options, index)
@@ -1173,6 +1184,21 @@ def _same_order(ours: int | None, paper: int | None) -> bool:
 
 def _sub(a: int | None, b: int | None) -> int | None:
     return None if a is None or b is None else a - b
+
+
+def _number(x: float, *, sign: bool = False) -> str:
+    """Six decimals like the paper; ``-`` for no figure; exponent form when huge."""
+    if not math.isfinite(x):
+        return "-"
+    if abs(x) < 5e-7:
+        x = 0.0  # prints as +0.000000, not -0.000000
+    if abs(x) >= 1e7:
+        return f"{x:+.6e}" if sign else f"{x:.6e}"
+    return f"{x:+.6f}" if sign else f"{x:.6f}"
+
+
+def _samples(n: int) -> str:
+    return f"{n} sample{'' if n == 1 else 's'}"
 
 
 def _int_text(n: int | None) -> str:
