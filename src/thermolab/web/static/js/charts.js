@@ -94,6 +94,8 @@ export class Chart {
     const data = this._source();
     this._emptyNote.hidden = data[0].length > 0;
     this.plot.setData(data, true);
+    // How many points are drawn: lets a test see that the window stays bounded.
+    this.el.dataset.points = String(data[0].length);
   }
 
   destroy() {

@@ -423,7 +423,7 @@ class RigPage {
   _estimate(e) {
     if (!this.run || e.run !== this.run.id) return;
     const method = e.method;
-    const est = { K: num(e.K), tau: num(e.tau), k: e.k, valid: e.valid !== false, final: Boolean(e.final), W: e.W, reason: e.reason ?? null };
+    const est = { K: num(e.K), tau: num(e.tau), k: e.k, valid: e.valid !== false, final: Boolean(e.final), W: e.W, reason: e.reason ?? e.extras?.reason ?? null };
     this.run.estimates.set(method, est);
     const base = methodName({ method }).split(/[:#]/)[0];
     if (RECURSIVE.has(base) && !est.final) this._trajectory(method).buf.push({ k: e.k, K: est.K, tau: est.tau });

@@ -1,0 +1,198 @@
+"""The rig page's live side, driven message by message through a scripted socket.
+
+The page runs against the real lab (login, rig, access over HTTP) but its
+WebSocket is replaced before any script runs by one the test drives, so the
+test can send a long run in seconds and cut the connection at will. It checks
+what a long session must never do (grow), and what a dropped connection must
+do (come back by itself and ask for the gap).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+pytestmark = pytest.mark.browser
+
+FAKE_SOCKET = """
+(() => {
+  const sockets = [];
+  class FakeSocket {
+    constructor(url) {
+      this.url = url; this.sent = []; this.readyState = 0;
+      sockets.push(this);
+    }
+    send(data) { this.sent.push(JSON.parse(data)); }
+    close(code, reason) {
+      this.readyState = 3;
+      this.closedWith = code;
+    }
+  }
+  window.WebSocket = FakeSocket;
+  window.__sockets = sockets;
+  window.__live = {
+    open() { const s = sockets[sockets.length - 1]; s.readyState = 1; s.onopen({}); },
+    send(msg) { sockets[sockets.length - 1].onmessage({ data: JSON.stringify(msg) }); },
+    drop(code) { const s = sockets[sockets.length - 1]; s.readyState = 3;
+                 s.onclose({ code: code ?? 1006, reason: '' }); },
+  };
+})();
+"""
+
+K_TRUE, TAU_TRUE = 0.14009, 250.126233
+
+
+@pytest.fixture
+def page(browser: Any, lab: Any) -> Iterator[Any]:
+    context = browser.new_context(viewport={"width": 1000, "height": 900})
+    context.add_init_script(FAKE_SOCKET)
+    pg = context.new_page()
+    errors: list[str] = []
+    pg.on("pageerror", lambda exc: errors.append(str(exc)))
+    pg.goto(f"{lab.url}/")
+    pg.fill("#login-username", "carol")
+    pg.fill("#login-password", lab.password("carol"))
+    pg.click("form button[type=submit]")
+    pg.wait_for_selector("#nav:not([hidden])")
+    pg.goto(f"{lab.url}/#/rig/twin-phone")
+    pg.wait_for_function("() => window.__sockets.length > 0")
+    yield pg
+    context.close()
+    assert errors == []
+
+
+def rig_json(page: Any) -> dict[str, Any]:
+    rig: dict[str, Any] = page.evaluate("async () => (await fetch('/api/rigs/twin-phone')).json()")
+    return rig
+
+
+def run_json(run_id: int, status: str = "running") -> dict[str, Any]:
+    return {
+        "id": run_id,
+        "rig": "twin-phone",
+        "status": status,
+        "dt": 1.0,
+        "nSamples": 20000,
+        "signal": "square:0:4:0.1",
+        "setpoint": None,
+        "methods": [{"method": "wlsm", "gamma": 0.96, "pmax": 10000.0}],
+        "samplesStored": 0,
+    }
+
+
+def send_run(page: Any, first_seq: int, n: int, batch: int = 1000) -> int:
+    """Send n samples of the twin's square-wave response and a WLSM estimate per sample."""
+    return int(
+        page.evaluate(
+            """([seq, n, batch, K, tau]) => {
+              const a = Math.exp(-1 / tau), b = (1 - a) * K;
+              let x = 0;
+              for (let k0 = 0; k0 < n; k0 += batch) {
+                const items = [];
+                for (let k = k0; k < Math.min(n, k0 + batch); k++) {
+                  const u = Math.floor(k / 5) % 2 ? 0 : 4;
+                  items.push({ seq: ++seq, run: 7, k, t: k, u, y: x });
+                  x = a * x + b * u;
+                }
+                window.__live.send({ type: 'samples', seq, items });
+                for (const it of items) {
+                  const r = 1 + 0.5 * Math.exp(-it.k / 50);
+                  window.__live.send({ type: 'estimate', seq: ++seq, run: 7, method: 'wlsm',
+                    k: it.k, K: K * r, tau: tau * r, W: [], valid: true, final: false });
+                }
+              }
+              return seq;
+            }""",
+            [first_seq, n, batch, K_TRUE, TAU_TRUE],
+        )
+    )
+
+
+def drawn(page: Any, label: str) -> int:
+    page.evaluate("() => new Promise((r) => requestAnimationFrame(() => setTimeout(r, 0)))")
+    return int(page.get_attribute(f"figure[aria-label='{label}']", "data-points") or 0)
+
+
+def test_a_long_run_keeps_a_fixed_window_and_fixed_memory(page: Any) -> None:
+    page.evaluate("() => window.__live.open()")
+    rig = rig_json(page)
+    page.evaluate(
+        "([rig, run]) => window.__live.send({ type: 'hello', seq: 100, rig, access: rig.access, run })",
+        [rig, run_json(7)],
+    )
+    seq = send_run(page, 100, 5000)
+    assert drawn(page, "Output y and model prediction against time") == 2000
+    nodes_before = page.evaluate("() => document.getElementsByTagName('*').length")
+    seq = send_run(page, seq, 20000)
+    assert drawn(page, "Output y and model prediction against time") == 2000
+    assert drawn(page, "Input u against time") == 2000
+    # The whole Ks(k) trajectory, decimated to at most 4000 points (+ the newest).
+    points = drawn(page, "Ks against sample, Weighted LS (WLSM)")
+    assert 2000 <= points <= 4001
+    nodes_after = page.evaluate("() => document.getElementsByTagName('*').length")
+    assert nodes_after == nodes_before
+    # The newest estimate is shown as numbers, and the model is drawn over the output.
+    ks = float(page.inner_text("[data-panel-view=wlsm] [data-method=wlsm] [data-field=K]"))
+    assert math.isclose(ks, K_TRUE, rel_tol=1e-5)
+    assert page.input_value("#overlay-method") == "wlsm"
+    assert page.evaluate("() => window.__sockets[0].sent.length") >= 0
+
+
+def test_a_dropped_connection_comes_back_and_asks_for_the_gap(page: Any) -> None:
+    page.evaluate("() => window.__live.open()")
+    rig = rig_json(page)
+    page.evaluate(
+        "([rig, run]) => window.__live.send({ type: 'hello', seq: 10, rig, access: rig.access, run })",
+        [rig, run_json(7)],
+    )
+    seq = send_run(page, 10, 300, batch=100)
+    page.evaluate("() => window.__live.drop(1006)")
+    page.wait_for_selector("#conn:text('reconnecting')")
+    # Backoff with jitter: the first retry comes within a second, asking for what it missed.
+    page.wait_for_function("() => window.__sockets.length === 2", timeout=5_000)
+    url = page.evaluate("() => window.__sockets[1].url")
+    assert url.endswith(f"/api/rigs/twin-phone/live?since={seq}")
+    page.evaluate("() => window.__live.open()")
+    page.evaluate(
+        "([rig, run, seq]) => window.__live.send({ type: 'hello', seq, rig, access: rig.access, run })",
+        [rig, run_json(7), seq + 50],
+    )
+    # The replay overlaps what the page had; the window must hold each sample once.
+    page.evaluate(
+        """(seq) => window.__live.send({ type: 'samples', seq: seq + 2, items: [
+            { seq: seq, run: 7, k: 299, t: 299, u: 0, y: 1 },
+            { seq: seq + 1, run: 7, k: 300, t: 300, u: 0, y: 1 },
+            { seq: seq + 2, run: 7, k: 301, t: 301, u: 0, y: 1 }] })""",
+        seq,
+    )
+    assert drawn(page, "Output y and model prediction against time") == 302
+    page.wait_for_function("() => !document.getElementById('conn').textContent.includes('reconn')")
+
+
+def test_access_messages_unlock_and_lock_the_controls_live(page: Any) -> None:
+    page.evaluate("() => window.__live.open()")
+    rig = rig_json(page)
+    page.evaluate(
+        "(rig) => window.__live.send({ type: 'hello', seq: 1, rig, access: rig.access, run: null })",
+        rig,
+    )
+    assert page.is_disabled("[data-panel-form=srm-lsm] button[data-action=start]")
+    controller = {**rig["access"], "role": "controller", "controller": "carol", "timeLeft": 300}
+    page.evaluate(
+        "(access) => window.__live.send({ type: 'access', access })",
+        controller,
+    )
+    assert page.is_enabled("[data-panel-form=srm-lsm] button[data-action=start]")
+    assert "You have control" in page.evaluate(
+        "() => new Promise((r) => setTimeout(() => r(document.getElementById('announce-polite')"
+        ".textContent), 100))"
+    )
+    page.evaluate(
+        "() => window.__live.send({ type: 'state', state: 'fault', detail: 'output over 5 V' })"
+    )
+    assert page.is_disabled("[data-panel-form=srm-lsm] button[data-action=start]")
+    assert "fault" in page.inner_text("[data-testid=lock-notice]")
+    assert page.inner_text("[data-testid=rig-state]") == "Fault"
