@@ -69,6 +69,14 @@ def rig_json(page: Any) -> dict[str, Any]:
     return rig
 
 
+def hello(page: Any, seq: int, rig: dict[str, Any], run: dict[str, Any] | None) -> None:
+    page.evaluate(
+        "([seq, rig, run]) => "
+        "window.__live.send({ type: 'hello', seq, rig, access: rig.access, run })",
+        [seq, rig, run],
+    )
+
+
 def run_json(run_id: int, status: str = "running") -> dict[str, Any]:
     return {
         "id": run_id,
@@ -119,10 +127,7 @@ def drawn(page: Any, label: str) -> int:
 def test_a_long_run_keeps_a_fixed_window_and_fixed_memory(page: Any) -> None:
     page.evaluate("() => window.__live.open()")
     rig = rig_json(page)
-    page.evaluate(
-        "([rig, run]) => window.__live.send({ type: 'hello', seq: 100, rig, access: rig.access, run })",
-        [rig, run_json(7)],
-    )
+    hello(page, 100, rig, run_json(7))
     seq = send_run(page, 100, 5000)
     assert drawn(page, "Output y and model prediction against time") == 2000
     nodes_before = page.evaluate("() => document.getElementsByTagName('*').length")
@@ -144,10 +149,7 @@ def test_a_long_run_keeps_a_fixed_window_and_fixed_memory(page: Any) -> None:
 def test_a_dropped_connection_comes_back_and_asks_for_the_gap(page: Any) -> None:
     page.evaluate("() => window.__live.open()")
     rig = rig_json(page)
-    page.evaluate(
-        "([rig, run]) => window.__live.send({ type: 'hello', seq: 10, rig, access: rig.access, run })",
-        [rig, run_json(7)],
-    )
+    hello(page, 10, rig, run_json(7))
     seq = send_run(page, 10, 300, batch=100)
     page.evaluate("() => window.__live.drop(1006)")
     page.wait_for_selector("#conn:text('reconnecting')")
@@ -156,10 +158,7 @@ def test_a_dropped_connection_comes_back_and_asks_for_the_gap(page: Any) -> None
     url = page.evaluate("() => window.__sockets[1].url")
     assert url.endswith(f"/api/rigs/twin-phone/live?since={seq}")
     page.evaluate("() => window.__live.open()")
-    page.evaluate(
-        "([rig, run, seq]) => window.__live.send({ type: 'hello', seq, rig, access: rig.access, run })",
-        [rig, run_json(7), seq + 50],
-    )
+    hello(page, seq + 50, rig, run_json(7))
     # The replay overlaps what the page had; the window must hold each sample once.
     page.evaluate(
         """(seq) => window.__live.send({ type: 'samples', seq: seq + 2, items: [
@@ -175,10 +174,7 @@ def test_a_dropped_connection_comes_back_and_asks_for_the_gap(page: Any) -> None
 def test_access_messages_unlock_and_lock_the_controls_live(page: Any) -> None:
     page.evaluate("() => window.__live.open()")
     rig = rig_json(page)
-    page.evaluate(
-        "(rig) => window.__live.send({ type: 'hello', seq: 1, rig, access: rig.access, run: null })",
-        rig,
-    )
+    hello(page, 1, rig, None)
     assert page.is_disabled("[data-panel-form=srm-lsm] button[data-action=start]")
     controller = {**rig["access"], "role": "controller", "controller": "carol", "timeLeft": 300}
     page.evaluate(
