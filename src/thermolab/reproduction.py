@@ -152,7 +152,13 @@ class Stats:
         return cls(float(d["mean"]), float(d["max"]), float(d["min"]))
 
     def items(self) -> tuple[tuple[str, float], ...]:
-        """``(("mean", mean), ("max", max), ("min", min))``, in the paper's order."""
+        """The three figures with their names, in the paper's order.
+
+        Returns
+        -------
+        tuple of (str, float)
+            ``(("mean", mean), ("max", max), ("min", min))``.
+        """
         return (("mean", self.mean), ("max", self.max), ("min", self.min))
 
     def minus(self, other: Stats) -> Stats:
@@ -171,7 +177,13 @@ class Stats:
         return Stats(self.mean - other.mean, self.max - other.max, self.min - other.min)
 
     def to_dict(self) -> dict[str, float | None]:
-        """``{"mean", "max", "min"}``; NaN becomes ``None`` (JSON-safe)."""
+        """The figures by name, JSON-safe.
+
+        Returns
+        -------
+        dict
+            ``{"mean", "max", "min"}``; NaN becomes ``None``.
+        """
         return {name: _json(value) for name, value in self.items()}
 
 
@@ -194,7 +206,13 @@ class Convergence:
     tau: int | None
 
     def to_dict(self) -> dict[str, int | None]:
-        """``{"K", "tau"}``."""
+        """The counts by parameter.
+
+        Returns
+        -------
+        dict
+            ``{"K": int or None, "tau": int or None}``.
+        """
         return {"K": self.K, "tau": self.tau}
 
 
@@ -221,7 +239,14 @@ class Figures:
     converged_at: Convergence | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """``{"K": {...}, "tau": {...}, "converged_at": {"K", "tau"} or None}``."""
+        """The figures as JSON-safe data.
+
+        Returns
+        -------
+        dict
+            ``{"K": {"mean", "max", "min"}, "tau": {...}, "converged_at": {"K", "tau"}
+            or None}``.
+        """
         return {
             "K": self.K.to_dict(),
             "tau": self.tau.to_dict(),
@@ -292,7 +317,14 @@ class Table1Row:
         return re.sub(r"[^a-z0-9]+", "", self.run.lower())
 
     def to_dict(self) -> dict[str, Any]:
-        """The definition as JSON-safe data (without the paper's figures)."""
+        """The definition as JSON-safe data (without the paper's figures).
+
+        Returns
+        -------
+        dict
+            ``run``, ``method``, ``signal``, ``samples``, ``description`` and the
+            settings that apply (``block``, ``window``, ``gamma``, ``pmax``, ``w0``).
+        """
         out: dict[str, Any] = {
             "run": self.run,
             "method": self.method,
@@ -537,7 +569,13 @@ class Table1Options:
         )
 
     def describe(self) -> str:
-        """A short text naming every option that differs from the exact simulation."""
+        """A short text naming every option that differs from the exact simulation.
+
+        Returns
+        -------
+        str
+            ``"exact simulation"`` for the defaults, else the options, comma-separated.
+        """
         parts: list[str] = []
         if self.solver != "lstsq":
             parts.append(f"solver {self.solver}")
@@ -556,7 +594,14 @@ class Table1Options:
         return ", ".join(parts) or "exact simulation"
 
     def to_dict(self) -> dict[str, Any]:
-        """Every option by name (JSON-safe)."""
+        """Every option by name.
+
+        Returns
+        -------
+        dict
+            JSON-safe: ``runs`` (a list), ``solver``, ``covariance``, ``precision``,
+            ``decimals``, ``quantum``, ``noise``, ``seed``, ``after_convergence``.
+        """
         return {
             "runs": list(self.runs),
             "solver": self.solver,
@@ -590,6 +635,14 @@ class RowResult:
     detail : object or None
         The single-estimate result (SRM: ``StepResponseResult``; LSM(1) with the
         default solver: ``LeastSquaresResult``), for plots.
+
+    Examples
+    --------
+    >>> r = reproduce_table1(runs=["LSM(3)"]).rows[0]
+    >>> r.run, r.digits_match, round(r.ours.tau.min, 6), r.paper.tau.min
+    ('LSM(3)', True, 250.126233, 250.126233)
+    >>> r.deviation.tau.max < 1e-6
+    True
     """
 
     row: Table1Row
@@ -722,6 +775,14 @@ class Table1Result:
         In the paper's order.
     options : Table1Options
         How the rows were run.
+
+    Examples
+    --------
+    >>> result = reproduce_table1(runs=["SRM", "WLSM(2)"])
+    >>> print(result.format().splitlines()[4])
+    SRM      Ks    value      0.140042      0.140042     +0.000000 =
+    >>> result.to_dict()["rows"][1]["paper"]["converged_at"]
+    {'K': 29, 'tau': 37}
     """
 
     rows: tuple[RowResult, ...]
@@ -752,11 +813,16 @@ class Table1Result:
         raise InvalidParameterError(f"row {run!r} was not run; this result has {ran}")
 
     def to_dict(self) -> dict[str, Any]:
-        """``{"rows": [...], "options": {...}, "variant": str, "reference_model": {...}}``.
+        """The table as JSON-safe data (the shape ``thermolab reproduce table1 --json`` prints).
 
-        Each row is :meth:`RowResult.to_dict`: ``run``, ``K`` and ``tau``
-        (``{"mean", "max", "min"}``), ``converged_at`` (``{"K", "tau"}`` or None),
-        ``paper`` in the same shape, and the deviation and agreement.
+        Returns
+        -------
+        dict
+            ``{"rows": [...], "options": {...}, "variant": str, "reference_model":
+            {"K", "tau", "dt"}}``. Each row is :meth:`RowResult.to_dict`: ``run``,
+            ``K`` and ``tau`` (``{"mean", "max", "min"}``), ``converged_at``
+            (``{"K", "tau"}`` or None), ``paper`` in the same shape, and the
+            deviation and agreement.
         """
         return {
             "rows": [r.to_dict() for r in self.rows],
