@@ -25,13 +25,19 @@ O(p²) per sample whatever the window length. Two measures keep them honest:
   stays O(p²) per sample amortised.
 
 ``DᵀD`` is rebuilt from the shifted sums, equilibrated to unit diagonal and
-solved by Cholesky. A window whose equilibrated ``DᵀD`` has a Cholesky pivot
-below ``RCOND_MIN`` (condition number above about 1e12) is reported singular.
-Normal equations square the condition number: for a window whose regressor
-matrix (columns scaled to unit norm) has condition number ``κ``, the estimate
-agrees with a QR/SVD solve of that window to about ``κ² · 1e-16`` relative —
-1e-13 for the paper's square-wave windows (κ ≈ 10), 1e-8 for a nearly settled
-step (κ ≈ 1e4). The tests check this bound on every window.
+solved (Cholesky in general, Cramer's rule for first order). A window whose
+equilibrated ``DᵀD`` has a pivot below ``RCOND_MIN`` (condition number above
+about 1e12) is reported singular.
+
+Accuracy. Normal equations square the condition number: for a window whose
+regressor matrix (columns scaled to unit norm) has condition number ``κ``,
+the estimate agrees with a QR/SVD solve of that window to about
+``κ² · ρ · 1e-16`` relative, where ``ρ >= 1`` is how much larger (squared)
+the values that went through the running sums since the last recomputation
+were than the window's own mean square — about 1 for data at a steady level,
+larger when a small window follows large swings. That is 1e-14 for the
+paper's square-wave windows (κ ≈ 8), 1e-8 for a nearly settled step
+(κ ≈ 1e4). The tests check this bound on every window.
 """
 
 from __future__ import annotations

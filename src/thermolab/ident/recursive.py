@@ -157,10 +157,14 @@ def moving_window_least_squares(
     Cost O(p²) per sample whatever the window (running sums of ``DᵀD`` and
     ``DᵀY`` taken about a shift and recomputed exactly every
     ``recompute_every`` rows, in a Numba-compiled loop). Each estimate equals a
-    fresh SVD solve of its window to about ``κ² · 1e-16`` relative, ``κ`` the
-    condition number of the window's regressor matrix with unit-norm columns;
-    windows with ``κ`` above about 1e6 are reported singular. See
-    :mod:`thermolab.ident._kernels`.
+    fresh SVD solve of its window to about ``κ² · ρ · 1e-16`` relative: ``κ``
+    is the condition number of the window's regressor matrix with unit-norm
+    columns (normal equations square it), ``ρ >= 1`` how much larger the
+    values that passed through the sums since the last recomputation were than
+    the window's own (about 1 for data at a steady level). Windows with ``κ``
+    above about 1e6 are reported singular. For the paper's square wave
+    (κ ≈ 8) that is 1e-14; for the tail of a settled step (κ ≈ 1e4), 1e-8.
+    See :mod:`thermolab.ident._kernels`.
 
     Examples
     --------
