@@ -161,22 +161,30 @@ def test_diagnostics_and_json() -> None:
     u = square(1500, 0.0, 5.0, half_period=100)
     y = REFERENCE_MODEL.simulate(u) + 1.0 + 1e-3 * rng.standard_normal(u.size)
     r = least_squares(u, y, 1.0)
-    assert r.n_samples == 1500 and r.n_rows == 1499
-    assert r.k[0] == 1 and r.k[-1] == 1499
+    assert r.n_samples == 1500
+    assert r.n_rows == 1499
+    assert r.k[0] == 1
+    assert r.k[-1] == 1499
     assert_allclose(r.residuals, r.y_measured - r.y_one_step, rtol=0, atol=1e-15)
     assert r.cond >= r.cond_scaled >= 1.0 or r.cond_scaled >= 1.0
-    assert 90.0 < r.fit_one_step <= 100.0 and 50.0 < r.fit_simulation <= 100.0
+    assert 90.0 < r.fit_one_step <= 100.0
+    assert 50.0 < r.fit_simulation <= 100.0
     d = r.to_dict(arrays=True)
     assert json.loads(json.dumps(d)) == d
-    assert d["method"] == "lsm" and d["valid"] is True and len(d["residuals"]) == 1499
+    assert d["method"] == "lsm"
+    assert d["valid"] is True
+    assert len(d["residuals"]) == 1499
 
 
 def test_an_unstable_estimate_is_a_flagged_result_not_an_error() -> None:
     u = np.ones(50)
     y = 1.01 ** np.arange(50.0)  # grows without bound: a = 1.01
     r = least_squares(u, y, 1.0, offset="none")
-    assert not r.model.valid and r.model.reason is not None and ">= 1" in r.model.reason
-    assert math.isnan(r.K) and math.isnan(r.tau_stderr)
+    assert not r.model.valid
+    assert r.model.reason is not None
+    assert ">= 1" in r.model.reason
+    assert math.isnan(r.K)
+    assert math.isnan(r.tau_stderr)
     assert r.to_dict()["K"] is None
 
 
@@ -243,7 +251,8 @@ def test_block_parameters_and_partial_blocks() -> None:
     u = square(450, 4.0, 6.0)
     y = REFERENCE_MODEL.simulate(u)
     tr = block_least_squares(u, y, 1.0, block=100)
-    assert tr.n_samples == 450 and int(tr.valid.sum()) == 4  # the last 50 samples: no block
+    assert tr.n_samples == 450
+    assert int(tr.valid.sum()) == 4
     with pytest.raises(InvalidParameterError, match="block must be >= 3"):
         block_least_squares(u, y, 1.0, block=2)
     with pytest.raises(InvalidParameterError, match="block must be >= 4"):
@@ -258,7 +267,8 @@ def test_a_block_without_excitation_is_flagged_not_raised() -> None:
     y[200:] = y[200]  # a settled stretch: no information at all
     u[199] = 0.0
     tr = block_least_squares(u, y, 1.0, block=100, offset="none")
-    assert tr.valid[99] and tr.valid[199]
+    assert tr.valid[99]
+    assert tr.valid[199]
     assert tr.reason_code[299] == 2
     assert tr.invalid_reason[299].startswith("not excited")
 

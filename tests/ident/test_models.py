@@ -42,8 +42,10 @@ def test_round_trip_of_the_reference_model() -> None:
 def test_from_discrete_says_why_there_is_no_time_constant(a: float, fragment: str) -> None:
     m = FirstOrderModel.from_discrete(a, 0.01, 1.0)
     assert not m.valid
-    assert math.isnan(m.K) and math.isnan(m.tau)
-    assert m.reason is not None and fragment in m.reason
+    assert math.isnan(m.K)
+    assert math.isnan(m.tau)
+    assert m.reason is not None
+    assert fragment in m.reason
     with pytest.raises(InvalidParameterError, match="no discretisation"):
         m.to_discrete(1.0)
     assert m.to_dict()["K"] is None
@@ -82,7 +84,8 @@ def test_arx_order_validation(args: tuple[int, int, int], fragment: str) -> None
 
 
 def test_arx_order_lag_and_names() -> None:
-    assert ArxOrder().lag == 0 and ArxOrder().is_first_order
+    assert ArxOrder().lag == 0
+    assert ArxOrder().is_first_order
     assert ArxOrder(3, 1, 0).lag == 2
     assert ArxOrder(1, 2, 2).lag == 3
     assert ArxOrder(2, 1).param_names(constant=True) == ("a1", "a2", "b1", "c")
@@ -107,7 +110,9 @@ def test_arx_model_dc_gain_dominant_pole_and_ambient() -> None:
 )
 def test_arx_model_without_a_time_constant(a: tuple[float, float], fragment: str) -> None:
     fo = ArxModel(a=a, b=(0.1,), dt=1.0).first_order()
-    assert not fo.valid and fo.reason is not None and fragment in fo.reason
+    assert not fo.valid
+    assert fo.reason is not None
+    assert fragment in fo.reason
 
 
 def test_vectorised_conversion_codes() -> None:
@@ -117,7 +122,8 @@ def test_vectorised_conversion_codes() -> None:
     K, tau, code = discrete_to_first_order(W, 1.0)
     assert code.tolist() == [0, 3, 3, 4, 4, 1, 6]
     assert_allclose(K[0], 2.0, rtol=1e-15)
-    assert np.isnan(K[1:]).all() and np.isnan(tau[1:]).all()
+    assert np.isnan(K[1:]).all()
+    assert np.isnan(tau[1:]).all()
     assert INVALID_REASONS[0] is None
     assert all(isinstance(r, str) for r in INVALID_REASONS[1:])
 

@@ -13,11 +13,12 @@ from numpy.testing import assert_allclose, assert_array_equal
 from thermolab.errors import InvalidDataError, InvalidParameterError
 from thermolab.ident import (
     ArxOrder,
+    _kernels,
+    _regression,
     least_squares,
     moving_window_least_squares,
     weighted_least_squares,
 )
-from thermolab.ident import _kernels, _regression
 from thermolab.simulation import PAPER_W0, REFERENCE_MODEL, simulate_arx, simulate_first_order
 
 EPS = np.finfo(np.float64).eps
@@ -44,7 +45,8 @@ def test_malsm_reproduces_table_one_at_every_window() -> None:
     u = square(2000, 4.0, 6.0)
     tr = moving_window_least_squares(u, REFERENCE_MODEL.simulate(u), 1.0, window=100)
     assert tr.first_estimate == 99
-    assert np.isnan(tr.K[:99]).all() and tr.valid[99:].all()
+    assert np.isnan(tr.K[:99]).all()
+    assert tr.valid[99:].all()
     assert {f"{v:.6f}" for v in tr.K[99:]} == {"0.140090"}
     assert {f"{v:.6f}" for v in tr.tau[99:]} == {"250.126233"}
 
@@ -136,7 +138,8 @@ def test_malsm_flags_windows_without_excitation() -> None:
     y = REFERENCE_MODEL.simulate(u, y0=0.0)
     y[320:] = y[320]  # settled and constant: the window's columns become proportional
     tr = moving_window_least_squares(u, y, 1.0, window=50, offset="none")
-    assert tr.valid[99] and tr.reason_code[-1] == 2
+    assert tr.valid[99]
+    assert tr.reason_code[-1] == 2
     assert tr.invalid_reason[-1].startswith("not excited")
 
 
@@ -248,12 +251,16 @@ def test_wlsm_converges_on_the_papers_square_wave(
 ) -> None:
     u = square(2500, 0.0, 4.0)
     tr = weighted_least_squares(u, REFERENCE_MODEL.simulate(u), 1.0, gamma, pmax, PAPER_W0)
-    assert tr.first_estimate == 0 and tr.valid.all()
+    assert tr.first_estimate == 0
+    assert tr.valid.all()
     assert_allclose(tr.W[0], PAPER_W0)
     conv = tr.converged_at()
-    assert conv["K"] is not None and conv["K"] < n_conv
-    assert conv["tau"] is not None and conv["tau"] < n_conv
-    assert f"{tr.K[-1]:.6f}" == "0.140090" and f"{tr.tau[-1]:.6f}" == "250.126233"
+    assert conv["K"] is not None
+    assert conv["K"] < n_conv
+    assert conv["tau"] is not None
+    assert conv["tau"] < n_conv
+    assert f"{tr.K[-1]:.6f}" == "0.140090"
+    assert f"{tr.tau[-1]:.6f}" == "250.126233"
 
 
 def test_first_order_and_general_wlsm_kernels_are_identical() -> None:
