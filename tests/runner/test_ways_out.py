@@ -299,7 +299,7 @@ def test_keyboard_interrupt(twin: HookedTwin, tmp_path: Path) -> None:
     result = exp.result
     assert result is not None
     assert result.state is RunState.ABORTED
-    assert result.signal == signal.SIGINT
+    assert result.signum == signal.SIGINT
     assert result.samples == 20
     assert len(_csv_rows(path)) == 20
     _assert_safe(twin)
@@ -314,7 +314,7 @@ def test_sigterm(twin: HookedTwin, tmp_path: Path) -> None:
     result = exp.result
     assert result is not None
     assert result.state is RunState.ABORTED
-    assert result.signal == signal.SIGTERM
+    assert result.signum == signal.SIGTERM
     assert len(_csv_rows(tmp_path / "r.csv")) == result.samples
     _assert_safe(twin)
 

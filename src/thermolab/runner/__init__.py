@@ -3,8 +3,10 @@
 See :class:`Experiment` (one run), :mod:`thermolab.runner.events` (what a run
 publishes and how subscribers receive it without delaying sampling),
 :mod:`thermolab.runner.interlocks` (output limits, input range, watchdog),
-:mod:`thermolab.runner.recorder` (incremental CSV records) and
-:mod:`thermolab.runner.state` (the run's state machine).
+:mod:`thermolab.runner.recorder` (incremental CSV records),
+:mod:`thermolab.runner.state` (the run's state machine) and
+:mod:`thermolab.runner.methods` (online identifiers from a method list and
+settings; imported on its own because it loads the compiled kernels).
 """
 
 from thermolab.runner.events import (
@@ -20,9 +22,9 @@ from thermolab.runner.events import (
 )
 from thermolab.runner.experiment import (
     Experiment,
+    IdentifierLike,
     InputSignal,
     MethodResult,
-    OnlineIdentifier,
     RunResult,
 )
 from thermolab.runner.interlocks import Interlocks, Watchdog
@@ -40,10 +42,10 @@ __all__ = [
     "EventBus",
     "Experiment",
     "FaultEvent",
+    "IdentifierLike",
     "InputSignal",
     "Interlocks",
     "MethodResult",
-    "OnlineIdentifier",
     "Policy",
     "Recorder",
     "RunResult",

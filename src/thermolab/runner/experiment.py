@@ -54,9 +54,9 @@ from thermolab.runner.termination import interrupt_signal
 
 __all__ = [
     "Experiment",
+    "IdentifierLike",
     "InputSignal",
     "MethodResult",
-    "OnlineIdentifier",
     "RunResult",
 ]
 
@@ -76,10 +76,14 @@ class InputSignal(Protocol):
 
 
 @runtime_checkable
-class OnlineIdentifier(Protocol):
-    """What the runner needs of an online identifier (see :mod:`thermolab.ident.online`).
+class IdentifierLike(Protocol):
+    """What the runner needs of an online identifier.
 
-    ``update`` is called once per sample, in order; ``finish`` once at END.
+    :class:`thermolab.ident.online.OnlineIdentifier` (from
+    :func:`~thermolab.ident.online.make_identifier`, or
+    :func:`thermolab.runner.methods.build_identifiers`) is the implementation;
+    anything with the same three methods works. ``update`` is called once per
+    sample, in order; ``finish`` once at END.
     """
 
     def update(self, u: float, y: float) -> SupportsToDict | None:
@@ -119,11 +123,13 @@ class MethodResult:
     k : numpy.ndarray
         Sample index of each estimate in ``estimates`` (int64).
     estimates : tuple
-        Every estimate ``update`` returned, in order, then the one ``finish``
-        returned (if any).
+        Every estimate ``update`` returned during the run, in order (the
+        trajectory of a recursive method; empty for SRM and LSM, whose result
+        appears only at END).
     final : object or None
-        The estimate ``finish`` returned at END (SRM's only result), or
-        ``None`` (the run was aborted or failed, or the method had nothing to add).
+        The estimate ``finish`` returned at END (for SRM and LSM the result;
+        for the others the last estimate, marked final), or ``None`` (the run
+        was aborted or failed, or the method had no estimate).
     error : str or None
         Why the method stopped early (not enough excitation...), or ``None``.
     """
@@ -162,6 +168,7 @@ class MethodResult:
             "error": self.error,
         }
         if trajectory:
+            # The estimates update() returned; the final one is "latest" above.
             out["trajectory"] = [
                 {"k": int(k), **e.to_dict()} for k, e in zip(self.k, self.estimates, strict=True)
             ]
@@ -205,8 +212,9 @@ class RunResult:
         The lateness (seconds) above which a sample counts as late.
     methods : dict of str to MethodResult
         Each identifier's results, by name.
-    signal : int or None
-        The signal that interrupted the run (SIGINT, SIGTERM), else ``None``.
+    signum : int or None
+        The number of the signal that interrupted the run (SIGINT, SIGTERM),
+        else ``None``.
     error : BaseException or None
         The exception that ended the run (rig fault, error), else ``None``.
     """
@@ -228,7 +236,7 @@ class RunResult:
     missed: int
     late_tolerance: float
     methods: dict[str, MethodResult] = field(default_factory=dict)
-    signal: int | None = None
+    signum: int | None = None
     error: BaseException | None = None
 
     @property
@@ -267,7 +275,7 @@ class RunResult:
             "missed": self.missed,
             "late_tolerance": self.late_tolerance,
             "max_lateness": float(self.lateness.max()) if self.samples else 0.0,
-            "signal": self.signal,
+            "signum": self.signum,
             "methods": {
                 name: m.to_dict(trajectory=trajectories) for name, m in self.methods.items()
             },
@@ -295,8 +303,9 @@ class Experiment:
     set_point : float, optional
         A constant input instead (manual mode). With neither, the set point
         is the rig's safe input until :meth:`set_input` changes it.
-    identifiers : mapping of str to OnlineIdentifier, optional
-        Online identifiers fed every sample, by name (``{"srm": ..., "wlsm": ...}``).
+    identifiers : mapping of str to IdentifierLike, optional
+        Online identifiers fed every sample, by name (``{"srm": ..., "wlsm": ...}``;
+        see :func:`thermolab.runner.methods.build_identifiers`).
     recorder : Recorder, optional
         Receives every sample as it is taken (e.g. :class:`CsvRecorder`).
     interlocks : Interlocks, optional
@@ -332,7 +341,7 @@ class Experiment:
         *,
         signal: InputSignal | None = None,
         set_point: float | None = None,
-        identifiers: Mapping[str, OnlineIdentifier] | None = None,
+        identifiers: Mapping[str, IdentifierLike] | None = None,
         recorder: Recorder | None = None,
         interlocks: Interlocks | None = None,
         late_tolerance: float | None = None,
@@ -360,7 +369,7 @@ class Experiment:
         self._recorder = recorder
         self._identifiers = dict(identifiers or {})
         for name, ident in self._identifiers.items():
-            if not isinstance(ident, OnlineIdentifier):
+            if not isinstance(ident, IdentifierLike):
                 raise InvalidParameterError(
                     f"identifier {name!r} ({type(ident).__name__}) lacks update/finish/to_dict"
                 )
@@ -568,7 +577,7 @@ class Experiment:
             raise RunStateError("cannot START: the run was started in a worker thread")
         result = self._execute()
         if result.error is not None and (
-            result.end_reason is EndReason.ERROR or result.signal is not None
+            result.end_reason is EndReason.ERROR or result.signum is not None
         ):
             raise result.error
         return result
@@ -747,11 +756,8 @@ class Experiment:
                 self._method_failed(name, exc)
                 continue
             self._final[name] = estimate
-            if estimate is not None:
-                self._traj_k[name].append(k)
-                self._traj[name].append(estimate)
-                if bus.active:
-                    bus.publish(EstimateEvent(bus.next_seq(), k, name, estimate, True))
+            if estimate is not None and bus.active:
+                bus.publish(EstimateEvent(bus.next_seq(), k, name, estimate, True))
 
     def _method_failed(self, name: str, exc: Exception) -> None:
         message = f"{name}: {exc}"
@@ -795,7 +801,7 @@ class Experiment:
             missed=self._missed,
             late_tolerance=self._late_tolerance,
             methods=methods,
-            signal=signum,
+            signum=signum,
             error=error,
         )
 

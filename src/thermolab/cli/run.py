@@ -1,0 +1,344 @@
+"""``thermolab run``: drive a rig, record it, and identify its model live.
+
+Opens a rig (the digital twin or a TCLab kit), applies an excitation signal for
+a number of samples, writes every sample to a CSV file as it is taken (columns
+``t,u,y`` first, so the file feeds straight into ``thermolab identify``), runs
+the chosen online identifiers at every sample and prints each method's Ks and
+Ts at the end (a table, or JSON with ``--json``).
+
+Exit status: 0 when the run completes; 1 when it stops on a device fault or an
+interlock (one line on standard error; the samples already taken stay in the
+CSV and the heater is off); 130 on SIGINT and 143 on SIGTERM (same safe end).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import signal as signal_module
+import sys
+import threading
+import time
+from typing import Any, TextIO
+
+__all__ = ["register"]
+
+# Spelled out here so that --help does not load the identifiers' compiled kernels;
+# thermolab.runner.methods.parse_methods checks the names against the real list.
+_METHODS = "srm, lsm, blockls, malsm, wlsm"
+
+_EXAMPLES = """\
+examples:
+  thermolab run --rig sim --dt 1 --duration 2000 --signal step:0:10@10 --fast
+  thermolab run --rig sim:paper-practical --dt 1 --samples 3000 \\
+      --signal square:4:6:0.1 --method lsm,malsm,wlsm --speedup 100 --out run.csv
+  thermolab run --rig tclab --dt 1 --duration 600 --signal step:0:50@30 --out kit.csv
+"""
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``run`` subcommand to the ``thermolab`` parser.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The subparsers of the main parser.
+    """
+    parser = subparsers.add_parser(
+        "run",
+        help="run an experiment on a rig and identify its model live",
+        description="Run an experiment on a rig (the digital twin or a TCLab kit): apply a "
+        "signal, record every sample, identify Ks and Ts with online methods.",
+        epilog=_EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "--rig",
+        default="sim",
+        metavar="SPEC",
+        help="sim (the paper's twin, noise-free), sim:PRESET (paper, paper-practical, tclab), "
+        "tclab (a kit, auto-detected) or tclab:PORT (default: sim)",
+    )
+    parser.add_argument(
+        "--dt", type=float, default=1.0, metavar="S", help="sample period in seconds (default 1)"
+    )
+    length = parser.add_mutually_exclusive_group(required=True)
+    length.add_argument("--duration", type=float, metavar="S", help="run length in seconds")
+    length.add_argument("--samples", type=int, metavar="N", help="number of samples")
+    parser.add_argument(
+        "--signal",
+        required=True,
+        metavar="SPEC",
+        help="input signal: const:U, step:U0:U1@T, square:LOW:HIGH:FREQ_HZ, "
+        "sine:OFFSET:AMPLITUDE:FREQ_HZ, prbs:LOW:HIGH:BIT_SECONDS[:SEED]",
+    )
+    parser.add_argument(
+        "--method",
+        default="all",
+        metavar="LIST",
+        help=f"comma-separated online methods from {_METHODS} (default: all)",
+    )
+    parser.add_argument(
+        "--window", type=int, metavar="N", help="MALSM window in samples (default 100)"
+    )
+    parser.add_argument(
+        "--block", type=int, metavar="N", help="block LSM block length in samples (default 100)"
+    )
+    parser.add_argument(
+        "--gamma", type=float, metavar="G", help="WLSM forgetting factor γ (default 0.96)"
+    )
+    parser.add_argument(
+        "--pmax", type=float, metavar="P", help="WLSM initial covariance pmax (default 1e4)"
+    )
+    speed = parser.add_mutually_exclusive_group()
+    speed.add_argument(
+        "--speedup",
+        type=float,
+        metavar="X",
+        help="simulated rigs: run X times faster than real time (default 1: real time)",
+    )
+    speed.add_argument(
+        "--fast", action="store_true", help="simulated rigs: run as fast as possible"
+    )
+    parser.add_argument("--seed", type=int, metavar="N", help="seed of a simulated rig's noise")
+    parser.add_argument("--out", metavar="FILE.csv", help="write every sample to this CSV file")
+    parser.add_argument(
+        "--json", action="store_true", help="print the result as JSON instead of a table"
+    )
+    parser.add_argument(
+        "--max-output",
+        type=float,
+        metavar="Y",
+        help="stop the run if the output exceeds Y (output unit; the rig's own limit "
+        "always applies)",
+    )
+    parser.add_argument(
+        "--watchdog",
+        type=float,
+        default=10.0,
+        metavar="S",
+        help="make the rig safe if the sampling loop stalls for S wall-clock seconds (default 10)",
+    )
+    parser.set_defaults(handler=_run)
+
+
+def _number_of_samples(args: argparse.Namespace) -> int:
+    from thermolab.cli import CliError
+
+    if not (math.isfinite(args.dt) and args.dt > 0):
+        raise CliError(f"--dt must be a positive number of seconds, got {args.dt:g}", status=2)
+    if args.samples is not None:
+        if args.samples < 1:
+            raise CliError(f"--samples must be at least 1, got {args.samples}", status=2)
+        return int(args.samples)
+    duration = args.duration
+    if not (math.isfinite(duration) and duration > 0):
+        raise CliError(f"--duration must be a positive number of seconds, got {duration:g}", 2)
+    # A duration of 2000 s at 1 s is 2000 samples (t = 0 ... 1999 s); the tolerance
+    # keeps 0.3 / 0.1 from becoming 2 samples.
+    n = math.floor(duration / args.dt + 1e-9)
+    if n < 1:
+        raise CliError(f"--duration {duration:g} s is shorter than one period (--dt {args.dt:g})")
+    return int(n)
+
+
+def _clock_for(args: argparse.Namespace, simulated: bool) -> Any:
+    from thermolab.cli import CliError
+    from thermolab.rigs import RealClock, VirtualClock, make_clock
+
+    if not simulated:
+        if args.fast or (args.speedup is not None and args.speedup != 1.0):
+            raise CliError(
+                f"a real rig ({args.rig}) runs in real time: drop --fast / --speedup", status=2
+            )
+        return RealClock()
+    if args.fast:
+        return VirtualClock()
+    if args.speedup is not None:
+        if not (args.speedup > 0 and not math.isnan(args.speedup)):
+            raise CliError(f"--speedup must be a positive number, got {args.speedup:g}", 2)
+        return make_clock(args.speedup)
+    return RealClock()
+
+
+class _Progress:
+    """A one-line progress bar on standard error, redrawn by a thread of its own.
+
+    It reads the run's sample count every 0.2 s instead of subscribing to its
+    events, so it costs the sampling loop nothing. Runs shorter than half a
+    second never show it.
+    """
+
+    def __init__(self, experiment: Any, stream: TextIO) -> None:
+        self._experiment = experiment
+        self._stream = stream
+        self._stop = threading.Event()
+        self._shown = False
+        self._thread = threading.Thread(target=self._draw_loop, name="progress", daemon=True)
+
+    def __enter__(self) -> _Progress:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join()
+        if self._shown:
+            self._stream.write("\r\x1b[K")
+            self._stream.flush()
+
+    def _draw_loop(self) -> None:
+        start = time.monotonic()
+        if self._stop.wait(0.5):
+            return
+        while True:
+            self._draw(time.monotonic() - start)
+            if self._stop.wait(0.2):
+                return
+
+    def _draw(self, elapsed: float) -> None:
+        exp = self._experiment
+        done, total = exp.k, exp.samples
+        fraction = done / total
+        width = 30
+        filled = int(fraction * width)
+        bar = "#" * filled + "-" * (width - filled)
+        eta = ""
+        if 0 < done < total:
+            eta = f"  ETA {elapsed * (total - done) / done:4.0f} s"
+        line = (
+            f"\r[{bar}] {100 * fraction:3.0f}%  {done}/{total} samples  t={done * exp.dt:g} s{eta}"
+        )
+        self._stream.write(line + "\x1b[K")
+        self._stream.flush()
+        self._shown = True
+
+
+def _estimate_fields(estimate: Any) -> tuple[float, float, bool, str | None]:
+    """(K, tau, valid, reason) of an identifier's estimate."""
+    data = estimate.to_dict()
+    K = data.get("K")
+    tau = data.get("tau")
+    valid = bool(data.get("valid", K is not None and tau is not None))
+    reason = data.get("invalid_reason") or data.get("reason")
+    return (
+        math.nan if K is None else float(K),
+        math.nan if tau is None else float(tau),
+        valid,
+        reason,
+    )
+
+
+def _summary_table(result: Any, csv_path: str | None) -> str:
+    rig = result.rig
+    lines = [
+        f"rig: {rig.name}   dt: {result.dt:g} s   samples: {result.samples}/"
+        f"{result.samples_requested} ({result.end_reason.value})   "
+        f"late: {result.late}   missed deadlines: {result.missed}"
+        + (f"   csv: {csv_path}" if csv_path else ""),
+    ]
+    if not result.methods:
+        return "\n".join(lines)
+    gain_unit = f"{rig.output_unit}/{rig.input_unit}"
+    header = f"{'method':<8} {'Ks (' + gain_unit + ')':>16} {'Ts (s)':>14} {'estimates':>10}  note"
+    lines += ["", header, "-" * len(header)]
+    for name, method in result.methods.items():
+        latest = method.latest
+        note = method.error or ""
+        if latest is None:
+            ks = ts = "-"
+            note = note or "no estimate"
+        else:
+            K, tau, valid, reason = _estimate_fields(latest)
+            ks = f"{K:.6f}" if math.isfinite(K) else "-"
+            ts = f"{tau:.6f}" if math.isfinite(tau) else "-"
+            if not valid and not note:
+                note = reason or "no first-order meaning"
+            elif method.final is None and result.ok and not note:
+                note = "last of the run"
+        lines.append(f"{name:<8} {ks:>16} {ts:>14} {len(method.estimates):>10}  {note}".rstrip())
+    return "\n".join(lines)
+
+
+def _json_report(result: Any, csv_path: str | None, signal_spec: str) -> dict[str, Any]:
+    report: dict[str, Any] = result.to_dict()
+    report["signal"] = signal_spec
+    report["csv"] = csv_path
+    report["interrupted_by"] = (
+        None if result.signum is None else signal_module.Signals(result.signum).name
+    )
+    return report
+
+
+def _run(args: argparse.Namespace) -> int:
+    from thermolab.cli import CliError
+    from thermolab.rigs import open_rig
+    from thermolab.runner import (
+        CsvRecorder,
+        Experiment,
+        Interlocks,
+        RunResult,
+        interrupt_signal,
+        termination_signals,
+    )
+    from thermolab.runner.methods import build_identifiers, parse_methods
+    from thermolab.signals import parse_signal
+
+    n = _number_of_samples(args)
+    methods = parse_methods(args.method)
+    simulated = args.rig.strip().partition(":")[0] == "sim"
+    clock = _clock_for(args, simulated)
+    interlocks = Interlocks(output_max=args.max_output, watchdog=args.watchdog)
+    result: RunResult | None = None
+    # Signal handlers first: a TCLab driver opened afterwards chains its own
+    # emergency heater-off in front of them.
+    with termination_signals(), open_rig(args.rig, clock=clock, seed=args.seed) as rig:
+        info = rig.describe()
+        signal = parse_signal(args.signal, limits=info.input_range)
+        identifiers = build_identifiers(
+            methods,
+            args.dt,
+            window=args.window,
+            block=args.block,
+            gamma=args.gamma,
+            pmax=args.pmax,
+        )
+        recorder = CsvRecorder(args.out, fsync=not simulated) if args.out else None
+        experiment = Experiment(
+            rig,
+            args.dt,
+            n,
+            signal=signal,
+            identifiers=identifiers,
+            recorder=recorder,
+            interlocks=interlocks,
+        )
+        progress = _Progress(experiment, sys.stderr) if sys.stderr.isatty() else None
+        try:
+            if progress is not None:
+                with progress:
+                    result = experiment.run()
+            else:
+                result = experiment.run()
+        except BaseException as exc:
+            signum = interrupt_signal(exc)
+            if signum is None:
+                raise
+            taken = experiment.k
+            kept = f"; {taken} samples kept in {args.out}" if args.out else ""
+            name = signal_module.Signals(signum).name
+            print(f"interrupted by {name}: {info.name} made safe{kept}", file=sys.stderr)
+            return 128 + signum
+    assert result is not None
+    if args.json:
+        print(json.dumps(_json_report(result, args.out, signal.spec), indent=2))
+    else:
+        print(_summary_table(result, args.out))
+    if not result.ok:
+        kept = f"; {result.samples} samples kept in {args.out}" if args.out else ""
+        raise CliError(
+            f"run stopped at sample {result.samples} (t={result.samples * result.dt:g} s): "
+            f"{result.message}; {info.name} made safe{kept}"
+        )
+    return 0
