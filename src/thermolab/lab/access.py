@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 from typing import Literal, Protocol
 
-from sqlalchemy import select
+from sqlalchemy import bindparam, select
 from sqlalchemy.orm import Session
 
 from thermolab.errors import AccessDeniedError, ConflictError, InvalidParameterError
@@ -56,6 +56,7 @@ from thermolab.lab.models import (
     Run,
     RunStatus,
     User,
+    UTCDateTime,
 )
 from thermolab.lab.presence import Presence, Watcher
 from thermolab.lab.users import Principal
@@ -86,8 +87,8 @@ class RigMonitor(Protocol):
         """The rig's input range, units and safe input."""
         ...
 
-    def output(self, rig_id: str) -> float | None:
-        """The latest reading of the rig's output, if any."""
+    def reading(self, rig_id: str) -> tuple[float, datetime] | None:
+        """The latest reading of the rig's output and when it was taken, if any."""
         ...
 
 
@@ -313,6 +314,17 @@ class AccessService:
         self._config.rig(rig_id)
         with self._db.read() as session:
             return self._snapshot(session, rig_id)
+
+    def desired(self, rig_id: str) -> tuple[PowerState, int | None]:
+        """Return the rig's power state and active control session id (for the hub)."""
+        with self._db.read() as session:
+            power = session.scalar(select(Rig.power_state).where(Rig.id == rig_id))
+            control = session.scalar(
+                select(ControlSession.id).where(
+                    ControlSession.rig_id == rig_id, ControlSession.ended_at.is_(None)
+                )
+            )
+        return PowerState(power or PowerState.OFF.value), control
 
     def view(self, rig_id: str, who: Principal, *, heartbeat: bool = True) -> RigView:
         """Return a rig as ``who`` sees it.
@@ -628,11 +640,10 @@ class AccessService:
             if due is not None:
                 reason, at = due
                 self._end(session, rig, control, reason, at, now)
-        for entry in self._queue(session, rig.id):
-            gone_at = entry.last_heartbeat_at + self._timeout
-            if gone_at <= now:
-                entry.left_at = gone_at
-                entry.leave_reason = LeaveReason.CLIENT_GONE.value
+        stale = session.scalars(_Q.stale, {"rig": rig.id, "seen": now - self._timeout})
+        for entry in stale:
+            entry.left_at = entry.last_heartbeat_at + self._timeout
+            entry.leave_reason = LeaveReason.CLIENT_GONE.value
         self._advance(session, rig, cfg, now)
 
     def _advance(self, session: Session, rig: Rig, cfg: RigConfig, now: datetime) -> None:
@@ -650,10 +661,11 @@ class AccessService:
             rig.cooling_since = None
             self._set_power(rig, PowerState.ON, now)
         if power is PowerState.ON and rig.ambient_output is None and not rig.needs_cooldown:
-            rig.ambient_output = self._monitor.output(rig.id)
+            reading = self._monitor.reading(rig.id)
+            rig.ambient_output = reading[0] if reading is not None else None
         control = self._active(session, rig.id)
-        queue = self._queue(session, rig.id)
-        if control is None and queue and rig.fault is None:
+        head = self._head(session, rig.id)
+        if control is None and head is not None and rig.fault is None:
             if PowerState(rig.power_state) is PowerState.OFF:
                 if rig.needs_cooldown and cfg.cooldown.enabled:
                     rig.cooling_since = now
@@ -662,7 +674,6 @@ class AccessService:
                     rig.needs_cooldown = False
                     self._set_power(rig, PowerState.ON, now)
             if PowerState(rig.power_state) is PowerState.ON:
-                head = queue[0]
                 head.left_at = now
                 head.leave_reason = LeaveReason.PROMOTED.value
                 session.flush()
@@ -680,8 +691,8 @@ class AccessService:
                 )
                 session.flush()
                 control = self._active(session, rig.id)
-                queue = queue[1:]
-        if control is None and not queue:
+                head = self._head(session, rig.id)
+        if control is None and head is None:
             if rig.vacant_since is None:
                 rig.vacant_since = now
             elif (
@@ -772,7 +783,7 @@ class AccessService:
             snap.power is PowerState.ON
             and snap.ambient_output is None
             and not snap.needs_cooldown
-            and self._monitor.output(snap.id) is not None
+            and self._monitor.reading(snap.id) is not None
         )
 
     def _heartbeat_stale(self, snap: RigSnapshot, who: Principal, now: datetime) -> bool:
@@ -798,10 +809,11 @@ class AccessService:
         if (now - cooling_since).total_seconds() >= cfg.cooldown.max_seconds:
             return True
         ambient = cfg.cooldown.ambient if cfg.cooldown.ambient is not None else measured_ambient
-        output = self._monitor.output(rig_id)
-        if output is None or ambient is None:
+        reading = self._monitor.reading(rig_id)
+        # Only a reading taken during the cool-down says the rig has cooled.
+        if reading is None or ambient is None or reading[1] <= cooling_since:
             return False
-        return abs(output - ambient) <= cfg.cooldown.tolerance
+        return abs(reading[0] - ambient) <= cfg.cooldown.tolerance
 
     @staticmethod
     def _set_power(rig: Rig, power: PowerState, now: datetime) -> None:
@@ -810,45 +822,27 @@ class AccessService:
             rig.power_changed_at = now
 
     # -- queries ------------------------------------------------------------------------------
+    # Built once (see _Q below): building a statement costs more than running it here.
 
     @staticmethod
     def _active(session: Session, rig_id: str) -> ControlSession | None:
-        return session.scalars(
-            select(ControlSession).where(
-                ControlSession.rig_id == rig_id, ControlSession.ended_at.is_(None)
-            )
-        ).one_or_none()
+        return session.scalars(_Q.active, {"rig": rig_id}).one_or_none()
 
     @staticmethod
     def _queue(session: Session, rig_id: str) -> list[QueueEntry]:
-        return list(
-            session.scalars(
-                select(QueueEntry)
-                .where(QueueEntry.rig_id == rig_id, QueueEntry.left_at.is_(None))
-                .order_by(QueueEntry.ticket)
-            )
-        )
+        return list(session.scalars(_Q.queue, {"rig": rig_id}))
+
+    @staticmethod
+    def _head(session: Session, rig_id: str) -> QueueEntry | None:
+        return session.scalars(_Q.head, {"rig": rig_id}).first()
 
     @staticmethod
     def _waiting(session: Session, rig_id: str, user_id: int) -> QueueEntry | None:
-        return session.scalars(
-            select(QueueEntry).where(
-                QueueEntry.rig_id == rig_id,
-                QueueEntry.user_id == user_id,
-                QueueEntry.left_at.is_(None),
-            )
-        ).one_or_none()
+        return session.scalars(_Q.waiting, {"rig": rig_id, "user": user_id}).one_or_none()
 
     @staticmethod
     def _run_active(session: Session, rig_id: str) -> bool:
-        return (
-            session.scalar(
-                select(Run.id)
-                .where(Run.rig_id == rig_id, Run.status == RunStatus.RUNNING.value)
-                .limit(1)
-            )
-            is not None
-        )
+        return session.scalar(_Q.run_active, {"rig": rig_id}) is not None
 
     def _snapshot(self, session: Session, rig_id: str) -> RigSnapshot:
         rig = session.get(Rig, rig_id, populate_existing=True)
@@ -856,24 +850,15 @@ class AccessService:
             # Configured but not yet in the table: start-up has not run.
             raise ConflictError(f"rig {rig_id!r} is not ready yet; the lab is starting")
         control = self._active(session, rig_id)
-        rows = session.execute(
-            select(QueueEntry, User.username)
-            .join(User, User.id == QueueEntry.user_id)
-            .where(QueueEntry.rig_id == rig_id, QueueEntry.left_at.is_(None))
-            .order_by(QueueEntry.ticket)
-        ).all()
+        # Plain rows, not ORM objects: a class-sized queue is read on every look at the rig.
+        rows = session.execute(_Q.queue_rows, {"rig": rig_id}).all()
         queue = tuple(
-            QueueSlot(e.user_id, name, e.ticket, i + 1, e.joined_at, e.last_heartbeat_at)
-            for i, (e, name) in enumerate(row.tuple() for row in rows)
+            QueueSlot(user_id, name, ticket, i + 1, joined, seen)
+            for i, (user_id, name, ticket, joined, seen) in enumerate(rows)
         )
         last_input = None
         if control is not None:
-            last_input = session.scalar(
-                select(Command.value)
-                .where(Command.control_session_id == control.id, Command.kind == "input")
-                .order_by(Command.at.desc(), Command.id.desc())
-                .limit(1)
-            )
+            last_input = session.scalar(_Q.last_input, {"control": control.id})
         return RigSnapshot(
             id=rig.id,
             title=rig.title,
@@ -921,6 +906,44 @@ class AccessService:
             watcher_list=tuple(watchers) if who.is_teacher else None,
             snapshot=snap,
         )
+
+
+class _Q:
+    """The statements of the hot path, with bound parameters."""
+
+    _waiting = (QueueEntry.rig_id == bindparam("rig"), QueueEntry.left_at.is_(None))
+    active = select(ControlSession).where(
+        ControlSession.rig_id == bindparam("rig"), ControlSession.ended_at.is_(None)
+    )
+    queue = select(QueueEntry).where(*_waiting).order_by(QueueEntry.ticket)
+    head = queue.limit(1)
+    waiting = select(QueueEntry).where(*_waiting, QueueEntry.user_id == bindparam("user"))
+    stale = select(QueueEntry).where(
+        *_waiting, QueueEntry.last_heartbeat_at <= bindparam("seen", type_=UTCDateTime)
+    )
+    run_active = (
+        select(Run.id)
+        .where(Run.rig_id == bindparam("rig"), Run.status == RunStatus.RUNNING.value)
+        .limit(1)
+    )
+    queue_rows = (
+        select(
+            QueueEntry.user_id,
+            User.username,
+            QueueEntry.ticket,
+            QueueEntry.joined_at,
+            QueueEntry.last_heartbeat_at,
+        )
+        .join(User, User.id == QueueEntry.user_id)
+        .where(*_waiting)
+        .order_by(QueueEntry.ticket)
+    )
+    last_input = (
+        select(Command.value)
+        .where(Command.control_session_id == bindparam("control"), Command.kind == "input")
+        .order_by(Command.at.desc(), Command.id.desc())
+        .limit(1)
+    )
 
 
 # A principal for work the lab does on its own (sweeps, faults); sees what a teacher sees.

@@ -18,9 +18,10 @@ in the package, run programmatically (:meth:`Database.upgrade`).
 
 from __future__ import annotations
 
+import contextlib
 import sqlite3
+import threading
 from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -92,7 +93,9 @@ class Database:
     url : str
         SQLAlchemy URL: ``sqlite:///PATH`` or ``postgresql+psycopg://...``.
     pool_size : int
-        Connections kept open (plus as many again on demand).
+        Connections kept open.
+    max_overflow : int
+        Further connections opened on demand (and closed when returned).
 
     Raises
     ------
@@ -111,7 +114,7 @@ class Database:
     True
     """
 
-    def __init__(self, url: str, *, pool_size: int = 20) -> None:
+    def __init__(self, url: str, *, pool_size: int = 10, max_overflow: int = 20) -> None:
         self.url = normalize_database_url(url)
         parsed = make_url(self.url)
         self.backend = parsed.get_backend_name()
@@ -122,21 +125,24 @@ class Database:
                 self.url,
                 connect_args={"timeout": SQLITE_BUSY_TIMEOUT, "check_same_thread": False},
                 pool_size=pool_size,
-                max_overflow=pool_size,
+                max_overflow=max_overflow,
             )
             event.listen(engine, "connect", _sqlite_on_connect)
             event.listen(engine, "begin", _sqlite_on_begin)
         else:
             engine = create_engine(
-                self.url, pool_size=pool_size, max_overflow=pool_size, pool_pre_ping=True
+                self.url, pool_size=pool_size, max_overflow=max_overflow, pool_pre_ping=True
             )
         self.engine: Engine = engine
+        self._sqlite_writer: contextlib.AbstractContextManager[object] = (
+            threading.RLock() if self.backend == "sqlite" else contextlib.nullcontext()
+        )
         self._reader = sessionmaker(engine, expire_on_commit=False)
         self._writer = sessionmaker(
             engine.execution_options(**{_IMMEDIATE: True}), expire_on_commit=False
         )
 
-    @contextmanager
+    @contextlib.contextmanager
     def read(self) -> Iterator[Session]:
         """Open a session for queries (objects read stay usable after the block).
 
@@ -147,7 +153,7 @@ class Database:
         with self._reader() as session, session.begin():
             yield session
 
-    @contextmanager
+    @contextlib.contextmanager
     def write(self) -> Iterator[Session]:
         """Open a writing transaction; committed when the block ends, rolled back on error.
 
@@ -155,7 +161,11 @@ class Database:
         ------
         Session
         """
-        with self._writer() as session, session.begin():
+        # SQLite has one writer at a time. Writers of this process queue on a lock,
+        # which hands over at once, instead of in SQLite's busy handler, which
+        # sleeps up to 100 ms between tries; BEGIN IMMEDIATE still excludes other
+        # processes (the command line).
+        with self._sqlite_writer, self._writer() as session, session.begin():
             yield session
 
     def lock_rig(self, session: Session, rig_id: str) -> Rig:

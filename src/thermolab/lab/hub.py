@@ -219,9 +219,12 @@ class RigHub:
         """Return what rig ``rig_id`` accepts (KeyError for an unknown rig)."""
         return self._slots[rig_id].published
 
-    def output(self, rig_id: str) -> float | None:
-        """Return the latest reading of the rig's output, if any."""
-        return self._slots[rig_id].output
+    def reading(self, rig_id: str) -> tuple[float, datetime] | None:
+        """Return the latest reading of the rig's output and when it was taken, if any."""
+        slot = self._slots[rig_id]
+        if slot.output is None or slot.output_at is None:
+            return None
+        return (slot.output, slot.output_at)
 
     def fault(self, rig_id: str) -> str | None:
         """Return the rig's pending fault, if any."""

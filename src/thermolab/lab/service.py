@@ -201,9 +201,6 @@ class Lab:
     def _reconcile(self, rig_id: str) -> None:
         cfg = self.config.rig(rig_id)
         with self.hub.locked(rig_id):
-            snap = self.access.snapshot(rig_id)
-            desired = DesiredState(
-                power=snap.power,
-                controller_session=snap.controller.id if snap.controller is not None else None,
-            )
+            power, controller = self.access.desired(rig_id)
+            desired = DesiredState(power=power, controller_session=controller)
             self.hub.reconcile(rig_id, desired, cfg.cooldown.input)

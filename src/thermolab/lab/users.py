@@ -373,7 +373,7 @@ class SessionService:
             ).one_or_none()
             if found is None:
                 return None
-            login, user = found.tuple()
+            login, user = found
             expired = now >= login.expires_at or now - login.last_seen_at >= self._idle
             stale = now - login.last_seen_at >= _TOUCH_INTERVAL
             principal = Principal(

@@ -1,0 +1,199 @@
+"""Fixtures of the lab tests: databases (SQLite and PostgreSQL), labs on a manual clock.
+
+PostgreSQL tests (marker ``postgres``) use THERMOLAB_TEST_POSTGRES_URL
+(default ``postgresql+psycopg://postgres@127.0.0.1:5432/test``); each test gets
+a schema of its own, dropped afterwards, and the tests skip with the reason
+when the server cannot be reached.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import uuid
+from collections.abc import Callable, Iterator
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import pytest
+from argon2 import PasswordHasher
+from fastapi.testclient import TestClient
+from sqlalchemy import create_engine, text
+from sqlalchemy.engine import make_url
+from sqlalchemy.exc import OperationalError
+
+from thermolab.lab.app import create_app
+from thermolab.lab.clock import ManualClock
+from thermolab.lab.config import LabConfig, RigConfig
+from thermolab.lab.db import Database
+from thermolab.lab.hub import RigOpener
+from thermolab.lab.models import Base
+from thermolab.lab.service import Lab
+
+DEFAULT_POSTGRES_URL = "postgresql+psycopg://postgres@127.0.0.1:5432/test"
+
+# Argon2 at its cheapest: the tests create many accounts; production uses the defaults.
+FAST_HASHER = PasswordHasher(time_cost=1, memory_cost=8, parallelism=1)
+PASSWORD = "correct horse"
+
+
+def postgres_base_url() -> str:
+    return os.environ.get("THERMOLAB_TEST_POSTGRES_URL", DEFAULT_POSTGRES_URL)
+
+
+@pytest.fixture(scope="session")
+def postgres_server() -> str:
+    """The PostgreSQL URL, or a skip saying why it cannot be used."""
+    url = postgres_base_url()
+    engine = create_engine(url, connect_args={"connect_timeout": 3})
+    try:
+        with engine.connect() as connection:
+            connection.execute(text("SELECT 1"))
+    except OperationalError as exc:
+        reason = str(exc.orig).strip().splitlines()[0] if exc.orig else str(exc)
+        pytest.skip(f"PostgreSQL at {make_url(url).render_as_string()} unreachable: {reason}")
+    finally:
+        engine.dispose()
+    return url
+
+
+@pytest.fixture
+def postgres_url(postgres_server: str) -> Iterator[str]:
+    """A fresh, empty schema on the test server, as a URL whose search_path points to it."""
+    schema = f"thermolab_test_{uuid.uuid4().hex[:12]}"
+    admin = create_engine(postgres_server, isolation_level="AUTOCOMMIT")
+    with admin.connect() as connection:
+        connection.execute(text(f'CREATE SCHEMA "{schema}"'))
+    url = make_url(postgres_server).update_query_dict({"options": f"-csearch_path={schema}"})
+    try:
+        yield url.render_as_string(hide_password=False)
+    finally:
+        with admin.connect() as connection:
+            connection.execute(text(f'DROP SCHEMA "{schema}" CASCADE'))
+        admin.dispose()
+
+
+@pytest.fixture(scope="session")
+def migrated_sqlite(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A SQLite file migrated once per test run, copied by each test that wants a database."""
+    path = tmp_path_factory.mktemp("template") / "lab.sqlite3"
+    db = Database(f"sqlite:///{path}")
+    db.upgrade()
+    db.close()
+    return path
+
+
+@pytest.fixture(scope="session")
+def migrated_postgres(postgres_server: str) -> Iterator[str]:
+    """A schema migrated once per test run (dropped at the end); tests empty it before use."""
+    schema = f"thermolab_test_{uuid.uuid4().hex[:12]}"
+    admin = create_engine(postgres_server, isolation_level="AUTOCOMMIT")
+    with admin.connect() as connection:
+        connection.execute(text(f'CREATE SCHEMA "{schema}"'))
+    url = make_url(postgres_server).update_query_dict({"options": f"-csearch_path={schema}"})
+    rendered = url.render_as_string(hide_password=False)
+    db = Database(rendered, pool_size=1, max_overflow=0)
+    db.upgrade()
+    db.close()
+    try:
+        yield rendered
+    finally:
+        with admin.connect() as connection:
+            connection.execute(text(f'DROP SCHEMA "{schema}" CASCADE'))
+        admin.dispose()
+
+
+@pytest.fixture(
+    params=["sqlite", pytest.param("postgres", marks=pytest.mark.postgres)],
+)
+def database_url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
+    """A migrated, empty database on each backend."""
+    if request.param == "sqlite":
+        path = tmp_path / "lab.sqlite3"
+        shutil.copyfile(request.getfixturevalue("migrated_sqlite"), path)
+        return f"sqlite:///{path}"
+    url: str = request.getfixturevalue("migrated_postgres")
+    engine = create_engine(url)
+    tables = ", ".join(table.name for table in Base.metadata.sorted_tables)
+    with engine.begin() as connection:
+        connection.execute(text(f"TRUNCATE {tables} RESTART IDENTITY CASCADE"))
+    engine.dispose()
+    return url
+
+
+@pytest.fixture
+def sqlite_url(tmp_path: Path) -> str:
+    return f"sqlite:///{tmp_path / 'lab.sqlite3'}"
+
+
+@pytest.fixture
+def clock() -> ManualClock:
+    return ManualClock()
+
+
+def make_config(tmp_path: Path, database_url: str, **rig_options: Any) -> LabConfig:
+    """A lab with rigs ``twin`` (and ``other``), the given options applied to ``twin``."""
+    twin = replace(RigConfig("twin", "Twin", "sim"), **rig_options)
+    other = RigConfig("other", "Other twin", "sim:tclab")
+    return LabConfig(data_dir=tmp_path, rigs=(twin, other), database_url=database_url)
+
+
+LabFactory = Callable[..., Lab]
+
+
+@pytest.fixture
+def make_lab(tmp_path: Path, database_url: str, clock: ManualClock) -> Iterator[LabFactory]:
+    """Build and start labs on the test database and the manual clock; closed afterwards."""
+    labs: list[Lab] = []
+
+    def build(
+        *,
+        opener: RigOpener | None = None,
+        pool_size: int = 5,
+        max_overflow: int = 5,
+        **rig_options: Any,
+    ) -> Lab:
+        config = make_config(tmp_path, database_url, **rig_options)
+        lab = Lab(
+            config,
+            clock=clock,
+            hasher=FAST_HASHER,
+            opener=opener,
+            database=Database(database_url, pool_size=pool_size, max_overflow=max_overflow),
+        )
+        lab.start()
+        labs.append(lab)
+        return lab
+
+    yield build
+    for lab in labs:
+        lab.close()
+
+
+@pytest.fixture
+def lab(make_lab: LabFactory) -> Lab:
+    return make_lab()
+
+
+@pytest.fixture
+def app_client(lab: Lab) -> Iterator[Callable[..., TestClient]]:
+    """Clients of one app (sharing the lab); each keeps its own cookies."""
+    app = create_app(lab.config, lab=lab, sweep_interval=None)
+    clients: list[TestClient] = []
+    with TestClient(app) as first:
+        clients.append(first)
+
+        def client(username: str | None = None, **options: Any) -> TestClient:
+            new = TestClient(app, **options)
+            clients.append(new)
+            if username is not None:
+                response = new.post(
+                    "/api/session", json={"username": username, "password": PASSWORD}
+                )
+                assert response.status_code == 200, response.text
+            return new
+
+        yield client
+    for other in clients[1:]:
+        other.close()
