@@ -287,6 +287,8 @@ def test_the_teacher_sees_every_rig_and_manages_turns(
     card = "[data-rig=twin-keys].teacher-rig"
     teacher.wait_for_selector(f"{card} dd:text('alice')")
     assert re.search(r"alice", teacher.inner_text(f"{card} .watcher-list"))
+    # The teacher sees when the turn ends (about the rig's 300 s limit).
+    teacher.wait_for_selector(f"{card} [data-field=timeLeft]:text-matches('^[45]:[0-9][0-9]$')")
     teacher.screenshot(path=str(artifacts / "teacher.png"), full_page=True)
 
     # Extend the turn by a minute: the student's countdown moves up.

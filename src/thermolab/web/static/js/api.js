@@ -104,6 +104,7 @@ export const api = {
   extendControl: (rig, seconds) => request("POST", `/api/rigs/${enc(rig)}/control/extend`, { seconds }),
   kick: (rig, username) =>
     request("POST", `/api/rigs/${enc(rig)}/control/kick`, username ? { username } : {}),
+  controlSessions: (rig, opts) => request("GET", `/api/rigs/${enc(rig)}/control-sessions`, undefined, opts),
   setService: (rig, inService) => request("PUT", `/api/rigs/${enc(rig)}/service`, { inService }),
   runs: (query = "", opts) => request("GET", `/api/runs${query}`, undefined, opts),
   run: (id, opts) => request("GET", `/api/runs/${enc(id)}`, undefined, opts),

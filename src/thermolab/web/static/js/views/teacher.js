@@ -42,6 +42,8 @@ export function mount(main, _params, ctx) {
           list.append(card.el);
         }
         card.update(rig);
+        if (rig.access.controller) void card.loadDeadline(abort.signal);
+        else card.deadline = null;
       }
       setText(status, "");
     } catch (err) {
@@ -68,9 +70,13 @@ export function mount(main, _params, ctx) {
 
   void refresh();
   void loadRuns();
+  const tick = setInterval(() => {
+    for (const card of cards.values()) card.renderTime();
+  }, 1000);
   return () => {
     abort.abort();
     clearTimeout(timer);
+    clearInterval(tick);
   };
 }
 
@@ -84,7 +90,7 @@ class RigCard {
     this.facts = h("dl", { class: "facts" });
     this.f = {};
     for (const [key, label] of [["controller", "Controller"], ["timeLeft", "Turn ends in"], ["watchers", "Watching"], ["fault", "Fault"]]) {
-      this.f[key] = h("dd");
+      this.f[key] = h("dd", { "data-field": key });
       this.facts.append(h("dt", null, label), this.f[key]);
     }
     this.message = h("p", { class: "error", role: "alert" });
@@ -120,6 +126,8 @@ class RigCard {
     });
     this.controlBox = h("div", null, extendForm, h("div", { class: "buttons" }, this.endButton));
     this.queue = h("ol", { class: "queue-list" });
+    this.queueEmpty = h("p", { class: "muted" }, "empty");
+    this.deadline = null;
     this.watchers = h("ul", { class: "watcher-list" });
     this.el = h(
       "section",
@@ -129,6 +137,7 @@ class RigCard {
       this.message,
       this.controlBox,
       h("h3", null, "Queue"),
+      this.queueEmpty,
       this.queue,
       h("h3", null, "Watchers"),
       this.watchers,
@@ -136,6 +145,28 @@ class RigCard {
     );
     this._queueKey = "";
     this._watchKey = "";
+  }
+
+  /**
+   * The rig's access state gives the remaining time to the controller only;
+   * a teacher reads the deadline of the active turn from its control sessions.
+   */
+  async loadDeadline(signal) {
+    try {
+      const sessions = await api.controlSessions(this.rigId, { signal });
+      const active = (Array.isArray(sessions) ? sessions : []).find((s) => !s.endedAt);
+      this.deadline = active ? Date.parse(active.deadline) : null;
+    } catch {
+      this.deadline = null;
+    }
+    this.renderTime();
+  }
+
+  renderTime() {
+    const a = this.rig?.access;
+    let left = null;
+    if (a?.controller) left = a.timeLeft ?? (this.deadline ? Math.max(0, (this.deadline - Date.now()) / 1000) : null);
+    setText(this.f.timeLeft, left === null ? "–" : duration(left));
   }
 
   async act(fn, done) {
@@ -157,10 +188,7 @@ class RigCard {
     this.badge.dataset.state = rig.state;
     const a = rig.access;
     setText(this.f.controller, a.controller ?? "nobody");
-    // A teacher who is not the controller gets no timeLeft; the queue's first
-    // place shows how long the current turn (plus cool-down) can still run.
-    const first = rig.queue?.[0];
-    setText(this.f.timeLeft, a.controller ? (a.timeLeft !== null ? duration(a.timeLeft) : first ? "see the queue" : "–") : "–");
+    this.renderTime();
     setText(this.f.watchers, String(a.watchers));
     setText(this.f.fault, rig.detail ?? "none");
     this.controlBox.hidden = !a.controller;
@@ -181,8 +209,9 @@ class RigCard {
                 h("button", { type: "button", class: "link-button", "aria-label": `Remove ${q.username} from the queue`, onclick: () => void this.act(() => api.kick(this.rigId, q.username), `${q.username} removed from the queue.`) }, "Remove"),
               ),
             )
-          : [h("li", { class: "muted" }, "empty")]),
+          : []),
       );
+      this.queueEmpty.hidden = queue.length > 0;
       if (hadFocus) this.queue.querySelector("button")?.focus();
     }
     const watchers = rig.watcherList ?? [];
