@@ -287,13 +287,15 @@ def _run(args: argparse.Namespace) -> int:
 
     n = _number_of_samples(args)
     methods = parse_methods(args.method)
-    simulated = args.rig.strip().partition(":")[0] == "sim"
+    # Only hardware is bound to real time; an unknown rig is reported by open_rig.
+    simulated = args.rig.strip().partition(":")[0] != "tclab"
     clock = _clock_for(args, simulated)
     interlocks = Interlocks(output_max=args.max_output, watchdog=args.watchdog)
     result: RunResult | None = None
-    # Signal handlers first: a TCLab driver opened afterwards chains its own
-    # emergency heater-off in front of them.
-    with termination_signals(), open_rig(args.rig, clock=clock, seed=args.seed) as rig:
+    # The rig first, then the handlers: while the run goes on, SIGTERM and SIGINT
+    # unwind it through its safe end (heater off, CSV closed); afterwards the
+    # handlers the rig's driver installed are back as they were.
+    with open_rig(args.rig, clock=clock, seed=args.seed) as rig, termination_signals():
         info = rig.describe()
         signal = parse_signal(args.signal, limits=info.input_range)
         identifiers = build_identifiers(

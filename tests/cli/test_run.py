@@ -1,0 +1,269 @@
+"""``thermolab run`` end to end: table, JSON, CSV, faults, signals, usage errors."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+from numpy.testing import assert_allclose
+
+import thermolab.rigs
+from thermolab.cli import main
+from thermolab.cli.run import _Progress
+from thermolab.rigs import Reading, Rig
+from thermolab.rigs.tclab_emulator import TCLabEmulator
+from thermolab.rigs.twin import TwinRig
+
+FAST_STEP = ["run", "--rig", "sim", "--dt", "1", "--samples", "2000", "--fast"]
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="") as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.fixture
+def opened(monkeypatch: pytest.MonkeyPatch) -> Callable[..., list[Rig]]:
+    """Wrap ``open_rig`` so a test can adjust the rig the CLI opens and inspect it after."""
+    rigs: list[Rig] = []
+
+    def install(adjust: Callable[[Rig], object] | None = None, **extra: Any) -> list[Rig]:
+        real = thermolab.rigs.open_rig
+
+        def wrapped(spec: str, **kwargs: Any) -> Rig:
+            rig = real(spec, **kwargs, **extra)
+            if adjust is not None:
+                adjust(rig)
+            rigs.append(rig)
+            return rig
+
+        monkeypatch.setattr(thermolab.rigs, "open_rig", wrapped)
+        return rigs
+
+    return install
+
+
+def test_fast_run_prints_every_method_and_writes_the_csv(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run.csv"
+    status = main([*FAST_STEP, "--signal", "step:0:10@10", "--out", str(out)])
+    captured = capsys.readouterr()
+    assert status == 0
+    assert captured.err == ""  # no progress bar when stderr is not a terminal
+    lines = captured.out.splitlines()
+    assert "samples: 2000/2000 (completed)" in lines[0]
+    table = {line.split()[0]: line.split() for line in lines[4:]}
+    assert list(table) == ["srm", "lsm", "blockls", "malsm", "wlsm"]
+    assert table["lsm"][1:3] == ["0.140090", "250.126233"]
+    assert table["srm"][1:3] == ["0.140090", "250.126233"]
+    with out.open() as f:
+        assert f.readline().startswith("t,u,y,")
+    rows = _rows(out)
+    assert len(rows) == 2000
+    assert rows[10]["u"] == "10.0"
+    assert rows[9]["u"] == "0.0"
+
+
+def test_json_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "run.csv"
+    status = main(
+        [*FAST_STEP, "--signal", "square:0:4:0.1", "--method", "malsm,wlsm", "--window", "50",
+         "--gamma", "0.7", "--json", "--out", str(out)]
+    )  # fmt: skip
+    assert status == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["end_reason"] == "completed"
+    assert report["signal"] == "square:0:4:0.1"
+    assert report["csv"] == str(out)
+    assert report["interrupted_by"] is None
+    assert set(report["methods"]) == {"malsm", "wlsm"}
+    malsm = report["methods"]["malsm"]
+    assert malsm["estimates"] == 2000 - 49
+    assert_allclose(malsm["latest"]["K"], 0.140090, rtol=1e-9)
+    assert_allclose(report["methods"]["wlsm"]["latest"]["tau"], 250.126233, rtol=1e-9)
+
+
+def test_the_csv_feeds_straight_into_identify(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run.csv"
+    argv = "run --rig sim:paper-practical --seed 3 --dt 1 --samples 1500 --fast"
+    argv += " --signal square:4:6:0.1 --method lsm --json --out"
+    assert main([*argv.split(), str(out)]) == 0
+    online = json.loads(capsys.readouterr().out)["methods"]["lsm"]["latest"]
+    assert main(["identify", str(out), "--method", "lsm", "--json"]) == 0
+    batch = json.loads(capsys.readouterr().out)
+    # The CSV holds every float exactly, so the batch fit of the file is the online one.
+    assert batch["W"] == online["W"]
+    assert batch["K"] == online["K"]
+
+
+def test_device_fault_keeps_the_csv_and_switches_off(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], opened: Callable[..., list[Rig]]
+) -> None:
+    def fail_at_30(rig: Rig) -> None:
+        assert isinstance(rig, TwinRig)
+        rig.inject_fault("lamp driver burnt out", at=rig.clock.now() + 30.0)
+
+    rigs = opened(fail_at_30)
+    out = tmp_path / "run.csv"
+    status = main([*FAST_STEP, "--signal", "const:10", "--method", "srm,lsm", "--out", str(out)])
+    captured = capsys.readouterr()
+    assert status == 1
+    (line,) = captured.err.splitlines()
+    assert line.startswith("error: run stopped at sample 30 (t=30 s): rig fault:")
+    assert "lamp driver burnt out" in line
+    assert "made safe; 30 samples kept in" in line
+    assert "(rig_fault)" in captured.out  # the summary of what was identified still prints
+    assert len(_rows(out)) == 30
+    (rig,) = rigs
+    assert isinstance(rig, TwinRig)
+    assert rig.applied_input == 0.0
+
+
+def test_emulated_tclab_that_stops_answering(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], opened: Callable[..., list[Rig]]
+) -> None:
+    out = tmp_path / "kit.csv"
+    with TCLabEmulator(seed=0) as emulator:
+        opened(reset_wait=0.0, timeout=0.2)
+
+        def go_silent() -> None:
+            while len(emulator.commands) < 24:  # VER, X, then ~10 samples of T1 + Q1
+                time.sleep(0.005)
+            emulator.silent = True
+
+        breaker = threading.Thread(target=go_silent, daemon=True)
+        breaker.start()
+        status = main(
+            ["run", "--rig", f"tclab:{emulator.port}", "--dt", "0.05", "--samples", "400",
+             "--signal", "const:80", "--method", "srm", "--out", str(out)]
+        )  # fmt: skip
+        breaker.join(5.0)
+        captured = capsys.readouterr()
+        assert status == 1
+        (line,) = captured.err.splitlines()
+        assert "run stopped at sample" in line
+        assert "did not answer" in line
+        rows = _rows(out)
+        assert 5 <= len(rows) < 400
+        assert {r["u"] for r in rows} == {"80.0"}
+        # Commands are still obeyed while the kit is silent: the heater went off.
+        assert emulator.heater(1) == 0.0
+
+
+def test_interlock_on_the_output(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    status = main([*FAST_STEP, "--signal", "const:10", "--method", "lsm", "--max-output", "1"])
+    captured = capsys.readouterr()
+    assert status == 1
+    assert "interlock: output" in captured.err
+    assert "above the limit of 1 V" in captured.err
+
+
+def test_sigint_exits_130_after_the_safe_state(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], opened: Callable[..., list[Rig]]
+) -> None:
+    class Interrupted(TwinRig):
+        def _read_output(self) -> Reading:
+            if self.clock.now() >= 20.0:
+                raise KeyboardInterrupt
+            return super()._read_output()
+
+    def swap(rig: Rig) -> None:
+        rig.__class__ = Interrupted
+
+    rigs = opened(swap)
+    out = tmp_path / "run.csv"
+    status = main([*FAST_STEP, "--signal", "const:10", "--method", "srm", "--out", str(out)])
+    captured = capsys.readouterr()
+    assert status == 130
+    (line,) = captured.err.splitlines()
+    assert line == f"interrupted by SIGINT: twin:paper made safe; 20 samples kept in {out}"
+    assert len(_rows(out)) == 20
+    (rig,) = rigs
+    assert isinstance(rig, TwinRig)
+    assert rig.applied_input == 0.0
+
+
+def test_sigterm_exits_143_and_keeps_the_csv(tmp_path: Path) -> None:
+    out = tmp_path / "run.csv"
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "thermolab", "run", "--rig", "sim", "--dt", "0.05", "--samples",
+         "100000", "--signal", "const:10", "--method", "srm", "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+    )  # fmt: skip
+    try:
+        deadline = time.monotonic() + 60.0
+        while time.monotonic() < deadline:
+            if out.exists() and len(out.read_text().splitlines()) > 5:
+                break
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=30.0)
+    finally:
+        proc.kill()
+    assert proc.returncode == 143
+    (line,) = err.splitlines()
+    assert line.startswith("interrupted by SIGTERM: twin:paper made safe;")
+    rows = _rows(out)
+    assert len(rows) >= 5
+    assert line.endswith(f"{len(rows)} samples kept in {out}")
+
+
+@pytest.mark.parametrize(
+    ("args", "status", "message"),
+    [
+        (["--rig", "tclab:/dev/null", "--fast"], 2, "runs in real time"),
+        (["--method", "srm,lsm", "--gamma", "0.9"], 1, "gamma is a setting of wlsm"),
+        (["--method", "rls"], 1, "unknown method 'rls'"),
+        (["--signal", "square:4:6"], 1, "invalid signal 'square:4:6'"),
+        (["--signal", "const:12"], 1, "const:12"),
+        (["--dt", "0"], 2, "--dt must be a positive number"),
+        (["--samples", "0"], 2, "--samples must be at least 1"),
+        (["--rig", "lab"], 1, "unknown rig 'lab'"),
+        (["--watchdog", "0"], 1, "watchdog must be a positive number"),
+    ],
+)
+def test_usage_errors_are_one_line(
+    args: list[str], status: int, message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    base = {"--rig": "sim", "--signal": "const:1", "--dt": "1", "--samples": "10"}
+    argv = ["run", "--fast"] if "--fast" not in args else ["run"]
+    for key, value in base.items():
+        if key not in args:
+            argv += [key, value]
+    assert main([*argv, *args]) == status
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1
+    assert message in err
+
+
+def test_duration_shorter_than_a_period(capsys: pytest.CaptureFixture[str]) -> None:
+    argv = ["run", "--fast", "--dt", "1", "--duration", "0.5", "--signal", "const:1"]
+    assert main(argv) == 1
+    assert "shorter than one period" in capsys.readouterr().err
+
+
+def test_progress_bar_draws_one_line() -> None:
+    class Stub:
+        k, samples, dt = 500, 2000, 1.0
+
+    stream = io.StringIO()
+    _Progress(Stub(), stream)._draw(elapsed=2.0)
+    text = stream.getvalue()
+    assert text.startswith("\r[#######-----------------------]  25%  500/2000 samples  t=500 s")
+    assert "ETA    6 s" in text
+    assert "\n" not in text
