@@ -100,6 +100,11 @@ export class AccessPanel {
 
   _renderTime() {
     const idle = this._idleDeadline ? Math.max(0, (this._idleDeadline - Date.now()) / 1000) : null;
+    if (this.isController && idle !== null && idle <= 30 && idle > 28 && !this._warned.has("idle")) {
+      this._warned.add("idle");
+      announce("Your control ends in 30 seconds unless you send a command or start a run.");
+    }
+    if (idle !== null && idle > 30) this._warned.delete("idle");
     setText(this.fields.idleLeft, idle === null ? "–" : duration(idle));
     this.fields.idleLeft.title = "Control ends after this long without a command (a run in progress counts as activity).";
     const left = this._secondsLeft();
