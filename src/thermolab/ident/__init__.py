@@ -25,6 +25,7 @@ from .models import (
     FirstOrderModel,
     discrete_to_first_order,
 )
+from .online import Estimate, OnlineIdentifier, make_identifier
 from .recursive import moving_window_least_squares, weighted_least_squares
 from .step import IdentificationWarning, StepResponseResult, step_response
 from .trajectory import Trajectory
@@ -34,14 +35,17 @@ __all__ = [
     "INVALID_REASONS",
     "ArxModel",
     "ArxOrder",
+    "Estimate",
     "FirstOrderModel",
     "IdentificationWarning",
     "LeastSquaresResult",
+    "OnlineIdentifier",
     "StepResponseResult",
     "Trajectory",
     "block_least_squares",
     "discrete_to_first_order",
     "least_squares",
+    "make_identifier",
     "moving_window_least_squares",
     "step_response",
     "weighted_least_squares",

@@ -210,8 +210,11 @@ def _simulate(reg: _reg.Regression, W: FloatArray, y_shifted0: FloatArray) -> Fl
     lag = reg.order.lag
     drive = reg.D[:, na:] @ W[na:]
     den = np.concatenate([[1.0], -W[:na]])
-    past = y_shifted0[lag - na + 1 : lag + 1][::-1]
-    zi = lfiltic([1.0], den, past)
+    if na == 1:
+        # The filter's one state is what the past output adds to the first target.
+        zi = np.array([W[0] * y_shifted0[lag]])
+    else:
+        zi = lfiltic([1.0], den, y_shifted0[lag - na + 1 : lag + 1][::-1])
     with np.errstate(all="ignore"):
         out: FloatArray = lfilter([1.0], den, drive, zi=zi)[0]
     return out

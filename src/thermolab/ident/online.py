@@ -181,6 +181,15 @@ class OnlineIdentifier:
         Sample period in seconds.
     params : dict
         The method's settings, validated and JSON-safe.
+
+    Examples
+    --------
+    >>> ident = make_identifier("wlsm", 1.0, gamma=0.96, pmax=1e4, w0=[0.96329, 9.9082e-4])
+    >>> first = ident.update(5.0, 0.0)
+    >>> first.k, round(first.tau, 5), first.final
+    (0, 26.73742, False)
+    >>> ident.finish().final, ident.n_samples
+    (True, 1)
     """
 
     method: ClassVar[str] = ""
