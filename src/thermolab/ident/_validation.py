@@ -35,7 +35,7 @@ def as_signal(name: str, values: npt.ArrayLike) -> FloatArray:
     if not finite.all():
         bad = np.flatnonzero(~finite)
         raise InvalidDataError(
-            f"{name} must be finite (no NaN or inf): {name}[{bad[0]}] is {arr[bad[0]]!r} "
+            f"{name} must be finite (no NaN or inf): {name}[{bad[0]}] is {float(arr[bad[0]])!r} "
             f"({bad.size} bad sample{'s' if bad.size > 1 else ''})"
         )
     return arr
@@ -61,8 +61,8 @@ def check_time(t: npt.ArrayLike, n: int | None = None) -> FloatArray:
     if steps.size and not (steps > 0.0).all():
         i = int(np.flatnonzero(steps <= 0.0)[0])
         raise InvalidDataError(
-            f"t must be strictly increasing: t[{i + 1}] = {t_arr[i + 1]!r} follows "
-            f"t[{i}] = {t_arr[i]!r}"
+            f"t must be strictly increasing: t[{i + 1}] = {float(t_arr[i + 1])!r} follows "
+            f"t[{i}] = {float(t_arr[i])!r}"
         )
     return t_arr
 
