@@ -127,6 +127,10 @@ class Estimate:
         }
 
 
+_new = object.__new__
+_setattr = object.__setattr__
+
+
 def _fast_estimate(
     method: str,
     k: int,
@@ -137,24 +141,35 @@ def _fast_estimate(
     extras: Mapping[str, Any],
 ) -> Estimate:
     # The dataclass __init__ costs ~2 µs through object.__setattr__ per field;
-    # the per-sample path fills the instance dict directly (same object).
-    est = object.__new__(Estimate)
-    est.__dict__.update(
-        method=method, k=k, K=K, tau=tau, W=W, valid=valid, final=False, extras=extras
+    # the per-sample path gives the instance its dict in one go (same object).
+    est = _new(Estimate)
+    _setattr(
+        est,
+        "__dict__",
+        {
+            "method": method,
+            "k": k,
+            "K": K,
+            "tau": tau,
+            "W": W,
+            "valid": valid,
+            "final": False,
+            "extras": extras,
+        },
     )
     return est
 
 
 def _first_order_estimate(method: str, k: int, a: float, b: float, dt: float) -> Estimate:
     """Eq. 4 backwards for one estimate, with the same operations as the batch conversion."""
+    if 0.0 < a < 1.0 and b - b == 0.0:  # b - b is 0 for finite b only
+        return _fast_estimate(method, k, b / (1.0 - a), -dt / math.log(a), (a, b), True, _NO_EXTRAS)
     if not (math.isfinite(a) and math.isfinite(b)):
         code = NON_FINITE
     elif a >= 1.0:
         code = UNSTABLE
-    elif a <= 0.0:
-        code = NON_POSITIVE_POLE
     else:
-        return _fast_estimate(method, k, b / (1.0 - a), -dt / math.log(a), (a, b), True, _NO_EXTRAS)
+        code = NON_POSITIVE_POLE
     return _fast_estimate(method, k, math.nan, math.nan, (a, b), False, _REASON_EXTRAS[code])
 
 
@@ -559,6 +574,8 @@ class _MovingWindow(_Recursive):
             status, a, b = self._k.malsm2_chunk(
                 self._u, self._ys, k, k + 1, self._buf, self._sums, self._ints, self._W, self._code
             )
+            if status == 0:
+                return _first_order_estimate("malsm", k, a, b, self.dt)
             return self._from_status(k, status, a, b)
         o = self._order
         self._k.malsm_chunk(
@@ -601,6 +618,8 @@ class _Weighted(_Recursive):
                 self._u, self._ys, k, k + 1, self._paper, self._gamma, self._Wk, self._Pk,
                 self._W, self._code,
             )  # fmt: skip
+            if status == 0:
+                return _first_order_estimate("wlsm", k, a, b, self.dt)
             return self._from_status(k, status, a, b)
         o = self._order
         self._k.wlsm_chunk(
