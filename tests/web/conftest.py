@@ -101,18 +101,29 @@ def static_url() -> Iterator[str]:
         thread.join(5)
 
 
-@pytest.fixture
-def module_page(browser: Any, static_url: str) -> Iterator[Any]:
-    """A page on the static server's origin, ready to import the interface's modules."""
+@pytest.fixture(scope="module")
+def _module_context(browser: Any, static_url: str) -> Iterator[tuple[Any, list[str]]]:
     context = browser.new_context()
     page = context.new_page()
     errors: list[str] = []
     page.on("pageerror", lambda exc: errors.append(str(exc)))
     page.goto(f"{static_url}/css/app.css")
     try:
-        yield page
+        yield page, errors
     finally:
         context.close()
+
+
+@pytest.fixture
+def module_page(_module_context: tuple[Any, list[str]]) -> Iterator[Any]:
+    """A page on the static server's origin, ready to import the interface's modules.
+
+    One page serves a whole test module (each test imports what it needs inside
+    its own function scope); a test fails if it left an uncaught error behind.
+    """
+    page, errors = _module_context
+    errors.clear()
+    yield page
     assert errors == [], f"uncaught errors in the page: {errors}"
 
 
@@ -272,8 +283,37 @@ def _wait_until_up(url: str, proc: subprocess.Popen[bytes], log: Path) -> None:
     raise RuntimeError(f"thermolab serve did not answer within 60 s:\n{log.read_text()[-3000:]}")
 
 
+_LOGINS: dict[str, Any] = {}
+
+
+def logged_in_context(browser: Any, lab: LabServer, user: str, **options: Any) -> Any:
+    """A new browser context already logged in as ``user``.
+
+    The first time, the user logs in through the login form; later contexts
+    reuse that session's cookie (as a second tab would), which spares a
+    password hash per test.
+    """
+    if user not in _LOGINS:
+        context = browser.new_context()
+        page = context.new_page()
+        page.goto(f"{lab.url}/")
+        page.fill("#login-username", user)
+        page.fill("#login-password", lab.password(user))
+        page.click("form button[type=submit]")
+        page.wait_for_selector("#nav:not([hidden])")
+        _LOGINS[user] = context.storage_state()
+        context.close()
+    return browser.new_context(storage_state=_LOGINS[user], **options)
+
+
 @pytest.fixture(scope="session")
 def lab(tmp_path_factory: pytest.TempPathFactory, browser: Any) -> Iterator[LabServer]:
     """A lab with three twin rigs and the users of USERS, for the whole session."""
     with running_lab(tmp_path_factory.mktemp("lab")) as server:
         yield server
+
+
+@pytest.fixture
+def logged_in(browser: Any, lab: LabServer) -> Any:
+    """``logged_in(user, **context_options)`` -> a new context logged in as ``user``."""
+    return functools.partial(logged_in_context, browser, lab)

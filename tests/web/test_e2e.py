@@ -21,7 +21,7 @@ LOCK = "[data-testid=lock-notice]"
 
 
 @pytest.fixture
-def people(browser: Any, lab: Any) -> Iterator[dict[str, Any]]:
+def people(lab: Any) -> Iterator[dict[str, Any]]:
     """Browser contexts opened by a test, closed after it (each user its own cookies)."""
     opened: dict[str, Any] = {}
     yield opened
@@ -29,17 +29,14 @@ def people(browser: Any, lab: Any) -> Iterator[dict[str, Any]]:
         page.context.close()
 
 
-def log_in(browser: Any, lab: Any, user: str, *, width: int = 1280, height: int = 900) -> Any:
-    """A fresh browser context for ``user``, logged in through the login form."""
-    context = browser.new_context(viewport={"width": width, "height": height})
+def log_in(logged_in: Any, lab: Any, user: str, *, width: int = 1280, height: int = 900) -> Any:
+    """A fresh browser context for ``user``, logged in (through the login form the first time)."""
+    context = logged_in(user, viewport={"width": width, "height": height})
     page = context.new_page()
     errors: list[str] = []
     page.on("pageerror", lambda exc: errors.append(str(exc)))
     page.errors = errors
     page.goto(f"{lab.url}/")
-    page.fill("#login-username", user)
-    page.fill("#login-password", lab.password(user))
-    page.click("form button[type=submit]")
     page.wait_for_selector("#nav:not([hidden])")
     return page
 
@@ -85,11 +82,11 @@ def assert_unlocked(page: Any) -> None:
 
 
 def test_watchers_queue_and_take_over_without_reloading(
-    browser: Any, lab: Any, people: dict[str, Any], artifacts: Path
+    logged_in: Any, lab: Any, people: dict[str, Any], artifacts: Path
 ) -> None:
-    alice = people["alice"] = log_in(browser, lab, "alice")
-    bob = people["bob"] = log_in(browser, lab, "bob")
-    carol = people["carol"] = log_in(browser, lab, "carol")
+    alice = people["alice"] = log_in(logged_in, lab, "alice")
+    bob = people["bob"] = log_in(logged_in, lab, "bob")
+    carol = people["carol"] = log_in(logged_in, lab, "carol")
     for page in (alice, bob, carol):
         open_rig(page, lab, "twin")
         assert role_of(page) == "watcher"
@@ -110,7 +107,7 @@ def test_watchers_queue_and_take_over_without_reloading(
     )
 
     # The lobby as a fourth student sees it: states, controller, watchers, queue.
-    dave = people["dave"] = log_in(browser, lab, "dave")
+    dave = people["dave"] = log_in(logged_in, lab, "dave")
     dave.wait_for_selector(".rig-card[data-rig=twin] [data-field=queue]:text('1 waiting')")
     card = dave.inner_text(".rig-card[data-rig=twin]")
     assert "In use" in card
@@ -143,9 +140,9 @@ def test_watchers_queue_and_take_over_without_reloading(
 
 
 def test_bad_values_are_refused_before_sending(
-    browser: Any, lab: Any, people: dict[str, Any]
+    logged_in: Any, lab: Any, people: dict[str, Any]
 ) -> None:
-    erin = people["erin"] = log_in(browser, lab, "erin")
+    erin = people["erin"] = log_in(logged_in, lab, "erin")
     open_rig(erin, lab, "twin-phone")
     erin.click("button[data-action=ask]")
     wait_role(erin, "controller")
@@ -180,9 +177,9 @@ def test_bad_values_are_refused_before_sending(
 
 
 def test_a_phone_screen_needs_no_sideways_scrolling(
-    browser: Any, lab: Any, people: dict[str, Any], artifacts: Path
+    logged_in: Any, lab: Any, people: dict[str, Any], artifacts: Path
 ) -> None:
-    phone = people["phone"] = log_in(browser, lab, "dave", width=375, height=740)
+    phone = people["phone"] = log_in(logged_in, lab, "dave", width=375, height=740)
     overflow = "() => document.documentElement.scrollWidth - window.innerWidth"
     phone.wait_for_selector(".rig-card")
     assert phone.evaluate(overflow) <= 0
@@ -276,13 +273,13 @@ def assert_focus_visible(page: Any) -> None:
 
 
 def test_the_teacher_sees_every_rig_and_manages_turns(
-    browser: Any, lab: Any, people: dict[str, Any], artifacts: Path
+    logged_in: Any, lab: Any, people: dict[str, Any], artifacts: Path
 ) -> None:
-    student = people["alice"] = log_in(browser, lab, "alice")
+    student = people["alice"] = log_in(logged_in, lab, "alice")
     open_rig(student, lab, "twin-keys")
     student.click("button[data-action=ask]")
     wait_role(student, "controller")
-    teacher = people["tess"] = log_in(browser, lab, "tess")
+    teacher = people["tess"] = log_in(logged_in, lab, "tess")
     teacher.click("#nav-teacher a")
     card = "[data-rig=twin-keys].teacher-rig"
     teacher.wait_for_selector(f"{card} dd:text('alice')")

@@ -46,17 +46,12 @@ K_TRUE, TAU_TRUE = 0.14009, 250.126233
 
 
 @pytest.fixture
-def page(browser: Any, lab: Any) -> Iterator[Any]:
-    context = browser.new_context(viewport={"width": 1000, "height": 900})
+def page(lab: Any, logged_in: Any) -> Iterator[Any]:
+    context = logged_in("carol", viewport={"width": 1000, "height": 900})
     context.add_init_script(FAKE_SOCKET)
     pg = context.new_page()
     errors: list[str] = []
     pg.on("pageerror", lambda exc: errors.append(str(exc)))
-    pg.goto(f"{lab.url}/")
-    pg.fill("#login-username", "carol")
-    pg.fill("#login-password", lab.password("carol"))
-    pg.click("form button[type=submit]")
-    pg.wait_for_selector("#nav:not([hidden])")
     pg.goto(f"{lab.url}/#/rig/twin-phone")
     pg.wait_for_function("() => window.__sockets.length > 0")
     yield pg
