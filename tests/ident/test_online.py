@@ -238,6 +238,7 @@ def test_update_errors() -> None:
         ("malsm", {"gamma": 0.9}, "unknown parameter for malsm: gamma; allowed: window"),
         ("lsm", {"window": 5, "pmax": 3}, "unknown parameters for lsm: pmax, window"),
         ("srm", {"window": 5}, "unknown parameter for srm: window; allowed: u_initial"),
+        ("srm", {"min_step": -1.0}, "min_step"),
         ("wlsm", {"gamma": 0.9}, "wlsm needs pmax"),
         ("wlsm", {"gamma": 1.0, "pmax": 10.0}, "alpha = 1 - gamma = 0"),
         ("malsm", {"window": 2}, "window must be >= 3"),

@@ -651,6 +651,23 @@ def _srm_params() -> tuple[str, ...]:
     )
 
 
+def _check_srm_values(params: dict[str, Any]) -> None:
+    """Surface a bad step-response option now, not at END: try it on a tiny exact step."""
+    from .step import step_response
+
+    t = np.arange(40.0)
+    u = np.where(t >= 1.0, 1.0, 0.0)
+    y = np.concatenate([[0.0], -np.expm1(-np.arange(39.0) / 5.0)])
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            step_response(t, u, y, **params)
+    except InvalidParameterError:
+        raise
+    except InvalidDataError:
+        pass  # the options are fine; this toy record may not suit them (u_initial...)
+
+
 def make_identifier(method: str, dt: float, **params: Any) -> OnlineIdentifier:
     """An online identifier for ``method``, its settings checked now rather than at END.
 
@@ -704,6 +721,7 @@ def make_identifier(method: str, dt: float, **params: Any) -> OnlineIdentifier:
     step = _v.check_dt(dt)
     if method == "srm":
         _v.check_known(method, params, _srm_params())
+        _check_srm_values(params)
         return _StepResponse(step, dict(params))
     _v.check_known(method, params, _ALLOWED[method])
     order = _v.check_order(params.get("order"))
