@@ -377,13 +377,16 @@ def test_each_panel_builds_its_run_request(module_page: Any) -> None:
         module_page,
         """
         const { buildRunSpec, automaticSignal, panelOfRun } = await import('/js/runspec.js');
-        const p1 = buildRunSpec({ id: 'srm-lsm' }, { dt: 1, n: 2000, setpoint: 0 }, false);
+        const p1 = buildRunSpec({ id: 'srm-lsm' }, { dt: 1, n: 2000, setpoint: 0, block: 0 },
+                                false);
+        const p1b = buildRunSpec({ id: 'srm-lsm' }, { dt: 1, n: 2000, low: 4, high: 6, block: 100 },
+                                 true);
         const p2 = buildRunSpec({ id: 'malsm' },
                                 { dt: 0.5, n: 500, window: 100, low: 4, high: 6 }, true);
         const p3 = buildRunSpec({ id: 'wlsm' }, { dt: 1, n: 3000, gamma: 0.96, pmax: 1e4,
                                                  a0: 0.96329, b0: 9.9082e-4, low: 0, high: 4 },
                                 true);
-        return { p1, p2, p3, sig: automaticSignal(4, 6, 1),
+        return { p1, p1b, p2, p3, sig: automaticSignal(4, 6, 1),
                  panels: [panelOfRun(p1), panelOfRun(p2), panelOfRun(p3)] };
         """,
     )
@@ -391,6 +394,9 @@ def test_each_panel_builds_its_run_request(module_page: Any) -> None:
     assert r["p1"]["dt"] == 1
     assert r["p1"]["setpoint"] == 0
     assert "signal" not in r["p1"]
+    assert [m["method"] for m in r["p1"]["methods"]] == ["srm", "lsm"]
+    assert r["p1b"]["signal"] == "square:4:6:0.1"
+    assert r["p1b"]["methods"][2] == {"method": "blockls", "block": 100}
     assert r["p2"]["signal"] == "square:4:6:0.2"
     assert r["panels"] == ["srm-lsm", "malsm", "wlsm"]
 

@@ -35,6 +35,8 @@ export function buildRunSpec(panel, v, automatic) {
   else spec.setpoint = v.setpoint;
   if (panel.id === "srm-lsm") {
     spec.methods = [{ method: "srm" }, { method: "lsm" }];
+    // LSM(2)/(3) of the paper's tables: an estimate over every block of N samples.
+    if (v.block > 0) spec.methods.push({ method: "blockls", block: v.block });
   } else if (panel.id === "malsm") {
     spec.methods = [{ method: "malsm", window: v.window }];
   } else if (panel.id === "wlsm") {

@@ -13,7 +13,7 @@
 import { h, nextId, setText } from "../dom.js";
 import { fmt, fromDiscrete, PAPER_W0 } from "../model.js";
 import { checkAll, checkNumber, rangeText } from "../validate.js";
-import { methodTitle, panelOfRun } from "../runspec.js";
+import { methodName, methodTitle, panelOfRun } from "../runspec.js";
 
 /**
  * @typedef {import("../validate.js").FieldSpec & {name: string, value: number | string,
@@ -40,8 +40,14 @@ export function panelDefinitions(limits) {
       short: "1 · Step + LS",
       intro:
         "Set the sample time, the number of samples (at least 2000 for the step method) and the initial set point; press START, then change the set point to make the step (at least 1 V), and END when the output has settled. Start from a cold rig.",
-      fields: [...common, setpoint(0), ...auto(4, 6)],
-      methods: ["srm", "lsm"],
+      fields: [
+        ...common,
+        { name: "block", label: "LSM also every N samples (0: only at END)", min: 0, max: limits.nMax, integer: true, unit: "samples", value: 0, step: "1" },
+        setpoint(0),
+        ...auto(4, 6),
+      ],
+      methods: ["srm", "lsm", "blockls"],
+      optional: ["blockls"],
       stepHint: 10,
     },
     {
@@ -313,6 +319,9 @@ export class Panels {
     if (!errors.window && values.window !== undefined && values.n !== undefined && values.window > values.n) {
       errors.window = `Window must not exceed the number of samples (${values.n}).`;
     }
+    if (!errors.block && values.block > 0 && (values.block < 3 || values.block > values.n)) {
+      errors.block = `Blocks need from 3 samples up to the number of samples (${values.n ?? "?"}), or 0 for none.`;
+    }
     if (automatic && !errors.low && !errors.high && !(values.low < values.high)) {
       errors.high = "Automatic: the maximum must be greater than the minimum.";
     }
@@ -453,7 +462,9 @@ export class Panels {
 
   _renderResults(view) {
     const run = this.run && panelOfRun(this.run) === view.def.id ? this.run : null;
-    const rows = view.def.methods.map((m) => {
+    const asked = new Set(run ? run.methods.map(methodName) : []);
+    const shown = view.def.methods.filter((m) => !(view.def.optional ?? []).includes(m) || asked.has(m));
+    const rows = shown.map((m) => {
       const est = run?.estimates?.get(m) ?? null;
       return h(
         "tr",
