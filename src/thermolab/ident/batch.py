@@ -53,7 +53,9 @@ class LeastSquaresResult:
     stderr : numpy.ndarray
         Standard errors of ``W``: ``sqrt(diag(s² (DᵀD)⁻¹))`` with ``s²`` the
         residual variance over ``n_rows - n_params`` degrees of freedom (NaN when
-        there are none).
+        there are none). Exact for white equation error (the ARX noise model);
+        with white *measurement* noise on ``y`` the estimates are biased and
+        their actual spread is usually smaller than this.
     K_stderr, tau_stderr : float
         Standard errors of ``K`` and ``tau`` propagated from the covariance of
         ``W`` to first order (delta method); NaN when the model is not valid.
