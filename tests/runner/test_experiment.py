@@ -353,3 +353,18 @@ def test_an_event_bus_can_be_shared(twin: HookedTwin) -> None:
     Experiment(twin, 1.0, 3, events=bus).run()
     assert bus.closed
     assert len(list(sub)) == 1 + 3 + 2
+
+
+@pytest.mark.parametrize("spec", ["prbs:2:8:0.7:3", "sine:5:4:0.013", "square:4:6:0.1"])
+def test_signal_values_are_exactly_value_at_k_dt_across_blocks(spec: str) -> None:
+    # The loop evaluates signals a block of samples at a time; the values must be
+    # those of value(k * dt), across block boundaries and after a mid-run switch.
+    dt, n = 0.1, 9000
+    first, second = parse_signal(spec), parse_signal("step:1:9@700")
+    with HookedTwin("paper", clock=VirtualClock()) as rig:
+        exp = Experiment(rig, dt, n, signal=first)
+        rig.hooks[5000] = lambda: exp.set_signal(second)
+        result = exp.run()
+    expected = [first.value(k * dt) for k in range(5000)]
+    expected += [second.value(k * dt) for k in range(5000, n)]
+    assert result.u.tolist() == expected

@@ -99,6 +99,26 @@ class IdentifierLike(Protocol):
         ...
 
 
+_SIGNAL_BLOCK = 4096
+
+
+def _signal_table(signal: InputSignal, k: int, n: int, dt: float) -> list[float]:
+    """The signal at samples ``k ..`` (a block), or ``[]`` if it cannot be vectorised.
+
+    A :class:`thermolab.signals.Signal` evaluates one time as a one-element
+    array (tens of microseconds); its ``sample`` over a block costs about the
+    same for 4096 times. ``np.arange(k, ...) * dt`` is ``k * dt`` exactly as the
+    loop computes it (integers below 2**53 are exact doubles), so the values
+    are those ``value(k * dt)`` would give.
+    """
+    sample = getattr(signal, "sample", None)
+    if not callable(sample):
+        return []
+    times = np.arange(k, min(k + _SIGNAL_BLOCK, n), dtype=np.float64) * dt
+    values: list[float] = np.asarray(sample(times), dtype=np.float64).tolist()
+    return values if len(values) == len(times) else []
+
+
 _REQUEST_RANK = {EndReason.ENDED: 0, EndReason.ABORTED: 1, EndReason.WATCHDOG: 2}
 
 
@@ -829,6 +849,10 @@ class Experiment:
         )
         active = list(self._identifiers.items())
         traj_k, traj = self._traj_k, self._traj
+        # The signal's values for a block of samples ahead (see _signal_table).
+        table: list[float] = []
+        table_signal: InputSignal | None = None
+        table_start = table_end = 0
         # A virtual clock jumps to the deadline at once; any other clock is waited
         # on in slices so that END and abort are honoured within a quarter period.
         sliced = not isinstance(clock, VirtualClock)
@@ -871,8 +895,12 @@ class Experiment:
 
             u = self._manual
             if u is None:
-                assert self._signal is not None  # manual is None only while a signal drives
-                u = float(self._signal.value(t_k))
+                signal = self._signal
+                assert signal is not None  # manual is None only while a signal drives
+                if signal is not table_signal or k >= table_end:
+                    table, table_signal, table_start = _signal_table(signal, k, n, dt), signal, k
+                    table_end = k + len(table) if table else k
+                u = table[k - table_start] if table else float(signal.value(t_k))
             if not in_min <= u <= in_max:
                 problem = Interlocks.check_input(u, info)
                 raise _TripError(EndReason.INTERLOCK, "interlock", f"interlock: {problem}")
