@@ -78,7 +78,7 @@ class SubscriberCutError(ThermoLabError, RuntimeError):
 
 
 class ConfigError(InvalidParameterError):
-    """A lab configuration file (TOML) is malformed or has a bad value; the message names the key."""
+    """A lab configuration (TOML) is malformed or has a bad value; the message names the key."""
 
 
 class NotFoundError(ThermoLabError, LookupError):

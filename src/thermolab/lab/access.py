@@ -608,6 +608,8 @@ class AccessService:
         heartbeat: bool = True,
     ) -> tuple[RigView, RigSnapshot]:
         cfg = self._config.rig(rig_id)
+        if who is not None:
+            self._presence.touch(rig_id, who.username)
         failure: Exception | None = None
         with self._db.write() as session:
             rig = self._db.lock_rig(session, rig_id)

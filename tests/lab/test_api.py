@@ -1,0 +1,336 @@
+"""The HTTP API: authentication, cookies, throttling, roles, validation, errors, OpenAPI."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+from fastapi.testclient import TestClient
+
+from thermolab.lab.app import create_app
+from thermolab.lab.clock import ManualClock
+from thermolab.lab.service import Lab
+
+from .conftest import PASSWORD
+
+Client = Callable[..., TestClient]
+
+
+@pytest.fixture
+def database_url(sqlite_url: str) -> str:
+    """The HTTP layer is the same on both backends (the access model is tested on both)."""
+    return sqlite_url
+
+
+@pytest.fixture
+def people(lab: Lab) -> None:
+    for name in ("ana", "ben", "cai"):
+        lab.users.add(name, PASSWORD, "student")
+    lab.users.add("tina", PASSWORD, "teacher")
+
+
+def _concrete(path: str) -> str:
+    return re.sub(r"\{rig_id\}", "twin", re.sub(r"\{username\}", "ana", path))
+
+
+@pytest.mark.usefixtures("people")
+def test_every_route_but_login_needs_a_session(lab: Lab, app_client: Client) -> None:
+    client = app_client()
+    spec = client.get("/openapi.json").json()
+    checked = 0
+    for path, operations in spec["paths"].items():
+        for method in operations:
+            response = client.request(method.upper(), _concrete(path), json={})
+            if (method, path) == ("post", "/api/session"):
+                assert response.status_code == 422  # no credentials in {}
+                continue
+            assert response.status_code == 401, (method, path)
+            assert response.json()["detail"].startswith("not logged in")
+            checked += 1
+    assert checked >= 15
+    for method, path in [("GET", "/api/nothing/here"), ("PATCH", "/api/rigs/twin")]:
+        response = client.request(method, path)
+        assert (response.status_code, response.json()["detail"]) == (401, "not logged in")
+
+
+@pytest.mark.usefixtures("people")
+def test_login_sets_a_strict_httponly_cookie_and_logout_ends_it(app_client: Client) -> None:
+    client = app_client()
+    response = client.post("/api/session", json={"username": "ana", "password": PASSWORD})
+    assert response.status_code == 200
+    assert response.json()["username"] == "ana"
+    cookie = response.headers["set-cookie"]
+    assert cookie.startswith("thermolab_session=")
+    attributes = {part.strip().lower() for part in cookie.split(";")[1:]}
+    assert {"httponly", "samesite=strict", "path=/"} <= attributes
+    assert "secure" not in attributes
+    assert client.get("/api/session").json()["role"] == "student"
+    assert client.delete("/api/session").status_code == 204
+    assert client.get("/api/session").status_code == 401
+
+
+@pytest.mark.usefixtures("people")
+def test_the_cookie_is_secure_over_https(app_client: Client) -> None:
+    client = app_client(base_url="https://lab.example")
+    response = client.post("/api/session", json={"username": "ana", "password": PASSWORD})
+    assert "secure" in response.headers["set-cookie"].lower()
+
+
+@pytest.mark.usefixtures("people")
+def test_wrong_passwords_are_refused_and_throttled(app_client: Client, clock: ManualClock) -> None:
+    client = app_client()
+    for _ in range(5):
+        response = client.post("/api/session", json={"username": "ana", "password": "guess!!!"})
+        assert (response.status_code, response.json()) == (
+            401,
+            {"detail": "wrong user name or password"},
+        )
+    response = client.post("/api/session", json={"username": "ana", "password": PASSWORD})
+    assert response.status_code == 429
+    assert response.headers["retry-after"] == "60"
+    assert "too many failed logins for 'ana'" in response.json()["detail"]
+    # Another account from the same address is not locked by ana's failures.
+    assert (
+        client.post("/api/session", json={"username": "ben", "password": PASSWORD}).status_code
+        == 200
+    )
+    clock.advance(60)
+    assert (
+        client.post("/api/session", json={"username": "ana", "password": PASSWORD}).status_code
+        == 200
+    )
+
+
+@pytest.mark.usefixtures("people")
+def test_login_attempts_are_throttled_per_address(app_client: Client) -> None:
+    client = app_client()
+    for i in range(30):
+        client.post("/api/session", json={"username": f"user{i}", "password": "whatever"})
+    response = client.post("/api/session", json={"username": "ana", "password": PASSWORD})
+    assert response.status_code == 429
+    assert "from testclient" in response.json()["detail"]
+
+
+@pytest.mark.usefixtures("people")
+def test_students_cannot_act_on_others_or_manage_the_lab(app_client: Client) -> None:
+    ana, ben = app_client("ana"), app_client("ben")
+    assert ana.post("/api/rigs/twin/control").json()["access"]["role"] == "controller"
+    ben.post("/api/rigs/twin/control")
+    # ben releasing only leaves his own queue place; ana keeps control.
+    assert ben.delete("/api/rigs/twin/control").json()["access"]["controller"] == "ana"
+    forbidden = [
+        ("POST", "/api/rigs/twin/control/kick", {}),
+        ("POST", "/api/rigs/twin/control/extend", {"seconds": 60}),
+        ("PUT", "/api/rigs/twin/service", {"inService": False}),
+        ("GET", "/api/users", None),
+        ("POST", "/api/users", {"username": "eve", "password": PASSWORD, "role": "teacher"}),
+        ("DELETE", "/api/users/ana", None),
+        ("PUT", "/api/users/ana/password", {"password": "taken over!"}),
+        ("PUT", "/api/rigs/twin/input", {"u": 1.0}),
+    ]
+    for method, path, body in forbidden:
+        response = ben.request(method, path, json=body)
+        assert response.status_code == 403, (method, path)
+        assert response.json()["detail"]
+    assert ana.get("/api/session").status_code == 200
+
+
+@pytest.mark.usefixtures("people")
+def test_changing_your_own_password_needs_the_current_one(app_client: Client) -> None:
+    ana = app_client("ana")
+    response = ana.put("/api/users/ana/password", json={"password": "a new password"})
+    assert (response.status_code, response.json()["detail"]) == (
+        422,
+        "currentPassword is required to change your own password",
+    )
+    response = ana.put(
+        "/api/users/ana/password",
+        json={"password": "a new password", "currentPassword": "wrong password"},
+    )
+    assert response.status_code == 403
+    response = ana.put(
+        "/api/users/ana/password",
+        json={"password": "a new password", "currentPassword": PASSWORD},
+    )
+    assert response.status_code == 204
+    assert ana.get("/api/session").status_code == 200  # this login stays
+
+
+@pytest.mark.usefixtures("people")
+def test_teachers_manage_accounts_and_see_queues_and_watchers(app_client: Client) -> None:
+    tina, ana, ben = app_client("tina"), app_client("ana"), app_client("ben")
+    ana.post("/api/rigs/twin/control")
+    ben.post("/api/rigs/twin/control")
+    rig = tina.get("/api/rigs/twin").json()
+    assert [q["username"] for q in rig["queue"]] == ["ben"]
+    assert {w["username"] for w in rig["watcherList"]} == {"ana", "ben", "tina"}
+    assert rig["access"]["watchers"] == 3
+    student_view = ana.get("/api/rigs/twin").json()
+    assert (student_view["queue"], student_view["watcherList"]) == (None, None)
+    assert (
+        tina.post("/api/rigs/twin/control/extend", json={"seconds": 60}).json()["access"][
+            "controller"
+        ]
+        == "ana"
+    )
+    assert ana.get("/api/rigs/twin").json()["access"]["timeLeft"] == 360.0
+    kicked = tina.post("/api/rigs/twin/control/kick", json={}).json()
+    assert kicked["access"]["controller"] == "ben"
+    history = tina.get("/api/rigs/twin/control-sessions").json()
+    assert [(h["username"], h["endReason"], h["endedBy"]) for h in history] == [
+        ("ben", None, None),
+        ("ana", "kicked", "tina"),
+    ]
+    assert [h["username"] for h in ana.get("/api/rigs/twin/control-sessions").json()] == ["ana"]
+    created = tina.post(
+        "/api/users", json={"username": "dee", "password": PASSWORD, "role": "student"}
+    )
+    assert (created.status_code, created.json()["username"]) == (201, "dee")
+    duplicate = tina.post(
+        "/api/users", json={"username": "dee", "password": PASSWORD, "role": "student"}
+    )
+    assert (duplicate.status_code, duplicate.json()["detail"]) == (
+        409,
+        "user 'dee' already exists",
+    )
+    assert tina.put("/api/users/dee/password", json={"password": "another one"}).status_code == 204
+    assert tina.delete("/api/users/dee").status_code == 204
+    assert tina.delete("/api/users/dee").status_code == 404
+    assert tina.delete("/api/users/tina").status_code == 403
+    assert [u["username"] for u in tina.get("/api/users").json()] == ["ana", "ben", "cai", "tina"]
+
+
+@pytest.mark.usefixtures("people")
+def test_inputs_are_validated_with_clear_messages(app_client: Client) -> None:
+    ana = app_client("ana")
+    ana.post("/api/rigs/twin/control")
+    ok = ana.put("/api/rigs/twin/input", json={"u": 2.5})
+    assert ok.status_code == 200
+    assert (ok.json()["u"], ok.json()["applied"]) == (2.5, None)
+    cases = [
+        ({"u": 11}, "u = 11 V is outside the input range of rig 'twin': [-10, 10] V"),
+        ({"u": -10.5}, "u = -10.5 V is outside the input range"),
+        ({"u": "5"}, "u: Input should be a valid number (got '5')"),
+        ({"u": None}, "u: Input should be a valid number"),
+        ({"u": True}, "u: Input should be a valid number"),
+        ({"u": 1, "v": 2}, "v: unknown field"),
+        ({}, "u: Field required"),
+    ]
+    for body, message in cases:
+        response = ana.put("/api/rigs/twin/input", json=body)
+        assert response.status_code == 422, body
+        assert message in response.json()["detail"], response.json()
+    for raw, message in [
+        (b'{"u": NaN}', "u: Input should be a finite number"),
+        (b'{"u": Infinity}', "u: Input should be a finite number"),
+        (b'{"u": ', "the request body is not valid JSON"),
+        (b"", "the request body is missing"),
+        (b"[1, 2]", "Input should be a valid dictionary"),
+    ]:
+        response = ana.put(
+            "/api/rigs/twin/input", content=raw, headers={"content-type": "application/json"}
+        )
+        assert response.status_code == 422, raw
+        assert message in response.json()["detail"], response.json()
+    # None of that harmed the session or the control.
+    assert ana.get("/api/rigs/twin").json()["access"]["role"] == "controller"
+    assert ana.get("/api/rigs/twin").json()["input"]["last"] == 2.5
+
+
+@pytest.mark.usefixtures("people")
+def test_oversized_bodies_are_refused_without_harm(app_client: Client) -> None:
+    ana = app_client("ana")
+    big = b'{"u": 1, "pad": "' + b"x" * 70_000 + b'"}'
+    response = ana.put(
+        "/api/rigs/twin/input", content=big, headers={"content-type": "application/json"}
+    )
+    assert response.status_code == 413
+    assert "request body too large" in response.json()["detail"]
+    # Sent in chunks without a declared length: refused while reading.
+    response = ana.put(
+        "/api/rigs/twin/input",
+        content=iter([b'{"u": "', b"x" * 40_000, b"x" * 40_000, b'"}']),
+        headers={"content-type": "application/json"},
+    )
+    assert response.status_code == 413
+    assert ana.get("/api/session").status_code == 200
+
+
+@pytest.mark.usefixtures("people")
+def test_unknown_things_are_json_errors(app_client: Client) -> None:
+    ana = app_client("ana")
+    response = ana.get("/api/rigs/nope")
+    assert (response.status_code, response.json()["detail"]) == (
+        404,
+        "no rig called 'nope'; the lab has: twin, other",
+    )
+    response = ana.get("/api/nothing")
+    assert (response.status_code, response.json()["detail"]) == (
+        404,
+        "nothing at GET /api/nothing; see /openapi.json",
+    )
+    response = ana.get("/api/rigs/twin/input")
+    assert response.status_code == 405
+    assert response.json()["detail"] == "GET is not allowed on /api/rigs/twin/input; use PUT"
+    assert ana.post("/api/rigs/twin/control/kick", json={}).status_code == 403
+
+
+@pytest.mark.usefixtures("people")
+def test_the_rig_list_and_heartbeat(app_client: Client) -> None:
+    ana = app_client("ana")
+    rigs = ana.get("/api/rigs").json()
+    assert [(r["id"], r["state"], r["input"]["unit"]) for r in rigs] == [
+        ("twin", "off", "V"),
+        ("other", "off", "%"),
+    ]
+    assert rigs[0]["limits"]["controlTimeLimit"] == 300.0
+    ana.post("/api/rigs/other/control")
+    beat = ana.post("/api/rigs/other/heartbeat").json()
+    assert (beat["access"]["role"], beat["state"]) == ("controller", "in_use")
+    assert ana.put("/api/rigs/other/input", json={"u": 100}).status_code == 200
+    assert ana.put("/api/rigs/other/input", json={"u": -1}).status_code == 422
+
+
+def test_openapi_documents_the_api(lab: Lab) -> None:
+    spec = create_app(lab.config, lab=lab).openapi()
+    paths = spec["paths"]
+    for path in [
+        "/api/session",
+        "/api/rigs",
+        "/api/rigs/{rig_id}",
+        "/api/rigs/{rig_id}/control",
+        "/api/rigs/{rig_id}/control/extend",
+        "/api/rigs/{rig_id}/control/kick",
+        "/api/rigs/{rig_id}/heartbeat",
+        "/api/rigs/{rig_id}/input",
+        "/api/rigs/{rig_id}/service",
+        "/api/users",
+        "/api/users/{username}/password",
+    ]:
+        assert path in paths, path
+    assert set(paths["/api/rigs/{rig_id}/input"]["put"]["responses"]) >= {
+        "200",
+        "401",
+        "403",
+        "404",
+        "422",
+    }
+    assert "429" in paths["/api/session"]["post"]["responses"]
+    assert spec["components"]["securitySchemes"]["APIKeyCookie"]["name"] == "thermolab_session"
+    access = spec["components"]["schemas"]["AccessOut"]["properties"]
+    assert {"queueSize", "queuePosition", "estimatedTimeUntilControl", "timeLeft"} <= set(access)
+
+
+def test_the_browser_interface_is_served_when_given(lab: Lab, tmp_path: Path) -> None:
+    (tmp_path / "index.html").write_text("<h1>ThermoLab</h1>")
+    with TestClient(create_app(lab.config, tmp_path, lab=lab, sweep_interval=None)) as client:
+        assert client.get("/").text == "<h1>ThermoLab</h1>"
+        assert client.get("/api/rigs").status_code == 401
+    with TestClient(create_app(lab.config, lab=lab, sweep_interval=None)) as client:
+        response = client.get("/")
+        assert (response.status_code, response.json()["detail"]) == (
+            404,
+            "nothing at GET /; see /openapi.json",
+        )

@@ -1,0 +1,186 @@
+"""The lab's TOML configuration: defaults, a full file, and errors that name the key."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from thermolab.errors import ConfigError, NotFoundError
+from thermolab.lab.config import (
+    CooldownPolicy,
+    default_config,
+    load_config,
+    parse_rig_spec,
+    resolve_data_dir,
+)
+from thermolab.lab.hub import published_defaults
+
+FULL = """
+title = "Room 2.14"
+database_url = "postgresql://lab@db/thermolab"
+speedup = 20
+
+[access]
+client_timeout = 20
+session_lifetime = 3600
+login_failures_per_user = 3
+cookie_samesite = "lax"
+cookie_secure = "always"
+
+[rig_defaults]
+control_time_limit = 600
+idle_limit = 0
+cooldown = { mode = "ambient", tolerance = 0.2 }
+
+[[rigs]]
+id = "box-1"
+title = "The paper's box"
+spec = "sim:paper-practical"
+input_range = [0, 10]
+
+[[rigs]]
+id = "kit-1"
+spec = "tclab:/dev/ttyUSB0"
+control_time_limit = 120
+idle_limit = 60
+power_off_grace = 0
+cooldown = { mode = "none" }
+"""
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "lab.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_without_a_file_the_lab_has_one_twin_and_sqlite_in_the_data_dir(tmp_path: Path) -> None:
+    config = default_config(tmp_path)
+    (rig,) = config.rigs
+    assert (rig.id, rig.spec, rig.control_time_limit, rig.idle_limit) == ("twin", "sim", 300, 120)
+    assert config.database == f"sqlite:///{tmp_path / 'thermolab.sqlite3'}"
+    assert config.access.client_timeout == 15.0
+
+
+def test_a_full_file(tmp_path: Path) -> None:
+    config = load_config(write(tmp_path, FULL), tmp_path)
+    assert (config.title, config.speedup) == ("Room 2.14", 20.0)
+    assert config.database == "postgresql://lab@db/thermolab"
+    assert (config.access.client_timeout, config.access.session_lifetime) == (20.0, 3600.0)
+    assert (config.access.cookie_samesite, config.access.cookie_secure) == ("lax", "always")
+    box, kit = config.rigs
+    assert (box.title, box.input_range, box.control_time_limit, box.idle_limit) == (
+        "The paper's box",
+        (0.0, 10.0),
+        600.0,
+        None,
+    )
+    assert box.cooldown == CooldownPolicy(mode="ambient", tolerance=0.2)
+    assert (kit.title, kit.kind, kit.control_time_limit, kit.idle_limit) == (
+        "kit-1",
+        "tclab",
+        120,
+        60,
+    )
+    assert (kit.power_off_grace, kit.cooldown.enabled) == (0.0, False)
+    assert config.rig("kit-1") is kit
+    with pytest.raises(NotFoundError, match="no rig called 'nope'; the lab has: box-1, kit-1"):
+        config.rig("nope")
+
+
+def test_overrides_from_the_command_line(tmp_path: Path) -> None:
+    config = load_config(write(tmp_path, FULL), tmp_path).with_overrides(
+        database_url="sqlite:////x.db", speedup=5
+    )
+    assert (config.database, config.speedup) == ("sqlite:////x.db", 5)
+    with pytest.raises(ConfigError, match="--speedup: expected a finite number > 0, got -1"):
+        config.with_overrides(speedup=-1)
+
+
+A = "[[rigs]]\nid='a'\nspec='sim'\n"  # the smallest valid file
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (A + "colour='red'\n", r"rigs\[0\]\.colour: unknown key"),
+        (
+            A + "control_time_limit=-5\n",
+            r"rigs\[0\]\.control_time_limit: expected a finite number > 0, got -5",
+        ),
+        (
+            A + "control_time_limit='long'\n",
+            r"rigs\[0\]\.control_time_limit: expected a number, got str 'long'",
+        ),
+        (
+            "[[rigs]]\nid='a'\nspec='lab'\n",
+            r"rigs\[0\]\.spec: rig spec 'lab' is not understood; use one of: sim, sim:paper",
+        ),
+        ("[[rigs]]\nid='a'\nspec='sim:nope'\n", r"rigs\[0\]\.spec: rig spec 'sim:nope'"),
+        ("[[rigs]]\nid='A b'\nspec='sim'\n", r"rigs\[0\]\.id: 'A b' is not a valid rig id"),
+        ("[[rigs]]\nspec='sim'\n", r"rigs\[0\]\.id: required"),
+        (A + "input_range=[5, 1]\n", r"rigs\[0\]\.input_range: min must be below max"),
+        (A + "input_range=[5]\n", r"rigs\[0\]\.input_range: expected \[min, max\]"),
+        (A + A, "rig ids must be unique; repeated: a"),
+        ("title='x'\n", "rigs: declare at least one rig"),
+        (
+            "[access]\ncookie_samesite='none'\n" + A,
+            r"access\.cookie_samesite: expected one of 'strict', 'lax', got 'none'",
+        ),
+        ("[access]\nlogin_window=0\n" + A, r"access\.login_window: expected a finite number > 0"),
+        (
+            "[access]\nlogin_failures_per_user=2.5\n" + A,
+            r"access\.login_failures_per_user: expected a whole number",
+        ),
+        (
+            "[rig_defaults]\ncooldown={mode='cold'}\n" + A,
+            r"rig_defaults\.cooldown\.mode: expected one of 'none', 'ambient'",
+        ),
+        (
+            "[rig_defaults]\ncooldown={mode='ambient', speed=3}\n" + A,
+            r"rig_defaults\.cooldown\.speed: unknown key",
+        ),
+        ("speedup=0\n" + A, "speedup: expected a finite number > 0"),
+        ("rigs = 3\n", "rigs: expected one or more"),
+        ("[[rigs]\n", "not valid TOML"),
+    ],
+)
+def test_errors_name_the_key_and_what_is_allowed(tmp_path: Path, text: str, message: str) -> None:
+    with pytest.raises(ConfigError, match=message) as info:
+        load_config(write(tmp_path, text), tmp_path)
+    assert str(info.value).startswith(str(tmp_path / "lab.toml"))
+    assert "\n" not in str(info.value)
+
+
+def test_a_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="no such configuration file"):
+        load_config(tmp_path / "missing.toml", tmp_path)
+
+
+def test_the_configured_range_must_lie_inside_the_rigs_own(tmp_path: Path) -> None:
+    config = load_config(
+        write(tmp_path, "[[rigs]]\nid='a'\nspec='sim:tclab'\ninput_range=[0, 150]\n"), tmp_path
+    )
+    with pytest.raises(ConfigError, match=r"input_range \[0, 150\] goes beyond .* \[0, 100\] %"):
+        published_defaults(config.rigs[0])
+
+
+def test_rig_specs() -> None:
+    assert parse_rig_spec("sim") == ("sim", None)
+    assert parse_rig_spec("sim:tclab") == ("sim", "tclab")
+    assert parse_rig_spec("tclab") == ("tclab", None)
+    assert parse_rig_spec("tclab:/dev/ttyACM0") == ("tclab", "/dev/ttyACM0")
+    with pytest.raises(ConfigError):
+        parse_rig_spec("tclab:")
+
+
+def test_data_dir_from_the_option_the_environment_or_a_per_user_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("THERMOLAB_DATA_DIR", str(tmp_path / "env"))
+    assert resolve_data_dir(tmp_path / "opt") == tmp_path / "opt"
+    assert resolve_data_dir() == tmp_path / "env"
+    monkeypatch.delenv("THERMOLAB_DATA_DIR")
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))
+    assert resolve_data_dir() == tmp_path / "xdg" / "thermolab"

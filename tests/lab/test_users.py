@@ -1,0 +1,151 @@
+"""Accounts, password hashes, login sessions and the login throttle."""
+
+from __future__ import annotations
+
+import pytest
+from argon2 import PasswordHasher
+from sqlalchemy import select
+
+from thermolab.errors import ConflictError, InvalidParameterError, NotFoundError
+from thermolab.lab.clock import ManualClock
+from thermolab.lab.models import LoginSession, Role, User
+from thermolab.lab.security import (
+    AuthenticationError,
+    LoginThrottle,
+    RateLimitedError,
+    hash_token,
+)
+from thermolab.lab.service import Lab
+from thermolab.lab.users import UserService
+
+from .conftest import PASSWORD
+
+
+def test_accounts_are_created_listed_and_removed(lab: Lab) -> None:
+    ana = lab.users.add("Ana", PASSWORD, "student")
+    lab.users.add("tina", PASSWORD, Role.TEACHER)
+    assert (ana.username, ana.role) == ("ana", Role.STUDENT)
+    assert [(u.username, u.role.value) for u in lab.users.list()] == [
+        ("ana", "student"),
+        ("tina", "teacher"),
+    ]
+    assert lab.users.count_teachers() == 1
+    assert lab.users.get("ANA").id == ana.id
+    lab.users.remove("ana")
+    with pytest.raises(NotFoundError, match="no user called 'ana'"):
+        lab.users.get("ana")
+
+
+@pytest.mark.parametrize(
+    ("name", "password", "role", "error", "message"),
+    [
+        ("ana", PASSWORD, "admin", InvalidParameterError, "role 'admin' is not known"),
+        ("a b", PASSWORD, "student", InvalidParameterError, "user name 'a b' is not valid"),
+        ("", PASSWORD, "student", InvalidParameterError, "is not valid"),
+        ("ana", "short", "student", InvalidParameterError, "at least 8 characters"),
+        ("ana", "x" * 1025, "student", InvalidParameterError, "at most 1024"),
+    ],
+)
+def test_bad_accounts_are_refused(
+    lab: Lab, name: str, password: str, role: str, error: type[Exception], message: str
+) -> None:
+    with pytest.raises(error, match=message):
+        lab.users.add(name, password, role)
+
+
+def test_a_taken_name_is_a_conflict(lab: Lab) -> None:
+    lab.users.add("ana", PASSWORD, "student")
+    with pytest.raises(ConflictError, match="user 'ana' already exists"):
+        lab.users.add("ANA", PASSWORD, "teacher")
+
+
+def test_passwords_are_stored_as_argon2_hashes(lab: Lab) -> None:
+    lab.users.add("ana", PASSWORD, "student")
+    with lab.db.read() as session:
+        stored = session.scalars(select(User.password_hash)).one()
+    assert stored.startswith("$argon2id$")
+    assert PASSWORD not in stored
+    assert lab.users.verify("ana", PASSWORD).username == "ana"
+    for name, password in [("ana", "wrong password"), ("nobody", PASSWORD), ("a b", PASSWORD)]:
+        with pytest.raises(AuthenticationError, match="wrong user name or password"):
+            lab.users.verify(name, password)
+
+
+def test_weak_hashes_are_upgraded_at_login(lab: Lab) -> None:
+    lab.users.add("ana", PASSWORD, "student")
+    hasher = PasswordHasher(time_cost=2, memory_cost=16, parallelism=1)
+    UserService(lab.db, lab.clock, hasher).verify("ana", PASSWORD)
+    with lab.db.read() as session:
+        stored = session.scalars(select(User.password_hash)).one()
+    assert "m=16,t=2,p=1" in stored
+    assert lab.users.verify("ana", PASSWORD).username == "ana"
+
+
+def test_sessions_are_stored_hashed_and_expire(lab: Lab, clock: ManualClock) -> None:
+    ana = lab.users.add("ana", PASSWORD, "student")
+    token, principal = lab.sessions.create(ana, client_address="10.0.0.7", user_agent="test")
+    assert len(token) >= 43
+    with lab.db.read() as session:
+        (stored,) = session.scalars(select(LoginSession.token_hash))
+    assert stored == hash_token(token) != token
+    assert lab.sessions.resolve(token) == principal
+    assert lab.sessions.resolve("forged") is None
+    assert lab.sessions.resolve(None) is None
+    # Idle for the idle timeout (2 h): over.
+    clock.advance(2 * 3600)
+    assert lab.sessions.resolve(token) is None
+    # Active all along, but past the lifetime (12 h): over too.
+    token, _ = lab.sessions.create(ana)
+    for _ in range(12):
+        clock.advance(3600)
+        alive = lab.sessions.resolve(token)
+    assert alive is None
+    assert lab.sessions.purge_expired() == 0  # expired sessions were deleted when seen
+
+
+def test_changing_a_password_ends_the_other_logins(lab: Lab) -> None:
+    ana = lab.users.add("ana", PASSWORD, "student")
+    kept, principal = lab.sessions.create(ana)
+    other, _ = lab.sessions.create(ana)
+    lab.users.set_password("ana", "a new password", keep_session=principal.session_id)
+    assert lab.sessions.resolve(kept) is not None
+    assert lab.sessions.resolve(other) is None
+    lab.users.verify("ana", "a new password")
+    lab.users.set_password("ana", "yet another one")
+    assert lab.sessions.resolve(kept) is None
+
+
+def test_removing_an_account_ends_its_sessions(lab: Lab) -> None:
+    ana = lab.users.add("ana", PASSWORD, "student")
+    token, _ = lab.sessions.create(ana)
+    lab.remove_user("ana")
+    assert lab.sessions.resolve(token) is None
+
+
+def test_throttle_per_user_name() -> None:
+    clock = ManualClock()
+    throttle = LoginThrottle(clock, failures_per_user=3, attempts_per_address=100, window=60)
+    for _ in range(3):
+        throttle.check("ana", "10.0.0.1")
+        throttle.record("ana", "10.0.0.1", success=False)
+    clock.advance(20)
+    with pytest.raises(RateLimitedError, match="too many failed logins for 'ana'") as info:
+        throttle.check("ana", "10.0.0.2")  # another address does not help
+    assert info.value.retry_after == 40.0
+    throttle.check("ben", "10.0.0.1")  # other users are not affected
+    clock.advance(40)
+    throttle.check("ana", "10.0.0.1")
+    throttle.record("ana", "10.0.0.1", success=True)  # a success clears the failures
+    throttle.record("ana", "10.0.0.1", success=False)
+    throttle.check("ana", "10.0.0.1")
+
+
+def test_throttle_per_address() -> None:
+    clock = ManualClock()
+    throttle = LoginThrottle(clock, failures_per_user=100, attempts_per_address=5, window=60)
+    for i in range(5):
+        throttle.check(f"user{i}", "10.0.0.1")
+        throttle.record(f"user{i}", "10.0.0.1", success=i % 2 == 0)
+    with pytest.raises(RateLimitedError, match=r"from 10\.0\.0\.1; try again in 60 s"):
+        throttle.check("someone", "10.0.0.1")
+    throttle.check("someone", "10.0.0.2")
