@@ -118,7 +118,8 @@ def test_arx_general_order_against_loop() -> None:
         acc += sum(b[j] * (u[k - delay - j] if k - delay - j >= 0 else 0.0) for j in range(3))
         y[10 + k] = acc
     expected = y[10:] + c
-    assert_allclose(simulate_arx(u, a, b, delay=delay, y0=y0, ambient=c), expected, rtol=1e-12)
+    # `delay` counts the dead time beyond the natural one-sample delay of the loop above.
+    assert_allclose(simulate_arx(u, a, b, delay=delay - 1, y0=y0, ambient=c), expected, rtol=1e-12)
 
 
 @pytest.mark.parametrize(
@@ -157,8 +158,8 @@ def test_bad_input(u: object, match: str) -> None:
 
 
 def test_arx_bad_parameters() -> None:
-    with pytest.raises(InvalidParameterError, match="delay must be an integer >= 1"):
-        simulate_arx([1.0], [0.5], [1.0], delay=0)
+    with pytest.raises(InvalidParameterError, match="delay must be an integer >= 0"):
+        simulate_arx([1.0], [0.5], [1.0], delay=-1)
     with pytest.raises(InvalidParameterError, match="at least one input coefficient"):
         simulate_arx([1.0], [0.5], [])
     with pytest.raises(InvalidParameterError, match=r"a\[1\] must be finite"):

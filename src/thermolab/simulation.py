@@ -198,13 +198,13 @@ def simulate_arx(
     a: Sequence[float],
     b: Sequence[float],
     *,
-    delay: int = 1,
+    delay: int = 0,
     y0: float | None = None,
     ambient: float = 0.0,
 ) -> FloatArray:
     """Simulate an ARX model without noise.
 
-    ``y[k] - c = sum_i a[i] (y[k-1-i] - c) + sum_j b[j] u[k-delay-j]``, with ``c``
+    ``y[k] - c = sum_i a[i] (y[k-1-i] - c) + sum_j b[j] u[k-1-delay-j]``, with ``c``
     the ambient, ``i = 0 .. na-1`` and ``j = 0 .. nb-1``.
 
     Parameters
@@ -217,9 +217,9 @@ def simulate_arx(
     b : sequence of float
         Input coefficients ``b_1 .. b_nb`` (at least one).
     delay : int, optional
-        Input delay in samples, >= 1 (default 1: eq. 4, where ``u[k]`` first shows in
-        ``y[k+1]``). A sampled plant behind a zero-order hold cannot answer in the
-        same sample, so 0 is refused.
+        Dead time in samples *beyond* the one sample every plant sampled behind a
+        zero-order hold has, >= 0 (default 0: eq. 4, where ``u[k]`` first shows in
+        ``y[k+1]``). The same convention as :class:`thermolab.ident.ArxOrder`.
     y0 : float or None, optional
         Output before and at ``k = 0``: ``y[k] = y0`` for ``k <= 0``. ``None`` (default)
         starts at rest at ``ambient``.
@@ -236,19 +236,19 @@ def simulate_arx(
     InvalidDataError
         If ``u`` is empty, not one-dimensional or not finite.
     InvalidParameterError
-        If a coefficient is not finite, ``b`` is empty, or ``delay`` < 1.
+        If a coefficient is not finite, ``b`` is empty, or ``delay`` < 0.
 
     Notes
     -----
     The model may be unstable; the output then grows without bound, as it would.
-    With ``a = [exp(-dt/tau)]``, ``b = [(1 - a) K]`` and ``delay = 1`` this equals
+    With ``a = [exp(-dt/tau)]``, ``b = [(1 - a) K]`` and ``delay = 0`` this equals
     :func:`simulate_first_order`.
 
     Examples
     --------
     >>> simulate_arx([1.0, 1.0, 1.0, 1.0], a=[0.5], b=[1.0])
     array([0.  , 1.  , 1.5 , 1.75])
-    >>> simulate_arx([1.0, 0.0, 0.0, 0.0], a=[], b=[1.0, 2.0], delay=2)
+    >>> simulate_arx([1.0, 0.0, 0.0, 0.0], a=[], b=[1.0, 2.0], delay=1)
     array([0., 0., 1., 2.])
     """
     u_arr = _as_input(u)
@@ -256,14 +256,16 @@ def simulate_arx(
     b_arr = np.array([_finite(f"b[{j}]", v) for j, v in enumerate(b)], dtype=np.float64)
     if b_arr.size == 0:
         raise InvalidParameterError("b must hold at least one input coefficient, got none")
-    if isinstance(delay, bool) or not isinstance(delay, int | np.integer) or delay < 1:
-        raise InvalidParameterError(f"delay must be an integer >= 1 (samples), got {delay!r}")
+    if isinstance(delay, bool) or not isinstance(delay, int | np.integer) or delay < 0:
+        raise InvalidParameterError(
+            f"delay must be an integer >= 0 (samples beyond the natural one), got {delay!r}"
+        )
     ambient_v = _finite("ambient", ambient)
     x0 = 0.0 if y0 is None else _finite("y0", y0) - ambient_v
     n = u_arr.size
     # Filter the shifted output w[m] = y[m+1] - c driven by u[m]: its numerator is b
-    # delayed by delay-1 samples, and its past outputs are y[0], y[-1], ... = y0.
-    num = np.concatenate([np.zeros(int(delay) - 1), b_arr])
+    # delayed by `delay` samples, and its past outputs are y[0], y[-1], ... = y0.
+    num = np.concatenate([np.zeros(int(delay)), b_arr])
     den = np.concatenate([[1.0], -a_arr])
     past_w = np.full(max(a_arr.size, 1), x0)
     zi = lfiltic(num, den, past_w, np.zeros(max(num.size - 1, 1)))

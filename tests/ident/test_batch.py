@@ -112,7 +112,7 @@ def test_noise_free_data_recover_an_arx_model(
     a = (p1 + p2, -p1 * p2)
     b = (0.3, 0.1)  # zero at -1/3: never cancels a (positive) pole, so W is identifiable
     u = exciting_input(rng, 600)
-    y = simulate_arx(u, a, b, delay=delay + 1, ambient=ambient)  # its delay counts the sample
+    y = simulate_arx(u, a, b, delay=delay, ambient=ambient)
     order = ArxOrder(2, 2, delay)
     r = least_squares(u, y, 2.0, order=order)
     assert_allclose(r.W, [*a, *b], rtol=1e-7, atol=1e-10)

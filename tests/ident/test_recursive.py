@@ -161,7 +161,7 @@ def test_malsm_arx_order() -> None:
     rng = np.random.default_rng(5)
     u = exciting_input(rng, 600, max_hold=10)
     a, b = (1.3, -0.4), (0.2, 0.1)
-    y = simulate_arx(u, a, b, delay=3, ambient=1.0)
+    y = simulate_arx(u, a, b, delay=2, ambient=1.0)
     tr = moving_window_least_squares(u, y, 1.0, 60, order=ArxOrder(2, 2, 2))
     first = 60 - 1
     assert tr.first_estimate == first
@@ -298,7 +298,7 @@ def test_wlsm_arx_order_and_fit_offset() -> None:
     rng = np.random.default_rng(9)
     u = exciting_input(rng, 3000, max_hold=10)
     a, b = (1.2, -0.35), (0.1, 0.05)
-    y = simulate_arx(u, a, b, delay=2, ambient=-1.0)
+    y = simulate_arx(u, a, b, delay=1, ambient=-1.0)
     tr = weighted_least_squares(
         u, y, 1.0, 0.99, 1e4, None, order=ArxOrder(2, 2, 1), offset="fit", form="standard"
     )

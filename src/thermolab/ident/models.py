@@ -102,8 +102,7 @@ class ArxOrder:
     delay : int, optional
         Dead time in samples *beyond* the one sample every sampled plant has
         (0 to 1000). Default 0: ``u[k]`` first shows in ``y[k+1]``, as in eq. 4.
-        (:func:`thermolab.simulation.simulate_arx` counts the total delay, so its
-        ``delay`` is this one plus 1.)
+        :func:`thermolab.simulation.simulate_arx` takes the same convention.
 
     Raises
     ------
