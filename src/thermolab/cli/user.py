@@ -92,7 +92,7 @@ def _users(args: argparse.Namespace) -> tuple[Database, UserService]:
     from thermolab.lab.users import UserService
 
     config = lab_config_from_args(args)
-    db = Database(config.database, pool_size=1)
+    db = Database(config.database, pool_size=1, max_overflow=1)
     db.upgrade()
     return db, UserService(db, SystemClock(), default_password_hasher())
 

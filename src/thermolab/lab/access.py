@@ -514,12 +514,13 @@ class AccessService:
 
         def act(session: Session, rig: Rig, now: datetime) -> None:
             control = self._active(session, rig.id)
-            if username is None or (control is not None and control.username == username):
+            name = username.strip().lower() if username is not None else None
+            if name is None or (control is not None and control.username == name):
                 if control is None:
                     raise ConflictError(f"nobody controls rig {rig.id!r}")
                 self._end(session, rig, control, EndReason.KICKED, now, now, by=who.username)
                 return
-            user_id = session.scalar(select(User.id).where(User.username == username.lower()))
+            user_id = session.scalar(select(User.id).where(User.username == name))
             entry = None if user_id is None else self._waiting(session, rig.id, user_id)
             if entry is None:
                 raise ConflictError(f"{username!r} neither controls nor waits for rig {rig.id!r}")
