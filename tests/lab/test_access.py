@@ -11,7 +11,7 @@ from datetime import timedelta
 import pytest
 from sqlalchemy import select
 
-from thermolab.errors import AccessDeniedError, ConflictError, InvalidParameterError
+from thermolab.errors import AccessDeniedError, ConflictError, InvalidParameterError, RigError
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import CooldownPolicy, RigConfig
 from thermolab.lab.models import ControlSession, QueueEntry
@@ -461,3 +461,39 @@ def test_live_rig_receives_inputs_and_goes_safe_on_handover(
     lab.access.release("twin", bob)
     wait(lab, clock, 60)
     assert not box.powered
+
+
+def test_a_rig_that_failed_to_open_is_opened_again_when_the_fault_is_cleared(
+    make_lab: LabFactory,
+) -> None:
+    failures = ["no such port"]
+
+    def opener(rig: RigConfig) -> BaseRig:
+        if rig.id == "twin" and failures:
+            raise RigError(failures.pop())
+        return _Box()
+
+    lab = make_lab(opener=opener)
+    ana, tina = person(lab, "ana"), person(lab, "tina", "teacher")
+    view = lab.access.view("twin", ana)
+    assert view.state == "fault"
+    assert "no such port" in (view.fault or "")
+    assert not view.published.live
+    lab.set_service("twin", tina, True)
+    view = lab.access.request_control("twin", ana)
+    assert (view.state, view.published.live) == ("in_use", True)
+
+
+def test_the_hub_follows_the_device_when_something_else_powered_it_off(
+    make_lab: LabFactory,
+) -> None:
+    box = _Box()
+    lab = make_lab(opener=lambda rig: box if rig.id == "twin" else _Box())
+    ana = person(lab, "ana")
+    lab.access.request_control("twin", ana)
+    lab.apply_input("twin", ana, 4.0)
+    box.power_off()  # what the runner does at the end of a run
+    lab.access.heartbeat("twin", ana)  # every write on the rig reconciles the device
+    assert box.powered
+    assert box.applied[-1] == 0.0  # powered again, from the safe input
+    assert lab.apply_input("twin", ana, 5.0).applied == 5.0

@@ -192,28 +192,39 @@ class RigHub:
         """
         faults: dict[str, str] = {}
         for rig_id, slot in self._slots.items():
-            with slot.lock:
-                if self._opener is None or slot.driver is not None:
-                    continue
-                try:
-                    driver = self._opener(slot.config)
-                    driver.power_off()
-                    info = driver.describe()
-                    base = PublishedRig(
-                        info.input_min,
-                        info.input_max,
-                        info.input_unit,
-                        info.output_unit,
-                        info.safe_input,
-                        True,
-                    )
-                    slot.published = _narrow(base, slot.config)
-                    slot.driver = driver
-                except (ThermoLabError, OSError) as exc:
-                    slot.fault = f"cannot open {slot.config.spec!r}: {exc}"
-                    faults[rig_id] = slot.fault
-                    log.warning("rig %s: %s", rig_id, slot.fault)
+            fault = self._open(slot)
+            if fault is not None:
+                faults[rig_id] = fault
         return faults
+
+    def _open(self, slot: _Slot) -> str | None:
+        with slot.lock:
+            if self._opener is None or slot.driver is not None:
+                return None
+            try:
+                driver = self._opener(slot.config)
+                driver.power_off()
+                info = driver.describe()
+                base = PublishedRig(
+                    info.input_min,
+                    info.input_max,
+                    info.input_unit,
+                    info.output_unit,
+                    info.safe_input,
+                    True,
+                )
+                slot.published = _narrow(base, slot.config)
+                slot.driver = driver
+                slot.fault = None
+                return None
+            except (ThermoLabError, OSError) as exc:
+                slot.fault = f"cannot open {slot.config.spec!r}: {exc}"
+                log.warning("rig %s: %s", slot.config.id, slot.fault)
+                return slot.fault
+
+    def driver(self, rig_id: str) -> Rig | None:
+        """Return the rig's open driver, if any (the runner samples it during a run)."""
+        return self._slots[rig_id].driver
 
     def published(self, rig_id: str) -> PublishedRig:
         """Return what rig ``rig_id`` accepts (KeyError for an unknown rig)."""
@@ -232,15 +243,21 @@ class RigHub:
         return slot.fault
 
     def clear_fault(self, rig_id: str) -> None:
-        """Forget a fault (a teacher cleared it); the driver is asked to clear its own."""
+        """Forget a fault (a teacher cleared it).
+
+        The driver is asked to clear its own (it refuses while the cause
+        persists); a rig that could not be opened is opened again.
+        """
         slot = self._slots[rig_id]
         with slot.lock:
             slot.fault = None
-            if slot.driver is not None:
-                try:
-                    slot.driver.clear_fault()
-                except RigError as exc:
-                    slot.fault = str(exc)
+            if slot.driver is None:
+                self._open(slot)
+                return
+            try:
+                slot.driver.clear_fault()
+            except RigError as exc:
+                slot.fault = str(exc)
 
     @contextmanager
     def locked(self, rig_id: str) -> Iterator[None]:
@@ -258,6 +275,9 @@ class RigHub:
         slot = self._slots[rig_id]
         with slot.lock:
             driver = slot.driver
+            if driver is not None:
+                # The device's own state wins: a run powers the rig off when it ends.
+                slot.powered = driver.powered
             try:
                 if desired.power is PowerState.OFF:
                     if driver is not None and slot.powered:
@@ -294,7 +314,7 @@ class RigHub:
         """
         slot = self._slots[rig_id]
         with slot.lock:
-            if slot.driver is None or not slot.powered:
+            if slot.driver is None or not slot.driver.powered:
                 return None
             if slot.controller_session != controller_session:
                 return None
