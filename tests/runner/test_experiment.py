@@ -332,7 +332,11 @@ def test_identifiers_see_the_applied_input_and_the_reading(twin: HookedTwin) -> 
     trajectory = result.methods["spy"]
     assert_array_equal(trajectory.k, range(30))
     assert trajectory.to_dict()["estimates"] == 30
+    assert trajectory.last == FakeEstimate(30, float(result.y.mean()))
     assert trajectory.final == FakeEstimate(30, float(result.y.mean()))
+    # An estimate without K / tau leaves NaN in the arrays, never an error.
+    assert np.isnan(trajectory.K).all()
+    assert not trajectory.valid.any()
 
 
 def test_result_to_dict_is_json_ready(twin: HookedTwin) -> None:
@@ -344,7 +348,7 @@ def test_result_to_dict_is_json_ready(twin: HookedTwin) -> None:
     assert data["samples"] == 5
     assert data["methods"]["m"]["latest"] == {"n": 5, "mean": pytest.approx(result.y.mean())}
     assert len(data["y"]) == 5
-    assert len(data["methods"]["m"]["trajectory"]) == 5
+    assert data["methods"]["m"]["trajectory"]["k"] == [0, 1, 2, 3, 4]
 
 
 def test_an_event_bus_can_be_shared(twin: HookedTwin) -> None:

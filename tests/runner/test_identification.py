@@ -39,7 +39,7 @@ def test_step_test_srm_and_lsm_at_end_recover_the_true_model() -> None:
     assert result.end_reason is EndReason.COMPLETED
     for method in ("srm", "lsm"):
         # Both appear only at END.
-        assert result.methods[method].estimates == ()
+        assert result.methods[method].k.size == 0
         est = _latest(result, method)
         assert est is result.methods[method].final
         assert est.final
@@ -52,10 +52,11 @@ def test_square_wave_recursive_methods_recover_the_true_model_every_sample() -> 
     # The paper's MALSM / WLSM panels: a square wave, an estimate at every sample.
     result, rig = _run("sim", "square:0:4:0.1", "blockls,malsm,wlsm", 2000)
     methods = result.methods
-    assert len(methods["blockls"].estimates) == 2000 // 100  # one per full block
-    assert_array_equal(methods["blockls"].k, np.arange(99, 2000, 100))
-    assert len(methods["malsm"].estimates) == 2000 - 99  # from the first full window on
-    assert len(methods["wlsm"].estimates) == 2000  # from the first sample (W0) on
+    assert_array_equal(methods["blockls"].k, np.arange(99, 2000, 100))  # each full block
+    assert_array_equal(methods["malsm"].k, np.arange(99, 2000))  # from the first full window
+    assert_array_equal(methods["wlsm"].k, np.arange(2000))  # from the first sample (W0) on
+    assert methods["wlsm"].valid[200:].all()
+    assert_allclose(methods["wlsm"].K[-100:], 0.14009, rtol=1e-9)
     for method in ("blockls", "malsm", "wlsm"):
         est = _latest(result, method)
         assert_allclose(est.K, rig.params.gain, rtol=1e-9)
@@ -64,15 +65,20 @@ def test_square_wave_recursive_methods_recover_the_true_model_every_sample() -> 
 
 def test_online_estimates_equal_the_batch_functions_on_the_recorded_data() -> None:
     # The runner feeds the identifiers exactly the (u, y) it records.
-    result, _ = _run("sim:paper-practical", "square:4:6:0.1", "lsm,blockls,malsm", 1000, seed=7)
-    batch_lsm = least_squares(result.u, result.y, 1.0)
-    assert tuple(batch_lsm.W.tolist()) == _latest(result, "lsm").W
+    with open_rig("sim:paper-practical", clock=VirtualClock(), seed=7) as rig:
+        identifiers = build_identifiers(["lsm", "blockls", "malsm"], 1.0)
+        result = Experiment(
+            rig, 1.0, 1000, signal=parse_signal("square:4:6:0.1"), identifiers=identifiers
+        ).run()
+    assert tuple(least_squares(result.u, result.y, 1.0).W.tolist()) == _latest(result, "lsm").W
     blocks = block_least_squares(result.u, result.y, 1.0, block=100)
     online_blocks = result.methods["blockls"]
-    assert_allclose([e.K for e in online_blocks.estimates], blocks.K[online_blocks.k], rtol=1e-12)
+    assert_allclose(online_blocks.K, blocks.K[online_blocks.k], rtol=1e-12)
     window = moving_window_least_squares(result.u, result.y, 1.0, window=100)
+    assert_array_equal(identifiers["malsm"].trajectory().W, window.W)
     online = result.methods["malsm"]
-    assert_array_equal(np.array([e.W for e in online.estimates]), window.W[online.k])
+    assert_allclose(online.tau, window.tau[online.k], rtol=1e-12)
+    assert_array_equal(online.valid, window.valid[online.k])
 
 
 def test_noisy_twin_long_record_methods_stay_close_to_the_reference() -> None:

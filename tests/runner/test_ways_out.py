@@ -207,7 +207,7 @@ def test_identifier_that_cannot_estimate_stops_alone(twin: HookedTwin, tmp_path:
     assert result.samples == 50
     assert result.methods["a"].error == "a: the input never changed"
     assert result.methods["b"].error == "b: singular"
-    assert len(result.methods["b"].estimates) == 10
+    assert len(result.methods["b"].k) == 10
     assert result.methods["ok"].error is None
     assert result.methods["ok"].final is not None
     faults = [e for e in sub.drain() if isinstance(e, FaultEvent)]

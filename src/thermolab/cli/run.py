@@ -257,7 +257,7 @@ def _summary_table(result: Any, csv_path: str | None) -> str:
                 note = reason or "no first-order meaning"
             elif method.final is None and result.ok and not note:
                 note = "last of the run"
-        lines.append(f"{name:<8} {ks:>16} {ts:>14} {len(method.estimates):>10}  {note}".rstrip())
+        lines.append(f"{name:<8} {ks:>16} {ts:>14} {len(method.k):>10}  {note}".rstrip())
     return "\n".join(lines)
 
 

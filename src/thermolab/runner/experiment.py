@@ -136,16 +136,26 @@ class _TripError(Exception):
 class MethodResult:
     """What one identifier produced during a run.
 
+    The estimates ``update`` returned are kept as arrays (``k``, ``K``, ``tau``,
+    ``valid``), not as objects: a 20,000-sample run of a recursive method makes
+    20,000 estimates, and keeping them alive would cost the sampling loop
+    garbage-collector time. The identifier itself keeps its full parameter
+    trajectory (``OnlineIdentifier.trajectory()``, with ``W``).
+
     Attributes
     ----------
     name : str
         The identifier's name in the run.
     k : numpy.ndarray
-        Sample index of each estimate in ``estimates`` (int64).
-    estimates : tuple
-        Every estimate ``update`` returned during the run, in order (the
-        trajectory of a recursive method; empty for SRM and LSM, whose result
-        appears only at END).
+        Sample index of each estimate ``update`` returned (int64; empty for
+        SRM and LSM, whose result appears only at END).
+    K, tau : numpy.ndarray
+        Gain and time constant of each of those estimates (NaN where an
+        estimate has none, or has no ``K`` / ``tau`` attribute).
+    valid : numpy.ndarray
+        Whether each of those estimates has a first-order meaning (bool).
+    last : object or None
+        The last estimate ``update`` returned, or ``None``.
     final : object or None
         The estimate ``finish`` returned at END (for SRM and LSM the result;
         for the others the last estimate, marked final), or ``None`` (the run
@@ -156,16 +166,17 @@ class MethodResult:
 
     name: str
     k: npt.NDArray[np.int64]
-    estimates: tuple[SupportsToDict, ...]
+    K: _FloatArray
+    tau: _FloatArray
+    valid: npt.NDArray[np.bool_]
+    last: SupportsToDict | None
     final: SupportsToDict | None
     error: str | None = None
 
     @property
     def latest(self) -> SupportsToDict | None:
         """The final estimate, else the last one produced, else ``None``."""
-        if self.final is not None:
-            return self.final
-        return self.estimates[-1] if self.estimates else None
+        return self.final if self.final is not None else self.last
 
     def to_dict(self, *, trajectory: bool = False) -> dict[str, Any]:
         """Return a JSON-ready dictionary.
@@ -173,7 +184,8 @@ class MethodResult:
         Parameters
         ----------
         trajectory : bool, optional
-            Include every estimate (default: only the count and the latest).
+            Include the arrays ``k``, ``K``, ``tau``, ``valid`` as lists (NaN as
+            ``None``); default: only the count and the latest estimate.
 
         Returns
         -------
@@ -182,17 +194,53 @@ class MethodResult:
         latest = self.latest
         out: dict[str, Any] = {
             "name": self.name,
-            "estimates": len(self.estimates),
+            "estimates": len(self.k),
             "latest": None if latest is None else latest.to_dict(),
             "final": self.final is not None,
             "error": self.error,
         }
         if trajectory:
-            # The estimates update() returned; the final one is "latest" above.
-            out["trajectory"] = [
-                {"k": int(k), **e.to_dict()} for k, e in zip(self.k, self.estimates, strict=True)
-            ]
+            out["trajectory"] = {
+                "k": self.k.tolist(),
+                "K": [x if math.isfinite(x) else None for x in self.K.tolist()],
+                "tau": [x if math.isfinite(x) else None for x in self.tau.tolist()],
+                "valid": self.valid.tolist(),
+            }
         return out
+
+
+class _Track:
+    """The estimates of one method during a run, as plain lists (see MethodResult)."""
+
+    __slots__ = ("K", "k", "last", "tau", "valid")
+
+    def __init__(self) -> None:
+        self.k: list[int] = []
+        self.K: list[float] = []
+        self.tau: list[float] = []
+        self.valid: list[bool] = []
+        self.last: SupportsToDict | None = None
+
+    def add(self, k: int, estimate: SupportsToDict) -> None:
+        self.k.append(k)
+        self.K.append(getattr(estimate, "K", math.nan))
+        self.tau.append(getattr(estimate, "tau", math.nan))
+        self.valid.append(bool(getattr(estimate, "valid", False)))
+        self.last = estimate
+
+    def result(self, name: str, final: SupportsToDict | None, error: str | None) -> MethodResult:
+        # A snapshot from another thread may catch add() halfway: cut to the shortest list.
+        n = min(len(self.k), len(self.K), len(self.tau), len(self.valid))
+        return MethodResult(
+            name=name,
+            k=np.array(self.k[:n], dtype=np.int64),
+            K=np.array(self.K[:n], dtype=np.float64),
+            tau=np.array(self.tau[:n], dtype=np.float64),
+            valid=np.array(self.valid[:n], dtype=np.bool_),
+            last=self.last,
+            final=final,
+            error=error,
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -418,8 +466,7 @@ class Experiment:
         self._busy = np.empty(n)
         self._late = 0
         self._missed = 0
-        self._traj_k: dict[str, list[int]] = {name: [] for name in self._identifiers}
-        self._traj: dict[str, list[SupportsToDict]] = {name: [] for name in self._identifiers}
+        self._tracks = {name: _Track() for name in self._identifiers}
         self._final: dict[str, SupportsToDict | None] = dict.fromkeys(self._identifiers)
         self._method_errors: dict[str, str] = {}
 
@@ -794,14 +841,8 @@ class Experiment:
     ) -> RunResult:
         n = self._k
         methods = {
-            name: MethodResult(
-                name=name,
-                k=np.array(self._traj_k[name][: len(self._traj[name])], dtype=np.int64),
-                estimates=tuple(self._traj[name]),
-                final=self._final[name],
-                error=self._method_errors.get(name),
-            )
-            for name in self._identifiers
+            name: track.result(name, self._final[name], self._method_errors.get(name))
+            for name, track in self._tracks.items()
         }
         return RunResult(
             rig=self._info,
@@ -847,8 +888,7 @@ class Experiment:
             self._lateness,
             self._busy,
         )
-        active = list(self._identifiers.items())
-        traj_k, traj = self._traj_k, self._traj
+        active = [(name, ident, self._tracks[name]) for name, ident in self._identifiers.items()]
         # The signal's values for a block of samples ahead (see _signal_table).
         table: list[float] = []
         table_signal: InputSignal | None = None
@@ -863,17 +903,18 @@ class Experiment:
             deadline = t0 + t_k
             now = clock.now()
             if now < deadline:
-                if watchdog is not None:
-                    watchdog.pause()
                 if sliced:
+                    # A real wait: it must not count as a stall.
+                    if watchdog is not None:
+                        watchdog.pause()
                     while now < deadline and self._request is None:
                         clock.sleep_until(min(deadline, now + slice_))
                         now = clock.now()
+                    if watchdog is not None:
+                        watchdog.resume()
                 else:
                     clock.sleep_until(deadline)
                     now = clock.now()
-                if watchdog is not None:
-                    watchdog.resume()
             request = self._request
             if request is not None:
                 return request
@@ -923,16 +964,15 @@ class Experiment:
             if bus.active:
                 bus.publish(SampleEvent(bus.next_seq(), k, t_k, t_read, u, y, jitter, lateness))
 
-            for name, ident in active:
+            for name, ident, track in active:
                 try:
                     estimate = ident.update(u, y)
                 except ThermoLabError as exc:
                     self._method_failed(name, exc)
-                    active = [(m, i) for m, i in active if m != name]
+                    active = [entry for entry in active if entry[0] != name]
                     continue
                 if estimate is not None:
-                    traj_k[name].append(k)
-                    traj[name].append(estimate)
+                    track.add(k, estimate)
                     if bus.active:
                         bus.publish(EstimateEvent(bus.next_seq(), k, name, estimate, False))
 
