@@ -267,3 +267,13 @@ def test_progress_bar_draws_one_line() -> None:
     assert text.startswith("\r[#######-----------------------]  25%  500/2000 samples  t=500 s")
     assert "ETA    6 s" in text
     assert "\n" not in text
+
+
+def test_a_method_without_a_model_says_why(capsys: pytest.CaptureFixture[str]) -> None:
+    # SRM needs one step; a square wave has many. The run still succeeds.
+    argv = [*FAST_STEP[:-2], "500", "--fast", "--signal", "square:4:6:0.1", "--method", "srm,lsm"]
+    assert main(argv) == 0
+    rows = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()[4:]}
+    assert rows["srm"].split()[1:3] == ["-", "-"]
+    assert "needs a single step" in rows["srm"]
+    assert rows["lsm"].endswith("at END")

@@ -221,7 +221,8 @@ def _estimate_fields(estimate: Any) -> tuple[float, float, bool, str | None]:
     K = data.get("K")
     tau = data.get("tau")
     valid = bool(data.get("valid", K is not None and tau is not None))
-    reason = data.get("invalid_reason") or data.get("reason")
+    extras = data.get("extras") or {}
+    reason = data.get("reason") or (extras.get("reason") if isinstance(extras, dict) else None)
     return (
         math.nan if K is None else float(K),
         math.nan if tau is None else float(tau),
@@ -257,6 +258,8 @@ def _summary_table(result: Any, csv_path: str | None) -> str:
                 note = reason or "no first-order meaning"
             elif method.final is None and result.ok and not note:
                 note = "last of the run"
+            elif len(method.k) == 0 and method.final is not None and not note:
+                note = "at END"
         lines.append(f"{name:<8} {ks:>16} {ts:>14} {len(method.k):>10}  {note}".rstrip())
     return "\n".join(lines)
 
