@@ -34,7 +34,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
-from typing import Literal, Protocol
+from typing import Literal, Protocol, TypeVar
 
 from sqlalchemy import bindparam, select
 from sqlalchemy.orm import Session
@@ -72,6 +72,7 @@ __all__ = [
     "RigView",
 ]
 
+T = TypeVar("T")
 AccessRole = Literal["controller", "queued", "watcher"]
 RigStateName = Literal["off", "starting", "free", "in_use", "cooldown", "fault", "out_of_service"]
 
@@ -416,7 +417,48 @@ class AccessService:
         """Say the caller's client is still there; return the rig as they see it."""
         return self._write(rig_id, who, lambda s, rig, now: None)[0]
 
-    def record_input(self, rig_id: str, who: Principal, u: float) -> CommandRecord:
+    def within_control(
+        self,
+        rig_id: str,
+        who: Principal,
+        action: str,
+        act: Callable[[Session, Rig, ControlSession, datetime], T],
+    ) -> tuple[T, int]:
+        """Run ``act`` in the rig's locked transaction if ``who`` controls the rig.
+
+        The turn counts as active (the idle limit restarts). ``act`` must check
+        before it changes anything (a refusal it raises is raised after the
+        commit of the limits applied meanwhile).
+
+        Returns
+        -------
+        tuple
+            What ``act`` returned, and the id of the control session.
+
+        Raises
+        ------
+        AccessDeniedError
+            If ``who`` does not control the rig (the message says ``action``).
+        """
+        out: list[tuple[T, int]] = []
+
+        def guarded(session: Session, rig: Rig, now: datetime) -> None:
+            control = self._active(session, rig.id)
+            if control is None or control.user_id != who.user_id:
+                holder = "nobody" if control is None else "another user"
+                raise AccessDeniedError(
+                    f"only the controller of rig {rig.id!r} may {action}, and "
+                    f"{holder} controls it now; ask for control first"
+                )
+            control.last_activity_at = now
+            out.append((act(session, rig, control, now), control.id))
+
+        self._write(rig_id, who, guarded)
+        return out[0]
+
+    def record_input(
+        self, rig_id: str, who: Principal, u: float, *, run_id: int | None = None
+    ) -> CommandRecord:
         """Accept an input command from the rig's controller and record it.
 
         Raises
@@ -430,21 +472,14 @@ class AccessService:
         """
         published = self._monitor.published(rig_id)
         value = _check_input(u, published, rig_id)
-        record: list[CommandRecord] = []
 
-        def act(session: Session, rig: Rig, now: datetime) -> None:
-            control = self._active(session, rig.id)
-            if control is None or control.user_id != who.user_id:
-                holder = "nobody" if control is None else "another user"
-                raise AccessDeniedError(
-                    f"only the controller of rig {rig.id!r} may change its input, and "
-                    f"{holder} controls it now; ask for control first"
-                )
-            control.last_activity_at = now
+        def act(
+            session: Session, rig: Rig, control: ControlSession, now: datetime
+        ) -> CommandRecord:
             command = Command(
                 rig_id=rig.id,
                 control_session_id=control.id,
-                run_id=None,
+                run_id=run_id,
                 user_id=who.user_id,
                 username=who.username,
                 at=now,
@@ -455,10 +490,9 @@ class AccessService:
             )
             session.add(command)
             session.flush()
-            record.append(CommandRecord(command.id, rig.id, control.id, value, now))
+            return CommandRecord(command.id, rig.id, control.id, value, now)
 
-        self._write(rig_id, who, act)
-        return record[0]
+        return self.within_control(rig_id, who, "change its input", act)[0]
 
     def mark_applied(self, command_id: int) -> None:
         """Record that a command reached the device."""
@@ -652,8 +686,10 @@ class AccessService:
     def _advance(self, session: Session, rig: Rig, cfg: RigConfig, now: datetime) -> None:
         """Move the rig on: finish a cool-down, hand control to the queue, power on or off."""
         session.flush()
-        if not rig.in_service:
+        if not rig.in_service or rig.fault is not None:
+            # Out of service or faulted: safe and unpowered until a teacher acts.
             self._set_power(rig, PowerState.OFF, now)
+            rig.cooling_since = None
             rig.vacant_since = rig.vacant_since or now
             return
         power = PowerState(rig.power_state)
@@ -767,7 +803,7 @@ class AccessService:
             return True
         if any(slot.last_heartbeat_at + self._timeout <= now for slot in snap.queue):
             return True
-        if not snap.in_service:
+        if not snap.in_service or snap.fault is not None:
             return snap.power is not PowerState.OFF
         if snap.power is PowerState.COOLING and self._cooled(
             snap.id, snap.cooling_since, snap.ambient_output, cfg, now

@@ -7,9 +7,11 @@ opens its own short database transactions.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Depends, Path, Request, Response, Security, status
+from fastapi import APIRouter, Depends, Path, Query, Request, Response, Security, status
+from fastapi.responses import JSONResponse, StreamingResponse
 from fastapi.security import APIKeyCookie
 
 from thermolab.errors import AccessDeniedError, InvalidParameterError
@@ -24,6 +26,8 @@ from thermolab.lab.schemas import (
     NewUserIn,
     PasswordIn,
     RigOut,
+    RunIn,
+    RunOut,
     ServiceIn,
     SessionOut,
     UserOut,
@@ -265,6 +269,109 @@ def control_history(rig_id: RigId, who: UserDep, lab: LabDep) -> list[ControlSes
     lab.config.rig(rig_id)
     rows = lab.access.history(rig_id, None if who.is_teacher else who.user_id)
     return [ControlSessionOut.of(row) for row in rows]
+
+
+# -- runs ------------------------------------------------------------------------------------------
+
+RunId = Annotated[int, Path(ge=1, description="the run's number")]
+
+
+@_authed.post(
+    "/rigs/{rig_id}/runs",
+    response_model=RunOut,
+    status_code=status.HTTP_201_CREATED,
+    tags=["runs"],
+    summary="START a run",
+    responses=_errors(403, 404, 409, 422),
+)
+def start_run(rig_id: RigId, body: RunIn, who: UserDep, lab: LabDep) -> RunOut:
+    """Start sampling the rig you control, with a signal or a manual set point and the
+    identification methods to run live (change the set point with PUT .../input).
+    """
+    return RunOut.of(lab.runs.start(rig_id, who, body.request()))
+
+
+@_authed.post(
+    "/rigs/{rig_id}/runs/current/stop",
+    response_model=RunOut,
+    tags=["runs"],
+    summary="END the current run",
+    responses=_errors(403, 404, 409),
+)
+def stop_run(rig_id: RigId, who: UserDep, lab: LabDep) -> RunOut:
+    """END: stop after the current sample and compute the final estimates (controller or
+    teacher). Returns at once; the run's status changes when it has ended.
+    """
+    lab.config.rig(rig_id)
+    return RunOut.of(lab.runs.stop(rig_id, who))
+
+
+@_authed.get("/runs", response_model=list[RunOut], tags=["runs"], summary="Runs")
+def list_runs(
+    who: UserDep,
+    lab: LabDep,
+    rig: Annotated[str | None, Query(max_length=64, description="only this rig")] = None,
+) -> list[RunOut]:
+    """Runs, newest first: your own, or everyone's for a teacher."""
+    return [RunOut.of(run) for run in lab.runs.list(who, rig)]
+
+
+@_authed.get(
+    "/runs/{run_id}",
+    response_model=RunOut,
+    tags=["runs"],
+    summary="One run",
+    responses=_errors(403, 404),
+)
+def get_run(run_id: RunId, who: UserDep, lab: LabDep) -> RunOut:
+    """A run with each method's latest (or final) estimate."""
+    return RunOut.of(lab.runs.get(run_id, who))
+
+
+@_authed.get(
+    "/runs/{run_id}/samples.csv",
+    tags=["runs"],
+    summary="The run's samples as CSV",
+    response_class=StreamingResponse,
+    responses={200: {"content": {"text/csv": {}}}, **_errors(403, 404)},
+)
+def run_samples_csv(run_id: RunId, who: UserDep, lab: LabDep) -> StreamingResponse:
+    """Columns ``t,u,y`` first (then ``k``): the file feeds straight into
+    ``thermolab identify``.
+    """
+    lab.runs.get(run_id, who)
+
+    def lines() -> Iterator[str]:
+        yield "t,u,y,k\n"
+        chunk: list[str] = []
+        for k, t, u, y in lab.runs.samples(run_id, who):
+            chunk.append(f"{t!r},{u!r},{y!r},{k}\n")
+            if len(chunk) >= 1000:
+                yield "".join(chunk)
+                chunk = []
+        yield "".join(chunk)
+
+    return StreamingResponse(
+        lines(),
+        media_type="text/csv",
+        headers={"Content-Disposition": f'attachment; filename="run-{run_id}.csv"'},
+    )
+
+
+@_authed.get(
+    "/runs/{run_id}/export.json",
+    tags=["runs"],
+    summary="The run, its samples and every method's results as JSON",
+    responses=_errors(403, 404),
+)
+def run_export(run_id: RunId, who: UserDep, lab: LabDep) -> JSONResponse:
+    """Everything stored about a run: settings, samples, trajectories, final estimates."""
+    exported = lab.runs.export(run_id, who)
+    exported["run"] = RunOut.of(exported["run"]).model_dump(mode="json", by_alias=True)
+    return JSONResponse(
+        exported,
+        headers={"Content-Disposition": f'attachment; filename="run-{run_id}.json"'},
+    )
 
 
 # -- users ---------------------------------------------------------------------------------------

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from datetime import datetime
 
 from thermolab.errors import ConfigError, RigError, ThermoLabError
+from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig, RigConfig, parse_rig_spec
 from thermolab.lab.models import PowerState
 from thermolab.rigs import Rig, make_clock, open_rig
@@ -155,6 +156,7 @@ class _Slot:
         self.output: float | None = None
         self.output_at: datetime | None = None
         self.fault: str | None = None
+        self.claimed = False
 
 
 class RigHub:
@@ -166,6 +168,8 @@ class RigHub:
     opener : RigOpener or None
         Opens a rig's driver; ``None`` runs the lab without devices (inputs are
         validated and recorded but reach no rig).
+    clock : LabClock, optional
+        Dates the readings a run hands in (:meth:`note_reading`).
 
     Examples
     --------
@@ -178,8 +182,11 @@ class RigHub:
     True
     """
 
-    def __init__(self, config: LabConfig, opener: RigOpener | None) -> None:
+    def __init__(
+        self, config: LabConfig, opener: RigOpener | None, clock: LabClock | None = None
+    ) -> None:
         self._opener = opener
+        self._clock = clock
         self._slots = {rig.id: _Slot(rig) for rig in config.rigs}
 
     def open_all(self) -> dict[str, str]:
@@ -221,6 +228,25 @@ class RigHub:
                 slot.fault = f"cannot open {slot.config.spec!r}: {exc}"
                 log.warning("rig %s: %s", slot.config.id, slot.fault)
                 return slot.fault
+
+    def claim(self, rig_id: str) -> None:
+        """A run takes the device: the hub leaves it alone until :meth:`release`."""
+        slot = self._slots[rig_id]
+        with slot.lock:
+            slot.claimed = True
+
+    def release(self, rig_id: str) -> None:
+        """The run is over: the hub looks after the device again (call :meth:`reconcile`)."""
+        slot = self._slots[rig_id]
+        with slot.lock:
+            slot.claimed = False
+            slot.controller_session = None
+
+    def note_reading(self, rig_id: str, value: float) -> None:
+        """Record a reading taken by someone else (a run samples the rig)."""
+        slot = self._slots[rig_id]
+        slot.output = value
+        slot.output_at = self._clock.now() if self._clock is not None else slot.output_at
 
     def driver(self, rig_id: str) -> Rig | None:
         """Return the rig's open driver, if any (the runner samples it during a run)."""
@@ -274,6 +300,8 @@ class RigHub:
         """
         slot = self._slots[rig_id]
         with slot.lock:
+            if slot.claimed:
+                return
             driver = slot.driver
             if driver is not None:
                 # The device's own state wins: a run powers the rig off when it ends.
@@ -314,7 +342,7 @@ class RigHub:
         """
         slot = self._slots[rig_id]
         with slot.lock:
-            if slot.driver is None or not slot.driver.powered:
+            if slot.driver is None or slot.claimed or not slot.driver.powered:
                 return None
             if slot.controller_session != controller_session:
                 return None
@@ -330,7 +358,7 @@ class RigHub:
         """Take a reading of every attached rig (keeps :meth:`output` fresh)."""
         for slot in self._slots.values():
             with slot.lock:
-                if slot.driver is None or slot.fault is not None:
+                if slot.driver is None or slot.fault is not None or slot.claimed:
                     continue
                 try:
                     slot.output = slot.driver.read().value

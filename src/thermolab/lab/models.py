@@ -12,7 +12,8 @@ behind the rig-row lock of :mod:`thermolab.lab.access`):
 * at most one active control session per rig (partial unique index on
   ``control_sessions.rig_id`` where ``ended_at IS NULL``);
 * at most one active queue entry per user and rig, and queue tickets unique
-  per rig.
+  per rig;
+* at most one running run per rig.
 """
 
 from __future__ import annotations
@@ -273,6 +274,13 @@ class Run(Base):
     __tablename__ = "runs"
     __table_args__ = (
         CheckConstraint(_in("status", RunStatus), name="status"),
+        Index(
+            "ux_runs_running_rig",
+            "rig_id",
+            unique=True,
+            sqlite_where=text("status = 'running'"),
+            postgresql_where=text("status = 'running'"),
+        ),
         Index("ix_runs_rig_id_started_at", "rig_id", "started_at"),
         Index("ix_runs_user_id", "user_id"),
     )

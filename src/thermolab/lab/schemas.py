@@ -15,6 +15,7 @@ from pydantic.alias_generators import to_camel
 from thermolab.lab.access import QueueSlot, RigView
 from thermolab.lab.models import ControlSession
 from thermolab.lab.presence import Watcher
+from thermolab.lab.runs import RunRecord, RunRequest
 from thermolab.lab.service import InputResult
 from thermolab.lab.users import Principal, UserInfo
 
@@ -34,6 +35,8 @@ __all__ = [
     "PasswordIn",
     "QueueSlotOut",
     "RigOut",
+    "RunIn",
+    "RunOut",
     "ServiceIn",
     "SessionOut",
     "UserOut",
@@ -279,11 +282,106 @@ class InputOut(_Out):
     u: float
     applied: float | None = Field(description="the value the device applied; null if none")
     at: datetime
+    run: int | None = Field(description="the run the input went to, if one is going")
 
     @classmethod
     def of(cls, result: InputResult) -> InputOut:
         """Build from an input result."""
-        return cls(rig=result.rig_id, u=result.u, applied=result.applied, at=result.at)
+        return cls(
+            rig=result.rig_id, u=result.u, applied=result.applied, at=result.at, run=result.run_id
+        )
+
+
+class RunIn(_In):
+    """START: the run's schedule, input and identification methods (the paper's panels)."""
+
+    dt: Annotated[float, Field(gt=0, le=3600, allow_inf_nan=False, description="sample period, s")]
+    samples: Annotated[int, Field(ge=1, le=200_000, description="samples to take")]
+    signal: Annotated[
+        str | None,
+        Field(
+            max_length=200,
+            description="input signal: const:U, step:U0:U1@T, square:LOW:HIGH:HZ, "
+            "sine:OFFSET:AMP:HZ, prbs:LOW:HIGH:BIT_S[:SEED]; null for a manual set point",
+        ),
+    ] = None
+    setpoint: Annotated[
+        float | None,
+        Field(allow_inf_nan=False, description="manual input at START (with no signal)"),
+    ] = None
+    methods: Annotated[
+        list[Literal["srm", "lsm", "blockls", "malsm", "wlsm"]],
+        Field(min_length=1, max_length=5, description="identification methods"),
+    ] = ["srm", "lsm"]
+    window: Annotated[int | None, Field(ge=2, le=100_000, description="MALSM window")] = None
+    block: Annotated[int | None, Field(ge=2, le=100_000, description="block-LSM block")] = None
+    gamma: Annotated[
+        float | None, Field(gt=0, le=1, allow_inf_nan=False, description="WLSM forgetting")
+    ] = None
+    pmax: Annotated[
+        float | None, Field(gt=0, allow_inf_nan=False, description="WLSM initial covariance")
+    ] = None
+
+    def request(self) -> RunRequest:
+        """The run service's request."""
+        return RunRequest(
+            dt=self.dt,
+            samples=self.samples,
+            signal=self.signal,
+            setpoint=self.setpoint,
+            methods=tuple(self.methods),
+            window=self.window,
+            block=self.block,
+            gamma=self.gamma,
+            pmax=self.pmax,
+        )
+
+
+class RunOut(_Out):
+    """A run: what was asked, how far it got, how it ended, each method's latest estimate."""
+
+    id: int
+    rig: str
+    username: str
+    status: Literal["running", "finished", "stopped", "interrupted", "failed"]
+    dt: float
+    samples: int | None
+    samples_stored: int
+    samples_taken: int
+    signal: str | None
+    setpoint: float | None
+    methods: list[str]
+    settings: dict[str, Any]
+    started_at: datetime
+    ended_at: datetime | None
+    end_reason: str | None
+    results: dict[str, Any] = Field(
+        description="per method: latest estimate (K, tau, W, valid, final...), error"
+    )
+
+    @classmethod
+    def of(cls, run: RunRecord) -> RunOut:
+        """Build from a run record."""
+        return cls.model_validate(
+            {
+                "id": run.id,
+                "rig": run.rig_id,
+                "username": run.username,
+                "status": run.status,
+                "dt": run.dt,
+                "samples": run.samples,
+                "samples_stored": run.samples_stored,
+                "samples_taken": run.samples_taken,
+                "signal": run.signal,
+                "setpoint": run.setpoint,
+                "methods": run.methods,
+                "settings": run.settings,
+                "started_at": run.started_at,
+                "ended_at": run.ended_at,
+                "end_reason": run.end_reason,
+                "results": run.results,
+            }
+        )
 
 
 class ExtendIn(_In):

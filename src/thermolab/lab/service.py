@@ -19,6 +19,7 @@ from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.hub import DesiredState, RigHub, RigOpener
 from thermolab.lab.presence import Presence
+from thermolab.lab.runs import RunService
 from thermolab.lab.security import LoginThrottle, default_password_hasher
 from thermolab.lab.users import Principal, SessionService, UserInfo, UserService
 
@@ -59,6 +60,8 @@ class InputResult:
     at : datetime
         When the command was accepted.
     command_id : int
+    run_id : int or None
+        The run the input went to, if one was going.
     """
 
     rig_id: str
@@ -66,6 +69,7 @@ class InputResult:
     applied: float | None
     at: datetime
     command_id: int
+    run_id: int | None = None
 
 
 class Lab:
@@ -110,7 +114,7 @@ class Lab:
         self.db = database or Database(config.database)
         policy = config.access
         self.presence = Presence(self.clock, timeout=policy.client_timeout)
-        self.hub = RigHub(config, opener)
+        self.hub = RigHub(config, opener, self.clock)
         self.users = UserService(self.db, self.clock, hasher or default_password_hasher())
         self.sessions = SessionService(
             self.db,
@@ -127,6 +131,7 @@ class Lab:
         self.access = AccessService(
             self.db, config, self.clock, self.hub, self.presence, on_change=self._reconcile
         )
+        self.runs = RunService(self.db, self.clock, self.access, self.hub, self._reconcile)
         self._last_purge: datetime | None = None
         self._sweep_lock = threading.Lock()
         self._report: StartupReport | None = None
@@ -168,15 +173,24 @@ class Lab:
             return changed
 
     def apply_input(self, rig_id: str, who: Principal, u: float) -> InputResult:
-        """Validate, record and apply a controller's input (see ``AccessService.record_input``)."""
-        record = self.access.record_input(rig_id, who, u)
-        applied = self.hub.apply(rig_id, record.u, controller_session=record.control_session)
+        """Validate, record and apply a controller's input (see ``AccessService.record_input``).
+
+        During a run the input goes to the run, which applies it from its next
+        sample on (``applied`` is then the value it will apply).
+        """
+        run_id = self.runs.running(rig_id)
+        record = self.access.record_input(rig_id, who, u, run_id=run_id)
+        applied: float | None
+        if run_id is not None and self.runs.set_input(rig_id, record.u) is not None:
+            applied = record.u
+        else:
+            applied = self.hub.apply(rig_id, record.u, controller_session=record.control_session)
         if applied is not None:
             self.access.mark_applied(record.id)
         fault = self.hub.fault(rig_id)
         if fault is not None:
             self.access.report_fault(rig_id, fault)
-        return InputResult(rig_id, record.u, applied, record.at, record.id)
+        return InputResult(rig_id, record.u, applied, record.at, record.id, run_id)
 
     def set_service(self, rig_id: str, who: Principal, in_service: bool) -> RigView:
         """Take a rig in or out of service; clears its fault (teachers only)."""
@@ -194,7 +208,8 @@ class Lab:
         return info
 
     def close(self) -> None:
-        """Leave every rig safe and close the database connections."""
+        """End every run, leave every rig safe and close the database connections."""
+        self.runs.shutdown()
         self.hub.close()
         self.db.close()
 
@@ -202,5 +217,7 @@ class Lab:
         cfg = self.config.rig(rig_id)
         with self.hub.locked(rig_id):
             power, controller = self.access.desired(rig_id)
+            # A run belongs to a turn: when the turn is over, so is the run.
+            self.runs.control_changed(rig_id, controller)
             desired = DesiredState(power=power, controller_session=controller)
             self.hub.reconcile(rig_id, desired, cfg.cooldown.input)

@@ -1,0 +1,663 @@
+"""Experiment runs on the lab's rigs: START, set point changes, END, and storage.
+
+A run is the paper's application on a shared rig: the controller starts it
+(dt, number of samples, a signal or a manual set point, the identification
+methods with their settings), may change the input while it runs, and ends
+it; otherwise it ends after its samples. The sampling itself is
+:class:`thermolab.runner.Experiment`, on the rig's driver, in a worker thread.
+
+Storage: every sample goes to the ``samples`` table through
+:class:`DatabaseRecorder`, which the runner calls once per sample; it only
+appends to a buffer, and a writer thread inserts the buffer at least once a
+second, so a crash of the server loses at most about a second of samples. At
+the end the methods' results (final estimate and trajectories) go to
+``method_results`` and the run row records how it ended. A run whose server
+stopped is marked ``interrupted`` at the next start.
+
+A run belongs to a turn at the controls: when the turn ends (time limit,
+client gone, kicked...) the run is ended as by END, so that its data and
+estimates are kept. While a run holds a rig, the lab's hub leaves the device
+to the runner.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import func, insert, select, update
+from sqlalchemy.orm import Session
+
+from thermolab.errors import (
+    AccessDeniedError,
+    ConflictError,
+    InvalidParameterError,
+    NotFoundError,
+    ThermoLabError,
+)
+from thermolab.ident.online import OnlineIdentifier
+from thermolab.lab.access import AccessService
+from thermolab.lab.clock import LabClock
+from thermolab.lab.db import Database
+from thermolab.lab.hub import RigHub
+from thermolab.lab.models import Command, ControlSession, MethodResult, Rig, Run, RunStatus, Sample
+from thermolab.lab.users import Principal
+from thermolab.runner import EndReason, EventBus, Experiment, RunResult
+from thermolab.runner.methods import build_identifiers, parse_methods
+from thermolab.signals import parse_signal
+
+__all__ = ["DatabaseRecorder", "RunRecord", "RunRequest", "RunService", "json_safe"]
+
+log = logging.getLogger(__name__)
+
+MAX_SAMPLES = 200_000
+MIN_DT = 0.01
+MAX_DT = 3600.0
+
+
+def json_safe(value: Any) -> Any:
+    """Return ``value`` with NaN and infinities replaced by ``None`` (JSON has neither).
+
+    Examples
+    --------
+    >>> json_safe({"K": float("nan"), "W": [1.0, float("inf")]})
+    {'K': None, 'W': [1.0, None]}
+    """
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    return value
+
+
+@dataclass(frozen=True, slots=True)
+class RunRequest:
+    """What a controller asks for at START (the three panels of the paper).
+
+    Attributes
+    ----------
+    dt : float
+        Sample period, seconds.
+    samples : int
+        Samples to take (END may stop earlier).
+    signal : str or None
+        Input signal (``step:0:10@10``, ``square:4:6:0.1``...); ``None`` for a
+        manual set point.
+    setpoint : float or None
+        The manual input at START (with no signal; default the safe input).
+    methods : tuple of str
+        Identification methods (``srm``, ``lsm``, ``blockls``, ``malsm``, ``wlsm``).
+    window, block : int or None
+        MALSM window and block-LSM block, in samples.
+    gamma, pmax : float or None
+        WLSM forgetting factor and initial covariance.
+    """
+
+    dt: float
+    samples: int
+    signal: str | None = None
+    setpoint: float | None = None
+    methods: tuple[str, ...] = ("srm", "lsm")
+    window: int | None = None
+    block: int | None = None
+    gamma: float | None = None
+    pmax: float | None = None
+
+    def settings(self) -> dict[str, Any]:
+        """The request as stored with the run."""
+        return {
+            "dt": self.dt,
+            "samples": self.samples,
+            "signal": self.signal,
+            "setpoint": self.setpoint,
+            "methods": list(self.methods),
+            "window": self.window,
+            "block": self.block,
+            "gamma": self.gamma,
+            "pmax": self.pmax,
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class RunRecord:
+    """A run as stored, with its live progress when it is running.
+
+    ``results`` maps each method to its latest estimate (a JSON-ready dict,
+    ``None`` before the first) and ``errors`` to why it stopped, if it did.
+    """
+
+    id: int
+    rig_id: str
+    username: str
+    user_id: int
+    status: str
+    dt: float
+    samples: int | None
+    samples_stored: int
+    samples_taken: int
+    signal: str | None
+    setpoint: float | None
+    methods: list[str]
+    settings: dict[str, Any]
+    started_at: datetime
+    ended_at: datetime | None
+    end_reason: str | None
+    results: dict[str, Any] = field(default_factory=dict)
+
+
+class DatabaseRecorder:
+    """A runner :class:`~thermolab.runner.Recorder` that stores samples in the database.
+
+    ``write`` (called by the sampling loop) appends to a buffer under a lock;
+    a writer thread inserts the buffer every ``interval`` seconds of real
+    time; ``close`` inserts the rest before returning.
+
+    Parameters
+    ----------
+    db : Database
+    run_id : int
+    interval : float
+        Longest time (seconds) a sample waits in memory.
+    on_sample : callable, optional
+        Called with each output ``y`` (keeps the lab's view of the rig fresh).
+    """
+
+    def __init__(
+        self,
+        db: Database,
+        run_id: int,
+        *,
+        interval: float = 0.5,
+        on_sample: Callable[[float], None] | None = None,
+    ) -> None:
+        self._db = db
+        self.run_id = run_id
+        self._interval = interval
+        self._on_sample = on_sample
+        self._buffer: list[dict[str, Any]] = []
+        self._lock = threading.Lock()
+        self._flush_lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.stored = 0
+        self.error: BaseException | None = None
+
+    def open(self) -> None:
+        """Start the writer thread."""
+        self._thread = threading.Thread(
+            target=self._loop, name=f"thermolab-run-{self.run_id}-writer", daemon=True
+        )
+        self._thread.start()
+
+    def write(
+        self, k: int, t: float, u: float, y: float, t_read: float, jitter: float, lateness: float
+    ) -> None:
+        """Queue one sample for the database (never blocks on it)."""
+        if self.error is not None:
+            # The store failed: stop the run rather than lose samples silently.
+            raise ThermoLabError(f"cannot store the run's samples: {self.error}")
+        with self._lock:
+            self._buffer.append({"run_id": self.run_id, "k": k, "t": t, "u": u, "y": y})
+        if self._on_sample is not None:
+            self._on_sample(y)
+
+    def flush(self) -> int:
+        """Insert the buffered samples now; return how many."""
+        with self._flush_lock:
+            with self._lock:
+                rows, self._buffer = self._buffer, []
+            if not rows:
+                return 0
+            with self._db.write() as session:
+                session.execute(insert(Sample), rows)
+                session.execute(
+                    update(Run)
+                    .where(Run.id == self.run_id)
+                    .values(samples_stored=Run.samples_stored + len(rows))
+                )
+            self.stored += len(rows)
+            return len(rows)
+
+    def close(self) -> None:
+        """Stop the writer and store what is left (idempotent)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+        self.flush()
+
+    def _loop(self) -> None:
+        while not self._stop.wait(self._interval):
+            try:
+                self.flush()
+            except Exception as exc:  # kept, and raised in the sampling loop by write()
+                self.error = exc
+                log.exception("run %s: storing samples failed", self.run_id)
+                return
+
+
+@dataclass
+class _Active:
+    run_id: int
+    rig_id: str
+    control_session: int
+    experiment: Experiment
+    identifiers: dict[str, OnlineIdentifier]
+    thread: threading.Thread | None = None
+    stopped_by: str | None = None
+
+
+class RunService:
+    """Starts, stops, stores and lists runs.
+
+    Parameters
+    ----------
+    db : Database
+    clock : LabClock
+    access : AccessService
+    hub : RigHub
+    on_finished : callable
+        Called with the rig id after a run has ended and been stored (the lab
+        hands the rig back to the hub).
+    """
+
+    def __init__(
+        self,
+        db: Database,
+        clock: LabClock,
+        access: AccessService,
+        hub: RigHub,
+        on_finished: Callable[[str], None],
+    ) -> None:
+        self._db = db
+        self._clock = clock
+        self._access = access
+        self._hub = hub
+        self._on_finished = on_finished
+        self._active: dict[str, _Active] = {}
+        self._lock = threading.Lock()
+
+    # -- control -------------------------------------------------------------------------
+
+    def start(self, rig_id: str, who: Principal, request: RunRequest) -> RunRecord:
+        """START a run on the rig ``who`` controls.
+
+        Raises
+        ------
+        NotFoundError
+            For an unknown rig.
+        AccessDeniedError
+            If ``who`` does not control the rig.
+        InvalidParameterError
+            For a bad dt, sample count, signal, set point, method or setting.
+        ConflictError
+            If a run is already going on the rig, or the rig has no device.
+        """
+        published = self._hub.published(rig_id)
+        limits = (published.input_min, published.input_max)
+        experiment_args = self._check(request, limits)
+        driver = self._hub.driver(rig_id)
+        if driver is None:
+            raise ConflictError(f"rig {rig_id!r} has no device attached; a run needs one")
+        with self._lock:
+            if rig_id in self._active:
+                raise ConflictError(f"a run is already going on rig {rig_id!r}; END it first")
+        identifiers = build_identifiers(
+            request.methods,
+            request.dt,
+            window=request.window,
+            block=request.block,
+            gamma=request.gamma,
+            pmax=request.pmax,
+        )
+        settings = request.settings()
+
+        def begin(session: Session, rig: Rig, control: ControlSession, now: datetime) -> int:
+            running = session.scalar(
+                select(Run.id).where(Run.rig_id == rig.id, Run.status == RunStatus.RUNNING.value)
+            )
+            if running is not None:
+                raise ConflictError(f"run {running} is already going on rig {rig.id!r}")
+            run = Run(
+                rig_id=rig.id,
+                user_id=who.user_id,
+                control_session_id=control.id,
+                status=RunStatus.RUNNING.value,
+                dt=request.dt,
+                n_samples=request.samples,
+                signal=request.signal,
+                setpoint=request.setpoint,
+                methods=list(identifiers),
+                meta={"settings": settings, "username": who.username},
+                started_at=now,
+                samples_stored=0,
+            )
+            session.add(run)
+            session.flush()
+            session.add(_command(rig.id, control, who, now, "run_start", None, run.id, settings))
+            return run.id
+
+        run_id, control_id = self._access.within_control(rig_id, who, "start a run", begin)
+        recorder = DatabaseRecorder(
+            self._db, run_id, on_sample=lambda y: self._hub.note_reading(rig_id, y)
+        )
+        experiment = Experiment(
+            driver,
+            request.dt,
+            request.samples,
+            identifiers=identifiers,
+            recorder=recorder,
+            events=EventBus(),
+            **experiment_args,
+        )
+        active = _Active(run_id, rig_id, control_id, experiment, identifiers)
+        with self._lock:
+            self._active[rig_id] = active
+        self._hub.claim(rig_id)
+        experiment.start()
+        active.thread = threading.Thread(
+            target=self._finish, args=(active,), name=f"thermolab-run-{run_id}-end", daemon=True
+        )
+        active.thread.start()
+        return self.get(run_id, who)
+
+    def stop(self, rig_id: str, who: Principal) -> RunRecord:
+        """END the rig's current run (its controller, or a teacher); returns at once.
+
+        Raises
+        ------
+        AccessDeniedError
+            If ``who`` neither controls the rig nor is a teacher.
+        ConflictError
+            If no run is going on the rig.
+        """
+        with self._lock:
+            active = self._active.get(rig_id)
+        if active is None:
+            raise ConflictError(f"no run is going on rig {rig_id!r}")
+        if not who.is_teacher:
+            snap = self._access.snapshot(rig_id)
+            if snap.controller is None or snap.controller.user_id != who.user_id:
+                raise AccessDeniedError(f"only the controller of rig {rig_id!r} may END its run")
+        active.stopped_by = who.username
+        active.experiment.end()
+        return self.get(active.run_id, who)
+
+    def set_input(self, rig_id: str, u: float) -> int | None:
+        """Hand a new input to the rig's run; return the run id (``None``: no run)."""
+        with self._lock:
+            active = self._active.get(rig_id)
+        if active is None:
+            return None
+        active.experiment.set_input(u)
+        return active.run_id
+
+    def control_changed(self, rig_id: str, controller_session: int | None) -> None:
+        """END the rig's run if the turn it belongs to has ended."""
+        with self._lock:
+            active = self._active.get(rig_id)
+        if active is not None and active.control_session != controller_session:
+            active.stopped_by = active.stopped_by or "end of the turn at the controls"
+            active.experiment.end()
+
+    def running(self, rig_id: str) -> int | None:
+        """Return the id of the run going on the rig, if any."""
+        with self._lock:
+            active = self._active.get(rig_id)
+        return active.run_id if active is not None else None
+
+    def wait(self, rig_id: str, timeout: float | None = None) -> None:
+        """Wait until the rig's run (if any) has ended and been stored."""
+        with self._lock:
+            active = self._active.get(rig_id)
+        if active is not None and active.thread is not None:
+            active.thread.join(timeout)
+
+    def shutdown(self, timeout: float = 10.0) -> None:
+        """Abort every run (server stopping): actuators safe, runs marked interrupted."""
+        with self._lock:
+            actives = list(self._active.values())
+        for active in actives:
+            active.stopped_by = "the server stopped"
+            active.experiment.abort("the server stopped")
+        for active in actives:
+            if active.thread is not None:
+                active.thread.join(timeout)
+
+    # -- reading -------------------------------------------------------------------------
+
+    def get(self, run_id: int, who: Principal) -> RunRecord:
+        """Return one run (a student's own; any for a teacher).
+
+        Raises
+        ------
+        NotFoundError
+            If there is no such run.
+        AccessDeniedError
+            If it belongs to another user and ``who`` is a student.
+        """
+        with self._db.read() as session:
+            run = session.get(Run, run_id)
+            if run is None:
+                raise NotFoundError(f"no run {run_id}")
+            _check_owner(run, who)
+            rows = session.execute(
+                select(MethodResult.method, MethodResult.result).where(
+                    MethodResult.run_id == run_id
+                )
+            ).all()
+            stored: dict[str, Any] = {row.method: row.result for row in rows}
+            return self._record(run, stored)
+
+    def list(self, who: Principal, rig_id: str | None = None, limit: int = 200) -> list[RunRecord]:
+        """Return runs, newest first: a student's own, or everyone's for a teacher."""
+        query = select(Run).order_by(Run.started_at.desc(), Run.id.desc()).limit(limit)
+        if not who.is_teacher:
+            query = query.where(Run.user_id == who.user_id)
+        if rig_id is not None:
+            query = query.where(Run.rig_id == rig_id)
+        with self._db.read() as session:
+            return [self._record(run, None) for run in session.scalars(query)]
+
+    def samples(self, run_id: int, who: Principal) -> Iterator[tuple[int, float, float, float]]:
+        """Yield ``(k, t, u, y)`` of every stored sample of a run, in order.
+
+        Raises
+        ------
+        NotFoundError, AccessDeniedError
+            As :meth:`get`.
+        """
+        self.get(run_id, who)
+        with self._db.read() as session:
+            rows = session.execute(
+                select(Sample.k, Sample.t, Sample.u, Sample.y)
+                .where(Sample.run_id == run_id)
+                .order_by(Sample.k)
+                .execution_options(yield_per=2000)
+            )
+            for row in rows:
+                yield (row[0], row[1], row[2], row[3])
+
+    def export(self, run_id: int, who: Principal) -> dict[str, Any]:
+        """Return a run with its samples and every method's stored result (JSON-ready)."""
+        record = self.get(run_id, who)
+        ks, ts, us, ys = [], [], [], []
+        for k, t, u, y in self.samples(run_id, who):
+            ks.append(k)
+            ts.append(t)
+            us.append(u)
+            ys.append(y)
+        with self._db.read() as session:
+            methods = {
+                row.label: {"method": row.method, "params": row.params, "result": row.result}
+                for row in session.scalars(
+                    select(MethodResult).where(MethodResult.run_id == run_id)
+                )
+            }
+        exported: dict[str, Any] = json_safe(
+            {
+                "run": record,
+                "samples": {"k": ks, "t": ts, "u": us, "y": ys},
+                "methods": methods,
+            }
+        )
+        return exported
+
+    # -- internals -------------------------------------------------------------------------
+
+    def _check(self, request: RunRequest, limits: tuple[float, float]) -> dict[str, Any]:
+        if not (math.isfinite(request.dt) and MIN_DT <= request.dt <= MAX_DT):
+            raise InvalidParameterError(
+                f"dt must be between {MIN_DT:g} and {MAX_DT:g} seconds, got {request.dt!r}"
+            )
+        if not 1 <= request.samples <= MAX_SAMPLES:
+            raise InvalidParameterError(
+                f"samples must be between 1 and {MAX_SAMPLES}, got {request.samples!r}"
+            )
+        parse_methods(request.methods)
+        if request.signal is not None and request.setpoint is not None:
+            raise InvalidParameterError("give either a signal or a setpoint, not both")
+        if request.signal is not None:
+            return {"signal": parse_signal(request.signal, limits)}
+        if request.setpoint is not None:
+            low, high = limits
+            if not (math.isfinite(request.setpoint) and low <= request.setpoint <= high):
+                raise InvalidParameterError(
+                    f"setpoint {request.setpoint!r} is outside the rig's input range "
+                    f"[{low:g}, {high:g}]"
+                )
+            return {"set_point": request.setpoint}
+        return {}
+
+    def _finish(self, active: _Active) -> None:
+        result = active.experiment.wait()
+        try:
+            if result is not None:
+                self._store(active, result)
+        except Exception:
+            log.exception("run %s: storing the end of the run failed", active.run_id)
+        finally:
+            with self._lock:
+                self._active.pop(active.rig_id, None)
+            self._hub.release(active.rig_id)
+            if result is not None and result.end_reason is EndReason.RIG_FAULT:
+                self._access.report_fault(active.rig_id, result.message or "rig fault")
+            self._on_finished(active.rig_id)
+
+    def _store(self, active: _Active, result: RunResult) -> None:
+        now = self._clock.now()
+        status = _status_of(result.end_reason)
+        if active.stopped_by == "the server stopped":
+            status = RunStatus.INTERRUPTED
+        reason = result.end_reason.value
+        if result.message:
+            reason = f"{reason}: {result.message}"
+        if result.end_reason is EndReason.ENDED and active.stopped_by:
+            reason = f"ended by {active.stopped_by}"
+        with self._db.write() as session:
+            for name, method in result.methods.items():
+                session.add(
+                    MethodResult(
+                        run_id=active.run_id,
+                        label=name,
+                        method=name,
+                        params=json_safe(_params(active.identifiers.get(name))),
+                        result=json_safe(method.to_dict(trajectory=True)),
+                        created_at=now,
+                    )
+                )
+            stored = session.scalar(
+                select(func.count()).select_from(Sample).where(Sample.run_id == active.run_id)
+            )
+            session.execute(
+                update(Run)
+                .where(Run.id == active.run_id)
+                .values(
+                    status=status.value,
+                    ended_at=now,
+                    end_reason=reason,
+                    samples_stored=stored or 0,
+                )
+            )
+
+    def _record(self, run: Run, stored: dict[str, Any] | None) -> RunRecord:
+        with self._lock:
+            active = self._active.get(run.rig_id)
+        live = active is not None and active.run_id == run.id
+        results: dict[str, Any] = {}
+        taken = run.samples_stored
+        if live and active is not None:
+            snapshot = active.experiment.snapshot()
+            taken = snapshot.samples
+            for name, method in snapshot.methods.items():
+                results[name] = json_safe(method.to_dict())
+        elif stored is not None:
+            for name, result in stored.items():
+                results[name] = {k: v for k, v in result.items() if k != "trajectory"}
+        return RunRecord(
+            id=run.id,
+            rig_id=run.rig_id,
+            username=str(run.meta.get("username", "")),
+            user_id=run.user_id,
+            status=run.status,
+            dt=run.dt,
+            samples=run.n_samples,
+            samples_stored=run.samples_stored,
+            samples_taken=taken,
+            signal=run.signal,
+            setpoint=run.setpoint,
+            methods=list(run.methods),
+            settings=dict(run.meta.get("settings", {})),
+            started_at=run.started_at,
+            ended_at=run.ended_at,
+            end_reason=run.end_reason,
+            results=results,
+        )
+
+
+def _status_of(reason: EndReason) -> RunStatus:
+    if reason is EndReason.COMPLETED:
+        return RunStatus.FINISHED
+    if reason in (EndReason.ENDED, EndReason.ABORTED):
+        return RunStatus.STOPPED
+    return RunStatus.FAILED
+
+
+def _params(identifier: OnlineIdentifier | None) -> dict[str, Any]:
+    return dict(identifier.params) if identifier is not None else {}
+
+
+def _check_owner(run: Run, who: Principal) -> None:
+    if not who.is_teacher and run.user_id != who.user_id:
+        raise AccessDeniedError(f"run {run.id} belongs to another user")
+
+
+def _command(
+    rig_id: str,
+    control: ControlSession,
+    who: Principal,
+    now: datetime,
+    kind: str,
+    value: float | None,
+    run_id: int | None,
+    payload: dict[str, Any] | None,
+) -> Command:
+    return Command(
+        rig_id=rig_id,
+        control_session_id=control.id,
+        run_id=run_id,
+        user_id=who.user_id,
+        username=who.username,
+        at=now,
+        kind=kind,
+        value=value,
+        payload=None if payload is None else json_safe(payload),
+        applied=True,
+    )
