@@ -9,8 +9,10 @@ run request each panel builds.
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
+import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
@@ -383,22 +385,72 @@ def test_each_panel_builds_its_run_request(module_page: Any) -> None:
                                  true);
         const p2 = buildRunSpec({ id: 'malsm' },
                                 { dt: 0.5, n: 500, window: 100, low: 4, high: 6 }, true);
-        const p3 = buildRunSpec({ id: 'wlsm' }, { dt: 1, n: 3000, gamma: 0.96, pmax: 1e4,
-                                                 a0: 0.96329, b0: 9.9082e-4, low: 0, high: 4 },
-                                true);
-        return { p1, p1b, p2, p3, sig: automaticSignal(4, 6, 1),
+        const w = { dt: 1, n: 3000, gamma: 0.96, pmax: 1e4, a0: 0.96329, b0: 9.9082e-4,
+                    low: 0, high: 4 };
+        const p3 = buildRunSpec({ id: 'wlsm' }, w, true);
+        const p3w0 = buildRunSpec({ id: 'wlsm' }, w, true, { w0: true });
+        return { p1, p1b, p2, p3, p3w0, sig: automaticSignal(4, 6, 1),
                  panels: [panelOfRun(p1), panelOfRun(p2), panelOfRun(p3)] };
         """,
     )
     assert r["sig"] == "square:4:6:0.1"
-    assert r["p1"]["dt"] == 1
-    assert r["p1"]["setpoint"] == 0
-    assert "signal" not in r["p1"]
-    assert [m["method"] for m in r["p1"]["methods"]] == ["srm", "lsm"]
-    assert r["p1b"]["signal"] == "square:4:6:0.1"
-    assert r["p1b"]["methods"][2] == {"method": "blockls", "block": 100}
-    assert r["p2"]["signal"] == "square:4:6:0.2"
+    assert r["p1"] == {"dt": 1, "samples": 2000, "setpoint": 0, "methods": ["srm", "lsm"]}
+    assert r["p1b"] == {
+        "dt": 1,
+        "samples": 2000,
+        "signal": "square:4:6:0.1",
+        "methods": ["srm", "lsm", "blockls"],
+        "block": 100,
+    }
+    assert r["p2"] == {
+        "dt": 0.5,
+        "samples": 500,
+        "signal": "square:4:6:0.2",
+        "methods": ["malsm"],
+        "window": 100,
+    }
+    assert r["p3"] == {
+        "dt": 1,
+        "samples": 3000,
+        "signal": "square:0:4:0.1",
+        "methods": ["wlsm"],
+        "gamma": 0.96,
+        "pmax": 1e4,
+    }
+    assert r["p3w0"]["w0"] == [0.96329, 9.9082e-4]
     assert r["panels"] == ["srm-lsm", "malsm", "wlsm"]
+
+
+def test_ranges_are_read_from_the_servers_schema(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        """
+        const { numericRange, hasProperty } = await import('/js/schema.js');
+        const { rangeText } = await import('/js/validate.js');
+        const doc = { components: { schemas: { RunIn: { properties: {
+          dt: { type: 'number', exclusiveMinimum: 0, maximum: 3600 },
+          samples: { type: 'integer', minimum: 1, maximum: 200000 },
+          pmax: { anyOf: [{ type: 'number', exclusiveMinimum: 0 }, { type: 'null' }] },
+          signal: { anyOf: [{ type: 'string' }, { type: 'null' }] } } } } } };
+        const dt = numericRange(doc, 'RunIn', 'dt');
+        const samples = numericRange(doc, 'RunIn', 'samples');
+        const pmax = numericRange(doc, 'RunIn', 'pmax');
+        return { dt, samples, pmax, none: numericRange(doc, 'RunIn', 'signal'),
+                 missing: numericRange(doc, 'RunIn', 'w0'), w0: hasProperty(doc, 'RunIn', 'w0'),
+                 texts: [rangeText({ ...dt, unit: 's' }), rangeText(samples), rangeText(pmax)] };
+        """,
+    )
+    assert r["dt"] == {"integer": False, "min": 0, "exclusiveMin": True, "max": 3600}
+    assert r["samples"] == {"integer": True, "min": 1, "max": 200000}
+    assert r["pmax"] == {"integer": False, "min": 0, "exclusiveMin": True}
+    assert r["none"] is None
+    assert r["missing"] is None
+    assert r["w0"] is False
+    assert r["texts"] == [
+        "more than 0 and at most 3600 s",
+        "an integer from 1 to 200000",
+        "more than 0",
+    ]
 
 
 def test_csv_and_error_messages_are_read_as_the_server_sends_them(module_page: Any) -> None:
@@ -424,3 +476,54 @@ def test_csv_and_error_messages_are_read_as_the_server_sends_them(module_page: A
     assert r["e1"] == "rig is in use"
     assert r["e2"] == "dt: must be > 0; methods.0.gamma: too big"
     assert r["e3"] == "500 Internal Server Error"
+
+
+def test_table_figures_follow_the_identification_conventions(module_page: Any) -> None:
+    """Stats over the last 2000 samples and ±1 % convergence, as thermolab.ident computes them."""
+    from thermolab.ident import ArxOrder, Trajectory
+
+    rng = np.random.default_rng(7)
+    k = np.arange(3000)
+    K = 0.14009 * (1 + 0.5 * np.exp(-k / 40)) + rng.normal(0, 2e-5, k.size)
+    tau = 250.126233 * (1 - 0.4 * np.exp(-k / 90)) + rng.normal(0, 0.02, k.size)
+    a = np.exp(-1.0 / tau)
+    W = np.column_stack([a, (1 - a) * K])
+    W[:5] = np.nan  # no estimate yet
+    W[5] = [1.2, 0.1]  # an unstable estimate: not valid
+    tr = Trajectory("wlsm", 1.0, W, ArxOrder(), "initial", ("a", "b"))
+    stored = {
+        "latest": {"K": float(tr.K[-1]), "tau": float(tr.tau[-1]), "valid": True, "k": 2999},
+        "trajectory": {
+            "k": k[5:].tolist(),
+            "K": [None if not np.isfinite(v) else float(v) for v in tr.K[5:]],
+            "tau": [None if not np.isfinite(v) else float(v) for v in tr.tau[5:]],
+            "valid": tr.valid[5:].tolist(),
+        },
+    }
+    r = run_js(
+        module_page,
+        f"""
+        const {{ readResult }} = await import('/js/results.js');
+        const f = readResult({json.dumps(stored)}, 'wlsm');
+        return {{ K: f.K, tau: f.tau, conv: f.convergedAt, valid: f.valid,
+                 single: readResult({{ latest: {{ K: 0.14, tau: 250, valid: true,
+                   extras: {{ warnings: ['short record'] }} }} }}, 'srm'),
+                 invalid: readResult({{ latest: {{ K: null, tau: null, valid: false,
+                   extras: {{ reason: 'not excited' }} }} }}, 'lsm') }};
+        """,
+    )
+    stats = tr.stats(2000)
+    for name in ("K", "tau"):
+        assert_allclose(
+            [r[name]["mean"], r[name]["max"], r[name]["min"]],
+            [stats[name]["mean"], stats[name]["max"], stats[name]["min"]],
+            rtol=1e-12,
+        )
+    assert r["conv"] == tr.converged_at(0.01, 2000)
+    assert r["conv"]["K"] is not None
+    assert r["valid"] is True
+    assert r["single"]["K"] == {"mean": 0.14, "max": 0.14, "min": 0.14}
+    assert r["single"]["warnings"] == ["short record"]
+    assert r["invalid"]["valid"] is False
+    assert r["invalid"]["reason"] == "not excited"
+    assert r["invalid"]["K"] is None

@@ -109,5 +109,8 @@ export const api = {
   runs: (query = "", opts) => request("GET", `/api/runs${query}`, undefined, opts),
   run: (id, opts) => request("GET", `/api/runs/${enc(id)}`, undefined, opts),
   csvUrl: (id) => `/api/runs/${enc(id)}/samples.csv`,
+  exportUrl: (id) => `/api/runs/${enc(id)}/export.json`,
+  /** Everything stored about a run: {run, samples: {k, t, u, y}, methods: {label: {method, params, result}}}. */
+  exportRun: (id, opts) => request("GET", `/api/runs/${enc(id)}/export.json`, undefined, opts),
   cameraUrl: (rig) => `/api/rigs/${enc(rig)}/camera`,
 };

@@ -24,23 +24,33 @@ export function automaticSignal(low, high, dt) {
 }
 
 /**
- * The body of POST /api/rigs/{rig}/runs for a panel's checked values.
+ * The body of POST /api/rigs/{rig}/runs (RunIn of /openapi.json) for a panel's
+ * checked values.
  * @param {{id: string}} panel
- * @param {Record<string, number>} v  checked values (dt, n, setpoint | low/high, window, gamma, pmax, a0, b0)
+ * @param {Record<string, number>} v  checked values (dt, n, setpoint | low/high, block,
+ *   window, gamma, pmax, a0, b0)
  * @param {boolean} automatic
+ * @param {{w0?: boolean}} [server]  what the server accepts beyond the basics
  */
-export function buildRunSpec(panel, v, automatic) {
-  const spec = { dt: v.dt, n_samples: v.n };
+export function buildRunSpec(panel, v, automatic, server = {}) {
+  const spec = { dt: v.dt, samples: v.n };
   if (automatic) spec.signal = automaticSignal(v.low, v.high, v.dt);
   else spec.setpoint = v.setpoint;
   if (panel.id === "srm-lsm") {
-    spec.methods = [{ method: "srm" }, { method: "lsm" }];
+    spec.methods = ["srm", "lsm"];
     // LSM(2)/(3) of the paper's tables: an estimate over every block of N samples.
-    if (v.block > 0) spec.methods.push({ method: "blockls", block: v.block });
+    if (v.block > 0) {
+      spec.methods.push("blockls");
+      spec.block = v.block;
+    }
   } else if (panel.id === "malsm") {
-    spec.methods = [{ method: "malsm", window: v.window }];
+    spec.methods = ["malsm"];
+    spec.window = v.window;
   } else if (panel.id === "wlsm") {
-    spec.methods = [{ method: "wlsm", gamma: v.gamma, pmax: v.pmax, w0: [v.a0, v.b0] }];
+    spec.methods = ["wlsm"];
+    spec.gamma = v.gamma;
+    spec.pmax = v.pmax;
+    if (server.w0 && v.a0 !== undefined) spec.w0 = [v.a0, v.b0];
   } else {
     throw new RangeError(`unknown panel ${panel.id}`);
   }
@@ -61,30 +71,51 @@ export function methodName(m) {
 }
 
 /**
- * A run as the views use it (RunOut of /openapi.json); `estimates` (the
- * latest estimate per method) is filled live by the rig page.
+ * A run as the views use it (RunOut of /openapi.json). `estimates` holds the
+ * latest estimate per method: from the run's `results` at first, then from
+ * the live `estimate` messages.
  * @param {any} r
  */
 export function readRun(r) {
   if (!r || typeof r !== "object") return null;
-  const pick = (camel, snake, d = null) => r[camel] ?? r[snake] ?? d;
+  const estimates = new Map();
+  const results = r.results && typeof r.results === "object" ? r.results : {};
+  for (const [method, res] of Object.entries(results)) {
+    const latest = res?.latest;
+    if (latest && typeof latest === "object") estimates.set(method, readEstimate(latest));
+  }
   return {
     raw: r,
     id: r.id,
-    rig: pick("rig", "rigId"),
-    user: pick("username", "user"),
+    rig: r.rig ?? null,
+    user: r.username ?? null,
     status: String(r.status ?? "running"),
     dt: Number(r.dt ?? 1),
-    nSamples: pick("nSamples", "n_samples"),
+    nSamples: r.samples ?? null,
     signal: r.signal ?? null,
     setpoint: r.setpoint ?? null,
-    methods: Array.isArray(r.methods) ? r.methods : [],
-    startedAt: pick("startedAt", "started_at"),
-    endedAt: pick("endedAt", "ended_at"),
-    endReason: pick("endReason", "end_reason"),
-    samples: Number(pick("samplesStored", "samples_stored", 0)),
-    results: Array.isArray(r.results) ? r.results : [],
-    estimates: new Map(),
+    methods: Array.isArray(r.methods) ? r.methods.map(methodName) : [],
+    settings: r.settings ?? {},
+    startedAt: r.startedAt ?? null,
+    endedAt: r.endedAt ?? null,
+    endReason: r.endReason ?? null,
+    samples: Number(r.samplesTaken ?? r.samplesStored ?? 0),
+    results,
+    estimates,
+  };
+}
+
+/** An estimate (live `estimate` message, or a result's `latest`) for display. */
+export function readEstimate(e) {
+  const num = (v) => (typeof v === "number" && Number.isFinite(v) ? v : Number.NaN);
+  return {
+    K: num(e.K),
+    tau: num(e.tau),
+    k: e.k,
+    valid: e.valid !== false && Number.isFinite(num(e.K)),
+    final: Boolean(e.final),
+    W: e.W,
+    reason: e.reason ?? e.extras?.reason ?? null,
   };
 }
 

@@ -15,13 +15,15 @@
 
 /** Text of the allowed range, e.g. "−10 to 10 V" or "an integer from 10 to 100000". */
 export function rangeText(spec) {
-  const lo = spec.exclusiveMin ? `more than ${num(spec.min)}` : num(spec.min);
-  const hi = spec.exclusiveMax ? `less than ${num(spec.max)}` : num(spec.max);
   const unit = spec.unit ? ` ${spec.unit}` : "";
-  if (spec.exclusiveMin || spec.exclusiveMax) {
-    return `${spec.integer ? "an integer " : ""}${lo} and ${hi}${unit}`;
+  const integer = spec.integer ? "an integer " : "";
+  const lo = `${spec.exclusiveMin ? "more than" : "at least"} ${num(spec.min)}`;
+  if (spec.max === undefined || spec.max === Infinity) return `${integer}${lo}${unit}`;
+  if (!spec.exclusiveMin && !spec.exclusiveMax) {
+    return `${spec.integer ? "an integer from " : ""}${num(spec.min)} to ${num(spec.max)}${unit}`;
   }
-  return `${spec.integer ? "an integer from " : ""}${lo} to ${hi}${unit}`;
+  const hi = `${spec.exclusiveMax ? "less than" : "at most"} ${num(spec.max)}`;
+  return `${integer}${lo} and ${hi}${unit}`;
 }
 
 function num(v) {
@@ -50,7 +52,8 @@ export function checkNumber(text, spec) {
     return { ok: false, error: `${spec.label} must be a whole number (${rangeText(spec)}).` };
   }
   const belowMin = spec.exclusiveMin ? v <= spec.min : v < spec.min;
-  const aboveMax = spec.exclusiveMax ? v >= spec.max : v > spec.max;
+  const max = spec.max ?? Infinity;
+  const aboveMax = spec.exclusiveMax ? v >= max : v > max;
   if (belowMin || aboveMax) {
     return { ok: false, error: `${spec.label} must be ${rangeText(spec)}; got ${num(v)}.` };
   }

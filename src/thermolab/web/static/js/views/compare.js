@@ -5,8 +5,8 @@
 import { api } from "../api.js";
 import { h, setText } from "../dom.js";
 import { deviation, fmt, REFERENCE_MODEL } from "../model.js";
-import { readResult } from "../results.js";
-import { inputText, methodTitle, readRun } from "../runspec.js";
+import { inputText, methodTitle } from "../runspec.js";
+import { runFigures } from "./run.js";
 import { checkNumber, rangeText } from "../validate.js";
 
 const KREF = { label: "Reference Ks", min: -1e6, max: 1e6 };
@@ -63,25 +63,26 @@ export function mount(main, { query }, ctx) {
   }
   const abort = new AbortController();
   (async () => {
-    const answers = await Promise.allSettled(ids.map((id) => api.run(id, { signal: abort.signal })));
+    const answers = await Promise.allSettled(ids.map((id) => api.exportRun(id, { signal: abort.signal })));
     if (abort.signal.aborted) return;
     const failed = [];
     runs = [];
-    answers.forEach((a, i) => (a.status === "fulfilled" ? runs.push(readRun(a.value)) : failed.push(`run ${ids[i]}: ${a.reason.message}`)));
+    answers.forEach((a, i) => (a.status === "fulfilled" ? runs.push(runFigures(a.value)) : failed.push(`run ${ids[i]}: ${a.reason.message}`)));
     setText(status, failed.length ? `Not shown: ${failed.join("; ")}` : "");
     tableBox.replaceChildren(comparisonTable(runs, ref));
   })();
   return () => abort.abort();
 }
 
-/** The comparison table (exported for the run tests). */
+/**
+ * The comparison table.
+ * @param {{run: object, figures: import("../results.js").MethodFigures[]}[]} runs
+ * @param {{K: number, tau: number}} ref
+ */
 export function comparisonTable(runs, ref) {
   const rows = [];
-  for (const run of runs) {
-    for (const r of run.results) {
-      const f = readResult(r.result ?? r, r.method);
-      rows.push({ run, label: r.label ?? f.method, f });
-    }
+  for (const { run, figures } of runs) {
+    for (const f of figures) rows.push({ run, label: f.method, f });
   }
   if (rows.length === 0) return h("p", { class: "muted" }, "The chosen runs have no results yet.");
   const mmm = (s) => (s ? (s.max === s.min ? fmt(s.mean) : `${fmt(s.mean)} / ${fmt(s.max)} / ${fmt(s.min)}`) : "–");
@@ -100,7 +101,7 @@ export function comparisonTable(runs, ref) {
       h("td", { class: "num", "data-field": "dK" }, dev(f.K, ref.K)),
       h("td", { class: "num", "data-field": "tau" }, mmm(f.tau)),
       h("td", { class: "num", "data-field": "dtau" }, dev(f.tau, ref.tau)),
-      h("td", { class: "num", "data-field": "conv" }, f.convergedAt.K === null && f.convergedAt.tau === null ? "–" : `${f.convergedAt.K ?? "never"} / ${f.convergedAt.tau ?? "never"}`),
+      h("td", { class: "num", "data-field": "conv" }, f.trajectory ? `${f.convergedAt.K ?? "never"} / ${f.convergedAt.tau ?? "never"}` : "–"),
     ),
   );
   return h(

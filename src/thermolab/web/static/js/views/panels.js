@@ -11,7 +11,7 @@
 // anyone who is not the controller, and unlock as soon as they are.
 
 import { h, nextId, setText } from "../dom.js";
-import { fmt, fromDiscrete, PAPER_W0 } from "../model.js";
+import { fmt, PAPER_W0 } from "../model.js";
 import { checkAll, checkNumber, rangeText } from "../validate.js";
 import { methodName, methodTitle, panelOfRun } from "../runspec.js";
 
@@ -20,18 +20,43 @@ import { methodName, methodTitle, panelOfRun } from "../runspec.js";
  *   hint?: string, step?: string, automaticOnly?: boolean, manualOnly?: boolean}} FieldDef
  */
 
-/** Field definitions of each panel; ranges come from the rig's limits. */
+/**
+ * Conservative ranges used until the server's own (from /openapi.json) are
+ * known; the panels are locked until then anyway.
+ */
+export const DEFAULT_RANGES = Object.freeze({
+  dt: { min: 0, exclusiveMin: true, max: 3600 },
+  samples: { min: 1, max: 200000, integer: true },
+  window: { min: 2, max: 100000, integer: true },
+  block: { min: 2, max: 100000, integer: true },
+  gamma: { min: 0, exclusiveMin: true, max: 1 },
+  pmax: { min: 0, exclusiveMin: true, max: Infinity },
+});
+
+/**
+ * Field definitions of each panel.
+ * @param {{inputMin: number, inputMax: number, inputUnit: string,
+ *   ranges: typeof DEFAULT_RANGES, w0: boolean}} limits  the rig's input range, the
+ *   server's ranges for the run's settings, and whether it takes initial WLSM parameters
+ */
 export function panelDefinitions(limits) {
+  const r = { ...DEFAULT_RANGES, ...limits.ranges };
   const u = { min: limits.inputMin, max: limits.inputMax, unit: limits.inputUnit };
   const common = [
-    { name: "dt", label: "Sample time T", min: limits.dtMin, max: limits.dtMax, unit: "s", value: 1, step: "any" },
-    { name: "n", label: "Number of samples", min: limits.nMin, max: limits.nMax, integer: true, value: 2000, step: "1" },
+    { name: "dt", label: "Sample time T", ...r.dt, unit: "s", value: 1 },
+    { name: "n", label: "Number of samples", ...r.samples, integer: true, value: 2000 },
   ];
-  const setpoint = (value) => ({ name: "setpoint", label: "Initial set point", ...u, value, step: "any", manualOnly: true });
+  const setpoint = (value) => ({ name: "setpoint", label: "Initial set point", ...u, value, manualOnly: true });
   const auto = (lo, hi) => [
-    { name: "low", label: "Automatic: minimum", ...u, value: lo, step: "any", automaticOnly: true },
-    { name: "high", label: "Automatic: maximum", ...u, value: hi, step: "any", automaticOnly: true },
+    { name: "low", label: "Automatic: minimum", ...u, value: lo, automaticOnly: true },
+    { name: "high", label: "Automatic: maximum", ...u, value: hi, automaticOnly: true },
   ];
+  // The paper's form of WLSM has no meaning at γ = 1 (α = 1 − γ = 0): refused by
+  // the identification, so refused here too, whatever the schema's bound.
+  const gamma = { ...r.gamma, max: Math.min(1, r.gamma.max ?? 1), exclusiveMax: true };
+  const w0Note = limits.w0
+    ? null
+    : "This server does not take initial parameters yet: it starts WLSM from W0 = [0, 0].";
   return [
     {
       id: "srm-lsm",
@@ -42,7 +67,8 @@ export function panelDefinitions(limits) {
         "Set the sample time, the number of samples (at least 2000 for the step method) and the initial set point; press START, then change the set point to make the step (at least 1 V), and END when the output has settled. Start from a cold rig.",
       fields: [
         ...common,
-        { name: "block", label: "LSM also every N samples (0: only at END)", min: 0, max: limits.nMax, integer: true, unit: "samples", value: 0, step: "1" },
+        // 0 is "off"; otherwise the server's block range (checked in _check).
+        { name: "block", label: "LSM also every N samples (0: only at END)", min: 0, max: r.block.max, integer: true, unit: "samples", value: 0, blockMin: r.block.min },
         setpoint(0),
         ...auto(4, 6),
       ],
@@ -57,12 +83,7 @@ export function panelDefinitions(limits) {
       short: "2 · Moving window",
       intro:
         "An estimate at every sample over the last N samples (a FIFO window). Vary the set point while it runs, or use the Automatic square wave.",
-      fields: [
-        ...common,
-        { name: "window", label: "Window", min: limits.windowMin, max: limits.windowMax, integer: true, unit: "samples", value: 100, step: "1" },
-        setpoint(5),
-        ...auto(4, 6),
-      ],
+      fields: [...common, { name: "window", label: "Window", ...r.window, integer: true, unit: "samples", value: 100 }, setpoint(5), ...auto(4, 6)],
       methods: ["malsm"],
       automaticDefault: true,
       stepHint: 6,
@@ -76,10 +97,10 @@ export function panelDefinitions(limits) {
         "Recursive least squares with forgetting factor γ and initial covariance pmax·I, started from the initial parameters W0 = [a0, b0] (the paper's W0 gives Ks = 0.0269905, Ts = 26.74 s).",
       fields: [
         ...common,
-        { name: "gamma", label: "Forgetting factor γ", min: 0, max: 1, exclusiveMin: true, exclusiveMax: true, value: 0.96, step: "any" },
-        { name: "pmax", label: "pmax (diagonal of P)", min: 0, max: 1e12, exclusiveMin: true, value: 10000, step: "any" },
-        { name: "a0", label: "Initial a0", min: -1e6, max: 1e6, value: PAPER_W0.a, step: "any" },
-        { name: "b0", label: "Initial b0", min: -1e6, max: 1e6, value: PAPER_W0.b, step: "any" },
+        { name: "gamma", label: "Forgetting factor γ", ...gamma, value: 0.96 },
+        { name: "pmax", label: "pmax (diagonal of P)", ...r.pmax, value: 10000 },
+        { name: "a0", label: "Initial a0", min: 0, max: 1, exclusiveMin: true, exclusiveMax: true, value: PAPER_W0.a, unavailable: w0Note },
+        { name: "b0", label: "Initial b0", min: -1e6, max: 1e6, value: PAPER_W0.b, unavailable: w0Note },
         setpoint(2),
         ...auto(0, 4),
       ],
@@ -274,6 +295,7 @@ export class Panels {
       value: f.value,
       autocomplete: "off",
       "aria-describedby": `${id}-range ${id}-err`,
+      disabled: Boolean(f.unavailable),
     });
     const err = h("span", { class: "field-error", id: `${id}-err` });
     view.inputs[f.name] = input;
@@ -286,7 +308,7 @@ export class Panels {
       { class: "field" },
       h("label", { for: id }, f.label + (f.unit && f.unit !== "samples" ? ` (${f.unit})` : "")),
       input,
-      h("span", { class: "hint", id: `${id}-range` }, `Allowed: ${rangeText(f)}`),
+      h("span", { class: "hint", id: `${id}-range` }, f.unavailable ?? `Allowed: ${rangeText(f)}`),
       err,
     );
   }
@@ -308,7 +330,7 @@ export class Panels {
     const specs = {};
     const texts = {};
     for (const f of view.def.fields) {
-      if ((f.automaticOnly && !automatic) || (f.manualOnly && automatic)) {
+      if ((f.automaticOnly && !automatic) || (f.manualOnly && automatic) || f.unavailable) {
         this._showFieldError(view, f.name, null);
         continue;
       }
@@ -319,16 +341,13 @@ export class Panels {
     if (!errors.window && values.window !== undefined && values.n !== undefined && values.window > values.n) {
       errors.window = `Window must not exceed the number of samples (${values.n}).`;
     }
-    if (!errors.block && values.block > 0 && (values.block < 3 || values.block > values.n)) {
-      errors.block = `Blocks need from 3 samples up to the number of samples (${values.n ?? "?"}), or 0 for none.`;
-    }
     if (automatic && !errors.low && !errors.high && !(values.low < values.high)) {
       errors.high = "Automatic: the maximum must be greater than the minimum.";
     }
-    if (!errors.a0 && !errors.b0 && values.a0 !== undefined) {
-      const dt = values.dt ?? 1;
-      if (!fromDiscrete(values.a0, values.b0, dt)) {
-        errors.a0 = "Initial a0 must be between 0 and 1 (exclusive) for a first-order model.";
+    if (!errors.block && values.block > 0) {
+      const min = view.def.fields.find((f) => f.name === "block").blockMin;
+      if (values.block < min || values.block > values.n) {
+        errors.block = `Blocks need from ${min} samples up to the number of samples (${values.n ?? "?"}), or 0 for none.`;
       }
     }
     let first = null;

@@ -9,7 +9,8 @@ import { announce, h, setText } from "../dom.js";
 import { LiveClient } from "../live.js";
 import { fmt, predict } from "../model.js";
 import { DecimatingBuffer, RingBuffer } from "../ring.js";
-import { buildRunSpec, methodName, methodTitle, panelOfRun, readRun, RECURSIVE } from "../runspec.js";
+import { buildRunSpec, methodName, methodTitle, panelOfRun, readEstimate, readRun, RECURSIVE } from "../runspec.js";
+import { hasProperty, numericRange, openapi } from "../schema.js";
 import { readAccess, readRig, stateLabel } from "../shapes.js";
 import { parseCsv } from "../csv.js";
 import { AccessPanel } from "./access.js";
@@ -72,6 +73,7 @@ class RigPage {
           this._setRig(rig);
           this.access.update(rig.access);
         }
+        if (this.client.state !== "open" && this.run?.status === "running") await this._pollRun();
       } catch (err) {
         if (err.status === 404) {
           this._error(err.message);
@@ -175,7 +177,7 @@ class RigPage {
       setpoint: (u) => api.setInput(this.rigId, u),
       end: () => api.stopRun(this.rigId),
     };
-    this.panels = new Panels(this.panelsHost, this._limits(null), this.panelActions);
+    this.panels = new Panels(this.panelsHost, this._limits(null, null), this.panelActions);
 
     // Convergence of the recursive methods.
     this.convergence = h("section", { class: "card convergence", "aria-labelledby": "conv-heading" });
@@ -184,21 +186,45 @@ class RigPage {
     main.append(this.convergence);
   }
 
-  /** Field ranges for the panels: the rig's published limits. */
-  _limits(rig) {
-    const lim = rig?.limits ?? {};
-    const num = (v, d) => (typeof v === "number" && Number.isFinite(v) ? v : d);
+  /**
+   * What the panels may accept: the rig's published input range, and the run
+   * settings' ranges from the server's own schema (RunIn in /openapi.json).
+   */
+  _limits(rig, doc) {
+    const ranges = {};
+    for (const [field, prop] of [["dt", "dt"], ["samples", "samples"], ["window", "window"], ["block", "block"], ["gamma", "gamma"], ["pmax", "pmax"]]) {
+      const r = doc ? numericRange(doc, "RunIn", prop) : null;
+      if (r) ranges[field] = r;
+    }
     return {
       inputMin: rig ? rig.inputMin : -10,
       inputMax: rig ? rig.inputMax : 10,
       inputUnit: rig?.inputUnit ?? "V",
-      dtMin: num(lim.dt_min, 0.1),
-      dtMax: num(lim.dt_max, 60),
-      nMin: num(lim.n_samples_min, 10),
-      nMax: num(lim.n_samples_max, 100000),
-      windowMin: num(lim.window_min, 3),
-      windowMax: num(lim.window_max, 100000),
+      ranges,
+      w0: Boolean(doc && hasProperty(doc, "RunIn", "w0")),
     };
+  }
+
+  /** Without the socket, follow one's own run over HTTP (progress, estimates, its end). */
+  async _pollRun() {
+    const id = this.run.id;
+    let run;
+    try {
+      run = readRun(await api.run(id));
+    } catch {
+      return; // someone else's run (403): only the socket shows it
+    }
+    if (this._destroyed || !this.run || this.run.id !== id) return;
+    for (const [m, est] of run.estimates) {
+      if (!this.run.estimates.has(m) || est.final || est.k > (this.run.estimates.get(m).k ?? -1)) this.run.estimates.set(m, est);
+    }
+    run.estimates = this.run.estimates;
+    const ended = run.status !== "running";
+    this.run = run;
+    this.panels.setRun(run);
+    this._updateOverlayChoices();
+    this._invalidateCharts();
+    if (ended) announce(`Run ${run.id} ended${run.endReason ? `: ${run.endReason}` : ""}.`);
   }
 
   // -- live messages --------------------------------------------------------------------
@@ -253,8 +279,13 @@ class RigPage {
     this.rig = rig;
     setText(this.root("rig-title"), rig.title || rig.id);
     if (first) {
-      // The panels' ranges come from the rig's published limits.
-      this._rebuildPanels(this._limits(rig));
+      // The panels' ranges come from the rig and the server's schema; both are
+      // known before the panels unlock (they are locked until access is known).
+      void openapi().then((doc) => {
+        if (this._destroyed) return;
+        this.schemaDoc = doc;
+        this._rebuildPanels(this._limits(rig, doc));
+      });
     }
     this._setState(rig.state, rig.detail);
   }
@@ -324,8 +355,11 @@ class RigPage {
       this.panels.selectById(panelOfRun(run));
       announce(`Run ${run.id} started.`);
     } else {
-      // Keep the estimates gathered live; the run object brings the final status.
-      if (this.run && this.run.id === run.id) run.estimates = this.run.estimates;
+      // The run object brings the final status and each method's final estimate;
+      // keep what came live for any method it does not mention.
+      if (this.run && this.run.id === run.id) {
+        for (const [m, est] of this.run.estimates) if (!run.estimates.has(m)) run.estimates.set(m, est);
+      }
       this.run = run;
       this.panels.setRun(run);
       announce(`Run ${run.id} ended${run.endReason ? `: ${run.endReason}` : ""}.`);
@@ -423,7 +457,7 @@ class RigPage {
   _estimate(e) {
     if (!this.run || e.run !== this.run.id) return;
     const method = e.method;
-    const est = { K: num(e.K), tau: num(e.tau), k: e.k, valid: e.valid !== false, final: Boolean(e.final), W: e.W, reason: e.reason ?? e.extras?.reason ?? null };
+    const est = readEstimate(e);
     this.run.estimates.set(method, est);
     const base = methodName({ method }).split(/[:#]/)[0];
     if (RECURSIVE.has(base) && !est.final) this._trajectory(method).buf.push({ k: e.k, K: est.K, tau: est.tau });
@@ -526,9 +560,9 @@ class RigPage {
   // -- commands -------------------------------------------------------------------------
 
   async _start(panel, values, automatic) {
-    const spec = buildRunSpec(panel, values, automatic);
+    const spec = buildRunSpec(panel, values, automatic, { w0: hasProperty(this.schemaDoc, "RunIn", "w0") });
     const answer = await api.startRun(this.rigId, spec);
-    const run = readRun(answer?.run ?? answer);
+    const run = readRun(answer);
     if (run && (!this.run || this.run.id !== run.id)) {
       this._clearTrajectories();
       this.run = run;
@@ -594,8 +628,4 @@ class RigPage {
     const conn = document.getElementById("conn");
     if (conn) setText(conn, "");
   }
-}
-
-function num(v) {
-  return typeof v === "number" && Number.isFinite(v) ? v : Number.NaN;
 }

@@ -1,16 +1,33 @@
 // One run: what was asked, its charts (output with the model, input, and the
-// convergence of the recursive methods), every method's results, and the CSV.
+// convergence of the recursive methods), every method's results, the CSV.
 
 import { api } from "../api.js";
 import { Chart } from "../charts.js";
-import { parseCsv } from "../csv.js";
 import { h, setText, when } from "../dom.js";
 import { fmt, predict } from "../model.js";
 import { readResult } from "../results.js";
-import { inputText, methodName, methodTitle, readRun } from "../runspec.js";
+import { inputText, methodTitle, readRun } from "../runspec.js";
 
 /** At most this many points per chart: longer runs are drawn decimated. */
 const MAX_POINTS = 4000;
+
+/**
+ * A run's figures per method: the stored results once the run has ended,
+ * else the latest estimates of the running run.
+ * @param {any} exported  GET /api/runs/{run}/export.json
+ */
+export function runFigures(exported) {
+  const run = readRun(exported.run);
+  const stored = exported.methods && typeof exported.methods === "object" ? exported.methods : {};
+  const labels = Object.keys(stored).length ? Object.keys(stored) : Object.keys(run.results);
+  return {
+    run,
+    figures: labels.map((label) => {
+      const entry = stored[label];
+      return { label, ...readResult(entry ? entry.result : run.results[label], entry?.method ?? label) };
+    }),
+  };
+}
 
 export function mount(main, { params }, ctx) {
   const id = params[0];
@@ -20,15 +37,15 @@ export function mount(main, { params }, ctx) {
   const abort = new AbortController();
   const charts = [];
   (async () => {
-    let run;
+    let exported;
     try {
-      run = readRun(await api.run(id, { signal: abort.signal }));
+      exported = await api.exportRun(id, { signal: abort.signal });
     } catch (err) {
       if (err.name !== "AbortError") setText(status, `Could not load run ${id}: ${err.message}`);
       return;
     }
     setText(status, "");
-    render(main, run, charts, abort.signal);
+    render(main, exported, charts);
   })();
   return () => {
     abort.abort();
@@ -36,7 +53,8 @@ export function mount(main, { params }, ctx) {
   };
 }
 
-function render(main, run, charts, signal) {
+function render(main, exported, charts) {
+  const { run, figures } = runFigures(exported);
   const facts = h("dl", { class: "facts" });
   const add = (k, v) => facts.append(h("dt", null, k), h("dd", null, v));
   add("Rig", run.rig ?? "–");
@@ -47,79 +65,85 @@ function render(main, run, charts, signal) {
   add("Sample time", `${run.dt} s`);
   add("Samples", `${run.samples}${run.nSamples ? ` of ${run.nSamples}` : ""}`);
   add("Input", inputText(run));
-  add("Methods", run.methods.map((m) => methodTitle(methodName(m))).join(", "));
-  const csv = h("a", { class: "button primary", href: api.csvUrl(run.id), download: `run-${run.id}.csv`, "data-testid": "csv-link" }, "Download the samples (CSV)");
+  add("Methods", run.methods.map(methodTitle).join(", "));
+  const settings = Object.entries(run.settings ?? {}).filter(([, v]) => v !== null && typeof v !== "object");
+  if (settings.length) add("Settings", settings.map(([k, v]) => `${k} = ${v}`).join(", "));
   main.append(
-    h("section", { class: "card" }, h("h2", null, "The run"), facts, h("div", { class: "buttons" }, csv)),
+    h(
+      "section",
+      { class: "card" },
+      h("h2", null, "The run"),
+      facts,
+      h(
+        "div",
+        { class: "buttons" },
+        h("a", { class: "button primary", href: api.csvUrl(run.id), download: `run-${run.id}.csv`, "data-testid": "csv-link" }, "Download the samples (CSV)"),
+        h("a", { class: "button", href: api.exportUrl(run.id), download: `run-${run.id}.json` }, "Everything (JSON)"),
+      ),
+    ),
   );
-
-  const figures = run.results.map((r) => ({ label: r.label ?? r.method, params: r.params ?? {}, ...readResult(r.result ?? r, r.method) }));
   main.append(resultsSection(figures));
 
+  const samples = exported.samples ?? {};
+  const t = Float64Array.from(samples.t ?? []);
+  const u = Float64Array.from(samples.u ?? []);
+  const y = Float64Array.from(samples.y ?? []);
   const chartBox = h("section", { class: "card", "aria-labelledby": "run-charts" }, h("h2", { id: "run-charts" }, "Charts"));
   const modelPick = h("select", { id: "run-model" });
-  const withModel = figures.filter((f) => f.final.K !== null && f.final.tau > 0);
+  const withModel = figures.filter((f) => f.valid && f.final.K !== null && f.final.tau > 0);
   modelPick.append(h("option", { value: "" }, "none"), ...withModel.map((f, i) => h("option", { value: String(i) }, methodTitle(f.method))));
-  if (withModel.length) modelPick.value = String(withModel.findIndex((f) => f.method === "lsm") >= 0 ? withModel.findIndex((f) => f.method === "lsm") : 0);
+  const lsm = withModel.findIndex((f) => f.method === "lsm");
+  if (withModel.length) modelPick.value = String(lsm >= 0 ? lsm : 0);
   chartBox.append(h("div", { class: "field inline" }, h("label", { for: "run-model" }, "Model drawn over the output"), modelPick));
   main.append(chartBox);
-
-  (async () => {
-    let table;
-    try {
-      const res = await fetch(api.csvUrl(run.id), { credentials: "same-origin", signal });
-      if (!res.ok) throw new Error(`${res.status} ${res.statusText}`);
-      table = parseCsv(await res.text(), ["t", "u", "y"]);
-    } catch (err) {
-      if (err.name !== "AbortError") chartBox.append(h("p", { class: "error" }, `Could not load the samples: ${err.message}`));
-      return;
-    }
-    const { t, u, y } = table;
-    const yhatFull = new Float64Array(y.length).fill(Number.NaN);
-    const computeModel = () => {
-      const f = modelPick.value === "" ? null : withModel[Number(modelPick.value)];
-      if (!f || y.length === 0) yhatFull.fill(Number.NaN);
-      else predict(u, y[0], { K: f.final.K, tau: f.final.tau }, run.dt, yhatFull);
-    };
+  const yhat = new Float64Array(y.length).fill(Number.NaN);
+  const computeModel = () => {
+    const f = modelPick.value === "" ? null : withModel[Number(modelPick.value)];
+    if (!f || y.length === 0) yhat.fill(Number.NaN);
+    else predict(u, y[0], { K: f.final.K, tau: f.final.tau }, run.dt, yhat);
+  };
+  computeModel();
+  const thin = thinner(t.length);
+  const out = new Chart(chartBox, {
+    label: `Output and model of run ${run.id}`,
+    xLabel: "t (s)",
+    yLabel: "y (V)",
+    series: [{ label: "output y" }, { label: "model", dash: [6, 4], color: "#D55E00", width: 2 }],
+    source: () => [thin(t), thin(y), thin(yhat)],
+  });
+  const inp = new Chart(chartBox, {
+    label: `Input of run ${run.id}`,
+    xLabel: "t (s)",
+    yLabel: "u (V)",
+    height: 160,
+    series: [{ label: "input u", color: "#009E73" }],
+    source: () => [thin(t), thin(u)],
+  });
+  charts.push(out, inp);
+  modelPick.addEventListener("change", () => {
     computeModel();
-    const step = Math.max(1, Math.ceil(t.length / MAX_POINTS));
-    const thin = (a) => (step === 1 ? a : Float64Array.from({ length: Math.ceil(a.length / step) }, (_, i) => a[i * step]));
-    const out = new Chart(chartBox, {
-      label: `Output and model of run ${run.id}`,
-      xLabel: "t (s)",
-      yLabel: "y (V)",
-      series: [{ label: "output y" }, { label: "model", dash: [6, 4], color: "#D55E00", width: 2 }],
-      source: () => [thin(t), thin(y), thin(yhatFull)],
-    });
-    const inp = new Chart(chartBox, {
-      label: `Input of run ${run.id}`,
-      xLabel: "t (s)",
-      yLabel: "u (V)",
-      height: 160,
-      series: [{ label: "input u", color: "#009E73" }],
-      source: () => [thin(t), thin(u)],
-    });
-    charts.push(out, inp);
-    modelPick.addEventListener("change", () => {
-      computeModel();
-      out.invalidate();
-    });
-  })();
+    out.invalidate();
+  });
 
   for (const f of figures) {
     if (!f.trajectory) continue;
-    const k = Float64Array.from(f.trajectory.K, (_, i) => i);
-    const K = Float64Array.from(f.trajectory.K, (v) => (v === null ? Number.NaN : v));
-    const T = Float64Array.from(f.trajectory.tau, (v) => (v === null ? Number.NaN : v));
-    const step = Math.max(1, Math.ceil(k.length / MAX_POINTS));
-    const thin = (a) => (step === 1 ? a : Float64Array.from({ length: Math.ceil(a.length / step) }, (_, i) => a[i * step]));
+    const k = Float64Array.from(f.trajectory.k);
+    const K = Float64Array.from(f.trajectory.K);
+    const T = Float64Array.from(f.trajectory.tau);
+    const th = thinner(k.length);
     const box = h("section", { class: "card conv-pair" }, h("h2", null, `Convergence: ${methodTitle(f.method)}`));
     main.append(box);
     charts.push(
-      new Chart(box, { label: `Ks against sample, ${methodTitle(f.method)}`, xLabel: "sample k", yLabel: "Ks", height: 180, series: [{ label: "Ks(k)" }], source: () => [thin(k), thin(K)] }),
-      new Chart(box, { label: `Ts against sample, ${methodTitle(f.method)}`, xLabel: "sample k", yLabel: "Ts (s)", height: 180, series: [{ label: "Ts(k)", color: "#CC79A7" }], source: () => [thin(k), thin(T)] }),
+      new Chart(box, { label: `Ks against sample, ${methodTitle(f.method)}`, xLabel: "sample k", yLabel: "Ks", height: 180, series: [{ label: "Ks(k)" }], source: () => [th(k), th(K)] }),
+      new Chart(box, { label: `Ts against sample, ${methodTitle(f.method)}`, xLabel: "sample k", yLabel: "Ts (s)", height: 180, series: [{ label: "Ts(k)", color: "#CC79A7" }], source: () => [th(k), th(T)] }),
     );
   }
+}
+
+/** Keep every n-th point so that at most MAX_POINTS are drawn. */
+function thinner(length) {
+  const step = Math.max(1, Math.ceil(length / MAX_POINTS));
+  return (a) => (step === 1 ? a : Float64Array.from({ length: Math.ceil(a.length / step) }, (_, i) => a[i * step]));
 }
 
 function resultsSection(figures) {
@@ -128,16 +152,17 @@ function resultsSection(figures) {
     sec.append(h("p", { class: "muted" }, "No results stored for this run."));
     return sec;
   }
+  const spread = (s) => (s && s.max !== s.min ? `${fmt(s.mean)} / ${fmt(s.max)} / ${fmt(s.min)}` : "–");
   const rows = figures.map((f) =>
     h(
       "tr",
       { "data-method": f.method },
       h("th", { scope: "row" }, methodTitle(f.method)),
-      h("td", { class: "num", "data-field": "K" }, fmt(f.final.K)),
-      h("td", { class: "num", "data-field": "tau" }, fmt(f.final.tau)),
-      h("td", { class: "num" }, f.K && f.K.max !== f.K.min ? `${fmt(f.K.mean)} / ${fmt(f.K.max)} / ${fmt(f.K.min)}` : "–"),
-      h("td", { class: "num" }, f.tau && f.tau.max !== f.tau.min ? `${fmt(f.tau.mean)} / ${fmt(f.tau.max)} / ${fmt(f.tau.min)}` : "–"),
-      h("td", { class: "num" }, f.convergedAt.K === null && f.convergedAt.tau === null ? "–" : `${f.convergedAt.K ?? "never"} / ${f.convergedAt.tau ?? "never"}`),
+      h("td", { class: "num", "data-field": "K" }, f.valid ? fmt(f.final.K) : "–"),
+      h("td", { class: "num", "data-field": "tau" }, f.valid ? fmt(f.final.tau) : "–"),
+      h("td", { class: "num" }, spread(f.K)),
+      h("td", { class: "num" }, spread(f.tau)),
+      h("td", { class: "num" }, f.trajectory ? `${f.convergedAt.K ?? "never"} / ${f.convergedAt.tau ?? "never"}` : "–"),
       h("td", null, [f.valid ? "" : (f.reason ?? "no first-order model"), ...f.warnings].filter(Boolean).join("; ") || "–"),
     ),
   );
@@ -148,6 +173,7 @@ function resultsSection(figures) {
       h(
         "table",
         null,
+        h("caption", { class: "visually-hidden" }, "Each method's model; statistics over the last 2000 samples"),
         h(
           "thead",
           null,
