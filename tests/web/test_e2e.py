@@ -17,6 +17,8 @@ import pytest
 pytestmark = pytest.mark.browser
 
 ROLE = "[data-testid=access-role]"
+# The twin's true model (preset "paper": the reference model of eq. 16).
+TRUE_K, TRUE_TAU = 0.140090, 250.126233
 LOCK = "[data-testid=lock-notice]"
 
 
@@ -127,12 +129,64 @@ def test_watchers_queue_and_take_over_without_reloading(
     assert_locked(alice)
     assert_locked(carol)
 
-    # The three panels, as the controller sees them.
-    for number, panel in ((1, "srm-lsm"), (2, "malsm"), (3, "wlsm")):
+    # Panels 2 and 3 as the controller sees them.
+    for number, panel in ((2, "malsm"), (3, "wlsm")):
         bob.click(f"[role=tab][data-panel={panel}]")
         bob.wait_for_selector(f"[data-panel-view={panel}]:visible")
         bob.locator(".panels").screenshot(path=str(artifacts / f"panel-{number}.png"))
 
+    # Panel 1, as in the paper: T, number of samples, initial set point, START,
+    # change of set point (the step), then the run ends by itself at N samples.
+    bob.click("[role=tab][data-panel=srm-lsm]")
+    bob.fill("#srm-lsm-dt", "1")
+    bob.fill("#srm-lsm-n", "2000")
+    bob.fill("#srm-lsm-setpoint", "0")
+    bob.click("[data-panel-form=srm-lsm] button[data-action=start]")
+    status = "[data-testid=run-status-srm-lsm]"
+    bob.wait_for_selector(f"{status}:text('running')")
+    assert bob.is_disabled("[data-panel-form=srm-lsm] button[data-action=start]")
+    bob.fill("[data-run-form=srm-lsm] input[name=setpoint-live]", "10")
+    bob.click("[data-run-form=srm-lsm] button[data-action=setpoint]")
+    assert bob.inner_text("[data-run-form=srm-lsm] .field-error") == ""
+    assert_locked(carol)
+    done = "[data-testid=results-srm-lsm] [data-method={}] [data-field=status]:text('final')"
+    for method in ("srm", "lsm"):
+        bob.wait_for_selector(done.format(method), timeout=90_000)
+    assert "finished" in bob.inner_text(status)
+    for method in ("srm", "lsm"):
+        row = f"[data-testid=results-srm-lsm] [data-method={method}]"
+        ks = float(bob.inner_text(f"{row} [data-field=K]"))
+        ts = float(bob.inner_text(f"{row} [data-field=tau]"))
+        assert abs(ks / TRUE_K - 1) < 0.02, (method, ks)
+        assert abs(ts / TRUE_TAU - 1) < 0.02, (method, ts)
+    # The watcher saw the same run live, and its model, without any control.
+    for method in ("srm", "lsm"):
+        carol.wait_for_selector(done.format(method), timeout=15_000)
+    assert_locked(carol)
+    bob.wait_for_function(
+        "() => +document.querySelector(\"figure[aria-label^='Output'] \").dataset.points >= 2000"
+    )
+    bob.locator(".panels").screenshot(path=str(artifacts / "panel-1.png"))
+    bob.screenshot(path=str(artifacts / "rig-after-run.png"), full_page=True)
+
+    # My runs -> the run's page -> its CSV, which feeds straight back into identify.
+    bob.click("#nav a[data-nav=runs]")
+    bob.wait_for_selector("table.runs tbody tr")
+    bob.click("table.runs tbody tr:first-child a")
+    bob.wait_for_selector("[data-testid=csv-link]")
+    with bob.expect_download() as download_info:
+        bob.click("[data-testid=csv-link]")
+    csv_path = Path(download_info.value.path())
+    lines = csv_path.read_text().splitlines()
+    assert lines[0].split(",")[:3] == ["t", "u", "y"]
+    assert len(lines) == 1 + 2000
+    u = [float(line.split(",")[1]) for line in lines[1:]]
+    assert u[0] == 0.0
+    assert u[-1] == 10.0
+    bob.screenshot(path=str(artifacts / "run-page.png"), full_page=True)
+
+    bob.goto(f"{lab.url}/#/rig/twin")
+    bob.wait_for_selector("button[data-action=release]:visible")
     bob.click("button[data-action=release]")
     wait_role(bob, "watcher")
     for page in (alice, bob, carol):

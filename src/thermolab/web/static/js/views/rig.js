@@ -224,7 +224,12 @@ class RigPage {
     this.panels.setRun(run);
     this._updateOverlayChoices();
     this._invalidateCharts();
-    if (ended) announce(`Run ${run.id} ended${run.endReason ? `: ${run.endReason}` : ""}.`);
+    if (ended) {
+      announce(`Run ${run.id} ended${run.endReason ? `: ${run.endReason}` : ""}.`);
+      // The samples never came live: draw the whole run, with its model, from the store.
+      this._startSegment(run.id, true);
+    }
+    this._noteSegment();
   }
 
   // -- live messages --------------------------------------------------------------------

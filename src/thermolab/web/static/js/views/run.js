@@ -19,7 +19,10 @@ const MAX_POINTS = 4000;
 export function runFigures(exported) {
   const run = readRun(exported.run);
   const stored = exported.methods && typeof exported.methods === "object" ? exported.methods : {};
-  const labels = Object.keys(stored).length ? Object.keys(stored) : Object.keys(run.results);
+  const found = Object.keys(stored).length ? Object.keys(stored) : Object.keys(run.results);
+  // In the order the run asked for them (the paper's order), then any other.
+  const order = (m) => (run.methods.indexOf(m) + 1 || 99);
+  const labels = found.sort((a, b) => order(a) - order(b));
   return {
     run,
     figures: labels.map((label) => {
