@@ -926,8 +926,26 @@ class AccessService:
 
     # -- presentation ---------------------------------------------------------------------------
 
-    def _render(self, snap: RigSnapshot, cfg: RigConfig, who: Principal, now: datetime) -> RigView:
-        watchers = self._presence.watchers(snap.id)
+    def render(
+        self, snap: RigSnapshot, who: Principal, watchers: list[Watcher] | None = None
+    ) -> RigView:
+        """Return ``snap`` as ``who`` sees it, now (no database access).
+
+        ``watchers`` may be given when rendering one snapshot for many callers.
+        """
+        cfg = self._config.rig(snap.id)
+        return self._render(snap, cfg, who, self._clock.now(), watchers)
+
+    def _render(
+        self,
+        snap: RigSnapshot,
+        cfg: RigConfig,
+        who: Principal,
+        now: datetime,
+        watchers: list[Watcher] | None = None,
+    ) -> RigView:
+        if watchers is None:
+            watchers = self._presence.watchers(snap.id)
         access = _access_view(snap, cfg, who, now, len(watchers))
         return RigView(
             id=snap.id,

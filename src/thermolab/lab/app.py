@@ -41,6 +41,7 @@ from thermolab.lab.config import LabConfig
 from thermolab.lab.hub import device_opener
 from thermolab.lab.security import AuthenticationError, RateLimitedError
 from thermolab.lab.service import Lab
+from thermolab.lab.stream import LiveBroadcaster
 
 __all__ = ["create_app"]
 
@@ -93,11 +94,14 @@ def create_app(
     """
     owned = lab is None
     the_lab = lab if lab is not None else Lab(config, opener=device_opener(config.speedup))
+    live = LiveBroadcaster(the_lab)
+    the_lab.add_listener(live)
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         report = await anyio.to_thread.run_sync(the_lab.start)
         app.state.startup = report
+        live.bind(asyncio.get_running_loop())
         sweeper = (
             asyncio.create_task(_sweep_forever(the_lab, sweep_interval))
             if sweep_interval is not None
@@ -106,6 +110,7 @@ def create_app(
         try:
             yield
         finally:
+            live.bind(None)
             if sweeper is not None:
                 sweeper.cancel()
                 with contextlib.suppress(asyncio.CancelledError):
@@ -124,7 +129,9 @@ def create_app(
         lifespan=lifespan,
     )
     app.state.lab = the_lab
+    app.state.live = live
     app.include_router(router)
+    app.add_api_websocket_route("/api/rigs/{rig_id}/live", live.endpoint, name="live")
     _install_error_handlers(app)
     if static_dir is not None:
         app.mount("/", StaticFiles(directory=static_dir, html=True), name="web")

@@ -157,6 +157,7 @@ class _Slot:
         self.output_at: datetime | None = None
         self.fault: str | None = None
         self.claimed = False
+        self.input: float | None = None
 
 
 class RigHub:
@@ -312,6 +313,7 @@ class RigHub:
                         driver.power_off()
                     slot.powered = False
                     slot.controller_session = None
+                    slot.input = None
                     return
                 if not slot.powered:
                     if driver is not None:
@@ -377,8 +379,18 @@ class RigHub:
                     slot.driver = None
                 slot.powered = False
 
+    def powered(self, rig_id: str) -> bool:
+        """Whether the hub holds the rig powered (not during a run, which owns the rig)."""
+        slot = self._slots[rig_id]
+        return slot.powered and not slot.claimed
+
+    def applied(self, rig_id: str) -> float | None:
+        """Return the input the hub last applied to the rig, if any."""
+        return self._slots[rig_id].input
+
     @staticmethod
     def _apply(slot: _Slot, u: float) -> float | None:
         if slot.driver is None:
             return None
-        return slot.driver.apply(u)
+        slot.input = slot.driver.apply(u)
+        return slot.input

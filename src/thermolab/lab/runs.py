@@ -47,7 +47,7 @@ from thermolab.lab.db import Database
 from thermolab.lab.hub import RigHub
 from thermolab.lab.models import Command, ControlSession, MethodResult, Rig, Run, RunStatus, Sample
 from thermolab.lab.users import Principal
-from thermolab.runner import EndReason, EventBus, Experiment, RunResult
+from thermolab.runner import EndReason, Event, EventBus, Experiment, RunResult
 from thermolab.runner.methods import build_identifiers, parse_methods
 from thermolab.signals import parse_signal
 
@@ -266,6 +266,12 @@ class RunService:
     on_finished : callable
         Called with the rig id after a run has ended and been stored (the lab
         hands the rig back to the hub).
+    on_run : callable, optional
+        Called with ``(rig_id, "started" | "ended", record)``.
+    on_event : callable, optional
+        Called with ``(rig_id, run_id, event)`` for every runner event
+        (:class:`~thermolab.runner.SampleEvent`, ``EstimateEvent``...), on a
+        thread of the run's own; a failure there never stops the run.
     """
 
     def __init__(
@@ -275,12 +281,17 @@ class RunService:
         access: AccessService,
         hub: RigHub,
         on_finished: Callable[[str], None],
+        *,
+        on_run: Callable[[str, str, RunRecord], None] | None = None,
+        on_event: Callable[[str, int, Event], None] | None = None,
     ) -> None:
         self._db = db
         self._clock = clock
         self._access = access
         self._hub = hub
         self._on_finished = on_finished
+        self._on_run = on_run
+        self._on_event = on_event
         self._active: dict[str, _Active] = {}
         self._lock = threading.Lock()
 
@@ -360,13 +371,25 @@ class RunService:
         active = _Active(run_id, rig_id, control_id, experiment, identifiers)
         with self._lock:
             self._active[rig_id] = active
+        record = self.get(run_id, who)
+        if self._on_run is not None:
+            # Announced before the first sample, so that watchers see the run begin.
+            self._on_run(rig_id, "started", record)
         self._hub.claim(rig_id)
+        if self._on_event is not None:
+            forward = self._on_event
+            experiment.events.subscribe_callback(
+                lambda event: forward(rig_id, run_id, event),
+                maxsize=100_000,
+                name="live",
+                fatal_errors=False,
+            )
         experiment.start()
         active.thread = threading.Thread(
             target=self._finish, args=(active,), name=f"thermolab-run-{run_id}-end", daemon=True
         )
         active.thread.start()
-        return self.get(run_id, who)
+        return record
 
     def stop(self, rig_id: str, who: Principal) -> RunRecord:
         """END the rig's current run (its controller, or a teacher); returns at once.
@@ -434,7 +457,7 @@ class RunService:
     # -- reading -------------------------------------------------------------------------
 
     def get(self, run_id: int, who: Principal) -> RunRecord:
-        """Return one run (a student's own; any for a teacher).
+        """Return one run (a student's own or one that is running; any for a teacher).
 
         Raises
         ------
@@ -448,13 +471,26 @@ class RunService:
             if run is None:
                 raise NotFoundError(f"no run {run_id}")
             _check_owner(run, who)
+        return self.record(run_id)
+
+    def record(self, run_id: int) -> RunRecord:
+        """Return one run, whoever owns it (for the lab's own use: the live stream).
+
+        Raises
+        ------
+        NotFoundError
+            If there is no such run.
+        """
+        with self._db.read() as session:
+            run = session.get(Run, run_id)
+            if run is None:
+                raise NotFoundError(f"no run {run_id}")
             rows = session.execute(
                 select(MethodResult.method, MethodResult.result).where(
                     MethodResult.run_id == run_id
                 )
             ).all()
-            stored: dict[str, Any] = {row.method: row.result for row in rows}
-            return self._record(run, stored)
+            return self._record(run, {row.method: row.result for row in rows})
 
     def list(self, who: Principal, rig_id: str | None = None, limit: int = 200) -> list[RunRecord]:
         """Return runs, newest first: a student's own, or everyone's for a teacher."""
@@ -550,6 +586,11 @@ class RunService:
             if result is not None and result.end_reason is EndReason.RIG_FAULT:
                 self._access.report_fault(active.rig_id, result.message or "rig fault")
             self._on_finished(active.rig_id)
+            if self._on_run is not None:
+                try:
+                    self._on_run(active.rig_id, "ended", self.record(active.run_id))
+                except Exception:
+                    log.exception("run %s: announcing the end failed", active.run_id)
 
     def _store(self, active: _Active, result: RunResult) -> None:
         now = self._clock.now()
@@ -635,6 +676,9 @@ def _params(identifier: OnlineIdentifier | None) -> dict[str, Any]:
 
 
 def _check_owner(run: Run, who: Principal) -> None:
+    # A running run is on show to every watcher of its rig; once over it is its owner's.
+    if run.status == RunStatus.RUNNING.value:
+        return
     if not who.is_teacher and run.user_id != who.user_id:
         raise AccessDeniedError(f"run {run.id} belongs to another user")
 

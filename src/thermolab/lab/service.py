@@ -10,6 +10,7 @@ import logging
 import threading
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
+from typing import Protocol
 
 from argon2 import PasswordHasher
 
@@ -19,15 +20,39 @@ from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.hub import DesiredState, RigHub, RigOpener
 from thermolab.lab.presence import Presence
-from thermolab.lab.runs import RunService
+from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.security import LoginThrottle, default_password_hasher
 from thermolab.lab.users import Principal, SessionService, UserInfo, UserService
+from thermolab.runner import Event
 
-__all__ = ["InputResult", "Lab", "StartupReport"]
+__all__ = ["InputResult", "Lab", "LabListener", "StartupReport"]
 
 log = logging.getLogger(__name__)
 
 _PURGE_INTERVAL = timedelta(minutes=10)
+
+
+class LabListener(Protocol):
+    """Something told about what happens in the lab (the live stream is one).
+
+    Every method is called from a worker thread and must return quickly.
+    """
+
+    def access_changed(self, rig_id: str) -> None:
+        """The rig's controller, queue, power or state may have changed."""
+        ...
+
+    def run_changed(self, rig_id: str, event: str, record: RunRecord) -> None:
+        """A run ``"started"`` or ``"ended"``."""
+        ...
+
+    def run_event(self, rig_id: str, run_id: int, event: Event) -> None:
+        """A runner event of a run (sample, estimate, state, fault)."""
+        ...
+
+    def reading(self, rig_id: str, u: float | None, y: float, at: datetime) -> None:
+        """A reading of a powered rig with no run (the lab's idle monitoring)."""
+        ...
 
 
 @dataclass(frozen=True, slots=True)
@@ -131,7 +156,16 @@ class Lab:
         self.access = AccessService(
             self.db, config, self.clock, self.hub, self.presence, on_change=self._reconcile
         )
-        self.runs = RunService(self.db, self.clock, self.access, self.hub, self._reconcile)
+        self.listeners: list[LabListener] = []
+        self.runs = RunService(
+            self.db,
+            self.clock,
+            self.access,
+            self.hub,
+            self._reconcile,
+            on_run=self._run_changed,
+            on_event=self._run_event,
+        )
         self._last_purge: datetime | None = None
         self._sweep_lock = threading.Lock()
         self._report: StartupReport | None = None
@@ -162,6 +196,7 @@ class Lab:
         with self._sweep_lock:
             now = self.clock.now()
             self.hub.poll(now)
+            self._announce_readings(now)
             for rig in self.config.rigs:
                 fault = self.hub.fault(rig.id)
                 if fault is not None:
@@ -213,6 +248,29 @@ class Lab:
         self.hub.close()
         self.db.close()
 
+    def _announce_readings(self, now: datetime) -> None:
+        # The idle monitoring: the reading just taken of each powered rig with no run.
+        for rig in self.config.rigs:
+            reading = self.hub.reading(rig.id)
+            if reading is None or reading[1] != now or not self.hub.powered(rig.id):
+                continue
+            if self.runs.running(rig.id) is not None:
+                continue
+            for listener in self.listeners:
+                listener.reading(rig.id, self.hub.applied(rig.id), reading[0], now)
+
+    def add_listener(self, listener: LabListener) -> None:
+        """Tell ``listener`` about access changes, runs and readings from now on."""
+        self.listeners.append(listener)
+
+    def _run_changed(self, rig_id: str, event: str, record: RunRecord) -> None:
+        for listener in self.listeners:
+            listener.run_changed(rig_id, event, record)
+
+    def _run_event(self, rig_id: str, run_id: int, event: Event) -> None:
+        for listener in self.listeners:
+            listener.run_event(rig_id, run_id, event)
+
     def _reconcile(self, rig_id: str) -> None:
         cfg = self.config.rig(rig_id)
         with self.hub.locked(rig_id):
@@ -221,3 +279,5 @@ class Lab:
             self.runs.control_changed(rig_id, controller)
             desired = DesiredState(power=power, controller_session=controller)
             self.hub.reconcile(rig_id, desired, cfg.cooldown.input)
+        for listener in self.listeners:
+            listener.access_changed(rig_id)

@@ -1,0 +1,251 @@
+"""The live WebSocket: hello, run messages in order, replay, presence, pings, slow clients."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+from starlette.websockets import WebSocketDisconnect
+
+from thermolab.lab.api import COOKIE_NAME
+from thermolab.lab.app import create_app
+from thermolab.lab.clock import ManualClock
+from thermolab.lab.config import RigConfig
+from thermolab.lab.service import Lab
+from thermolab.lab.stream import LiveBroadcaster
+from thermolab.rigs import Rig, TwinRig, VirtualClock
+
+from .conftest import PASSWORD, LabFactory
+from .test_runs import StepClock, until
+
+
+@pytest.fixture
+def database_url(sqlite_url: str) -> str:
+    """The stream is in memory; its database side is tested on both backends elsewhere."""
+    return sqlite_url
+
+
+@pytest.fixture
+def step_clock() -> Iterator[StepClock]:
+    clock = StepClock()
+    yield clock
+    clock.allow(math.inf)
+
+
+def make(make_lab: LabFactory, clock: Any = None) -> tuple[Lab, TestClient, LiveBroadcaster]:
+    def opener(rig: RigConfig) -> Rig:
+        return TwinRig("paper" if rig.id == "twin" else "tclab", clock=clock or VirtualClock())
+
+    lab = make_lab(opener=opener)
+    for name in ("ana", "ben"):
+        lab.users.add(name, PASSWORD, "student")
+    lab.users.add("tina", PASSWORD, "teacher")
+    app = create_app(lab.config, lab=lab, sweep_interval=None)
+    client = TestClient(app)
+    live: LiveBroadcaster = app.state.live
+    return lab, client, live
+
+
+def login(lab: Lab, name: str) -> dict[str, str]:
+    """Headers of a logged-in user (sessions opened directly: the client keeps no cookies)."""
+    token, _ = lab.sessions.create(lab.users.get(name))
+    return {"cookie": f"{COOKIE_NAME}={token}"}
+
+
+def receive_until(ws: Any, kind: str, **match: Any) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """Receive until a message of ``kind`` (with the given fields); return it and all before."""
+    seen = []
+    for _ in range(10_000):
+        message = ws.receive_json()
+        seen.append(message)
+        if message["type"] == kind and all(message.get(k) == v for k, v in match.items()):
+            return message, seen
+    raise AssertionError(f"no {kind} message")
+
+
+def test_hello_then_a_run_in_order(make_lab: LabFactory) -> None:
+    lab, client, _ = make(make_lab)
+    with client:
+        ana = login(lab, "ana")
+        with client.websocket_connect("/api/rigs/twin/live", headers=ana) as ws:
+            hello = ws.receive_json()
+            assert hello["type"] == "hello"
+            assert (hello["rig"]["id"], hello["rig"]["state"], hello["run"]) == (
+                "twin",
+                "off",
+                None,
+            )
+            assert hello["access"]["role"] == "watcher"
+            assert isinstance(hello["seq"], int)
+            assert hello["seq"] < 2**53  # exact in a browser
+            client.post("/api/rigs/twin/control", headers=ana)
+            response = client.post(
+                "/api/rigs/twin/runs",
+                headers=ana,
+                json={"dt": 1, "samples": 60, "signal": "step:0:10@5", "methods": ["lsm", "wlsm"]},
+            )
+            run_id = response.json()["id"]
+            ended, seen = receive_until(ws, "run", event="ended")
+        started = next(m for m in seen if m["type"] == "run")
+        assert (started["event"], started["run"]["id"]) == ("started", run_id)
+        samples = [m for m in seen if m["type"] == "sample"]
+        assert [m["k"] for m in samples] == list(range(60))
+        assert {m["run"] for m in samples} == {run_id}
+        assert samples[10]["u"] == 10.0
+        estimates = [m for m in seen if m["type"] == "estimate"]
+        assert {m["method"] for m in estimates} == {"lsm", "wlsm"}
+        assert any(m["final"] and m["method"] == "lsm" for m in estimates)
+        assert all({"K", "tau", "W", "valid", "k"} <= set(m) for m in estimates)
+        numbered = [m["seq"] for m in seen if "seq" in m]
+        assert numbered == sorted(numbered)
+        assert len(set(numbered)) == len(numbered)
+        assert numbered[0] > hello["seq"]
+        assert ended["run"]["status"] == "finished"
+        roles = [m["access"]["role"] for m in seen if m["type"] == "access"]
+        assert "controller" in roles
+
+
+def test_a_reconnecting_client_gets_what_it_missed(make_lab: LabFactory) -> None:
+    lab, client, _live = make(make_lab)
+    with client:
+        ana = login(lab, "ana")
+        client.post("/api/rigs/twin/control", headers=ana)
+        with client.websocket_connect("/api/rigs/twin/live", headers=ana) as ws:
+            since = ws.receive_json()["seq"]
+        client.post(
+            "/api/rigs/twin/runs", headers=ana, json={"dt": 1, "samples": 30, "methods": ["lsm"]}
+        )
+        lab.runs.wait("twin", timeout=30)
+        with client.websocket_connect(f"/api/rigs/twin/live?since={since}", headers=ana) as ws:
+            hello = ws.receive_json()
+            missed = [ws.receive_json() for _ in range(4)]
+        # In the order they happened, the samples in one batch.
+        assert [m["type"] for m in missed] == ["run", "samples", "estimate", "run"]
+        started, batch, final, ended = missed
+        assert (started["event"], ended["event"], final["final"]) == ("started", "ended", True)
+        assert [item["k"] for item in batch["items"]] == list(range(30))
+        assert batch["seq"] == batch["items"][-1]["seq"]
+        assert started["seq"] < batch["items"][0]["seq"] < final["seq"] < ended["seq"]
+        assert ended["seq"] == hello["seq"]
+
+
+def test_a_gap_too_old_for_memory_is_filled_from_the_store(
+    make_lab: LabFactory, step_clock: StepClock
+) -> None:
+    lab, client, live = make(make_lab, step_clock)
+    live.hub.channels["twin"]._ring = type(live.hub.channels["twin"]._ring)(maxlen=5)
+    with client:
+        ana = login(lab, "ana")
+        client.post("/api/rigs/twin/control", headers=ana)
+        with client.websocket_connect("/api/rigs/twin/live", headers=ana) as ws:
+            since = ws.receive_json()["seq"]
+        run_id = client.post(
+            "/api/rigs/twin/runs", headers=ana, json={"dt": 1, "samples": 100, "methods": ["lsm"]}
+        ).json()["id"]
+        step_clock.allow(39.0)
+        until(lambda: lab.runs.record(run_id).samples_stored == 40)
+        with client.websocket_connect(f"/api/rigs/twin/live?since={since}", headers=ana) as ws:
+            hello = ws.receive_json()
+            assert hello["run"]["id"] == run_id
+            stored = ws.receive_json()
+            assert stored["type"] == "samples"
+            assert [item["k"] for item in stored["items"]] == list(range(40))
+            assert "seq" not in stored["items"][0]
+        step_clock.allow(math.inf)
+        lab.runs.wait("twin", timeout=30)
+
+
+def test_refusals_close_with_the_protocol_codes(make_lab: LabFactory) -> None:
+    lab, client, _ = make(make_lab)
+    with client:
+        with (
+            client.websocket_connect("/api/rigs/twin/live") as ws,
+            pytest.raises(WebSocketDisconnect) as info,
+        ):
+            ws.receive_json()
+        assert info.value.code == 4401
+        ana = login(lab, "ana")
+        with (
+            client.websocket_connect("/api/rigs/nope/live", headers=ana) as ws,
+            pytest.raises(WebSocketDisconnect) as info,
+        ):
+            ws.receive_json()
+        assert info.value.code == 4404
+        with client.websocket_connect("/api/rigs/twin/live", headers=ana) as ws:
+            ws.receive_json()
+            ws.send_text(json.dumps({"type": "input", "u": 5}))
+            error, _ = receive_until(ws, "error")
+            assert "only one is 'ping'" in error["detail"]
+            ws.send_text("x" * 5000)
+            with pytest.raises(WebSocketDisconnect) as info:
+                receive_until(ws, "never")
+            assert info.value.code == 1009
+        # The session survived all of that.
+        assert client.get("/api/session", headers=ana).status_code == 200
+
+
+def test_pings_keep_control_and_connections_count_as_watchers(
+    make_lab: LabFactory, clock: ManualClock
+) -> None:
+    lab, client, _ = make(make_lab)
+    with client:
+        ana, tina = login(lab, "ana"), login(lab, "tina")
+        client.post("/api/rigs/twin/control", headers=ana)
+        with (
+            client.websocket_connect("/api/rigs/twin/live", headers=ana) as ws,
+            client.websocket_connect("/api/rigs/twin/live", headers=ana) as second,
+        ):
+            ws.receive_json()
+            second.receive_json()
+            rig = client.get("/api/rigs/twin", headers=tina).json()
+            ana_watching = next(w for w in rig["watcherList"] if w["username"] == "ana")
+            assert ana_watching["connections"] == 2
+            for _ in range(6):  # a minute with only the socket's pings
+                clock.advance(10)
+                ws.send_text('{"type": "ping"}')
+                receive_until(ws, "pong")
+                lab.sweep()
+            assert lab.access.snapshot("twin").controller is not None
+        clock.advance(16)  # the socket is gone, and so is the client
+        lab.sweep()
+        assert lab.access.snapshot("twin").controller is None
+
+
+def test_a_slow_client_is_cut_and_the_others_are_not(make_lab: LabFactory) -> None:
+    lab, client, live = make(make_lab)
+    live._client_queue = 50
+    with client:
+        ana, ben = login(lab, "ana"), login(lab, "ben")
+        with client.websocket_connect("/api/rigs/twin/live", headers=ana) as slow:
+            slow.receive_json()
+            live._client_queue = 10_000
+            with client.websocket_connect("/api/rigs/twin/live", headers=ben) as fast:
+                fast.receive_json()
+                channel = live.hub.channels["twin"]
+                loop = live.hub.loop
+                assert loop is not None
+
+                def burst() -> None:  # 100 messages before either client's sender runs
+                    for k in range(100):
+                        channel.publish(
+                            {"type": "sample", "run": None, "k": k, "t": k, "u": 0, "y": 0}
+                        )
+
+                loop.call_soon_threadsafe(burst)
+                got = [fast.receive_json() for _ in range(100)]
+                assert [m["k"] for m in got if m["type"] == "sample"][-1] == 99
+                with pytest.raises(WebSocketDisconnect) as info:
+                    receive_until(slow, "never")
+                assert info.value.code == 4408
+
+
+def test_a_plain_http_request_to_the_live_path_is_a_json_error(make_lab: LabFactory) -> None:
+    _, client, _ = make(make_lab)
+    with client:
+        response = client.get("/api/rigs/twin/live")
+        assert response.status_code == 401
+        assert response.json()["detail"] == "not logged in"
