@@ -13,7 +13,8 @@ from thermolab.lab.app import create_app
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.service import Lab
 
-from .conftest import PASSWORD
+from .conftest import PASSWORD, LabFactory
+from .test_runs import twin_lab
 
 Client = Callable[..., TestClient]
 
@@ -334,3 +335,35 @@ def test_the_browser_interface_is_served_when_given(lab: Lab, tmp_path: Path) ->
             404,
             "nothing at GET /; see /openapi.json",
         )
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        ({"dt": 0, "samples": 10}, "dt: Input should be greater than 0"),
+        ({"dt": 1, "samples": 0}, "samples: Input should be greater than or equal to 1"),
+        ({"dt": 1, "samples": 2.5}, "samples: Input should be a valid integer"),
+        ({"dt": 1, "samples": 10, "signal": "ramp:0:1"}, "invalid signal 'ramp:0:1'"),
+        ({"dt": 1, "samples": 10, "signal": "step:0:11@1"}, "outside the input range"),
+        ({"dt": 1, "samples": 10, "setpoint": 12}, "setpoint 12.0 is outside"),
+        (
+            {"dt": 1, "samples": 10, "signal": "const:1", "setpoint": 1},
+            "give either a signal or a setpoint",
+        ),
+        ({"dt": 1, "samples": 10, "methods": ["rls"]}, "methods.0: Input should be 'srm'"),
+        ({"dt": 1, "samples": 10, "methods": ["srm"], "gamma": 0.9}, "gamma is a setting of wlsm"),
+        ({"dt": 1, "samples": 10, "colour": "red"}, "colour: unknown field"),
+        ({"dt": 1, "samples": 10, "methods": []}, "methods: List should have at least 1 item"),
+    ],
+)
+def test_bad_run_requests_are_refused_with_the_reason(
+    make_lab: LabFactory, body: dict[str, object], message: str
+) -> None:
+    lab = twin_lab(make_lab)  # a live twin: runs need a device
+    lab.users.add("ana", PASSWORD, "student")
+    with TestClient(create_app(lab.config, lab=lab, sweep_interval=None)) as client:
+        client.post("/api/session", json={"username": "ana", "password": PASSWORD})
+        client.post("/api/rigs/twin/control")
+        response = client.post("/api/rigs/twin/runs", json=body)
+    assert response.status_code == 422, response.text
+    assert message in response.json()["detail"]

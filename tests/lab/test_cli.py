@@ -30,6 +30,12 @@ def run(
     return status, out, err
 
 
+@pytest.fixture(autouse=True)
+def _cheap_hashes(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Argon2 at its cheapest: the commands hash a password each (production: the defaults)."""
+    monkeypatch.setattr("thermolab.lab.security.default_password_hasher", lambda: FAST_HASHER)
+
+
 @pytest.fixture
 def data_dir(tmp_path: Path) -> Path:
     return tmp_path / "data"
