@@ -152,7 +152,7 @@ def _serve(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
         static = STATIC_DIR if (STATIC_DIR / "index.html").is_file() else None
-        app = create_app(config, static, lab=lab)
+        app = create_app(config, static, lab=lab, close_lab=True)
         _run_server(app, args.host, args.port)
     finally:
         lab.close()

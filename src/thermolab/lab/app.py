@@ -59,6 +59,7 @@ def create_app(
     static_dir: Path | None = None,
     *,
     lab: Lab | None = None,
+    close_lab: bool | None = None,
     sweep_interval: float | None = 1.0,
 ) -> FastAPI:
     """Build the lab's ASGI application.
@@ -72,9 +73,13 @@ def create_app(
     lab : Lab, optional
         A lab built by the caller (tests inject a clock, a cheap password
         hasher, rig drivers); by default one is built from ``config``, with the
-        rigs opened by :func:`thermolab.rigs.open_rig`. The app
-        starts it (migrations, safe state) when it starts, and closes it at
-        the end only if it built it.
+        rigs opened by :func:`thermolab.rigs.open_rig`. The app starts it
+        (migrations, safe state) when it starts.
+    close_lab : bool, optional
+        Close the lab when the app shuts down (runs aborted, rigs safe);
+        default: only a lab the app built itself. ``thermolab serve`` passes
+        ``True``: uvicorn re-raises SIGTERM after its shutdown, so nothing
+        after ``uvicorn.run`` would run.
     sweep_interval : float or None
         Seconds between sweeps of the access limits in the background;
         ``None`` for none (tests sweep by hand).
@@ -92,7 +97,7 @@ def create_app(
     >>> "/api/rigs/{rig_id}/control" in app.openapi()["paths"]
     True
     """
-    owned = lab is None
+    owned = lab is None if close_lab is None else close_lab
     the_lab = lab if lab is not None else Lab(config, opener=device_opener(config.speedup))
     live = LiveBroadcaster(the_lab)
     the_lab.add_listener(live)
