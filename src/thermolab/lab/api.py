@@ -271,6 +271,22 @@ def control_history(rig_id: RigId, who: UserDep, lab: LabDep) -> list[ControlSes
     return [ControlSessionOut.of(row) for row in rows]
 
 
+@_authed.get(
+    "/rigs/{rig_id}/camera",
+    tags=["rigs"],
+    summary="The rig's live image",
+    response_class=Response,
+    responses={200: {"content": {"image/jpeg": {}}}, **_errors(404, 503)},
+)
+def camera(rig_id: RigId, who: UserDep, lab: LabDep) -> Response:
+    """The current image (JPEG): the rig's camera, or for a twin its state drawn (lamp glow
+    with the heating power, fan with the cooling, the output).
+    """
+    image = lab.camera(rig_id)
+    lab.presence.touch(rig_id, who.username)  # looking at the rig is watching it
+    return Response(image, media_type="image/jpeg", headers={"Cache-Control": "no-store"})
+
+
 # -- runs ------------------------------------------------------------------------------------------
 
 RunId = Annotated[int, Path(ge=1, description="the run's number")]

@@ -37,6 +37,7 @@ from thermolab.errors import (
     ThermoLabError,
 )
 from thermolab.lab.api import COOKIE_NAME, router
+from thermolab.lab.camera import CameraError
 from thermolab.lab.config import LabConfig
 from thermolab.lab.hub import device_opener
 from thermolab.lab.security import AuthenticationError, RateLimitedError
@@ -167,6 +168,8 @@ def _status_of(exc: ThermoLabError) -> int:
         return 403
     if isinstance(exc, NotFoundError):
         return 404
+    if isinstance(exc, CameraError):
+        return 503
     if isinstance(exc, ConflictError | RigError):
         return 409
     if isinstance(exc, RateLimitedError):

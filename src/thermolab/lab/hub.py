@@ -243,10 +243,11 @@ class RigHub:
             slot.claimed = False
             slot.controller_session = None
 
-    def note_reading(self, rig_id: str, value: float) -> None:
-        """Record a reading taken by someone else (a run samples the rig)."""
+    def note_sample(self, rig_id: str, u: float, y: float) -> None:
+        """Record a sample taken by someone else (a run samples the rig)."""
         slot = self._slots[rig_id]
-        slot.output = value
+        slot.input = u
+        slot.output = y
         slot.output_at = self._clock.now() if self._clock is not None else slot.output_at
 
     def driver(self, rig_id: str) -> Rig | None:

@@ -166,7 +166,7 @@ class DatabaseRecorder:
     interval : float
         Longest time (seconds) a sample waits in memory.
     on_sample : callable, optional
-        Called with each output ``y`` (keeps the lab's view of the rig fresh).
+        Called with each sample's ``(u, y)`` (keeps the lab's view of the rig fresh).
     """
 
     def __init__(
@@ -175,7 +175,7 @@ class DatabaseRecorder:
         run_id: int,
         *,
         interval: float = 0.5,
-        on_sample: Callable[[float], None] | None = None,
+        on_sample: Callable[[float, float], None] | None = None,
     ) -> None:
         self._db = db
         self.run_id = run_id
@@ -206,7 +206,7 @@ class DatabaseRecorder:
         with self._lock:
             self._buffer.append({"run_id": self.run_id, "k": k, "t": t, "u": u, "y": y})
         if self._on_sample is not None:
-            self._on_sample(y)
+            self._on_sample(u, y)
 
     def flush(self) -> int:
         """Insert the buffered samples now; return how many."""
@@ -357,7 +357,7 @@ class RunService:
 
         run_id, control_id = self._access.within_control(rig_id, who, "start a run", begin)
         recorder = DatabaseRecorder(
-            self._db, run_id, on_sample=lambda y: self._hub.note_reading(rig_id, y)
+            self._db, run_id, on_sample=lambda u, y: self._hub.note_sample(rig_id, u, y)
         )
         experiment = Experiment(
             driver,

@@ -15,10 +15,12 @@ from typing import Protocol
 from argon2 import PasswordHasher
 
 from thermolab.lab.access import AccessService, RigView
+from thermolab.lab.camera import Picture, PictureCache, draw_twin, fetch_camera
 from thermolab.lab.clock import LabClock, SystemClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.hub import DesiredState, RigHub, RigOpener
+from thermolab.lab.models import Role
 from thermolab.lab.presence import Presence
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.security import LoginThrottle, default_password_hasher
@@ -167,6 +169,7 @@ class Lab:
             on_event=self._run_event,
         )
         self._last_purge: datetime | None = None
+        self._pictures = PictureCache(ttl=0.5)
         self._sweep_lock = threading.Lock()
         self._report: StartupReport | None = None
 
@@ -234,6 +237,41 @@ class Lab:
             self.hub.clear_fault(rig_id)
         return self.access.set_service(rig_id, who, in_service)
 
+    def camera(self, rig_id: str) -> bytes:
+        """Return the rig's live image (JPEG): its camera, or a twin's state drawn.
+
+        Raises
+        ------
+        NotFoundError
+            For an unknown rig.
+        CameraError
+            If the rig's camera cannot be read.
+        """
+        cfg = self.config.rig(rig_id)
+        if cfg.camera is not None:
+            url = cfg.camera
+            return self._pictures.get(rig_id, lambda: fetch_camera(url))
+
+        def draw() -> bytes:
+            snap = self.access.snapshot(rig_id)
+            view = self.access.render(snap, _VIEWER)
+            published = self.hub.published(rig_id)
+            reading = self.hub.reading(rig_id)
+            return draw_twin(
+                Picture(
+                    title=cfg.title,
+                    state=view.state,
+                    u=self.hub.applied(rig_id),
+                    y=reading[0] if reading is not None else None,
+                    input_min=published.input_min,
+                    input_max=published.input_max,
+                    input_unit=published.input_unit,
+                    output_unit=published.output_unit,
+                )
+            )
+
+        return self._pictures.get(rig_id, draw)
+
     def remove_user(self, username: str) -> UserInfo:
         """Remove an account; rigs it controlled go to the next in their queues."""
         info = self.users.remove(username)
@@ -281,3 +319,7 @@ class Lab:
             self.hub.reconcile(rig_id, desired, cfg.cooldown.input)
         for listener in self.listeners:
             listener.access_changed(rig_id)
+
+
+# Whose eyes the camera picture is drawn for: the state, which is the same for everyone.
+_VIEWER = Principal(user_id=-1, username="(camera)", role=Role.TEACHER)

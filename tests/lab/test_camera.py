@@ -1,0 +1,108 @@
+"""The live image: a twin's state drawn, or a real camera's JPEG / MJPEG frame."""
+
+from __future__ import annotations
+
+import http.server
+import io
+import threading
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+from PIL import Image
+
+from thermolab.lab.app import create_app
+from thermolab.lab.camera import PictureCache, first_jpeg
+from thermolab.lab.config import RigConfig
+from thermolab.rigs import Rig, TwinRig, VirtualClock
+
+from .conftest import PASSWORD, LabFactory
+
+
+@pytest.fixture
+def database_url(sqlite_url: str) -> str:
+    return sqlite_url
+
+
+def brightness(jpeg: bytes, box: tuple[int, int, int, int]) -> float:
+    region = Image.open(io.BytesIO(jpeg)).convert("L").crop(box)
+    return float(np.asarray(region, dtype=np.float64).mean())
+
+
+def test_a_twin_is_drawn_from_its_state(make_lab: LabFactory) -> None:
+    def opener(rig: RigConfig) -> Rig:
+        return TwinRig("paper", clock=VirtualClock())
+
+    lab = make_lab(opener=opener)
+    lab._pictures = PictureCache(ttl=0)
+    lab.users.add("ana", PASSWORD, "student")
+    with TestClient(create_app(lab.config, lab=lab, sweep_interval=None)) as client:
+        assert client.get("/api/rigs/twin/camera").status_code == 401
+        client.post("/api/session", json={"username": "ana", "password": PASSWORD})
+        off = client.get("/api/rigs/twin/camera")
+        assert off.headers["content-type"] == "image/jpeg"
+        assert off.headers["cache-control"] == "no-store"
+        assert Image.open(io.BytesIO(off.content)).size == (480, 320)
+        client.post("/api/rigs/twin/control")
+        client.put("/api/rigs/twin/input", json={"u": 10.0})
+        lamp_on = client.get("/api/rigs/twin/camera").content
+        lamp = (150, 150, 190, 190)
+        assert brightness(lamp_on, lamp) > brightness(off.content, lamp) + 40
+        assert client.get("/api/rigs/nope/camera").status_code == 404
+
+
+class _Camera(http.server.BaseHTTPRequestHandler):
+    frame = b"\xff\xd8" + b"not really a picture" + b"\xff\xd9"
+
+    def do_GET(self) -> None:
+        self.send_response(200)
+        if self.path == "/stream":
+            self.send_header("Content-Type", "multipart/x-mixed-replace; boundary=frame")
+            self.end_headers()
+            for _ in range(3):
+                self.wfile.write(
+                    b"--frame\r\nContent-Type: image/jpeg\r\n\r\n" + self.frame + b"\r\n"
+                )
+        else:
+            self.send_header("Content-Type", "image/jpeg")
+            self.end_headers()
+            self.wfile.write(self.frame)
+
+    def log_message(self, *args: object) -> None:
+        pass
+
+
+@pytest.fixture
+def camera_url() -> Iterator[str]:
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), _Camera)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    yield f"http://127.0.0.1:{server.server_address[1]}"
+    server.shutdown()
+    server.server_close()
+
+
+@pytest.mark.parametrize("path", ["/snapshot.jpg", "/stream"])
+def test_a_real_rig_shows_its_camera(make_lab: LabFactory, camera_url: str, path: str) -> None:
+    lab = make_lab(camera=camera_url + path)
+    lab.users.add("ana", PASSWORD, "student")
+    with TestClient(create_app(lab.config, lab=lab, sweep_interval=None)) as client:
+        client.post("/api/session", json={"username": "ana", "password": PASSWORD})
+        response = client.get("/api/rigs/twin/camera")
+    assert response.content == _Camera.frame
+
+
+def test_an_unreachable_camera_is_a_clear_error(make_lab: LabFactory) -> None:
+    lab = make_lab(camera="http://127.0.0.1:1/cam.jpg")
+    lab.users.add("ana", PASSWORD, "student")
+    with TestClient(create_app(lab.config, lab=lab, sweep_interval=None)) as client:
+        client.post("/api/session", json={"username": "ana", "password": PASSWORD})
+        response = client.get("/api/rigs/twin/camera")
+    assert response.status_code == 503
+    assert response.json()["detail"].startswith("camera http://127.0.0.1:1/cam.jpg unreachable")
+
+
+def test_first_jpeg_needs_a_whole_frame() -> None:
+    with pytest.raises(Exception, match="no complete JPEG"):
+        first_jpeg(b"\xff\xd8 cut short")
