@@ -255,21 +255,7 @@ class OnlineIdentifier:
         IdentifierStateError
             After :meth:`finish`.
         """
-        if self._finished:
-            raise IdentifierStateError(
-                f"{self.method}: update() after finish(); make a new identifier for a new run"
-            )
-        try:
-            uf = float(u)
-            yf = float(y)
-        except (TypeError, ValueError):
-            raise InvalidDataError(
-                f"sample {self._n}: u and y must be numbers, got u={u!r}, y={y!r}"
-            ) from None
-        if not (math.isfinite(uf) and math.isfinite(yf)):
-            raise InvalidDataError(
-                f"sample {self._n}: u and y must be finite, got u={uf!r}, y={yf!r}"
-            )
+        uf, yf = self._checked_sample(u, y)
         k = self._n
         if k == self._u.size:
             self._grow()
@@ -326,6 +312,25 @@ class OnlineIdentifier:
         }
 
     # -- for subclasses --------------------------------------------------------------
+
+    def _checked_sample(self, u: float, y: float) -> tuple[float, float]:
+        # Shared by every update(): a sample is refused before it touches any state.
+        if self._finished:
+            raise IdentifierStateError(
+                f"{self.method}: update() after finish(); make a new identifier for a new run"
+            )
+        try:
+            uf = float(u)
+            yf = float(y)
+        except (TypeError, ValueError):
+            raise InvalidDataError(
+                f"sample {self._n}: u and y must be numbers, got u={u!r}, y={y!r}"
+            ) from None
+        if not (math.isfinite(uf) and math.isfinite(yf)):
+            raise InvalidDataError(
+                f"sample {self._n}: u and y must be finite, got u={uf!r}, y={yf!r}"
+            )
+        return uf, yf
 
     def _grow(self) -> None:
         size = 2 * self._u.size
@@ -488,21 +493,7 @@ class _Recursive(OnlineIdentifier):
         return ("_u", "_ys", "_W", "_code")
 
     def update(self, u: float, y: float) -> Estimate | None:
-        if self._finished:
-            raise IdentifierStateError(
-                f"{self.method}: update() after finish(); make a new identifier for a new run"
-            )
-        try:
-            uf = float(u)
-            yf = float(y)
-        except (TypeError, ValueError):
-            raise InvalidDataError(
-                f"sample {self._n}: u and y must be numbers, got u={u!r}, y={y!r}"
-            ) from None
-        if not (math.isfinite(uf) and math.isfinite(yf)):
-            raise InvalidDataError(
-                f"sample {self._n}: u and y must be finite, got u={uf!r}, y={yf!r}"
-            )
+        uf, yf = self._checked_sample(u, y)
         k = self._n
         if k == self._u.size:
             self._grow()
