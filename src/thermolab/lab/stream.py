@@ -21,6 +21,7 @@ from typing import Any
 import anyio.to_thread
 from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
 
+from thermolab.lab.access import RigSnapshot
 from thermolab.lab.api import COOKIE_NAME
 from thermolab.lab.live import (
     CLOSE_TOO_BIG,
@@ -70,6 +71,7 @@ class LiveBroadcaster:
         self._access_delay = access_delay
         self._client_queue = client_queue
         self._states: dict[str, tuple[str, str | None]] = {}
+        self._signatures: dict[str, tuple[Any, ...]] = {}
 
     # -- the lab's side (worker threads) ---------------------------------------------------
 
@@ -132,17 +134,32 @@ class LiveBroadcaster:
         channel = self.hub.channels[rig_id]
         snap = await anyio.to_thread.run_sync(self.lab.access.snapshot, rig_id)
         watchers = self.lab.presence.watchers(rig_id)
-        system = self.lab.access.render(snap, _NOBODY, watchers)
-        state = (system.state, system.fault)
+        # Heartbeats change nothing anyone sees: only a visible change is sent.
+        signature = _signature(snap, len(watchers))
+        if self._signatures.get(rig_id) == signature:
+            return
+        self._signatures[rig_id] = signature
+        clients = channel.clients()
+
+        def render() -> tuple[tuple[str, str | None], dict[Any, str]]:
+            # Every plain watcher sees the same access; the controller and each queued
+            # user their own. One rendering per viewpoint, however many clients.
+            system = self.lab.access.render(snap, _NOBODY, watchers)
+            texts: dict[Any, str] = {}
+            for client in clients:
+                key = _viewpoint(snap, client.key)
+                if key not in texts:
+                    view = self.lab.access.render(snap, client.key, watchers)
+                    access = _dump(RigOut.of(view))["access"]
+                    texts[key] = encode({"type": "access", "access": access})
+            return (system.state, system.fault), texts
+
+        state, texts = await anyio.to_thread.run_sync(render)
         if self._states.get(rig_id) != state:
             self._states[rig_id] = state
             channel.publish({"type": "state", "state": state[0], "detail": state[1]})
-
-        def render(client: LiveClient) -> dict[str, Any]:
-            view = self.lab.access.render(snap, client.key, watchers)
-            return {"type": "access", "access": _dump(RigOut.of(view))["access"]}
-
-        channel.send_each(render)
+        for client in clients:
+            client.offer(texts[_viewpoint(snap, client.key)])
 
     async def endpoint(self, websocket: WebSocket, rig_id: str, since: int | None = None) -> None:
         """Serve one client (the WebSocket route)."""
@@ -275,6 +292,29 @@ async def _serve(websocket: WebSocket, client: LiveClient, on_ping: Any) -> None
         if websocket.client_state is WebSocketState.CONNECTED:
             with contextlib.suppress(Exception):
                 await websocket.close()
+
+
+def _signature(snap: RigSnapshot, watchers: int) -> tuple[Any, ...]:
+    """What watchers can see of a rig's access state (not heartbeats, not the clock)."""
+    control = snap.controller
+    return (
+        None if control is None else (control.id, control.deadline),
+        tuple(slot.user_id for slot in snap.queue),
+        snap.power,
+        snap.fault,
+        snap.in_service,
+        snap.run_active,
+        watchers,
+    )
+
+
+def _viewpoint(snap: RigSnapshot, who: Principal) -> Any:
+    """Clients that see the same access message share a viewpoint."""
+    if snap.controller is not None and snap.controller.user_id == who.user_id:
+        return ("controller", who.user_id)
+    if snap.slot_of(who.user_id) is not None:
+        return ("queued", who.user_id)
+    return "watcher"
 
 
 def _message_type(text: str) -> str:
