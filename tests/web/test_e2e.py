@@ -7,6 +7,7 @@ Each test that takes control uses a rig of its own. Screenshots go to
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Iterator
 from pathlib import Path
@@ -77,6 +78,14 @@ def assert_locked(page: Any) -> None:
     assert state["enabled"] == []
 
 
+def assert_drawn(page: Any, figure: str) -> None:
+    """The chart's y axis spans a real, finite range (its lines are drawn)."""
+    low, high = (float(v) for v in page.get_attribute(figure, "data-y-range").split(","))
+    assert math.isfinite(low)
+    assert math.isfinite(high)
+    assert high > low
+
+
 def assert_unlocked(page: Any) -> None:
     assert not page.is_visible(LOCK)
     assert page.is_enabled("[data-panel-form=srm-lsm] button[data-action=start]")
@@ -135,6 +144,10 @@ def test_watchers_queue_and_take_over_without_reloading(
         bob.wait_for_selector(f"[data-panel-view={panel}]:visible")
         bob.locator(".panels").screenshot(path=str(artifacts / f"panel-{number}.png"))
 
+    # Alice has nothing more to do here: her page goes back to the lobby (fewer
+    # pages drawing 200 samples/s on this small machine keeps the twin on time).
+    alice.goto(f"{lab.url}/#/")
+
     # Panel 1, as in the paper: T, number of samples, initial set point, START,
     # change of set point (the step), then the run ends by itself at N samples.
     bob.click("[role=tab][data-panel=srm-lsm]")
@@ -166,11 +179,24 @@ def test_watchers_queue_and_take_over_without_reloading(
     bob.wait_for_function(
         "() => +document.querySelector(\"figure[aria-label^='Output'] \").dataset.points >= 2000"
     )
+    assert_drawn(bob, "figure[aria-label^='Output']")
+    assert_drawn(carol, "figure[aria-label^='Output']")
     bob.locator(".panels").screenshot(path=str(artifacts / "panel-1.png"))
     bob.screenshot(path=str(artifacts / "rig-after-run.png"), full_page=True)
 
     # My runs -> the run's page -> its CSV, which feeds straight back into identify.
     bob.click("#nav a[data-nav=runs]")
+    bob.wait_for_selector("table.runs tbody tr")
+    # Compare it with the reference model, as in the paper's Table I.
+    bob.check("table.runs tbody tr:first-child input[name=run]")
+    bob.click("button:text('Compare the chosen runs')")
+    bob.wait_for_selector("table.compare tbody tr[data-method=lsm]")
+    for method in ("srm", "lsm"):
+        row = f"table.compare tr[data-method={method}]"
+        assert abs(float(bob.inner_text(f"{row} [data-field=K]")) / TRUE_K - 1) < 0.02
+        assert "%" in bob.inner_text(f"{row} [data-field=dK]")
+    bob.screenshot(path=str(artifacts / "compare.png"), full_page=True)
+    bob.go_back()
     bob.wait_for_selector("table.runs tbody tr")
     bob.click("table.runs tbody tr:first-child a")
     bob.wait_for_selector("[data-testid=csv-link]")
@@ -263,8 +289,34 @@ def test_a_phone_screen_needs_no_sideways_scrolling(
         assert box is not None
         assert box["x"] >= 0
         assert box["x"] + box["width"] <= 375
+
+    # Panel 3 on the phone: a short weighted-LS run on the Automatic square wave
+    # from a cold rig; Ks(k) and Ts(k) are drawn as they converge (Figs. 9-11).
+    phone.click("button[data-action=ask]")
+    wait_role(phone, "controller")
+    phone.click("[role=tab][data-panel=wlsm]")
+    phone.fill("#wlsm-n", "600")
+    assert phone.is_checked("[data-panel-form=wlsm] input[name=automatic]")
+    phone.click("[data-panel-form=wlsm] button[data-action=start]")
+    row = "[data-testid=results-wlsm] [data-method=wlsm]"
+    phone.wait_for_selector(f"{row} [data-field=status]:text('final')", timeout=60_000)
+    ks_chart = "figure[aria-label='Ks against sample, Weighted LS (WLSM)']"
+    phone.wait_for_function(f'() => +document.querySelector("{ks_chart}").dataset.points > 500')
+    assert_drawn(phone, ks_chart)
+    assert_drawn(phone, "figure[aria-label^='Output']")
+    # A noise-free twin sampled on time gives the true model; at 200x on a loaded
+    # machine the sampling jitters, so only a loose check here (the
+    # identification's own tests check the figures).
+    ks = float(phone.inner_text(f"{row} [data-field=K]"))
+    assert abs(ks / TRUE_K - 1) < 0.25
+    assert phone.evaluate(overflow) <= 0
+    phone.locator(".convergence").screenshot(path=str(artifacts / "phone-convergence.png"))
+    phone.locator(".panels").screenshot(path=str(artifacts / "phone-panel-3.png"))
+    phone.click("button[data-action=release]")
+    wait_role(phone, "watcher")
+
     phone.goto(f"{lab.url}/#/runs")
-    phone.wait_for_selector("h1:text('My runs')")
+    phone.wait_for_selector("table.runs")
     assert phone.evaluate(overflow) <= 0
 
 
@@ -370,6 +422,10 @@ def test_the_teacher_sees_every_rig_and_manages_turns(
     teacher.click(f"{card} button:text('End this turn')")
     wait_role(student, "watcher")
     assert_locked(student)
+
+    # Every student's runs, with the same comparison.
+    teacher.wait_for_selector('[aria-label="Every student\'s runs"]')
+    assert teacher.inner_text("#all-runs") == "Every student's runs"
 
     # Out of service and back.
     teacher.click(f"{card} button:text('Take out of service')")

@@ -32,6 +32,7 @@ FAKE_SOCKET = """
     }
   }
   window.WebSocket = FakeSocket;
+  window.RUN = 999999;  // a run id the lab does not have (see RUN below)
   window.__sockets = sockets;
   window.__live = {
     open() { const s = sockets[sockets.length - 1]; s.readyState = 1; s.onopen({}); },
@@ -43,6 +44,8 @@ FAKE_SOCKET = """
 """
 
 K_TRUE, TAU_TRUE = 0.14009, 250.126233
+# A run id the lab does not have: the page's history request finds nothing.
+RUN = 999_999
 
 
 @pytest.fixture
@@ -97,14 +100,17 @@ def send_run(page: Any, first_seq: int, n: int, batch: int = 1000) -> int:
                 const items = [];
                 for (let k = k0; k < Math.min(n, k0 + batch); k++) {
                   const u = Math.floor(k / 5) % 2 ? 0 : 4;
-                  items.push({ seq: ++seq, run: 7, k, t: k, u, y: x });
+                  items.push({ seq: ++seq, run: RUN, k, t: k, u, y: x });
                   x = a * x + b * u;
                 }
                 window.__live.send({ type: 'samples', seq, items });
                 for (const it of items) {
                   const r = 1 + 0.5 * Math.exp(-it.k / 50);
-                  window.__live.send({ type: 'estimate', seq: ++seq, run: 7, method: 'wlsm',
-                    k: it.k, K: K * r, tau: tau * r, W: [], valid: true, final: false });
+                  // The first estimates have no first-order meaning (W0 = 0): K and tau null.
+                  const valid = it.k >= 20;
+                  window.__live.send({ type: 'estimate', seq: ++seq, run: RUN, method: 'wlsm',
+                    k: it.k, K: valid ? K * r : null, tau: valid ? tau * r : null, W: [],
+                    valid, final: false });
                 }
               }
               return seq;
@@ -119,11 +125,30 @@ def drawn(page: Any, label: str) -> int:
     return int(page.get_attribute(f"figure[aria-label='{label}']", "data-points") or 0)
 
 
+def assert_axis(page: Any, label: str) -> None:
+    """The chart's y axis spans a real range: its lines are drawn."""
+    text = page.get_attribute(f"figure[aria-label='{label}']", "data-y-range")
+    low, high = (float(v) for v in text.split(","))
+    assert math.isfinite(low)
+    assert math.isfinite(high)
+    assert high > low
+
+
 def test_a_long_run_keeps_a_fixed_window_and_fixed_memory(page: Any) -> None:
     page.evaluate("() => window.__live.open()")
     rig = rig_json(page)
-    hello(page, 100, rig, run_json(7))
-    seq = send_run(page, 100, 5000)
+    hello(page, 100, rig, run_json(RUN))
+    # Samples before any model: the output chart has a real axis (the model
+    # line, NaN for now, must not spoil its range).
+    page.evaluate(
+        """() => window.__live.send({ type: 'samples', seq: 102, items: [
+            { seq: 101, run: RUN, k: 0, t: 0, u: 4, y: 0 },
+            { seq: 102, run: RUN, k: 1, t: 1, u: 4, y: 0.1 }] })"""
+    )
+    # (The page first asks the store for the run's earlier samples; none here.)
+    page.wait_for_selector("figure[aria-label^='Output'][data-points='2']")
+    assert_axis(page, "Output y and model prediction against time")
+    seq = send_run(page, 102, 5000)
     assert drawn(page, "Output y and model prediction against time") == 2000
     nodes_before = page.evaluate("() => document.getElementsByTagName('*').length")
     seq = send_run(page, seq, 20000)
@@ -132,6 +157,8 @@ def test_a_long_run_keeps_a_fixed_window_and_fixed_memory(page: Any) -> None:
     # The whole Ks(k) trajectory, decimated to at most 4000 points (+ the newest).
     points = drawn(page, "Ks against sample, Weighted LS (WLSM)")
     assert 2000 <= points <= 4001
+    assert_axis(page, "Ks against sample, Weighted LS (WLSM)")
+    assert_axis(page, "Output y and model prediction against time")
     nodes_after = page.evaluate("() => document.getElementsByTagName('*').length")
     assert nodes_after == nodes_before
     # The newest estimate is shown as numbers, and the model is drawn over the output.
@@ -144,7 +171,7 @@ def test_a_long_run_keeps_a_fixed_window_and_fixed_memory(page: Any) -> None:
 def test_a_dropped_connection_comes_back_and_asks_for_the_gap(page: Any) -> None:
     page.evaluate("() => window.__live.open()")
     rig = rig_json(page)
-    hello(page, 10, rig, run_json(7))
+    hello(page, 10, rig, run_json(RUN))
     seq = send_run(page, 10, 300, batch=100)
     page.evaluate("() => window.__live.drop(1006)")
     page.wait_for_selector("#conn:text('reconnecting')")
@@ -153,13 +180,13 @@ def test_a_dropped_connection_comes_back_and_asks_for_the_gap(page: Any) -> None
     url = page.evaluate("() => window.__sockets[1].url")
     assert url.endswith(f"/api/rigs/twin-phone/live?since={seq}")
     page.evaluate("() => window.__live.open()")
-    hello(page, seq + 50, rig, run_json(7))
+    hello(page, seq + 50, rig, run_json(RUN))
     # The replay overlaps what the page had; the window must hold each sample once.
     page.evaluate(
         """(seq) => window.__live.send({ type: 'samples', seq: seq + 2, items: [
-            { seq: seq, run: 7, k: 299, t: 299, u: 0, y: 1 },
-            { seq: seq + 1, run: 7, k: 300, t: 300, u: 0, y: 1 },
-            { seq: seq + 2, run: 7, k: 301, t: 301, u: 0, y: 1 }] })""",
+            { seq: seq, run: RUN, k: 299, t: 299, u: 0, y: 1 },
+            { seq: seq + 1, run: RUN, k: 300, t: 300, u: 0, y: 1 },
+            { seq: seq + 2, run: RUN, k: 301, t: 301, u: 0, y: 1 }] })""",
         seq,
     )
     assert drawn(page, "Output y and model prediction against time") == 302

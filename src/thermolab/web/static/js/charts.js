@@ -19,7 +19,9 @@ export class Chart {
    * @param {string} opts.label       accessible name of the chart
    * @param {string} opts.xLabel
    * @param {string} opts.yLabel
-   * @param {{label: string, color?: string, dash?: number[], width?: number, points?: boolean}[]} opts.series
+   * @param {{label: string, color?: string, dash?: number[], width?: number, points?: boolean,
+   *   auto?: boolean}[]} opts.series  `auto: false` keeps a series (NaN where it has no value)
+   *   out of the axis range
    * @param {() => ArrayLike<number>[]} opts.source   [x, y1, y2...] for the next draw
    * @param {number} [opts.height]
    * @param {string} [opts.description] longer text for screen readers
@@ -48,6 +50,9 @@ export class Chart {
         dash: s.dash,
         points: { show: s.points ?? false },
         spanGaps: false,
+        // uPlot ranges its scales over series marked auto, and a NaN there (a
+        // model not identified yet) would spoil the range: such series say auto: false.
+        auto: s.auto ?? true,
       })),
     ];
     this.plot = new uPlot(
@@ -62,6 +67,11 @@ export class Chart {
         ],
         legend: { show: true, live: false },
         cursor: { drag: { x: false, y: false } },
+        hooks: {
+          // The y range drawn: lets a test see that the axis is a real range (a NaN
+          // in an auto-ranged series would leave an empty plot with no axis).
+          draw: [(u) => { this.el.dataset.yRange = `${u.scales.y.min},${u.scales.y.max}`; }],
+        },
       },
       this._empty(series.length),
       this._plotHost,

@@ -89,7 +89,7 @@ export function comparisonTable(runs, ref) {
   const dev = (s, refValue) => {
     const d = s ? deviation(s.mean, refValue) : null;
     if (!d) return "–";
-    return `${fmt(d.abs, 4)} (${(100 * d.rel).toFixed(3)} %)`;
+    return `${fmt(d.abs, 4)} (${fmt(100 * d.rel, 3)} %)`;
   };
   const body = rows.map(({ run, label, f }) =>
     h(

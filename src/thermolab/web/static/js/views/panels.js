@@ -111,6 +111,13 @@ export function panelDefinitions(limits) {
   ];
 }
 
+/** What an estimate's status cell says: final or live, and why there is no model. */
+export function estimateStatus(est) {
+  if (!est) return "waiting";
+  const when = est.final ? "final (at END)" : "live";
+  return est.valid ? when : `${when}: ${est.reason ?? "no first-order model"}`;
+}
+
 export class Panels {
   /**
    * @param {HTMLElement} parent
@@ -492,11 +499,14 @@ export class Panels {
         h("td", { "data-field": "K" }, est ? fmt(est.K) : "–"),
         h("td", { "data-field": "tau" }, est ? fmt(est.tau) : "–"),
         h("td", { "data-field": "k" }, est && Number.isFinite(est.k) ? String(est.k) : "–"),
-        h("td", { "data-field": "status" }, est ? (est.final ? "final (at END)" : est.valid ? "live" : (est.reason ?? "no first-order meaning")) : "waiting"),
+        h("td", { "data-field": "status" }, estimateStatus(est)),
       );
     });
     view.results.replaceChildren(
       h(
+        "div",
+        { class: "table-wrap", tabindex: "0", role: "region", "aria-label": `${view.def.title}: estimates` },
+        h(
         "table",
         { class: "estimates" },
         h("caption", { class: "visually-hidden" }, `${view.def.title}: current estimates`),
@@ -506,6 +516,7 @@ export class Panels {
           h("tr", null, h("th", { scope: "col" }, "Method"), h("th", { scope: "col" }, "Ks"), h("th", { scope: "col" }, "Ts (s)"), h("th", { scope: "col" }, "at sample"), h("th", { scope: "col" }, "status")),
         ),
         h("tbody", null, rows),
+      ),
       ),
     );
   }

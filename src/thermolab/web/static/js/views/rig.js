@@ -40,7 +40,7 @@ class RigPage {
     this.ring = new RingBuffer(WINDOW, ["t", "u", "y"]);
     this.yhat = new Float64Array(WINDOW);
     // What the charts show: the samples of one run, or idle readings (run null).
-    this.segment = { run: null, y0: Number.NaN, firstK: Number.NaN, lastK: -1, loading: false, pending: [] };
+    this.segment = { run: null, y0: Number.NaN, t0: Number.NaN, firstK: Number.NaN, lastK: -1, loading: false, pending: [] };
     this.trajectories = new Map(); // method -> {buf, kChart, tChart}
     this.overlayMethod = null;
     this._uiFrame = 0;
@@ -131,7 +131,7 @@ class RigPage {
     // Readouts.
     this.readout = {};
     const dl = h("dl", { class: "facts readout" });
-    for (const [key, label] of [["u", "Input u (V)"], ["y", "Output y (V)"], ["t", "Time t (s)"], ["k", "Sample k"]]) {
+    for (const [key, label] of [["u", "Input u (V)"], ["y", "Output y (V)"], ["t", "Time t"], ["k", "Sample k"]]) {
       this.readout[key] = h("dd", { "data-readout": key }, "–");
       dl.append(h("dt", null, label), this.readout[key]);
     }
@@ -157,7 +157,7 @@ class RigPage {
       description: "The measured output and, once a model is identified, its prediction. The current values are listed under Now.",
       xLabel: "t (s)",
       yLabel: "y (V)",
-      series: [{ label: "output y" }, { label: "model", dash: [6, 4], color: "#D55E00", width: 2 }],
+      series: [{ label: "output y" }, { label: "model", dash: [6, 4], color: "#D55E00", width: 2, auto: false }],
       source: () => this._outputData(),
     });
     this.inChart = new Chart(charts, {
@@ -376,7 +376,7 @@ class RigPage {
   /** Start showing a new segment (a run, or idle readings). */
   _startSegment(runId, loadHistory) {
     this.ring.clear();
-    this.segment = { run: runId, y0: Number.NaN, firstK: Number.NaN, lastK: -1, loading: false, pending: [] };
+    this.segment = { run: runId, y0: Number.NaN, t0: Number.NaN, firstK: Number.NaN, lastK: -1, loading: false, pending: [] };
     if (runId !== null && loadHistory) void this._loadHistory(runId);
     this._noteSegment();
     this._invalidateCharts();
@@ -446,16 +446,21 @@ class RigPage {
       if (Number.isNaN(seg.firstK)) seg.firstK = s.k;
       if (s.k === 0) seg.y0 = s.y;
     }
+    // Idle readings carry wall-clock time (epoch seconds): draw them from the
+    // first one shown, like a run's time from its START.
+    if (seg.run === null && !Number.isFinite(seg.t0)) seg.t0 = s.t;
+    const t = seg.run === null ? s.t - seg.t0 : s.t;
     const lastT = this.ring.last("t");
-    if (this.ring.length && !(s.t > lastT)) this.ring.clear(); // a new time base
-    this.ring.push({ t: s.t, u: s.u, y: s.y });
+    if (this.ring.length && !(t > lastT)) this.ring.clear(); // a new time base
+    this.ring.push({ t, u: s.u, y: s.y });
     this._invalidateCharts();
   }
 
   _updateReadout(s) {
     setText(this.readout.u, fmt(s.u, 4));
     setText(this.readout.y, fmt(s.y, 5));
-    setText(this.readout.t, fmt(s.t, 6));
+    // A run's time is seconds since START; an idle reading's is the time of day.
+    setText(this.readout.t, s.run === null || s.run === undefined ? new Date(s.t * 1000).toLocaleTimeString() : fmt(s.t, 6));
     setText(this.readout.k, s.k ?? "–");
   }
 
@@ -465,7 +470,11 @@ class RigPage {
     const est = readEstimate(e);
     this.run.estimates.set(method, est);
     const base = methodName({ method }).split(/[:#]/)[0];
-    if (RECURSIVE.has(base) && !est.final) this._trajectory(method).buf.push({ k: e.k, K: est.K, tau: est.tau });
+    if (RECURSIVE.has(base) && !est.final) {
+      const t = this._trajectory(method);
+      // Only estimates with a first-order meaning are drawn (uPlot has no NaN gaps).
+      if (est.valid && Number.isFinite(est.K) && Number.isFinite(est.tau)) t.buf.push({ k: e.k, K: est.K, tau: est.tau });
+    }
     if (!this.overlaySelect.querySelector(`option[value="${CSS.escape(method)}"]`)) this._updateOverlayChoices();
     this._scheduleUi();
   }

@@ -111,7 +111,7 @@ function render(main, exported, charts) {
     label: `Output and model of run ${run.id}`,
     xLabel: "t (s)",
     yLabel: "y (V)",
-    series: [{ label: "output y" }, { label: "model", dash: [6, 4], color: "#D55E00", width: 2 }],
+    series: [{ label: "output y" }, { label: "model", dash: [6, 4], color: "#D55E00", width: 2, auto: false }],
     source: () => [thin(t), thin(y), thin(yhat)],
   });
   const inp = new Chart(chartBox, {
@@ -130,9 +130,12 @@ function render(main, exported, charts) {
 
   for (const f of figures) {
     if (!f.trajectory) continue;
-    const k = Float64Array.from(f.trajectory.k);
-    const K = Float64Array.from(f.trajectory.K);
-    const T = Float64Array.from(f.trajectory.tau);
+    // Only estimates with a first-order meaning are drawn (uPlot has no NaN gaps).
+    const keep = f.trajectory.k.map((_, i) => Number.isFinite(f.trajectory.K[i]) && Number.isFinite(f.trajectory.tau[i]));
+    const pick = (a) => Float64Array.from(a.filter((_, i) => keep[i]));
+    const k = pick(f.trajectory.k);
+    const K = pick(f.trajectory.K);
+    const T = pick(f.trajectory.tau);
     const th = thinner(k.length);
     const box = h("section", { class: "card conv-pair" }, h("h2", null, `Convergence: ${methodTitle(f.method)}`));
     main.append(box);

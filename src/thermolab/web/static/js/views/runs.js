@@ -44,11 +44,16 @@ export function runsTable(runs, opts = {}) {
   return h("table", { class: "runs" }, h("caption", { class: "visually-hidden" }, "Runs"), h("thead", null, h("tr", null, head)), h("tbody", null, rows));
 }
 
-export function mount(main, _params, ctx) {
-  const status = h("p", { class: "muted", role: "status" }, "Loading…");
-  const box = h("div", { class: "table-wrap", tabindex: "0", role: "region", "aria-label": "Your runs" });
+/**
+ * Runs with a checkbox each and a button to compare the chosen ones.
+ * @param {any[]} runs  RunOut list
+ * @param {{navigate: (path: string) => void}} ctx
+ * @param {{showUser?: boolean, label?: string}} [opts]
+ */
+export function runsPicker(runs, ctx, opts = {}) {
+  const box = h("div", { class: "table-wrap", tabindex: "0", role: "region", "aria-label": opts.label ?? "Runs" }, runsTable(runs, { ...opts, selectable: true }));
   const error = h("p", { class: "error", role: "alert" });
-  const compare = h("button", { type: "submit", class: "primary" }, "Compare the chosen runs");
+  const compare = h("button", { type: "submit", class: "primary", hidden: runs.length === 0 }, "Compare the chosen runs");
   const form = h("form", { novalidate: true }, box, error, h("div", { class: "buttons" }, compare));
   form.addEventListener("submit", (ev) => {
     ev.preventDefault();
@@ -60,20 +65,26 @@ export function mount(main, _params, ctx) {
     }
     ctx.navigate(`/runs/compare?ids=${ids.map(encodeURIComponent).join(",")}`);
   });
+  return form;
+}
+
+export function mount(main, _params, ctx) {
+  const status = h("p", { class: "muted", role: "status" }, "Loading…");
+  const host = h("div");
   main.append(
     h("h1", null, "My runs"),
     h("p", { class: "lede" }, "Every run you made, newest first. Open one for its charts, results and CSV, or tick several and compare them with the reference model, as in the paper's Tables I and II."),
     status,
-    form,
+    host,
   );
   const abort = new AbortController();
   (async () => {
     try {
-      const data = await api.runs(ctx.user?.role === "teacher" ? `?user=${encodeURIComponent(ctx.user.username)}` : "", { signal: abort.signal });
-      const runs = Array.isArray(data) ? data : (data?.runs ?? []);
-      box.replaceChildren(runsTable(runs, { selectable: true }));
+      const data = await api.runs("", { signal: abort.signal });
+      // A teacher is sent everyone's runs: here, only their own.
+      const runs = (Array.isArray(data) ? data : []).filter((r) => r.username === undefined || r.username === ctx.user?.username);
+      host.replaceChildren(runsPicker(runs, ctx, { label: "Your runs" }));
       setText(status, "");
-      compare.hidden = runs.length === 0;
     } catch (err) {
       if (err.name !== "AbortError") setText(status, `Could not load your runs: ${err.message}`);
     }

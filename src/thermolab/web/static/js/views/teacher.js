@@ -6,7 +6,7 @@ import { api } from "../api.js";
 import { announce, duration, h, setText, when } from "../dom.js";
 import { readRig, stateLabel } from "../shapes.js";
 import { checkNumber, rangeText } from "../validate.js";
-import { runsTable } from "./runs.js";
+import { runsPicker } from "./runs.js";
 
 const POLL_MS = 3000;
 const EXTEND = { label: "Seconds", min: -86400, max: 86400, unit: "s" };
@@ -18,7 +18,7 @@ export function mount(main, _params, ctx) {
   }
   const status = h("p", { class: "muted", role: "status" });
   const list = h("div", { class: "teacher-rigs" });
-  const runsBox = h("div", { class: "table-wrap", tabindex: "0", role: "region", "aria-label": "Every student's runs" });
+  const runsBox = h("div", null, h("p", { class: "muted" }, "Loading…"));
   main.append(
     h("h1", null, "Teacher"),
     h("p", { class: "lede" }, "Every rig with its controller, queue and watchers. Changes take effect at once and are recorded with your name."),
@@ -61,7 +61,7 @@ export function mount(main, _params, ctx) {
   async function loadRuns() {
     try {
       const runs = await api.runs("", { signal: abort.signal });
-      runsBox.replaceChildren(runsTable(Array.isArray(runs) ? runs : (runs?.runs ?? []), { showUser: true }));
+      runsBox.replaceChildren(runsPicker(Array.isArray(runs) ? runs : [], ctx, { showUser: true, label: "Every student's runs" }));
     } catch (err) {
       if (err.name === "AbortError") return;
       runsBox.replaceChildren(h("p", { class: "error" }, `Could not load the runs: ${err.message}`));
