@@ -205,10 +205,10 @@ def running_lab(data_dir: Path) -> Iterator[LabServer]:
     config = data_dir / "lab.toml"
     config.write_text(CONFIG, encoding="utf-8")
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    # The first account creates the database; the others can then be added side by side.
+    # The first account creates the database; the others are then added while
+    # the server starts (its start-up finds the schema already there).
     users = list(USERS.items())
-    _add_users(data_dir, users[:1], env)
-    _add_users(data_dir, users[1:], env)
+    _wait_users(_add_users(data_dir, users[:1], env))
     port = _free_port()
     log = data_dir / "server.log"
     with log.open("w", encoding="utf-8") as out:
@@ -229,6 +229,7 @@ def running_lab(data_dir: Path) -> Iterator[LabServer]:
         )
         url = f"http://127.0.0.1:{port}"
         try:
+            _wait_users(_add_users(data_dir, users[1:], env))
             _wait_until_up(url, proc, log)
             yield LabServer(url, data_dir, log)
         finally:
@@ -240,25 +241,34 @@ def running_lab(data_dir: Path) -> Iterator[LabServer]:
                 proc.wait(5)
 
 
-def _add_users(data_dir: Path, users: list[tuple[str, str]], env: dict[str, str]) -> None:
-    procs = [
-        (
-            user,
-            subprocess.Popen(
-                _thermolab(data_dir, "user", "add", user, "--role", role, "--password-stdin"),
-                stdin=subprocess.PIPE,
-                stdout=subprocess.PIPE,
-                stderr=subprocess.STDOUT,
-                text=True,
-                env=env,
-            ),
+def _add_users(
+    data_dir: Path, users: list[tuple[str, str]], env: dict[str, str]
+) -> list[tuple[str, subprocess.Popen[str]]]:
+    """Start ``thermolab user add`` for each user, the password on standard input."""
+    procs = []
+    for user, role in users:
+        proc = subprocess.Popen(
+            _thermolab(data_dir, "user", "add", user, "--role", role, "--password-stdin"),
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            env=env,
         )
-        for user, role in users
-    ]
+        assert proc.stdin is not None
+        proc.stdin.write(password(user) + "\n")
+        proc.stdin.close()
+        procs.append((user, proc))
+    return procs
+
+
+def _wait_users(procs: list[tuple[str, subprocess.Popen[str]]]) -> None:
     failed = []
     for user, proc in procs:
-        out, _ = proc.communicate(password(user) + "\n", timeout=60)
-        if proc.returncode != 0:
+        assert proc.stdout is not None
+        out = proc.stdout.read()
+        proc.stdout.close()
+        if proc.wait(60) != 0:
             failed.append(f"{user}: {out.strip()}")
     if failed:
         raise RuntimeError("thermolab user add failed: " + "; ".join(failed))
