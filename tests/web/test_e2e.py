@@ -162,6 +162,10 @@ def test_watchers_queue_and_take_over_without_reloading(
     bob.click("[data-run-form=srm-lsm] button[data-action=setpoint]")
     assert bob.inner_text("[data-run-form=srm-lsm] .field-error") == ""
     assert_locked(carol)
+    # Dave comes in half-way: his page asks the server for what it holds and
+    # draws the run from its first sample (he may not read Bob's run otherwise).
+    bob.wait_for_function("() => +document.querySelector('[data-readout=k]').textContent > 300")
+    open_rig(dave, lab, "twin")
     done = "[data-testid=results-srm-lsm] [data-method={}] [data-field=status]:text('final')"
     for method in ("srm", "lsm"):
         bob.wait_for_selector(done.format(method), timeout=90_000)
@@ -181,6 +185,11 @@ def test_watchers_queue_and_take_over_without_reloading(
     )
     assert_drawn(bob, "figure[aria-label^='Output']")
     assert_drawn(carol, "figure[aria-label^='Output']")
+    dave.wait_for_function(
+        "() => +document.querySelector(\"figure[aria-label^='Output']\").dataset.points >= 2000"
+    )
+    assert_drawn(dave, "figure[aria-label^='Output']")
+    assert_locked(dave)
     bob.locator(".panels").screenshot(path=str(artifacts / "panel-1.png"))
     bob.screenshot(path=str(artifacts / "rig-after-run.png"), full_page=True)
 

@@ -68,11 +68,19 @@ def rig_json(page: Any) -> dict[str, Any]:
 
 
 def hello(page: Any, seq: int, rig: dict[str, Any], run: dict[str, Any] | None) -> None:
-    page.evaluate(
+    """Send a hello; with a run going, the page asks once for all the server holds
+    (a new socket with ``since=0``): open that one and greet it too."""
+    sockets = page.evaluate("() => window.__sockets.length")
+    send = (
         "([seq, rig, run]) => "
-        "window.__live.send({ type: 'hello', seq, rig, access: rig.access, run })",
-        [seq, rig, run],
+        "window.__live.send({ type: 'hello', seq, rig, access: rig.access, run })"
     )
+    page.evaluate(send, [seq, rig, run])
+    if run is not None and run["status"] == "running" and sockets == 1:
+        page.wait_for_function(f"() => window.__sockets.length === {sockets + 1}")
+        assert page.evaluate("() => window.__sockets[1].url").endswith("/live?since=0")
+        page.evaluate("() => window.__live.open()")
+        page.evaluate(send, [seq, rig, run])
 
 
 def run_json(run_id: int, status: str = "running") -> dict[str, Any]:
@@ -176,8 +184,8 @@ def test_a_dropped_connection_comes_back_and_asks_for_the_gap(page: Any) -> None
     page.evaluate("() => window.__live.drop(1006)")
     page.wait_for_selector("#conn:text('reconnecting')")
     # Backoff with jitter: the first retry comes within a second, asking for what it missed.
-    page.wait_for_function("() => window.__sockets.length === 2", timeout=5_000)
-    url = page.evaluate("() => window.__sockets[1].url")
+    page.wait_for_function("() => window.__sockets.length === 3", timeout=5_000)
+    url = page.evaluate("() => window.__sockets[2].url")
     assert url.endswith(f"/api/rigs/twin-phone/live?since={seq}")
     page.evaluate("() => window.__live.open()")
     hello(page, seq + 50, rig, run_json(RUN))
@@ -214,3 +222,32 @@ def test_access_messages_unlock_and_lock_the_controls_live(page: Any) -> None:
     assert page.is_disabled("[data-panel-form=srm-lsm] button[data-action=start]")
     assert "fault" in page.inner_text("[data-testid=lock-notice]")
     assert page.inner_text("[data-testid=rig-state]") == "Fault"
+
+
+def test_joining_half_way_replays_the_runs_history_and_nothing_else(page: Any) -> None:
+    page.evaluate("() => window.__live.open()")
+    rig = rig_json(page)
+    hello(page, 500, rig, run_json(RUN))
+    # What the server held: the run's samples from the store (no seq), an older
+    # run's end and samples, idle readings, this run's estimates; then live.
+    page.evaluate(
+        """() => {
+          window.__live.send({ type: 'samples', items: [0, 1, 2, 3].map((k) =>
+            ({ run: RUN, k, t: k, u: 4, y: 0.01 * k })) });
+          window.__live.send({ type: 'run', seq: 400, event: 'ended',
+            run: { id: 5, status: 'finished', dt: 1, methods: ['srm'], results: {} } });
+          window.__live.send({ type: 'sample', seq: 401, run: 5, k: 9, t: 9, u: 0, y: 3 });
+          window.__live.send({ type: 'sample', seq: 402, run: null, k: null, t: 1.7e9,
+                               u: 0, y: 3 });
+          window.__live.send({ type: 'samples', seq: 404, items: [
+            { seq: 403, run: RUN, k: 3, t: 3, u: 4, y: 0.03 },
+            { seq: 404, run: RUN, k: 4, t: 4, u: 4, y: 0.04 }] });
+          window.__live.send({ type: 'estimate', seq: 405, run: RUN, method: 'wlsm', k: 4,
+            K: 0.2, tau: 300, W: [], valid: true, final: false });
+          window.__live.send({ type: 'sample', seq: 501, run: RUN, k: 5, t: 5, u: 4, y: 0.05 });
+        }"""
+    )
+    assert drawn(page, "Output y and model prediction against time") == 6
+    assert page.inner_text("[data-testid=run-status-wlsm]").startswith(f"Run #{RUN} running")
+    assert page.inner_text("[data-panel-view=wlsm] [data-method=wlsm] [data-field=K]") == "0.2"
+    assert "Run 5" not in page.inner_text("[data-testid=chart-note]")

@@ -527,3 +527,39 @@ def test_table_figures_follow_the_identification_conventions(module_page: Any) -
     assert r["invalid"]["valid"] is False
     assert r["invalid"]["reason"] == "not excited"
     assert r["invalid"]["K"] is None
+
+
+def test_live_client_replays_everything_and_marks_the_history(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        FAKES
+        + """
+        client.start();
+        sockets[0].open();
+        sockets[0].msg({ type: 'hello', seq: 10, rig: {}, access: {}, run: { id: 3 } });
+        client.replayAll();
+        const s1 = sockets[1];
+        s1.open();
+        s1.msg({ type: 'hello', seq: 12, rig: {}, access: {}, run: { id: 3 } });
+        s1.msg({ type: 'samples', items: [{ run: 3, k: 0 }, { run: 3, k: 1 }] });
+        s1.msg({ type: 'run', seq: 6, event: 'ended', run: { id: 2 } });
+        s1.msg({ type: 'estimate', seq: 12, run: 3, k: 1 });
+        s1.msg({ type: 'access', access: {} });
+        s1.msg({ type: 'sample', seq: 13, run: 3, k: 2 });
+        s1.msg({ type: 'samples', items: [{ run: 3, k: 3 }] });
+        const show = (m) => `${m.type}:${m.seq ?? '-'}:${m.history ? 'h' : 'live'}`;
+        return { url: s1.url, closed: sockets[0].closed, got: got.slice(1).map(show) };
+        """,
+    )
+    assert r["url"] == "rig-1?since=0"
+    assert r["closed"]["code"] == 1000
+    assert r["got"] == [
+        "hello:12:live",
+        "sample:-:h",
+        "sample:-:h",
+        "run:6:h",
+        "estimate:12:h",
+        "access:-:live",
+        "sample:13:live",
+        "sample:-:live",
+    ]

@@ -75,6 +75,8 @@ export class LiveClient {
     this._pingTimer = null;
     this._lastHeard = 0;
     this._stopped = false;
+    this._historyPending = false;
+    this._historyUpTo = null;
   }
 
   start() {
@@ -97,6 +99,33 @@ export class LiveClient {
       }
     }
     this._setState("closed", {});
+  }
+
+  /**
+   * Reconnect at once asking for everything the server still holds
+   * (`since=0`): a page that joins a run half-way gets the run's samples
+   * (from the store) and the recent estimates. Messages up to the new hello's
+   * `seq`, and stored samples (which carry no `seq`), are delivered with
+   * `history: true`.
+   */
+  replayAll() {
+    if (this._stopped) return;
+    this._clearTimers();
+    if (this._ws) {
+      const ws = this._ws;
+      this._ws = null;
+      ws.onopen = ws.onmessage = ws.onerror = ws.onclose = null;
+      try {
+        ws.close(1000, "replay");
+      } catch {
+        // already closing
+      }
+    }
+    this.lastSeq = 0;
+    this._historyPending = true;
+    this._historyUpTo = null;
+    this.attempt = 0;
+    this._connect();
   }
 
   /** Reconnect now (the browser says it is back online): skip the backoff wait. */
@@ -204,8 +233,16 @@ export class LiveClient {
       this.attempt = 0;
       // A first connection has no history: start counting from the server's present.
       if (this.lastSeq === null && typeof msg.seq === "number") this.lastSeq = msg.seq;
+      if (this._historyPending) {
+        this._historyPending = false;
+        this._historyUpTo = typeof msg.seq === "number" ? msg.seq : null;
+      }
       this._onMessage(msg);
       return;
+    }
+    const history = (seq) => this._historyUpTo !== null && (typeof seq !== "number" || seq <= this._historyUpTo);
+    if (typeof msg.seq === "number" && this._historyUpTo !== null && msg.seq > this._historyUpTo) {
+      this._historyUpTo = null; // live from here on
     }
     if (msg.type === "samples" && Array.isArray(msg.items)) {
       for (const item of msg.items) {
@@ -213,7 +250,7 @@ export class LiveClient {
           if (this.lastSeq !== null && item.seq <= this.lastSeq) continue;
           this.lastSeq = item.seq;
         }
-        this._onMessage({ type: "sample", ...item });
+        this._onMessage({ type: "sample", ...item, history: history(item.seq) });
       }
       if (typeof msg.seq === "number" && (this.lastSeq === null || msg.seq > this.lastSeq)) {
         this.lastSeq = msg.seq;
@@ -224,6 +261,7 @@ export class LiveClient {
       if (this.lastSeq !== null && msg.seq <= this.lastSeq) return; // replay overlap
       this.lastSeq = msg.seq;
     }
+    if (history(msg.seq) && msg.type !== "access" && msg.type !== "state") msg.history = true;
     this._onMessage(msg);
   }
 }

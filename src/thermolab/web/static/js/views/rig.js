@@ -250,6 +250,12 @@ class RigPage {
   }
 
   _onMessage(msg) {
+    if (msg.history) {
+      // What the server held from before we came: only the current run's samples
+      // and estimates matter (the hello already said what the state is).
+      const current = this.run?.status === "running" ? this.run.id : null;
+      if ((msg.type !== "sample" && msg.type !== "estimate") || current === null || msg.run !== current) return;
+    }
     switch (msg.type) {
       case "hello":
         this._setRig(readRig(msg.rig));
@@ -339,12 +345,22 @@ class RigPage {
   }
 
   _setRun(run, fromHello) {
+    if (run && this.run && this.run.id === run.id) {
+      // The same run again (a reconnection): keep what came live.
+      for (const [m, est] of this.run.estimates) if (!run.estimates.has(m)) run.estimates.set(m, est);
+    }
     this.run = run;
     this.panels.setRun(run);
     this._updateOverlayChoices();
     if (run && run.status === "running") {
-      if (this.segment.run !== run.id) this._startSegment(run.id, fromHello);
+      if (this.segment.run !== run.id) this._startSegment(run.id, false);
       this.panels.selectById(panelOfRun(run));
+      if (fromHello && !this._askedHistory) {
+        // Joined half-way through a run: ask the server for all it holds (the
+        // run's samples from the store, the recent estimates) once.
+        this._askedHistory = true;
+        this.client.replayAll();
+      }
     }
     this._noteSegment();
   }
