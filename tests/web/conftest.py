@@ -25,7 +25,6 @@ import time
 import urllib.error
 import urllib.request
 from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -175,17 +174,56 @@ def password(user: str) -> str:
     return f"pw-{user}-0123"
 
 
-@dataclass(frozen=True)
 class LabServer:
-    """A running lab: its base URL and data folder."""
+    """A running ``thermolab serve``: its URL and data folder; it can be restarted."""
 
-    url: str
-    data_dir: Path
-    log: Path
+    def __init__(self, data_dir: Path, port: int, env: dict[str, str]) -> None:
+        self.data_dir = data_dir
+        self.port = port
+        self.url = f"http://127.0.0.1:{port}"
+        self.log = data_dir / "server.log"
+        self._env = env
+        self._proc: subprocess.Popen[bytes] | None = None
 
     def password(self, user: str) -> str:
         """The password ``user`` was created with."""
         return password(user)
+
+    def start(self) -> None:
+        """Start the server (appending to its log) without waiting for it."""
+        with self.log.open("a", encoding="utf-8") as out:
+            self._proc = subprocess.Popen(
+                _thermolab(
+                    self.data_dir,
+                    "serve",
+                    "--config",
+                    str(self.data_dir / "lab.toml"),
+                    "--port",
+                    str(self.port),
+                    "--speedup",
+                    str(SPEEDUP),
+                ),
+                stdout=out,
+                stderr=subprocess.STDOUT,
+                env=self._env,
+            )
+
+    def wait_until_up(self) -> None:
+        """Wait until the server answers (an unauthenticated 401)."""
+        assert self._proc is not None
+        _wait_until_up(self.url, self._proc, self.log)
+
+    def stop(self) -> None:
+        """Stop the server as a supervisor would (SIGTERM, then SIGKILL)."""
+        if self._proc is None:
+            return
+        self._proc.terminate()
+        try:
+            self._proc.wait(15)
+        except subprocess.TimeoutExpired:
+            self._proc.kill()
+            self._proc.wait(5)
+        self._proc = None
 
 
 def _free_port() -> int:
@@ -200,45 +238,22 @@ def _thermolab(data_dir: Path, *args: str) -> list[str]:
 
 
 @contextlib.contextmanager
-def running_lab(data_dir: Path) -> Iterator[LabServer]:
+def running_lab(data_dir: Path, users: dict[str, str] = USERS) -> Iterator[LabServer]:
     """Create the users, start ``thermolab serve``, wait until it answers; stop it after."""
-    config = data_dir / "lab.toml"
-    config.write_text(CONFIG, encoding="utf-8")
+    (data_dir / "lab.toml").write_text(CONFIG, encoding="utf-8")
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     # The first account creates the database; the others are then added while
     # the server starts (its start-up finds the schema already there).
-    users = list(USERS.items())
-    _wait_users(_add_users(data_dir, users[:1], env))
-    port = _free_port()
-    log = data_dir / "server.log"
-    with log.open("w", encoding="utf-8") as out:
-        proc = subprocess.Popen(
-            _thermolab(
-                data_dir,
-                "serve",
-                "--config",
-                str(config),
-                "--port",
-                str(port),
-                "--speedup",
-                str(SPEEDUP),
-            ),
-            stdout=out,
-            stderr=subprocess.STDOUT,
-            env=env,
-        )
-        url = f"http://127.0.0.1:{port}"
-        try:
-            _wait_users(_add_users(data_dir, users[1:], env))
-            _wait_until_up(url, proc, log)
-            yield LabServer(url, data_dir, log)
-        finally:
-            proc.terminate()
-            try:
-                proc.wait(15)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait(5)
+    accounts = list(users.items())
+    _wait_users(_add_users(data_dir, accounts[:1], env))
+    server = LabServer(data_dir, _free_port(), env)
+    server.start()
+    try:
+        _wait_users(_add_users(data_dir, accounts[1:], env))
+        server.wait_until_up()
+        yield server
+    finally:
+        server.stop()
 
 
 def _add_users(
@@ -327,3 +342,10 @@ def lab(tmp_path_factory: pytest.TempPathFactory, browser: Any) -> Iterator[LabS
 def logged_in(browser: Any, lab: LabServer) -> Any:
     """``logged_in(user, **context_options)`` -> a new context logged in as ``user``."""
     return functools.partial(logged_in_context, browser, lab)
+
+
+@pytest.fixture
+def own_lab(tmp_path: Path, browser: Any) -> Iterator[LabServer]:
+    """A lab of its own (one student), for a test that stops and restarts it."""
+    with running_lab(tmp_path, {"sam": "student"}) as server:
+        yield server
