@@ -345,6 +345,15 @@ def test_everything_works_from_the_keyboard_alone(browser: Any, lab: Any, artifa
         page.wait_for_selector("[data-testid=access-role][data-role]")
         assert page.evaluate("() => document.activeElement.tagName") == "H1"
 
+        # Every control a screen reader meets has a name.
+        unnamed = page.evaluate(
+            """() => [...document.querySelectorAll('input, select, button, a[href], [role=tab]')]
+                .filter((e) => e.offsetParent !== null || e.type === 'checkbox')
+                .filter((e) => !(e.labels?.length || e.getAttribute('aria-label')
+                                 || e.getAttribute('aria-labelledby') || e.textContent.trim()))
+                .map((e) => e.outerHTML.slice(0, 80))"""
+        )
+        assert unnamed == []
         tab_to(page, "button[data-action=ask]")
         assert_focus_visible(page)
         page.keyboard.press("Enter")

@@ -131,9 +131,11 @@ class RigPage {
     // Readouts.
     this.readout = {};
     const dl = h("dl", { class: "facts readout" });
-    for (const [key, label] of [["u", "Input u (V)"], ["y", "Output y (V)"], ["t", "Time t"], ["k", "Sample k"]]) {
+    this.readoutLabel = {};
+    for (const [key, label] of [["u", "Input u"], ["y", "Output y"], ["t", "Time t"], ["k", "Sample k"]]) {
       this.readout[key] = h("dd", { "data-readout": key }, "–");
-      dl.append(h("dt", null, label), this.readout[key]);
+      this.readoutLabel[key] = h("dt", null, label);
+      dl.append(this.readoutLabel[key], this.readout[key]);
     }
     side.append(h("section", { class: "card", "aria-labelledby": "now-heading" }, h("h2", { id: "now-heading" }, "Now"), dl));
 
@@ -156,14 +158,14 @@ class RigPage {
       label: "Output y and model prediction against time",
       description: "The measured output and, once a model is identified, its prediction. The current values are listed under Now.",
       xLabel: "t (s)",
-      yLabel: "y (V)",
+      yLabel: "output y",
       series: [{ label: "output y" }, { label: "model", dash: [6, 4], color: "#D55E00", width: 2, auto: false }],
       source: () => this._outputData(),
     });
     this.inChart = new Chart(charts, {
       label: "Input u against time",
       xLabel: "t (s)",
-      yLabel: "u (V)",
+      yLabel: "input u",
       height: 160,
       series: [{ label: "input u", color: "#009E73" }],
       source: () => [this.ring.column("t"), this.ring.column("u")],
@@ -290,6 +292,9 @@ class RigPage {
     this.rig = rig;
     setText(this.root("rig-title"), rig.title || rig.id);
     if (first) {
+      // Units as the rig publishes them (volts for the paper's box, % and °C for a TCLab).
+      setText(this.readoutLabel.u, `Input u (${rig.inputUnit})`);
+      setText(this.readoutLabel.y, `Output y (${rig.outputUnit})`);
       // The panels' ranges come from the rig and the server's schema; both are
       // known before the panels unlock (they are locked until access is known).
       void openapi().then((doc) => {
