@@ -105,11 +105,12 @@ def draw_twin(picture: Picture) -> bytes:
             )
     draw.ellipse((fx - 8, fy - 8, fx + 8, fy + 8), fill=(200, 200, 210))
     # The words.
-    heading = f"{picture.title} — {picture.state.replace('_', ' ')}"
+    # Pillow's built-in font has no em dash or middle dot: keep the picture to ASCII.
+    heading = f"{picture.title} ({picture.state.replace('_', ' ')})"
     draw.text((16, 14), heading, fill=(235, 235, 235), font=font)
-    reading = "—" if picture.y is None or not math.isfinite(picture.y) else f"{picture.y:.3f}"
+    reading = "-" if picture.y is None or not math.isfinite(picture.y) else f"{picture.y:.3f}"
     draw.text((16, 286), f"output {reading} {picture.output_unit}", fill=(255, 220, 120), font=font)
-    shown = "—" if picture.u is None else f"{u:+.2f}"
+    shown = "-" if picture.u is None else f"{u:+.2f}"
     draw.text((300, 290), f"input {shown} {picture.input_unit}", fill=(170, 210, 255), font=small)
     out = io.BytesIO()
     image.save(out, format="JPEG", quality=80)
