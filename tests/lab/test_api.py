@@ -11,6 +11,7 @@ from fastapi.testclient import TestClient
 
 from thermolab.lab.app import create_app
 from thermolab.lab.clock import ManualClock
+from thermolab.lab.runs import MAX_DT, MAX_SAMPLES, MIN_DT, OFFSET_MODES
 from thermolab.lab.service import Lab
 
 from .conftest import PASSWORD, LabFactory
@@ -324,6 +325,63 @@ def test_openapi_documents_the_api(lab: Lab) -> None:
     assert {"queueSize", "queuePosition", "estimatedTimeUntilControl", "timeLeft"} <= set(access)
 
 
+def test_openapi_publishes_the_bounds_the_service_applies(lab: Lab) -> None:
+    """One source of truth: the browser reads these ranges from /openapi.json."""
+    spec = create_app(lab.config, lab=lab).openapi()
+    run_in = spec["components"]["schemas"]["RunIn"]["properties"]
+    assert (run_in["dt"]["minimum"], run_in["dt"]["maximum"]) == (MIN_DT, MAX_DT)
+    assert run_in["samples"]["maximum"] == MAX_SAMPLES
+    gamma = next(b for b in run_in["gamma"]["anyOf"] if b.get("type") == "number")
+    assert (gamma["exclusiveMinimum"], gamma["exclusiveMaximum"]) == (0, 1)
+    w0 = next(b for b in run_in["w0"]["anyOf"] if b.get("type") == "array")
+    assert (w0["minItems"], w0["maxItems"], w0["items"]["type"]) == (2, 3, "number")
+    modes = next(b for b in run_in["offset"]["anyOf"] if "enum" in b)
+    assert modes["enum"] == list(OFFSET_MODES)
+    assert run_in["offset"]["default"] == "auto"
+    run_out = spec["components"]["schemas"]["RunOut"]["properties"]
+    assert "operatingPoint" in run_out
+    runs = spec["paths"]["/api/runs"]["get"]
+    assert "user" in [p["name"] for p in runs["parameters"]]
+    assert {"403", "404"} <= set(runs["responses"])
+
+
+@pytest.mark.usefixtures("people")
+def test_listing_the_rigs_is_not_watching_them(app_client: Client, lab: Lab) -> None:
+    ana, ben, tina = app_client("ana"), app_client("ben"), app_client("tina")
+    for client in (ana, ben, tina, ana):
+        rigs = client.get("/api/rigs").json()
+        assert [r["access"]["watchers"] for r in rigs] == [0, 0]
+    assert [r["watcherList"] for r in tina.get("/api/rigs").json()] == [[], []]
+    # Explicit heartbeats and requests for one rig count (the rig page polls it
+    # while its live socket is down); so does a live connection (tests/lab/test_live.py).
+    ben.post("/api/rigs/twin/heartbeat")
+    ana.post("/api/rigs/other/control")
+    assert [r["access"]["watchers"] for r in tina.get("/api/rigs").json()] == [1, 1]
+    # A teacher acting on a rig from the overview is not watching it either.
+    tina.post("/api/rigs/other/control/extend", json={"seconds": 30})
+    rigs = tina.get("/api/rigs").json()
+    assert [[w["username"] for w in r["watcherList"]] for r in rigs] == [["ben"], ["ana"]]
+    tina.get("/api/rigs/twin")
+    assert [w.username for w in lab.presence.watchers("twin")] == ["ben", "tina"]
+
+
+@pytest.mark.usefixtures("people")
+def test_everyone_sees_the_controllers_time_left(app_client: Client, clock: ManualClock) -> None:
+    ana, ben, cai = app_client("ana"), app_client("ben"), app_client("cai")
+    tina = app_client("tina")
+    assert ben.get("/api/rigs/twin").json()["access"]["timeLeft"] is None  # nobody controls
+    ana.post("/api/rigs/twin/control")
+    ben.post("/api/rigs/twin/control")
+    clock.advance(10)
+    for client, role in ((ana, "controller"), (ben, "queued"), (cai, "watcher")):
+        access = client.get("/api/rigs/twin").json()["access"]
+        assert (access["role"], access["timeLeft"]) == (role, 290.0)
+        assert (access["idleTimeLeft"] is not None) == (role == "controller")
+    tina.post("/api/rigs/twin/control/extend", json={"seconds": 60})
+    lobby = cai.get("/api/rigs").json()
+    assert [r["access"]["timeLeft"] for r in lobby] == [350.0, None]
+
+
 def test_the_browser_interface_is_served_when_given(lab: Lab, tmp_path: Path) -> None:
     (tmp_path / "index.html").write_text("<h1>ThermoLab</h1>")
     with TestClient(create_app(lab.config, tmp_path, lab=lab, sweep_interval=None)) as client:
@@ -340,7 +398,9 @@ def test_the_browser_interface_is_served_when_given(lab: Lab, tmp_path: Path) ->
 @pytest.mark.parametrize(
     ("body", "message"),
     [
-        ({"dt": 0, "samples": 10}, "dt: Input should be greater than 0"),
+        ({"dt": 0, "samples": 10}, "dt: Input should be greater than or equal to 0.01"),
+        ({"dt": 3601, "samples": 10}, "dt: Input should be less than or equal to 3600"),
+        ({"dt": 1, "samples": 200_001}, "samples: Input should be less than or equal to 200000"),
         ({"dt": 1, "samples": 0}, "samples: Input should be greater than or equal to 1"),
         ({"dt": 1, "samples": 2.5}, "samples: Input should be a valid integer"),
         ({"dt": 1, "samples": 10, "signal": "ramp:0:1"}, "invalid signal 'ramp:0:1'"),
@@ -354,6 +414,27 @@ def test_the_browser_interface_is_served_when_given(lab: Lab, tmp_path: Path) ->
         ({"dt": 1, "samples": 10, "methods": ["srm"], "gamma": 0.9}, "gamma is a setting of wlsm"),
         ({"dt": 1, "samples": 10, "colour": "red"}, "colour: unknown field"),
         ({"dt": 1, "samples": 10, "methods": []}, "methods: List should have at least 1 item"),
+        ({"dt": 1, "samples": 10, "methods": ["wlsm"], "gamma": 1}, "gamma: Input should be less"),
+        ({"dt": 1, "samples": 10, "methods": ["wlsm"], "w0": [0.9]}, "w0: List should have at"),
+        (
+            {"dt": 1, "samples": 10, "methods": ["wlsm"], "w0": [0.9, 0.01, 0, 0]},
+            "w0: List should have at most 3 items",
+        ),
+        (
+            {"dt": 1, "samples": 10, "methods": ["wlsm"], "w0": [0.9, "x"]},
+            "w0.1: Input should be a valid number",
+        ),
+        (
+            {"dt": 1, "samples": 10, "methods": ["wlsm"], "w0": [0.9, 0.01, 0]},
+            "w0 must have 2 entries [a0, b0] (3, with the constant term c0, only with offset",
+        ),
+        ({"dt": 1, "samples": 10, "methods": ["lsm"], "w0": [0.9, 0.01]}, "w0 is a setting of"),
+        (
+            {"dt": 1, "samples": 10, "offset": "warm"},
+            "offset: Input should be 'auto', 'initial', 'fit', 'none' or a finite number",
+        ),
+        ({"dt": 1, "samples": 10, "offset": True}, "offset: Input should be 'auto'"),
+        ({"dt": 1, "samples": 10, "methods": ["srm"], "offset": "fit"}, "offset is a setting of"),
     ],
 )
 def test_bad_run_requests_are_refused_with_the_reason(

@@ -13,21 +13,29 @@ import math
 import threading
 import time
 from collections.abc import Callable, Iterator
+from typing import Any
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import func, select
 
-from thermolab.ident import least_squares
+from thermolab.errors import InvalidParameterError
+from thermolab.ident import (
+    block_least_squares,
+    least_squares,
+    moving_window_least_squares,
+    weighted_least_squares,
+)
 from thermolab.lab.app import create_app
 from thermolab.lab.clock import ManualClock
-from thermolab.lab.config import RigConfig
-from thermolab.lab.models import Command, Sample
+from thermolab.lab.config import CooldownPolicy, RigConfig
+from thermolab.lab.models import Command, MethodResult, Sample
 from thermolab.lab.runs import RunRequest
 from thermolab.lab.service import Lab
 from thermolab.lab.users import Principal
 from thermolab.rigs import Rig, TwinRig, VirtualClock
+from thermolab.runner import EstimateEvent
 
 from .conftest import PASSWORD, LabFactory
 
@@ -314,3 +322,344 @@ def lab_request(
     return RunRequest(
         dt=1.0, samples=samples, signal=signal, setpoint=setpoint, methods=("lsm", "wlsm")
     )
+
+
+# -- initial WLSM parameters, the operating point, statistics, the user filter -----------
+
+
+def api_client(lab: Lab, name: str) -> TestClient:
+    client = TestClient(create_app(lab.config, lab=lab, sweep_interval=None))
+    client.post("/api/session", json={"username": name, "password": PASSWORD})
+    return client
+
+
+def finish(client: TestClient, lab: Lab, body: dict[str, object]) -> dict[str, Any]:
+    """START a run through the API, wait for its end, return it as GET /api/runs/{id} says."""
+    response = client.post("/api/rigs/twin/runs", json=body)
+    assert response.status_code == 201, response.text
+    lab.runs.wait("twin", timeout=60)
+    run: dict[str, Any] = client.get(f"/api/runs/{response.json()['id']}").json()
+    return run
+
+
+def first_estimate(lab: Lab, run_id: int, who: Principal, method: str) -> dict[str, Any]:
+    exported = lab.runs.export(run_id, who)
+    trajectory = exported["methods"][method]["result"]["trajectory"]
+    return {name: trajectory[name][0] for name in ("k", "K", "tau")}
+
+
+def test_wlsm_starts_from_the_papers_w0_or_the_one_given(make_lab: LabFactory) -> None:
+    lab = twin_lab(make_lab)
+    ana = person(lab, "ana")
+    lab.access.request_control("twin", ana)
+    body: dict[str, object] = {
+        "dt": 1.0,
+        "samples": 50,
+        "signal": "square:0:4:0.1",
+        "methods": ["wlsm"],
+        "offset": "initial",
+    }
+    with api_client(lab, "ana") as client:
+        default = finish(client, lab, body)
+        given = finish(client, lab, {**body, "w0": [0.9, 0.01]})
+    assert default["settings"]["w0"] == [0.96329, 9.9082e-4]
+    assert given["settings"]["w0"] == [0.9, 0.01]
+    # The estimate at sample 0 is W0 itself (Ks, Ts of the paper's W0: 0.0269905, 26.74 s).
+    start = first_estimate(lab, default["id"], ana, "wlsm")
+    np.testing.assert_allclose([start["K"], start["tau"]], [0.0269905, 26.73742], rtol=2e-6)
+    start = first_estimate(lab, given["id"], ana, "wlsm")
+    np.testing.assert_allclose(
+        [start["K"], start["tau"]], [0.01 / 0.1, -1.0 / math.log(0.9)], rtol=1e-12
+    )
+    with lab.db.read() as session:
+        params = session.scalars(select(MethodResult.params).order_by(MethodResult.id)).all()
+    assert [p["w0"] for p in params] == [[0.96329, 9.9082e-4], [0.9, 0.01]]
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"w0": [0.9, 0.01, 0.0]}, "w0 must have 2 entries [a0, b0] (3, with the constant"),
+        ({"w0": [0.9, 0.01, 0.0, 1.0]}, "w0 must have 2 entries"),
+        ({"w0": [0.9, math.inf]}, "w0 must hold finite numbers"),
+        ({"methods": ("lsm",), "w0": [0.9, 0.01]}, "w0 is a setting of wlsm"),
+        ({"methods": ("srm",), "offset": "fit"}, "offset is a setting of lsm, blockls"),
+        ({"offset": "warm"}, "offset must be one of 'auto', 'initial', 'fit', 'none'"),
+        ({"offset": math.nan}, "offset must be one of"),
+        ({"dt": 0.005}, "dt must be between 0.01 and 3600 seconds"),
+    ],
+)
+def test_run_settings_are_checked_by_the_service_too(
+    make_lab: LabFactory, changes: dict[str, Any], message: str
+) -> None:
+    lab = twin_lab(make_lab)
+    ana = person(lab, "ana")
+    lab.access.request_control("twin", ana)
+    base = {"dt": 1.0, "samples": 10, "signal": "const:1", "methods": ("wlsm",)}
+    with pytest.raises(InvalidParameterError) as caught:
+        lab.runs.start("twin", ana, RunRequest(**{**base, **changes}))
+    assert message in str(caught.value)
+    assert lab.runs.running("twin") is None
+
+
+def test_three_initial_parameters_go_with_a_fitted_operating_point(make_lab: LabFactory) -> None:
+    lab = twin_lab(make_lab)
+    ana = person(lab, "ana")
+    lab.access.request_control("twin", ana)
+    request = RunRequest(
+        dt=1.0,
+        samples=300,
+        signal="square:0:4:0.1",
+        methods=("wlsm",),
+        w0=(0.9, 0.01, 0.0),
+        offset="fit",
+    )
+    run = lab.runs.start("twin", ana, request)
+    lab.runs.wait("twin", timeout=30)
+    done = lab.runs.get(run.id, ana)
+    assert done.operating_point == {
+        "asked": "fit",
+        "used": "fit",
+        "atRest": True,
+        "reason": "fit, as asked (the rig is at rest: not driven for 1800 s; its ambient is not "
+        "known yet)",
+    }
+    with lab.db.read() as session:
+        params = session.scalars(select(MethodResult.params)).one()
+    assert (params["w0"], params["offset"]) == ([0.9, 0.01, 0.0], "fit")
+    start = first_estimate(lab, run.id, ana, "wlsm")
+    np.testing.assert_allclose(start["K"], 0.01 / 0.1, rtol=1e-12)
+    latest = done.results["wlsm"]["latest"]
+    assert len(latest["W"]) == 3
+    np.testing.assert_allclose([latest["K"], latest["tau"]], [TRUE_K, TRUE_TAU], rtol=1e-3)
+
+
+TRUE_K, TRUE_TAU = 0.140090, 250.126233
+
+
+@pytest.mark.parametrize(
+    ("method", "signal", "settings"),
+    [
+        ("wlsm", "square:0:4:0.1", {"gamma": 0.96, "pmax": 1e4}),
+        ("malsm", "square:4:6:0.1", {"window": 100}),
+    ],
+)
+def test_back_to_back_runs_on_a_warm_twin_give_valid_models_by_default(
+    make_lab: LabFactory, method: str, signal: str, settings: dict[str, object]
+) -> None:
+    """A run started right after another finds the rig warm: the default fits the operating
+    point, where "initial" (the first sample taken as the equilibrium at 0 V) goes wrong.
+
+    The twin's clock stands still between runs, so the second run starts exactly where the
+    first one left the box: as warm as it can be.
+    """
+    lab = twin_lab(make_lab)
+    ana = person(lab, "ana")
+    lab.access.request_control("twin", ana)
+    body = {"dt": 1.0, "samples": 2000, "signal": signal, "methods": [method], **settings}
+    with api_client(lab, "ana") as client:
+        cold = finish(client, lab, body)
+        warm = finish(client, lab, body)
+        forced = finish(client, lab, {**body, "offset": "initial"})
+    assert cold["operatingPoint"]["used"] == "initial"
+    assert cold["operatingPoint"]["atRest"] is True
+    assert warm["operatingPoint"]["used"] == "fit"
+    assert warm["operatingPoint"]["atRest"] is False
+    assert f"run {cold['id']} on it ended" in warm["operatingPoint"]["reason"]
+    assert warm["settings"]["offset"] == "auto"
+    for run in (cold, warm):
+        latest = run["results"][method]["latest"]
+        assert latest["valid"] is True
+        np.testing.assert_allclose([latest["K"], latest["tau"]], [TRUE_K, TRUE_TAU], rtol=1e-5)
+    # What the default avoids: "initial" on the warm rig, kept as asked, with a warning.
+    assert forced["operatingPoint"]["used"] == "initial"
+    assert "although the rig is not at rest" in forced["operatingPoint"]["reason"]
+    wrong = forced["results"][method]["latest"]
+    assert not (wrong["valid"] and abs(wrong["K"] / TRUE_K - 1) < 0.5)
+
+
+def test_the_rig_is_judged_warm_by_its_input_recent_commands_and_its_output(
+    make_lab: LabFactory, clock: ManualClock
+) -> None:
+    twins: dict[str, TwinRig] = {}
+
+    def opener(rig: RigConfig) -> Rig:
+        twins[rig.id] = TwinRig("paper", clock=VirtualClock())
+        return twins[rig.id]
+
+    # Ambient known (0 V), "back near ambient" within 0.05 V, no drive counts after 600 s.
+    cooldown = CooldownPolicy(tolerance=0.05, max_seconds=600, ambient=0.0)
+    lab = make_lab(opener=opener, cooldown=cooldown)
+    ana = person(lab, "ana")
+    lab.access.request_control("twin", ana)
+    assert lab.runs.at_rest("twin") == (True, "not driven for 600 s; its ambient is not known yet")
+    lab.sweep()  # the lab reads the cold rig
+    rest, why = lab.runs.at_rest("twin")
+    assert rest is True
+    assert why == "not driven for 600 s, output within 0.05 V of its ambient 0 V"
+
+    lab.apply_input("twin", ana, 5.0)
+    assert lab.runs.at_rest("twin") == (False, "its input is 5 V, not the safe 0 V")
+    twins["twin"].clock.sleep_until(200.0)  # the box heats for 200 s at 5 V
+    lab.apply_input("twin", ana, 0.0)
+    assert lab.runs.at_rest("twin") == (
+        False,
+        "an input of 5 V was applied 0 s ago; it may still be cooling",
+    )
+    clock.advance(601)  # past the longest cool-down: only the output can tell now
+    lab.sweep()
+    rest, why = lab.runs.at_rest("twin")
+    assert rest is False
+    assert why.startswith("its output 0.38")
+    assert why.endswith("from its ambient 0 V, more than the tolerance 0.05 V")
+    point = lab.runs.operating_point("twin", "auto", ("lsm",))
+    assert (point.used, point.at_rest) == ("fit", False)
+    assert lab.runs.operating_point("twin", "none", ("wlsm",)).used == "none"
+    assert lab.runs.operating_point("twin", 0.0, ("malsm",)).used == 0.0
+    srm = lab.runs.operating_point("twin", "auto", ("srm",))
+    assert (srm.used, srm.at_rest) == (None, None)
+
+
+def test_each_methods_statistics_are_stored_as_thermolab_ident_computes_them(
+    make_lab: LabFactory,
+) -> None:
+    lab = twin_lab(make_lab)
+    ana = person(lab, "ana")
+    lab.access.request_control("twin", ana)
+    request = RunRequest(
+        dt=1.0,
+        samples=2500,
+        signal="square:4:6:0.1",
+        methods=("srm", "lsm", "blockls", "malsm", "wlsm"),
+        window=100,
+        block=100,
+        gamma=0.7,
+        pmax=1e4,
+        offset="initial",
+    )
+    run = lab.runs.start("twin", ana, request)
+    lab.runs.wait("twin", timeout=60)
+    done = lab.runs.get(run.id, ana)
+    rows = list(lab.runs.samples(run.id, ana))
+    u = np.array([r[2] for r in rows])
+    y = np.array([r[3] for r in rows])
+    batch = {
+        "blockls": block_least_squares(u, y, 1.0, 100),
+        "malsm": moving_window_least_squares(u, y, 1.0, window=100),
+        "wlsm": weighted_least_squares(u, y, 1.0, 0.7, 1e4, [0.96329, 9.9082e-4]),
+    }
+    for method, trajectory in batch.items():
+        stats = done.results[method]["stats"]
+        expected = trajectory.stats(last=2000)
+        assert stats["last"] == 2000
+        assert stats["tol"] == 0.01
+        for name in ("K", "tau"):
+            np.testing.assert_allclose(
+                [stats[name][key] for key in ("mean", "max", "min")],
+                [expected[name][key] for key in ("mean", "max", "min")],
+                rtol=1e-9,
+            )
+        assert stats["converged_at"] == trajectory.converged_at(tol=0.01, last=2000)
+    assert done.results["malsm"]["stats"]["converged_at"] == {"K": 99, "tau": 99}
+    assert done.results["wlsm"]["stats"]["converged_at"]["K"] is not None
+    # LSM's one estimate is its own mean, max and min; it does not converge.
+    stats, latest = done.results["lsm"]["stats"], done.results["lsm"]["latest"]
+    assert stats["K"] == {"mean": latest["K"], "max": latest["K"], "min": latest["K"]}
+    assert stats["tau"]["mean"] == latest["tau"]
+    assert stats["converged_at"] is None
+    # The step method refuses a square wave: no model, no figures.
+    assert done.results["srm"]["latest"]["valid"] is False
+    assert done.results["srm"]["stats"]["K"] is None
+    # The same figures in the export, next to the trajectories.
+    exported = lab.runs.export(run.id, ana)
+    assert exported["methods"]["wlsm"]["result"]["stats"] == done.results["wlsm"]["stats"]
+
+
+def test_runs_stored_without_statistics_get_them_when_first_read(make_lab: LabFactory) -> None:
+    lab = twin_lab(make_lab)
+    ana = person(lab, "ana")
+    lab.access.request_control("twin", ana)
+    request = RunRequest(
+        dt=1.0, samples=400, signal="square:4:6:0.1", methods=("lsm", "malsm", "wlsm")
+    )
+    run = lab.runs.start("twin", ana, request)
+    lab.runs.wait("twin", timeout=30)
+    fresh = lab.runs.get(run.id, ana).results
+    with lab.db.write() as session:  # as a run stored by an earlier version of the lab
+        for row in session.scalars(select(MethodResult)):
+            row.result = {k: v for k, v in row.result.items() if k != "stats"}
+    with lab.db.read() as session:
+        assert all("stats" not in r for r in session.scalars(select(MethodResult.result)))
+    again = lab.runs.get(run.id, ana).results
+    for method in ("lsm", "malsm", "wlsm"):
+        assert again[method]["stats"] == fresh[method]["stats"]
+    with lab.db.read() as session:  # kept for next time
+        assert all("stats" in r for r in session.scalars(select(MethodResult.result)))
+
+
+def test_runs_are_listed_per_user(make_lab: LabFactory) -> None:
+    lab = twin_lab(make_lab)
+    ana, ben = person(lab, "ana"), person(lab, "ben")
+    person(lab, "tina", "teacher")
+    ids = {}
+    for who in (ana, ben):
+        lab.access.request_control("twin", who)
+        ids[who.username] = lab.runs.start("twin", who, lab_request(samples=5)).id
+        lab.runs.wait("twin", timeout=30)
+        lab.access.release("twin", who)
+    with api_client(lab, "ana") as student, api_client(lab, "tina") as teacher:
+        mine = student.get("/api/runs", params={"user": "ANA"})
+        assert [r["id"] for r in mine.json()] == [ids["ana"]]
+        other = student.get("/api/runs", params={"user": "ben"})
+        assert (other.status_code, other.json()["detail"]) == (
+            403,
+            "students may list only their own runs; ask for user=ana",
+        )
+        assert student.get("/api/runs", params={"user": "nobody"}).status_code == 403
+        assert [r["id"] for r in teacher.get("/api/runs", params={"user": "ben"}).json()] == [
+            ids["ben"]
+        ]
+        assert [r["username"] for r in teacher.get("/api/runs").json()] == ["ben", "ana"]
+        assert teacher.get("/api/runs", params={"user": "tina"}).json() == []
+        missing = teacher.get("/api/runs", params={"user": "nobody"})
+        assert (missing.status_code, missing.json()["detail"]) == (
+            404,
+            "no user called 'nobody'",
+        )
+        bad = teacher.get("/api/runs", params={"user": "no body!"})
+        assert bad.status_code == 422
+        assert teacher.get("/api/runs", params={"user": "ana", "rig": "other"}).json() == []
+
+
+def test_an_invalid_estimate_handed_to_the_live_stream_carries_its_reason(
+    make_lab: LabFactory,
+) -> None:
+    """The reason travels in the estimate the lab hands its listeners (the stream's input)."""
+    lab = twin_lab(make_lab)
+    ana = person(lab, "ana")
+    heard: list[EstimateEvent] = []
+
+    class Listener:
+        def access_changed(self, rig_id: str) -> None:
+            pass
+
+        def run_changed(self, rig_id: str, event: str, record: object) -> None:
+            pass
+
+        def run_event(self, rig_id: str, run_id: int, event: object) -> None:
+            if isinstance(event, EstimateEvent):
+                heard.append(event)
+
+        def reading(self, rig_id: str, u: object, y: float, at: object) -> None:
+            pass
+
+    lab.add_listener(Listener())
+    lab.access.request_control("twin", ana)
+    # A constant input from rest excites nothing: MALSM's windows have no model.
+    request = RunRequest(dt=1.0, samples=150, setpoint=0.0, methods=("malsm",), window=20)
+    lab.runs.start("twin", ana, request)
+    lab.runs.wait("twin", timeout=30)
+    until(lambda: any(e.final for e in heard))
+    invalid = [e for e in heard if not e.estimate.valid]
+    assert invalid
+    assert all(e.estimate.extras["reason"].startswith("not excited") for e in invalid)

@@ -161,9 +161,12 @@ class AccessView:
         full time (and cool-down); for a watcher, the same bound if they asked
         now. ``None`` when the rig cannot be controlled (fault, out of service).
     time_left : float or None
-        The controller's seconds until the time limit.
+        The controller's seconds until the time limit, shown to everyone (it
+        tells watchers and the queue when the rig changes hands); ``None``
+        when nobody controls the rig.
     idle_time_left : float or None
-        The controller's seconds until the idle limit (``None`` if none applies).
+        The controller's seconds until the idle limit, for the controller only
+        (``None`` otherwise, or if no idle limit applies).
     controller : str or None
         Who controls the rig.
     watchers : int
@@ -331,8 +334,9 @@ class AccessService:
         """Return a rig as ``who`` sees it.
 
         Looking at a rig counts as a heartbeat of the caller's control or queue
-        place (unless ``heartbeat`` is false) and applies any limit that has
-        run out.
+        place, and as watching it, unless ``heartbeat`` is false (a list of every
+        rig is not watching them all); either way any limit that has run out is
+        applied.
 
         Raises
         ------
@@ -341,7 +345,8 @@ class AccessService:
         """
         cfg = self._config.rig(rig_id)
         now = self._clock.now()
-        self._presence.touch(rig_id, who.username)
+        if heartbeat:
+            self._presence.touch(rig_id, who.username)
         with self._db.read() as session:
             snap = self._snapshot(session, rig_id)
         if self._due(snap, cfg, now) or (heartbeat and self._heartbeat_stale(snap, who, now)):
@@ -349,7 +354,7 @@ class AccessService:
         return self._render(snap, cfg, who, now)
 
     def views(self, who: Principal) -> list[RigView]:
-        """Return every configured rig as ``who`` sees it (no heartbeat)."""
+        """Return every configured rig as ``who`` sees it (no heartbeat, and not watching)."""
         return [self.view(rig.id, who, heartbeat=False) for rig in self._config.rigs]
 
     # -- the caller's own control ------------------------------------------------------
@@ -643,7 +648,8 @@ class AccessService:
         heartbeat: bool = True,
     ) -> tuple[RigView, RigSnapshot]:
         cfg = self._config.rig(rig_id)
-        if who is not None:
+        if who is not None and heartbeat:
+            # A teacher acting on a rig from the overview is not watching it.
             self._presence.touch(rig_id, who.username)
         failure: Exception | None = None
         with self._db.write() as session:
@@ -1089,7 +1095,7 @@ def _access_view(
         queue_size=len(snap.queue),
         queue_position=slot.position if slot is not None else None,
         estimated_time_until_control=eta,
-        time_left=None,
+        time_left=None if c is None else _seconds_until(c.deadline, now),
         idle_time_left=None,
         controller=controller_name,
         watchers=watchers,

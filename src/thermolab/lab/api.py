@@ -157,7 +157,9 @@ def logout(request: Request, lab: LabDep) -> Response:
 
 @_authed.get("/rigs", response_model=list[RigOut], tags=["rigs"], summary="All rigs")
 def list_rigs(who: UserDep, lab: LabDep) -> list[RigOut]:
-    """Every rig with its state, limits and access as the caller sees them."""
+    """Every rig with its state, limits and access as the caller sees them (a glance at
+    the list is neither a heartbeat nor watching: it changes no watcher count).
+    """
     return [RigOut.of(view) for view in lab.access.views(who)]
 
 
@@ -169,7 +171,9 @@ def list_rigs(who: UserDep, lab: LabDep) -> list[RigOut]:
     responses=_errors(404),
 )
 def get_rig(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
-    """A rig as the caller sees it; counts as the caller's heartbeat for the rig."""
+    """A rig as the caller sees it; counts as the caller's heartbeat for the rig (and as
+    watching it, like the live socket; listing every rig does not).
+    """
     return RigOut.of(lab.access.view(rig_id, who))
 
 
@@ -322,14 +326,29 @@ def stop_run(rig_id: RigId, who: UserDep, lab: LabDep) -> RunOut:
     return RunOut.of(lab.runs.stop(rig_id, who))
 
 
-@_authed.get("/runs", response_model=list[RunOut], tags=["runs"], summary="Runs")
+@_authed.get(
+    "/runs",
+    response_model=list[RunOut],
+    tags=["runs"],
+    summary="Runs",
+    responses=_errors(403, 404, 422),
+)
 def list_runs(
     who: UserDep,
     lab: LabDep,
     rig: Annotated[str | None, Query(max_length=64, description="only this rig")] = None,
+    user: Annotated[
+        str | None,
+        Query(
+            max_length=64,
+            description="only this user's runs (teachers: anyone; students: themselves only)",
+        ),
+    ] = None,
 ) -> list[RunOut]:
-    """Runs, newest first: your own, or everyone's for a teacher."""
-    return [RunOut.of(run) for run in lab.runs.list(who, rig)]
+    """Runs, newest first: your own, or everyone's for a teacher (``user`` narrows it to one
+    user; a student naming someone else gets 403, a teacher naming nobody known 404).
+    """
+    return [RunOut.of(run) for run in lab.runs.list(who, rig, user=user)]
 
 
 @_authed.get(

@@ -25,9 +25,9 @@ from __future__ import annotations
 import logging
 import math
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
-from datetime import datetime
+from datetime import datetime, timedelta
 from typing import Any
 
 from sqlalchemy import func, insert, select, update
@@ -40,24 +40,64 @@ from thermolab.errors import (
     NotFoundError,
     ThermoLabError,
 )
-from thermolab.ident.online import OnlineIdentifier
+from thermolab.ident.online import OnlineIdentifier, make_identifier
 from thermolab.lab.access import AccessService
 from thermolab.lab.clock import LabClock
+from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.hub import RigHub
-from thermolab.lab.models import Command, ControlSession, MethodResult, Rig, Run, RunStatus, Sample
+from thermolab.lab.models import (
+    Command,
+    ControlSession,
+    MethodResult,
+    Rig,
+    Run,
+    RunStatus,
+    Sample,
+    User,
+)
+from thermolab.lab.security import normalize_username
 from thermolab.lab.users import Principal
 from thermolab.runner import EndReason, Event, EventBus, Experiment, RunResult
 from thermolab.runner.methods import build_identifiers, parse_methods
 from thermolab.signals import parse_signal
+from thermolab.simulation import PAPER_W0
 
-__all__ = ["DatabaseRecorder", "RunRecord", "RunRequest", "RunService", "json_safe"]
+__all__ = [
+    "CONVERGENCE_TOL",
+    "MAX_DT",
+    "MAX_SAMPLES",
+    "MIN_DT",
+    "OFFSET_MODES",
+    "STATS_LAST",
+    "DatabaseRecorder",
+    "OperatingPoint",
+    "RunRecord",
+    "RunRequest",
+    "RunService",
+    "json_safe",
+    "method_statistics",
+]
 
 log = logging.getLogger(__name__)
 
+#: Most samples a run may ask for.
 MAX_SAMPLES = 200_000
+#: Shortest and longest sample period of a run, in seconds (the API schema publishes these).
 MIN_DT = 0.01
 MAX_DT = 3600.0
+#: How a run's identifiers may treat the operating point: ``"auto"`` (chosen by the lab,
+#: see :meth:`RunService.operating_point`) or one of :mod:`thermolab.ident`'s modes; a
+#: number is also accepted (a known ambient output).
+OFFSET_MODES = ("auto", "initial", "fit", "none")
+#: The paper's tables: statistics over the last 2000 samples, convergence within ±1 %.
+STATS_LAST = 2000
+CONVERGENCE_TOL = 0.01
+
+# Methods that regress on the output and so have an operating point to handle.
+_OFFSET_METHODS = ("lsm", "blockls", "malsm", "wlsm")
+# Methods with one estimate per sample or block (a trajectory that converges).
+_TRAJECTORY_METHODS = ("blockls", "malsm", "wlsm")
 
 
 def json_safe(value: Any) -> Any:
@@ -84,9 +124,9 @@ class RunRequest:
     Attributes
     ----------
     dt : float
-        Sample period, seconds.
+        Sample period, seconds (:data:`MIN_DT` to :data:`MAX_DT`).
     samples : int
-        Samples to take (END may stop earlier).
+        Samples to take, 1 to :data:`MAX_SAMPLES` (END may stop earlier).
     signal : str or None
         Input signal (``step:0:10@10``, ``square:4:6:0.1``...); ``None`` for a
         manual set point.
@@ -98,6 +138,15 @@ class RunRequest:
         MALSM window and block-LSM block, in samples.
     gamma, pmax : float or None
         WLSM forgetting factor and initial covariance.
+    w0 : tuple of float or None
+        WLSM initial parameters ``[a0, b0]`` of the first-order model (``[a0,
+        b0, c0]`` with ``offset="fit"``, ``c0`` the constant term); ``None`` is
+        the paper's ``W0 = [0.96329, 9.9082e-4]``.
+    offset : str or float
+        How the identifiers treat the operating point: ``"auto"`` (the lab
+        chooses ``"initial"`` for a rig at rest and ``"fit"`` for a warm one,
+        see :meth:`RunService.operating_point`), ``"initial"``, ``"fit"``,
+        ``"none"``, or a number (the known ambient output).
     """
 
     dt: float
@@ -109,6 +158,8 @@ class RunRequest:
     block: int | None = None
     gamma: float | None = None
     pmax: float | None = None
+    w0: tuple[float, ...] | None = None
+    offset: str | float = "auto"
 
     def settings(self) -> dict[str, Any]:
         """The request as stored with the run."""
@@ -122,7 +173,105 @@ class RunRequest:
             "block": self.block,
             "gamma": self.gamma,
             "pmax": self.pmax,
+            "w0": None if self.w0 is None else list(self.w0),
+            "offset": self.offset,
         }
+
+
+@dataclass(frozen=True, slots=True)
+class OperatingPoint:
+    """How a run's identifiers handle the operating point, and why (stored with the run).
+
+    Attributes
+    ----------
+    asked : str or float
+        The request's ``offset`` (``"auto"`` unless the user chose).
+    used : str, float or None
+        The mode the identifiers were built with; ``None`` when no chosen
+        method regresses on the output (the step response finds its own
+        baseline).
+    at_rest : bool or None
+        Whether the lab judged the rig at rest at START (``None``: not judged).
+    reason : str
+        The judgement and the choice, in words (shown to the user).
+
+    Examples
+    --------
+    >>> OperatingPoint("auto", "fit", False, "run 3 ended 12 s ago").to_dict()["used"]
+    'fit'
+    """
+
+    asked: str | float
+    used: str | float | None
+    at_rest: bool | None
+    reason: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready dict (``asked``, ``used``, ``atRest``, ``reason``)."""
+        return {
+            "asked": self.asked,
+            "used": self.used,
+            "atRest": self.at_rest,
+            "reason": self.reason,
+        }
+
+
+def method_statistics(
+    method: str, identifier: OnlineIdentifier | None, latest: dict[str, Any] | None
+) -> dict[str, Any]:
+    """The figures of the paper's Tables I/II for one method of a run.
+
+    Parameters
+    ----------
+    method : str
+        The method's name.
+    identifier : OnlineIdentifier or None
+        The run's identifier (its trajectory gives the statistics of the block
+        and recursive methods).
+    latest : dict or None
+        The method's latest estimate as stored (``Estimate.to_dict()``); the
+        one estimate of SRM and LSM.
+
+    Returns
+    -------
+    dict
+        ``{"last", "tol", "K", "tau", "converged_at"}``: ``K`` and ``tau`` are
+        ``{"mean", "max", "min"}`` of the valid estimates over the last
+        :data:`STATS_LAST` samples (:meth:`thermolab.ident.Trajectory.stats`),
+        ``None`` without one; ``converged_at`` is
+        :meth:`~thermolab.ident.Trajectory.converged_at` (within ±
+        :data:`CONVERGENCE_TOL`) for block and recursive methods and ``None``
+        for SRM and LSM, whose one estimate does not converge. SRM and LSM give
+        their estimate as mean, max and min.
+
+    Examples
+    --------
+    >>> method_statistics("lsm", None, {"K": 0.14, "tau": 250.0, "valid": True})["K"]
+    {'mean': 0.14, 'max': 0.14, 'min': 0.14}
+    """
+    out: dict[str, Any] = {
+        "last": STATS_LAST,
+        "tol": CONVERGENCE_TOL,
+        "K": None,
+        "tau": None,
+        "converged_at": None,
+    }
+    if method in _TRAJECTORY_METHODS:
+        if identifier is None or identifier.n_samples == 0:
+            return out
+        trajectory = identifier.trajectory()
+        stats = trajectory.stats(last=STATS_LAST)
+        for name in ("K", "tau"):
+            if math.isfinite(stats[name]["mean"]):
+                out[name] = stats[name]
+        out["converged_at"] = trajectory.converged_at(tol=CONVERGENCE_TOL, last=STATS_LAST)
+        return out
+    if latest is not None and latest.get("valid"):
+        for name in ("K", "tau"):
+            value = latest.get(name)
+            if isinstance(value, float | int) and math.isfinite(value):
+                out[name] = {"mean": float(value), "max": float(value), "min": float(value)}
+    return out
 
 
 @dataclass(frozen=True, slots=True)
@@ -130,7 +279,10 @@ class RunRecord:
     """A run as stored, with its live progress when it is running.
 
     ``results`` maps each method to its latest estimate (a JSON-ready dict,
-    ``None`` before the first) and ``errors`` to why it stopped, if it did.
+    ``None`` before the first), why it stopped if it did (``error``) and, once
+    the run is over, its statistics (``stats``, see :func:`method_statistics`).
+    ``operating_point`` is :meth:`OperatingPoint.to_dict` of the run (``None``
+    for runs stored before the lab recorded it).
     """
 
     id: int
@@ -150,6 +302,7 @@ class RunRecord:
     ended_at: datetime | None
     end_reason: str | None
     results: dict[str, Any] = field(default_factory=dict)
+    operating_point: dict[str, Any] | None = None
 
 
 class DatabaseRecorder:
@@ -263,6 +416,8 @@ class RunService:
     clock : LabClock
     access : AccessService
     hub : RigHub
+    config : LabConfig
+        The rigs' cool-down policies (they say when a rig counts as at rest).
     on_finished : callable
         Called with the rig id after a run has ended and been stored (the lab
         hands the rig back to the hub).
@@ -280,6 +435,7 @@ class RunService:
         clock: LabClock,
         access: AccessService,
         hub: RigHub,
+        config: LabConfig,
         on_finished: Callable[[str], None],
         *,
         on_run: Callable[[str, str, RunRecord], None] | None = None,
@@ -289,6 +445,7 @@ class RunService:
         self._clock = clock
         self._access = access
         self._hub = hub
+        self._config = config
         self._on_finished = on_finished
         self._on_run = on_run
         self._on_event = on_event
@@ -314,21 +471,31 @@ class RunService:
         published = self._hub.published(rig_id)
         limits = (published.input_min, published.input_max)
         experiment_args = self._check(request, limits)
+        methods = parse_methods(request.methods)
         driver = self._hub.driver(rig_id)
         if driver is None:
             raise ConflictError(f"rig {rig_id!r} has no device attached; a run needs one")
         with self._lock:
             if rig_id in self._active:
                 raise ConflictError(f"a run is already going on rig {rig_id!r}; END it first")
+        point = self.operating_point(rig_id, request.offset, methods)
+        options: dict[str, dict[str, Any]] = {
+            m: {"offset": point.used} for m in methods if m in _OFFSET_METHODS
+        }
+        settings = request.settings()
+        if "wlsm" in methods:
+            w0 = list(PAPER_W0) if request.w0 is None else list(request.w0)
+            options["wlsm"]["w0"] = w0
+            settings["w0"] = w0
         identifiers = build_identifiers(
-            request.methods,
+            methods,
             request.dt,
             window=request.window,
             block=request.block,
             gamma=request.gamma,
             pmax=request.pmax,
+            options=options,
         )
-        settings = request.settings()
 
         def begin(session: Session, rig: Rig, control: ControlSession, now: datetime) -> int:
             running = session.scalar(
@@ -346,7 +513,11 @@ class RunService:
                 signal=request.signal,
                 setpoint=request.setpoint,
                 methods=list(identifiers),
-                meta={"settings": settings, "username": who.username},
+                meta={
+                    "settings": settings,
+                    "username": who.username,
+                    "operating_point": point.to_dict(),
+                },
                 started_at=now,
                 samples_stored=0,
             )
@@ -454,6 +625,154 @@ class RunService:
             if active.thread is not None:
                 active.thread.join(timeout)
 
+    # -- the operating point ---------------------------------------------------------------
+
+    def operating_point(
+        self, rig_id: str, asked: str | float, methods: Sequence[str]
+    ) -> OperatingPoint:
+        """Decide how a run's identifiers treat the rig's operating point.
+
+        ``"initial"`` (the default of :mod:`thermolab.ident`) takes the first
+        sample as the equilibrium at 0 V and removes it. A rig still cooling
+        after a previous run (or driven by an input a moment ago) breaks that:
+        its first sample is neither an equilibrium nor the output at 0 V, and
+        the estimates come out biased or unstable. ``"auto"`` therefore looks at
+        the rig first (see :meth:`at_rest`) and takes ``"initial"`` for a rig at
+        rest, ``"fit"`` (the constant term estimated with the model) for a warm
+        one. An explicit choice is kept; ``"initial"`` on a warm rig is kept with
+        a warning in the reason.
+
+        Parameters
+        ----------
+        rig_id : str
+        asked : str or float
+            The request's ``offset``.
+        methods : sequence of str
+            The run's methods (only LSM, block LSM, MALSM and WLSM use an offset).
+
+        Returns
+        -------
+        OperatingPoint
+
+        Raises
+        ------
+        InvalidParameterError
+            For an explicit offset when no chosen method uses one.
+        """
+        users = [m for m in methods if m in _OFFSET_METHODS]
+        if not users:
+            if asked != "auto":
+                raise InvalidParameterError(
+                    f"offset is a setting of {', '.join(_OFFSET_METHODS)}, none of which is among "
+                    f"the methods ({', '.join(methods)}); the step response finds its own baseline"
+                )
+            return OperatingPoint(
+                asked, None, None, "no chosen method uses it (the step response finds its baseline)"
+            )
+        rest, why = self.at_rest(rig_id)
+        if asked == "auto":
+            if rest:
+                return OperatingPoint(
+                    asked,
+                    "initial",
+                    True,
+                    f"initial: the rig is at rest ({why}), so its first sample is the "
+                    "equilibrium at the safe input and is removed",
+                )
+            return OperatingPoint(
+                asked,
+                "fit",
+                False,
+                f"fit: the rig is not at rest ({why}), so its first sample is no equilibrium; "
+                "the operating point is estimated with the model",
+            )
+        if asked == "initial" and not rest:
+            return OperatingPoint(
+                asked,
+                asked,
+                False,
+                f"initial, as asked, although the rig is not at rest ({why}): the model may be "
+                "biased or unstable; 'fit' estimates the operating point instead",
+            )
+        state = "at rest" if rest else "not at rest"
+        return OperatingPoint(asked, asked, rest, f"{asked}, as asked (the rig is {state}: {why})")
+
+    def at_rest(self, rig_id: str) -> tuple[bool, str]:
+        """Whether the rig rests at its equilibrium at the safe input, and why (in words).
+
+        A rig is *not* at rest when any of these holds, checked in this order:
+
+        1. its input is not the safe input now;
+        2. a run on it ended, or an input other than the safe one was applied
+           to it, within the last ``cooldown.max_seconds`` (the longest the lab
+           ever waits for a rig to cool) — and, when the rig cools down between
+           turns, since the current turn began (the cool-down before it settled
+           what came earlier);
+        3. its latest reading is further than ``cooldown.tolerance`` from its
+           ambient (the configured one, or the first reading of the rig powered
+           on cold).
+
+        Rule 2 needs no threshold, so a rig taken straight from one run to the
+        next is always seen as warm, whatever its output's unit and scale.
+        """
+        cfg = self._config.rig(rig_id)
+        published = self._hub.published(rig_id)
+        unit, safe = published.output_unit, published.safe_input
+        applied = self._hub.applied(rig_id)
+        if applied is not None and applied != safe:
+            return False, (
+                f"its input is {applied:g} {published.input_unit}, not the safe "
+                f"{safe:g} {published.input_unit}"
+            )
+        now = self._clock.now()
+        window = cfg.cooldown.max_seconds
+        since = now - timedelta(seconds=window)
+        snap = self._access.snapshot(rig_id)
+        if cfg.cooldown.enabled and snap.controller is not None:
+            since = max(since, snap.controller.started_at)
+        with self._db.read() as session:
+            ended = session.execute(
+                select(Run.id, Run.ended_at)
+                .where(Run.rig_id == rig_id, Run.ended_at >= since)
+                .order_by(Run.ended_at.desc(), Run.id.desc())
+                .limit(1)
+            ).first()
+            driven = session.execute(
+                select(Command.value, Command.at)
+                .where(
+                    Command.rig_id == rig_id,
+                    Command.kind == "input",
+                    Command.at >= since,
+                    Command.value != safe,
+                )
+                .order_by(Command.at.desc(), Command.id.desc())
+                .limit(1)
+            ).first()
+        if ended is not None:
+            ago = (now - ended.ended_at).total_seconds()
+            return False, f"run {ended.id} on it ended {ago:.0f} s ago; it may still be cooling"
+        if driven is not None:
+            ago = (now - driven.at).total_seconds()
+            return False, (
+                f"an input of {driven.value:g} {published.input_unit} was applied {ago:.0f} s "
+                "ago; it may still be cooling"
+            )
+        ambient = cfg.cooldown.ambient if cfg.cooldown.ambient is not None else snap.ambient_output
+        reading = self._hub.reading(rig_id)
+        quiet = f"not driven for {window:g} s"
+        if ambient is None or reading is None:
+            return True, f"{quiet}; its ambient is not known yet"
+        gap = reading[0] - ambient
+        tolerance = cfg.cooldown.tolerance
+        if abs(gap) > tolerance:
+            return False, (
+                f"its output {reading[0]:g} {unit} is {abs(gap):g} {unit} from its ambient "
+                f"{ambient:g} {unit}, more than the tolerance {tolerance:g} {unit}"
+            )
+        return True, (
+            f"{quiet}, output within {tolerance:g} {unit} of its ambient {ambient:g} {unit}"
+        )
+
     # -- reading -------------------------------------------------------------------------
 
     def get(self, run_id: int, who: Principal) -> RunRecord:
@@ -485,21 +804,55 @@ class RunService:
             run = session.get(Run, run_id)
             if run is None:
                 raise NotFoundError(f"no run {run_id}")
-            rows = session.execute(
-                select(MethodResult.method, MethodResult.result).where(
-                    MethodResult.run_id == run_id
-                )
-            ).all()
-            return self._record(run, {row.method: row.result for row in rows})
+            stored = self._stored_results(session, run)
+            return self._record(run, {data["method"]: data["result"] for data in stored.values()})
 
-    def list(self, who: Principal, rig_id: str | None = None, limit: int = 200) -> list[RunRecord]:
-        """Return runs, newest first: a student's own, or everyone's for a teacher."""
+    def list(
+        self,
+        who: Principal,
+        rig_id: str | None = None,
+        limit: int = 200,
+        *,
+        user: str | None = None,
+    ) -> list[RunRecord]:
+        """Return runs, newest first: a student's own, or everyone's for a teacher.
+
+        Parameters
+        ----------
+        who : Principal
+        rig_id : str, optional
+            Only this rig's runs.
+        limit : int, optional
+            At most this many.
+        user : str, optional
+            Only this user's runs: anyone for a teacher, only themselves for a student.
+
+        Raises
+        ------
+        AccessDeniedError
+            If a student asks for another user's runs.
+        NotFoundError
+            If a teacher names a user who does not exist.
+        InvalidParameterError
+            If ``user`` is not a valid user name.
+        """
         query = select(Run).order_by(Run.started_at.desc(), Run.id.desc()).limit(limit)
-        if not who.is_teacher:
-            query = query.where(Run.user_id == who.user_id)
+        if user is not None:
+            name = normalize_username(user)
+            if not who.is_teacher and name != who.username:
+                raise AccessDeniedError(
+                    f"students may list only their own runs; ask for user={who.username}"
+                )
         if rig_id is not None:
             query = query.where(Run.rig_id == rig_id)
         with self._db.read() as session:
+            if user is not None and who.is_teacher:
+                owner = session.scalar(select(User.id).where(User.username == name))
+                if owner is None:
+                    raise NotFoundError(f"no user called {name!r}")
+                query = query.where(Run.user_id == owner)
+            elif not who.is_teacher:
+                query = query.where(Run.user_id == who.user_id)
             return [self._record(run, None) for run in session.scalars(query)]
 
     def samples(self, run_id: int, who: Principal) -> Iterator[tuple[int, float, float, float]]:
@@ -531,12 +884,8 @@ class RunService:
             us.append(u)
             ys.append(y)
         with self._db.read() as session:
-            methods = {
-                row.label: {"method": row.method, "params": row.params, "result": row.result}
-                for row in session.scalars(
-                    select(MethodResult).where(MethodResult.run_id == run_id)
-                )
-            }
+            run = session.get(Run, run_id)
+            methods = {} if run is None else self._stored_results(session, run)
         exported: dict[str, Any] = json_safe(
             {
                 "run": record,
@@ -557,7 +906,10 @@ class RunService:
             raise InvalidParameterError(
                 f"samples must be between 1 and {MAX_SAMPLES}, got {request.samples!r}"
             )
-        parse_methods(request.methods)
+        methods = parse_methods(request.methods)
+        _check_offset(request.offset)
+        if request.w0 is not None:
+            _check_w0(request.w0, request.offset, methods)
         if request.signal is not None and request.setpoint is not None:
             raise InvalidParameterError("give either a signal or a setpoint, not both")
         if request.signal is not None:
@@ -571,6 +923,47 @@ class RunService:
                 )
             return {"set_point": request.setpoint}
         return {}
+
+    def _stored_results(self, session: Session, run: Run) -> dict[str, dict[str, Any]]:
+        """Each method's stored ``{"method", "params", "result"}`` by label, with statistics.
+
+        Runs stored before the lab kept statistics get them here, the first time
+        they are read: the method is replayed over the stored samples with its
+        stored settings (the identifiers are deterministic, so this is the
+        trajectory the run had) and the figures are stored for next time.
+        """
+        rows = list(session.scalars(select(MethodResult).where(MethodResult.run_id == run.id)))
+        out = {
+            row.label: {"method": row.method, "params": row.params, "result": row.result}
+            for row in rows
+        }
+        missing = [row for row in rows if "stats" not in row.result]
+        if not missing or run.status == RunStatus.RUNNING.value:
+            return out
+        samples: list[tuple[float, float]] = [
+            (row[0], row[1])
+            for row in session.execute(
+                select(Sample.u, Sample.y).where(Sample.run_id == run.id).order_by(Sample.k)
+            )
+        ]
+        filled: dict[int, dict[str, Any]] = {}
+        for row in missing:
+            try:
+                identifier = _replay(row.method, run.dt, row.params, samples)
+                stats = method_statistics(row.method, identifier, row.result.get("latest"))
+            except ThermoLabError as exc:
+                log.warning("run %s: statistics of %s failed: %s", run.id, row.label, exc)
+                continue
+            result = {**row.result, "stats": json_safe(stats)}
+            filled[row.id] = result
+            out[row.label]["result"] = result
+        if filled:
+            with self._db.write() as writer:
+                for row_id, result in filled.items():
+                    writer.execute(
+                        update(MethodResult).where(MethodResult.id == row_id).values(result=result)
+                    )
+        return out
 
     def _finish(self, active: _Active) -> None:
         result = active.experiment.wait()
@@ -602,15 +995,24 @@ class RunService:
             reason = f"{reason}: {result.message}"
         if result.end_reason is EndReason.ENDED and active.stopped_by:
             reason = f"ended by {active.stopped_by}"
+        stored: dict[str, dict[str, Any]] = {}
+        for name, method in result.methods.items():
+            identifier = active.identifiers.get(name)
+            data = method.to_dict(trajectory=True)
+            try:
+                data["stats"] = method_statistics(name, identifier, data.get("latest"))
+            except ThermoLabError as exc:  # the figures are a summary: never lose the run
+                log.warning("run %s: statistics of %s failed: %s", active.run_id, name, exc)
+            stored[name] = json_safe(data)
         with self._db.write() as session:
-            for name, method in result.methods.items():
+            for name, data in stored.items():
                 session.add(
                     MethodResult(
                         run_id=active.run_id,
                         label=name,
                         method=name,
                         params=json_safe(_params(active.identifiers.get(name))),
-                        result=json_safe(method.to_dict(trajectory=True)),
+                        result=data,
                         created_at=now,
                     )
                 )
@@ -660,7 +1062,57 @@ class RunService:
             ended_at=run.ended_at,
             end_reason=run.end_reason,
             results=results,
+            operating_point=run.meta.get("operating_point"),
         )
+
+
+def _replay(
+    method: str, dt: float, params: dict[str, Any], samples: list[tuple[float, float]]
+) -> OnlineIdentifier | None:
+    """Run a stored method again over a run's samples (``None`` for SRM and LSM)."""
+    if method not in _TRAJECTORY_METHODS:
+        return None
+    identifier = make_identifier(method, dt, **params)
+    for u, y in samples:
+        try:
+            identifier.update(u, y)
+        except ThermoLabError:
+            break  # where the run's identifier stopped too
+    return identifier
+
+
+def _check_offset(offset: object) -> None:
+    if isinstance(offset, str):
+        if offset not in OFFSET_MODES:
+            raise InvalidParameterError(
+                f"offset must be one of {', '.join(repr(m) for m in OFFSET_MODES)} or a number "
+                f"(the known ambient output), got {offset!r}"
+            )
+        return
+    if isinstance(offset, bool) or not isinstance(offset, int | float) or not math.isfinite(offset):
+        raise InvalidParameterError(
+            f"offset must be one of {', '.join(repr(m) for m in OFFSET_MODES)} or a finite "
+            f"number (the known ambient output), got {offset!r}"
+        )
+
+
+def _check_w0(w0: Sequence[float], offset: str | float, methods: Sequence[str]) -> None:
+    if "wlsm" not in methods:
+        raise InvalidParameterError(
+            f"w0 is a setting of wlsm, which is not among the methods ({', '.join(methods)})"
+        )
+    sizes = (2, 3) if offset == "fit" else (2,)
+    if len(w0) not in sizes:
+        allowed = (
+            "2 entries [a0, b0] or 3 [a0, b0, c0] (c0: the constant term)"
+            if offset == "fit"
+            else "2 entries [a0, b0] (3, with the constant term c0, only with offset 'fit')"
+        )
+        raise InvalidParameterError(f"w0 must have {allowed}, got {len(w0)}")
+    if any(
+        isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) for v in w0
+    ):
+        raise InvalidParameterError(f"w0 must hold finite numbers, got {list(w0)!r}")
 
 
 def _status_of(reason: EndReason) -> RunStatus:

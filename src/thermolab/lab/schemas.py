@@ -6,16 +6,18 @@ is a 422 naming the field rather than a silently ignored setting.
 
 from __future__ import annotations
 
+import math
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, PlainValidator, WithJsonSchema
 from pydantic.alias_generators import to_camel
+from pydantic_core import PydanticCustomError
 
 from thermolab.lab.access import QueueSlot, RigView
 from thermolab.lab.models import ControlSession
 from thermolab.lab.presence import Watcher
-from thermolab.lab.runs import RunRecord, RunRequest
+from thermolab.lab.runs import MAX_DT, MAX_SAMPLES, MIN_DT, OFFSET_MODES, RunRecord, RunRequest
 from thermolab.lab.service import InputResult
 from thermolab.lab.users import Principal, UserInfo
 
@@ -32,6 +34,7 @@ __all__ = [
     "KickIn",
     "LimitsOut",
     "NewUserIn",
+    "OperatingPointOut",
     "PasswordIn",
     "QueueSlotOut",
     "RigOut",
@@ -163,10 +166,17 @@ class AccessOut(_Out):
     estimated_time_until_control: float | None = Field(
         description="seconds; an upper bound assuming every turn ahead runs in full"
     )
-    time_left: float | None
-    idle_time_left: float | None
+    time_left: float | None = Field(
+        description="seconds the controller has left (for everyone); null: nobody controls"
+    )
+    idle_time_left: float | None = Field(
+        description="seconds until the idle limit ends the turn (the controller only)"
+    )
     controller: str | None
-    watchers: int
+    watchers: int = Field(
+        description="users watching: live connections, and requests for this rig within "
+        "the client timeout (listing the rigs does not count)"
+    )
 
 
 class QueueSlotOut(_Out):
@@ -292,11 +302,29 @@ class InputOut(_Out):
         )
 
 
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+
+
+def _offset(value: object) -> str | float:
+    # One message for the one choice (a union type would report each branch's error).
+    if isinstance(value, str) and value in OFFSET_MODES:
+        return value
+    if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
+        return float(value)
+    raise PydanticCustomError(
+        "offset",
+        "Input should be 'auto', 'initial', 'fit', 'none' or a finite number (a known ambient)",
+    )
+
+
 class RunIn(_In):
     """START: the run's schedule, input and identification methods (the paper's panels)."""
 
-    dt: Annotated[float, Field(gt=0, le=3600, allow_inf_nan=False, description="sample period, s")]
-    samples: Annotated[int, Field(ge=1, le=200_000, description="samples to take")]
+    dt: Annotated[
+        float,
+        Field(ge=MIN_DT, le=MAX_DT, allow_inf_nan=False, description="sample period, s"),
+    ]
+    samples: Annotated[int, Field(ge=1, le=MAX_SAMPLES, description="samples to take")]
     signal: Annotated[
         str | None,
         Field(
@@ -315,12 +343,37 @@ class RunIn(_In):
     ] = ["srm", "lsm"]
     window: Annotated[int | None, Field(ge=2, le=100_000, description="MALSM window")] = None
     block: Annotated[int | None, Field(ge=2, le=100_000, description="block-LSM block")] = None
+    # The lab runs WLSM in the paper's form, where gamma = 1 has no meaning (alpha = 0).
     gamma: Annotated[
-        float | None, Field(gt=0, le=1, allow_inf_nan=False, description="WLSM forgetting")
+        float | None,
+        Field(gt=0, lt=1, allow_inf_nan=False, description="WLSM forgetting factor"),
     ] = None
     pmax: Annotated[
         float | None, Field(gt=0, allow_inf_nan=False, description="WLSM initial covariance")
     ] = None
+    w0: Annotated[
+        list[FiniteFloat] | None,
+        Field(
+            min_length=2,
+            max_length=3,
+            description="WLSM initial parameters [a0, b0] of y(k+1) = a y(k) + b u(k) "
+            "([a0, b0, c0] with offset 'fit', c0 the constant term); "
+            "null: the paper's W0 = [0.96329, 9.9082e-4]",
+        ),
+    ] = None
+    offset: Annotated[
+        str | float,
+        PlainValidator(_offset),
+        WithJsonSchema(
+            {"anyOf": [{"type": "string", "enum": list(OFFSET_MODES)}, {"type": "number"}]}
+        ),
+        Field(
+            description="the operating point: 'initial' removes the first sample (an "
+            "equilibrium at 0 V), 'fit' estimates a constant term, 'none' is the raw "
+            "regression, a number is the known ambient output; 'auto' is 'initial' on a rig "
+            "at rest and 'fit' on a warm one (the run's operatingPoint says which and why)"
+        ),
+    ] = "auto"
 
     def request(self) -> RunRequest:
         """The run service's request."""
@@ -334,7 +387,20 @@ class RunIn(_In):
             block=self.block,
             gamma=self.gamma,
             pmax=self.pmax,
+            w0=None if self.w0 is None else tuple(self.w0),
+            offset=self.offset,
         )
+
+
+class OperatingPointOut(_Out):
+    """How a run's identifiers treat the operating point, and why."""
+
+    asked: str | float = Field(description="the request's offset")
+    used: str | float | None = Field(
+        description="the mode used; null when no chosen method regresses on the output"
+    )
+    at_rest: bool | None = Field(description="whether the lab judged the rig at rest at START")
+    reason: str
 
 
 class RunOut(_Out):
@@ -356,7 +422,13 @@ class RunOut(_Out):
     ended_at: datetime | None
     end_reason: str | None
     results: dict[str, Any] = Field(
-        description="per method: latest estimate (K, tau, W, valid, final...), error"
+        description="per method: latest estimate (K, tau, W, valid, final, extras.reason...), "
+        "error, and once the run is over stats: mean/max/min of K and tau over the last "
+        "2000 samples and converged_at, the samples to converge within ±1 % "
+        "(thermolab.ident.Trajectory.stats / converged_at)"
+    )
+    operating_point: OperatingPointOut | None = Field(
+        description="how the operating point was handled (null for runs from before it was kept)"
     )
 
     @classmethod
@@ -380,6 +452,7 @@ class RunOut(_Out):
                 "ended_at": run.ended_at,
                 "end_reason": run.end_reason,
                 "results": run.results,
+                "operating_point": run.operating_point,
             }
         )
 

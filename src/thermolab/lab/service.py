@@ -164,6 +164,7 @@ class Lab:
             self.clock,
             self.access,
             self.hub,
+            config,
             self._reconcile,
             on_run=self._run_changed,
             on_event=self._run_event,
