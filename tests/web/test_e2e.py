@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from numpy.testing import assert_allclose
 
 pytestmark = pytest.mark.browser
 
@@ -116,6 +117,11 @@ def test_watchers_queue_and_take_over_without_reloading(
     bob.wait_for_function(
         "() => document.querySelector('[data-field=controller]')?.textContent === 'alice'"
     )
+    # Everyone sees how long Alice's turn has left (about the rig's 300 s), counting down.
+    for page in (bob, carol):
+        assert page.inner_text("dt[data-for=timeLeft]") == "Controller's time left"
+        assert re.fullmatch(r"[45]:\d\d", page.inner_text("[data-field=timeLeft]"))
+    assert alice.inner_text("dt[data-for=timeLeft]") == "Your time left"
 
     # The lobby as a fourth student sees it: states, controller, watchers, queue.
     dave = people["dave"] = log_in(logged_in, lab, "dave")
@@ -194,7 +200,8 @@ def test_watchers_queue_and_take_over_without_reloading(
     bob.screenshot(path=str(artifacts / "rig-after-run.png"), full_page=True)
 
     # My runs -> the run's page -> its CSV, which feeds straight back into identify.
-    bob.click("#nav a[data-nav=runs]")
+    with bob.expect_request(lambda r: "/api/runs?user=bob" in r.url):
+        bob.click("#nav a[data-nav=runs]")
     bob.wait_for_selector("table.runs tbody tr")
     # Compare it with the reference model, as in the paper's Table I.
     bob.check("table.runs tbody tr:first-child input[name=run]")
@@ -204,6 +211,9 @@ def test_watchers_queue_and_take_over_without_reloading(
         row = f"table.compare tr[data-method={method}]"
         assert abs(float(bob.inner_text(f"{row} [data-field=K]")) / TRUE_K - 1) < 0.02
         assert "%" in bob.inner_text(f"{row} [data-field=dK]")
+        assert (
+            bob.inner_text(f"{row} [data-field=conv]") == "–"
+        )  # one estimate: nothing to converge
     bob.screenshot(path=str(artifacts / "compare.png"), full_page=True)
     bob.go_back()
     bob.wait_for_selector("table.runs tbody tr")
@@ -257,18 +267,23 @@ def test_bad_values_are_refused_before_sending(
     erin.click("[data-panel-form=wlsm] button[data-action=start]")
     assert "less than 1" in erin.inner_text("#wlsm-gamma-err")
     erin.fill("#wlsm-gamma", "0.96")
-    # Initial parameters: offered only if the server's schema takes them (RunIn.w0).
-    takes_w0 = erin.evaluate(
-        "async () => 'w0' in (await (await fetch('/openapi.json')).json())"
-        ".components.schemas.RunIn.properties"
-    )
-    if takes_w0:
-        erin.fill("#wlsm-a0", "1.5")
-        erin.click("[data-panel-form=wlsm] button[data-action=start]")
-        assert "less than 1" in erin.inner_text("#wlsm-a0-err")
-    else:
-        assert erin.is_disabled("#wlsm-a0")
-        assert "does not take initial parameters" in erin.inner_text("#wlsm-a0-range")
+    # Initial parameters: the server's schema takes them (RunIn.w0), so the fields are on,
+    # with the paper's W0 to start from.
+    assert erin.is_enabled("#wlsm-a0")
+    assert erin.is_enabled("#wlsm-b0")
+    assert (erin.input_value("#wlsm-a0"), erin.input_value("#wlsm-b0")) == ("0.96329", "0.00099082")
+    assert "Allowed: more than 0 and less than 1" in erin.inner_text("#wlsm-a0-range")
+    erin.fill("#wlsm-a0", "1.5")
+    erin.click("[data-panel-form=wlsm] button[data-action=start]")
+    assert "less than 1" in erin.inner_text("#wlsm-a0-err")
+    erin.fill("#wlsm-a0", "0.96329")
+    # The operating point: a select in every panel, "auto" unless the student chooses.
+    for panel in ("srm-lsm", "malsm", "wlsm"):
+        options = erin.eval_on_selector_all(f"#{panel}-offset option", "os => os.map(o => o.value)")
+        assert options == ["auto", "initial", "fit", "none"]
+        assert erin.input_value(f"#{panel}-offset") == "auto"
+    # The sample time's range is the server's own (dt >= 0.01 s in RunIn).
+    assert "0.01 to 3600 s" in erin.inner_text("#srm-lsm-dt-range")
     assert sent == []
     erin.click("button[data-action=release]")
     wait_role(erin, "watcher")
@@ -319,13 +334,37 @@ def test_a_phone_screen_needs_no_sideways_scrolling(
     ks = float(phone.inner_text(f"{row} [data-field=K]"))
     assert abs(ks / TRUE_K - 1) < 0.25
     assert phone.evaluate(overflow) <= 0
+    note = phone.inner_text("[data-testid=operating-point-wlsm]")
+    assert note.startswith("Operating point: initial: the rig is at rest")
     phone.locator(".convergence").screenshot(path=str(artifacts / "phone-convergence.png"))
     phone.locator(".panels").screenshot(path=str(artifacts / "phone-panel-3.png"))
     phone.click("button[data-action=release]")
     wait_role(phone, "watcher")
 
-    phone.goto(f"{lab.url}/#/runs")
+    with phone.expect_request(lambda r: "/api/runs?user=dave" in r.url):
+        phone.goto(f"{lab.url}/#/runs")
     phone.wait_for_selector("table.runs")
+    assert phone.evaluate(overflow) <= 0
+    # The run's page: Tables I/II figures as the server computed and stored them.
+    phone.click("table.runs tbody tr:first-child a")
+    row = "tr[data-method=wlsm]"
+    phone.wait_for_selector(f"{row} [data-field=conv]")
+    run_id = int(phone.evaluate("() => location.hash.split('/').pop()"))
+    stats = phone.evaluate(
+        "async (id) => (await (await fetch(`/api/runs/${id}`)).json()).results.wlsm.stats",
+        run_id,
+    )
+    assert stats["last"] == 2000
+    shown = phone.inner_text(f"{row} [data-field=Kstats]").split(" / ")
+    assert_allclose(
+        [float(v) for v in shown], [stats["K"][k] for k in ("mean", "max", "min")], rtol=1e-5
+    )
+    conv = stats["converged_at"]
+    expected = " / ".join("never" if conv[k] is None else str(conv[k]) for k in ("K", "tau"))
+    assert phone.inner_text(f"{row} [data-field=conv]") == expected
+    assert phone.inner_text("[data-testid=operating-point]").startswith(
+        "initial: the rig is at rest"
+    )
     assert phone.evaluate(overflow) <= 0
 
 

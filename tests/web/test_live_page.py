@@ -251,3 +251,60 @@ def test_joining_half_way_replays_the_runs_history_and_nothing_else(page: Any) -
     assert page.inner_text("[data-testid=run-status-wlsm]").startswith(f"Run #{RUN} running")
     assert page.inner_text("[data-panel-view=wlsm] [data-method=wlsm] [data-field=K]") == "0.2"
     assert "Run 5" not in page.inner_text("[data-testid=chart-note]")
+
+
+def test_a_watcher_sees_the_controllers_countdown(page: Any) -> None:
+    page.evaluate("() => window.__live.open()")
+    rig = rig_json(page)
+    watcher = {**rig["access"], "role": "watcher", "controller": "dave", "timeLeft": 125}
+    hello(page, 1, {**rig, "access": watcher}, None)
+    assert page.inner_text("[data-testid=access-role]") == "You are watching (read-only)."
+    assert page.inner_text("dt[data-for=timeLeft]") == "Controller's time left"
+    first = page.inner_text("[data-field=timeLeft]")
+    assert first in ("2:05", "2:04")
+    # It counts down on the page, between access messages.
+    page.wait_for_function(
+        "(t) => document.querySelector('[data-field=timeLeft]').textContent !== t",
+        arg=first,
+        timeout=3_000,
+    )
+    assert page.inner_text("[data-field=timeLeft]") in ("2:04", "2:03")
+    assert page.is_disabled("[data-panel-form=srm-lsm] button[data-action=start]")
+    # Nobody at the controls: no countdown.
+    page.evaluate(
+        "(access) => window.__live.send({ type: 'access', access })",
+        {**watcher, "controller": None, "timeLeft": None},
+    )
+    assert page.inner_text("[data-field=timeLeft]") == "–"
+
+
+def test_an_estimate_without_a_model_says_why(page: Any) -> None:
+    page.evaluate("() => window.__live.open()")
+    rig = rig_json(page)
+    run = {
+        **run_json(RUN),
+        "operatingPoint": {
+            "asked": "auto",
+            "used": "fit",
+            "atRest": False,
+            "reason": "fit: the rig is not at rest (run 7 on it ended 3 s ago; it may still be "
+            "cooling), so its first sample is no equilibrium",
+        },
+    }
+    hello(page, 50, rig, run)
+    assert page.inner_text("[data-testid=operating-point-wlsm]").startswith(
+        "Operating point: fit: the rig is not at rest (run 7 on it ended 3 s ago"
+    )
+    reason = "unstable or integrating model: a pole on or outside the unit circle (a >= 1)"
+    page.evaluate(
+        """(reason) => window.__live.send({ type: 'estimate', seq: 51, run: RUN,
+             method: 'wlsm', k: 3, K: null, tau: null, W: [1.02, 0.001, 0.0], valid: false,
+             final: false, reason })""",
+        reason,
+    )
+    status = "[data-panel-view=wlsm] [data-method=wlsm] [data-field=status]"
+    page.wait_for_function(
+        "(sel) => document.querySelector(sel).textContent.startsWith('live: ')", arg=status
+    )
+    assert page.inner_text(status) == f"live: {reason}"
+    assert page.inner_text("[data-panel-view=wlsm] [data-method=wlsm] [data-field=K]") == "–"

@@ -350,9 +350,12 @@ def test_model_arithmetic_matches_eq_4(module_page: Any) -> None:
         return {
           a: d.a, b: d.b, back, w0, y0: y[0], y1: y[1], yEnd: y[2999],
           y2: [...y2], none: m.fromDiscrete(1.2, 0.1, 1),
-          conv: [m.convergedAt([5, 3, 1.005, 0.999, 1.0], 1.0), m.convergedAt([1, 1], 1),
-                 m.convergedAt([1, 2], 1)],
-          stats: m.stats([1, NaN, 3, 2]),
+          base: [m.predictionBase('initial', [0.99, 0.001], 0.5),
+                 m.predictionBase(undefined, null, 0.5),
+                 m.predictionBase('fit', [0.99, 0.001, 0.002], 0.5),
+                 m.predictionBase('fit', [1.2, 0.001, 0.002], 0.5),
+                 m.predictionBase('none', [0.99, 0.001], 0.5),
+                 m.predictionBase(2.5, [0.99, 0.001], 0.5)],
           fmt: [m.fmt(0.1400901234), m.fmt(250.126233), m.fmt(NaN), m.fmt(1e-6, 3)],
         };
         """,
@@ -369,8 +372,8 @@ def test_model_arithmetic_matches_eq_4(module_page: Any) -> None:
     a2 = math.exp(-1)
     assert_allclose(r["y2"], [1.5, 0.5 + a2 + (1 - a2) * 20], rtol=1e-14)
     assert r["none"] is None
-    assert r["conv"] == [2, 0, None]
-    assert r["stats"] == {"mean": 2, "max": 3, "min": 1, "n": 3}
+    # The level a model is drawn about: the first output, or the fitted ambient c / (1 - a).
+    assert_allclose(r["base"], [0.5, 0.5, 0.2, 0.5, 0.0, 2.5], rtol=1e-12)
     assert r["fmt"] == ["0.14009", "250.126", "–", "1.00e-6"]
 
 
@@ -389,7 +392,12 @@ def test_each_panel_builds_its_run_request(module_page: Any) -> None:
                     low: 0, high: 4 };
         const p3 = buildRunSpec({ id: 'wlsm' }, w, true);
         const p3w0 = buildRunSpec({ id: 'wlsm' }, w, true, { w0: true });
-        return { p1, p1b, p2, p3, p3w0, sig: automaticSignal(4, 6, 1),
+        const p3fit = buildRunSpec({ id: 'wlsm' }, { ...w, offset: 'fit' }, true,
+                                   { w0: true, offset: true });
+        const p2old = buildRunSpec({ id: 'malsm' },
+                                   { dt: 1, n: 500, window: 100, low: 4, high: 6, offset: 'fit' },
+                                   true);
+        return { p1, p1b, p2, p3, p3w0, p3fit, p2old, sig: automaticSignal(4, 6, 1),
                  panels: [panelOfRun(p1), panelOfRun(p2), panelOfRun(p3)] };
         """,
     )
@@ -418,6 +426,8 @@ def test_each_panel_builds_its_run_request(module_page: Any) -> None:
         "pmax": 1e4,
     }
     assert r["p3w0"]["w0"] == [0.96329, 9.9082e-4]
+    assert (r["p3fit"]["offset"], r["p3fit"]["w0"]) == ("fit", [0.96329, 9.9082e-4])
+    assert "offset" not in r["p2old"]  # a server whose schema has no offset is not sent one
     assert r["panels"] == ["srm-lsm", "malsm", "wlsm"]
 
 
@@ -425,18 +435,22 @@ def test_ranges_are_read_from_the_servers_schema(module_page: Any) -> None:
     r = run_js(
         module_page,
         """
-        const { numericRange, hasProperty } = await import('/js/schema.js');
+        const { numericRange, hasProperty, enumValues } = await import('/js/schema.js');
         const { rangeText } = await import('/js/validate.js');
         const doc = { components: { schemas: { RunIn: { properties: {
           dt: { type: 'number', exclusiveMinimum: 0, maximum: 3600 },
           samples: { type: 'integer', minimum: 1, maximum: 200000 },
           pmax: { anyOf: [{ type: 'number', exclusiveMinimum: 0 }, { type: 'null' }] },
-          signal: { anyOf: [{ type: 'string' }, { type: 'null' }] } } } } } };
+          signal: { anyOf: [{ type: 'string' }, { type: 'null' }] },
+          offset: { anyOf: [{ type: 'string', enum: ['auto', 'initial', 'fit', 'none'] },
+                            { type: 'number' }], default: 'auto' } } } } } };
         const dt = numericRange(doc, 'RunIn', 'dt');
         const samples = numericRange(doc, 'RunIn', 'samples');
         const pmax = numericRange(doc, 'RunIn', 'pmax');
         return { dt, samples, pmax, none: numericRange(doc, 'RunIn', 'signal'),
                  missing: numericRange(doc, 'RunIn', 'w0'), w0: hasProperty(doc, 'RunIn', 'w0'),
+                 offsets: enumValues(doc, 'RunIn', 'offset'),
+                 noOffsets: enumValues(doc, 'RunIn', 'signal'),
                  texts: [rangeText({ ...dt, unit: 's' }), rangeText(samples), rangeText(pmax)] };
         """,
     )
@@ -446,6 +460,8 @@ def test_ranges_are_read_from_the_servers_schema(module_page: Any) -> None:
     assert r["none"] is None
     assert r["missing"] is None
     assert r["w0"] is False
+    assert r["offsets"] == ["auto", "initial", "fit", "none"]
+    assert r["noOffsets"] is None
     assert r["texts"] == [
         "more than 0 and at most 3600 s",
         "an integer from 1 to 200000",
@@ -478,55 +494,65 @@ def test_csv_and_error_messages_are_read_as_the_server_sends_them(module_page: A
     assert r["e3"] == "500 Internal Server Error"
 
 
-def test_table_figures_follow_the_identification_conventions(module_page: Any) -> None:
-    """Stats over the last 2000 samples and ±1 % convergence, as thermolab.ident computes them."""
-    from thermolab.ident import ArxOrder, Trajectory
+def test_table_figures_are_the_servers_own(module_page: Any) -> None:
+    """The comparison reads the statistics the lab stored (thermolab.ident's Trajectory.stats
+    and converged_at), and computes none itself."""
+    from thermolab.ident.online import make_identifier
+    from thermolab.lab.runs import json_safe, method_statistics
+    from thermolab.simulation import REFERENCE_MODEL
 
     rng = np.random.default_rng(7)
-    k = np.arange(3000)
-    K = 0.14009 * (1 + 0.5 * np.exp(-k / 40)) + rng.normal(0, 2e-5, k.size)
-    tau = 250.126233 * (1 - 0.4 * np.exp(-k / 90)) + rng.normal(0, 0.02, k.size)
-    a = np.exp(-1.0 / tau)
-    W = np.column_stack([a, (1 - a) * K])
-    W[:5] = np.nan  # no estimate yet
-    W[5] = [1.2, 0.1]  # an unstable estimate: not valid
-    tr = Trajectory("wlsm", 1.0, W, ArxOrder(), "initial", ("a", "b"))
+    u = np.where((np.arange(3000) // 5) % 2 == 0, 4.0, 0.0)
+    y = REFERENCE_MODEL.simulate(u) + rng.normal(0, 1e-5, u.size)
+    ident = make_identifier("wlsm", 1.0, gamma=0.96, pmax=1e4, w0=[0.96329, 9.9082e-4])
+    estimates = [ident.update(uk, yk) for uk, yk in zip(u, y, strict=True)]
+    latest = ident.finish()
+    assert latest is not None
+    stats = json_safe(method_statistics("wlsm", ident, latest.to_dict()))
     stored = {
-        "latest": {"K": float(tr.K[-1]), "tau": float(tr.tau[-1]), "valid": True, "k": 2999},
-        "trajectory": {
-            "k": k[5:].tolist(),
-            "K": [None if not np.isfinite(v) else float(v) for v in tr.K[5:]],
-            "tau": [None if not np.isfinite(v) else float(v) for v in tr.tau[5:]],
-            "valid": tr.valid[5:].tolist(),
+        "latest": latest.to_dict(),
+        "trajectory": {  # for the charts only: deliberately not what the stats came from
+            "k": [e.k for e in estimates[:50] if e is not None],
+            "K": [0.5] * 50,
+            "tau": [10.0] * 50,
+            "valid": [True] * 50,
         },
+        "stats": stats,
     }
     r = run_js(
         module_page,
         f"""
         const {{ readResult }} = await import('/js/results.js');
         const f = readResult({json.dumps(stored)}, 'wlsm');
-        return {{ K: f.K, tau: f.tau, conv: f.convergedAt, valid: f.valid,
-                 single: readResult({{ latest: {{ K: 0.14, tau: 250, valid: true,
-                   extras: {{ warnings: ['short record'] }} }} }}, 'srm'),
+        return {{ K: f.K, tau: f.tau, conv: f.convergedAt, converges: f.converges,
+                 valid: f.valid, last: f.last, W: f.final.W, points: f.trajectory.k.length,
+                 running: readResult({{ latest: {{ K: 0.14, tau: 250, valid: true, W: [0.99, 1e-3],
+                   extras: {{ warnings: ['short record'] }} }} }}, 'malsm'),
+                 lsm: readResult({{ latest: {{ K: 0.14, tau: 250, valid: true }},
+                   stats: {{ last: 2000, tol: 0.01, K: {{ mean: 0.14, max: 0.14, min: 0.14 }},
+                   tau: {{ mean: 250, max: 250, min: 250 }}, converged_at: null }} }}, 'lsm'),
                  invalid: readResult({{ latest: {{ K: null, tau: null, valid: false,
-                   extras: {{ reason: 'not excited' }} }} }}, 'lsm') }};
+                   extras: {{ reason: 'not excited' }} }},
+                   stats: {{ K: null, tau: null, converged_at: {{ K: null, tau: null }} }} }},
+                   'malsm') }};
         """,
     )
-    stats = tr.stats(2000)
     for name in ("K", "tau"):
-        assert_allclose(
-            [r[name]["mean"], r[name]["max"], r[name]["min"]],
-            [stats[name]["mean"], stats[name]["max"], stats[name]["min"]],
-            rtol=1e-12,
-        )
-    assert r["conv"] == tr.converged_at(0.01, 2000)
+        assert r[name] == stats[name]
+    assert r["conv"] == stats["converged_at"]
     assert r["conv"]["K"] is not None
-    assert r["valid"] is True
-    assert r["single"]["K"] == {"mean": 0.14, "max": 0.14, "min": 0.14}
-    assert r["single"]["warnings"] == ["short record"]
+    assert (r["converges"], r["valid"], r["last"], r["points"]) == (True, True, 2000, 50)
+    assert r["W"] == list(latest.W)
+    # A run still going: only its latest estimate, no statistics, no convergence yet.
+    assert r["running"]["K"] == {"mean": 0.14, "max": 0.14, "min": 0.14}
+    assert r["running"]["converges"] is False
+    assert r["running"]["warnings"] == ["short record"]
+    assert r["lsm"]["converges"] is False
+    assert r["lsm"]["tau"] == {"mean": 250, "max": 250, "min": 250}
     assert r["invalid"]["valid"] is False
     assert r["invalid"]["reason"] == "not excited"
-    assert r["invalid"]["K"] is None
+    assert (r["invalid"]["K"], r["invalid"]["converges"]) == (None, True)
+    assert r["invalid"]["convergedAt"] == {"K": None, "tau": None}
 
 
 def test_live_client_replays_everything_and_marks_the_history(module_page: Any) -> None:

@@ -28,11 +28,12 @@ export function fromDiscrete(a, b, dt) {
 }
 
 /**
- * The model's free-run response to the recorded input. The first output of the
- * run is taken as the equilibrium at 0 V (the identification's default
- * "initial" offset), so yhat[k] = y0 + x[k] with x[k+1] = a x[k] + b u[k].
- * `x0` is the state at the first sample given: 0 when `u` starts at the run's
- * first sample, else (a window of a long run) the measured y minus y0 there.
+ * The model's free-run response to the recorded input about the level y0 (the
+ * equilibrium at 0 V: the run's first output for the identification's default
+ * "initial" offset, else see predictionBase), so yhat[k] = y0 + x[k] with
+ * x[k+1] = a x[k] + b u[k]. `x0` is the state at the first sample given: 0
+ * when `u` starts at the run's first sample of a run from rest, else the
+ * measured y minus y0 there.
  * @param {ArrayLike<number>} u
  * @param {number} y0
  * @param {{K: number, tau: number}} model
@@ -55,35 +56,24 @@ export function predict(u, y0, model, dt, out, x0 = 0) {
 }
 
 /**
- * The first index after which every value stays within ±tol (relative) of
- * `target`, or null if the last value is outside (never converged).
- * @param {ArrayLike<number>} values
- * @param {number} target
+ * The level the model's response is drawn about, from how the run treated the
+ * operating point (RunOut.operatingPoint.used): "initial" (the default) takes
+ * the run's first output as the equilibrium at 0 V; "fit" estimated a
+ * constant term c with the model, W = [a, b, c], whose equilibrium at 0 V is
+ * c / (1 − a); "none" is the raw regression (0 V); a number is the known
+ * ambient output. Draw with predict(u, base, model, dt, out, y0 − base).
+ * @param {string | number | null | undefined} used
+ * @param {ArrayLike<number> | null | undefined} W  the estimate's discrete parameters
+ * @param {number} y0  the run's first output
  */
-export function convergedAt(values, target, tol = 0.01) {
-  if (!Number.isFinite(target) || values.length === 0) return null;
-  const band = Math.abs(target) * tol;
-  for (let i = values.length - 1; i >= 0; i -= 1) {
-    const v = values[i];
-    if (!(Math.abs(v - target) <= band)) return i + 1 < values.length ? i + 1 : null;
+export function predictionBase(used, W, y0) {
+  if (typeof used === "number" && Number.isFinite(used)) return used;
+  if (used === "none") return 0;
+  if (used === "fit" && W && W.length === 3) {
+    const [a, , c] = W;
+    if (a > 0 && a < 1 && Number.isFinite(c)) return c / (1 - a);
   }
-  return 0;
-}
-
-/** mean, max and min over the finite values; null when there are none. */
-export function stats(values) {
-  let n = 0;
-  let sum = 0;
-  let max = -Infinity;
-  let min = Infinity;
-  for (const v of values) {
-    if (!Number.isFinite(v)) continue;
-    n += 1;
-    sum += v;
-    if (v > max) max = v;
-    if (v < min) min = v;
-  }
-  return n ? { mean: sum / n, max, min, n } : null;
+  return y0;
 }
 
 /** Absolute and relative deviation of a value from a reference. */

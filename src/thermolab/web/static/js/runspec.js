@@ -27,10 +27,10 @@ export function automaticSignal(low, high, dt) {
  * The body of POST /api/rigs/{rig}/runs (RunIn of /openapi.json) for a panel's
  * checked values.
  * @param {{id: string}} panel
- * @param {Record<string, number>} v  checked values (dt, n, setpoint | low/high, block,
- *   window, gamma, pmax, a0, b0)
+ * @param {Record<string, number | string>} v  checked values (dt, n, setpoint | low/high,
+ *   block, window, gamma, pmax, a0, b0; offset: the operating-point mode)
  * @param {boolean} automatic
- * @param {{w0?: boolean}} [server]  what the server accepts beyond the basics
+ * @param {{w0?: boolean, offset?: boolean}} [server]  what the server accepts beyond the basics
  */
 export function buildRunSpec(panel, v, automatic, server = {}) {
   const spec = { dt: v.dt, samples: v.n };
@@ -54,6 +54,7 @@ export function buildRunSpec(panel, v, automatic, server = {}) {
   } else {
     throw new RangeError(`unknown panel ${panel.id}`);
   }
+  if (server.offset && typeof v.offset === "string" && v.offset) spec.offset = v.offset;
   return spec;
 }
 
@@ -102,6 +103,8 @@ export function readRun(r) {
     samples: Number(r.samplesTaken ?? r.samplesStored ?? 0),
     results,
     estimates,
+    // How the identifiers treated the operating point, and why (null for older runs).
+    operatingPoint: r.operatingPoint && typeof r.operatingPoint === "object" ? r.operatingPoint : null,
   };
 }
 

@@ -45,3 +45,18 @@ export function numericRange(doc, schemaName, prop) {
 export function hasProperty(doc, schemaName, prop) {
   return Boolean(doc?.components?.schemas?.[schemaName]?.properties?.[prop]);
 }
+
+/**
+ * The string choices a property accepts: the `enum` of the property or of a
+ * branch of its `anyOf` (e.g. RunIn.offset: "auto", "initial"...). Null when none.
+ * @param {any} doc the OpenAPI document
+ * @param {string} schemaName
+ * @param {string} prop
+ */
+export function enumValues(doc, schemaName, prop) {
+  const schema = doc?.components?.schemas?.[schemaName]?.properties?.[prop];
+  if (!schema) return null;
+  const branches = Array.isArray(schema.anyOf) ? schema.anyOf : [schema];
+  const found = branches.find((s) => Array.isArray(s.enum));
+  return found ? found.enum.filter((v) => typeof v === "string") : null;
+}

@@ -109,6 +109,8 @@ export class AccessPanel {
     this.fields.idleLeft.title = "Control ends after this long without a command (a run in progress counts as activity).";
     const left = this._secondsLeft();
     const dd = this.fields.timeLeft;
+    // Everyone sees the controller's countdown: it tells a watcher when the rig changes hands.
+    setText(this.facts.querySelector('[data-for="timeLeft"]'), this.isController ? "Your time left" : "Controller's time left");
     setText(dd, left === null ? "–" : duration(left));
     dd.setAttribute("aria-label", left === null ? "no time limit running" : durationWords(left));
     if (this.isController && left !== null) {

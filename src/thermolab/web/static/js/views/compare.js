@@ -101,7 +101,7 @@ export function comparisonTable(runs, ref) {
       h("td", { class: "num", "data-field": "dK" }, dev(f.K, ref.K)),
       h("td", { class: "num", "data-field": "tau" }, mmm(f.tau)),
       h("td", { class: "num", "data-field": "dtau" }, dev(f.tau, ref.tau)),
-      h("td", { class: "num", "data-field": "conv" }, f.trajectory ? `${f.convergedAt.K ?? "never"} / ${f.convergedAt.tau ?? "never"}` : "–"),
+      h("td", { class: "num", "data-field": "conv" }, f.converges ? `${f.convergedAt.K ?? "never"} / ${f.convergedAt.tau ?? "never"}` : "–"),
     ),
   );
   return h(

@@ -8,7 +8,10 @@
 //
 // Every field shows its allowed range and is checked before anything is sent;
 // the server's own message is shown when it refuses. The forms are locked for
-// anyone who is not the controller, and unlock as soon as they are.
+// anyone who is not the controller, and unlock as soon as they are. Each panel
+// also says how the operating point is handled (RunIn.offset): "auto" lets the
+// lab remove the first sample of a rig at rest and fit the operating point of
+// a warm one, and the run's result says which it did and why.
 
 import { h, nextId, setText } from "../dom.js";
 import { fmt, PAPER_W0 } from "../model.js";
@@ -25,19 +28,39 @@ import { methodName, methodTitle, panelOfRun } from "../runspec.js";
  * known; the panels are locked until then anyway.
  */
 export const DEFAULT_RANGES = Object.freeze({
-  dt: { min: 0, exclusiveMin: true, max: 3600 },
+  dt: { min: 0.01, max: 3600 },
   samples: { min: 1, max: 200000, integer: true },
   window: { min: 2, max: 100000, integer: true },
   block: { min: 2, max: 100000, integer: true },
-  gamma: { min: 0, exclusiveMin: true, max: 1 },
+  gamma: { min: 0, exclusiveMin: true, max: 1, exclusiveMax: true },
   pmax: { min: 0, exclusiveMin: true, max: Infinity },
 });
+
+/** The choices of RunIn.offset, as the select shows them (OFFSET_HINT says what they mean). */
+export const OFFSET_LABELS = Object.freeze({
+  auto: "auto (the lab decides)",
+  initial: "initial",
+  fit: "fit",
+  none: "none",
+});
+const OFFSET_HINT =
+  "auto: initial on a rig at rest, fit on a warm one (still cooling after a run). " +
+  "initial: the first sample is the equilibrium at 0 V and is removed. " +
+  "fit: a constant term is estimated with the model. none: the raw regression.";
+
+/** How a run handled the operating point, in words (RunOut.operatingPoint). */
+export function operatingPointText(op) {
+  if (!op || typeof op !== "object") return "";
+  if (op.used === null || op.used === undefined) return "";
+  return `Operating point: ${op.reason ?? op.used}`;
+}
 
 /**
  * Field definitions of each panel.
  * @param {{inputMin: number, inputMax: number, inputUnit: string,
- *   ranges: typeof DEFAULT_RANGES, w0: boolean}} limits  the rig's input range, the
- *   server's ranges for the run's settings, and whether it takes initial WLSM parameters
+ *   ranges: typeof DEFAULT_RANGES, w0: boolean, offsets?: string[] | null}} limits  the
+ *   rig's input range, the server's ranges for the run's settings, whether it takes
+ *   initial WLSM parameters, and the operating-point modes it offers (null: none)
  */
 export function panelDefinitions(limits) {
   const r = { ...DEFAULT_RANGES, ...limits.ranges };
@@ -209,6 +232,23 @@ export class Panels {
       }
       fieldset.append(this._field(view, f));
     }
+    if (this.limits.offsets?.length) {
+      const id = `${def.id}-offset`;
+      view.offset = h(
+        "select",
+        { id, name: "offset", "aria-describedby": `${id}-hint` },
+        this.limits.offsets.map((mode) => h("option", { value: mode }, OFFSET_LABELS[mode] ?? mode)),
+      );
+      fieldset.append(
+        h(
+          "div",
+          { class: "field" },
+          h("label", { for: id }, "Operating point"),
+          view.offset,
+          h("span", { class: "hint", id: `${id}-hint` }, OFFSET_HINT),
+        ),
+      );
+    }
     view.automatic = autoBox;
     const updateAuto = () => {
       const on = autoBox.checked;
@@ -276,6 +316,7 @@ export class Panels {
 
     view.results = h("div", { class: "results", "data-testid": `results-${def.id}` });
     view.status = h("p", { class: "run-status", "data-testid": `run-status-${def.id}` });
+    view.operatingPoint = h("p", { class: "hint", "data-testid": `operating-point-${def.id}` });
     view.el = h(
       "div",
       { role: "tabpanel", id: panelId, "aria-labelledby": tabId, class: "panel", tabindex: "0", "data-panel-view": def.id },
@@ -284,6 +325,7 @@ export class Panels {
       runForm,
       h("h3", null, "Model"),
       view.status,
+      view.operatingPoint,
       view.results,
     );
     updateAuto();
@@ -369,6 +411,7 @@ export class Panels {
       return null;
     }
     setText(view.formError, "");
+    if (view.offset) values.offset = view.offset.value;
     return { values, automatic };
   }
 
@@ -488,6 +531,8 @@ export class Panels {
 
   _renderResults(view) {
     const run = this.run && panelOfRun(this.run) === view.def.id ? this.run : null;
+    setText(view.operatingPoint, operatingPointText(run?.operatingPoint));
+    view.operatingPoint.hidden = !view.operatingPoint.textContent;
     const asked = new Set(run ? run.methods.map(methodName) : []);
     const shown = view.def.methods.filter((m) => !(view.def.optional ?? []).includes(m) || asked.has(m));
     const rows = shown.map((m) => {

@@ -7,10 +7,10 @@ import { api } from "../api.js";
 import { Chart } from "../charts.js";
 import { announce, h, setText } from "../dom.js";
 import { LiveClient } from "../live.js";
-import { fmt, predict } from "../model.js";
+import { fmt, predict, predictionBase } from "../model.js";
 import { DecimatingBuffer, RingBuffer } from "../ring.js";
 import { buildRunSpec, methodName, methodTitle, panelOfRun, readEstimate, readRun, RECURSIVE } from "../runspec.js";
-import { hasProperty, numericRange, openapi } from "../schema.js";
+import { enumValues, hasProperty, numericRange, openapi } from "../schema.js";
 import { readAccess, readRig, stateLabel } from "../shapes.js";
 import { parseCsv } from "../csv.js";
 import { AccessPanel } from "./access.js";
@@ -204,6 +204,7 @@ class RigPage {
       inputUnit: rig?.inputUnit ?? "V",
       ranges,
       w0: Boolean(doc && hasProperty(doc, "RunIn", "w0")),
+      offsets: doc ? enumValues(doc, "RunIn", "offset") : null,
     };
   }
 
@@ -583,7 +584,9 @@ class RigPage {
     const seg = this.segment;
     const fromStart = seg.firstK === 0 && this.ring.length === seg.lastK + 1;
     const y0 = Number.isFinite(seg.y0) ? seg.y0 : y[0];
-    const yhat = predict(u, y0, model, this.run.dt, this.yhat, fromStart ? 0 : y[0] - y0);
+    // A warm rig's run fits its operating point: the model settles there, not at y0.
+    const base = predictionBase(this.run.operatingPoint?.used, model.W, y0);
+    const yhat = predict(u, base, model, this.run.dt, this.yhat, (fromStart ? y0 : y[0]) - base);
     return [t, y, yhat];
   }
 
@@ -595,7 +598,10 @@ class RigPage {
   // -- commands -------------------------------------------------------------------------
 
   async _start(panel, values, automatic) {
-    const spec = buildRunSpec(panel, values, automatic, { w0: hasProperty(this.schemaDoc, "RunIn", "w0") });
+    const spec = buildRunSpec(panel, values, automatic, {
+      w0: hasProperty(this.schemaDoc, "RunIn", "w0"),
+      offset: hasProperty(this.schemaDoc, "RunIn", "offset"),
+    });
     const answer = await api.startRun(this.rigId, spec);
     const run = readRun(answer);
     if (run && (!this.run || this.run.id !== run.id)) {

@@ -4,7 +4,7 @@
 import { api } from "../api.js";
 import { Chart } from "../charts.js";
 import { h, setText, when } from "../dom.js";
-import { fmt, predict } from "../model.js";
+import { fmt, predict, predictionBase } from "../model.js";
 import { readResult } from "../results.js";
 import { inputText, methodTitle, readRun } from "../runspec.js";
 
@@ -71,6 +71,11 @@ function render(main, exported, charts) {
   add("Methods", run.methods.map(methodTitle).join(", "));
   const settings = Object.entries(run.settings ?? {}).filter(([, v]) => v !== null && typeof v !== "object");
   if (settings.length) add("Settings", settings.map(([k, v]) => `${k} = ${v}`).join(", "));
+  const w0 = run.settings?.w0;
+  if (Array.isArray(w0)) add("Initial parameters W0", `[${w0.map((v) => fmt(v)).join(", ")}]`);
+  if (run.operatingPoint?.used !== null && run.operatingPoint?.used !== undefined) {
+    facts.append(h("dt", null, "Operating point"), h("dd", { "data-testid": "operating-point" }, run.operatingPoint.reason ?? String(run.operatingPoint.used)));
+  }
   main.append(
     h(
       "section",
@@ -103,7 +108,10 @@ function render(main, exported, charts) {
   const computeModel = () => {
     const f = modelPick.value === "" ? null : withModel[Number(modelPick.value)];
     if (!f || y.length === 0) yhat.fill(Number.NaN);
-    else predict(u, y[0], { K: f.final.K, tau: f.final.tau }, run.dt, yhat);
+    else {
+      const base = predictionBase(run.operatingPoint?.used, f.final.W, y[0]);
+      predict(u, base, { K: f.final.K, tau: f.final.tau }, run.dt, yhat, y[0] - base);
+    }
   };
   computeModel();
   const thin = thinner(t.length);
@@ -166,9 +174,9 @@ function resultsSection(figures) {
       h("th", { scope: "row" }, methodTitle(f.method)),
       h("td", { class: "num", "data-field": "K" }, f.valid ? fmt(f.final.K) : "–"),
       h("td", { class: "num", "data-field": "tau" }, f.valid ? fmt(f.final.tau) : "–"),
-      h("td", { class: "num" }, spread(f.K)),
-      h("td", { class: "num" }, spread(f.tau)),
-      h("td", { class: "num" }, f.trajectory ? `${f.convergedAt.K ?? "never"} / ${f.convergedAt.tau ?? "never"}` : "–"),
+      h("td", { class: "num", "data-field": "Kstats" }, spread(f.K)),
+      h("td", { class: "num", "data-field": "taustats" }, spread(f.tau)),
+      h("td", { class: "num", "data-field": "conv" }, f.converges ? `${f.convergedAt.K ?? "never"} / ${f.convergedAt.tau ?? "never"}` : "–"),
       h("td", null, [f.valid ? "" : (f.reason ?? "no first-order model"), ...f.warnings].filter(Boolean).join("; ") || "–"),
     ),
   );

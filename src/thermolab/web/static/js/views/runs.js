@@ -80,10 +80,9 @@ export function mount(main, _params, ctx) {
   const abort = new AbortController();
   (async () => {
     try {
-      const data = await api.runs("", { signal: abort.signal });
-      // A teacher is sent everyone's runs: here, only their own.
-      const runs = (Array.isArray(data) ? data : []).filter((r) => r.username === undefined || r.username === ctx.user?.username);
-      host.replaceChildren(runsPicker(runs, ctx, { label: "Your runs" }));
+      // Only the user's own runs (a teacher would otherwise be sent everyone's).
+      const data = await api.runs(`?user=${encodeURIComponent(ctx.user?.username ?? "")}`, { signal: abort.signal });
+      host.replaceChildren(runsPicker(Array.isArray(data) ? data : [], ctx, { label: "Your runs" }));
       setText(status, "");
     } catch (err) {
       if (err.name !== "AbortError") setText(status, `Could not load your runs: ${err.message}`);

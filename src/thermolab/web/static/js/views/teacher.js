@@ -42,8 +42,6 @@ export function mount(main, _params, ctx) {
           list.append(card.el);
         }
         card.update(rig);
-        if (rig.access.controller) void card.loadDeadline(abort.signal);
-        else card.deadline = null;
       }
       setText(status, "");
     } catch (err) {
@@ -147,25 +145,9 @@ class RigCard {
     this._watchKey = "";
   }
 
-  /**
-   * The rig's access state gives the remaining time to the controller only;
-   * a teacher reads the deadline of the active turn from its control sessions.
-   */
-  async loadDeadline(signal) {
-    try {
-      const sessions = await api.controlSessions(this.rigId, { signal });
-      const active = (Array.isArray(sessions) ? sessions : []).find((s) => !s.endedAt);
-      this.deadline = active ? Date.parse(active.deadline) : null;
-    } catch {
-      this.deadline = null;
-    }
-    this.renderTime();
-  }
-
+  /** The controller's time left counts down between refreshes (everyone is given it). */
   renderTime() {
-    const a = this.rig?.access;
-    let left = null;
-    if (a?.controller) left = a.timeLeft ?? (this.deadline ? Math.max(0, (this.deadline - Date.now()) / 1000) : null);
+    const left = this.deadline === null ? null : Math.max(0, (this.deadline - Date.now()) / 1000);
     setText(this.f.timeLeft, left === null ? "–" : duration(left));
   }
 
@@ -183,6 +165,7 @@ class RigCard {
 
   update(rig) {
     this.rig = rig;
+    this.deadline = rig.access.controller && rig.access.timeLeft !== null ? Date.now() + rig.access.timeLeft * 1000 : null;
     setText(this.title, rig.title || rig.id);
     setText(this.badge, stateLabel(rig.state));
     this.badge.dataset.state = rig.state;
