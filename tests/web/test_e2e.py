@@ -119,8 +119,11 @@ def test_watchers_queue_and_take_over_without_reloading(
     )
     # Everyone sees how long Alice's turn has left (about the rig's 300 s), counting down.
     for page in (bob, carol):
+        page.wait_for_function(  # each page hears of Alice's turn on its own socket
+            "() => /^[45]:\\d\\d$/.test(document.querySelector('[data-field=timeLeft]')"
+            ".textContent)"
+        )
         assert page.inner_text("dt[data-for=timeLeft]") == "Controller's time left"
-        assert re.fullmatch(r"[45]:\d\d", page.inner_text("[data-field=timeLeft]"))
     assert alice.inner_text("dt[data-for=timeLeft]") == "Your time left"
 
     # The lobby as a fourth student sees it: states, controller, watchers, queue.
