@@ -1,48 +1,75 @@
 """Load benchmark of the live stream: N watchers of one rig sampled at 10 Hz.
 
-Starts ``thermolab serve`` in a child process (a SQLite database in a temporary
-folder, the paper's twin in real time), takes control, starts a run at
-``dt = 0.1 s`` with two identifiers, and connects N watchers over real
-WebSockets on loopback (all in this process, on one asyncio loop), plus one
-*stalled* watcher that connects and never reads. Each watcher notes when each
-sample ``k`` of the run arrives.
+For each number of watchers, two servers are measured in turn with the same
+clients:
 
-Delay of a sample at a watcher = arrival time - (t0 + k dt), with t0 the run's
+* **thermolab**: ``thermolab serve`` in a child process (a SQLite database in a
+  temporary folder, the realistic twin in real time). A teacher takes
+  control and starts a run at ``dt = 0.1 s`` with LSM and WLSM, so every
+  watcher gets 10 ``sample`` and 10 ``estimate`` messages a second.
+* **peer**: a bare ``websockets`` broadcast server in a child process of its
+  own (uvloop, no database, no identifiers, no per-client queues) that
+  broadcasts a ``sample`` and an ``estimate`` message of the same shape and
+  size every 0.1 s, one WebSocket frame per message. Like ours it does not
+  negotiate per-message compression.
+
+The watchers are real WebSocket connections on loopback, spread over
+``--client-procs`` client processes (uvloop, the ``websockets`` sans-I/O
+protocol behind a bare asyncio protocol: the library parses the frames, and a
+frame is decoded only as far as needed to read the sample number ``k``), so
+the clients' own cost stays small; their CPU is reported beside the
+server's. One more watcher is *stalled*: it connects with a small receive
+buffer and never reads after the handshake; at the end it reads what had
+reached it, to tell whether the server cut it (4408) or kept it.
+
+Delay of a sample at a watcher = arrival - (t0 + k dt), with t0 the run's
 start as the earliest arrival of any sample shows it (min over watchers and k
 of ``arrival - k dt``): the figures are the delay beyond the fastest delivery
-seen, i.e. queueing in the server and clients, not the loopback's fixed cost.
+seen, i.e. queueing in the server and clients (and the sampling loop's own
+lateness), not the loopback's fixed cost. All processes use the system's
+monotonic clock.
 
-Peer, measured in the same run the same way: a bare ``websockets`` broadcast
-server (one process, the same JSON text sent to every client at 10 Hz, no
-database, no identifiers) with the same N watchers.
+CPU is measured from ``/proc`` (Linux) between the first sample reaching the
+first client process and the last watcher seeing the end of the run, as a
+percentage of one core, for the server and for all client processes
+together, beside the whole machine's busy time (100 % = both cores).
 
 Usage::
 
-    .venv/bin/python benchmarks/bench_live.py                  # 500 watchers, 20 s
-    .venv/bin/python benchmarks/bench_live.py --watchers 100 --seconds 10
+    .venv/bin/python benchmarks/bench_live.py                    # 50, 200, 500 watchers, 20 s
+    .venv/bin/python benchmarks/bench_live.py --watchers 500 --seconds 30 --client-procs 2
 """
 
 from __future__ import annotations
 
 import argparse
+import array
 import asyncio
 import contextlib
 import json
 import os
 import socket
-import statistics
 import subprocess
 import sys
 import tempfile
 import textwrap
 import time
+from collections import Counter
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, cast
 
 import httpx
-import websockets
+from websockets.client import ClientProtocol
+from websockets.extensions.permessage_deflate import ClientPerMessageDeflateFactory
+from websockets.frames import Opcode
+from websockets.http11 import Response
+from websockets.uri import parse_uri
 
 PYTHON = sys.executable
+SCRIPT = str(Path(__file__).resolve())
 DT = 0.1
+TICKS = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
 
 
 def free_port() -> int:
@@ -52,7 +79,7 @@ def free_port() -> int:
         return port
 
 
-def wait_for(url: str, seconds: float = 30.0) -> None:
+def wait_for(url: str, seconds: float = 60.0) -> None:
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
         with contextlib.suppress(httpx.HTTPError):
@@ -62,101 +89,345 @@ def wait_for(url: str, seconds: float = 30.0) -> None:
     raise SystemExit(f"the server at {url} did not start")
 
 
-async def watch(
-    url: str, headers: dict[str, str], arrivals: list[tuple[int, float]], done: asyncio.Event
-) -> dict[str, int]:
-    """Receive until the run ends (or ``done``); note (k, arrival) of each run sample."""
-    counts: dict[str, int] = {}
-    async with websockets.connect(url, additional_headers=headers, max_size=2**24) as ws:
-        while not done.is_set():
-            try:
-                text = await asyncio.wait_for(ws.recv(), timeout=1.0)
-            except TimeoutError:
-                continue
-            now = time.monotonic()
-            if isinstance(text, str) and text.startswith('{"type":"estimate"'):
-                counts["estimate"] = counts.get("estimate", 0) + 1
-                continue  # the bulk of the rest: not parsed, to keep the clients' side light
-            message = json.loads(text)
-            kind = message.get("type")
-            counts[kind] = counts.get(kind, 0) + 1
-            if (kind == "sample" and message.get("run") is not None) or kind == "tick":
-                arrivals.append((message["k"], now))
-            elif (kind == "run" and message.get("event") == "ended") or kind == "end":
-                break
-    return counts
-
-
-async def stall(url: str, headers: dict[str, str], done: asyncio.Event) -> str:
-    """Connect and never read: the server must cut this client, not slow the others.
-
-    With ``max_queue=1`` the client library stops reading the socket once one
-    message waits, so the server's writes to it back up.
-    """
+def new_loop() -> asyncio.AbstractEventLoop:
     try:
-        async with websockets.connect(url, additional_headers=headers, max_queue=1) as ws:
-            await done.wait()
-            return "still connected" if ws.close_code is None else f"closed {ws.close_code}"
-    except websockets.ConnectionClosed as exc:
-        return f"closed {exc.code}"
+        import uvloop
+    except ImportError:  # pragma: no cover - uvicorn[standard] brings it
+        return asyncio.new_event_loop()
+    return uvloop.new_event_loop()
 
 
-def delays(all_arrivals: list[list[tuple[int, float]]]) -> tuple[list[float], int]:
-    flat = [(k, t) for arrivals in all_arrivals for k, t in arrivals]
-    if not flat:
-        return [], 0
-    t0 = min(t - k * DT for k, t in flat)
-    return sorted((t - (t0 + k * DT)) * 1000.0 for k, t in flat), len(flat)
+# -- the watchers (client processes) ------------------------------------------------------------
 
 
-def report(name: str, values: list[float], count: int, expected: int) -> dict[str, float]:
-    if not values:
-        print(f"{name:>10}: no samples received")
-        return {}
-    p = lambda q: values[min(len(values) - 1, int(q * len(values)))]  # noqa: E731
-    figures = {
-        "median": statistics.median(values),
-        "p99": p(0.99),
-        "max": values[-1],
-        "received": count / expected if expected else 0.0,
+class Watcher(asyncio.Protocol):
+    """One WebSocket client: notes (k, arrival) of each run sample it receives.
+
+    ``websockets``' sans-I/O ``ClientProtocol`` does the handshake and parses
+    frames; the frame's text is decoded only when it may hold a sample.
+    """
+
+    def __init__(self, url: str, cookie: str | None, stalled: bool = False) -> None:
+        self.url = url
+        self.cookie = cookie
+        self.stalled = stalled
+        self.ws = ClientProtocol(parse_uri(url), extensions=[ClientPerMessageDeflateFactory()])
+        self.transport: asyncio.Transport | None = None
+        self.opened: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        self.ended: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        self.first: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        self.ks = array.array("i")
+        self.arrivals = array.array("d")
+        self.counts: Counter[str] = Counter()
+        self.frames = 0
+        self.close_code: int | None = None
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        self.transport = cast(asyncio.Transport, transport)  # uvloop's is not a subclass
+        request = self.ws.connect()
+        if self.cookie:
+            request.headers["Cookie"] = self.cookie
+        self.ws.send_request(request)
+        self._flush()
+
+    def data_received(self, data: bytes) -> None:
+        now = time.monotonic()
+        self.ws.receive_data(data)
+        for event in self.ws.events_received():
+            if isinstance(event, Response):
+                if self.ws.handshake_exc is not None:
+                    self._done(self.opened, self.ws.handshake_exc)
+                else:
+                    self._done(self.opened)
+                    if self.stalled and self.transport is not None:
+                        self.transport.pause_reading()
+            elif event.opcode is Opcode.TEXT:
+                self.frames += 1
+                self._text(event.data, now)
+            elif event.opcode is Opcode.CLOSE:
+                self.close_code = self.ws.close_rcvd.code if self.ws.close_rcvd else None
+                self._done(self.ended)
+        self._flush()
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self._done(self.opened, exc or ConnectionError("closed before the handshake"))
+        self._done(self.ended)
+
+    def _text(self, data: bytes, now: float) -> None:
+        if data.startswith(b'{"type":"estimate"'):
+            self.counts["estimate"] += 1  # the bulk of the rest: not decoded
+            return
+        decoded = json.loads(data)
+        for message in decoded if isinstance(decoded, list) else (decoded,):
+            kind = message.get("type")
+            self.counts[kind] += 1
+            if (kind == "sample" and message.get("run") is not None) or kind == "tick":
+                self.ks.append(message["k"])
+                self.arrivals.append(now)
+                self._done(self.first)
+            elif (kind == "run" and message.get("event") == "ended") or kind == "end":
+                self._done(self.ended)
+
+    def _flush(self) -> None:
+        data = self.ws.data_to_send()
+        if data and self.transport is not None and not self.transport.is_closing():
+            self.transport.write(b"".join(data))
+
+    @staticmethod
+    def _done(future: asyncio.Future[None], exc: BaseException | None = None) -> None:
+        if not future.done():
+            if exc is None:
+                future.set_result(None)
+            else:
+                future.set_exception(exc)
+
+
+async def open_watcher(url: str, cookie: str | None, stalled: bool = False) -> Watcher:
+    loop = asyncio.get_running_loop()
+    uri = parse_uri(url)
+    sock = socket.socket()
+    sock.setblocking(False)
+    if stalled:  # a small window: the server's writes back up within seconds
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    await loop.sock_connect(sock, (uri.host, uri.port))
+    _, watcher = await loop.create_connection(lambda: Watcher(url, cookie, stalled), sock=sock)
+    await watcher.opened
+    return watcher
+
+
+async def client_main(url: str, cookie: str | None, count: int, stall: bool) -> None:
+    """A client process: ``count`` watchers (and maybe the stalled one); talks on stdio."""
+    watchers: list[Watcher] = []
+    for i in range(0, count, 50):  # in waves, as a class arrives
+        watchers += await asyncio.gather(
+            *(open_watcher(url, cookie) for _ in range(min(50, count - i)))
+        )
+    stalled = await open_watcher(url, cookie, stalled=True) if stall else None
+    print("ready", flush=True)
+    if stall:  # the first process says when the first sample came: CPU is measured from there
+        await asyncio.wait([w.first for w in watchers], return_when=asyncio.FIRST_COMPLETED)
+        print("first", flush=True)
+    _, pending = await asyncio.wait([w.ended for w in watchers], timeout=120)
+    print("done", flush=True)
+    stall_report = None
+    if stalled is not None and stalled.transport is not None:
+        seen_before = stalled.frames
+        stalled.transport.resume_reading()  # read what reached it: was it cut?
+        await asyncio.sleep(1.0)
+        stall_report = {
+            "close_code": stalled.close_code,
+            "frames_read_at_end": stalled.frames - seen_before,
+            "samples": len(stalled.ks),
+        }
+    result = {
+        "watchers": [
+            {"k": w.ks.tolist(), "t": w.arrivals.tolist(), "frames": w.frames} for w in watchers
+        ],
+        "counts": dict(watchers[0].counts) if watchers else {},
+        "unfinished": len(pending),
+        "stalled": stall_report,
     }
-    print(
-        f"{name:>10}: median {figures['median']:6.1f} ms   p99 {figures['p99']:6.1f} ms   "
-        f"max {figures['max']:7.1f} ms   received {100 * figures['received']:5.1f} % "
-        f"of {expected} sample deliveries"
+    print(json.dumps(result), flush=True)
+    for w in [*watchers, *([stalled] if stalled else [])]:
+        if w.transport is not None:
+            w.transport.abort()
+
+
+# -- the peer server -----------------------------------------------------------------------------
+
+
+def peer_messages(k: int, seq: int) -> tuple[str, str]:
+    """A sample and an estimate of the same shape and size as thermolab's."""
+    y = 2.5 + 0.7 * (1 - 0.999**k) + 1e-4 * ((k * 7919) % 13)
+    sample = {"type": "tick", "run": 1, "k": k, "t": round(k * DT, 10), "u": 6.0, "y": y}
+    estimate = {
+        "type": "estimate",
+        "run": 1,
+        "method": "wlsm",
+        "k": k,
+        "K": 0.14009012345678 + 1e-9 * k,
+        "tau": 250.12623312345 - 1e-7 * k,
+        "W": [0.9996001120312345, 5.599217128412345e-05],
+        "valid": True,
+        "final": False,
+        "seq": seq + 1,
+    }
+    sample["seq"] = seq
+    return (
+        json.dumps(sample, separators=(",", ":")),
+        json.dumps(estimate, separators=(",", ":")),
     )
-    return figures
 
 
-async def bench_thermolab(watchers: int, seconds: float) -> dict[str, float]:
-    port = free_port()
-    samples = int(seconds / DT)
-    with tempfile.TemporaryDirectory() as tmp:
-        config = Path(tmp, "lab.toml")
-        config.write_text(
-            textwrap.dedent(
-                """
-                [access]
-                login_attempts_per_address = 1000
-                max_body_bytes = 65536
+async def peer_main(port: int, samples: int) -> None:
+    """The bare broadcast server: starts sending on ``go`` from stdin."""
+    import websockets
+    from websockets.asyncio.server import ServerConnection, broadcast, serve
 
-                [rig_defaults]
-                control_time_limit = 3600
-                idle_limit = 0
+    connected: set[ServerConnection] = set()
 
-                [[rigs]]
-                id = "twin"
-                title = "Twin"
-                spec = "sim:paper-practical"
-                """
+    async def handler(ws: ServerConnection) -> None:
+        connected.add(ws)
+        try:
+            await ws.wait_closed()
+        finally:
+            connected.discard(ws)
+
+    loop = asyncio.get_running_loop()
+    async with serve(handler, "127.0.0.1", port, compression=None, max_queue=16):
+        print("listening", flush=True)
+        await loop.run_in_executor(None, sys.stdin.readline)  # "go"
+        start = time.monotonic()
+        seq = 10**15
+        for k in range(samples):
+            await asyncio.sleep(max(0.0, start + k * DT - time.monotonic()))
+            sample, estimate = peer_messages(k, seq)
+            seq += 2
+            broadcast(connected, sample)
+            broadcast(connected, estimate)
+        broadcast(connected, json.dumps({"type": "end"}))
+        await loop.run_in_executor(None, sys.stdin.readline)  # "stop"
+    del websockets
+
+
+# -- the orchestration ---------------------------------------------------------------------------
+
+
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU of a process (all its threads) so far."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / TICKS
+
+
+def machine_busy() -> tuple[float, float]:
+    """(busy, total) CPU seconds of the whole machine so far, all cores."""
+    values = [int(v) for v in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]]
+    idle = values[3] + values[4]
+    total = sum(values[:8])
+    return (total - idle) / TICKS, total / TICKS
+
+
+@dataclass
+class CpuWindow:
+    pids: dict[str, list[int]]
+    start: dict[str, float] | None = None
+    machine: tuple[float, float] | None = None
+    wall: float = 0.0
+
+    def _read(self) -> dict[str, float]:
+        return {name: sum(cpu_seconds(p) for p in pids) for name, pids in self.pids.items()}
+
+    def begin(self) -> None:
+        self.start, self.machine, self.wall = self._read(), machine_busy(), time.monotonic()
+
+    def end(self) -> dict[str, float]:
+        assert self.start is not None
+        assert self.machine is not None
+        now, busy, wall = self._read(), machine_busy(), time.monotonic() - self.wall
+        out = {f"{name}_cpu": 100 * (now[name] - self.start[name]) / wall for name in now}
+        out["machine_busy"] = (
+            100 * (busy[0] - self.machine[0]) / max(1e-9, busy[1] - self.machine[1])
+        )
+        return out
+
+
+async def start_clients(
+    url: str, cookie: str | None, watchers: int, procs: int
+) -> list[asyncio.subprocess.Process]:
+    shares = [watchers // procs + (1 if i < watchers % procs else 0) for i in range(procs)]
+    clients = []
+    for i, share in enumerate(shares):
+        command = [SCRIPT, "--role", "clients", "--url", url, "--count", str(share)]
+        if cookie:
+            command += ["--cookie", cookie]
+        if i == 0:
+            command.append("--stall")
+        clients.append(
+            await asyncio.create_subprocess_exec(
+                PYTHON, *command, stdout=asyncio.subprocess.PIPE, limit=2**28
             )
         )
+    for client in clients:
+        await expect(client, "ready", 120)
+    return clients
+
+
+async def expect(process: asyncio.subprocess.Process, word: str, timeout: float) -> None:
+    assert process.stdout is not None
+    line = await asyncio.wait_for(process.stdout.readline(), timeout)
+    if line.decode().strip() != word:
+        raise SystemExit(f"a client process said {line!r}, expected {word!r}")
+
+
+async def measure(
+    clients: list[asyncio.subprocess.Process], cpu: CpuWindow, seconds: float
+) -> tuple[list[dict[str, Any]], dict[str, float]]:
+    """From the first sample to the end of the run: CPU, then every client's result."""
+    await expect(clients[0], "first", seconds + 60)
+    cpu.begin()
+    for client in clients:
+        await expect(client, "done", seconds + 180)
+    figures = cpu.end()
+    results = []
+    for client in clients:
+        assert client.stdout is not None
+        results.append(json.loads(await client.stdout.readline()))
+        await client.wait()
+    return results, figures
+
+
+def summarise(
+    name: str, results: list[dict[str, Any]], cpu: dict[str, float], samples: int
+) -> dict[str, Any]:
+    flat_k: list[int] = []
+    flat_t: list[float] = []
+    frames = 0
+    for result in results:
+        for watcher in result["watchers"]:
+            flat_k += watcher["k"]
+            flat_t += watcher["t"]
+            frames += watcher["frames"]
+    watchers = sum(len(r["watchers"]) for r in results)
+    out: dict[str, Any] = {"name": name, "watchers": watchers, **cpu}
+    out["counts"] = results[0]["counts"]
+    out["stalled"] = results[0]["stalled"]
+    out["frames_per_watcher"] = frames / max(1, watchers)
+    out["delivered"] = len(flat_k) / (watchers * samples)
+    if flat_k:
+        t0 = min(t - k * DT for k, t in zip(flat_k, flat_t, strict=True))
+        values = sorted((t - (t0 + k * DT)) * 1000.0 for k, t in zip(flat_k, flat_t, strict=True))
+        out["p50"] = values[len(values) // 2]
+        out["p99"] = values[min(len(values) - 1, int(0.99 * len(values)))]
+        out["max"] = values[-1]
+    return out
+
+
+LAB_TOML = """
+[access]
+login_attempts_per_address = 1000
+
+[rig_defaults]
+control_time_limit = 3600
+idle_limit = 0
+
+[[rigs]]
+id = "twin"
+title = "Twin"
+spec = "sim:paper-practical"
+"""
+
+
+async def bench_thermolab(watchers: int, seconds: float, procs: int) -> dict[str, Any]:
+    port = free_port()
+    samples = round(seconds / DT)
+    with tempfile.TemporaryDirectory() as tmp:
+        config = Path(tmp, "lab.toml")
+        config.write_text(textwrap.dedent(LAB_TOML))
         env = dict(os.environ, THERMOLAB_DATA_DIR=tmp)
+        thermolab = [PYTHON, "-m", "thermolab"]
         subprocess.run(
             [
-                PYTHON,
-                "-m",
-                "thermolab",
+                *thermolab,
                 "user",
                 "add",
                 "tina",
@@ -173,31 +444,26 @@ async def bench_thermolab(watchers: int, seconds: float) -> dict[str, float]:
             capture_output=True,
         )
         server = subprocess.Popen(
-            [PYTHON, "-m", "thermolab", "serve", "--port", str(port), "--config", str(config)],
+            [*thermolab, "serve", "--port", str(port), "--config", str(config)],
             env=env,
             stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-            text=True,
+            stderr=subprocess.DEVNULL,
         )
+        clients: list[asyncio.subprocess.Process] = []
         try:
             base = f"http://127.0.0.1:{port}"
             wait_for(base + "/openapi.json")
-            async with httpx.AsyncClient(base_url=base) as http:
+            async with httpx.AsyncClient(base_url=base, timeout=60) as http:
                 login = await http.post(
                     "/api/session", json={"username": "tina", "password": "bench-password"}
                 )
                 login.raise_for_status()
-                headers = {"Cookie": f"thermolab_session={login.cookies['thermolab_session']}"}
+                cookie = f"thermolab_session={login.cookies['thermolab_session']}"
+                headers = {"Cookie": cookie}
                 (await http.post("/api/rigs/twin/control", headers=headers)).raise_for_status()
                 url = f"ws://127.0.0.1:{port}/api/rigs/twin/live"
-                done = asyncio.Event()
-                arrivals: list[list[tuple[int, float]]] = [[] for _ in range(watchers)]
-                clients = [
-                    asyncio.create_task(watch(url, headers, arrivals[i], done))
-                    for i in range(watchers)
-                ]
-                stalled = asyncio.create_task(stall(url, headers, done))
-                await asyncio.sleep(2.0 + watchers / 200)  # let everyone connect
+                clients = await start_clients(url, cookie, watchers, procs)
+                cpu = CpuWindow({"server": [server.pid], "clients": [c.pid for c in clients]})
                 started = await http.post(
                     "/api/rigs/twin/runs",
                     headers=headers,
@@ -210,71 +476,131 @@ async def bench_thermolab(watchers: int, seconds: float) -> dict[str, float]:
                 )
                 started.raise_for_status()
 
-                async def keep_control() -> None:  # the controller's page polls the rig
-                    while not done.is_set():
-                        await http.post("/api/rigs/twin/heartbeat", headers=headers)
+                async def keep_control() -> None:  # the controller's page keeps its turn
+                    while True:
                         await asyncio.sleep(5.0)
+                        await http.post("/api/rigs/twin/heartbeat", headers=headers)
 
                 heartbeat = asyncio.create_task(keep_control())
-                results = await asyncio.wait_for(asyncio.gather(*clients), seconds + 60)
-                done.set()
-                await heartbeat
-                stalled_result = await stalled
+                try:
+                    results, figures = await measure(clients, cpu, seconds)
+                finally:
+                    heartbeat.cancel()
+                    with contextlib.suppress(asyncio.CancelledError):
+                        await heartbeat
         finally:
+            for client in clients:
+                with contextlib.suppress(ProcessLookupError):
+                    client.kill()
             server.terminate()
             with contextlib.suppress(subprocess.TimeoutExpired):
-                server.communicate(timeout=20)
-    values, count = delays(arrivals)
-    print(f"  stalled watcher: {stalled_result}; messages per watcher: {results[0]}")
-    return report("thermolab", values, count, watchers * samples)
+                server.wait(timeout=20)
+    return summarise("thermolab", results, figures, samples)
 
 
-async def bench_peer(watchers: int, seconds: float) -> dict[str, float]:
-    """A bare websockets broadcast of the same message rate to the same number of clients."""
+async def bench_peer(watchers: int, seconds: float, procs: int) -> dict[str, Any]:
     port = free_port()
-    samples = int(seconds / DT)
-    connected: set[websockets.ServerConnection] = set()
+    samples = round(seconds / DT)
+    peer = await asyncio.create_subprocess_exec(
+        PYTHON,
+        SCRIPT,
+        "--role",
+        "peer",
+        "--port",
+        str(port),
+        "--samples",
+        str(samples),
+        stdin=asyncio.subprocess.PIPE,
+        stdout=asyncio.subprocess.PIPE,
+    )
+    assert peer.stdin is not None
+    clients: list[asyncio.subprocess.Process] = []
+    try:
+        await expect(peer, "listening", 60)
+        clients = await start_clients(f"ws://127.0.0.1:{port}/", None, watchers, procs)
+        cpu = CpuWindow({"server": [peer.pid], "clients": [c.pid for c in clients]})
+        peer.stdin.write(b"go\n")
+        await peer.stdin.drain()
+        results, figures = await measure(clients, cpu, seconds)
+        peer.stdin.write(b"stop\n")
+        await peer.stdin.drain()
+        await asyncio.wait_for(peer.wait(), 30)
+    finally:
+        for process in [*clients, peer]:
+            with contextlib.suppress(ProcessLookupError):
+                process.kill()
+    return summarise("peer", results, figures, samples)
 
-    async def handler(ws: websockets.ServerConnection) -> None:
-        connected.add(ws)
-        try:
-            await ws.wait_closed()
-        finally:
-            connected.discard(ws)
 
-    done = asyncio.Event()
-    async with websockets.serve(handler, "127.0.0.1", port):
-        url = f"ws://127.0.0.1:{port}"
-        arrivals: list[list[tuple[int, float]]] = [[] for _ in range(watchers)]
-        clients = [asyncio.create_task(watch(url, {}, arrivals[i], done)) for i in range(watchers)]
-        while len(connected) < watchers:
-            await asyncio.sleep(0.05)
-        start = time.monotonic()
-        for k in range(samples):
-            await asyncio.sleep(max(0.0, start + k * DT - time.monotonic()))
-            text = json.dumps({"type": "tick", "k": k, "t": k * DT, "u": 5.0, "y": 0.7})
-            websockets.broadcast(connected, text)
-        websockets.broadcast(connected, json.dumps({"type": "end"}))
-        await asyncio.wait_for(asyncio.gather(*clients), 30)
-        done.set()
-    values, count = delays(arrivals)
-    return report("peer", values, count, watchers * samples)
+def stalled_text(report: dict[str, Any] | None) -> str:
+    if report is None:
+        return "n/a"
+    if report["close_code"] is not None:
+        return f"cut with {report['close_code']} after {report['samples']} samples"
+    return f"kept (it had {report['samples']} samples when it read again)"
+
+
+def print_row(row: dict[str, Any]) -> None:
+    if "p99" not in row:
+        print(f"  {row['name']:>9}  no samples received")
+        return
+    print(
+        f"  {row['name']:>9}  {row['p50']:7.1f}  {row['p99']:7.1f}  {row['max']:7.1f}  "
+        f"{100 * row['delivered']:6.2f}  {row['frames_per_watcher'] / row['expected_s']:6.1f}  "
+        f"{row['server_cpu']:5.0f}  {row['clients_cpu']:5.0f}  {row['machine_busy']:5.0f}   "
+        f"{stalled_text(row['stalled'])}"
+    )
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--watchers", type=int, default=500)
-    parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument("--watchers", default="50,200,500", help="comma-separated (50,200,500)")
+    parser.add_argument("--seconds", type=float, default=20.0, help="length of each run (20)")
+    parser.add_argument("--client-procs", type=int, default=2, help="client processes (2)")
+    parser.add_argument("--only", choices=["thermolab", "peer"], help="measure one server")
+    parser.add_argument("--role", choices=["clients", "peer"], help=argparse.SUPPRESS)
+    parser.add_argument("--url", help=argparse.SUPPRESS)
+    parser.add_argument("--cookie", help=argparse.SUPPRESS)
+    parser.add_argument("--count", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--stall", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--port", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--samples", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.role == "clients":
+        new_loop().run_until_complete(client_main(args.url, args.cookie, args.count, args.stall))
+        return 0
+    if args.role == "peer":
+        new_loop().run_until_complete(peer_main(args.port, args.samples))
+        return 0
+
+    counts = [int(n) for n in args.watchers.split(",")]
     print(
-        f"{args.watchers} watchers, one rig at {1 / DT:g} samples/s for {args.seconds:g} s, "
-        "plus one stalled watcher (delays beyond the fastest delivery seen)"
+        f"one rig at {1 / DT:g} samples/s (a sample and an estimate message each), "
+        f"{args.seconds:g} s per run, watchers in {args.client_procs} client processes, "
+        f"plus one stalled watcher; {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}"
     )
-    ours = asyncio.run(bench_thermolab(args.watchers, args.seconds))
-    asyncio.run(bench_peer(args.watchers, args.seconds))
-    if ours:
-        met = ours["p99"] < 100.0 and ours["received"] > 0.999
-        print(f"target (p99 < 100 ms, every sample delivered): {'met' if met else 'NOT met'}")
+    print(
+        "  delays in ms beyond the fastest delivery seen; CPU in % of one core "
+        "(machine: % of all cores)"
+    )
+    print(
+        "     server      p50      p99      max  deliv%  frm/s  srvCPU cliCPU  mach%   "
+        "stalled watcher"
+    )
+    ok = True
+    for watchers in counts:
+        print(f"  -- {watchers} watchers")
+        for name, bench in (("thermolab", bench_thermolab), ("peer", bench_peer)):
+            if args.only is not None and args.only != name:
+                continue
+            row = asyncio.run(bench(watchers, args.seconds, args.client_procs))
+            row["expected_s"] = args.seconds
+            print_row(row)
+            if name == "thermolab" and watchers == 500:
+                ok = row.get("p99", 1e9) < 100.0 and row["delivered"] > 0.999
+    if 500 in counts and args.only != "peer":
+        verdict = "met" if ok else "NOT met"
+        print(f"target (500 watchers: p99 < 100 ms, every sample delivered): {verdict}")
     return 0
 
 

@@ -162,4 +162,14 @@ def _serve(args: argparse.Namespace) -> int:
 def _run_server(app: Any, host: str, port: int) -> None:
     import uvicorn
 
-    uvicorn.run(app, host=host, port=port, log_level="info", proxy_headers=True)
+    # Live messages are small and go to many clients: compressing each one for each
+    # client (permessage-deflate keeps a context per connection) cost the server more
+    # than everything else in sending them (benchmarks/bench_live.py).
+    uvicorn.run(
+        app,
+        host=host,
+        port=port,
+        log_level="info",
+        proxy_headers=True,
+        ws_per_message_deflate=False,
+    )

@@ -142,6 +142,7 @@ def create_app(
     if static_dir is not None:
         app.mount("/", StaticFiles(directory=static_dir, html=True), name="web")
     app.add_middleware(_BodyLimit, max_bytes=config.access.max_body_bytes)
+    app.add_middleware(_LoginsWatch, on_change=live.sessions_changed)
     return app
 
 
@@ -251,6 +252,43 @@ def _plain_error(error: Any) -> dict[str, Any]:
         "type": str(error.get("type", "")),
         "msg": str(error.get("msg", "")),
     }
+
+
+# -- logins ending ------------------------------------------------------------------------------
+
+
+class _LoginsWatch:
+    """Call ``on_change`` after a request that may have ended logins succeeds.
+
+    Logging out or in again (``/api/session``), changing a password or removing
+    an account (``/api/users/...``): the live stream then closes the sockets
+    of the logins that are gone.
+    """
+
+    def __init__(self, app: ASGIApp, on_change: Callable[[], None]) -> None:
+        self.app = app
+        self.on_change = on_change
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        path = scope.get("path", "")
+        if (
+            scope["type"] != "http"
+            or scope.get("method") in ("GET", "HEAD", "OPTIONS")
+            or not (path == "/api/session" or path.startswith("/api/users/"))
+        ):
+            await self.app(scope, receive, send)
+            return
+        status = 500
+
+        async def watching_send(message: Message) -> None:
+            nonlocal status
+            if message["type"] == "http.response.start":
+                status = message["status"]
+            await send(message)
+
+        await self.app(scope, receive, watching_send)
+        if status < 400:
+            self.on_change()
 
 
 # -- request size ------------------------------------------------------------------------------

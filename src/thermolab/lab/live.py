@@ -3,17 +3,28 @@
 Every rig has a :class:`LiveChannel`. Publishers — a run's sampling thread,
 the lab's sweep, a request that changed who controls the rig — call
 :meth:`LiveChannel.publish` from any thread; it numbers the message (``seq``),
-keeps it in a ring for clients that reconnect, encodes it to JSON **once**, and
-hands the text to the event loop, which appends it to each client's bounded
-queue. Nothing a client does can delay a publisher or the other clients: a
-client whose queue is full is cut (closed with 4408) and may reconnect with
-``since``. Access messages differ per client (each sees its own queue place);
-they are rendered from one snapshot of the rig, at most a few times a second.
+keeps it in a ring for clients that reconnect, encodes it to JSON **once**,
+and appends the text to the channel's pending list. The event loop takes
+whatever is pending in one go (a sample and its estimates, published a few
+microseconds apart, travel together) and hands the same :class:`Batch` to
+every client's bounded queue: no per-client encoding, and one WebSocket frame
+per client for the whole batch. A client that is behind gets its whole
+backlog in one frame too (a JSON array of the messages, in order).
+
+Nothing a client does can delay a publisher or the other clients: a client
+whose queue is full is cut (closed with 4408) and may reconnect with
+``since``. Access messages differ per client (each sees its own queue
+place); they are rendered from one snapshot of the rig, at most a few times
+a second.
 
 ``seq`` starts, for each rig, from the wall clock at start-up in
-microseconds and grows by one per message, so it grows across server
-restarts too (a client that reconnects after a restart never sees an older
-number) and stays an exact integer in a browser (below 2**53).
+microseconds and grows by one per message. A rig publishes far fewer than a
+million messages a second, so the numbers a server gives stay below the wall
+clock in microseconds; a server started later therefore starts above them
+(unless the system clock was set back, across the restart, by more than the
+server was down: clients then see ``hello.seq`` below their last number and
+start again from it). The numbers stay exact integers in a browser (below
+2**53 until the year 2255), and numbering needs no write to the store.
 """
 
 from __future__ import annotations
@@ -25,12 +36,21 @@ import math
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
-__all__ = ["CLOSE_TOO_SLOW", "LiveChannel", "LiveClient", "LiveHub", "encode"]
+__all__ = [
+    "CLOSE_TOO_SLOW",
+    "CLOSE_UNAUTHORIZED",
+    "MAX_FRAME_MESSAGES",
+    "Batch",
+    "LiveChannel",
+    "LiveClient",
+    "LiveHub",
+    "encode",
+]
 
 log = logging.getLogger(__name__)
 
@@ -39,6 +59,8 @@ CLOSE_UNKNOWN_RIG = 4404
 CLOSE_TOO_SLOW = 4408
 CLOSE_TOO_BIG = 1009
 MAX_CLIENT_MESSAGE = 4096
+MAX_FRAME_MESSAGES = 1000
+"""At most this many messages travel in one frame (a backlog goes in several)."""
 
 REPLAYED = frozenset({"sample", "estimate", "run"})
 
@@ -64,9 +86,41 @@ def _finite(value: Any) -> Any:
     return value
 
 
+@dataclass(frozen=True, slots=True)
+class Batch:
+    """Encoded messages that travel together, shared by every client they go to.
+
+    Attributes
+    ----------
+    body : str
+        The messages' JSON texts joined by commas.
+    count : int
+        How many messages.
+    frame : str
+        What one frame carries: the message itself, or a JSON array of them.
+
+    Examples
+    --------
+    >>> Batch.of(['{"a":1}']).frame
+    '{"a":1}'
+    >>> Batch.of(['{"a":1}', '{"b":2}']).frame
+    '[{"a":1},{"b":2}]'
+    """
+
+    body: str
+    count: int
+    frame: str
+
+    @classmethod
+    def of(cls, texts: list[str]) -> Batch:
+        """Join encoded messages (at least one) into a batch."""
+        body = ",".join(texts)
+        return cls(body, len(texts), body if len(texts) == 1 else f"[{body}]")
+
+
 @dataclass(eq=False)
 class LiveClient:
-    """One connected client: its bounded queue of encoded messages (loop thread only).
+    """One connected client: its bounded queue of message batches (loop thread only).
 
     Attributes
     ----------
@@ -74,26 +128,78 @@ class LiveClient:
         Whom the client is (the channel's ``render_access`` receives it).
     maxsize : int
         Messages queued before the client counts as too slow.
+    queued : int
+        Messages waiting in the queue.
+    closing : tuple of (int, str) or None
+        Why the server ends the connection (close code, reason), once it does.
+
+    Examples
+    --------
+    >>> client = LiveClient("ana", maxsize=3)
+    >>> client.offer_batch(Batch.of(['{"k":0}', '{"k":1}']))
+    >>> client.offer('{"k":2}')
+    >>> client.next_frame(), client.next_frame()
+    ('[{"k":0},{"k":1},{"k":2}]', None)
+    >>> client.offer_batch(Batch.of(['{"k":3}', '{"k":4}', '{"k":5}', '{"k":6}']))
+    >>> client.cut, client.closing
+    (True, (4408, 'too slow: reconnect with since'))
     """
 
     key: Any
     maxsize: int = 2000
-    queue: deque[str] = field(default_factory=deque)
+    queue: deque[Batch] = field(default_factory=deque)
+    queued: int = 0
     wake: asyncio.Event = field(default_factory=asyncio.Event)
-    cut: bool = False
+    ended: asyncio.Event = field(default_factory=asyncio.Event)
+    closing: tuple[int, str] | None = None
     sent: int = 0
     last_ping: datetime | None = None
 
+    @property
+    def cut(self) -> bool:
+        """``True`` once the server has decided to close the connection."""
+        return self.closing is not None
+
     def offer(self, text: str) -> None:
-        """Queue ``text``, or cut the client if its queue is full."""
-        if self.cut:
+        """Queue one encoded message, or cut the client if its queue is full."""
+        self.offer_batch(Batch(text, 1, text))
+
+    def offer_batch(self, batch: Batch) -> None:
+        """Queue a batch, or cut the client if its queue would overflow."""
+        if self.closing is not None:
             return
-        if len(self.queue) >= self.maxsize:
-            self.cut = True
-            self.queue.clear()
-        else:
-            self.queue.append(text)
+        if self.queued + batch.count > self.maxsize:
+            self.close(CLOSE_TOO_SLOW, "too slow: reconnect with since")
+            return
+        self.queue.append(batch)
+        self.queued += batch.count
         self.wake.set()
+
+    def close(self, code: int, reason: str) -> None:
+        """End the connection (its sender closes it with ``code``); queued messages are dropped."""
+        if self.closing is None:
+            self.closing = (code, reason)
+            self.queue.clear()
+            self.queued = 0
+        self.wake.set()
+        self.ended.set()
+
+    def next_frame(self, limit: int = MAX_FRAME_MESSAGES) -> str | None:
+        """Take the text of the next frame: everything queued (up to ``limit`` messages)."""
+        if not self.queue:
+            return None
+        first = self.queue.popleft()
+        if not self.queue or first.count + self.queue[0].count > limit:
+            self.queued -= first.count
+            return first.frame
+        bodies = [first.body]
+        count = first.count
+        while self.queue and count + self.queue[0].count <= limit:
+            batch = self.queue.popleft()
+            bodies.append(batch.body)
+            count += batch.count
+        self.queued -= count
+        return "[" + ",".join(bodies) + "]"
 
 
 class LiveChannel:
@@ -123,18 +229,21 @@ class LiveChannel:
         self.seq = seq_base if seq_base is not None else time.time_ns() // 1000
         self._ring: deque[tuple[int, dict[str, Any]]] = deque(maxlen=ring)
         self._clients: set[LiveClient] = set()
+        self._pending: list[str] = []
         self._lock = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None
-        self.render_access: Callable[[list[LiveClient]], None] | None = None
 
     def bind(self, loop: asyncio.AbstractEventLoop | None) -> None:
         """Deliver to clients on ``loop`` (``None``: no clients, messages only numbered)."""
-        self._loop = loop
+        with self._lock:
+            self._loop = loop
+            self._pending.clear()
 
     def publish(self, message: dict[str, Any]) -> int | None:
         """Send ``message`` to every client; return its ``seq`` if it is replayable.
 
-        Thread-safe and never blocks on a client.
+        Thread-safe and never blocks on a client: the text joins the pending
+        batch, which the event loop hands to the clients' queues.
         """
         replayable = message.get("type") in REPLAYED
         with self._lock:
@@ -144,9 +253,25 @@ class LiveChannel:
                 seq = self.seq
                 message = {**message, "seq": seq}
                 self._ring.append((seq, message))
-            text = encode(message)
-        self._deliver(lambda: self._fan_out(text))
+            loop = self._loop
+            if loop is None:
+                return seq
+            # Encoded under the lock, so the pending texts stay in seq order.
+            self._pending.append(encode(message))
+            first = len(self._pending) == 1
+        if first:
+            _call_soon(loop, self.flush)
         return seq
+
+    def flush(self) -> None:
+        """Hand the pending messages to every client, as one batch (loop thread)."""
+        with self._lock:
+            texts, self._pending = self._pending, []
+            clients = list(self._clients)
+        if texts:
+            batch = Batch.of(texts)
+            for client in clients:
+                client.offer_batch(batch)
 
     def attach(self, client: LiveClient) -> int:
         """Add a client; return the ``seq`` it starts after (call in the loop thread).
@@ -155,8 +280,15 @@ class LiveChannel:
         up to the returned number are for :meth:`replay_since`.
         """
         with self._lock:
+            texts, self._pending = self._pending, []
+            earlier = list(self._clients)
             self._clients.add(client)
-            return self.seq
+            seq = self.seq
+        if texts:  # published before the client came: only for the others
+            batch = Batch.of(texts)
+            for other in earlier:
+                other.offer_batch(batch)
+        return seq
 
     def detach(self, client: LiveClient) -> None:
         """Remove a client."""
@@ -176,8 +308,8 @@ class LiveChannel:
         The flag is true when messages after ``since`` have already left the
         ring (the caller fills the gap from the store).
         """
-        upto = self.seq if upto is None else upto
         with self._lock:
+            upto = self.seq if upto is None else upto
             kept = [m for s, m in self._ring if since < s <= upto]
             oldest = self._ring[0][0] if self._ring else self.seq + 1
         gap = since + 1 < oldest and since < upto
@@ -187,29 +319,29 @@ class LiveChannel:
         """Send each client its own message (``render`` runs in the loop thread)."""
 
         def run() -> None:
+            self.flush()  # what was published before goes first
             for client in self.clients():
                 message = render(client)
                 if message is not None:
                     client.offer(encode(message))
 
-        self._deliver(run)
-
-    def _deliver(self, action: Callable[[], None]) -> None:
         loop = self._loop
-        if loop is None or loop.is_closed():
-            return
-        try:
-            running = asyncio.get_running_loop()
-        except RuntimeError:
-            running = None
-        if running is loop:
-            action()
-        else:
-            loop.call_soon_threadsafe(action)
+        if loop is not None:
+            _call_soon(loop, run)
 
-    def _fan_out(self, text: str) -> None:
-        for client in self.clients():
-            client.offer(text)
+
+def _call_soon(loop: asyncio.AbstractEventLoop, action: Callable[[], None]) -> None:
+    """Run ``action`` on ``loop`` soon, from any thread (never at once: callers batch)."""
+    if loop.is_closed():
+        return
+    try:
+        running = asyncio.get_running_loop()
+    except RuntimeError:
+        running = None
+    if running is loop:
+        loop.call_soon(action)
+    else:
+        loop.call_soon_threadsafe(action)
 
 
 class LiveHub:
@@ -220,7 +352,7 @@ class LiveHub:
     rig_ids : iterable of str
     """
 
-    def __init__(self, rig_ids: list[str]) -> None:
+    def __init__(self, rig_ids: Iterable[str]) -> None:
         self.channels = {rig_id: LiveChannel(rig_id) for rig_id in rig_ids}
         self._access_pending: set[str] = set()
         self._lock = threading.Lock()
@@ -237,6 +369,10 @@ class LiveHub:
         channel = self.channels.get(rig_id)
         if channel is not None:
             channel.publish(message)
+
+    def clients(self) -> list[LiveClient]:
+        """Every connected client of every rig."""
+        return [client for channel in self.channels.values() for client in channel.clients()]
 
     def access_changed(self, rig_id: str, refresh: Callable[[str], None], delay: float) -> None:
         """Ask for ``refresh(rig_id)`` soon, once however many changes come meanwhile."""

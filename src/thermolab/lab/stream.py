@@ -7,6 +7,12 @@ each rig's :class:`~thermolab.lab.live.LiveChannel`, and serves the clients:
 the current run's samples from the store when memory no longer has them),
 then the live messages. A client's ``ping`` keeps its control or queue place
 alive and is answered with ``pong``.
+
+A connection lives as long as the login it was opened with: when logins end
+(logout, a password change, an account removed — the app calls
+:meth:`LiveBroadcaster.sessions_changed`) and every few seconds in any case (an
+account removed from the command line, a login past its lifetime), the
+clients whose login is gone are closed with 4401.
 """
 
 from __future__ import annotations
@@ -15,17 +21,18 @@ import asyncio
 import contextlib
 import json
 import logging
+from collections.abc import Callable, Collection
 from datetime import datetime, timedelta
 from typing import Any
 
 import anyio.to_thread
+from sqlalchemy import select
 from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
 
 from thermolab.lab.access import RigSnapshot
 from thermolab.lab.api import COOKIE_NAME
 from thermolab.lab.live import (
     CLOSE_TOO_BIG,
-    CLOSE_TOO_SLOW,
     CLOSE_UNAUTHORIZED,
     CLOSE_UNKNOWN_RIG,
     MAX_CLIENT_MESSAGE,
@@ -33,7 +40,7 @@ from thermolab.lab.live import (
     LiveHub,
     encode,
 )
-from thermolab.lab.models import Role
+from thermolab.lab.models import LoginSession, Role
 from thermolab.lab.runs import RunRecord
 from thermolab.lab.schemas import RigOut, RunOut
 from thermolab.lab.service import Lab
@@ -46,6 +53,7 @@ log = logging.getLogger(__name__)
 
 _REPLAY_BATCH = 1000
 _PING_INTERVAL = timedelta(seconds=1)  # pings look at the rig at most this often
+_CLOSE_TIMEOUT = 10.0  # seconds a close frame may wait for a stalled socket to drain
 
 
 def _dump(model: RigOut | RunOut) -> dict[str, Any]:
@@ -63,15 +71,29 @@ class LiveBroadcaster:
         message per client.
     client_queue : int
         Messages a client may have waiting before it is cut as too slow.
+    session_check : float or None
+        Seconds between checks that every client's login still exists
+        (``None``: only when :meth:`sessions_changed` says so).
     """
 
-    def __init__(self, lab: Lab, *, access_delay: float = 0.2, client_queue: int = 2000) -> None:
+    def __init__(
+        self,
+        lab: Lab,
+        *,
+        access_delay: float = 0.2,
+        client_queue: int = 2000,
+        session_check: float | None = 5.0,
+    ) -> None:
         self.lab = lab
         self.hub = LiveHub([rig.id for rig in lab.config.rigs])
         self._access_delay = access_delay
         self._client_queue = client_queue
+        self._session_check = session_check
         self._states: dict[str, tuple[str, str | None]] = {}
         self._signatures: dict[str, tuple[Any, ...]] = {}
+        self._checking: asyncio.Task[None] | None = None
+        self._check_again = False
+        self._watchdog: asyncio.Task[None] | None = None
 
     # -- the lab's side (worker threads) ---------------------------------------------------
 
@@ -122,9 +144,59 @@ class LiveBroadcaster:
 
     # -- the event loop's side --------------------------------------------------------------
 
+    def sessions_changed(self) -> None:
+        """Logins may have ended: close the connections whose login is gone (any thread)."""
+        loop = self.hub.loop
+        if loop is not None and not loop.is_closed():
+            loop.call_soon_threadsafe(self._check_sessions)
+
     def bind(self, loop: asyncio.AbstractEventLoop | None) -> None:
-        """Serve clients on ``loop`` (``None`` when the server stops)."""
+        """Serve clients on ``loop`` (``None`` when the server stops; call in the loop)."""
         self.hub.bind(loop)
+        if self._watchdog is not None:
+            self._watchdog.cancel()
+            self._watchdog = None
+        if loop is not None and self._session_check is not None:
+            self._watchdog = loop.create_task(self._check_sessions_forever(self._session_check))
+
+    async def _check_sessions_forever(self, interval: float) -> None:
+        while True:
+            await asyncio.sleep(interval)
+            self._check_sessions()
+
+    def _check_sessions(self) -> None:
+        # One check at a time; a request for one while it runs makes it run again.
+        if self._checking is not None and not self._checking.done():
+            self._check_again = True
+            return
+        self._checking = asyncio.ensure_future(self._close_ended_sessions())
+        self._checking.add_done_callback(_log_failure)
+
+    async def _close_ended_sessions(self) -> None:
+        while True:
+            self._check_again = False
+            clients = self.hub.clients()
+            ids = {client.key.session_id for client in clients}
+            if ids:
+                alive = await anyio.to_thread.run_sync(self._alive_sessions, ids)
+                for client in clients:
+                    if client.key.session_id not in alive:
+                        client.close(CLOSE_UNAUTHORIZED, "your session has ended; log in again")
+            if not self._check_again:
+                return
+
+    def _alive_sessions(self, ids: Collection[int | None]) -> set[int | None]:
+        now = self.lab.clock.now()
+        wanted = [i for i in ids if i is not None]
+        with self.lab.db.read() as session:
+            alive: set[int | None] = set(
+                session.scalars(
+                    select(LoginSession.id).where(
+                        LoginSession.id.in_(wanted), LoginSession.expires_at > now
+                    )
+                )
+            )
+        return alive
 
     def _refresh(self, rig_id: str) -> None:
         task = asyncio.ensure_future(self._push_access(rig_id))
@@ -176,18 +248,26 @@ class LiveBroadcaster:
         client = LiveClient(key=who, maxsize=self._client_queue)
         presence = self.lab.presence.connect(rig_id, who.username)
         start = channel.attach(client)
+        gone = False
+
+        def leave() -> None:  # once, as soon as the client is cut or gone
+            nonlocal gone
+            if not gone:
+                gone = True
+                channel.detach(client)
+                self.lab.presence.disconnect(presence)
+                self.access_changed(rig_id)
+
         try:
             await self._hello(websocket, rig_id, who, start)
-            if since is not None and since < start:
+            if since is not None and since != start:
                 await self._replay(websocket, rig_id, since, start)
             self.access_changed(rig_id)  # one more watcher
-            await _serve(websocket, client, lambda: self._ping(rig_id, who, client))
+            await _serve(websocket, client, lambda: self._ping(rig_id, who, client), leave)
         except WebSocketDisconnect:
             pass
         finally:
-            channel.detach(client)
-            self.lab.presence.disconnect(presence)
-            self.access_changed(rig_id)
+            leave()
 
     async def _hello(self, websocket: WebSocket, rig_id: str, who: Principal, seq: int) -> None:
         view = await anyio.to_thread.run_sync(self.lab.access.view, rig_id, who)
@@ -203,7 +283,13 @@ class LiveBroadcaster:
 
     async def _replay(self, websocket: WebSocket, rig_id: str, since: int, upto: int) -> None:
         channel = self.hub.channels[rig_id]
-        kept, gap = channel.replay_since(since, upto)
+        kept: list[dict[str, Any]] = []
+        if since > upto:
+            # A number this server never gave (the clock was set back across a restart):
+            # what the client has is unknown, so it gets the current run from the store.
+            gap = True
+        else:
+            kept, gap = channel.replay_since(since, upto)
         run_id = self.lab.runs.running(rig_id)
         if gap and run_id is not None:
             # Memory no longer has everything missed: the current run's samples from the store.
@@ -242,18 +328,19 @@ class LiveBroadcaster:
         self.lab.access.view(rig_id, who)
 
 
-async def _serve(websocket: WebSocket, client: LiveClient, on_ping: Any) -> None:
-    """Send the client's queue and read its messages until either side stops."""
+async def _serve(
+    websocket: WebSocket, client: LiveClient, on_ping: Any, leave: Callable[[], None]
+) -> None:
+    """Send the client's queue and read its messages until either side stops (then ``leave``)."""
 
     async def send() -> None:
-        while True:
+        while client.closing is None:
             await client.wake.wait()
             client.wake.clear()
-            if client.cut:
-                await websocket.close(CLOSE_TOO_SLOW, "too slow: reconnect with since")
-                return
-            while client.queue:
-                await websocket.send_text(client.queue.popleft())
+            # Everything queued goes in one frame: a client that fell behind catches up
+            # in one send instead of one per message.
+            while (frame := client.next_frame()) is not None:
+                await websocket.send_text(frame)
                 client.sent += 1
 
     async def receive() -> None:
@@ -265,9 +352,7 @@ async def _serve(websocket: WebSocket, client: LiveClient, on_ping: Any) -> None
             if text is None:
                 text = (message.get("bytes") or b"").decode("utf-8", errors="replace")
             if len(text) > MAX_CLIENT_MESSAGE:
-                await websocket.close(
-                    CLOSE_TOO_BIG, f"messages are at most {MAX_CLIENT_MESSAGE} bytes"
-                )
+                client.close(CLOSE_TOO_BIG, f"messages are at most {MAX_CLIENT_MESSAGE} bytes")
                 return
             kind = _message_type(text)
             if kind == "ping":
@@ -276,7 +361,13 @@ async def _serve(websocket: WebSocket, client: LiveClient, on_ping: Any) -> None
             else:
                 client.offer(encode({"type": "error", "detail": kind}))
 
-    tasks = [asyncio.ensure_future(send()), asyncio.ensure_future(receive())]
+    # The client being cut ends the connection at once, even while a send waits for a
+    # stalled socket to drain (the send is abandoned; nothing of it was written).
+    tasks = [
+        asyncio.ensure_future(send()),
+        asyncio.ensure_future(receive()),
+        asyncio.ensure_future(client.ended.wait()),
+    ]
     try:
         done, _ = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
         for task in done:
@@ -289,9 +380,16 @@ async def _serve(websocket: WebSocket, client: LiveClient, on_ping: Any) -> None
         for task in tasks:
             with contextlib.suppress(BaseException):
                 await task
-        if websocket.client_state is WebSocketState.CONNECTED:
+        leave()
+        if (
+            websocket.client_state is WebSocketState.CONNECTED
+            and websocket.application_state is WebSocketState.CONNECTED
+        ):
+            code, reason = client.closing or (1000, "")
+            # The close frame waits behind what the socket still holds; a peer that never
+            # reads again is left to the server, which closes the connection.
             with contextlib.suppress(Exception):
-                await websocket.close()
+                await asyncio.wait_for(websocket.close(code, reason), _CLOSE_TIMEOUT)
 
 
 def _signature(snap: RigSnapshot, watchers: int) -> tuple[Any, ...]:

@@ -172,7 +172,10 @@ export class LiveClient {
       } catch {
         return; // not ours to interpret; the protocol only sends JSON
       }
-      if (msg && typeof msg === "object") this._deliver(msg);
+      // A frame holds one message, or an array of them in order (a backlog sent at once).
+      for (const one of Array.isArray(msg) ? msg : [msg]) {
+        if (one && typeof one === "object") this._deliver(one);
+      }
     };
     ws.onclose = (ev) => {
       if (this._ws !== ws) return;
@@ -231,8 +234,12 @@ export class LiveClient {
     if (msg.type === "hello") {
       // A hello means the server accepted us: the next failure starts the backoff afresh.
       this.attempt = 0;
-      // A first connection has no history: start counting from the server's present.
-      if (this.lastSeq === null && typeof msg.seq === "number") this.lastSeq = msg.seq;
+      // A first connection has no history: start counting from the server's present. A
+      // server below our last number (its clock was set back across a restart) numbers
+      // afresh: count from its present too, or everything new would look already seen.
+      if (typeof msg.seq === "number" && (this.lastSeq === null || msg.seq < this.lastSeq)) {
+        this.lastSeq = msg.seq;
+      }
       if (this._historyPending) {
         this._historyPending = false;
         this._historyUpTo = typeof msg.seq === "number" ? msg.seq : null;
