@@ -121,7 +121,9 @@ def test_hello_then_a_run_in_order(make_lab: LabFactory) -> None:
         estimates = [m for m in seen if m["type"] == "estimate"]
         assert {m["method"] for m in estimates} == {"lsm", "wlsm"}
         assert any(m["final"] and m["method"] == "lsm" for m in estimates)
-        assert all({"K", "tau", "W", "valid", "k"} <= set(m) for m in estimates)
+        assert all({"K", "tau", "W", "valid", "k", "reason"} <= set(m) for m in estimates)
+        # An estimate without a model says why; one with a model has no reason.
+        assert all(bool(m["reason"]) != m["valid"] for m in estimates)
         numbered = [m["seq"] for m in seen if "seq" in m]
         assert numbered == sorted(numbered)
         assert len(set(numbered)) == len(numbered)

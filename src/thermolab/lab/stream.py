@@ -133,6 +133,8 @@ class LiveBroadcaster:
                     "W": estimate.get("W"),
                     "valid": estimate.get("valid"),
                     "final": event.final,
+                    # Why there is no model (not excited yet, unstable a, ...), else null.
+                    "reason": (estimate.get("extras") or {}).get("reason"),
                 },
             )
 
