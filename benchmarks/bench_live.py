@@ -38,6 +38,7 @@ Usage::
 
     .venv/bin/python benchmarks/bench_live.py                    # 50, 200, 500 watchers, 20 s
     .venv/bin/python benchmarks/bench_live.py --watchers 500 --seconds 30 --client-procs 2
+    .venv/bin/python benchmarks/bench_live.py --watchers 500 --compete 6   # a busy machine
 """
 
 from __future__ import annotations
@@ -55,6 +56,7 @@ import tempfile
 import textwrap
 import time
 from collections import Counter
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, cast
@@ -250,6 +252,7 @@ def peer_messages(k: int, seq: int) -> tuple[str, str]:
         "W": [0.9996001120312345, 5.599217128412345e-05],
         "valid": True,
         "final": False,
+        "reason": None,
         "seq": seq + 1,
     }
     sample["seq"] = seq
@@ -532,6 +535,18 @@ async def bench_peer(watchers: int, seconds: float, procs: int) -> dict[str, Any
     return summarise("peer", results, figures, samples)
 
 
+@contextlib.contextmanager
+def competing(count: int) -> Iterator[None]:
+    """``count`` processes spinning on the CPU while the block runs."""
+    spinners = [subprocess.Popen([PYTHON, "-c", "while True: pass"]) for _ in range(count)]
+    try:
+        yield
+    finally:
+        for spinner in spinners:
+            spinner.kill()
+            spinner.wait()
+
+
 def stalled_text(report: dict[str, Any] | None) -> str:
     if report is None:
         return "n/a"
@@ -558,6 +573,13 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=20.0, help="length of each run (20)")
     parser.add_argument("--client-procs", type=int, default=2, help="client processes (2)")
     parser.add_argument("--only", choices=["thermolab", "peer"], help="measure one server")
+    parser.add_argument(
+        "--compete",
+        type=int,
+        default=0,
+        metavar="N",
+        help="run N busy-loop processes meanwhile, competing for the cores (0)",
+    )
     parser.add_argument("--role", choices=["clients", "peer"], help=argparse.SUPPRESS)
     parser.add_argument("--url", help=argparse.SUPPRESS)
     parser.add_argument("--cookie", help=argparse.SUPPRESS)
@@ -578,6 +600,7 @@ def main() -> int:
         f"one rig at {1 / DT:g} samples/s (a sample and an estimate message each), "
         f"{args.seconds:g} s per run, watchers in {args.client_procs} client processes, "
         f"plus one stalled watcher; {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}"
+        + (f", {args.compete} busy-loop processes competing" if args.compete else "")
     )
     print(
         "  delays in ms beyond the fastest delivery seen; CPU in % of one core "
@@ -593,7 +616,8 @@ def main() -> int:
         for name, bench in (("thermolab", bench_thermolab), ("peer", bench_peer)):
             if args.only is not None and args.only != name:
                 continue
-            row = asyncio.run(bench(watchers, args.seconds, args.client_procs))
+            with competing(args.compete):
+                row = asyncio.run(bench(watchers, args.seconds, args.client_procs))
             row["expected_s"] = args.seconds
             print_row(row)
             if name == "thermolab" and watchers == 500:
