@@ -10,6 +10,7 @@ more rigs and the access policy (see :mod:`thermolab.lab.config`);
 from __future__ import annotations
 
 import argparse
+import gc
 import socket
 import sys
 from typing import TYPE_CHECKING, Any
@@ -153,6 +154,11 @@ def _serve(args: argparse.Namespace) -> int:
             )
         static = STATIC_DIR if (STATIC_DIR / "index.html").is_file() else None
         app = create_app(config, static, lab=lab, close_lab=True)
+        # What exists now (the imported libraries, the lab, the app) lives as long as the
+        # server: keep it out of the collector's full passes, which otherwise stop every
+        # thread, the live stream's included, for 0.1-0.2 s each (benchmarks/bench_live.py).
+        gc.collect()
+        gc.freeze()
         _run_server(app, args.host, args.port)
     finally:
         lab.close()
