@@ -130,8 +130,14 @@ class LiveClient:
         Messages queued before the client counts as too slow.
     queued : int
         Messages waiting in the queue.
+    wake : asyncio.Event
+        Set when there is something to send (or the connection is to end).
+    ended : asyncio.Event
+        Set when the server ends the connection.
     closing : tuple of (int, str) or None
         Why the server ends the connection (close code, reason), once it does.
+    sent : int
+        Frames sent so far.
 
     Examples
     --------
