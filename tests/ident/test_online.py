@@ -20,7 +20,8 @@ from thermolab.ident import (
     step_response,
     weighted_least_squares,
 )
-from thermolab.ident.online import METHODS, Estimate, OnlineIdentifier, make_identifier
+from thermolab.ident.online import Estimate, OnlineIdentifier, make_identifier
+from thermolab.ident.registry import METHOD_NAMES
 from thermolab.simulation import PAPER_W0, REFERENCE_MODEL
 
 
@@ -239,7 +240,8 @@ def test_update_errors() -> None:
         ("lsm", {"window": 5, "pmax": 3}, "unknown parameters for lsm: pmax, window"),
         ("srm", {"window": 5}, "unknown parameter for srm: window; allowed: u_initial"),
         ("srm", {"min_step": -1.0}, "min_step"),
-        ("wlsm", {"gamma": 0.9}, "wlsm needs pmax"),
+        ("wlsm", {"gamma": 1.5}, "gamma = 1.5 is out of range; allowed: 0 < gamma <= 1"),
+        ("wlsm", {"pmax": "big"}, "pmax = 'big' is not allowed; allowed: 0 < pmax"),
         ("wlsm", {"gamma": 1.0, "pmax": 10.0}, "alpha = 1 - gamma = 0"),
         ("malsm", {"window": 2}, "window must be >= 3"),
         ("blockls", {"block": 0}, "block"),
@@ -290,4 +292,4 @@ def test_the_identifiers_grow_past_their_first_buffer() -> None:
         assert est is not None
         assert est.k == 4999
         assert f"{est.tau:.6f}" == "250.126233"
-    assert set(METHODS) == {"srm", "lsm", "blockls", "malsm", "wlsm"}
+    assert set(METHOD_NAMES) == {"srm", "lsm", "blockls", "malsm", "wlsm"}

@@ -12,23 +12,34 @@ The paper's four methods, each a function returning a result object:
 * the step response method lives in :mod:`thermolab.ident.step`.
 
 Sample-by-sample forms of every method, for a running experiment, are in
-:mod:`thermolab.ident.online`. Models and the ``W <-> (K, tau)`` conversion are in
+:mod:`thermolab.ident.online`; every method and setting is declared once in
+:mod:`thermolab.ident.registry`. Models and the ``W <-> (K, tau)`` conversion are in
 :mod:`thermolab.ident.models`.
+
+The names below are imported on first use (PEP 562), so that the command
+line can read the light :mod:`~thermolab.ident.registry` without loading NumPy
+and SciPy.
 """
 
-from .batch import LeastSquaresResult, block_least_squares, least_squares
-from .models import (
-    FIRST_ORDER,
-    INVALID_REASONS,
-    ArxModel,
-    ArxOrder,
-    FirstOrderModel,
-    discrete_to_first_order,
-)
-from .online import Estimate, OnlineIdentifier, make_identifier
-from .recursive import moving_window_least_squares, weighted_least_squares
-from .step import IdentificationWarning, StepResponseResult, step_response
-from .trajectory import Trajectory
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .batch import LeastSquaresResult, block_least_squares, least_squares
+    from .models import (
+        FIRST_ORDER,
+        INVALID_REASONS,
+        ArxModel,
+        ArxOrder,
+        FirstOrderModel,
+        discrete_to_first_order,
+    )
+    from .online import Estimate, OnlineIdentifier, make_identifier
+    from .recursive import moving_window_least_squares, weighted_least_squares
+    from .step import IdentificationWarning, StepResponseResult, step_response
+    from .trajectory import Trajectory
 
 __all__ = [
     "FIRST_ORDER",
@@ -50,3 +61,38 @@ __all__ = [
     "step_response",
     "weighted_least_squares",
 ]
+
+# Where each public name lives; read by __getattr__ on first access.
+_HOME = {
+    "FIRST_ORDER": "models",
+    "INVALID_REASONS": "models",
+    "ArxModel": "models",
+    "ArxOrder": "models",
+    "FirstOrderModel": "models",
+    "discrete_to_first_order": "models",
+    "LeastSquaresResult": "batch",
+    "block_least_squares": "batch",
+    "least_squares": "batch",
+    "Estimate": "online",
+    "OnlineIdentifier": "online",
+    "make_identifier": "online",
+    "moving_window_least_squares": "recursive",
+    "weighted_least_squares": "recursive",
+    "IdentificationWarning": "step",
+    "StepResponseResult": "step",
+    "step_response": "step",
+    "Trajectory": "trajectory",
+}
+
+
+def __getattr__(name: str) -> Any:
+    home = _HOME.get(name)
+    if home is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{home}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})

@@ -10,10 +10,12 @@ import numpy as np
 import numpy.typing as npt
 
 from thermolab.errors import InvalidParameterError
+from thermolab.jsonsafe import finite_or_none
 
 from . import _regression as _reg
 from . import _validation as _v
 from .models import NOT_EXCITED, ArxModel, ArxOrder, FirstOrderModel
+from .registry import SETTINGS
 from .trajectory import Trajectory
 
 if TYPE_CHECKING:
@@ -22,10 +24,6 @@ if TYPE_CHECKING:
 __all__ = ["LeastSquaresResult", "block_least_squares", "least_squares"]
 
 FloatArray = npt.NDArray[np.float64]
-
-
-def _json(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
 
 
 @dataclass(frozen=True, eq=False)
@@ -144,29 +142,29 @@ class LeastSquaresResult:
         out: dict[str, Any] = {
             "method": "lsm",
             "dt": self.dt,
-            "K": _json(self.K),
-            "tau": _json(self.tau),
+            "K": finite_or_none(self.K),
+            "tau": finite_or_none(self.tau),
             "valid": self.model.valid,
             "reason": self.model.reason,
-            "W": [_json(x) for x in self.W],
+            "W": [finite_or_none(x) for x in self.W],
             "param_names": list(self.param_names),
-            "stderr": [_json(x) for x in self.stderr],
-            "K_stderr": _json(self.K_stderr),
-            "tau_stderr": _json(self.tau_stderr),
-            "cond": _json(self.cond),
-            "cond_scaled": _json(self.cond_scaled),
-            "fit_one_step": _json(self.fit_one_step),
-            "fit_simulation": _json(self.fit_simulation),
+            "stderr": [finite_or_none(x) for x in self.stderr],
+            "K_stderr": finite_or_none(self.K_stderr),
+            "tau_stderr": finite_or_none(self.tau_stderr),
+            "cond": finite_or_none(self.cond),
+            "cond_scaled": finite_or_none(self.cond_scaled),
+            "fit_one_step": finite_or_none(self.fit_one_step),
+            "fit_simulation": finite_or_none(self.fit_simulation),
             "n_samples": self.n_samples,
             "n_rows": self.n_rows,
             "order": self.order.to_dict(),
             "offset": self.offset,
-            "ambient": _json(self.ambient),
+            "ambient": finite_or_none(self.ambient),
         }
         if arrays:
             for name in ("y_measured", "y_one_step", "y_simulated", "residuals"):
                 arr: FloatArray = getattr(self, name)
-                out[name] = [_json(x) for x in arr.tolist()]
+                out[name] = [finite_or_none(x) for x in arr.tolist()]
             out["k"] = self.k.tolist()
         return out
 
@@ -251,7 +249,7 @@ def least_squares(
     dt: float,
     *,
     order: ArxOrder | None = None,
-    offset: str | float = "initial",
+    offset: str | float = SETTINGS["offset"].default,
 ) -> LeastSquaresResult:
     """Batch least squares over the whole record: the paper's LSM, eq. 12.
 
@@ -399,10 +397,10 @@ def block_least_squares(
     u: npt.ArrayLike,
     y: npt.ArrayLike,
     dt: float,
-    block: int = 100,
+    block: int = SETTINGS["block"].default,
     *,
     order: ArxOrder | None = None,
-    offset: str | float = "initial",
+    offset: str | float = SETTINGS["offset"].default,
 ) -> Trajectory:
     """Least squares over consecutive non-overlapping blocks: the paper's LSM(2) and LSM(3).
 

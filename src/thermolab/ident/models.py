@@ -30,6 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from thermolab.errors import InvalidParameterError
+from thermolab.jsonsafe import finite_or_none
 
 __all__ = [
     "FIRST_ORDER",
@@ -297,8 +298,8 @@ class FirstOrderModel:
     def to_dict(self) -> dict[str, Any]:
         """``{"K", "tau", "valid", "reason"}`` (NaN as ``None``, JSON-safe)."""
         return {
-            "K": _json_float(self.K),
-            "tau": _json_float(self.tau),
+            "K": finite_or_none(self.K),
+            "tau": finite_or_none(self.tau),
             "valid": self.valid,
             "reason": self.reason,
         }
@@ -318,10 +319,6 @@ def _first_order_reason(a: float, b: float) -> str | None:
             "this model has no time constant"
         )
     return None
-
-
-def _json_float(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
 
 
 @dataclass(frozen=True)
@@ -455,11 +452,11 @@ class ArxModel:
             "c": float(self.c),
             "delay": self.delay,
             "dt": self.dt,
-            "K": _json_float(fo.K),
-            "tau": _json_float(fo.tau),
+            "K": finite_or_none(fo.K),
+            "tau": finite_or_none(fo.tau),
             "valid": fo.valid,
             "reason": fo.reason,
-            "ambient": _json_float(self.ambient),
+            "ambient": finite_or_none(self.ambient),
         }
 
 

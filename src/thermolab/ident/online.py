@@ -22,7 +22,6 @@ the last digit or two (a scalar ``log`` against NumPy's vectorised one).
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import math
 import warnings
 from collections.abc import Mapping
@@ -33,7 +32,8 @@ from typing import Any, ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from thermolab.errors import IdentifierStateError, InvalidDataError, InvalidParameterError
+from thermolab.errors import IdentifierStateError, InvalidDataError
+from thermolab.jsonsafe import json_safe
 
 from . import _regression as _reg
 from . import _validation as _v
@@ -48,31 +48,17 @@ from .models import (
     discrete_to_first_order,
 )
 from .recursive import check_recompute, check_wlsm_params, window_rows
+from .registry import check_settings, get_method
 from .trajectory import Trajectory
 
-__all__ = ["METHODS", "Estimate", "OnlineIdentifier", "make_identifier"]
+__all__ = ["Estimate", "OnlineIdentifier", "make_identifier"]
 
 FloatArray = npt.NDArray[np.float64]
-
-#: The methods :func:`make_identifier` knows.
-METHODS = ("srm", "lsm", "blockls", "malsm", "wlsm")
 
 _NO_EXTRAS: Mapping[str, Any] = MappingProxyType({})
 _REASON_EXTRAS = tuple(
     MappingProxyType({"reason": r}) if r is not None else _NO_EXTRAS for r in INVALID_REASONS
 )
-
-
-def _json(value: Any) -> Any:
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, np.floating | np.integer | np.bool_):
-        return _json(value.item())
-    if isinstance(value, Mapping):
-        return {str(k): _json(v) for k, v in value.items()}
-    if isinstance(value, tuple | list | np.ndarray):
-        return [_json(v) for v in value]
-    return value
 
 
 @dataclass(frozen=True)
@@ -118,12 +104,12 @@ class Estimate:
         return {
             "method": self.method,
             "k": self.k,
-            "K": _json(self.K),
-            "tau": _json(self.tau),
-            "W": _json(self.W),
+            "K": json_safe(self.K),
+            "tau": json_safe(self.tau),
+            "W": json_safe(self.W),
             "valid": self.valid,
             "final": self.final,
-            "extras": _json(self.extras),
+            "extras": json_safe(self.extras),
         }
 
 
@@ -208,6 +194,15 @@ class OnlineIdentifier:
     """
 
     method: ClassVar[str] = ""
+
+    @classmethod
+    def from_settings(cls, dt: float, settings: dict[str, Any]) -> OnlineIdentifier:
+        """An identifier from settings checked by :func:`~thermolab.ident.registry.check_settings`.
+
+        Each method checks here what depends on several settings together
+        (a window long enough for the order, ``p0`` only with the standard form).
+        """
+        return cls(dt, settings)
 
     def __init__(self, dt: float, params: dict[str, Any]) -> None:
         self.dt = dt
@@ -305,7 +300,7 @@ class OnlineIdentifier:
         return {
             "method": self.method,
             "dt": self.dt,
-            "params": _json(self.params),
+            "params": json_safe(self.params),
             "n_samples": self._n,
             "finished": self._finished,
             "latest": self._latest.to_dict() if self._latest is not None else None,
@@ -384,6 +379,11 @@ class _LeastSquares(OnlineIdentifier):
         self._order = order
         self._offset = offset
 
+    @classmethod
+    def from_settings(cls, dt: float, settings: dict[str, Any]) -> OnlineIdentifier:
+        order, offset, common = _model(settings)
+        return cls(dt, common, order, offset)
+
     def _on_finish(self) -> Estimate | None:
         if self._n == 0:
             return None
@@ -432,6 +432,13 @@ class _BlockLeastSquares(OnlineIdentifier):
         self._offset = offset
         self._block = block
         self._block_offset: str | float = offset
+
+    @classmethod
+    def from_settings(cls, dt: float, settings: dict[str, Any]) -> OnlineIdentifier:
+        order, offset, common = _model(settings)
+        block = settings["block"]
+        block_rows(order, block, _n_params(order, offset), block)
+        return cls(dt, {"block": block, **common}, order, offset, block)
 
     def _on_sample(self, k: int, u: float, y: float) -> Estimate | None:
         if k == 0 and self._offset == "initial":
@@ -556,6 +563,15 @@ class _MovingWindow(_Recursive):
             rows, every, self._p, self._first
         )
 
+    @classmethod
+    def from_settings(cls, dt: float, settings: dict[str, Any]) -> OnlineIdentifier:
+        order, offset, common = _model(settings)
+        window = settings["window"]
+        rows = window_rows(order, window, _n_params(order, offset))
+        every = check_recompute(settings["recompute_every"], rows)
+        params = {"window": window, "recompute_every": every, **common}
+        return cls(dt, params, order, offset, rows, every)
+
     def _step(self, k: int) -> Estimate | None:
         if k < self._start:
             self._code[k] = 1
@@ -597,6 +613,25 @@ class _Weighted(_Recursive):
         self._Wk = W0.copy()
         self._Pk = P0.copy()
 
+    @classmethod
+    def from_settings(cls, dt: float, settings: dict[str, Any]) -> OnlineIdentifier:
+        order, offset, common = _model(settings)
+        form = settings["form"]
+        gamma, W0, P0, paper = check_wlsm_params(
+            settings["gamma"], settings["pmax"], settings["w0"], form, settings["p0"],
+            _n_params(order, offset), order.na + order.nb,
+        )  # fmt: skip
+        params: dict[str, Any] = {
+            "gamma": gamma,
+            "pmax": settings["pmax"],
+            "w0": W0.tolist(),
+            "form": form,
+            **common,
+        }
+        if settings["p0"] is not None:
+            params["p0"] = P0.tolist()
+        return cls(dt, params, order, offset, gamma, W0, P0, paper)
+
     def _step(self, k: int) -> Estimate | None:
         if k < self._start:
             self._code[k] = 0
@@ -620,43 +655,15 @@ class _Weighted(_Recursive):
         return self._from_row(k)
 
 
-_COMMON = ("order", "offset")
-_ALLOWED: dict[str, tuple[str, ...]] = {
-    "lsm": _COMMON,
-    "blockls": ("block", *_COMMON),
-    "malsm": ("window", "recompute_every", *_COMMON),
-    "wlsm": ("gamma", "pmax", "w0", "form", "p0", *_COMMON),
-}
+def _model(settings: dict[str, Any]) -> tuple[ArxOrder, str | float, dict[str, Any]]:
+    """The checked order and offset, and their JSON-ready form for ``params``."""
+    order = _v.check_order(settings["order"])
+    offset = _v.check_offset(settings["offset"])
+    return order, offset, {"order": order.to_dict(), "offset": offset}
 
 
-def _srm_params() -> tuple[str, ...]:
-    try:
-        from .step import step_response
-    except ImportError as exc:  # pragma: no cover - only while the step module is missing
-        raise InvalidParameterError(f"the step response method is not available: {exc}") from exc
-    sig = inspect.signature(step_response)
-    return tuple(
-        name
-        for name, prm in sig.parameters.items()
-        if name not in ("t", "u", "y") and prm.kind is inspect.Parameter.KEYWORD_ONLY
-    )
-
-
-def _check_srm_values(params: dict[str, Any]) -> None:
-    """Surface a bad step-response option now, not at END: try it on a tiny exact step."""
-    from .step import step_response
-
-    t = np.arange(40.0)
-    u = np.where(t >= 1.0, 1.0, 0.0)
-    y = np.concatenate([[0.0], -np.expm1(-np.arange(39.0) / 5.0)])
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            step_response(t, u, y, **params)
-    except InvalidParameterError:
-        raise
-    except InvalidDataError:
-        pass  # the options are fine; this toy record may not suit them (u_initial...)
+def _n_params(order: ArxOrder, offset: str | float) -> int:
+    return order.na + order.nb + int(offset == "fit")
 
 
 def make_identifier(method: str, dt: float, **params: Any) -> OnlineIdentifier:
@@ -669,15 +676,14 @@ def make_identifier(method: str, dt: float, **params: Any) -> OnlineIdentifier:
     dt : float
         Sample period in seconds, > 0.
     **params
-        The method's settings, as in the batch functions:
+        The method's settings, as declared in :mod:`thermolab.ident.registry`
+        (names, defaults, ranges; those with ``role="identify"``):
 
-        * ``srm``: the keyword options of :func:`~thermolab.ident.step_response`
-          (``u_initial``, ``min_step``, ``min_samples``, ``settle_time_constants``);
+        * ``srm``: ``u_initial``, ``min_step``, ``min_samples``, ``settle_time_constants``;
         * ``lsm``: ``order``, ``offset``;
-        * ``blockls``: ``block`` (default 100), ``order``, ``offset``;
-        * ``malsm``: ``window`` (default 100), ``recompute_every``, ``order``, ``offset``;
-        * ``wlsm``: ``gamma`` and ``pmax`` (required), ``w0``, ``form``
-          (default ``"paper"``), ``p0``, ``order``, ``offset``.
+        * ``blockls``: ``block``, ``order``, ``offset``;
+        * ``malsm``: ``window``, ``recompute_every``, ``order``, ``offset``;
+        * ``wlsm``: ``gamma``, ``pmax``, ``w0``, ``form``, ``p0``, ``order``, ``offset``.
 
         ``order`` may be an :class:`~thermolab.ident.ArxOrder`, a ``(na, nb,
         delay)`` tuple or a ``{"na", "nb", "delay"}`` dict (from JSON).
@@ -705,50 +711,7 @@ def make_identifier(method: str, dt: float, **params: Any) -> OnlineIdentifier:
     >>> print(round(estimates[-1].K, 6), round(estimates[-1].tau, 6))
     0.14009 250.126233
     """
-    if method not in METHODS:
-        raise InvalidParameterError(
-            f"unknown identification method {method!r}; allowed: {', '.join(METHODS)}"
-        )
+    online = get_method(method).online_class()
     step = _v.check_dt(dt)
-    if method == "srm":
-        _v.check_known(method, params, _srm_params())
-        _check_srm_values(params)
-        return _StepResponse(step, dict(params))
-    _v.check_known(method, params, _ALLOWED[method])
-    order = _v.check_order(params.get("order"))
-    offset = _v.check_offset(params.get("offset", "initial"))
-    constant = offset == "fit"
-    p = order.na + order.nb + int(constant)
-    common: dict[str, Any] = {"order": order.to_dict(), "offset": offset}
-    if method == "lsm":
-        return _LeastSquares(step, common, order, offset)
-    if method == "blockls":
-        block = _v.integer("block", params.get("block", 100), 1, "samples per block")
-        block_rows(order, block, p, block)
-        return _BlockLeastSquares(step, {"block": block, **common}, order, offset, block)
-    if method == "malsm":
-        window = _v.integer("window", params.get("window", 100), 1, "samples in the window")
-        rows = window_rows(order, window, p)
-        every = check_recompute(params.get("recompute_every"), rows)
-        settings = {"window": window, "recompute_every": every, **common}
-        return _MovingWindow(step, settings, order, offset, rows, every)
-    missing = [name for name in ("gamma", "pmax") if name not in params]
-    if missing:
-        raise InvalidParameterError(
-            f"wlsm needs {' and '.join(missing)} (forgetting factor and initial diagonal of P)"
-        )
-    form = params.get("form", "paper")
-    gamma, W0, P0, paper = check_wlsm_params(
-        params["gamma"], params["pmax"], params.get("w0"), form, params.get("p0"), p,
-        order.na + order.nb,
-    )  # fmt: skip
-    settings = {
-        "gamma": gamma,
-        "pmax": float(params["pmax"]),
-        "w0": W0.tolist(),
-        "form": form,
-        **common,
-    }
-    if params.get("p0") is not None:
-        settings["p0"] = P0.tolist()
-    return _Weighted(step, settings, order, offset, gamma, W0, P0, paper)
+    identifier: OnlineIdentifier = online.from_settings(step, check_settings(method, params))
+    return identifier

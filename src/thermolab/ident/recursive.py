@@ -13,6 +13,7 @@ from thermolab.errors import InvalidParameterError
 from . import _regression as _reg
 from . import _validation as _v
 from .models import ArxOrder
+from .registry import SETTINGS, default_w0
 from .trajectory import Trajectory
 
 __all__ = ["moving_window_least_squares", "weighted_least_squares"]
@@ -108,11 +109,11 @@ def moving_window_least_squares(
     u: npt.ArrayLike,
     y: npt.ArrayLike,
     dt: float,
-    window: int = 100,
+    window: int = SETTINGS["window"].default,
     *,
     order: ArxOrder | None = None,
-    offset: str | float = "initial",
-    recompute_every: int | None = None,
+    offset: str | float = SETTINGS["offset"].default,
+    recompute_every: int | None = SETTINGS["recompute_every"].default,
 ) -> Trajectory:
     """Moving-window least squares: the paper's MALSM, one estimate per sample.
 
@@ -239,7 +240,7 @@ def check_wlsm_params(
             f"pmax (initial diagonal of P) must be finite and > 0, got {pm!r}"
         )
     if w0 is None:
-        W0 = np.zeros(n_params)
+        W0 = np.array(default_w0(n_dynamic, n_params))
     else:
         try:
             W0 = np.asarray(w0, dtype=np.float64).reshape(-1)
@@ -296,14 +297,14 @@ def weighted_least_squares(
     u: npt.ArrayLike,
     y: npt.ArrayLike,
     dt: float,
-    gamma: float,
-    pmax: float,
+    gamma: float = SETTINGS["gamma"].default,
+    pmax: float = SETTINGS["pmax"].default,
     w0: npt.ArrayLike | None = None,
     *,
-    form: Literal["paper", "standard"] = "paper",
-    p0: float | npt.ArrayLike | None = None,
+    form: Literal["paper", "standard"] = SETTINGS["form"].default,
+    p0: float | npt.ArrayLike | None = SETTINGS["p0"].default,
     order: ArxOrder | None = None,
-    offset: str | float = "initial",
+    offset: str | float = SETTINGS["offset"].default,
 ) -> Trajectory:
     """Weighted (recursive) least squares with a forgetting factor: the paper's WLSM.
 
@@ -328,14 +329,16 @@ def weighted_least_squares(
         Input and output samples in absolute volts, same length.
     dt : float
         Sample period in seconds, > 0.
-    gamma : float
+    gamma : float, optional
         Forgetting factor: in (0, 1) for the paper's form (γ = 1 makes α = 0),
-        in (0, 1] for the standard form (1: no forgetting).
-    pmax : float
-        Diagonal of the initial ``P``, finite and > 0.
+        in (0, 1] for the standard form (1: no forgetting). Default 0.96, the
+        paper's WLSM(1) (declared in :mod:`thermolab.ident.registry`).
+    pmax : float, optional
+        Diagonal of the initial ``P``, finite and > 0; default 1e4 (WLSM(1)).
     w0 : array_like, optional
-        Initial parameters (``[a, b]`` for first order; the paper uses
-        ``[0.96329, 9.9082e-4]``); default zeros. With ``offset="fit"`` a
+        Initial parameters. Default: the paper's ``[0.96329, 9.9082e-4]`` for
+        the first-order ``[a, b]`` regressor, zeros for other orders (see
+        :func:`~thermolab.ident.registry.default_w0`). With ``offset="fit"`` a
         missing constant starts at 0.
     form : {"paper", "standard"}, optional
         Which formulation to run; default ``"paper"``.

@@ -10,6 +10,7 @@ import numpy as np
 import numpy.typing as npt
 
 from thermolab.errors import InvalidParameterError
+from thermolab.jsonsafe import finite_or_none, json_safe
 
 from .models import INVALID_REASONS, ArxOrder, FirstOrderModel, discrete_to_first_order
 
@@ -21,11 +22,8 @@ __all__ = ["Trajectory"]
 FloatArray = npt.NDArray[np.float64]
 
 
-def _json(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
-
-
 def _json_list(a: npt.NDArray[Any]) -> list[Any]:
+    # json_safe's rule, vectorised: these arrays hold a value per sample (10^6 and more).
     obj = a.astype(object)
     obj[~np.isfinite(a)] = None
     out: list[Any] = obj.tolist()
@@ -287,12 +285,12 @@ class Trajectory:
             "dt": self.dt,
             "order": self.order.to_dict(),
             "offset": self.offset,
-            "params": {k: _json_param(v) for k, v in self.params.items()},
+            "params": {k: json_safe(v) for k, v in self.params.items()},
             "param_names": list(self.param_names),
             "n_samples": self.n_samples,
             "first_estimate": self.first_estimate,
             "final": self.final.to_dict(),
-            "stats": {p: {s: _json(v) for s, v in d.items()} for p, d in stats.items()},
+            "stats": {p: {s: finite_or_none(v) for s, v in d.items()} for p, d in stats.items()},
             "converged_at": self.converged_at(tol, last),
         }
         if arrays:
@@ -327,16 +325,6 @@ class Trajectory:
         from ._plotting import plot_trajectory
 
         return plot_trajectory(self, reference=reference, title=title)
-
-
-def _json_param(v: Any) -> Any:
-    if isinstance(v, float):
-        return _json(v)
-    if isinstance(v, np.ndarray):
-        return _json_list(v)
-    if isinstance(v, tuple | list):
-        return [_json_param(x) for x in v]
-    return v
 
 
 def _check_tol_last(tol: object, last: object) -> None:
