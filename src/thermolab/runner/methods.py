@@ -2,10 +2,11 @@
 
 The command line and the lab server both describe a run's methods the same
 way — a list of names from :data:`METHOD_NAMES` and a few settings (window,
-block, γ, pmax) — and :func:`build_identifiers` turns that into the
+block, γ, pmax, …) — and :func:`build_identifiers` turns that into the
 :class:`~thermolab.ident.online.OnlineIdentifier` objects an
-:class:`~thermolab.runner.Experiment` feeds. A setting that no chosen method
-uses is an error, not silently ignored.
+:class:`~thermolab.runner.Experiment` feeds. Names, defaults and which method
+owns which setting come from :mod:`thermolab.ident.registry`. A setting that no
+chosen method uses is an error, not silently ignored.
 
 The identifiers' compiled kernels load (or compile) on their first call, which
 takes up to a few seconds; inside a real-time loop that would make the first
@@ -21,26 +22,15 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 from thermolab.errors import InvalidParameterError
-from thermolab.ident.online import METHODS, OnlineIdentifier, make_identifier
+from thermolab.ident.online import OnlineIdentifier, make_identifier
+from thermolab.ident.registry import METHOD_NAMES, SETTINGS, owners
 
 __all__ = [
-    "DEFAULT_GAMMA",
-    "DEFAULT_PMAX",
     "METHOD_NAMES",
     "build_identifiers",
     "parse_methods",
     "warm_up",
 ]
-
-#: The online methods a run can use, in the paper's order.
-METHOD_NAMES: tuple[str, ...] = tuple(METHODS)
-
-#: WLSM defaults: the paper's WLSM(1) row (γ = 0.96, pmax = 1e4).
-DEFAULT_GAMMA = 0.96
-DEFAULT_PMAX = 1.0e4
-
-# Which method each setting belongs to (for the "not used by any method" error).
-_SETTING_OWNER = {"window": "malsm", "block": "blockls", "gamma": "wlsm", "pmax": "wlsm"}
 
 
 def parse_methods(text: str | Iterable[str]) -> tuple[str, ...]:
@@ -92,12 +82,9 @@ def build_identifiers(
     methods: Sequence[str],
     dt: float,
     *,
-    window: int | None = None,
-    block: int | None = None,
-    gamma: float | None = None,
-    pmax: float | None = None,
     options: dict[str, dict[str, Any]] | None = None,
     warm: bool = True,
+    **settings: Any,
 ) -> dict[str, OnlineIdentifier]:
     """Make one online identifier per method, with the given settings.
 
@@ -107,19 +94,18 @@ def build_identifiers(
         Names from :data:`METHOD_NAMES` (see :func:`parse_methods`).
     dt : float
         Sample period in seconds.
-    window : int, optional
-        MALSM window in samples (default 100).
-    block : int, optional
-        Block LSM block length in samples (default 100).
-    gamma, pmax : float, optional
-        WLSM forgetting factor and initial covariance diagonal (defaults
-        :data:`DEFAULT_GAMMA`, :data:`DEFAULT_PMAX`).
     options : dict of str to dict, optional
-        Any further keyword settings of :func:`~thermolab.ident.online.make_identifier`,
-        per method (``{"wlsm": {"form": "standard"}, "srm": {"min_step": 0.5}}``).
+        Further keyword settings of :func:`~thermolab.ident.online.make_identifier`,
+        per method (``{"wlsm": {"form": "standard"}, "srm": {"min_step": 0.5}}``);
+        they win over ``settings``.
     warm : bool, optional
         Warm the compiled kernels up before returning (default ``True``; see the
         module notes).
+    **settings
+        Settings by name (``window=50``, ``gamma=0.7``, ``offset="fit"``), each
+        given to every chosen method that takes it (see
+        :func:`thermolab.ident.registry.owners`); ``None`` means "not given",
+        so the registry's default applies.
 
     Returns
     -------
@@ -129,26 +115,32 @@ def build_identifiers(
     Raises
     ------
     InvalidParameterError
-        For an unknown method, a setting out of range, or a setting that none
-        of the chosen methods uses.
+        For an unknown method or setting, a setting out of range, or a setting
+        that none of the chosen methods uses.
 
     Examples
     --------
     >>> idents = build_identifiers(["srm", "wlsm"], 1.0, gamma=0.7, warm=False)
-    >>> list(idents), idents["wlsm"].params["gamma"]
-    (['srm', 'wlsm'], 0.7)
+    >>> list(idents), idents["wlsm"].params["gamma"], idents["wlsm"].params["pmax"]
+    (['srm', 'wlsm'], 0.7, 10000.0)
     >>> build_identifiers(["srm"], 1.0, window=50)
     Traceback (most recent call last):
     ...
     thermolab.errors.InvalidParameterError: window is a setting of malsm, which is not among ...
     """
     chosen = parse_methods(methods)
-    settings = {"window": window, "block": block, "gamma": gamma, "pmax": pmax}
-    for name, value in settings.items():
-        if value is not None and _SETTING_OWNER[name] not in chosen:
+    given = {name: value for name, value in settings.items() if value is not None}
+    for name in given:
+        takers = owners(name)
+        if not takers:
             raise InvalidParameterError(
-                f"{name} is a setting of {_SETTING_OWNER[name]}, which is not among the "
-                f"methods ({', '.join(chosen)})"
+                f"unknown setting {name!r}; the methods take: {', '.join(SETTINGS)}"
+            )
+        if not set(takers) & set(chosen):
+            raise InvalidParameterError(
+                f"{name} is a setting of {', '.join(takers)}, which "
+                f"{'is' if len(takers) == 1 else 'are'} not among the methods "
+                f"({', '.join(chosen)})"
             )
     extra = dict(options or {})
     stray = sorted(set(extra) - set(chosen))
@@ -159,14 +151,7 @@ def build_identifiers(
         )
     identifiers: dict[str, OnlineIdentifier] = {}
     for method in chosen:
-        params: dict[str, Any] = {}
-        if method == "malsm" and window is not None:
-            params["window"] = window
-        if method == "blockls" and block is not None:
-            params["block"] = block
-        if method == "wlsm":
-            params["gamma"] = DEFAULT_GAMMA if gamma is None else gamma
-            params["pmax"] = DEFAULT_PMAX if pmax is None else pmax
+        params = {name: value for name, value in given.items() if method in owners(name)}
         params.update(extra.get(method, {}))
         identifiers[method] = make_identifier(method, dt, **params)
     if warm:
