@@ -19,37 +19,17 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from thermolab.cli import CliError
+from thermolab.cli._settings import add_setting_options, given_settings, option, settings_of
+from thermolab.ident.registry import METHOD_NAMES, get_method, owners
 
 if TYPE_CHECKING:
     import numpy as np
     import numpy.typing as npt
 
-__all__ = ["METHODS", "Record", "read_record", "register", "run"]
+__all__ = ["Record", "read_record", "register", "run"]
 
-#: The methods ``--method`` accepts, with the names the table prints.
-METHODS = {
-    "srm": "step response",
-    "lsm": "batch least squares",
-    "blockls": "block least squares",
-    "malsm": "moving-window least squares",
-    "wlsm": "weighted least squares",
-}
 _REQUIRED = ("t", "u", "y")
 _MIN_ROWS = 3
-# The options that only some methods take (None = not given on the command line).
-_APPLIES = {
-    "window": ("malsm",),
-    "block": ("blockls",),
-    "gamma": ("wlsm",),
-    "pmax": ("wlsm",),
-    "p0": ("wlsm",),
-    "form": ("wlsm",),
-    "w0": ("wlsm",),
-    "offset": ("lsm", "blockls", "malsm", "wlsm"),
-    "order": ("lsm", "blockls", "malsm", "wlsm"),
-    "tol": ("malsm", "wlsm"),
-    "last": ("blockls", "malsm", "wlsm"),
-}
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -65,61 +45,16 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument(
         "--method",
         required=True,
-        choices=tuple(METHODS),
-        help="srm: step response; lsm: batch least squares (eq. 12); blockls: an estimate "
-        "every --block samples; malsm: moving window of --window samples; wlsm: recursive "
-        "least squares with forgetting factor --gamma",
+        choices=METHOD_NAMES,
+        help="; ".join(f"{name}: {_label(name)}" for name in METHOD_NAMES),
     )
     p.add_argument(
         "--dt",
         type=_positive_float("--dt"),
         help="sample period in seconds (default: the median spacing of t)",
     )
-    p.add_argument("--window", type=_positive_int("--window"), help="malsm window (default 100)")
-    p.add_argument("--block", type=_positive_int("--block"), help="blockls block (default 100)")
-    p.add_argument("--gamma", type=_float("--gamma"), help="wlsm forgetting factor (default 0.96)")
-    p.add_argument("--pmax", type=_float("--pmax"), help="wlsm initial diagonal of P (default 1e4)")
-    p.add_argument(
-        "--p0",
-        type=_float("--p0"),
-        help="wlsm, --form standard only: initial covariance P0 = P·I (default pmax)",
-    )
-    p.add_argument(
-        "--form",
-        choices=("paper", "standard"),
-        help="wlsm formulation: the paper's eqs. 13-15 (default) or textbook RLS",
-    )
-    p.add_argument(
-        "--w0",
-        type=_float_list("--w0"),
-        metavar="A,B",
-        help="wlsm initial parameters, e.g. 0.96329,9.9082e-4 (default zeros)",
-    )
-    p.add_argument(
-        "--offset",
-        type=_offset,
-        metavar="none|initial|fit|VALUE",
-        help="operating point: initial (default) removes the first output sample, fit "
-        "estimates a constant, none is the paper's raw form, a number is the known "
-        "ambient output in volts",
-    )
-    p.add_argument(
-        "--order",
-        type=_order,
-        metavar="NA,NB,DELAY",
-        help="ARX order: output lags, input lags, dead time in samples beyond one "
-        "(default 1,1,0: eq. 4)",
-    )
-    p.add_argument(
-        "--tol",
-        type=_positive_float("--tol"),
-        help="relative band for converged_at (default 0.01: ±1 %%)",
-    )
-    p.add_argument(
-        "--last",
-        type=_positive_int("--last"),
-        help="samples the statistics cover, counted from the end (default 2000)",
-    )
+    # One option per registered setting; each says which methods take it.
+    add_setting_options(p.add_argument_group("method settings"), settings_of())
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", metavar="OUT.png", help="also save a figure (needs matplotlib)")
     p.set_defaults(handler=run)
@@ -147,11 +82,12 @@ def run(args: argparse.Namespace) -> int:
         From the method, for data or parameters it refuses.
     """
     method: str = args.method
-    for option, methods in _APPLIES.items():
-        if getattr(args, option) is not None and method not in methods:
+    for setting in settings_of():
+        takers = owners(setting.name)
+        if getattr(args, setting.name) is not None and method not in takers:
             raise CliError(
-                f"--{option} does not apply to --method {method} "
-                f"(it applies to {', '.join(methods)})",
+                f"{option(setting)} does not apply to --method {method} "
+                f"(it applies to {', '.join(takers)})",
                 status=2,
             )
     record = read_record(Path(args.file))
@@ -312,49 +248,26 @@ def read_record(path: Path) -> Record:
 
 
 def _identify(method: str, record: Record, dt: float, args: argparse.Namespace) -> Any:
-    from thermolab import ident
-
-    common: dict[str, Any] = {}
-    if args.offset is not None:
-        common["offset"] = args.offset
-    if args.order is not None:
-        common["order"] = ident.ArxOrder(*args.order)
-    if method == "srm":
-        return ident.step_response(record.t, record.u, record.y)
-    if method == "lsm":
-        return ident.least_squares(record.u, record.y, dt, **common)
-    if method == "blockls":
-        block = 100 if args.block is None else args.block
-        return ident.block_least_squares(record.u, record.y, dt, block, **common)
-    if method == "malsm":
-        window = 100 if args.window is None else args.window
-        return ident.moving_window_least_squares(record.u, record.y, dt, window, **common)
-    gamma = 0.96 if args.gamma is None else args.gamma
-    pmax = 1e4 if args.pmax is None else args.pmax
-    return ident.weighted_least_squares(
-        record.u,
-        record.y,
-        dt,
-        gamma,
-        pmax,
-        args.w0,
-        form=args.form or "paper",
-        p0=args.p0,
-        **common,
-    )
+    m = get_method(method)
+    data = {"t": record.t, "u": record.u, "y": record.y, "dt": dt}
+    settings = given_settings(args, m.settings)
+    identify = {k: v for k, v in settings.items() if k in m.setting_names("identify")}
+    return m.batch_function()(*(data[name] for name in m.data), **identify)
 
 
 def _summary(method: str, result: Any, dt: float, args: argparse.Namespace) -> dict[str, Any]:
-    if method in ("srm", "lsm"):
+    m = get_method(method)
+    if "trajectory" not in m.returns:
         d: dict[str, Any] = result.to_dict()
         out = {"method": method, "dt": dt, "K": d.pop("K"), "tau": d.pop("tau")}
         d.pop("method", None)
         d.pop("dt", None)
         out.update(d)
         return out
-    tol = 0.01 if args.tol is None else args.tol
-    last = 2000 if args.last is None else args.last
-    d = result.to_dict(arrays=False, tol=tol, last=last)
+    stats = m.defaults("statistics")
+    stats.update(given_settings(args, m.settings))
+    stats = {k: v for k, v in stats.items() if k in m.setting_names("statistics")}
+    d = result.to_dict(arrays=False, **stats)
     final = d.pop("final")
     out = {
         "method": method,
@@ -366,10 +279,10 @@ def _summary(method: str, result: Any, dt: float, args: argparse.Namespace) -> d
         "stats": d.pop("stats"),
     }
     converged = d.pop("converged_at")
-    if method in ("malsm", "wlsm"):
+    if "tol" in stats:
         out["converged_at"] = converged
-        out["tol"] = tol
-    out["last"] = last
+        out["tol"] = stats["tol"]
+    out["last"] = stats["last"]
     d.pop("method", None)
     d.pop("dt", None)
     out.update(d)
@@ -379,7 +292,7 @@ def _summary(method: str, result: Any, dt: float, args: argparse.Namespace) -> d
 def _table(s: dict[str, Any]) -> str:
     method = s["method"]
     lines = [
-        f"method  {method} ({METHODS[method]})",
+        f"method  {method} ({_label(method)})",
         f"file    {s['file']} ({s['n_samples']} samples, dt = {s['dt']:g} s)",
     ]
     if "stats" in s:
@@ -454,75 +367,21 @@ def _save_plot(result: Any, path: str) -> None:
         raise CliError(f"--plot: cannot write {path}: {exc}") from None
 
 
-def _float(option: str) -> Any:
+def _positive_float(flag: str) -> Any:
     def parse(text: str) -> float:
         try:
             v = float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{option} must be a number, got {text!r}") from None
+            raise argparse.ArgumentTypeError(f"{flag} must be a number, got {text!r}") from None
         if not math.isfinite(v):
-            raise argparse.ArgumentTypeError(f"{option} must be finite, got {text!r}")
-        return v
-
-    return parse
-
-
-def _positive_float(option: str) -> Any:
-    as_float = _float(option)
-
-    def parse(text: str) -> float:
-        v: float = as_float(text)
+            raise argparse.ArgumentTypeError(f"{flag} must be finite, got {text!r}")
         if v <= 0:
-            raise argparse.ArgumentTypeError(f"{option} must be > 0, got {text!r}")
+            raise argparse.ArgumentTypeError(f"{flag} must be > 0, got {text!r}")
         return v
 
     return parse
 
 
-def _positive_int(option: str) -> Any:
-    def parse(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(
-                f"{option} must be a whole number, got {text!r}"
-            ) from None
-        if v < 1:
-            raise argparse.ArgumentTypeError(f"{option} must be >= 1, got {text!r}")
-        return v
-
-    return parse
-
-
-def _float_list(option: str) -> Any:
-    as_float = _float(option)
-
-    def parse(text: str) -> list[float]:
-        return [as_float(part.strip()) for part in text.split(",")]
-
-    return parse
-
-
-def _offset(text: str) -> str | float:
-    if text in ("none", "initial", "fit"):
-        return text
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"--offset must be none, initial, fit or a number of volts, got {text!r}"
-        ) from None
-    if not math.isfinite(v):
-        raise argparse.ArgumentTypeError(f"--offset must be finite, got {text!r}")
-    return v
-
-
-def _order(text: str) -> tuple[int, int, int]:
-    parts = [p.strip() for p in text.split(",")]
-    try:
-        na, nb, delay = (int(p) for p in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"--order must be three whole numbers NA,NB,DELAY (e.g. 1,1,0), got {text!r}"
-        ) from None
-    return na, nb, delay
+def _label(method: str) -> str:
+    """The method's title without its abbreviation: ``"weighted least squares"``."""
+    return get_method(method).title.partition(" (")[0].lower()

@@ -22,11 +22,10 @@ import threading
 import time
 from typing import Any, TextIO
 
-__all__ = ["register"]
+from thermolab.cli._settings import add_setting_options, given_settings, settings_of
+from thermolab.ident.registry import METHOD_NAMES, Setting
 
-# Spelled out here so that --help does not load the identifiers' compiled kernels;
-# thermolab.runner.methods.parse_methods checks the names against the real list.
-_METHODS = "srm, lsm, blockls, malsm, wlsm"
+__all__ = ["register"]
 
 _EXAMPLES = """\
 examples:
@@ -77,20 +76,10 @@ def register(subparsers: Any) -> None:
         "--method",
         default="all",
         metavar="LIST",
-        help=f"comma-separated online methods from {_METHODS} (default: all)",
+        help=f"comma-separated online methods from {', '.join(METHOD_NAMES)} (default: all)",
     )
-    parser.add_argument(
-        "--window", type=int, metavar="N", help="MALSM window in samples (default 100)"
-    )
-    parser.add_argument(
-        "--block", type=int, metavar="N", help="block LSM block length in samples (default 100)"
-    )
-    parser.add_argument(
-        "--gamma", type=float, metavar="G", help="WLSM forgetting factor γ (default 0.96)"
-    )
-    parser.add_argument(
-        "--pmax", type=float, metavar="P", help="WLSM initial covariance pmax (default 1e4)"
-    )
+    # The identifiers' settings, from the registry; each goes to the methods that take it.
+    add_setting_options(parser.add_argument_group("method settings"), _identifier_settings())
     speed = parser.add_mutually_exclusive_group()
     speed.add_argument(
         "--speedup",
@@ -121,6 +110,11 @@ def register(subparsers: Any) -> None:
         help="make the rig safe if the sampling loop stalls for S wall-clock seconds (default 10)",
     )
     parser.set_defaults(handler=_run)
+
+
+def _identifier_settings() -> tuple[Setting, ...]:
+    """The settings an online identifier takes (not the statistics-only ones)."""
+    return tuple(s for s in settings_of() if s.role == "identify")
 
 
 def _number_of_samples(args: argparse.Namespace) -> int:
@@ -302,12 +296,7 @@ def _run(args: argparse.Namespace) -> int:
         info = rig.describe()
         signal = parse_signal(args.signal, limits=info.input_range)
         identifiers = build_identifiers(
-            methods,
-            args.dt,
-            window=args.window,
-            block=args.block,
-            gamma=args.gamma,
-            pmax=args.pmax,
+            methods, args.dt, **given_settings(args, _identifier_settings())
         )
         recorder = CsvRecorder(args.out, fsync=not simulated) if args.out else None
         experiment = Experiment(

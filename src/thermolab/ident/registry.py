@@ -113,11 +113,11 @@ class Setting:
     Examples
     --------
     >>> SETTINGS["gamma"].allowed()
-    '0 < gamma <= 1'
+    'a finite number > 0 and <= 1'
     >>> SETTINGS["gamma"].check(1.5)
     Traceback (most recent call last):
     ...
-    thermolab.errors.InvalidParameterError: gamma = 1.5 is out of range; allowed: 0 < gamma <= 1
+    thermolab.errors.InvalidParameterError: gamma = 1.5 is out of range; allowed: a finite ...
     """
 
     name: str
@@ -137,25 +137,36 @@ class Setting:
     )
 
     def allowed(self) -> str:
-        """What the setting accepts, in words (used by every error message)."""
+        """What the setting accepts, in words (used by every error message).
+
+        Examples
+        --------
+        >>> SETTINGS["window"].allowed(), SETTINGS["form"].allowed()
+        ('an integer >= 1', 'one of paper, standard')
+        """
         if self.type == "choice":
             return "one of " + ", ".join(self.choices)
         if self.type == "offset":
             return "one of " + ", ".join(self.choices) + " or a finite number of volts"
         if self.type == "arx_order":
             return "(na, nb, delay) with na >= 1, nb >= 1, delay >= 0"
-        what = {"integer": "an integer", "number_list": "a list of finite numbers"}.get(
-            self.type, "a finite number"
-        )
-        low = high = ""
+        bounds = []
         if self.minimum is not None:
-            low = f"{self.minimum:g} {'<' if self.exclusive_minimum else '<='} "
+            bounds.append(f"{'>' if self.exclusive_minimum else '>='} {self.minimum:g}")
         if self.maximum is not None:
-            high = f" {'<' if self.exclusive_maximum else '<='} {self.maximum:g}"
-        if not (low or high):
-            return what
-        subject = self.name if self.type != "number_list" else "each entry"
-        return f"{low}{subject}{high}"
+            bounds.append(f"{'<' if self.exclusive_maximum else '<='} {self.maximum:g}")
+        what = {
+            "integer": "an integer",
+            "number_list": "a list of finite numbers",
+            "covariance": "a finite number",
+        }.get(self.type, "a finite number")
+        if self.type == "number_list" and bounds:
+            what += ", each"
+        if bounds:
+            what += " " + " and ".join(bounds)
+        if self.type == "covariance":
+            what += " (or, in the library, a symmetric positive-definite matrix)"
+        return what
 
     def in_range(self, value: float) -> bool:
         """True when ``value`` is within ``minimum``/``maximum``.
@@ -255,7 +266,7 @@ PAPER_W0: tuple[float, float] = (0.96329, 9.9082e-4)
 
 _ORDER = Setting(
     "order", "arx_order", (1, 1, 0),
-    "ARX order: output lags, input lags, dead time in samples beyond one (1,1,0: eq. 4)",
+    "ARX order: output lags, input lags, dead time in samples beyond one; 1,1,0 is eq. 4",
     metavar="NA,NB,DELAY",
 )  # fmt: skip
 _OFFSET = Setting(
@@ -322,7 +333,7 @@ _SETTLE = Setting(
     minimum=0.0, exclusive_minimum=True, metavar="N",
 )  # fmt: skip
 _TOL = Setting(
-    "tol", "number", 0.01, "relative band for converged_at (0.01: ±1 %)",
+    "tol", "number", 0.01, "relative band for converged_at; 0.01 is ±1 %",
     minimum=0.0, exclusive_minimum=True, role="statistics", metavar="TOL",
 )  # fmt: skip
 _LAST = Setting(
@@ -369,6 +380,9 @@ class Method:
         The :class:`~thermolab.ident.online.OnlineIdentifier` subclass, likewise.
     settings : tuple of Setting
         What the method takes, in the order the command line shows them.
+    data : tuple of str
+        The batch function's leading positional arguments, from ``"t"``,
+        ``"u"``, ``"y"`` and ``"dt"``.
     """
 
     name: str
@@ -379,6 +393,7 @@ class Method:
     batch: str
     online: str
     settings: tuple[Setting, ...] = field(default=())
+    data: tuple[str, ...] = ("u", "y", "dt")
 
     def batch_function(self) -> Callable[..., Any]:
         """The batch implementation (imported on first use)."""
@@ -418,7 +433,7 @@ METHODS: tuple[Method, ...] = (
         "srm", "Step response (SRM)",
         "K from the final value and tau from the 63.2 % crossing of one step",
         1, ("final",), ".step:step_response", ".online:_StepResponse",
-        (_U_INITIAL, _MIN_STEP, _MIN_SAMPLES, _SETTLE),
+        (_U_INITIAL, _MIN_STEP, _MIN_SAMPLES, _SETTLE), data=("t", "u", "y"),
     ),
     Method(
         "lsm", "Batch least squares (LSM)",
