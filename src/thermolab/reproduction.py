@@ -58,8 +58,10 @@ from thermolab.ident import (
     step_response,
     weighted_least_squares,
 )
+from thermolab.ident.registry import PAPER_W0, get_method
+from thermolab.jsonsafe import finite_or_none
 from thermolab.signals import parse_signal
-from thermolab.simulation import PAPER_W0, REFERENCE_MODEL
+from thermolab.simulation import REFERENCE_MODEL
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -78,6 +80,7 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
+# thermolab.ident.registry.METHOD_NAMES as a type (tests/ident/test_registry.py keeps them equal).
 Method = Literal["srm", "lsm", "blockls", "malsm", "wlsm"]
 Solver = Literal["lstsq", "explicit-inverse"]
 Covariance = Literal["propagated", "frozen"]
@@ -184,7 +187,7 @@ class Stats:
         dict
             ``{"mean", "max", "min"}``; NaN becomes ``None``.
         """
-        return {name: _json(value) for name, value in self.items()}
+        return {name: finite_or_none(value) for name, value in self.items()}
 
 
 @dataclass(frozen=True)
@@ -332,12 +335,10 @@ class Table1Row:
             "samples": self.samples,
             "description": self.description,
         }
-        for name in ("block", "window", "gamma", "pmax"):
-            value = getattr(self, name)
+        for name in get_method(self.method).setting_names():
+            value = getattr(self, name, None)
             if value is not None:
-                out[name] = value
-        if self.method == "wlsm":
-            out["w0"] = list(self.w0)
+                out[name] = list(value) if isinstance(value, tuple) else value
         return out
 
 
@@ -854,7 +855,7 @@ class Table1Result:
             f"{'run':<8} {'param':<5} {'stat':<5} {'ours':>13} {'paper':>13} {'ours - paper':>13}",
         ]
         for r in self.rows:
-            single = r.row.method in ("srm", "lsm")
+            single = "trajectory" not in get_method(r.row.method).returns
             first = True
             for pname, ours_s, paper_s in (
                 ("Ks", r.ours.K, r.paper.K),
@@ -1269,10 +1270,6 @@ def _samples(n: int) -> str:
 
 def _int_text(n: int | None) -> str:
     return "-" if n is None else str(n)
-
-
-def _json(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
 
 
 def _as_runs(runs: Sequence[str]) -> tuple[str, ...]:
