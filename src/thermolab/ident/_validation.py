@@ -16,11 +16,12 @@ import numpy.typing as npt
 from thermolab.errors import InvalidDataError, InvalidParameterError
 
 from .models import ArxOrder
+from .registry import SETTINGS
 
 FloatArray = npt.NDArray[np.float64]
 
 #: The offset modes accepted everywhere (besides a float, the known ambient output).
-OFFSET_MODES = ("initial", "fit", "none")
+OFFSET_MODES: tuple[str, ...] = SETTINGS["offset"].choices
 
 
 def as_signal(name: str, values: npt.ArrayLike) -> FloatArray:

@@ -21,7 +21,7 @@ __all__ = ["moving_window_least_squares", "weighted_least_squares"]
 FloatArray = npt.NDArray[np.float64]
 
 #: The WLSM forms: the paper's eqs. 13-15, and textbook exponential-forgetting RLS.
-WLSM_FORMS = ("paper", "standard")
+WLSM_FORMS: tuple[str, ...] = SETTINGS["form"].choices
 
 
 def window_rows(order: ArxOrder, window: int, n_params: int) -> int:
