@@ -308,3 +308,32 @@ def test_subprocess(step_csv: Path) -> None:
     assert bad.returncode == 1
     assert bad.stderr.count("\n") == 1
     assert "no such file" in bad.stderr
+
+
+def test_wlsm_defaults_are_the_papers(run: Run, square_csv: Path) -> None:
+    # The registry's WLSM defaults: gamma 0.96, pmax 1e4 and the paper's W0 (as on the lab's page).
+    w0 = ",".join(str(v) for v in PAPER_W0)
+    plain = _json(run, str(square_csv), "--method", "wlsm")
+    spelled = _json(
+        run, str(square_csv), "--method", "wlsm", "--gamma", "0.96", "--pmax", "1e4", "--w0", w0
+    )
+    assert plain == spelled
+    assert plain["params"]["w0"] == list(PAPER_W0)
+
+
+def test_step_response_settings_reach_the_method(run: Run, tmp_path: Path) -> None:
+    path = _write(tmp_path / "short.csv", _record("step:0:10@1", 800))
+    flagged = _json(run, str(path), "--method", "srm")
+    assert any(w.startswith("short record") for w in flagged["warnings"])
+    quiet = _json(run, str(path), "--method", "srm", "--min-samples", "0")
+    assert not any(w.startswith("short record") for w in quiet["warnings"])
+    assert quiet["K"] == flagged["K"]
+
+
+def test_registered_settings_are_checked_at_the_command_line(run: Run, step_csv: Path) -> None:
+    err = _one_line_error(run, str(step_csv), "--method", "wlsm", "--gamma", "1.5", status=2)
+    assert "--gamma must be a finite number > 0 and <= 1, got '1.5'" in err
+    err = _one_line_error(run, str(step_csv), "--method", "srm", "--min-step", "-1", status=2)
+    assert "--min-step must be a finite number >= 0" in err
+    err = _one_line_error(run, str(step_csv), "--method", "lsm", "--min-step", "2", status=2)
+    assert "--min-step does not apply to --method lsm (it applies to srm)" in err

@@ -235,6 +235,8 @@ def test_sigterm_exits_143_and_keeps_the_csv(tmp_path: Path) -> None:
         (["--samples", "0"], 2, "--samples must be at least 1"),
         (["--rig", "lab"], 1, "unknown rig 'lab'"),
         (["--watchdog", "0"], 1, "watchdog must be a positive number"),
+        (["--method", "lsm", "--window", "0"], 2, "--window must be an integer >= 1"),
+        (["--method", "lsm", "--form", "standard"], 1, "form is a setting of wlsm"),
     ],
 )
 def test_usage_errors_are_one_line(
@@ -277,3 +279,12 @@ def test_a_method_without_a_model_says_why(capsys: pytest.CaptureFixture[str]) -
     assert rows["srm"].split()[1:3] == ["-", "-"]
     assert "needs a single step" in rows["srm"]
     assert rows["lsm"].endswith("at END")
+
+
+def test_any_identifier_setting_reaches_its_methods(capsys: pytest.CaptureFixture[str]) -> None:
+    argv = [*FAST_STEP, "--signal", "square:4:6:0.1", "--method", "lsm,wlsm", "--json"]
+    assert main([*argv, "--offset", "fit", "--form", "standard", "--p0", "50"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    # offset="fit" adds the constant to both; p0 would be refused in the paper's form.
+    assert len(report["methods"]["lsm"]["latest"]["W"]) == 3
+    assert len(report["methods"]["wlsm"]["latest"]["W"]) == 3
