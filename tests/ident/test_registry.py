@@ -315,3 +315,23 @@ def test_registry_json_has_the_api_shape() -> None:
             assert set(s) == keys
     panels = {m["name"]: m["panel"] for m in doc["methods"]}
     assert panels == {"srm": 1, "lsm": 1, "blockls": 1, "malsm": 2, "wlsm": 3}
+
+
+def test_the_registry_loads_without_numpy_and_the_package_names_on_demand() -> None:
+    import subprocess
+    import sys
+
+    import thermolab.ident as package
+
+    code = (
+        "import sys, thermolab.cli, thermolab.ident.registry;"
+        "thermolab.cli.build_parser();"
+        "print(sorted(m for m in ('numpy', 'scipy', 'numba') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+    for name in package.__all__:
+        assert getattr(package, name) is not None
+    assert set(package.__all__) <= set(dir(package))
+    with pytest.raises(AttributeError, match="no_such_name"):
+        package.no_such_name  # noqa: B018
