@@ -260,7 +260,7 @@ def test_method_errors_are_one_line(run: Run, square_csv: Path, tmp_path: Path) 
         (["--method", "lsm", "--gamma", "0.9"], "--gamma does not apply to --method lsm"),
         (["--method", "srm", "--offset", "fit"], "--offset does not apply to --method srm"),
         (["--method", "blockls", "--tol", "0.1"], "--tol does not apply"),
-        (["--method", "malsm", "--window", "0"], "--window must be an integer >= 1"),
+        (["--method", "malsm", "--window", "0"], "--window must be an integer >= 3"),
         (["--method", "wlsm", "--gamma", "abc"], "--gamma must be a finite number > 0 and <= 1"),
         (["--method", "lsm", "--order", "1,2"], "--order must be three whole numbers"),
         (

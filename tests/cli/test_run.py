@@ -235,7 +235,7 @@ def test_sigterm_exits_143_and_keeps_the_csv(tmp_path: Path) -> None:
         (["--samples", "0"], 2, "--samples must be at least 1"),
         (["--rig", "lab"], 1, "unknown rig 'lab'"),
         (["--watchdog", "0"], 1, "watchdog must be a positive number"),
-        (["--method", "lsm", "--window", "0"], 2, "--window must be an integer >= 1"),
+        (["--method", "lsm", "--window", "0"], 2, "--window must be an integer >= 3"),
         (["--method", "lsm", "--form", "standard"], 1, "form is a setting of wlsm"),
     ],
 )

@@ -142,7 +142,7 @@ class Setting:
         Examples
         --------
         >>> SETTINGS["window"].allowed(), SETTINGS["form"].allowed()
-        ('an integer >= 1', 'one of paper, standard')
+        ('an integer >= 3', 'one of paper, standard')
         """
         if self.type == "choice":
             return "one of " + ", ".join(self.choices)
@@ -276,12 +276,16 @@ _OFFSET = Setting(
     choices=("initial", "fit", "none"), unit="V", metavar="none|initial|fit|VALUE",
 )  # fmt: skip
 _BLOCK = Setting(
-    "block", "integer", 100, "samples per block: one estimate at the end of each block",
-    minimum=1, unit="samples", metavar="N",
+    "block", "integer", 100,
+    "samples per block: one estimate at the end of each block (at least the model's "
+    "lag + 1 + its number of parameters: 3 for first order)",
+    minimum=3, unit="samples", metavar="N",
 )  # fmt: skip
 _WINDOW = Setting(
-    "window", "integer", 100, "samples in the moving window (FIFO)",
-    minimum=1, unit="samples", metavar="N",
+    "window", "integer", 100,
+    "samples in the moving window (at least the model's lag + 1 + its number of "
+    "parameters: 3 for first order)",
+    minimum=3, unit="samples", metavar="N",
 )  # fmt: skip
 _RECOMPUTE = Setting(
     "recompute_every", "integer", None,
