@@ -689,9 +689,31 @@ def _fast_columns(
         # peak is one Arrow column above the NumPy arrays.
         chunked = table.column(key)
         table = table.drop_columns([key])
-        columns[name] = np.ascontiguousarray(chunked.to_numpy(), dtype=np.float64)
+        columns[name] = _to_numpy(chunked)
         del chunked
     return columns
+
+
+def _to_numpy(chunked: object) -> npt.NDArray[np.float64]:
+    """Copy a float64 Arrow column into one NumPy array, nulls (empty cells) as NaN.
+
+    By hand rather than ``ChunkedArray.to_numpy()``, which imports pandas when
+    it is installed (over a second of start-up for a command line).
+    """
+    import pyarrow.compute as pac
+
+    out = np.empty(len(chunked), dtype=np.float64)  # type: ignore[arg-type]
+    at = 0
+    for chunk in chunked.chunks:  # type: ignore[attr-defined]
+        if chunk.null_count:
+            chunk = pac.fill_null(chunk, math.nan)
+        size = len(chunk)
+        data = chunk.buffers()[1]
+        out[at : at + size] = np.frombuffer(
+            data, dtype=np.float64, count=size, offset=chunk.offset * 8
+        )
+        at += size
+    return out
 
 
 def _plausible(columns: Mapping[str, npt.NDArray[np.float64]]) -> bool:
