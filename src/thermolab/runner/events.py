@@ -33,14 +33,17 @@ from __future__ import annotations
 import itertools
 import threading
 from collections import deque
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
 from thermolab.errors import InvalidParameterError, SubscriberCutError
+from thermolab.jsonsafe import finite_or_none
 from thermolab.runner.state import RunState
 
 __all__ = [
+    "NO_EXTRA",
     "EstimateEvent",
     "Event",
     "EventBus",
@@ -50,6 +53,10 @@ __all__ = [
     "Subscription",
     "SupportsToDict",
 ]
+
+
+NO_EXTRA: Mapping[str, float] = MappingProxyType({})
+"""The ``extra`` of a sample of a run without extra channels (shared, read-only)."""
 
 
 @runtime_checkable
@@ -83,6 +90,10 @@ class SampleEvent:
         ``t_read - t`` (seconds; the acquisition's timing error).
     lateness : float
         How long after its deadline the loop woke for this sample (>= 0).
+    extra : mapping of str to float
+        The run's other channels (a set point, an error signal, a second
+        sensor...), by name; empty when the run declares none (see
+        ``Experiment(sources=...)`` and :func:`channels`).
     """
 
     kind: ClassVar[str] = "sample"
@@ -94,9 +105,33 @@ class SampleEvent:
     y: float
     jitter: float
     lateness: float
+    extra: Mapping[str, float] = field(default_factory=lambda: NO_EXTRA)
+
+    def channels(self) -> dict[str, float]:
+        """Every channel of the sample by name, in record order.
+
+        The order is :data:`thermolab.records.RUN_CHANNELS`, then ``extra``.
+
+        Examples
+        --------
+        >>> sample = SampleEvent(3, 0, 0.0, 0.001, 5.0, 0.25, 0.001, 0.0, {"r": 6.0})
+        >>> sample.channels()  # doctest: +NORMALIZE_WHITESPACE
+        {'t': 0.0, 'u': 5.0, 'y': 0.25, 'k': 0, 't_read': 0.001, 'jitter': 0.001,
+         'lateness': 0.0, 'r': 6.0}
+        """
+        return {
+            "t": self.t,
+            "u": self.u,
+            "y": self.y,
+            "k": self.k,
+            "t_read": self.t_read,
+            "jitter": self.jitter,
+            "lateness": self.lateness,
+            **self.extra,
+        }
 
     def to_dict(self) -> dict[str, Any]:
-        """Return a JSON-ready dictionary with ``kind`` first.
+        """Return a JSON-ready dictionary with ``kind`` first (``extra`` as an object).
 
         Examples
         --------
@@ -113,6 +148,7 @@ class SampleEvent:
             "y": self.y,
             "jitter": self.jitter,
             "lateness": self.lateness,
+            "extra": {name: finite_or_none(v) for name, v in self.extra.items()},
         }
 
 
