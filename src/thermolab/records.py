@@ -691,6 +691,11 @@ def _fast_columns(
         table = table.drop_columns([key])
         columns[name] = _to_numpy(chunked)
         del chunked
+    del table
+    # Arrow's allocator keeps freed blocks for reuse (about the size of the
+    # table); hand them back, or they stay in the process's memory while the
+    # identification that follows allocates its own.
+    pa.default_memory_pool().release_unused()
     return columns
 
 
