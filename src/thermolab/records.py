@@ -42,6 +42,7 @@ import codecs
 import csv
 import math
 import os
+from array import array
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -761,7 +762,8 @@ def _exact_read(
     width = len(names)
     delimiter = dialect.delimiter
     first_mark: tuple[int, str, str] | None = None
-    values: list[list[float]] = [[] for _ in wanted]
+    # array('d'): 8 bytes a value, where a list of floats takes 32.
+    values = [array("d") for _ in wanted]
     appends = [v.append for v in values]
     previous_t = -math.inf
     try:
@@ -833,5 +835,8 @@ def _exact_read(
                     previous_t = v
                 appends[c](v)
             sample += 1
-    columns = {name: np.array(v, dtype=np.float64) for name, v in zip(wanted, values, strict=True)}
+    columns = {
+        name: np.frombuffer(v, dtype=np.float64).copy()
+        for name, v in zip(wanted, values, strict=True)
+    }
     return columns, Dialect(delimiter, decimal or ".", encoding)
