@@ -20,6 +20,7 @@ from thermolab.records import (
     Dialect,
     RecordWriter,
     read_record,
+    reading,
     write_record,
 )
 
@@ -38,7 +39,7 @@ def _write(tmp_path: Path, content: bytes | str, name: str = "rec.csv") -> Path:
 def reader(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
     """Run a test through pyarrow and through the exact reader: both must agree."""
     if request.param == "exact":
-        monkeypatch.setattr(records, "_fast_columns", lambda *args: None)
+        monkeypatch.setattr(reading, "_fast_columns", lambda *args: None)
     return str(request.param)
 
 
@@ -236,7 +237,7 @@ def test_a_large_file_is_read_by_the_fast_reader(
     def refuse(*args: object) -> object:
         raise AssertionError("the exact reader was used on a clean file")
 
-    monkeypatch.setattr(records, "_exact_columns", refuse)
+    monkeypatch.setattr(reading, "exact_columns", refuse)
     rec = read_record(path)
     np.testing.assert_array_equal(rec.u, u)
     np.testing.assert_array_equal(rec.y, y)
@@ -271,13 +272,13 @@ def test_any_dialect_reads_back_the_same_numbers(
     text = "\r\n".join(lines) + "\r\n"
     path = tmp_path_factory.mktemp("dialect") / "rec.csv"
     path.write_bytes(text.encode(dialect.encoding))
-    original = records._fast_columns
+    original = reading._fast_columns
     if exact:
-        records._fast_columns = lambda *args: None  # type: ignore[assignment]
+        reading._fast_columns = lambda *args: None  # type: ignore[assignment]
     try:
         rec = read_record(path, channels=())
     finally:
-        records._fast_columns = original
+        reading._fast_columns = original
     assert rec.dialect == dialect
     np.testing.assert_array_equal(rec.u, [u for u, _ in values])
     np.testing.assert_array_equal(rec.y, [y for _, y in values])
