@@ -282,3 +282,9 @@ def test_any_dialect_reads_back_the_same_numbers(
     assert rec.dialect == dialect
     np.testing.assert_array_equal(rec.u, [u for u, _ in values])
     np.testing.assert_array_equal(rec.y, [y for _, y in values])
+
+
+def test_no_header_in_the_first_64_kib(tmp_path: Path) -> None:
+    path = _write(tmp_path, "# a comment line of some length\n" * 3000 + "t,u,y\n0,0,0\n")
+    with pytest.raises(RecordFormatError, match="no header in the first 65536 bytes"):
+        read_record(path)
