@@ -11,9 +11,8 @@ Two measurements, each printed beside a peer measured in the same run:
    runner and the identifiers-only loop.
 2. **Real time at 10 Hz with 50 subscribers.** The twin on the real clock at
    ``dt = 0.1 s`` with all five methods and a CSV record, while 50 subscribers
-   consume every event (20 threads pulling from their queues, 20 callbacks, 10
-   asyncio consumers in an event loop thread, each encoding the event as
-   JSON as a server would). The loop's busy time per sample (rig I/O,
+   consume every event (25 threads pulling from their queues, 25 callbacks,
+   each encoding the event as JSON as a server would). The loop's busy time per sample (rig I/O,
    checks, recording, publishing, identifiers) and the lateness of each
    sample are compared with the same run without subscribers.
 
@@ -26,7 +25,6 @@ Run from the repository root::
 from __future__ import annotations
 
 import argparse
-import asyncio
 import contextlib
 import json
 import statistics
@@ -156,9 +154,9 @@ def bench_fast(n: int, repeat: int) -> None:
 
 
 class _Subscribers:
-    """50 subscribers of three kinds, each encoding every event as a server would."""
+    """50 subscribers, pulling or called back, each encoding every event as a server would."""
 
-    def __init__(self, bus: EventBus, pulls: int, callbacks: int, asyncs: int) -> None:
+    def __init__(self, bus: EventBus, pulls: int, callbacks: int) -> None:
         self.counts: list[int] = []
         self.threads: list[threading.Thread] = []
         lock = threading.Lock()
@@ -186,35 +184,8 @@ class _Subscribers:
                 self._callback_counts[i] += 1
 
             bus.subscribe_callback(on_event, maxsize=10_000, name=f"callback-{i}")
-        self._loop = asyncio.new_event_loop()
-        ready = threading.Event()
-
-        def serve() -> None:
-            asyncio.set_event_loop(self._loop)
-            subs = [
-                bus.subscribe_async(loop=self._loop, maxsize=10_000, name=f"async-{i}")
-                for i in range(asyncs)
-            ]
-
-            async def consume(sub: Any) -> int:
-                n = 0
-                async for event in sub:
-                    json.dumps(event.to_dict())
-                    n += 1
-                return n
-
-            async def main() -> list[int]:
-                ready.set()
-                return list(await asyncio.gather(*(consume(s) for s in subs)))
-
-            for n in self._loop.run_until_complete(main()):
-                count(n)
-            self._loop.close()
-
-        self.threads.append(threading.Thread(target=serve, daemon=True))
         for thread in self.threads:
             thread.start()
-        ready.wait()
 
     def join(self) -> list[int]:
         for thread in self.threads:
@@ -230,7 +201,7 @@ def _realtime_run(n: int, subscribers: bool) -> tuple[RunResult, list[int]]:
             rig, 0.1, n, signal=SIGNAL, identifiers=idents,
             recorder=CsvRecorder(Path(folder) / "rt.csv"),
         )  # fmt: skip
-        subs = _Subscribers(exp.events, 20, 20, 10) if subscribers else None
+        subs = _Subscribers(exp.events, 25, 25) if subscribers else None
         result = exp.run()
         counts = subs.join() if subs is not None else []
     return result, counts
@@ -251,7 +222,7 @@ def bench_realtime(n: int) -> None:
     methods = busy.methods.values()
     events = 3 + n + sum(len(m.k) + (m.final is not None) for m in methods)
     delivered = "all" if counts and min(counts) == max(counts) == events else f"{counts}"
-    print(f"   50 subscribers (20 pull, 20 callback, 10 asyncio) each got {delivered} of {events}")
+    print(f"   50 subscribers (25 pull, 25 callback) each got {delivered} of {events}")
     print(f"   loop busy per sample, no subscribers:  {_stats_ms(quiet.busy)}")
     print(f"   loop busy per sample, 50 subscribers:  {_stats_ms(busy.busy)}")
     print(f"   lateness, no subscribers:              {_stats_ms(quiet.lateness)}")

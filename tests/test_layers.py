@@ -12,6 +12,7 @@ NUMERIC_MODULES = [
     "thermolab.signals",
     "thermolab.simulation",
     "thermolab.reproduction",
+    "thermolab.records",
 ]
 FORBIDDEN_PREFIXES = [
     "fastapi",

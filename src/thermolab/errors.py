@@ -18,6 +18,7 @@ __all__ = [
     "InvalidDataError",
     "InvalidParameterError",
     "NotFoundError",
+    "RecordFormatError",
     "RigError",
     "RigFaultError",
     "RigStateError",
@@ -35,6 +36,13 @@ class ThermoLabError(Exception):
 
 class InvalidDataError(ThermoLabError, ValueError):
     """A record cannot be used: NaN/inf, mismatched lengths, too few samples, bad time axis."""
+
+
+class RecordFormatError(InvalidDataError):
+    """A record file cannot be read: not CSV text, ambiguous separators or decimal marks, bad cells.
+
+    The message names the file and, for a bad cell, its line, sample and column.
+    """
 
 
 class InsufficientExcitationError(InvalidDataError):

@@ -337,3 +337,37 @@ def test_registered_settings_are_checked_at_the_command_line(run: Run, step_csv:
     assert "--min-step must be a finite number >= 0" in err
     err = _one_line_error(run, str(step_csv), "--method", "lsm", "--min-step", "2", status=2)
     assert "--min-step does not apply to --method lsm (it applies to srm)" in err
+
+
+# --- records from spreadsheets ---------------------------------------------------------------
+
+
+def test_a_brazilian_spreadsheet_export_gives_the_same_model(
+    run: Run, step_csv: Path, tmp_path: Path
+) -> None:
+    # ";" separators, decimal commas, a byte-order mark and CRLF line ends.
+    text = step_csv.read_text().replace(",", ";").replace(".", ",").replace("\n", "\r\n")
+    sheet = tmp_path / "planilha.csv"
+    sheet.write_bytes("\ufeff".encode() + text.encode())
+    plain, sheet_out = (
+        _json(run, str(step_csv), "--method", "lsm"),
+        _json(run, str(sheet), "--method", "lsm"),
+    )
+    assert sheet_out["K"] == plain["K"]
+    assert sheet_out["tau"] == plain["tau"]
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        (b"t;u;y\n0;0,5;1.5\n1;1;0\n2;1;0\n", "ambiguous decimal mark"),
+        (b"t,u,y\n0,0,0\n1,1,5,1\n2,1,0\n", "decimal commas need a ';' or tab separator"),
+        (b"\xff\xfet\x00,\x00", "UTF-16"),
+    ],
+)
+def test_spreadsheet_problems_are_one_line(
+    run: Run, tmp_path: Path, content: bytes, message: str
+) -> None:
+    path = tmp_path / "bad.csv"
+    path.write_bytes(content)
+    assert message in _one_line_error(run, str(path), "--method", "lsm")

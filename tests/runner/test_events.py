@@ -1,8 +1,7 @@
-"""The event bus: bounded queues, cut and drop policies, threads and asyncio."""
+"""The event bus: bounded queues, cutting a subscriber that falls behind, callbacks on threads."""
 
 from __future__ import annotations
 
-import asyncio
 import threading
 import time
 
@@ -54,16 +53,6 @@ def test_a_full_queue_cuts_its_subscriber_only() -> None:
     assert fast.pending == 20
 
 
-def test_drop_oldest_keeps_the_newest_and_counts_the_rest() -> None:
-    bus = EventBus()
-    sub = bus.subscribe(maxsize=3, policy="drop_oldest")
-    for k in range(10):
-        bus.publish(_sample(bus, k))
-    assert not sub.cut
-    assert sub.dropped == 7
-    assert [e.seq for e in sub.drain()] == [7, 8, 9]
-
-
 def test_get_with_timeout_and_end_of_stream() -> None:
     bus = EventBus()
     sub = bus.subscribe()
@@ -100,7 +89,6 @@ def test_subscribing_to_a_closed_bus_gives_an_ended_stream() -> None:
     [
         ({"maxsize": 0}, "integer >= 1"),
         ({"maxsize": 2.5}, "integer >= 1"),
-        ({"policy": "block"}, "allowed: cut, drop_oldest"),
     ],
 )
 def test_bad_subscription_parameters(kwargs: dict[str, object], match: str) -> None:
@@ -180,51 +168,6 @@ def test_a_non_fatal_callback_error_only_disconnects() -> None:
         time.sleep(0.01)
     assert sub.closed
     assert bus.failure is None
-
-
-def test_async_subscription_receives_events_from_another_thread() -> None:
-    async def main() -> list[int]:
-        bus = EventBus()
-        sub = bus.subscribe_async(maxsize=10_000)
-
-        def produce() -> None:
-            for k in range(2000):
-                bus.publish(_sample(bus, k))
-            bus.close()
-
-        thread = threading.Thread(target=produce)
-        thread.start()
-        seqs = [event.seq async for event in sub]
-        thread.join()
-        return seqs
-
-    assert asyncio.run(main()) == list(range(2000))
-
-
-def test_async_subscription_is_cut_when_the_loop_falls_behind() -> None:
-    async def main() -> tuple[list[int], bool]:
-        bus = EventBus()
-        sub = bus.subscribe_async(maxsize=4)
-        # The loop is busy (this coroutine does not await) while 10 events arrive.
-        for k in range(10):
-            bus.publish(FaultEvent(bus.next_seq(), k, "rig", "x"))
-        got = []
-        for _ in range(4):
-            event = await sub.get()
-            assert event is not None
-            got.append(event.seq)
-        with pytest.raises(SubscriberCutError):
-            await sub.get()
-        return got, sub.cut
-
-    got, cut = asyncio.run(main())
-    assert got == [0, 1, 2, 3]
-    assert cut
-
-
-def test_subscribe_async_outside_a_loop_needs_a_loop() -> None:
-    with pytest.raises(InvalidParameterError, match="needs an event loop"):
-        EventBus().subscribe_async()
 
 
 def test_events_serialise_to_json_ready_dicts() -> None:

@@ -9,7 +9,10 @@ import numpy as np
 import pytest
 
 from thermolab.errors import InvalidParameterError
-from thermolab.runner import CSV_COLUMNS, CsvRecorder
+from thermolab.records import REQUIRED, RUN_CHANNELS, ChannelSpec, channel_names, read_record
+from thermolab.runner import CSV_COLUMNS, CsvRecorder, Experiment, SampleEvent
+
+from .conftest import HookedTwin
 
 
 def test_columns_start_with_t_u_y() -> None:
@@ -51,3 +54,76 @@ def test_unwritable_path_is_a_clear_error(tmp_path: Path) -> None:
 def test_write_before_open_is_refused(tmp_path: Path) -> None:
     with pytest.raises(RuntimeError, match="not open"):
         CsvRecorder(tmp_path / "x.csv").write(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+# --- named channels ------------------------------------------------------------------------
+
+SETPOINT = ChannelSpec("r", "V", "setpoint", "set point")
+ERROR = ChannelSpec("e", "V", "error", "set point minus output")
+
+
+def test_extra_channels_reach_the_record_the_events_and_the_result(
+    twin: HookedTwin, tmp_path: Path
+) -> None:
+    path = tmp_path / "run.csv"
+
+    def setpoint(t: float, u: float, y: float) -> float:
+        return 1.0 if t < 50 else 1.2
+
+    def error(t: float, u: float, y: float) -> float:
+        return setpoint(t, u, y) - y
+
+    recorder = CsvRecorder(path, channels=(*RUN_CHANNELS, SETPOINT, ERROR), comments=["rig: twin"])
+    exp = Experiment(
+        twin,
+        1.0,
+        100,
+        set_point=10.0,
+        sources=[(SETPOINT, setpoint), (ERROR, error)],
+        recorder=recorder,
+    )
+    sub = exp.events.subscribe(maxsize=10_000)
+    result = exp.run()
+    samples = [e for e in sub.drain() if isinstance(e, SampleEvent)]
+    assert list(samples[60].channels())[7:] == ["r", "e"]
+    assert samples[60].extra == {"r": 1.2, "e": 1.2 - samples[60].y}
+    assert samples[60].to_dict()["extra"] == {"r": 1.2, "e": 1.2 - samples[60].y}
+    assert tuple(samples[0].channels()) == channel_names(exp.channels)
+    np.testing.assert_array_equal(result.extra["e"], np.where(result.t < 50, 1.0, 1.2) - result.y)
+    assert [c["name"] for c in result.to_dict()["channels"]][7:] == ["r", "e"]
+    back = read_record(path, known=[SETPOINT, ERROR])
+    assert back.channels == exp.channels
+    assert back.comments == ("rig: twin",)
+    np.testing.assert_array_equal(back.y, result.y)
+    np.testing.assert_array_equal(back["e"], result.extra["e"])
+    np.testing.assert_array_equal(back["k"], np.arange(100))
+
+
+def test_a_recorder_must_declare_the_runs_channels(twin: HookedTwin, tmp_path: Path) -> None:
+    with pytest.raises(InvalidParameterError, match="give the recorder channels="):
+        Experiment(
+            twin,
+            1.0,
+            10,
+            set_point=1.0,
+            sources=[(SETPOINT, lambda t, u, y: 1.0)],
+            recorder=CsvRecorder(tmp_path / "x.csv"),
+        )
+
+
+@pytest.mark.parametrize("name", ["y", "jitter", "r"])
+def test_extra_channel_names_are_unique(twin: HookedTwin, name: str) -> None:
+    spec = ChannelSpec(name)
+    with pytest.raises(InvalidParameterError, match=f"extra channel '{name}' is taken"):
+        Experiment(
+            twin,
+            1.0,
+            10,
+            set_point=1.0,
+            sources=[(spec, lambda t, u, y: 1.0), (SETPOINT, lambda t, u, y: 1.0)],
+        )
+
+
+def test_a_recorder_refuses_channels_that_do_not_start_with_the_runs() -> None:
+    with pytest.raises(InvalidParameterError, match="starts with the channels t,u,y,k"):
+        CsvRecorder("x.csv", channels=(*REQUIRED, SETPOINT))

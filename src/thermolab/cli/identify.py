@@ -1,20 +1,20 @@
 """``thermolab identify``: identify K and tau from a recorded CSV file.
 
-The file has a header naming at least the columns ``t``, ``u`` and ``y``
-(seconds, volts, volts; any order, other columns ignored, lines starting with
-``#`` skipped), as :class:`thermolab.runner.CsvRecorder` writes it. Every
-problem with the file is reported as one line naming the row and column.
+The file is read by :func:`thermolab.records.read_record`: a header naming at
+least the columns ``t``, ``u`` and ``y`` (seconds, volts, volts; any order,
+other columns ignored, lines starting with ``#`` skipped), as
+:class:`thermolab.runner.CsvRecorder` writes it or a spreadsheet exports it
+(comma, semicolon or tab; decimal commas; UTF-8 or Latin-1). Every problem
+with the file is reported as one line naming the line and column.
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import math
 import sys
 import warnings
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -22,14 +22,10 @@ from thermolab.cli import CliError
 from thermolab.cli._settings import add_setting_options, given_settings, option, settings_of
 from thermolab.ident.registry import METHOD_NAMES, get_method, owners
 
-if TYPE_CHECKING:
-    import numpy as np
-    import numpy.typing as npt
+if TYPE_CHECKING:  # the records module loads NumPy; `thermolab --help` should not
+    from thermolab.records import Record
 
-__all__ = ["Record", "read_record", "register", "run"]
-
-_REQUIRED = ("t", "u", "y")
-_MIN_ROWS = 3
+__all__ = ["register", "run"]
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -76,8 +72,10 @@ def run(args: argparse.Namespace) -> int:
     Raises
     ------
     CliError
-        For a bad file, an option the method does not take, or a figure that
-        cannot be written (the dispatcher prints it as one line).
+        For an option the method does not take, or a figure that cannot be
+        written (the dispatcher prints it as one line).
+    thermolab.errors.RecordFormatError
+        For a file that cannot be read (one line naming the line and column).
     thermolab.errors.ThermoLabError
         From the method, for data or parameters it refuses.
     """
@@ -90,7 +88,9 @@ def run(args: argparse.Namespace) -> int:
                 f"(it applies to {', '.join(takers)})",
                 status=2,
             )
-    record = read_record(Path(args.file))
+    from thermolab.records import read_record
+
+    record = read_record(Path(args.file), channels=())
     dt = args.dt if args.dt is not None else record.median_dt
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -113,138 +113,6 @@ def run(args: argparse.Namespace) -> int:
         for note in notes:
             print(f"warning: {note}", file=sys.stderr)
     return 0
-
-
-@dataclass(frozen=True)
-class Record:
-    """The columns of a CSV record.
-
-    Attributes
-    ----------
-    t, u, y : numpy.ndarray
-        Times (s, strictly increasing), inputs and outputs (V), all finite.
-    """
-
-    t: npt.NDArray[np.float64]
-    u: npt.NDArray[np.float64]
-    y: npt.NDArray[np.float64]
-
-    @property
-    def n(self) -> int:
-        """Number of samples."""
-        return int(self.t.size)
-
-    @property
-    def median_dt(self) -> float:
-        """The median spacing of ``t``."""
-        import numpy as np
-
-        return float(np.median(np.diff(self.t)))
-
-
-def read_record(path: Path) -> Record:
-    """Read ``t``, ``u`` and ``y`` from a CSV file.
-
-    Parameters
-    ----------
-    path : pathlib.Path
-        A UTF-8 CSV file whose first non-comment line is a header naming at least
-        ``t``, ``u`` and ``y`` (case and spaces ignored); lines starting with ``#``
-        and blank lines are skipped.
-
-    Returns
-    -------
-    Record
-        The three columns as float arrays.
-
-    Raises
-    ------
-    CliError
-        One line naming the file and, for a bad cell, its line, sample and
-        column: missing or unreadable file, not UTF-8 text, missing columns,
-        fewer than 3 rows, a short row, a cell that is not a finite number, or
-        ``t`` not strictly increasing.
-
-    Examples
-    --------
-    >>> import pathlib, tempfile
-    >>> with tempfile.TemporaryDirectory() as folder:
-    ...     path = pathlib.Path(folder) / "run.csv"
-    ...     _ = path.write_text("t,u,y\\n0,0,1\\n1,5,1\\n2,5,1.5\\n")
-    ...     print(read_record(path).u)
-    [0. 5. 5.]
-    """
-    import numpy as np
-
-    try:
-        with path.open(newline="", encoding="utf-8") as fh:
-            rows = list(csv.reader(fh))
-    except FileNotFoundError:
-        raise CliError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise CliError(f"{path}: is a directory, not a CSV file") from None
-    except UnicodeDecodeError:
-        raise CliError(f"{path}: not a CSV text file (it is not UTF-8 text)") from None
-    except csv.Error as exc:
-        raise CliError(f"{path}: not a valid CSV file ({exc})") from None
-    except OSError as exc:
-        raise CliError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    numbered = [
-        (i + 1, row)
-        for i, row in enumerate(rows)
-        if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")
-    ]
-    if not numbered:
-        raise CliError(f"{path}: empty file; expected a header with the columns t,u,y")
-    header_line, header = numbered[0]
-    names = [c.strip().lower() for c in header]
-    missing = [c for c in _REQUIRED if c not in names]
-    if missing:
-        shown = ",".join(c.strip() for c in header)
-        if len(shown) > 60:
-            shown = shown[:57] + "..."
-        raise CliError(
-            f"{path}: the header (line {header_line}) lacks the column"
-            f"{'s' if len(missing) > 1 else ''} {', '.join(missing)}; it needs t,u,y "
-            f"(got {shown!r})"
-        )
-    index = [names.index(c) for c in _REQUIRED]
-    data = numbered[1:]
-    if len(data) < _MIN_ROWS:
-        raise CliError(
-            f"{path}: too few rows: {len(data)} sample{'s' if len(data) != 1 else ''}, "
-            f"at least {_MIN_ROWS} are needed"
-        )
-    values = np.empty((len(data), 3))
-    for r, (line, row) in enumerate(data):
-        if len(row) <= max(index):
-            raise CliError(
-                f"{path}: line {line} (sample {r}) has {len(row)} cells, the header has "
-                f"{len(header)}"
-            )
-        for c, (col, j) in enumerate(zip(_REQUIRED, index, strict=True)):
-            cell = row[j].strip()
-            try:
-                v = float(cell)
-            except ValueError:
-                raise CliError(
-                    f"{path}: line {line} (sample {r}), column {col}: {cell!r} is not a number"
-                ) from None
-            if not math.isfinite(v):
-                raise CliError(
-                    f"{path}: line {line} (sample {r}), column {col}: {cell!r} is not finite "
-                    "(NaN or inf); remove or repair the row"
-                )
-            values[r, c] = v
-    t = values[:, 0]
-    steps = np.diff(t)
-    if not (steps > 0).all():
-        r = int(np.flatnonzero(steps <= 0)[0]) + 1
-        raise CliError(
-            f"{path}: line {data[r][0]} (sample {r}): t = {float(t[r])!r} does not increase "
-            f"(previous t = {float(t[r - 1])!r}); t must be strictly increasing"
-        )
-    return Record(t=t.copy(), u=values[:, 1].copy(), y=values[:, 2].copy())
 
 
 def _identify(method: str, record: Record, dt: float, args: argparse.Namespace) -> Any:

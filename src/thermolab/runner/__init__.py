@@ -10,12 +10,10 @@ settings; imported on its own because it loads the compiled kernels).
 """
 
 from thermolab.runner.events import (
-    AsyncSubscription,
     EstimateEvent,
     Event,
     EventBus,
     FaultEvent,
-    Policy,
     SampleEvent,
     StateEvent,
     Subscription,
@@ -34,7 +32,6 @@ from thermolab.runner.termination import Terminated, interrupt_signal, terminati
 
 __all__ = [
     "CSV_COLUMNS",
-    "AsyncSubscription",
     "CsvRecorder",
     "EndReason",
     "EstimateEvent",
@@ -46,7 +43,6 @@ __all__ = [
     "InputSignal",
     "Interlocks",
     "MethodResult",
-    "Policy",
     "Recorder",
     "RunResult",
     "RunState",

@@ -8,30 +8,21 @@ number that grows by one per event of the run, so a consumer can see a gap.
 
 Delivery
 --------
-Each subscriber has its own bounded queue. :meth:`EventBus.publish` only
-appends to those queues (a lock and a deque append per subscriber): it never
-waits for a consumer, so a slow or blocked subscriber cannot delay the
-sampling loop. When a subscriber's queue is full, its policy decides:
+One fan-out machinery: each subscriber has its own bounded queue
+(:class:`Subscription`). :meth:`EventBus.publish` only appends to those
+queues (a lock and a deque append per subscriber): it never waits for a
+consumer, so a slow or blocked subscriber cannot delay the sampling loop. A
+subscriber whose queue is full has fallen too far behind: it is disconnected
+and marked (``cut`` is true, ``cut_reason`` says why). It still receives the
+events already queued, then :class:`~thermolab.errors.SubscriberCutError`. A
+server answers by resynchronising the client from a snapshot.
 
-``"cut"`` (default)
-    The subscriber has fallen too far behind: it is disconnected and marked
-    (``cut`` is true, ``cut_reason`` says why). It still receives the events
-    already queued, then :class:`~thermolab.errors.SubscriberCutError`. A
-    server answers by resynchronising the client from a snapshot.
-``"drop_oldest"``
-    The oldest queued event is discarded to make room and ``dropped`` counts
-    it (the ``seq`` gap shows where). For consumers that only want the latest
-    state, such as a progress bar.
+Two ways to consume the same queue:
 
-Three ways to consume:
-
-* :meth:`EventBus.subscribe`: a thread-safe pull queue (``get``, iteration).
+* :meth:`EventBus.subscribe`: pull (``get``, ``drain``, iteration) from any thread.
 * :meth:`EventBus.subscribe_callback`: a function called on a thread of its
-  own, in event order.
-* :meth:`EventBus.subscribe_async`: an async iterator for an asyncio event
-  loop while the run executes in a worker thread (hardware I/O blocks). The
-  publisher wakes the loop with ``loop.call_soon_threadsafe`` only when the
-  consumer is waiting, so a burst of events costs one wake-up.
+  own, in event order (what the lab service uses to forward events to its
+  live stream, which does its own asyncio fan-out to browsers).
 
 When the run is over the bus is closed: consumers receive what is queued and
 then the end of the stream.
@@ -39,34 +30,33 @@ then the end of the stream.
 
 from __future__ import annotations
 
-import asyncio
 import itertools
 import threading
 from collections import deque
-from collections.abc import AsyncIterator, Callable, Iterator
-from dataclasses import dataclass
-from typing import Any, ClassVar, Literal, Protocol, runtime_checkable
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 from thermolab.errors import InvalidParameterError, SubscriberCutError
+from thermolab.jsonsafe import finite_or_none
 from thermolab.runner.state import RunState
 
 __all__ = [
-    "AsyncSubscription",
+    "NO_EXTRA",
     "EstimateEvent",
     "Event",
     "EventBus",
     "FaultEvent",
-    "Policy",
     "SampleEvent",
     "StateEvent",
     "Subscription",
     "SupportsToDict",
 ]
 
-Policy = Literal["cut", "drop_oldest"]
-"""What happens when a subscriber's queue is full (see the module notes)."""
 
-_POLICIES: tuple[Policy, ...] = ("cut", "drop_oldest")
+NO_EXTRA: Mapping[str, float] = MappingProxyType({})
+"""The ``extra`` of a sample of a run without extra channels (shared, read-only)."""
 
 
 @runtime_checkable
@@ -100,6 +90,10 @@ class SampleEvent:
         ``t_read - t`` (seconds; the acquisition's timing error).
     lateness : float
         How long after its deadline the loop woke for this sample (>= 0).
+    extra : mapping of str to float
+        The run's other channels (a set point, an error signal, a second
+        sensor...), by name; empty when the run declares none (see
+        ``Experiment(sources=...)`` and :func:`channels`).
     """
 
     kind: ClassVar[str] = "sample"
@@ -111,9 +105,33 @@ class SampleEvent:
     y: float
     jitter: float
     lateness: float
+    extra: Mapping[str, float] = field(default_factory=lambda: NO_EXTRA)
+
+    def channels(self) -> dict[str, float]:
+        """Every channel of the sample by name, in record order.
+
+        The order is :data:`thermolab.records.RUN_CHANNELS`, then ``extra``.
+
+        Examples
+        --------
+        >>> sample = SampleEvent(3, 0, 0.0, 0.001, 5.0, 0.25, 0.001, 0.0, {"r": 6.0})
+        >>> sample.channels()  # doctest: +NORMALIZE_WHITESPACE
+        {'t': 0.0, 'u': 5.0, 'y': 0.25, 'k': 0, 't_read': 0.001, 'jitter': 0.001,
+         'lateness': 0.0, 'r': 6.0}
+        """
+        return {
+            "t": self.t,
+            "u": self.u,
+            "y": self.y,
+            "k": self.k,
+            "t_read": self.t_read,
+            "jitter": self.jitter,
+            "lateness": self.lateness,
+            **self.extra,
+        }
 
     def to_dict(self) -> dict[str, Any]:
-        """Return a JSON-ready dictionary with ``kind`` first.
+        """Return a JSON-ready dictionary with ``kind`` first (``extra`` as an object).
 
         Examples
         --------
@@ -130,6 +148,7 @@ class SampleEvent:
             "y": self.y,
             "jitter": self.jitter,
             "lateness": self.lateness,
+            "extra": {name: finite_or_none(v) for name, v in self.extra.items()},
         }
 
 
@@ -258,31 +277,37 @@ Event = SampleEvent | EstimateEvent | StateEvent | FaultEvent
 """Any event a run publishes."""
 
 
-class _Queue:
-    """A bounded queue filled by the publisher and drained by one consumer.
+class Subscription:
+    """A subscriber's bounded queue, filled by the publisher and drained by one consumer.
 
-    The lock is held only for a deque operation, never while a consumer runs.
-    Subclasses decide how a waiting consumer is woken (:meth:`_wake`).
+    Created by :meth:`EventBus.subscribe` (consumed by the caller, from any
+    thread) or :meth:`EventBus.subscribe_callback` (consumed on a thread of
+    its own). The lock is held only for a deque operation, never while a
+    consumer runs.
+
+    Examples
+    --------
+    >>> bus = EventBus()
+    >>> sub = bus.subscribe(maxsize=8)
+    >>> bus.publish(StateEvent(bus.next_seq(), RunState.RUNNING, RunState.IDLE))
+    >>> bus.close()
+    >>> [event.kind for event in sub]
+    ['state']
     """
 
-    def __init__(self, bus: EventBus, name: str, maxsize: int, policy: Policy) -> None:
+    def __init__(self, bus: EventBus, name: str, maxsize: int) -> None:
         if isinstance(maxsize, bool) or not isinstance(maxsize, int) or maxsize < 1:
             raise InvalidParameterError(
                 f"a subscriber's queue size must be an integer >= 1, got {maxsize!r}"
             )
-        if policy not in _POLICIES:
-            raise InvalidParameterError(
-                f"unknown subscriber policy {policy!r}; allowed: {', '.join(_POLICIES)}"
-            )
         self.name = name
         self.maxsize = maxsize
-        self.policy: Policy = policy
         self._bus = bus
         self._items: deque[Event] = deque()
         self._lock = threading.Lock()
+        self._ready = threading.Condition(self._lock)
         self._closed = False
         self._cut_reason: str | None = None
-        self._dropped = 0
         self._delivered = 0
 
     # -- state visible to the consumer and to the run ----------------------------
@@ -296,11 +321,6 @@ class _Queue:
     def cut_reason(self) -> str | None:
         """Why the subscriber was cut, or ``None``."""
         return self._cut_reason
-
-    @property
-    def dropped(self) -> int:
-        """Events discarded under the ``"drop_oldest"`` policy."""
-        return self._dropped
 
     @property
     def closed(self) -> bool:
@@ -317,89 +337,7 @@ class _Queue:
         self._bus._remove(self)
         self._finish(None)
 
-    # -- publisher side ------------------------------------------------------------
-
-    def _put(self, event: Event) -> None:
-        with self._lock:
-            if self._closed:
-                return
-            items = self._items
-            if len(items) >= self.maxsize:
-                if self.policy == "cut":
-                    self._closed = True
-                    self._cut_reason = (
-                        f"subscriber {self.name!r} fell {len(items)} events behind "
-                        f"(its queue holds {self.maxsize}) and was disconnected"
-                    )
-                    self._wake()
-                    cut = True
-                else:
-                    items.popleft()
-                    self._dropped += 1
-                    items.append(event)
-                    cut = False
-            else:
-                items.append(event)
-                self._wake()
-                return
-        if cut:
-            self._bus._remove(self)
-
-    def _finish(self, cut_reason: str | None) -> None:
-        with self._lock:
-            if self._closed:
-                return
-            self._closed = True
-            if cut_reason is not None:
-                self._cut_reason = cut_reason
-            self._wake()
-
-    def _wake(self) -> None:
-        """Wake a waiting consumer; called with the lock held."""
-        raise NotImplementedError
-
-    def _take(self) -> Event | None:
-        """Pop the next event (lock held); ``None`` if there is none yet.
-
-        Raises
-        ------
-        SubscriberCutError
-            If the queue is empty and the subscriber was cut.
-        """
-        if self._items:
-            self._delivered += 1
-            return self._items.popleft()
-        if self._cut_reason is not None:
-            raise SubscriberCutError(self._cut_reason)
-        return None
-
-    def __repr__(self) -> str:
-        status = "cut" if self.cut else "closed" if self._closed else "open"
-        return f"<{type(self).__name__} {self.name!r} {status} pending={len(self._items)}>"
-
-
-class Subscription(_Queue):
-    """A subscriber's bounded queue, consumed from any thread.
-
-    Created by :meth:`EventBus.subscribe` (or :meth:`EventBus.subscribe_callback`,
-    which consumes it on a thread of its own).
-
-    Examples
-    --------
-    >>> bus = EventBus()
-    >>> sub = bus.subscribe(maxsize=8)
-    >>> bus.publish(StateEvent(bus.next_seq(), RunState.RUNNING, RunState.IDLE))
-    >>> bus.close()
-    >>> [event.kind for event in sub]
-    ['state']
-    """
-
-    def __init__(self, bus: EventBus, name: str, maxsize: int, policy: Policy) -> None:
-        super().__init__(bus, name, maxsize, policy)
-        self._ready = threading.Condition(self._lock)
-
-    def _wake(self) -> None:
-        self._ready.notify()
+    # -- consumer side -------------------------------------------------------------
 
     def get(self, timeout: float | None = None) -> Event | None:
         """Return the next event, waiting for it if needed.
@@ -456,87 +394,52 @@ class Subscription(_Queue):
                     self._ready.wait()
             yield event
 
+    # -- publisher side ------------------------------------------------------------
 
-class AsyncSubscription(_Queue):
-    """A subscriber's bounded queue consumed by an asyncio event loop.
-
-    The run publishes from its own thread; the consumer awaits in the loop.
-    Created by :meth:`EventBus.subscribe_async`.
-
-    Examples
-    --------
-    >>> async def watch(bus):
-    ...     sub = bus.subscribe_async()
-    ...     bus.publish(StateEvent(bus.next_seq(), RunState.RUNNING, RunState.IDLE))
-    ...     bus.close()
-    ...     return [event.kind async for event in sub]
-    >>> asyncio.run(watch(EventBus()))
-    ['state']
-    """
-
-    def __init__(
-        self,
-        bus: EventBus,
-        name: str,
-        maxsize: int,
-        policy: Policy,
-        loop: asyncio.AbstractEventLoop,
-    ) -> None:
-        super().__init__(bus, name, maxsize, policy)
-        self._loop = loop
-        self._waiter: asyncio.Future[None] | None = None
-        self._wake_scheduled = False
-
-    def _wake(self) -> None:
-        # Only the transition "consumer waiting -> event available" costs a
-        # cross-thread call; events that arrive while the consumer is busy are
-        # simply queued.
-        if self._waiter is None or self._wake_scheduled:
-            return
-        self._wake_scheduled = True
-        try:
-            self._loop.call_soon_threadsafe(self._resolve)
-        except RuntimeError:
-            # The loop is closed: its consumer is gone for good.
+    def _put(self, event: Event) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            items = self._items
+            if len(items) < self.maxsize:
+                items.append(event)
+                self._ready.notify()
+                return
             self._closed = True
-            self._cut_reason = f"subscriber {self.name!r}: its event loop is closed"
+            self._cut_reason = (
+                f"subscriber {self.name!r} fell {len(items)} events behind "
+                f"(its queue holds {self.maxsize}) and was disconnected"
+            )
+            self._ready.notify()
+        self._bus._remove(self)
 
-    def _resolve(self) -> None:
-        waiter = self._waiter
-        if waiter is not None and not waiter.done():
-            waiter.set_result(None)
+    def _finish(self, cut_reason: str | None) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            if cut_reason is not None:
+                self._cut_reason = cut_reason
+            self._ready.notify()
 
-    async def get(self) -> Event | None:
-        """Return the next event, awaiting it if needed; ``None`` at the end of the stream.
+    def _take(self) -> Event | None:
+        """Pop the next event (lock held); ``None`` if there is none yet.
 
         Raises
         ------
         SubscriberCutError
-            Once the queued events are consumed, if the subscriber was cut.
+            If the queue is empty and the subscriber was cut.
         """
-        while True:
-            with self._lock:
-                event = self._take()
-                if event is not None or self._closed:
-                    return event
-                waiter = self._loop.create_future()
-                self._waiter = waiter
-                self._wake_scheduled = False
-            try:
-                await waiter
-            finally:
-                with self._lock:
-                    self._waiter = None
+        if self._items:
+            self._delivered += 1
+            return self._items.popleft()
+        if self._cut_reason is not None:
+            raise SubscriberCutError(self._cut_reason)
+        return None
 
-    def __aiter__(self) -> AsyncIterator[Event]:
-        return self._iterate()
-
-    async def _iterate(self) -> AsyncIterator[Event]:
-        while True:
-            event = await self.get()
-            if event is None:
-                return
-            yield event
+    def __repr__(self) -> str:
+        status = "cut" if self.cut else "closed" if self._closed else "open"
+        return f"<Subscription {self.name!r} {status} pending={len(self._items)}>"
 
 
 class _CallbackRunner:
@@ -590,7 +493,7 @@ class EventBus:
     def __init__(self) -> None:
         self._lock = threading.Lock()
         # Copy-on-write tuple: publish() iterates it without taking the lock.
-        self._queues: tuple[_Queue, ...] = ()
+        self._queues: tuple[Subscription, ...] = ()
         self._counter = itertools.count()
         self._names = itertools.count(1)
         self._closed = False
@@ -602,9 +505,9 @@ class EventBus:
         return bool(self._queues)
 
     @property
-    def subscribers(self) -> tuple[Subscription | AsyncSubscription, ...]:
+    def subscribers(self) -> tuple[Subscription, ...]:
         """The connected subscriptions."""
-        return tuple(q for q in self._queues if isinstance(q, Subscription | AsyncSubscription))
+        return self._queues
 
     @property
     def closed(self) -> bool:
@@ -620,17 +523,14 @@ class EventBus:
         """Return the next event number (thread-safe, starts at 0)."""
         return next(self._counter)
 
-    def subscribe(
-        self, *, maxsize: int = 1024, policy: Policy = "cut", name: str | None = None
-    ) -> Subscription:
+    def subscribe(self, *, maxsize: int = 1024, name: str | None = None) -> Subscription:
         """Add a pull subscriber.
 
         Parameters
         ----------
         maxsize : int, optional
-            Events the queue holds before the policy applies (default 1024).
-        policy : {"cut", "drop_oldest"}, optional
-            What to do when the queue is full (default ``"cut"``).
+            Events the queue holds; a subscriber that falls further behind is
+            cut (default 1024).
         name : str, optional
             For messages (default ``"subscriber-N"``).
 
@@ -642,9 +542,9 @@ class EventBus:
         Raises
         ------
         InvalidParameterError
-            If ``maxsize`` or ``policy`` is invalid.
+            If ``maxsize`` is not an integer >= 1.
         """
-        sub = Subscription(self, self._name(name), maxsize, policy)
+        sub = Subscription(self, self._name(name), maxsize)
         self._add(sub)
         return sub
 
@@ -653,7 +553,6 @@ class EventBus:
         callback: Callable[[Event], object],
         *,
         maxsize: int = 1024,
-        policy: Policy = "cut",
         name: str | None = None,
         fatal_errors: bool = True,
     ) -> Subscription:
@@ -664,7 +563,7 @@ class EventBus:
         callback : callable
             Called once per event, in order. It may block: only its own queue
             fills up.
-        maxsize, policy, name
+        maxsize, name
             As for :meth:`subscribe`.
         fatal_errors : bool, optional
             If ``True`` (default) an exception from ``callback`` is recorded in
@@ -676,49 +575,10 @@ class EventBus:
         Subscription
             The queue the thread consumes (for ``cut``, ``dropped``, ``close()``).
         """
-        sub = Subscription(self, self._name(name), maxsize, policy)
+        sub = Subscription(self, self._name(name), maxsize)
         runner = _CallbackRunner(self, sub, callback, fatal_errors)
         self._add(sub)
         runner.thread.start()
-        return sub
-
-    def subscribe_async(
-        self,
-        *,
-        loop: asyncio.AbstractEventLoop | None = None,
-        maxsize: int = 1024,
-        policy: Policy = "cut",
-        name: str | None = None,
-    ) -> AsyncSubscription:
-        """Add a subscriber consumed by an asyncio event loop.
-
-        Parameters
-        ----------
-        loop : asyncio.AbstractEventLoop, optional
-            The consumer's loop (default: the running loop; required when
-            called outside a coroutine).
-        maxsize, policy, name
-            As for :meth:`subscribe`.
-
-        Returns
-        -------
-        AsyncSubscription
-            An async iterator of events.
-
-        Raises
-        ------
-        InvalidParameterError
-            If no loop is given and none is running.
-        """
-        if loop is None:
-            try:
-                loop = asyncio.get_running_loop()
-            except RuntimeError:
-                raise InvalidParameterError(
-                    "subscribe_async() needs an event loop: call it from a coroutine or pass loop="
-                ) from None
-        sub = AsyncSubscription(self, self._name(name), maxsize, policy, loop)
-        self._add(sub)
         return sub
 
     def publish(self, event: Event) -> None:
@@ -745,14 +605,14 @@ class EventBus:
     def _name(self, name: str | None) -> str:
         return name if name is not None else f"subscriber-{next(self._names)}"
 
-    def _add(self, queue: _Queue) -> None:
+    def _add(self, queue: Subscription) -> None:
         with self._lock:
             if not self._closed:
                 self._queues = (*self._queues, queue)
                 return
         queue._finish(None)
 
-    def _remove(self, queue: _Queue) -> None:
+    def _remove(self, queue: Subscription) -> None:
         with self._lock:
             self._queues = tuple(q for q in self._queues if q is not queue)
 

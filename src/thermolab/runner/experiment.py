@@ -30,7 +30,7 @@ import contextlib
 import math
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
@@ -38,8 +38,11 @@ import numpy as np
 import numpy.typing as npt
 
 from thermolab.errors import InvalidParameterError, RigError, RunStateError, ThermoLabError
+from thermolab.jsonsafe import json_safe
+from thermolab.records import RUN_CHANNELS, ChannelSpec, channel_names
 from thermolab.rigs import Rig, RigInfo, VirtualClock
 from thermolab.runner.events import (
+    NO_EXTRA,
     EstimateEvent,
     EventBus,
     FaultEvent,
@@ -51,6 +54,10 @@ from thermolab.runner.interlocks import Interlocks, Watchdog
 from thermolab.runner.recorder import Recorder
 from thermolab.runner.state import EndReason, RunState, RunStateMachine
 from thermolab.runner.termination import interrupt_signal
+
+ChannelSource = tuple[ChannelSpec, Callable[[float, float, float], float]]
+"""An extra channel of a run: its spec and ``f(t, u, y) -> value``, called once
+per sample after the input is applied (TCLab's ``Historian`` sources are the model)."""
 
 __all__ = [
     "Experiment",
@@ -285,6 +292,11 @@ class RunResult:
         else ``None``.
     error : BaseException or None
         The exception that ended the run (rig fault, error), else ``None``.
+    extra : dict of str to numpy.ndarray
+        The run's extra channels (``Experiment(sources=...)``), by name.
+    channels : tuple of ChannelSpec
+        Every channel of the record, in column order (``t, u, y, k, t_read,
+        jitter, lateness``, then the extra ones).
     """
 
     rig: RigInfo
@@ -306,6 +318,8 @@ class RunResult:
     methods: dict[str, MethodResult] = field(default_factory=dict)
     signum: int | None = None
     error: BaseException | None = None
+    extra: dict[str, _FloatArray] = field(default_factory=dict)
+    channels: tuple[ChannelSpec, ...] = RUN_CHANNELS
 
     @property
     def samples(self) -> int:
@@ -351,6 +365,8 @@ class RunResult:
         if samples:
             for key in ("t", "u", "y", "t_read", "jitter", "lateness"):
                 out[key] = getattr(self, key).tolist()
+            out["extra"] = {name: json_safe(v) for name, v in self.extra.items()}
+        out["channels"] = [c.to_dict() for c in self.channels]
         return out
 
 
@@ -382,12 +398,20 @@ class Experiment:
         Lateness in seconds above which a sample counts as late (default ``dt / 10``).
     events : EventBus, optional
         The bus to publish on (default: a new one, :attr:`events`).
+    sources : sequence of ChannelSource, optional
+        Extra channels recorded with every sample, as ``(ChannelSpec, f)``
+        pairs with ``f(t, u, y) -> float`` (a set point, an error signal, a
+        second sensor). Their values reach the recorder (after the seven
+        standard values, in this order), :attr:`SampleEvent.extra` and
+        :attr:`RunResult.extra`. A recorder used with sources must declare the
+        same :attr:`channels` (``CsvRecorder(path, channels=exp.channels)``).
 
     Raises
     ------
     InvalidParameterError
         If ``dt``, ``samples``, ``late_tolerance`` or the set point is invalid,
-        or both a signal and a set point are given.
+        or both a signal and a set point are given, or an extra channel's
+        name is taken or repeated, or the recorder's channels differ.
 
     Examples
     --------
@@ -414,6 +438,7 @@ class Experiment:
         interlocks: Interlocks | None = None,
         late_tolerance: float | None = None,
         events: EventBus | None = None,
+        sources: Sequence[ChannelSource] = (),
     ) -> None:
         if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0):
             raise InvalidParameterError(f"dt must be a positive number of seconds, got {dt!r}")
@@ -426,6 +451,21 @@ class Experiment:
         if not (math.isfinite(late_tolerance) and late_tolerance >= 0):
             raise InvalidParameterError(
                 f"late_tolerance must be a number of seconds >= 0, got {late_tolerance!r}"
+            )
+        self._sources = tuple((spec, fn) for spec, fn in sources)
+        self._channels = (*RUN_CHANNELS, *(spec for spec, _ in self._sources))
+        names = channel_names(self._channels)
+        for name in names[len(RUN_CHANNELS) :]:
+            if names.count(name) > 1:
+                raise InvalidParameterError(
+                    f"extra channel {name!r} is taken or repeated; a run's channels are "
+                    f"{', '.join(names)}"
+                )
+        recorded = getattr(recorder, "channels", RUN_CHANNELS)
+        if recorder is not None and tuple(recorded) != self._channels:
+            raise InvalidParameterError(
+                f"the recorder writes the channels {','.join(channel_names(recorded))} but "
+                f"the run has {','.join(names)}; give the recorder channels=Experiment.channels"
             )
         self._rig = rig
         self._info = rig.describe()
@@ -464,6 +504,7 @@ class Experiment:
         self._jitter = np.empty(n)
         self._lateness = np.empty(n)
         self._busy = np.empty(n)
+        self._extra = {spec.name: np.empty(n) for spec, _ in self._sources}
         self._late = 0
         self._missed = 0
         self._tracks = {name: _Track() for name in self._identifiers}
@@ -491,6 +532,11 @@ class Experiment:
     def state(self) -> RunState:
         """The run's current state."""
         return self._machine.state
+
+    @property
+    def channels(self) -> tuple[ChannelSpec, ...]:
+        """The run's channels in record order: ``RUN_CHANNELS``, then the sources'."""
+        return self._channels
 
     @property
     def k(self) -> int:
@@ -864,6 +910,8 @@ class Experiment:
             methods=methods,
             signum=signum,
             error=error,
+            extra={name: values[:n].copy() for name, values in self._extra.items()},
+            channels=self._channels,
         )
 
     def _loop(self, watchdog: Watchdog | None) -> tuple[EndReason, str]:
@@ -889,6 +937,8 @@ class Experiment:
             self._busy,
         )
         active = [(name, ident, self._tracks[name]) for name, ident in self._identifiers.items()]
+        sources = [(spec.name, fn, self._extra[spec.name]) for spec, fn in self._sources]
+        extra: Mapping[str, float] = NO_EXTRA
         # The signal's values for a block of samples ahead (see _signal_table).
         table: list[float] = []
         table_signal: InputSignal | None = None
@@ -955,14 +1005,22 @@ class Experiment:
             t_read_arr[k] = t_read
             jitter_arr[k] = jitter
             late_arr[k] = lateness
-            if recorder is not None:
+            if sources:
+                extra = {}
+                for name, source, values in sources:
+                    values[k] = extra[name] = float(source(t_k, u, y))
+                if recorder is not None:
+                    recorder.write(k, t_k, u, y, t_read, jitter, lateness, *extra.values())
+            elif recorder is not None:
                 recorder.write(k, t_k, u, y, t_read, jitter, lateness)
             self._k = k + 1
             if lateness > tolerance:
                 self._late += 1
                 self._missed += int(lateness // dt)
             if bus.active:
-                bus.publish(SampleEvent(bus.next_seq(), k, t_k, t_read, u, y, jitter, lateness))
+                bus.publish(
+                    SampleEvent(bus.next_seq(), k, t_k, t_read, u, y, jitter, lateness, extra)
+                )
 
             for name, ident, track in active:
                 try:

@@ -1,32 +1,35 @@
 """Incremental sample records: every sample reaches the file as soon as it is taken.
 
-:class:`CsvRecorder` writes one row per sample and flushes it to the operating
+:class:`CsvRecorder` writes one row per sample through
+:class:`thermolab.records.RecordWriter` and flushes it to the operating
 system at once, so a crash of the process loses at most the sample being
 taken (at most one sample period of data); with ``fsync=True`` every row is
 also forced to the disk, which protects against a power cut as well at the
 price of one disk sync per sample (worth it at 1 Hz on real hardware, not in
 a simulated run of 20,000 samples per second).
 
-The columns are :data:`CSV_COLUMNS`: ``t,u,y`` first, so that the file feeds
-straight into ``thermolab identify``, then the sample index, the time of the
-reading, the jitter and the lateness. Floats are written with ``repr`` (the
-shortest text that reads back to the same double), so an identification
-from the file reproduces the online estimates exactly; ``t`` is the
-scheduled time ``k * dt`` rounded to 12 significant digits.
+The columns are the run's channels (:data:`thermolab.records.RUN_CHANNELS`:
+``t,u,y`` first, so that the file feeds straight into ``thermolab identify``,
+then the sample index, the time of the reading, the jitter and the lateness;
+then any extra channels the run declares). The record format itself (floats
+as the shortest text that reads back to the same double, ``t`` to 12
+significant digits) is :mod:`thermolab.records`'.
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Protocol, TextIO, runtime_checkable
 
 from thermolab.errors import InvalidParameterError
+from thermolab.records import RUN_CHANNELS, ChannelSpec, RecordWriter, channel_names
 
 __all__ = ["CSV_COLUMNS", "CsvRecorder", "Recorder"]
 
-CSV_COLUMNS: tuple[str, ...] = ("t", "u", "y", "k", "t_read", "jitter", "lateness")
-"""Column order of the CSV record."""
+CSV_COLUMNS: tuple[str, ...] = channel_names(RUN_CHANNELS)
+"""Column order of a run's CSV record without extra channels."""
 
 
 @runtime_checkable
@@ -35,7 +38,9 @@ class Recorder(Protocol):
 
     ``open`` is called at START, ``write`` once per sample in order, ``close``
     on every way out (also after an error). A recorder that raises stops the
-    run (FAULTED, actuator safe).
+    run (FAULTED, actuator safe). A recorder for a run with extra channels
+    (``Experiment(sources=...)``) has a ``channels`` attribute equal to the
+    run's and takes their values after the seven standard ones.
     """
 
     def open(self) -> None:
@@ -63,11 +68,17 @@ class CsvRecorder:
     fsync : bool, optional
         Also force each row to the disk (default ``False``: flushed to the
         operating system only, which survives a crash of the process).
+    channels : sequence of ChannelSpec, optional
+        The columns (default :data:`~thermolab.records.RUN_CHANNELS`; a run
+        with extra channels passes ``Experiment.channels``).
+    comments : sequence of str, optional
+        Lines written as ``# ...`` before the header (the rig, the signal).
 
     Raises
     ------
     InvalidParameterError
-        From :meth:`open`, if the file cannot be created.
+        If the channels do not start with ``RUN_CHANNELS``; from :meth:`open`,
+        if the file cannot be created.
 
     Examples
     --------
@@ -81,11 +92,31 @@ class CsvRecorder:
     >>> rec.close()
     """
 
-    def __init__(self, path: str | os.PathLike[str], *, fsync: bool = False) -> None:
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        fsync: bool = False,
+        channels: Sequence[ChannelSpec] = RUN_CHANNELS,
+        comments: Sequence[str] = (),
+    ) -> None:
+        channels = tuple(channels)
+        if channels[: len(RUN_CHANNELS)] != RUN_CHANNELS:
+            raise InvalidParameterError(
+                f"a run's record starts with the channels {','.join(CSV_COLUMNS)}; "
+                f"got {','.join(channel_names(channels))}"
+            )
         self.path = Path(path)
         self.fsync = fsync
+        self.channels = channels
+        self.comments = tuple(comments)
         self._file: TextIO | None = None
-        self.rows = 0
+        self._writer: RecordWriter | None = None
+
+    @property
+    def rows(self) -> int:
+        """Rows written so far."""
+        return 0 if self._writer is None else self._writer.rows
 
     def open(self) -> None:
         """Create the file and write the header line.
@@ -102,11 +133,20 @@ class CsvRecorder:
             raise InvalidParameterError(
                 f"cannot write the record {str(self.path)!r}: {exc.strerror or exc}"
             ) from None
-        self._file.write(",".join(CSV_COLUMNS) + "\n")
+        self._writer = RecordWriter(self._file, self.channels, comments=self.comments)
+        self._writer.write_header()
         self._flush()
 
     def write(
-        self, k: int, t: float, u: float, y: float, t_read: float, jitter: float, lateness: float
+        self,
+        k: int,
+        t: float,
+        u: float,
+        y: float,
+        t_read: float,
+        jitter: float,
+        lateness: float,
+        *extra: float,
     ) -> None:
         """Append one row and flush it.
 
@@ -114,24 +154,23 @@ class CsvRecorder:
         ----------
         k, t, u, y, t_read, jitter, lateness
             The sample (see :data:`CSV_COLUMNS`).
+        *extra
+            The values of the extra channels, in channel order.
 
         Raises
         ------
         RuntimeError
             If the recorder is not open.
+        InvalidParameterError
+            If the number of values is not the number of channels.
         OSError
             If the disk refuses the write (disk full): the run stops.
         """
-        file = self._file
-        if file is None:
+        writer = self._writer
+        if writer is None or self._file is None:
             raise RuntimeError(f"CsvRecorder({str(self.path)!r}) is not open")
-        # float() first: a NumPy scalar's repr is "np.float64(...)", not a number.
-        file.write(
-            f"{float(t):.12g},{float(u)!r},{float(y)!r},{int(k)},"
-            f"{float(t_read)!r},{float(jitter)!r},{float(lateness)!r}\n"
-        )
+        writer.write_row((t, u, y, k, t_read, jitter, lateness, *extra))
         self._flush()
-        self.rows += 1
 
     def close(self) -> None:
         """Flush (and sync) the file and close it (idempotent)."""
