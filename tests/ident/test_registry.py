@@ -167,9 +167,7 @@ def check_runner(method: Method, setting: Setting) -> None:
         METHOD_NAMES, 1.0, warm=False, **{setting.name: value}
     )
     for name, ident in idents.items():
-        assert (setting.name in ident.params) == (name in owners(setting.name)) or (
-            name == "wlsm" and setting.name == "p0"
-        )
+        assert (setting.name in ident.params) == (name in owners(setting.name))
 
 
 ENTRY_POINTS: dict[str, Callable[[Method, Setting], None]] = {
