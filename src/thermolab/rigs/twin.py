@@ -47,7 +47,7 @@ from thermolab.errors import InvalidParameterError, RigFaultError, RigTimeoutErr
 from thermolab.rigs.base import BaseRig, Reading, RigInfo
 from thermolab.rigs.clock import Clock, RealClock
 
-__all__ = ["PRESETS", "TwinParams", "TwinRig", "twin_preset"]
+__all__ = ["PRESETS", "TwinParams", "TwinRig", "twin_info", "twin_preset"]
 
 
 #: Quantisation step of a 16-bit ±10 V acquisition board (NOTES.md §1).
@@ -326,6 +326,27 @@ def twin_preset(name: str) -> TwinParams:
         ) from None
 
 
+def twin_info(params: TwinParams) -> RigInfo:
+    """Return the :class:`RigInfo` a twin with these parameters reports.
+
+    Examples
+    --------
+    >>> twin_info(twin_preset("paper")).input_range
+    (-10.0, 10.0)
+    """
+    return RigInfo(
+        name=f"twin:{params.name}",
+        kind="twin",
+        input_min=params.input_min,
+        input_max=params.input_max,
+        input_unit=params.input_unit,
+        output_unit=params.output_unit,
+        safe_input=params.safe_input,
+        output_limit=params.output_limit,
+        description=params.description,
+    )
+
+
 @dataclass(frozen=True, slots=True)
 class _Modes:
     """Modal form of the state matrix for one fan level (cached).
@@ -545,18 +566,7 @@ class TwinRig(BaseRig):
             base = dataclasses.replace(base, **overrides)
         self.params = base
         clock = clock if clock is not None else RealClock()
-        info = RigInfo(
-            name=f"twin:{base.name}",
-            kind="twin",
-            input_min=base.input_min,
-            input_max=base.input_max,
-            input_unit=base.input_unit,
-            output_unit=base.output_unit,
-            safe_input=base.safe_input,
-            output_limit=base.output_limit,
-            description=base.description,
-        )
-        super().__init__(info, clock)
+        super().__init__(twin_info(base), clock)
         noise_seq, jitter_seq, drift_seq, colored_seq = np.random.SeedSequence(seed).spawn(4)
         self._noise = _NormalStream(np.random.default_rng(noise_seq))
         self._colored = _NormalStream(np.random.default_rng(colored_seq))
