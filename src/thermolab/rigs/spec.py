@@ -283,8 +283,8 @@ class RigSpec:
 
         Examples
         --------
-        >>> RigSpec.parse("sim:tclab").defaults()["time_constant"]
-        135.0
+        >>> RigSpec.parse("sim:tclab").defaults()["dead_time"]
+        13.0
         >>> RigSpec.parse("tclab").defaults()["watchdog"]
         10.0
         """
