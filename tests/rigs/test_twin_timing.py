@@ -154,3 +154,34 @@ def test_power_off_travels_through_the_dead_time_too() -> None:
 def test_dead_time_must_not_be_negative() -> None:
     with pytest.raises(InvalidParameterError, match="dead_time must be a finite number >= 0"):
         TwinRig("paper", dead_time=-1.0)
+
+
+def test_late_samples_exist_only_when_simulated_seeded_and_disclosed() -> None:
+    late_options = {"late_probability": 0.2, "late_mean": 0.3}
+    with TwinRig("paper", clock=VirtualClock(), seed=4, **late_options) as rig:  # type: ignore[arg-type]
+        on_time = _run(rig, 3000)
+    with TwinRig(
+        "paper",
+        clock=ScaledClock(100.0, source=_LateSource(seed=9)),
+        seed=4,
+        **late_options,  # type: ignore[arg-type]
+    ) as rig:
+        busy = _run(rig, 3000)
+    assert_array_equal(busy.t_read, on_time.t_read)  # seeded: the wall clock plays no part
+    assert_array_equal(busy.y, on_time.y)
+    late = on_time.jitter[on_time.jitter > 0]
+    assert 0.17 < late.size / 3000 < 0.23
+    assert_allclose(late.mean(), 0.3, rtol=0.15)
+    # Reading and input of a late sample both happen at the late instant.
+    reference = TwinRig("paper", clock=VirtualClock())
+    reference.power_on()
+    y = np.empty(3000)
+    for k, instant in enumerate(on_time.t_read):
+        y[k] = reference.read(at=float(instant)).value
+        reference.apply(float(on_time.u[k]), at=float(instant))
+    assert_allclose(on_time.y, y, rtol=0, atol=1e-14)
+
+
+def test_late_probability_must_be_a_probability() -> None:
+    with pytest.raises(InvalidParameterError, match=r"late_probability must be a probability"):
+        TwinRig("paper", late_probability=1.5)

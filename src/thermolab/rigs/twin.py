@@ -113,6 +113,14 @@ class TwinParams:
     jitter_std : float
         Standard deviation in seconds of the offset between the requested and
         the actual sampling instant.
+    late_probability : float
+        Probability that a sample is taken late, as by a busy host: the
+        reading and the input of that sample happen ``late`` seconds after the
+        instant asked for, and the reading's time says so (unlike jitter, the
+        host knows). 0: never.
+    late_mean : float
+        Mean of the lateness of a late sample, seconds (exponentially
+        distributed).
     drift_amplitude : float
         Amplitude of the sinusoidal ambient drift (output units); 0 for none.
     drift_period : float
@@ -151,6 +159,8 @@ class TwinParams:
     quant_origin: float = 0.0
     adc_range: tuple[float, float] | None = None
     jitter_std: float = 0.0
+    late_probability: float = 0.0
+    late_mean: float = 0.0
     drift_amplitude: float = 0.0
     drift_period: float = 3600.0
     saturation: tuple[float, float] | None = None
@@ -206,6 +216,11 @@ class TwinParams:
         finite("quant_origin", self.quant_origin)
         interval("adc_range", self.adc_range)
         non_negative("jitter_std", self.jitter_std)
+        if not (0.0 <= self.late_probability <= 1.0):
+            raise InvalidParameterError(
+                f"late_probability must be a probability in [0, 1], got {self.late_probability!r}"
+            )
+        non_negative("late_mean", self.late_mean)
         non_negative("drift_amplitude", self.drift_amplitude)
         positive("drift_period", self.drift_period)
         interval("saturation", self.saturation)
@@ -219,6 +234,7 @@ class TwinParams:
             quant_step=None,
             adc_range=None,
             jitter_std=0.0,
+            late_probability=0.0,
             drift_amplitude=0.0,
             saturation=None,
         )
@@ -577,7 +593,12 @@ class TwinRig(BaseRig):
         self.params = base
         clock = clock if clock is not None else RealClock()
         super().__init__(twin_info(base), clock)
-        noise_seq, jitter_seq, drift_seq, colored_seq = np.random.SeedSequence(seed).spawn(4)
+        # Children by index: a source added at the end leaves the earlier streams alone.
+        noise_seq, jitter_seq, drift_seq, colored_seq, late_seq = np.random.SeedSequence(
+            seed
+        ).spawn(5)
+        self._late_rng = np.random.default_rng(late_seq)
+        self._late_sample: tuple[float, float] = (math.nan, 0.0)  # (instant asked, lateness)
         self._noise = _NormalStream(np.random.default_rng(noise_seq))
         self._colored = _NormalStream(np.random.default_rng(colored_seq))
         # The colored noise starts in its stationary distribution.
@@ -645,8 +666,25 @@ class TwinRig(BaseRig):
             self._model.set_input(arrival, u)
         return self._model.output_at(t)
 
-    def _apply_input(self, u: float) -> float:
+    def _sample_instant(self, *, reading: bool) -> float:
+        """The instant a read or apply acts at: as asked, or late if the preset says so.
+
+        A late sample is late for its reading and for the input that follows
+        it (the same instant asked for), as when a host wakes late.
+        """
         t = self._instant()
+        p = self.params
+        if not p.late_probability:
+            return t
+        asked, late = self._late_sample
+        if reading or asked != t:
+            draw = self._late_rng.random(2)
+            late = -p.late_mean * math.log1p(-draw[1]) if draw[0] < p.late_probability else 0.0
+            self._late_sample = (t, late)
+        return t + late
+
+    def _apply_input(self, u: float) -> float:
+        t = self._sample_instant(reading=False)
         self._raise_pending_fault(t)
         sat = self.params.saturation
         if sat is not None:
@@ -655,7 +693,7 @@ class TwinRig(BaseRig):
         return u
 
     def _read_output(self) -> Reading:
-        t = self._instant()
+        t = self._sample_instant(reading=True)
         self._raise_pending_fault(t)
         p = self.params
         instant = t + p.jitter_std * self._jitter() if p.jitter_std else t
