@@ -18,7 +18,7 @@ from thermolab.rigs.base import BaseRig, Reading, Rig, RigInfo, RigState
 from thermolab.rigs.clock import Clock, RealClock, ScaledClock, VirtualClock, make_clock
 from thermolab.rigs.spec import RIG_KINDS, RigKind, RigSpec
 from thermolab.rigs.tclab import TCLabRig, TCLabVersion, find_tclab, tclab_info
-from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_info, twin_preset
+from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_info, twin_params, twin_preset
 
 __all__ = [
     "PRESETS",
@@ -48,5 +48,6 @@ __all__ = [
     "open_rig",
     "tclab_info",
     "twin_info",
+    "twin_params",
     "twin_preset",
 ]

@@ -29,7 +29,7 @@ from thermolab.errors import InvalidParameterError
 from thermolab.rigs.base import Rig, RigInfo
 from thermolab.rigs.clock import Clock
 from thermolab.rigs.tclab import TCLabRig, tclab_info
-from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_info
+from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_info, twin_params
 
 __all__ = ["RIG_KINDS", "RIG_SPECS", "RigKind", "RigSpec"]
 
@@ -112,14 +112,6 @@ def _keyword_defaults(factory: Callable[..., Any], *, skip: tuple[str, ...]) -> 
     }
 
 
-def _twin_params(preset: str | None, options: Mapping[str, Any]) -> TwinParams:
-    params = PRESETS[preset or "paper"]
-    overrides = {k: v for k, v in options.items() if k != "realism"}
-    if not options.get("realism", True):
-        params = params.without_realism()
-    return dataclasses.replace(params, **overrides) if overrides else params
-
-
 def _open_twin(
     preset: str | None, clock: Clock | None, seed: int | None, options: Mapping[str, Any]
 ) -> Rig:
@@ -157,7 +149,7 @@ RIG_KINDS: Mapping[str, RigKind] = MappingProxyType(
             choices=tuple(PRESETS),
             options=("realism", *(f.name for f in dataclasses.fields(TwinParams))),
             _defaults=_twin_defaults,
-            _describe=lambda preset, options: twin_info(_twin_params(preset, options)),
+            _describe=lambda preset, options: twin_info(twin_params(preset or "paper", **options)),
             _open=_open_twin,
         ),
         "tclab": RigKind(

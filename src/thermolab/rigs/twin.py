@@ -48,7 +48,7 @@ from thermolab.errors import InvalidParameterError, RigFaultError, RigTimeoutErr
 from thermolab.rigs.base import BaseRig, Reading, RigInfo
 from thermolab.rigs.clock import Clock, RealClock
 
-__all__ = ["PRESETS", "TwinParams", "TwinRig", "twin_info", "twin_preset"]
+__all__ = ["PRESETS", "TwinParams", "TwinRig", "twin_info", "twin_params", "twin_preset"]
 
 
 #: Quantisation step of a 16-bit ±10 V acquisition board (NOTES.md §1).
@@ -352,6 +352,36 @@ def twin_preset(name: str) -> TwinParams:
         ) from None
 
 
+def twin_params(
+    params: TwinParams | str = "paper", *, realism: bool = True, **overrides: Any
+) -> TwinParams:
+    """Return the parameters a twin built with these arguments has (see :class:`TwinRig`).
+
+    Raises
+    ------
+    InvalidParameterError
+        For an unknown preset, an unknown override or an invalid value.
+
+    Examples
+    --------
+    >>> twin_params("paper-practical", realism=False, ambient=1.0).noise_std
+    0.0
+    """
+    base = twin_preset(params) if isinstance(params, str) else params
+    if not realism:
+        base = base.without_realism()
+    if overrides:
+        known = {f.name for f in dataclasses.fields(TwinParams)}
+        unknown = sorted(set(overrides) - known)
+        if unknown:
+            raise InvalidParameterError(
+                f"unknown twin option(s) {', '.join(unknown)}; allowed: "
+                f"{', '.join(sorted(known | {'realism'}))}"
+            )
+        base = dataclasses.replace(base, **overrides)
+    return base
+
+
 def twin_info(params: TwinParams) -> RigInfo:
     """Return the :class:`RigInfo` a twin with these parameters reports.
 
@@ -578,18 +608,7 @@ class TwinRig(BaseRig):
         realism: bool = True,
         **overrides: Any,
     ) -> None:
-        base = twin_preset(params) if isinstance(params, str) else params
-        if not realism:
-            base = base.without_realism()
-        if overrides:
-            known = {f.name for f in dataclasses.fields(TwinParams)}
-            unknown = sorted(set(overrides) - known)
-            if unknown:
-                raise InvalidParameterError(
-                    f"unknown twin option(s) {', '.join(unknown)}; allowed: "
-                    f"{', '.join(sorted(known))}"
-                )
-            base = dataclasses.replace(base, **overrides)
+        base = twin_params(params, realism=realism, **overrides)
         self.params = base
         clock = clock if clock is not None else RealClock()
         super().__init__(twin_info(base), clock)
