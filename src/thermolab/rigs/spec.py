@@ -300,6 +300,23 @@ class RigSpec:
         self.rig_kind.check_options(options)
         return self.rig_kind._describe(self.argument, options)
 
+    def to_dict(self) -> dict[str, Any]:
+        """Return the spec and what it describes as a JSON-ready dictionary.
+
+        Examples
+        --------
+        >>> d = RigSpec.parse("sim").to_dict()
+        >>> d["spec"], d["kind"], d["simulated"], d["info"]["input_unit"]
+        ('sim:paper', 'sim', True, 'V')
+        """
+        return {
+            "spec": str(self),
+            "kind": self.kind,
+            "argument": self.argument,
+            "simulated": self.simulated,
+            "info": self.describe().to_dict(),
+        }
+
     def open(self, *, clock: Clock | None = None, seed: int | None = None, **options: Any) -> Rig:
         """Open the rig (see :func:`thermolab.rigs.open_rig`)."""
         self.rig_kind.check_options(options)
