@@ -53,7 +53,7 @@ def test_tclab_with_a_port_opens_the_driver() -> None:
     ("spec", "message"),
     [
         ("lab", "unknown rig 'lab'; use one of: sim, sim:paper"),
-        ("sim:oven", "unknown simulated rig 'sim:oven'"),
+        ("sim:oven", "unknown preset 'oven' in rig 'sim:oven'; use one of: sim, sim:paper"),
         ("tclab:", "names no port"),
         ("", "unknown rig ''"),
     ],

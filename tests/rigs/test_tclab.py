@@ -85,16 +85,6 @@ def open_driver(emulator: TCLabEmulator, clock: VirtualClock) -> Iterator[Callab
         rig.close()
 
 
-def _wait_for(condition: Callable[[], bool], limit: float = 3.0) -> bool:
-    """Poll a condition set by another thread (real time; no simulated time passes)."""
-    deadline = time.monotonic() + limit
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(0.01)
-    return condition()
-
-
 def test_connect_checks_firmware_and_switches_heaters_off(
     emulator: TCLabEmulator, open_driver: Callable[..., TCLabRig]
 ) -> None:
@@ -124,16 +114,23 @@ def test_apply_and_read_speak_the_protocol(
 
 
 def test_late_replies_are_not_taken_for_the_next_answer(
-    emulator: TCLabEmulator, open_driver: Callable[..., TCLabRig]
+    emulator: TCLabEmulator, open_driver: Callable[..., TCLabRig], wait_until: Callable[..., bool]
 ) -> None:
-    rig = open_driver()
+    # Which replies come late is decided by the emulator, not by timing, so the
+    # timeout can be generous: the exchanges that must succeed do so on a
+    # loaded machine, and the held ones fail whatever its length.
+    rig = open_driver(timeout=2.0)
     rig.power_on()
     rig.apply(20.0)
-    emulator.reply_delay = 2 * TIMEOUT  # answers arrive after the driver gave up
+    emulator.hold_replies = True  # the kit stalls: the driver times out...
     with pytest.raises(RigTimeoutError):
         rig.read()
-    time.sleep(6 * TIMEOUT)  # real time: let the late '21.000', 'Stop'... arrive unread
-    emulator.reply_delay = 0.0
+    # ... and switches the heaters off without waiting (its resync timed out too).
+    assert wait_until(lambda: emulator.commands[-3:] == ["Q1 0", "Q2 0", "X"], timeout=30.0)
+    assert emulator.heater(1) == 0.0
+    # The kit catches up: its late '20.000', 'SYNC1', 'Stop'... lines now arrive
+    # in front of the answer to whatever the driver asks next.
+    emulator.hold_replies = False
     rig.clear_fault()
     rig.power_on()
     assert rig.apply(5.0) == 5.0
@@ -293,7 +290,10 @@ def test_a_dead_sensor_is_a_fault(
 
 
 def test_the_watchdog_switches_off_a_silent_host(
-    emulator: TCLabEmulator, open_driver: Callable[..., TCLabRig], clock: VirtualClock
+    emulator: TCLabEmulator,
+    open_driver: Callable[..., TCLabRig],
+    clock: VirtualClock,
+    wait_until: Callable[..., bool],
 ) -> None:
     rig = open_driver(watchdog=5.0)
     rig.power_on()
@@ -304,7 +304,7 @@ def test_the_watchdog_switches_off_a_silent_host(
     time.sleep(0.1)  # real time for the watchdog thread to look (simulated time stands still)
     assert rig.fault() is None
     clock.advance(6.0)  # the host falls silent
-    assert _wait_for(lambda: rig.fault() is not None)
+    assert wait_until(lambda: rig.fault() is not None)
     assert "watchdog" in (rig.fault() or "")
     assert emulator.heater(1) == 0.0
     assert rig.state is RigState.FAULTED

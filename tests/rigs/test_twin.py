@@ -81,7 +81,7 @@ def test_piecewise_constant_input_is_integrated_exactly(steps: list[tuple[float,
 
 
 def test_two_node_model_matches_the_matrix_exponential() -> None:
-    rig, clock = _twin("tclab", realism=False)
+    rig, clock = _twin("tclab", realism=False, dead_time=0.0)
     p = rig.params
     assert p.sensor_lag is not None
     A = np.array([[-1 / p.time_constant, 0], [1 / p.sensor_lag, -1 / p.sensor_lag]])
@@ -107,7 +107,10 @@ def test_tclab_twin_step_fits_the_kit_figures() -> None:
         return np.where(t > theta, 50 * K * (1 - np.exp(-(t - theta) / tau)), 0.0)
 
     (K, tau, theta), _ = curve_fit(fopdt, t, y, p0=[0.5, 100.0, 10.0])
-    assert_allclose([K, tau, theta], [0.6, 140.0, 17.0], rtol=0.05)
+    assert_allclose([K, tau, theta], [0.6, 140.0, 16.0], rtol=0.05)
+    assert rig.params.dead_time == 13.0  # most of θ is pure delay, as on the kit
+    assert abs(y[13]) < 1e-12  # nothing reaches the sensor before the delay has passed
+    assert y[14] > 1e-6
 
 
 def test_the_fan_cools_faster_but_never_below_ambient() -> None:

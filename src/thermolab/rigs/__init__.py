@@ -4,8 +4,10 @@ See :mod:`thermolab.rigs.base` for the interface (:class:`Rig`,
 :class:`BaseRig`, :class:`RigInfo`, :class:`Reading`, :class:`RigState`) and
 :mod:`thermolab.rigs.clock` for the clocks every rig and the runner share.
 The implementations are the digital twin (:mod:`thermolab.rigs.twin`) and the
-TCLab driver (:mod:`thermolab.rigs.tclab`); :func:`open_rig` opens either from
-a one-line specification. The TCLab firmware emulator
+TCLab driver (:mod:`thermolab.rigs.tclab`); :class:`RigSpec` parses the one-line
+specification that names a rig (``sim``, ``sim:PRESET``, ``tclab``,
+``tclab:PORT``) and tells what it is without opening it (units, ranges, safe
+input, defaults: :mod:`thermolab.rigs.spec`); :func:`open_rig` opens it. The TCLab firmware emulator
 (:mod:`thermolab.rigs.tclab_emulator`, POSIX only: it needs a pseudo-terminal)
 is imported from its module.
 """
@@ -14,11 +16,13 @@ from thermolab.errors import RigError, RigFaultError, RigStateError, RigTimeoutE
 from thermolab.rigs._factory import RIG_SPECS, open_rig
 from thermolab.rigs.base import BaseRig, Reading, Rig, RigInfo, RigState
 from thermolab.rigs.clock import Clock, RealClock, ScaledClock, VirtualClock, make_clock
-from thermolab.rigs.tclab import TCLabRig, TCLabVersion, find_tclab
-from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_preset
+from thermolab.rigs.spec import RIG_KINDS, RigKind, RigSpec
+from thermolab.rigs.tclab import TCLabRig, TCLabVersion, find_tclab, tclab_info
+from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_info, twin_params, twin_preset
 
 __all__ = [
     "PRESETS",
+    "RIG_KINDS",
     "RIG_SPECS",
     "BaseRig",
     "Clock",
@@ -28,6 +32,8 @@ __all__ = [
     "RigError",
     "RigFaultError",
     "RigInfo",
+    "RigKind",
+    "RigSpec",
     "RigState",
     "RigStateError",
     "RigTimeoutError",
@@ -40,5 +46,8 @@ __all__ = [
     "find_tclab",
     "make_clock",
     "open_rig",
+    "tclab_info",
+    "twin_info",
+    "twin_params",
     "twin_preset",
 ]

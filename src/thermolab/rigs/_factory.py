@@ -2,48 +2,27 @@
 
 from __future__ import annotations
 
-import inspect
 from typing import Any
 
-from thermolab.errors import InvalidParameterError
 from thermolab.rigs.base import Rig
 from thermolab.rigs.clock import Clock
-from thermolab.rigs.tclab import TCLabRig
-from thermolab.rigs.twin import PRESETS, TwinRig
+from thermolab.rigs.spec import RIG_SPECS, RigSpec
 
 __all__ = ["RIG_SPECS", "open_rig"]
 
-#: The accepted forms of a rig specification, for help texts and error messages.
-RIG_SPECS = ("sim", *(f"sim:{name}" for name in PRESETS), "tclab", "tclab:PORT")
-
-
-def _check_options(factory: Any, options: dict[str, Any], kind: str) -> None:
-    parameters = inspect.signature(factory).parameters
-    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters.values()):
-        return
-    allowed = {
-        name
-        for name, p in parameters.items()
-        if p.kind is inspect.Parameter.KEYWORD_ONLY and name != "clock"
-    }
-    unknown = sorted(set(options) - allowed)
-    if unknown:
-        raise InvalidParameterError(
-            f"unknown {kind} option(s) {', '.join(unknown)}; allowed: {', '.join(sorted(allowed))}"
-        )
-
 
 def open_rig(
-    spec: str, *, clock: Clock | None = None, seed: int | None = None, **options: Any
+    spec: str | RigSpec, *, clock: Clock | None = None, seed: int | None = None, **options: Any
 ) -> Rig:
     """Open the rig named by ``spec``.
 
     Parameters
     ----------
-    spec : str
+    spec : str or RigSpec
         ``sim`` (the paper's twin, noise-free), ``sim:PRESET`` (a twin preset:
         ``paper``, ``paper-practical``, ``tclab``), ``tclab`` (a TCLab kit,
-        auto-detected) or ``tclab:PORT`` (a kit on that serial port).
+        auto-detected) or ``tclab:PORT`` (a kit on that serial port); parsed
+        by :meth:`RigSpec.parse <thermolab.rigs.spec.RigSpec.parse>`.
     clock : Clock, optional
         The clock of the rig (default: real time).
     seed : int, optional
@@ -77,20 +56,4 @@ def open_rig(
     ...
     thermolab.errors.InvalidParameterError: unknown rig 'lab'; use one of: sim, ...
     """
-    kind, sep, rest = spec.strip().partition(":")
-    if kind == "sim":
-        preset = rest if sep else "paper"
-        if preset not in PRESETS:
-            raise InvalidParameterError(
-                f"unknown simulated rig {spec!r}; use one of: "
-                + ", ".join(s for s in RIG_SPECS if s.startswith("sim"))
-            )
-        return TwinRig(preset, clock=clock, seed=seed, **options)
-    if kind == "tclab":
-        if sep and not rest:
-            raise InvalidParameterError(
-                f"rig {spec!r} names no port; use 'tclab' to auto-detect or 'tclab:PORT'"
-            )
-        _check_options(TCLabRig, options, "TCLab")
-        return TCLabRig(rest or None, clock=clock, **options)
-    raise InvalidParameterError(f"unknown rig {spec!r}; use one of: {', '.join(RIG_SPECS)}")
+    return RigSpec.parse(spec).open(clock=clock, seed=seed, **options)

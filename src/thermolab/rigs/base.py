@@ -196,12 +196,20 @@ class Rig(Protocol):
         """Put the actuator at its safe value and refuse ``apply`` (idempotent)."""
         ...
 
-    def apply(self, u: float) -> float:
-        """Set the actuator input; return the value actually applied."""
+    def apply(self, u: float, *, at: float | None = None) -> float:
+        """Set the actuator input; return the value actually applied.
+
+        ``at``: the scheduled sample instant this input belongs to (a twin
+        applies it exactly there; hardware applies it now).
+        """
         ...
 
-    def read(self) -> Reading:
-        """Read the sensor output, with the clock time of the reading."""
+    def read(self, *, at: float | None = None) -> Reading:
+        """Read the sensor output, with the clock time of the reading.
+
+        ``at``: the scheduled sample instant (a twin samples exactly there;
+        hardware samples now).
+        """
         ...
 
     def fault(self) -> str | None:
@@ -229,7 +237,8 @@ class Rig(Protocol):
 class BaseRig(abc.ABC):
     """Shared behaviour of every rig: state machine, validation, safe state.
 
-    Subclasses implement four hooks and never deal with states themselves:
+    Subclasses implement four hooks and never deal with states themselves
+    (a hook that needs the instant it acts at calls :meth:`_instant`):
 
     * ``_apply_input(u) -> float``: drive the actuator with a validated,
       in-range ``u``; return the value actually applied.
@@ -267,6 +276,7 @@ class BaseRig(abc.ABC):
         self._state = RigState.IDLE
         self._fault: str | None = None
         self._lock = threading.RLock()
+        self._at: float | None = None  # the sample instant of the call in progress
 
     # -- hooks -------------------------------------------------------------
 
@@ -346,13 +356,19 @@ class BaseRig(abc.ABC):
             if self._state is RigState.POWERED:
                 self._transition(RigState.IDLE)
 
-    def apply(self, u: float) -> float:
+    def apply(self, u: float, *, at: float | None = None) -> float:
         """Drive the actuator.
 
         Parameters
         ----------
         u : float
             Input in the rig's input unit, within ``describe().input_range``.
+        at : float, optional
+            The scheduled clock instant of the sample this input belongs to
+            (the experiment runner passes ``t0 + k·dt``). A simulated rig
+            applies the input exactly there, whatever the wall clock did in
+            between, so its record is exact at any speed-up; hardware acts
+            when called and ignores it. ``None``: now.
 
         Returns
         -------
@@ -386,17 +402,27 @@ class BaseRig(abc.ABC):
                     f"input {value!r} {info.input_unit} is outside the range of "
                     f"{info.name!r}: [{info.input_min:g}, {info.input_max:g}] {info.input_unit}"
                 )
+            self._at = _check_instant(at)
             try:
                 return self._apply_input(value)
             except RigFaultError as exc:
                 self._latch(str(exc))
                 raise
+            finally:
+                self._at = None
 
-    def read(self) -> Reading:
+    def read(self, *, at: float | None = None) -> Reading:
         """Take one reading.
 
         Allowed in IDLE, POWERED and FAULTED (watching a rig cool down after an
         over-temperature fault is useful).
+
+        Parameters
+        ----------
+        at : float, optional
+            The scheduled clock instant of the sample (see :meth:`apply`): a
+            simulated rig samples its state there and stamps the reading with
+            it; hardware reads when called. ``None``: now.
 
         Returns
         -------
@@ -414,6 +440,7 @@ class BaseRig(abc.ABC):
         with self._lock:
             if self._state is RigState.CLOSED:
                 raise RigStateError(self._refusal("read"))
+            self._at = _check_instant(at)
             try:
                 reading = self._read_output()
                 if self._state is not RigState.FAULTED:
@@ -421,6 +448,8 @@ class BaseRig(abc.ABC):
             except RigFaultError as exc:
                 self._latch(str(exc))
                 raise
+            finally:
+                self._at = None
             return reading
 
     def clear_fault(self) -> None:
@@ -471,6 +500,15 @@ class BaseRig(abc.ABC):
 
     # -- helpers for subclasses ------------------------------------------------
 
+    def _instant(self) -> float:
+        """The instant the operation in progress is for.
+
+        The sample instant passed to :meth:`read` or :meth:`apply`, else the
+        clock's now (also for power-off, faults and anything else).
+        """
+        at = self._at
+        return self._clock.now() if at is None else at
+
     def _latch(self, reason: str) -> None:
         """Latch a fault: record the reason, make the actuator safe, enter FAULTED."""
         with self._lock:
@@ -501,3 +539,15 @@ class BaseRig(abc.ABC):
         if self._state is RigState.FAULTED:
             return f"cannot {action}: rig {name!r} is faulted ({self._fault})"
         return f"cannot {action}: rig {name!r} is {self._state.value}; call power_on() first"
+
+
+def _check_instant(at: float | None) -> float | None:
+    if at is None:
+        return None
+    try:
+        value = float(at)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not math.isfinite(value):
+        raise InvalidParameterError(f"a sample instant must be a finite clock time, got {at!r}")
+    return value

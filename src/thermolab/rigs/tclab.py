@@ -52,7 +52,7 @@ from thermolab.errors import InvalidParameterError, RigError, RigFaultError, Rig
 from thermolab.rigs.base import BaseRig, Reading, RigInfo
 from thermolab.rigs.clock import Clock, RealClock
 
-__all__ = ["TCLabRig", "TCLabVersion", "find_tclab"]
+__all__ = ["TCLabRig", "TCLabVersion", "find_tclab", "tclab_info"]
 
 try:  # POSIX: pyserial lets termios errors (EIO from an unplugged device) escape
     import termios
@@ -191,6 +191,40 @@ def find_tclab(
     raise RigError("no TCLab found; probed " + "; ".join(reports))
 
 
+def tclab_info(port: str | None, max_temperature: float = 90.0) -> RigInfo:
+    """Return the :class:`RigInfo` of a kit, without opening it.
+
+    Parameters
+    ----------
+    port : str or None
+        The kit's serial port; ``None``: found automatically.
+    max_temperature : float
+        The over-temperature cut-off (°C), the rig's output limit.
+
+    Returns
+    -------
+    RigInfo
+        Heater 1 in 0-100 % (safe at 0), sensor 1 in °C.
+
+    Examples
+    --------
+    >>> info = tclab_info("/dev/ttyACM0")
+    >>> info.name, info.input_range, info.output_limit
+    ('TCLab on /dev/ttyACM0', (0.0, 100.0), 90.0)
+    """
+    return RigInfo(
+        name=f"TCLab on {port}" if port is not None else "TCLab (found automatically)",
+        kind="tclab",
+        input_min=0.0,
+        input_max=100.0,
+        input_unit="%",
+        output_unit="degC",
+        safe_input=0.0,
+        output_limit=float(max_temperature),
+        description="A TCLab kit: heater 1 (0-100 %) and sensor 1 (°C).",
+    )
+
+
 class TCLabRig(BaseRig):
     """A TCLab kit as a rig: heater 1 (0-100 %) in, sensor 1 (°C) out.
 
@@ -277,17 +311,7 @@ class TCLabRig(BaseRig):
         self._watchdog_stop = threading.Event()
         self._watchdog_thread: threading.Thread | None = None
         super().__init__(
-            RigInfo(
-                name=f"TCLab on {port}",
-                kind="tclab",
-                input_min=0.0,
-                input_max=100.0,
-                input_unit="%",
-                output_unit="degC",
-                safe_input=0.0,
-                output_limit=float(max_temperature),
-                description="A TCLab kit: heater 1 (0-100 %) and sensor 1 (°C).",
-            ),
+            tclab_info(port, max_temperature),
             clock,
         )
         self._link = _open_port(port, baudrate, timeout)

@@ -85,8 +85,15 @@ class TCLabEmulator:
         ASCII; a string: every reply is replaced by that text (an answer that
         is well-formed but wrong).
     reply_delay : float
-        Seconds of real time to wait before each reply (a slow or stalled
-        kit whose answers arrive after the host's timeout).
+        Seconds of real time to wait before each reply (a slow kit, for a
+        demonstration; tests use ``hold_replies``, which does not depend on
+        how fast the machine is).
+    hold_replies : bool
+        When set, commands are obeyed but their replies are kept back (a
+        stalled kit: the host times out). When cleared again, everything kept
+        back is sent in front of the reply to the next command — late answers
+        that arrive just as the host asks something else, the case a driver
+        must not take for its answer. Deterministic: no timing is involved.
     sensor_disconnected : bool
         When set, both sensors read -50.000 °C, what a TMP36 channel reads at
         ADC code 0 (the sensor unplugged).
@@ -120,6 +127,8 @@ class TCLabEmulator:
         self.garbage: bool | str = False
         self.sensor_disconnected = False
         self.reply_delay = 0.0
+        self.hold_replies = False
+        self._held: list[bytes] = []
         self._lock = threading.Lock()
         seeds = [None, None] if seed is None else [seed, seed + 1]
         # The emulator is the kit, not the host: no over-temperature limit of its own.
@@ -238,6 +247,12 @@ class TCLabEmulator:
                 elif self.garbage:
                     replies = ["\x00\xff\xfe?\x93"]
                 payload = "".join(f"{r}\r\n" for r in replies).encode("latin-1")
+                if self.hold_replies:
+                    self._held.append(payload)
+                    continue
+                if self._held:
+                    payload = b"".join(self._held) + payload
+                    self._held.clear()
                 if self.reply_delay > 0.0 and self._stop.wait(self.reply_delay):
                     return
                 with contextlib.suppress(OSError):

@@ -974,7 +974,7 @@ class Experiment:
             wake = perf()
             lateness = now - deadline if now > deadline else 0.0
 
-            reading = rig.read()
+            reading = rig.read(at=deadline)
             y = float(reading.value)
             if not (
                 (out_max is None or y <= out_max)
@@ -995,7 +995,7 @@ class Experiment:
             if not in_min <= u <= in_max:
                 problem = Interlocks.check_input(u, info)
                 raise _TripError(EndReason.INTERLOCK, "interlock", f"interlock: {problem}")
-            u = float(rig.apply(u))
+            u = float(rig.apply(u, at=deadline))
 
             t_read = reading.t - t0
             jitter = t_read - t_k
