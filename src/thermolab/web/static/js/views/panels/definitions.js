@@ -1,0 +1,139 @@
+// What each of the paper's three panels asks for (section II, Figs. 6–8): its
+// fields with their defaults and allowed ranges, the methods it runs and the
+// operating-point modes it offers. The ranges come from the rig (the input)
+// and the server's schema (the run settings); the defaults until they are known
+// are conservative, and the panels stay locked until then anyway.
+
+import { PAPER_W0 } from "../../model.js";
+import { enumValues, hasProperty, numericRange } from "../../schema.js";
+
+/**
+ * @typedef {import("../../validate.js").FieldSpec & {name: string, value: number | string,
+ *   hint?: string, step?: string, automaticOnly?: boolean, manualOnly?: boolean}} FieldDef
+ */
+
+/**
+ * Conservative ranges used until the server's own (from /openapi.json) are
+ * known; the panels are locked until then anyway.
+ */
+export const DEFAULT_RANGES = Object.freeze({
+  dt: { min: 0.01, max: 3600 },
+  samples: { min: 1, max: 200000, integer: true },
+  window: { min: 2, max: 100000, integer: true },
+  block: { min: 2, max: 100000, integer: true },
+  gamma: { min: 0, exclusiveMin: true, max: 1, exclusiveMax: true },
+  pmax: { min: 0, exclusiveMin: true, max: Infinity },
+});
+
+/** The choices of RunIn.offset, as the select shows them (OFFSET_HINT says what they mean). */
+export const OFFSET_LABELS = Object.freeze({
+  auto: "auto (the lab decides)",
+  initial: "initial",
+  fit: "fit",
+  none: "none",
+});
+export const OFFSET_HINT =
+  "auto: initial on a rig at rest, fit on a warm one (still cooling after a run). " +
+  "initial: the first sample is the equilibrium at 0 V and is removed. " +
+  "fit: a constant term is estimated with the model. none: the raw regression.";
+
+/**
+ * What the panels may accept: the rig's published input range, and the run
+ * settings' ranges from the server's own schema (RunIn in /openapi.json).
+ * @param {{inputMin: number, inputMax: number, inputUnit: string} | null} rig
+ * @param {any} doc  the server's OpenAPI document, or null while unknown
+ */
+export function panelLimits(rig, doc) {
+  const ranges = {};
+  for (const field of ["dt", "samples", "window", "block", "gamma", "pmax"]) {
+    const r = doc ? numericRange(doc, "RunIn", field) : null;
+    if (r) ranges[field] = r;
+  }
+  return {
+    inputMin: rig ? rig.inputMin : -10,
+    inputMax: rig ? rig.inputMax : 10,
+    inputUnit: rig?.inputUnit ?? "V",
+    ranges,
+    w0: Boolean(doc && hasProperty(doc, "RunIn", "w0")),
+    offsets: doc ? enumValues(doc, "RunIn", "offset") : null,
+  };
+}
+
+/**
+ * Field definitions of each panel.
+ * @param {{inputMin: number, inputMax: number, inputUnit: string,
+ *   ranges: typeof DEFAULT_RANGES, w0: boolean, offsets?: string[] | null}} limits  the
+ *   rig's input range, the server's ranges for the run's settings, whether it takes
+ *   initial WLSM parameters, and the operating-point modes it offers (null: none)
+ */
+export function panelDefinitions(limits) {
+  const r = { ...DEFAULT_RANGES, ...limits.ranges };
+  const u = { min: limits.inputMin, max: limits.inputMax, unit: limits.inputUnit };
+  const common = [
+    { name: "dt", label: "Sample time T", ...r.dt, unit: "s", value: 1 },
+    { name: "n", label: "Number of samples", ...r.samples, integer: true, value: 2000 },
+  ];
+  const setpoint = (value) => ({ name: "setpoint", label: "Initial set point", ...u, value, manualOnly: true });
+  const auto = (lo, hi) => [
+    { name: "low", label: "Automatic: minimum", ...u, value: lo, automaticOnly: true },
+    { name: "high", label: "Automatic: maximum", ...u, value: hi, automaticOnly: true },
+  ];
+  // The paper's form of WLSM has no meaning at γ = 1 (α = 1 − γ = 0): refused by
+  // the identification, so refused here too, whatever the schema's bound.
+  const gamma = { ...r.gamma, max: Math.min(1, r.gamma.max ?? 1), exclusiveMax: true };
+  const w0Note = limits.w0
+    ? null
+    : "This server does not take initial parameters yet: it starts WLSM from W0 = [0, 0].";
+  return [
+    {
+      id: "srm-lsm",
+      number: 1,
+      title: "Step response + least squares",
+      short: "1 · Step + LS",
+      intro:
+        "Set the sample time, the number of samples (at least 2000 for the step method) and the initial set point; press START, then change the set point to make the step (at least 1 V), and END when the output has settled. Start from a cold rig.",
+      fields: [
+        ...common,
+        // 0 is "off"; otherwise the server's block range (checked in checkPanel).
+        { name: "block", label: "LSM also every N samples (0: only at END)", min: 0, max: r.block.max, integer: true, unit: "samples", value: 0, blockMin: r.block.min },
+        setpoint(0),
+        ...auto(4, 6),
+      ],
+      methods: ["srm", "lsm", "blockls"],
+      optional: ["blockls"],
+      stepHint: 10,
+    },
+    {
+      id: "malsm",
+      number: 2,
+      title: "Moving-window least squares",
+      short: "2 · Moving window",
+      intro:
+        "An estimate at every sample over the last N samples (a FIFO window). Vary the set point while it runs, or use the Automatic square wave.",
+      fields: [...common, { name: "window", label: "Window", ...r.window, integer: true, unit: "samples", value: 100 }, setpoint(5), ...auto(4, 6)],
+      methods: ["malsm"],
+      automaticDefault: true,
+      stepHint: 6,
+    },
+    {
+      id: "wlsm",
+      number: 3,
+      title: "Weighted least squares",
+      short: "3 · Weighted LS",
+      intro:
+        "Recursive least squares with forgetting factor γ and initial covariance pmax·I, started from the initial parameters W0 = [a0, b0] (the paper's W0 gives Ks = 0.0269905, Ts = 26.74 s).",
+      fields: [
+        ...common,
+        { name: "gamma", label: "Forgetting factor γ", ...gamma, value: 0.96 },
+        { name: "pmax", label: "pmax (diagonal of P)", ...r.pmax, value: 10000 },
+        { name: "a0", label: "Initial a0", min: 0, max: 1, exclusiveMin: true, exclusiveMax: true, value: PAPER_W0.a, unavailable: w0Note },
+        { name: "b0", label: "Initial b0", min: -1e6, max: 1e6, value: PAPER_W0.b, unavailable: w0Note },
+        setpoint(2),
+        ...auto(0, 4),
+      ],
+      methods: ["wlsm"],
+      automaticDefault: true,
+      stepHint: 4,
+    },
+  ];
+}
