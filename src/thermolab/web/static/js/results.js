@@ -7,6 +7,8 @@
 // converge within ±1 % of that mean. Nothing here recomputes them; a run that
 // is still going has no statistics yet, only its latest estimate.
 
+import { t } from "./i18n.js";
+
 /**
  * @typedef {{mean: number, max: number, min: number}} Stat
  * @typedef {object} MethodFigures
@@ -60,7 +62,7 @@ export function readResult(stored, method) {
       W: Array.isArray(latest.W) ? latest.W : null,
     },
     valid,
-    reason: valid ? null : (extras.reason ?? s.error ?? (s.latest ? "no first-order model" : "no estimate")),
+    reason: valid ? null : (extras.reason ?? s.error ?? (s.latest ? t("estimate.noModel") : t("estimate.none"))),
     warnings,
     // From the server once the run is over; while it runs, the latest estimate alone.
     K: figures ? stat(figures.K) : valid ? one(latest.K) : null,

@@ -153,7 +153,7 @@ export class DecimatingBuffer {
     const out = new Float64Array(this.length + extra);
     out.set(col.subarray(0, this.length));
     if (extra) {
-      const v = this._latest[name];
+      const v = this._latest?.[name];
       out[this.length] = typeof v === "number" ? v : Number.NaN;
     }
     return out;

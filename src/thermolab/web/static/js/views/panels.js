@@ -21,6 +21,7 @@ import { panelOfRun } from "../runspec.js";
 import { panelDefinitions } from "./panels/definitions.js";
 import { buildPanelView, checkPanel } from "./panels/form.js";
 import { idleText, otherRunText, renderResults, runningText } from "./panels/results.js";
+import { t } from "../i18n.js";
 
 export class Panels {
   /**
@@ -38,12 +39,12 @@ export class Panels {
     this.run = null; // the current (or last shown) run, normalised
     this.tabs = [];
     this.views = [];
-    const tablist = h("div", { role: "tablist", class: "tabs", "aria-label": "Identification panels" });
+    const tablist = h("div", { role: "tablist", class: "tabs", "aria-label": t("panels.tabs") });
     this.notice = h("p", { class: "lock-notice", "data-testid": "lock-notice", role: "status" });
     this.el = h(
       "section",
       { class: "card panels", "aria-labelledby": "panels-heading" },
-      h("h2", { id: "panels-heading" }, "Identification"),
+      h("h2", { id: "panels-heading" }, t("panels.heading")),
       this.notice,
       tablist,
     );
@@ -71,7 +72,7 @@ export class Panels {
     });
     parent.append(this.el);
     this.select(0, false);
-    this.setLocked(true, "Connecting…");
+    this.setLocked(true, t("lock.connecting"));
   }
 
   _tabKey(ev, i) {

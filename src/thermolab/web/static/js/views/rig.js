@@ -23,6 +23,7 @@ import { RigHeader } from "./rig/header.js";
 import { lockReason } from "./rig/lock.js";
 import { Readout } from "./rig/readout.js";
 import { RunShow } from "./rig/runshow.js";
+import { t } from "../i18n.js";
 
 export { WINDOW } from "./rig/livecharts.js";
 
@@ -31,7 +32,7 @@ const POLL_MS = 3000;
 
 export function mount(main, { params }, ctx) {
   const rigId = params[0];
-  ctx.setTitle(`Rig ${rigId}`);
+  ctx.setTitle(t("rig.title", { rig: rigId }));
   const page = new RigPage(main, rigId);
   return () => page.destroy();
 }
@@ -41,7 +42,40 @@ class RigPage {
     this.rigId = rigId;
     this.rig = null;
     this._destroyed = false;
-    this._build(main);
+    /** The server's OpenAPI document, once read (what the run request may carry). */
+    this.schemaDoc = null;
+    this._askedHistory = false;
+    this._pollTimer = 0;
+    this.header = new RigHeader(main, this.rigId);
+    const grid = h("div", { class: "rig-grid" });
+    main.append(grid);
+    const side = h("div", { class: "rig-side" });
+    grid.append(side);
+    this.camera = new Camera(side, this.rigId);
+    this.access = new AccessPanel(side, this.rigId, {
+      onError: (m) => this._error(m),
+      onChange: () => this._updateLock(),
+      // The control routes answer with the rig as the caller now sees it.
+      onAnswer: (answer) => {
+        if (answer && typeof answer === "object" && "access" in answer && answer.access) {
+          const rig = readRig(answer);
+          this._setState(rig.state, rig.detail);
+          this.access.update(rig.access);
+        }
+      },
+    });
+    this.readout = new Readout(side);
+
+    // The three panels (rebuilt once the rig's limits are known).
+    this.panelsHost = h("div", { class: "panels-host" });
+    main.append(this.panelsHost);
+    this.panelActions = {
+      start: (panel, values, automatic) => this._start(panel, values, automatic),
+      setpoint: (u) => api.setInput(this.rigId, u),
+      end: () => api.stopRun(this.rigId),
+    };
+    this.panels = new Panels(this.panelsHost, panelLimits(null, null), this.panelActions);
+    this.show = new RunShow(grid, main, () => this.panels);
     this.client = new LiveClient(rigId, {
       onMessage: (msg) => this._onMessage(msg),
       onStatus: (s) => this._onStatus(s),
@@ -79,39 +113,6 @@ class RigPage {
     this._pollTimer = setTimeout(() => void this._poll(), POLL_MS);
   }
 
-  _build(main) {
-    this.header = new RigHeader(main, this.rigId);
-    const grid = h("div", { class: "rig-grid" });
-    main.append(grid);
-    const side = h("div", { class: "rig-side" });
-    grid.append(side);
-    this.camera = new Camera(side, this.rigId);
-    this.access = new AccessPanel(side, this.rigId, {
-      onError: (m) => this._error(m),
-      onChange: () => this._updateLock(),
-      // The control routes answer with the rig as the caller now sees it.
-      onAnswer: (answer) => {
-        if (answer && typeof answer === "object" && answer.access) {
-          const rig = readRig(answer);
-          this._setState(rig.state, rig.detail);
-          this.access.update(rig.access);
-        }
-      },
-    });
-    this.readout = new Readout(side);
-
-    // The three panels (rebuilt once the rig's limits are known).
-    this.panelsHost = h("div", { class: "panels-host" });
-    main.append(this.panelsHost);
-    this.panelActions = {
-      start: (panel, values, automatic) => this._start(panel, values, automatic),
-      setpoint: (u) => api.setInput(this.rigId, u),
-      end: () => api.stopRun(this.rigId),
-    };
-    this.panels = new Panels(this.panelsHost, panelLimits(null, null), this.panelActions);
-    this.show = new RunShow(grid, main, () => this.panels);
-  }
-
   /** Without the socket, follow one's own run over HTTP (progress, estimates, its end). */
   async _pollRun() {
     let run;
@@ -129,7 +130,7 @@ class RigPage {
     showConnection(
       s,
       () => this.client.state === "open",
-      () => this._error(`There is no rig called ${this.rigId}.`),
+      () => this._error(t("rig.noSuchRig", { rig: this.rigId })),
     );
   }
 
@@ -168,7 +169,7 @@ class RigPage {
         this._setState(msg.state, msg.detail);
         break;
       case "error":
-        this._error(msg.detail ?? "The server refused a message.");
+        this._error(msg.detail ?? t("rig.refused"));
         break;
       default:
         break; // unknown types are for newer clients

@@ -6,6 +6,7 @@
 
 import { PAPER_W0 } from "../../model.js";
 import { enumValues, hasProperty, numericRange } from "../../schema.js";
+import { t } from "../../i18n.js";
 
 /**
  * @typedef {import("../../validate.js").FieldSpec & {name: string, value: number | string,
@@ -27,15 +28,13 @@ export const DEFAULT_RANGES = Object.freeze({
 
 /** The choices of RunIn.offset, as the select shows them (OFFSET_HINT says what they mean). */
 export const OFFSET_LABELS = Object.freeze({
-  auto: "auto (the lab decides)",
-  initial: "initial",
-  fit: "fit",
-  none: "none",
+  auto: "offset.auto",
+  initial: "offset.initial",
+  fit: "offset.fit",
+  none: "offset.none",
 });
-export const OFFSET_HINT =
-  "auto: initial on a rig at rest, fit on a warm one (still cooling after a run). " +
-  "initial: the first sample is the equilibrium at 0 V and is removed. " +
-  "fit: a constant term is estimated with the model. none: the raw regression.";
+/** What the operating-point modes mean (the hint under the select). */
+export const OFFSET_HINT = "offset.hint";
 
 /**
  * What the panels may accept: the rig's published input range, and the run
@@ -70,32 +69,31 @@ export function panelDefinitions(limits) {
   const r = { ...DEFAULT_RANGES, ...limits.ranges };
   const u = { min: limits.inputMin, max: limits.inputMax, unit: limits.inputUnit };
   const common = [
-    { name: "dt", label: "Sample time T", ...r.dt, unit: "s", value: 1 },
-    { name: "n", label: "Number of samples", ...r.samples, integer: true, value: 2000 },
+    { name: "dt", label: t("field.dt"), ...r.dt, unit: "s", value: 1 },
+    { name: "n", label: t("field.samples"), ...r.samples, integer: true, value: 2000 },
   ];
-  const setpoint = (value) => ({ name: "setpoint", label: "Initial set point", ...u, value, manualOnly: true });
+  const setpoint = (value) => ({ name: "setpoint", label: t("field.setpoint"), ...u, value, manualOnly: true });
   const auto = (lo, hi) => [
-    { name: "low", label: "Automatic: minimum", ...u, value: lo, automaticOnly: true },
-    { name: "high", label: "Automatic: maximum", ...u, value: hi, automaticOnly: true },
+    { name: "low", label: t("field.low"), ...u, value: lo, automaticOnly: true },
+    { name: "high", label: t("field.high"), ...u, value: hi, automaticOnly: true },
   ];
   // The paper's form of WLSM has no meaning at γ = 1 (α = 1 − γ = 0): refused by
   // the identification, so refused here too, whatever the schema's bound.
   const gamma = { ...r.gamma, max: Math.min(1, r.gamma.max ?? 1), exclusiveMax: true };
   const w0Note = limits.w0
     ? null
-    : "This server does not take initial parameters yet: it starts WLSM from W0 = [0, 0].";
+    : t("field.w0Unavailable");
   return [
     {
       id: "srm-lsm",
       number: 1,
-      title: "Step response + least squares",
-      short: "1 · Step + LS",
-      intro:
-        "Set the sample time, the number of samples (at least 2000 for the step method) and the initial set point; press START, then change the set point to make the step (at least 1 V), and END when the output has settled. Start from a cold rig.",
+      title: t("panel.srmLsm.title"),
+      short: t("panel.srmLsm.tab"),
+      intro: t("panel.srmLsm.intro"),
       fields: [
         ...common,
         // 0 is "off"; otherwise the server's block range (checked in checkPanel).
-        { name: "block", label: "LSM also every N samples (0: only at END)", min: 0, max: r.block.max, integer: true, unit: "samples", value: 0, blockMin: r.block.min },
+        { name: "block", label: t("field.block"), min: 0, max: r.block.max, integer: true, unit: "samples", value: 0, blockMin: r.block.min },
         setpoint(0),
         ...auto(4, 6),
       ],
@@ -106,11 +104,10 @@ export function panelDefinitions(limits) {
     {
       id: "malsm",
       number: 2,
-      title: "Moving-window least squares",
-      short: "2 · Moving window",
-      intro:
-        "An estimate at every sample over the last N samples (a FIFO window). Vary the set point while it runs, or use the Automatic square wave.",
-      fields: [...common, { name: "window", label: "Window", ...r.window, integer: true, unit: "samples", value: 100 }, setpoint(5), ...auto(4, 6)],
+      title: t("panel.malsm.title"),
+      short: t("panel.malsm.tab"),
+      intro: t("panel.malsm.intro"),
+      fields: [...common, { name: "window", label: t("field.window"), ...r.window, integer: true, unit: "samples", value: 100 }, setpoint(5), ...auto(4, 6)],
       methods: ["malsm"],
       automaticDefault: true,
       stepHint: 6,
@@ -118,16 +115,15 @@ export function panelDefinitions(limits) {
     {
       id: "wlsm",
       number: 3,
-      title: "Weighted least squares",
-      short: "3 · Weighted LS",
-      intro:
-        "Recursive least squares with forgetting factor γ and initial covariance pmax·I, started from the initial parameters W0 = [a0, b0] (the paper's W0 gives Ks = 0.0269905, Ts = 26.74 s).",
+      title: t("panel.wlsm.title"),
+      short: t("panel.wlsm.tab"),
+      intro: t("panel.wlsm.intro"),
       fields: [
         ...common,
-        { name: "gamma", label: "Forgetting factor γ", ...gamma, value: 0.96 },
-        { name: "pmax", label: "pmax (diagonal of P)", ...r.pmax, value: 10000 },
-        { name: "a0", label: "Initial a0", min: 0, max: 1, exclusiveMin: true, exclusiveMax: true, value: PAPER_W0.a, unavailable: w0Note },
-        { name: "b0", label: "Initial b0", min: -1e6, max: 1e6, value: PAPER_W0.b, unavailable: w0Note },
+        { name: "gamma", label: t("field.gamma"), ...gamma, value: 0.96 },
+        { name: "pmax", label: t("field.pmax"), ...r.pmax, value: 10000 },
+        { name: "a0", label: t("field.a0"), min: 0, max: 1, exclusiveMin: true, exclusiveMax: true, value: PAPER_W0.a, unavailable: w0Note },
+        { name: "b0", label: t("field.b0"), min: -1e6, max: 1e6, value: PAPER_W0.b, unavailable: w0Note },
         setpoint(2),
         ...auto(0, 4),
       ],

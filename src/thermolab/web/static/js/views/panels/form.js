@@ -6,6 +6,30 @@ import { h, nextId, setText } from "../../dom.js";
 import { fmt } from "../../model.js";
 import { checkAll, rangeText } from "../../validate.js";
 import { OFFSET_HINT, OFFSET_LABELS } from "./definitions.js";
+import { t } from "../../i18n.js";
+
+/**
+ * @typedef {object} PanelView  one panel's elements and definition
+ * @property {any} def  its panelDefinitions entry
+ * @property {Record<string, HTMLInputElement>} inputs  by field name
+ * @property {Record<string, HTMLElement>} errors  each field's error text
+ * @property {HTMLElement} [autoRow]
+ * @property {HTMLInputElement} automatic  the Automatic (square wave) box
+ * @property {HTMLSelectElement} [offset]  the operating-point mode, when the server takes one
+ * @property {HTMLFieldSetElement} fieldset
+ * @property {HTMLButtonElement} startButton
+ * @property {HTMLElement} formError
+ * @property {HTMLInputElement} spInput  the set point while running
+ * @property {HTMLElement} spError
+ * @property {import("../../validate.js").FieldSpec} spSpec
+ * @property {HTMLButtonElement} spButton
+ * @property {HTMLButtonElement} endButton
+ * @property {HTMLFieldSetElement} runFieldset
+ * @property {HTMLElement} results
+ * @property {HTMLElement} status
+ * @property {HTMLElement} operatingPoint
+ * @property {HTMLElement} el
+ */
 
 /**
  * Build one panel's view.
@@ -13,18 +37,19 @@ import { OFFSET_HINT, OFFSET_LABELS } from "./definitions.js";
  * @param {{inputMin: number, inputMax: number, inputUnit: string, offsets?: string[] | null}} limits
  * @param {string} panelId
  * @param {string} tabId
- * @param {{start: (view: any) => void, setpoint: (view: any) => void, end: (view: any) => void}} on
+ * @param {{start: (view: PanelView) => void, setpoint: (view: PanelView) => void, end: (view: PanelView) => void}} on
  */
 export function buildPanelView(def, limits, panelId, tabId, on) {
-  const view = { def, inputs: {}, errors: {}, results: null };
+  /** @type {PanelView} */
+  const view = /** @type {any} */ ({ def, inputs: {}, errors: {} });
   const form = h("form", { novalidate: true, class: "panel-form", "data-panel-form": def.id });
-  const fieldset = h("fieldset", null, h("legend", null, `Panel ${def.number}: ${def.title}`));
+  const fieldset = h("fieldset", null, h("legend", null, t("panel.legend", { number: def.number, title: def.title })));
   const autoId = nextId("auto");
   const autoBox = h("input", { type: "checkbox", id: autoId, name: "automatic", checked: Boolean(def.automaticDefault) });
   const autoHint = h("span", { class: "hint", id: `${autoId}-hint` });
   for (const f of def.fields) {
     if (f.automaticOnly && !view.autoRow) {
-      view.autoRow = h("div", { class: "field check" }, autoBox, h("label", { for: autoId }, "Automatic (square wave)"), autoHint);
+      view.autoRow = h("div", { class: "field check" }, autoBox, h("label", { for: autoId }, t("panel.automatic")), autoHint);
       autoBox.setAttribute("aria-describedby", autoHint.id);
       fieldset.append(view.autoRow);
     }
@@ -35,27 +60,27 @@ export function buildPanelView(def, limits, panelId, tabId, on) {
     view.offset = h(
       "select",
       { id, name: "offset", "aria-describedby": `${id}-hint` },
-      limits.offsets.map((mode) => h("option", { value: mode }, OFFSET_LABELS[mode] ?? mode)),
+      limits.offsets.map((mode) => h("option", { value: mode }, mode in OFFSET_LABELS ? t(OFFSET_LABELS[mode]) : mode)),
     );
     fieldset.append(
-      h("div", { class: "field" }, h("label", { for: id }, "Operating point"), view.offset, h("span", { class: "hint", id: `${id}-hint` }, OFFSET_HINT)),
+      h("div", { class: "field" }, h("label", { for: id }, t("panel.operatingPoint")), view.offset, h("span", { class: "hint", id: `${id}-hint` }, t(OFFSET_HINT))),
     );
   }
   view.automatic = autoBox;
   const updateAuto = () => {
-    const on = autoBox.checked;
+    const automatic = autoBox.checked;
     for (const f of def.fields) {
-      const row = view.inputs[f.name].closest(".field");
-      if (f.automaticOnly) row.hidden = !on;
-      if (f.manualOnly) row.hidden = on;
+      const row = /** @type {HTMLElement} */ (view.inputs[f.name].closest(".field"));
+      if (f.automaticOnly) row.hidden = !automatic;
+      if (f.manualOnly) row.hidden = automatic;
     }
     const dt = Number(view.inputs.dt.value);
     const freq = dt > 0 ? 1 / (10 * dt) : Number.NaN;
-    setText(autoHint, `A square wave between the minimum and maximum at ${fmt(freq, 3)} Hz (ten times slower than sampling).`);
+    setText(autoHint, t("panel.automaticHint", { frequency: fmt(freq, 3) }));
   };
   autoBox.addEventListener("change", updateAuto);
   view.inputs.dt.addEventListener("input", updateAuto);
-  view.startButton = h("button", { type: "submit", class: "primary", "data-action": "start" }, "START");
+  view.startButton = h("button", { type: "submit", class: "primary", "data-action": "start" }, t("panel.start"));
   view.formError = h("p", { class: "error", role: "alert", "data-testid": "form-error" });
   fieldset.append(h("div", { class: "buttons" }, view.startButton));
   form.append(fieldset, view.formError);
@@ -74,7 +99,7 @@ export function buildPanelView(def, limits, panelId, tabId, on) {
     h("p", { class: "panel-intro" }, def.intro),
     form,
     runForm,
-    h("h3", null, "Model"),
+    h("h3", null, t("panel.model")),
     view.status,
     view.operatingPoint,
     view.results,
@@ -86,7 +111,7 @@ export function buildPanelView(def, limits, panelId, tabId, on) {
 /** The run controls: change the set point while running, END. */
 function runControls(view, def, limits, on) {
   const spId = nextId("sp");
-  const spSpec = { label: "Set point", min: limits.inputMin, max: limits.inputMax, unit: limits.inputUnit };
+  const spSpec = { label: t("panel.setpoint"), min: limits.inputMin, max: limits.inputMax, unit: limits.inputUnit };
   view.spInput = h("input", {
     id: spId,
     name: "setpoint-live",
@@ -96,8 +121,8 @@ function runControls(view, def, limits, on) {
     "aria-describedby": `${spId}-range ${spId}-err`,
   });
   view.spError = h("span", { class: "field-error", id: `${spId}-err` });
-  view.spButton = h("button", { type: "submit", "data-action": "setpoint" }, "Change set point");
-  view.endButton = h("button", { type: "button", class: "danger", "data-action": "end" }, "END");
+  view.spButton = h("button", { type: "submit", "data-action": "setpoint" }, t("panel.changeSetpoint"));
+  view.endButton = h("button", { type: "button", class: "danger", "data-action": "end" }, t("panel.end"));
   view.spSpec = spSpec;
   const runForm = h(
     "form",
@@ -105,13 +130,13 @@ function runControls(view, def, limits, on) {
     h(
       "fieldset",
       null,
-      h("legend", null, "While the run is going"),
+      h("legend", null, t("panel.whileRunning")),
       h(
         "div",
         { class: "field" },
-        h("label", { for: spId }, "Set point"),
+        h("label", { for: spId }, t("panel.setpoint")),
         view.spInput,
-        h("span", { class: "hint", id: `${spId}-range` }, `Allowed: ${rangeText(spSpec)}`),
+        h("span", { class: "hint", id: `${spId}-range` }, t("field.allowed", { range: rangeText(spSpec) })),
         view.spError,
       ),
       h("div", { class: "buttons" }, view.spButton, view.endButton),
@@ -150,7 +175,7 @@ function fieldRow(view, f) {
     { class: "field" },
     h("label", { for: id }, f.label + (f.unit && f.unit !== "samples" ? ` (${f.unit})` : "")),
     input,
-    h("span", { class: "hint", id: `${id}-range` }, f.unavailable ?? `Allowed: ${rangeText(f)}`),
+    h("span", { class: "hint", id: `${id}-range` }, f.unavailable ?? t("field.allowed", { range: rangeText(f) })),
     err,
   );
 }
@@ -170,7 +195,9 @@ export function showFieldError(view, name, message) {
 /** Check the panel's fields; returns the values or null (errors shown, focus on the first). */
 export function checkPanel(view) {
   const automatic = view.automatic.checked;
+  /** @type {Record<string, any>} */
   const specs = {};
+  /** @type {Record<string, string>} */
   const texts = {};
   for (const f of view.def.fields) {
     if ((f.automaticOnly && !automatic) || (f.manualOnly && automatic) || f.unavailable) {
@@ -182,15 +209,15 @@ export function checkPanel(view) {
   }
   const { values, errors } = checkAll(texts, specs);
   if (!errors.window && values.window !== undefined && values.n !== undefined && values.window > values.n) {
-    errors.window = `Window must not exceed the number of samples (${values.n}).`;
+    errors.window = t("panel.windowTooLong", { samples: values.n });
   }
   if (automatic && !errors.low && !errors.high && !(values.low < values.high)) {
-    errors.high = "Automatic: the maximum must be greater than the minimum.";
+    errors.high = t("panel.automaticOrder");
   }
   if (!errors.block && values.block > 0) {
     const min = view.def.fields.find((f) => f.name === "block").blockMin;
     if (values.block < min || values.block > values.n) {
-      errors.block = `Blocks need from ${min} samples up to the number of samples (${values.n ?? "?"}), or 0 for none.`;
+      errors.block = t("panel.blockRange", { min, samples: values.n ?? "?" });
     }
   }
   let first = null;
@@ -200,7 +227,7 @@ export function checkPanel(view) {
     if (msg && !first) first = view.inputs[f.name];
   }
   if (first) {
-    setText(view.formError, "Please correct the highlighted fields; nothing was sent.");
+    setText(view.formError, t("panel.correctFields"));
     first.focus();
     return null;
   }

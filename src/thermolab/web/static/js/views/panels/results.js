@@ -4,38 +4,42 @@
 import { h, setText } from "../../dom.js";
 import { fmt } from "../../model.js";
 import { methodName, methodTitle, panelOfRun } from "../../runspec.js";
+import { t } from "../../i18n.js";
 
 /** How a run handled the operating point, in words (RunOut.operatingPoint). */
 export function operatingPointText(op) {
   if (!op || typeof op !== "object") return "";
   if (op.used === null || op.used === undefined) return "";
-  return `Operating point: ${op.reason ?? op.used}`;
+  return t("panel.operatingPointUsed", { how: op.reason ?? op.used });
 }
 
 /** What an estimate's status cell says: final or live, and why there is no model. */
 export function estimateStatus(est) {
-  if (!est) return "waiting";
-  const when = est.final ? "final (at END)" : "live";
-  return est.valid ? when : `${when}: ${est.reason ?? "no first-order model"}`;
+  if (!est) return t("estimate.waiting");
+  const when = est.final ? t("estimate.final") : t("estimate.live");
+  return est.valid ? when : t("estimate.withReason", { when, reason: est.reason ?? t("estimate.noModel") });
 }
 
 /** The status line of the panel running `run`: its progress. */
 export function runningText(run, k) {
   const n = run.nSamples;
-  return `Run #${run.id} running: sample ${k}${n ? ` of ${n}` : ""}${run.signal ? " (Automatic square wave)" : ""}.`;
+  const key = n ? (run.signal ? "panel.runningOfAutomatic" : "panel.runningOf") : run.signal ? "panel.runningAutomatic" : "panel.running";
+  return t(key, { run: run.id, sample: k, samples: n });
 }
 
 /** The status line of a panel whose run ended, or that has had none. */
 export function idleText(run, panelId) {
   if (run && panelOfRun(run) === panelId) {
-    return `Run #${run.id} ${run.status}${run.endReason ? ` (${run.endReason})` : ""}.`;
+    return run.endReason
+      ? t("panel.endedWhy", { run: run.id, status: run.status, reason: run.endReason })
+      : t("panel.ended", { run: run.id, status: run.status });
   }
-  return "No run yet in this panel.";
+  return t("panel.noRun");
 }
 
 /** The status line of a panel while another panel's run is going. */
 export function otherRunText(runPanel, number) {
-  return `A ${methodTitle(runPanel)} run is going (panel ${number ?? "?"}).`;
+  return t("panel.otherRun", { method: methodTitle(runPanel), panel: number ?? "?" });
 }
 
 /**
@@ -64,12 +68,12 @@ export function renderResults(view, run) {
   view.results.replaceChildren(
     h(
       "div",
-      { class: "table-wrap", tabindex: "0", role: "region", "aria-label": `${view.def.title}: estimates` },
+      { class: "table-wrap", tabindex: "0", role: "region", "aria-label": t("panel.estimatesRegion", { title: view.def.title }) },
       h(
         "table",
         { class: "estimates" },
-        h("caption", { class: "visually-hidden" }, `${view.def.title}: current estimates`),
-        h("thead", null, h("tr", null, col("Method"), col("Ks"), col("Ts (s)"), col("at sample"), col("status"))),
+        h("caption", { class: "visually-hidden" }, t("panel.estimatesCaption", { title: view.def.title })),
+        h("thead", null, h("tr", null, col(t("table.method")), col(t("table.K")), col(t("table.tau")), col(t("table.atSample")), col(t("table.status")))),
         h("tbody", null, rows),
       ),
     ),

@@ -2,6 +2,7 @@
 
 import { api } from "../../api.js";
 import { h, setText } from "../../dom.js";
+import { t } from "../../i18n.js";
 
 const CAMERA_MS = 1000;
 
@@ -16,13 +17,13 @@ export class Camera {
     this._timer = 0;
     /** The one object URL alive (each holds its image until revoked). */
     this._url = null;
-    this.img = h("img", { class: "camera", alt: `Live image of rig ${rigId}`, width: "320", height: "240", hidden: true });
-    this.note = h("p", { class: "muted small" }, "No image yet.");
+    this.img = h("img", { class: "camera", alt: t("camera.alt", { rig: rigId }), width: "320", height: "240", hidden: true });
+    this.note = h("p", { class: "muted small" }, t("camera.none"));
     parent.append(
       h(
         "section",
         { class: "card", "aria-labelledby": "camera-heading" },
-        h("h2", { id: "camera-heading" }, "Live image"),
+        h("h2", { id: "camera-heading" }, t("camera.heading")),
         h("div", { class: "camera-box" }, this.img, this.note),
       ),
     );
@@ -49,7 +50,7 @@ export class Camera {
       setText(this.note, "");
     } catch {
       this.img.hidden = true;
-      setText(this.note, "No image at the moment.");
+      setText(this.note, t("camera.unavailable"));
     }
     this._next();
   }

@@ -1,6 +1,7 @@
 // The connection line (#conn) of the rig page: what the live socket is doing.
 
 import { setText } from "../../dom.js";
+import { t } from "../../i18n.js";
 
 /** How long "Connected again." stays up. */
 const RECONNECTED_MS = 2000;
@@ -15,13 +16,13 @@ export function showConnection(s, isOpen, onNoSuchRig) {
   const conn = document.getElementById("conn");
   if (!conn) return;
   if (s.state === "open") {
-    if (conn.textContent) setText(conn, "Connected again.");
+    if (conn.textContent) setText(conn, t("conn.again"));
     setTimeout(() => {
       if (isOpen()) setText(conn, "");
     }, RECONNECTED_MS);
   } else if (s.state === "waiting") {
     const seconds = Math.ceil((s.delayMs ?? 0) / 1000);
-    setText(conn, `Live updates interrupted; reconnecting in ${seconds} s (the page is refreshed every few seconds meanwhile).`);
+    setText(conn, t("conn.waiting", { seconds }));
   } else if (s.state === "closed" && s.code) {
     setText(conn, "");
     if (s.code === 4404) onNoSuchRig();

@@ -5,6 +5,7 @@ import { Chart } from "../../charts.js";
 import { h } from "../../dom.js";
 import { DecimatingBuffer } from "../../ring.js";
 import { methodTitle } from "../../runspec.js";
+import { t } from "../../i18n.js";
 
 /** Points kept per convergence trajectory (decimated beyond). */
 const TRAJECTORY_POINTS = 4000;
@@ -15,8 +16,8 @@ export class Convergence {
     /** method -> its buffer, charts and box */
     this.trajectories = new Map();
     this.el = h("section", { class: "card convergence", "aria-labelledby": "conv-heading" });
-    this.empty = h("p", { class: "muted" }, "The moving-window and weighted methods draw Ks(k) and Ts(k) here while they run.");
-    this.el.append(h("h2", { id: "conv-heading" }, "Convergence of Ks and Ts"), this.empty);
+    this.empty = h("p", { class: "muted" }, t("convergence.empty"));
+    this.el.append(h("h2", { id: "conv-heading" }, t("convergence.heading")), this.empty);
     parent.append(this.el);
   }
 
@@ -26,45 +27,45 @@ export class Convergence {
   }
 
   invalidate() {
-    for (const t of this.trajectories.values()) {
-      t.kChart.invalidate();
-      t.tChart.invalidate();
+    for (const traj of this.trajectories.values()) {
+      traj.kChart.invalidate();
+      traj.tChart.invalidate();
     }
   }
 
   _trajectory(method) {
-    let t = this.trajectories.get(method);
-    if (t) return t;
+    let traj = this.trajectories.get(method);
+    if (traj) return traj;
     this.empty.hidden = true;
     const buf = new DecimatingBuffer(TRAJECTORY_POINTS, ["k", "K", "tau"]);
     const box = h("div", { class: "conv-pair" }, h("h3", null, methodTitle(method)));
     this.el.append(box);
     const kChart = new Chart(box, {
-      label: `Ks against sample, ${methodTitle(method)}`,
-      xLabel: "sample k",
-      yLabel: "Ks",
+      label: t("convergence.kChart", { method: methodTitle(method) }),
+      xLabel: t("axis.sample"),
+      yLabel: t("axis.K"),
       height: 180,
-      series: [{ label: "Ks(k)", color: "#0072B2" }],
+      series: [{ label: t("series.K"), color: "#0072B2" }],
       source: () => [buf.column("k"), buf.column("K")],
     });
     const tChart = new Chart(box, {
-      label: `Ts against sample, ${methodTitle(method)}`,
-      xLabel: "sample k",
-      yLabel: "Ts (s)",
+      label: t("convergence.tauChart", { method: methodTitle(method) }),
+      xLabel: t("axis.sample"),
+      yLabel: t("axis.tau"),
       height: 180,
-      series: [{ label: "Ts(k)", color: "#CC79A7" }],
+      series: [{ label: t("series.tau"), color: "#CC79A7" }],
       source: () => [buf.column("k"), buf.column("tau")],
     });
-    t = { buf, kChart, tChart, box };
-    this.trajectories.set(method, t);
-    return t;
+    traj = { buf, kChart, tChart, box };
+    this.trajectories.set(method, traj);
+    return traj;
   }
 
   clear() {
-    for (const t of this.trajectories.values()) {
-      t.kChart.destroy();
-      t.tChart.destroy();
-      t.box.remove();
+    for (const traj of this.trajectories.values()) {
+      traj.kChart.destroy();
+      traj.tChart.destroy();
+      traj.box.remove();
     }
     this.trajectories.clear();
     this.empty.hidden = false;

@@ -3,6 +3,7 @@
 
 import { announce, h, setText } from "../../dom.js";
 import { stateLabel } from "../../shapes.js";
+import { t } from "../../i18n.js";
 
 /** How long an error stays on the banner. */
 const BANNER_MS = 15000;
@@ -21,7 +22,7 @@ export class RigHeader {
     this.banner = h("p", { class: "error", role: "alert", "data-testid": "rig-error" });
     this.title = h("span", { "data-testid": "rig-title" }, rigId);
     main.append(
-      h("p", { class: "crumbs" }, h("a", { href: "#/" }, "Rigs"), " › ", rigId),
+      h("p", { class: "crumbs" }, h("a", { href: "#/" }, t("nav.rigs")), t("crumbs.separator"), rigId),
       h("h1", null, this.title, " ", this.badge),
       h("p", null, this.detail),
       this.banner,
@@ -40,7 +41,7 @@ export class RigHeader {
     this.badge.dataset.state = state;
     setText(this.detail, detail ?? "");
     if (before && before !== state && (state === "fault" || state === "out_of_service")) {
-      announce(`Rig ${this.rigId}: ${stateLabel(state)}${detail ? `: ${detail}` : ""}.`, "alert");
+      announce(t(detail ? "rig.stateChangedWhy" : "rig.stateChanged", { rig: this.rigId, state: stateLabel(state), detail }), "alert");
     }
   }
 

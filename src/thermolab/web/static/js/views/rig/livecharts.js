@@ -10,11 +10,29 @@ import { h, setText } from "../../dom.js";
 import { predict, predictionBase } from "../../model.js";
 import { RingBuffer } from "../../ring.js";
 import { methodName, methodTitle } from "../../runspec.js";
+import { t } from "../../i18n.js";
 
 /** Samples shown by the live charts (the issue's 2000-sample window). */
 export const WINDOW = 2000;
 
-/** A segment with nothing in it yet: the samples of run `run` (null: idle readings). */
+/**
+ * What the charts show: the samples of one run, or idle readings (run null).
+ * @typedef {object} Segment
+ * @property {number | null} run
+ * @property {number} y0  the run's first output (NaN: not known)
+ * @property {number} t0  the first idle reading's time (idle time is drawn from it)
+ * @property {number} firstK  the first sample index shown
+ * @property {number} lastK  the newest sample index shown
+ * @property {boolean} loading  the run's earlier samples are being fetched
+ * @property {Sample[]} pending  live samples held while they load
+ */
+/** @typedef {{t: number, u: number, y: number, k?: number, run?: number | null}} Sample */
+
+/**
+ * A segment with nothing in it yet.
+ * @param {number | null} run  the run whose samples it holds (null: idle readings)
+ * @returns {Segment}
+ */
 function emptySegment(run) {
   return { run, y0: Number.NaN, t0: Number.NaN, firstK: Number.NaN, lastK: -1, loading: false, pending: [] };
 }
@@ -39,28 +57,28 @@ export class LiveCharts {
       this.overlayMethod = this.overlaySelect.value || null;
       this.outChart.invalidate();
     });
-    this.liveButton = h("button", { type: "button", class: "link-button", hidden: true }, "Show live readings");
+    this.liveButton = h("button", { type: "button", class: "link-button", hidden: true }, t("charts.showLive"));
     this.liveButton.addEventListener("click", () => this.startSegment(null, false));
     card.append(
-      h("h2", { id: "charts-heading" }, "Live charts"),
+      h("h2", { id: "charts-heading" }, t("charts.heading")),
       this.note,
-      h("div", { class: "field inline" }, h("label", { for: "overlay-method" }, "Model drawn over the output"), this.overlaySelect),
+      h("div", { class: "field inline" }, h("label", { for: "overlay-method" }, t("charts.overlay")), this.overlaySelect),
       this.liveButton,
     );
     this.outChart = new Chart(card, {
-      label: "Output y and model prediction against time",
-      description: "The measured output and, once a model is identified, its prediction. The current values are listed under Now.",
-      xLabel: "t (s)",
-      yLabel: "output y",
-      series: [{ label: "output y" }, { label: "model", dash: [6, 4], color: "#D55E00", width: 2, auto: false }],
+      label: t("charts.output"),
+      description: t("charts.outputDescription"),
+      xLabel: t("axis.time"),
+      yLabel: t("axis.output"),
+      series: [{ label: t("axis.output") }, { label: t("series.model"), dash: [6, 4], color: "#D55E00", width: 2, auto: false }],
       source: () => this._outputData(),
     });
     this.inChart = new Chart(card, {
-      label: "Input u against time",
-      xLabel: "t (s)",
-      yLabel: "input u",
+      label: t("charts.input"),
+      xLabel: t("axis.time"),
+      yLabel: t("axis.input"),
       height: 160,
-      series: [{ label: "input u", color: "#009E73" }],
+      series: [{ label: t("axis.input"), color: "#009E73" }],
       source: () => [this.ring.column("t"), this.ring.column("u")],
     });
   }
@@ -79,11 +97,11 @@ export class LiveCharts {
     const seg = this.segment;
     const run = this.getRun();
     let text;
-    if (seg.run === null) text = "Live readings of the rig (no run is being shown).";
+    if (seg.run === null) text = t("charts.idle");
     else if (run && run.id === seg.run && run.status !== "running") {
-      text = `Run ${seg.run} (${run.status}); the live readings continue under Now.`;
-    } else text = `Run ${seg.run}, live.`;
-    if (seg.loading) text += " Loading the earlier samples…";
+      text = t("charts.runEnded", { run: seg.run, status: run.status });
+    } else text = t("charts.runLive", { run: seg.run });
+    if (seg.loading) text = t("charts.loading", { note: text });
     setText(this.note, text);
     this.liveButton.hidden = seg.run === null || (run?.id === seg.run && run.status === "running");
   }
@@ -146,10 +164,10 @@ export class LiveCharts {
     // Idle readings carry wall-clock time (epoch seconds): draw them from the
     // first one shown, like a run's time from its START.
     if (seg.run === null && !Number.isFinite(seg.t0)) seg.t0 = s.t;
-    const t = seg.run === null ? s.t - seg.t0 : s.t;
+    const time = seg.run === null ? s.t - seg.t0 : s.t;
     const lastT = this.ring.last("t");
-    if (this.ring.length && !(t > lastT)) this.ring.clear(); // a new time base
-    this.ring.push({ t, u: s.u, y: s.y });
+    if (this.ring.length && !(time > lastT)) this.ring.clear(); // a new time base
+    this.ring.push({ t: time, u: s.u, y: s.y });
     this.invalidate();
   }
 
@@ -165,7 +183,7 @@ export class LiveCharts {
     for (const m of run?.estimates?.keys() ?? []) if (!methods.includes(m)) methods.push(m);
     const current = this.overlaySelect.value;
     this.overlaySelect.replaceChildren(
-      h("option", { value: "" }, "none"),
+      h("option", { value: "" }, t("charts.noModel")),
       ...methods.map((m) => h("option", { value: m }, methodTitle(m))),
     );
     const keep = methods.includes(current) ? current : (methods[methods.length > 1 && methods[0] === "srm" ? 1 : 0] ?? "");
@@ -182,13 +200,13 @@ export class LiveCharts {
   }
 
   _outputData() {
-    const t = this.ring.column("t");
+    const time = this.ring.column("t");
     const u = this.ring.column("u");
     const y = this.ring.column("y");
     const model = this._overlayModel();
     if (!model || y.length === 0) {
       this.yhat.fill(Number.NaN);
-      return [t, y, this.yhat.subarray(0, y.length)];
+      return [time, y, this.yhat.subarray(0, y.length)];
     }
     const run = this.getRun();
     const seg = this.segment;
@@ -197,7 +215,7 @@ export class LiveCharts {
     // A warm rig's run fits its operating point: the model settles there, not at y0.
     const base = predictionBase(run.operatingPoint?.used, model.W, y0);
     const yhat = predict(u, base, model, run.dt, this.yhat, (fromStart ? y0 : y[0]) - base);
-    return [t, y, yhat];
+    return [time, y, yhat];
   }
 
   /** Redraw the model only (a new estimate). */

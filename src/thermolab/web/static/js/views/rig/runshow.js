@@ -7,6 +7,7 @@ import { announce } from "../../dom.js";
 import { methodName, panelOfRun, readEstimate, readRun, RECURSIVE } from "../../runspec.js";
 import { Convergence } from "./convergence.js";
 import { LiveCharts } from "./livecharts.js";
+import { t } from "../../i18n.js";
 
 export class RunShow {
   /**
@@ -52,7 +53,7 @@ export class RunShow {
     if (msg.event === "started") {
       this.started(run);
       this.getPanels().selectById(panelOfRun(run));
-      announce(`Run ${run.id} started.`);
+      announce(t("run.started", { run: run.id }));
     } else {
       // The run object brings the final status and each method's final estimate.
       this._keepLiveEstimates(run);
@@ -73,7 +74,7 @@ export class RunShow {
   }
 
   _announceEnd(run) {
-    announce(`Run ${run.id} ended${run.endReason ? `: ${run.endReason}` : ""}.`);
+    announce(run.endReason ? t("run.endedWhy", { run: run.id, reason: run.endReason }) : t("run.ended", { run: run.id }));
   }
 
   /** A live sample: drawn, and the panel's progress moved on when it is the run's. */
