@@ -1,3 +1,4 @@
+// @ts-check
 // The HTTP API (issue 4, /openapi.json): one place that knows how requests are
 // made and how the server's errors look, so every view shows the server's own
 // message (`detail`) as it comes.

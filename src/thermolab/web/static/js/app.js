@@ -1,3 +1,4 @@
+// @ts-check
 // The single-page application: session, hash router, navigation.
 //
 // Each view is a module exporting mount(container, params, ctx) that returns a

@@ -1,3 +1,4 @@
+// @ts-check
 // Charts on uPlot, redrawn at most once per animation frame.
 //
 // Data arrive at up to 10 samples/s (and in bursts of thousands when a gap is

@@ -1,3 +1,4 @@
+// @ts-check
 // Reading a run's samples.csv (header line, then numbers; `t,u,y` first).
 
 import { t } from "./i18n.js";

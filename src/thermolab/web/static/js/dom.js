@@ -1,3 +1,4 @@
+// @ts-check
 // Small DOM helpers. Text always goes in through textContent (never innerHTML),
 // so names and messages from the server cannot inject markup.
 

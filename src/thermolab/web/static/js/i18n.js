@@ -1,3 +1,4 @@
+// @ts-check
 // The interface's words: t(key, params) looks a message up in the catalogue of
 // the current language (messages/<lang>.js; English is built in and is the
 // fallback for a key a translation lacks), fills its named placeholders

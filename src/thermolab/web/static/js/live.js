@@ -1,3 +1,4 @@
+// @ts-check
 // The live WebSocket client (contract: docs/live-protocol.md).
 //
 // One LiveClient per rig page. It reconnects by itself with exponential

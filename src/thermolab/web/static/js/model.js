@@ -1,3 +1,4 @@
+// @ts-check
 // First-order model arithmetic for display: the discrete form of eq. 4, the
 // prediction drawn over the data, and the figures of the paper's Tables I/II.
 // The identification itself happens on the server; nothing here estimates.

@@ -1,3 +1,4 @@
+// @ts-check
 // The figures of the paper's Tables I/II from a method's stored result.
 //
 // The lab computes them when a run ends, with thermolab.ident's own

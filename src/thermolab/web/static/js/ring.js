@@ -1,3 +1,4 @@
+// @ts-check
 // Fixed-size buffers for live series: memory is allocated once, so a page left
 // open for hours holds the same amount as after one minute.
 

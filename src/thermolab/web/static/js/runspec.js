@@ -1,3 +1,4 @@
+// @ts-check
 // Runs: the body of POST /api/rigs/{rig}/runs built from a panel, and the run
 // objects of GET /api/runs/{run} read into one shape for the views.
 

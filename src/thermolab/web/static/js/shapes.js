@@ -1,3 +1,4 @@
+// @ts-check
 // Reading the server's JSON: the one place that knows the field names of
 // GET /api/rigs, GET /api/rigs/{rig}, the `access` object of the live protocol
 // and GET /api/runs/{run}. Views only see the normalised objects below.

@@ -1,3 +1,4 @@
+// @ts-check
 // Client-side checks of numeric fields, before anything is sent. The server
 // checks again (it is the authority); these only spare a round trip and say
 // exactly what is allowed next to the field.

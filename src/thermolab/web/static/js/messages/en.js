@@ -1,3 +1,4 @@
+// @ts-check
 // The interface's messages in English: the one catalogue every other language
 // translates (same keys). Keys are dotted names, sorted; placeholders are named
 // ({run}); a message with plural forms is an object of Intl.PluralRules

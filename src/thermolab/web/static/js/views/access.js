@@ -1,3 +1,4 @@
+// @ts-check
 // The access panel of a rig page: who controls, the queue, my place in it, the
 // controller's remaining time, and the buttons to ask for or give up control.
 // Changes that matter to me are announced to screen readers (live region).

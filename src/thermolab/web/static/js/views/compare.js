@@ -1,3 +1,4 @@
+// @ts-check
 // Chosen runs against a reference model, in the form of the paper's Tables I
 // and II: Ks and Ts (mean / max / min for the methods that give many
 // estimates), their deviation from the reference, samples to converge.

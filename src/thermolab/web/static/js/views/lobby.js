@@ -1,3 +1,4 @@
+// @ts-check
 // The lobby: every rig with its state, controller, watchers and queue.
 // Polled (every rig page has its own live socket; the lobby needs only a glance).
 

@@ -1,3 +1,4 @@
+// @ts-check
 // Log in: a plain form; the server sets an HttpOnly session cookie.
 
 import { api } from "../api.js";

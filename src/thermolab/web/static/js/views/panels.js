@@ -1,3 +1,4 @@
+// @ts-check
 // The paper's three panels (section II, Figs. 6–8), as tabs:
 //   1. step response + least squares (SRM and LSM together),
 //   2. moving-window least squares (MALSM),

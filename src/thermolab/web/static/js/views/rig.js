@@ -1,3 +1,4 @@
+// @ts-check
 // The rig page: live image, live charts (with the identified model laid over
 // the data), the current estimates, the convergence of the recursive methods,
 // the access panel and the paper's three panels. Everything live comes over

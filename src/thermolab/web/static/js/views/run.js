@@ -1,3 +1,4 @@
+// @ts-check
 // One run: what was asked, its charts (output with the model, input, and the
 // convergence of the recursive methods), every method's results, the CSV.
 

@@ -1,3 +1,4 @@
+// @ts-check
 // My runs: the list, with a choice of runs to compare against the reference model.
 
 import { api } from "../api.js";

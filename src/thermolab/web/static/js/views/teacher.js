@@ -1,3 +1,4 @@
+// @ts-check
 // The teacher's view: every rig with its controller, queue and watchers;
 // extend or cut a turn, end it, remove someone from a queue, take a rig out of
 // service (or back); and every student's runs.

@@ -1,3 +1,4 @@
+// @ts-check
 // What each of the paper's three panels asks for (section II, Figs. 6–8): its
 // fields with their defaults and allowed ranges, the methods it runs and the
 // operating-point modes it offers. The ranges come from the rig (the input)

@@ -1,3 +1,4 @@
+// @ts-check
 // One panel's forms: the settings form (START) with its checked fields, and
 // the run controls (set point, END) shown while its run is going. Every field
 // shows its allowed range and is checked before anything is sent.

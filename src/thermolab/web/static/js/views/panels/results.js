@@ -1,3 +1,4 @@
+// @ts-check
 // What a panel says about its run: the status line, the operating point and
 // the table of the current estimates of each of its methods.
 

@@ -1,3 +1,4 @@
+// @ts-check
 // The rig's live image: one JPEG a second over HTTP while the tab is visible.
 
 import { api } from "../../api.js";

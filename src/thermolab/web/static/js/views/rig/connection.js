@@ -1,3 +1,4 @@
+// @ts-check
 // The connection line (#conn) of the rig page: what the live socket is doing.
 
 import { setText } from "../../dom.js";

@@ -1,3 +1,4 @@
+// @ts-check
 // Convergence of the recursive methods: Ks(k) and Ts(k) charts per method,
 // each trajectory kept in bounded memory (decimated beyond TRAJECTORY_POINTS).
 

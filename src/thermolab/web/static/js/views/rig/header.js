@@ -1,3 +1,4 @@
+// @ts-check
 // The top of the rig page: its name, its state badge and detail, and a banner
 // for errors that clears itself.
 

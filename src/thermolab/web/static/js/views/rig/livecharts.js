@@ -1,3 +1,4 @@
+// @ts-check
 // The live charts: output (with the identified model laid over it) and input
 // against time, over a bounded window of the segment on show — one run's
 // samples, or the rig's idle readings. A watcher who joins mid-run gets the

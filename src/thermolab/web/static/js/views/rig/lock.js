@@ -1,3 +1,4 @@
+// @ts-check
 // Why the panels are locked for this user now ("" when they may use them).
 
 import { t } from "../../i18n.js";

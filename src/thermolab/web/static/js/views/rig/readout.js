@@ -1,3 +1,4 @@
+// @ts-check
 // The "Now" card: the latest reading of the rig, in the units it publishes.
 
 import { h, setText } from "../../dom.js";

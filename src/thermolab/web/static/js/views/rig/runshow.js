@@ -1,3 +1,4 @@
+// @ts-check
 // The run on show on the rig page: the current (or last) run, followed through
 // its start, samples, estimates and end, from the live socket or (while it is
 // down) over HTTP; it feeds the live charts, the convergence charts and the
