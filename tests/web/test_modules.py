@@ -638,3 +638,56 @@ def test_messages_fill_placeholders_pick_plurals_and_fall_back_to_english(module
     assert r["pt"]["english"] == "The lab has no rigs."
     assert r["pt"]["number"] == "0,5"
     assert r["pt"]["htmlLang"] == "pt-BR"
+
+
+def test_panels_take_their_methods_from_the_registry_shape(module_page: Any) -> None:
+    """Panels read methods shaped as GET /api/methods: the server's can replace the copy."""
+    r = run_js(
+        module_page,
+        """
+        const m = await import('/js/methods.js');
+        const { panelOfRun, methodTitle } = await import('/js/runspec.js');
+        const { panelDefinitions, panelLimits } = await import('/js/views/panels/definitions.js');
+        const field = (defs, panel, name) =>
+          defs.find((d) => d.id === panel).fields.find((f) => f.name === name);
+        const before = panelDefinitions(panelLimits(null, null));
+        const out = {
+          local: before.map((d) => d.methods),
+          window: field(before, 'malsm', 'window').value,
+          gamma: ['value', 'exclusiveMin'].map((k) => field(before, 'wlsm', 'gamma')[k]),
+          trajectory: ['srm', 'malsm', 'wlsm#2'].map(m.hasTrajectory),
+          panel: panelOfRun({ methods: ['srm', 'lsm', 'blockls'] }),
+        };
+        let refused = '';
+        try { m.useMethods({ methods: [{ title: 'x' }] }); } catch (e) { refused = e.name; }
+        out.refused = refused;
+        const server = JSON.parse(JSON.stringify({ methods: m.LOCAL_METHODS }));
+        server.methods.find((x) => x.name === 'malsm').settings[0].default = 250;
+        server.methods.push({ name: 'rls', title: 'Recursive LS', panel: 'wlsm',
+                              returns: ['trajectory'], settings: [] });
+        m.useMethods(server);
+        const after = panelDefinitions(panelLimits(null, null));
+        out.served = {
+          window: field(after, 'malsm', 'window').value,
+          wlsmMethods: after.find((d) => d.id === 'wlsm').methods,
+          panel: panelOfRun({ methods: ['rls'] }),
+          title: methodTitle('rls'),
+          trajectory: m.hasTrajectory('rls'),
+        };
+        m.useMethods({ methods: m.LOCAL_METHODS });
+        return out;
+        """,
+    )
+    assert r["local"] == [["srm", "lsm", "blockls"], ["malsm"], ["wlsm"]]
+    assert r["window"] == 100
+    assert r["gamma"] == [0.96, True]
+    assert r["trajectory"] == [False, True, True]
+    assert r["panel"] == "srm-lsm"
+    assert r["refused"] == "TypeError"
+    assert r["served"] == {
+        "window": 250,
+        "wlsmMethods": ["wlsm", "rls"],
+        "panel": "wlsm",
+        "title": "Recursive LS",
+        "trajectory": True,
+    }

@@ -3,8 +3,9 @@
 // objects of GET /api/runs/{run} read into one shape for the views.
 
 import { t } from "./i18n.js";
+import { findMethod } from "./methods.js";
 
-/** The message of each method's title (the methods the server publishes). */
+/** The translated titles of the methods (others show the title the server gives). */
 const METHOD_TITLES = {
   srm: "method.srm",
   lsm: "method.lsm",
@@ -13,13 +14,10 @@ const METHOD_TITLES = {
   wlsm: "method.wlsm",
 };
 
-/** Methods whose estimates form a trajectory (Ks(k), Ts(k) charts). */
-export const RECURSIVE = new Set(["blockls", "malsm", "wlsm"]);
-
 export function methodTitle(method) {
   if (method === "srm-lsm") return t("method.srmLsm");
   const key = METHOD_TITLES[method];
-  return key ? t(key) : String(method);
+  return key ? t(key) : (findMethod(method)?.title ?? String(method));
 }
 
 /** The square wave of the Automatic option: ten times slower than sampling. */
@@ -63,12 +61,16 @@ export function buildRunSpec(panel, v, automatic, server = {}) {
   return spec;
 }
 
-/** Which panel a run belongs to, from its methods. */
+/** The panel of the step and least-squares methods, which a run belongs to by default. */
+const FIRST_PANEL = "srm-lsm";
+
+/** Which panel a run belongs to, from its methods (methods.js says each one's panel). */
 export function panelOfRun(run) {
-  const names = new Set((run?.methods ?? []).map((m) => (typeof m === "string" ? m : (m.method ?? m.name))));
-  if (names.has("wlsm")) return "wlsm";
-  if (names.has("malsm")) return "malsm";
-  return "srm-lsm";
+  for (const m of run?.methods ?? []) {
+    const panel = findMethod(methodName(m))?.panel;
+    if (panel && panel !== FIRST_PANEL) return panel;
+  }
+  return FIRST_PANEL;
 }
 
 /** The method name of an entry of a run's `methods` list. */

@@ -5,7 +5,7 @@
 // and the server's schema (the run settings); the defaults until they are known
 // are conservative, and the panels stay locked until then anyway.
 
-import { PAPER_W0 } from "../../model.js";
+import { panelMethods, settingRange } from "../../methods.js";
 import { enumValues, hasProperty, numericRange } from "../../schema.js";
 import { t } from "../../i18n.js";
 
@@ -15,17 +15,44 @@ import { t } from "../../i18n.js";
  */
 
 /**
- * Conservative ranges used until the server's own (from /openapi.json) are
- * known; the panels are locked until then anyway.
+ * The run's own settings: conservative ranges used until the server's (from
+ * /openapi.json) are known; the panels are locked until then anyway.
  */
-export const DEFAULT_RANGES = Object.freeze({
+export const RUN_RANGES = Object.freeze({
   dt: { min: 0.01, max: 3600 },
   samples: { min: 1, max: 200000, integer: true },
-  window: { min: 2, max: 100000, integer: true },
-  block: { min: 2, max: 100000, integer: true },
-  gamma: { min: 0, exclusiveMin: true, max: 1, exclusiveMax: true },
-  pmax: { min: 0, exclusiveMin: true, max: Infinity },
 });
+
+/**
+ * A method setting's range and default (methods.js), without its default.
+ * @param {string} method
+ * @param {string} setting
+ */
+function methodRange(method, setting) {
+  const { value, ...range } = settingRange(method, setting);
+  return range;
+}
+
+/**
+ * A method setting's default, as a form field's starting value.
+ * @param {string} method
+ * @param {string} setting
+ * @returns {number}
+ */
+function defaultOf(method, setting) {
+  return Number(settingRange(method, setting).value);
+}
+
+/** The ranges of every setting a panel shows, before the server's schema is known. */
+export function defaultRanges() {
+  return {
+    ...RUN_RANGES,
+    window: methodRange("malsm", "window"),
+    block: methodRange("blockls", "block"),
+    gamma: methodRange("wlsm", "gamma"),
+    pmax: methodRange("wlsm", "pmax"),
+  };
+}
 
 /** The choices of RunIn.offset, as the select shows them (OFFSET_HINT says what they mean). */
 export const OFFSET_LABELS = Object.freeze({
@@ -62,12 +89,14 @@ export function panelLimits(rig, doc) {
 /**
  * Field definitions of each panel.
  * @param {{inputMin: number, inputMax: number, inputUnit: string,
- *   ranges: typeof DEFAULT_RANGES, w0: boolean, offsets?: string[] | null}} limits  the
+ *   ranges: Record<string, any>, w0: boolean, offsets?: string[] | null}} limits  the
  *   rig's input range, the server's ranges for the run's settings, whether it takes
  *   initial WLSM parameters, and the operating-point modes it offers (null: none)
  */
 export function panelDefinitions(limits) {
-  const r = { ...DEFAULT_RANGES, ...limits.ranges };
+  /** @type {Record<string, any>} */
+  const r = { ...defaultRanges(), ...limits.ranges };
+  const w0 = /** @type {number[]} */ (settingRange("wlsm", "w0").value);
   const u = { min: limits.inputMin, max: limits.inputMax, unit: limits.inputUnit };
   const common = [
     { name: "dt", label: t("field.dt"), ...r.dt, unit: "s", value: 1 },
@@ -98,7 +127,8 @@ export function panelDefinitions(limits) {
         setpoint(0),
         ...auto(4, 6),
       ],
-      methods: ["srm", "lsm", "blockls"],
+      methods: panelMethods("srm-lsm"),
+      // Block LS runs only when asked for (a block size other than 0).
       optional: ["blockls"],
       stepHint: 10,
     },
@@ -108,8 +138,8 @@ export function panelDefinitions(limits) {
       title: t("panel.malsm.title"),
       short: t("panel.malsm.tab"),
       intro: t("panel.malsm.intro"),
-      fields: [...common, { name: "window", label: t("field.window"), ...r.window, integer: true, unit: "samples", value: 100 }, setpoint(5), ...auto(4, 6)],
-      methods: ["malsm"],
+      fields: [...common, { name: "window", label: t("field.window"), ...r.window, integer: true, unit: "samples", value: defaultOf("malsm", "window") }, setpoint(5), ...auto(4, 6)],
+      methods: panelMethods("malsm"),
       automaticDefault: true,
       stepHint: 6,
     },
@@ -121,14 +151,14 @@ export function panelDefinitions(limits) {
       intro: t("panel.wlsm.intro"),
       fields: [
         ...common,
-        { name: "gamma", label: t("field.gamma"), ...gamma, value: 0.96 },
-        { name: "pmax", label: t("field.pmax"), ...r.pmax, value: 10000 },
-        { name: "a0", label: t("field.a0"), min: 0, max: 1, exclusiveMin: true, exclusiveMax: true, value: PAPER_W0.a, unavailable: w0Note },
-        { name: "b0", label: t("field.b0"), min: -1e6, max: 1e6, value: PAPER_W0.b, unavailable: w0Note },
+        { name: "gamma", label: t("field.gamma"), ...gamma, value: defaultOf("wlsm", "gamma") },
+        { name: "pmax", label: t("field.pmax"), ...r.pmax, value: defaultOf("wlsm", "pmax") },
+        { name: "a0", label: t("field.a0"), min: 0, max: 1, exclusiveMin: true, exclusiveMax: true, value: w0[0], unavailable: w0Note },
+        { name: "b0", label: t("field.b0"), min: -1e6, max: 1e6, value: w0[1], unavailable: w0Note },
         setpoint(2),
         ...auto(0, 4),
       ],
-      methods: ["wlsm"],
+      methods: panelMethods("wlsm"),
       automaticDefault: true,
       stepHint: 4,
     },

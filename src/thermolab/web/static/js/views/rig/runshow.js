@@ -5,7 +5,8 @@
 // panels, and says starts and ends aloud.
 
 import { announce } from "../../dom.js";
-import { methodName, panelOfRun, readEstimate, readRun, RECURSIVE } from "../../runspec.js";
+import { hasTrajectory } from "../../methods.js";
+import { panelOfRun, readEstimate, readRun } from "../../runspec.js";
 import { Convergence } from "./convergence.js";
 import { LiveCharts } from "./livecharts.js";
 import { t } from "../../i18n.js";
@@ -89,9 +90,8 @@ export class RunShow {
     const method = e.method;
     const est = readEstimate(e);
     this.run.estimates.set(method, est);
-    const base = methodName({ method }).split(/[:#]/)[0];
     // Only estimates with a first-order meaning are drawn (uPlot has no NaN gaps).
-    if (RECURSIVE.has(base) && !est.final && est.valid && Number.isFinite(est.K) && Number.isFinite(est.tau)) {
+    if (hasTrajectory(method) && !est.final && est.valid && Number.isFinite(est.K) && Number.isFinite(est.tau)) {
       this.convergence.push(method, e.k, est.K, est.tau);
     }
     if (!this.charts.offers(method)) this.charts.updateOverlayChoices();
