@@ -178,7 +178,8 @@ def test_watchers_queue_and_take_over_without_reloading(
     done = "[data-testid=results-srm-lsm] [data-method={}] [data-field=status]:text('final')"
     for method in ("srm", "lsm"):
         bob.wait_for_selector(done.format(method), timeout=90_000)
-    assert "finished" in bob.inner_text(status)
+    # The final estimates come just before the run's end message: wait for that too.
+    bob.wait_for_selector(f"{status}:text('finished')")
     for method in ("srm", "lsm"):
         row = f"[data-testid=results-srm-lsm] [data-method={method}]"
         ks = float(bob.inner_text(f"{row} [data-field=K]"))

@@ -589,3 +589,105 @@ def test_live_client_replays_everything_and_marks_the_history(module_page: Any) 
         "sample:13:live",
         "sample:-:live",
     ]
+
+
+def test_messages_fill_placeholders_pick_plurals_and_fall_back_to_english(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        """
+        const i18n = await import('/js/i18n.js');
+        const { durationWords } = await import('/js/dom.js');
+        const out = {
+          started: i18n.t('run.started', { run: 12 }),
+          missingParam: i18n.t('run.started'),
+          unknown: i18n.t('no.such.key'),
+          none: i18n.t('lobby.waiting', { count: 0 }),
+          one: i18n.t('lobby.waiting', { count: 1 }),
+          many: i18n.t('lobby.waiting', { count: 1234 }),
+          words: [durationWords(61), durationWords(120), durationWords(1)],
+          lang: i18n.language(),
+        };
+        // A language with its own plural rules and number form; keys it lacks stay English.
+        i18n.setLanguage('pt-BR', {
+          'lobby.waiting': { one: '{count} aguardando', other: '{count} aguardando' },
+          'run.started': 'Ensaio {run} iniciado.',
+        });
+        out.pt = {
+          started: i18n.t('run.started', { run: 12 }),
+          zeroFallsToOther: i18n.t('lobby.waiting', { count: 0 }),
+          many: i18n.t('lobby.waiting', { count: 1234.5 }),
+          english: i18n.t('lobby.none'),
+          number: i18n.formatNumber(0.5),
+          htmlLang: document.documentElement.lang,
+        };
+        i18n.setLanguage('en', (await import('/js/messages/en.js')).messages);
+        return out;
+        """,
+    )
+    assert r["started"] == "Run 12 started."
+    assert r["missingParam"] == "Run {run} started."
+    assert r["unknown"] == "no.such.key"
+    assert r["none"] == "empty"
+    assert r["one"] == "1 waiting"
+    assert r["many"] == "1,234 waiting"
+    assert r["words"] == ["1 minute 1 second", "2 minutes", "1 second"]
+    assert r["lang"] == "en"
+    assert r["pt"]["started"] == "Ensaio 12 iniciado."
+    assert r["pt"]["zeroFallsToOther"] == "0 aguardando"
+    assert r["pt"]["many"] == "1.234,5 aguardando"
+    assert r["pt"]["english"] == "The lab has no rigs."
+    assert r["pt"]["number"] == "0,5"
+    assert r["pt"]["htmlLang"] == "pt-BR"
+
+
+def test_panels_take_their_methods_from_the_registry_shape(module_page: Any) -> None:
+    """Panels read methods shaped as GET /api/methods: the server's can replace the copy."""
+    r = run_js(
+        module_page,
+        """
+        const m = await import('/js/methods.js');
+        const { panelOfRun, methodTitle } = await import('/js/runspec.js');
+        const { panelDefinitions, panelLimits } = await import('/js/views/panels/definitions.js');
+        const field = (defs, panel, name) =>
+          defs.find((d) => d.id === panel).fields.find((f) => f.name === name);
+        const before = panelDefinitions(panelLimits(null, null));
+        const out = {
+          local: before.map((d) => d.methods),
+          window: field(before, 'malsm', 'window').value,
+          gamma: ['value', 'exclusiveMin'].map((k) => field(before, 'wlsm', 'gamma')[k]),
+          trajectory: ['srm', 'malsm', 'wlsm#2'].map(m.hasTrajectory),
+          panel: panelOfRun({ methods: ['srm', 'lsm', 'blockls'] }),
+        };
+        let refused = '';
+        try { m.useMethods({ methods: [{ title: 'x' }] }); } catch (e) { refused = e.name; }
+        out.refused = refused;
+        const server = JSON.parse(JSON.stringify({ methods: m.LOCAL_METHODS }));
+        server.methods.find((x) => x.name === 'malsm').settings[0].default = 250;
+        server.methods.push({ name: 'rls', title: 'Recursive LS', panel: 'wlsm',
+                              returns: ['trajectory'], settings: [] });
+        m.useMethods(server);
+        const after = panelDefinitions(panelLimits(null, null));
+        out.served = {
+          window: field(after, 'malsm', 'window').value,
+          wlsmMethods: after.find((d) => d.id === 'wlsm').methods,
+          panel: panelOfRun({ methods: ['rls'] }),
+          title: methodTitle('rls'),
+          trajectory: m.hasTrajectory('rls'),
+        };
+        m.useMethods({ methods: m.LOCAL_METHODS });
+        return out;
+        """,
+    )
+    assert r["local"] == [["srm", "lsm", "blockls"], ["malsm"], ["wlsm"]]
+    assert r["window"] == 100
+    assert r["gamma"] == [0.96, True]
+    assert r["trajectory"] == [False, True, True]
+    assert r["panel"] == "srm-lsm"
+    assert r["refused"] == "TypeError"
+    assert r["served"] == {
+        "window": 250,
+        "wlsmMethods": ["wlsm", "rls"],
+        "panel": "wlsm",
+        "title": "Recursive LS",
+        "trajectory": True,
+    }

@@ -86,3 +86,19 @@ def test_static_files_are_declared_as_package_data() -> None:
     pyproject = tomllib.loads((root / "pyproject.toml").read_text(encoding="utf-8"))
     package_data = pyproject["tool"]["setuptools"]["package-data"]["thermolab"]
     assert "web/static/**/*" in package_data
+
+
+def test_every_module_is_type_checked() -> None:
+    """Each module opts in to TypeScript's checks, and tsconfig.json covers them all."""
+    unchecked = [
+        p.relative_to(STATIC_DIR).as_posix()
+        for p in (STATIC_DIR / "js").rglob("*.js")
+        if not p.read_text(encoding="utf-8").startswith("// @ts-check\n")
+    ]
+    assert unchecked == []
+    root = Path(__file__).resolve().parents[2]
+    config = (root / "tsconfig.json").read_text(encoding="utf-8")
+    assert '"checkJs": true' in config
+    assert '"src/thermolab/web/static/js/**/*.js"' in config
+    # The vendored uPlot is typed by a declaration beside it, not checked itself.
+    assert (STATIC_DIR / "vendor" / "uplot" / "uPlot.esm.d.ts").is_file()

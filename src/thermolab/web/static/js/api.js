@@ -1,6 +1,9 @@
+// @ts-check
 // The HTTP API (issue 4, /openapi.json): one place that knows how requests are
 // made and how the server's errors look, so every view shows the server's own
 // message (`detail`) as it comes.
+
+import { t } from "./i18n.js";
 
 /** An HTTP answer that was not 2xx, carrying the server's message. */
 export class ApiError extends Error {
@@ -65,7 +68,7 @@ export async function request(method, path, body, opts = {}) {
     signal: opts.signal,
   };
   if (body !== undefined) {
-    init.headers["Content-Type"] = "application/json";
+    init.headers = { Accept: "application/json", "Content-Type": "application/json" };
     init.body = JSON.stringify(body);
   }
   let res;
@@ -73,7 +76,7 @@ export async function request(method, path, body, opts = {}) {
     res = await fetch(path, init);
   } catch (err) {
     if (err && err.name === "AbortError") throw err;
-    throw new ApiError(0, "The lab server cannot be reached. Check the network connection.", null);
+    throw new ApiError(0, t("api.unreachable"), null);
   }
   const type = res.headers.get("Content-Type") || "";
   let data = null;

@@ -1,3 +1,4 @@
+// @ts-check
 // The single-page application: session, hash router, navigation.
 //
 // Each view is a module exporting mount(container, params, ctx) that returns a
@@ -7,16 +8,17 @@
 
 import { api, ApiError, setUnauthorizedHandler } from "./api.js";
 import { announce, h, replaceChildren, setText } from "./dom.js";
+import { t, translatePage } from "./i18n.js";
 
 /** Routes: pattern → view module loader. The first match wins. */
 const ROUTES = [
-  { pattern: /^\/login$/, view: () => import("./views/login.js"), title: "Log in", open: true },
-  { pattern: /^\/$/, view: () => import("./views/lobby.js"), title: "Rigs", nav: "lobby" },
-  { pattern: /^\/rig\/([^/]+)$/, view: () => import("./views/rig.js"), title: "Rig", nav: "lobby" },
-  { pattern: /^\/runs$/, view: () => import("./views/runs.js"), title: "My runs", nav: "runs" },
-  { pattern: /^\/runs\/compare$/, view: () => import("./views/compare.js"), title: "Compare runs", nav: "runs" },
-  { pattern: /^\/runs\/([^/]+)$/, view: () => import("./views/run.js"), title: "Run", nav: "runs" },
-  { pattern: /^\/teacher$/, view: () => import("./views/teacher.js"), title: "Teacher", nav: "teacher" },
+  { pattern: /^\/login$/, view: () => import("./views/login.js"), title: "login.title", open: true },
+  { pattern: /^\/$/, view: () => import("./views/lobby.js"), title: "nav.rigs", nav: "lobby" },
+  { pattern: /^\/rig\/([^/]+)$/, view: () => import("./views/rig.js"), title: "rig.pageTitle", nav: "lobby" },
+  { pattern: /^\/runs$/, view: () => import("./views/runs.js"), title: "nav.runs", nav: "runs" },
+  { pattern: /^\/runs\/compare$/, view: () => import("./views/compare.js"), title: "compare.title", nav: "runs" },
+  { pattern: /^\/runs\/([^/]+)$/, view: () => import("./views/run.js"), title: "run.pageTitle", nav: "runs" },
+  { pattern: /^\/teacher$/, view: () => import("./views/teacher.js"), title: "nav.teacher", nav: "teacher" },
 ];
 
 /** Shared state handed to every view. */
@@ -27,7 +29,7 @@ export const ctx = {
   afterLogin,
   /** Set the page title (the document title and the first heading's text). */
   setTitle(text) {
-    document.title = `${text} · ThermoLab`;
+    document.title = t("app.documentTitle", { page: text });
   },
 };
 
@@ -66,18 +68,27 @@ export function normaliseUser(data) {
   return { ...u, username: u.username, role: u.role ?? "student" };
 }
 
+/**
+ * An element of the page shell (index.html), which is always there.
+ * @param {string} id
+ * @returns {HTMLElement}
+ */
+function shell(id) {
+  const el = document.getElementById(id);
+  if (!el) throw new TypeError(`index.html has no #${id}`);
+  return el;
+}
+
 function updateChrome() {
-  const nav = document.getElementById("nav");
-  const who = document.getElementById("who");
-  const loggedIn = ctx.user !== null;
-  nav.hidden = !loggedIn;
-  who.hidden = !loggedIn;
-  document.getElementById("nav-teacher").hidden = !(loggedIn && ctx.user.role === "teacher");
-  setText(document.getElementById("who-name"), loggedIn ? `${ctx.user.username} (${ctx.user.role})` : "");
+  const user = ctx.user;
+  shell("nav").hidden = user === null;
+  shell("who").hidden = user === null;
+  shell("nav-teacher").hidden = user?.role !== "teacher";
+  setText(shell("who-name"), user ? t("app.who", { user: user.username, role: user.role }) : "");
 }
 
 function markNav(name) {
-  for (const a of document.querySelectorAll("[data-nav]")) {
+  for (const a of /** @type {NodeListOf<HTMLElement>} */ (document.querySelectorAll("[data-nav]"))) {
     if (a.dataset.nav === name) a.setAttribute("aria-current", "page");
     else a.removeAttribute("aria-current");
   }
@@ -87,7 +98,7 @@ async function render() {
   const token = ++renderToken;
   const { path, query } = parseHash(window.location.hash);
   const route = ROUTES.find((r) => r.pattern.test(path));
-  const main = document.getElementById("main");
+  const main = shell("main");
   if (cleanup) {
     const fn = cleanup;
     cleanup = null;
@@ -98,8 +109,8 @@ async function render() {
     }
   }
   if (!route) {
-    replaceChildren(main, h("h1", null, "Not found"), h("p", null, h("a", { href: "#/" }, "Back to the rigs")));
-    ctx.setTitle("Not found");
+    replaceChildren(main, h("h1", null, t("app.notFound")), h("p", null, h("a", { href: "#/" }, t("app.backToRigs"))));
+    ctx.setTitle(t("app.notFound"));
     return;
   }
   if (!route.open && ctx.user === null) {
@@ -108,13 +119,13 @@ async function render() {
     return;
   }
   markNav(route.nav ?? "");
-  ctx.setTitle(route.title);
+  ctx.setTitle(t(route.title));
   const params = path.match(route.pattern).slice(1).map(decodeURIComponent);
   let mod;
   try {
     mod = await route.view();
   } catch (err) {
-    replaceChildren(main, h("p", { class: "error" }, `This page could not be loaded: ${err}`));
+    replaceChildren(main, h("p", { class: "error" }, t("app.pageFailed", { error: String(err) })));
     return;
   }
   if (token !== renderToken) return; // the user moved on while the module loaded
@@ -139,7 +150,7 @@ async function logout() {
   }
   ctx.user = null;
   updateChrome();
-  announce("You are logged out.");
+  announce(t("app.loggedOut"));
   navigate("/login");
 }
 
@@ -150,23 +161,24 @@ async function afterLogin(next) {
 }
 
 async function start() {
+  translatePage(document);
   setUnauthorizedHandler(() => {
     if (ctx.user === null) return;
     ctx.user = null;
     updateChrome();
-    announce("Your session has ended; please log in again.", "alert");
+    announce(t("app.sessionEnded"), "alert");
     navigate("/login");
   });
-  document.getElementById("logout").addEventListener("click", logout);
+  shell("logout").addEventListener("click", logout);
   window.addEventListener("hashchange", () => void render());
   try {
     await loadSession();
   } catch (err) {
     replaceChildren(
-      document.getElementById("main"),
-      h("h1", null, "ThermoLab"),
-      h("p", { class: "error", role: "alert" }, `The lab server cannot be reached: ${err.message ?? err}`),
-      h("button", { type: "button", onclick: () => window.location.reload() }, "Try again"),
+      shell("main"),
+      h("h1", null, t("app.name")),
+      h("p", { class: "error", role: "alert" }, t("app.unreachable", { error: err.message ?? String(err) })),
+      h("button", { type: "button", onclick: () => window.location.reload() }, t("app.tryAgain")),
     );
     return;
   }

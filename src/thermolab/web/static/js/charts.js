@@ -1,3 +1,4 @@
+// @ts-check
 // Charts on uPlot, redrawn at most once per animation frame.
 //
 // Data arrive at up to 10 samples/s (and in bursts of thousands when a gap is
@@ -8,6 +9,7 @@
 
 import uPlot from "../vendor/uplot/uPlot.esm.js";
 import { h } from "./dom.js";
+import { t } from "./i18n.js";
 
 /** Colours that stay distinguishable for the common colour-vision deficiencies (Okabe–Ito). */
 export const COLORS = ["#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000"];
@@ -25,6 +27,7 @@ export class Chart {
    * @param {() => ArrayLike<number>[]} opts.source   [x, y1, y2...] for the next draw
    * @param {number} [opts.height]
    * @param {string} [opts.description] longer text for screen readers
+   * @param {string} [opts.emptyText] what the chart says while it has no data
    */
   constructor(parent, opts) {
     this._source = opts.source;
@@ -37,7 +40,7 @@ export class Chart {
       opts.description ? h("p", { class: "visually-hidden", id: descId }, opts.description) : null,
     );
     this._plotHost = h("div", { class: "chart-plot", "aria-hidden": "true" });
-    this._emptyNote = h("p", { class: "chart-empty" }, opts.emptyText ?? "Waiting for data…");
+    this._emptyNote = h("p", { class: "chart-empty" }, opts.emptyText ?? t("chart.waiting"));
     this.el.append(this._plotHost, this._emptyNote);
     parent.append(this.el);
     const width = Math.max(200, this._plotHost.clientWidth || parent.clientWidth || 320);

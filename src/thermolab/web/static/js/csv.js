@@ -1,4 +1,7 @@
+// @ts-check
 // Reading a run's samples.csv (header line, then numbers; `t,u,y` first).
+
+import { t } from "./i18n.js";
 
 /**
  * Parse a numeric CSV into named columns. A `k` column that the file does not
@@ -10,15 +13,16 @@
  */
 export function parseCsv(text, wanted) {
   const lines = text.split(/\r?\n/).filter((l) => l.trim() !== "" && !l.startsWith("#"));
-  if (lines.length === 0) throw new Error("the CSV file is empty");
+  if (lines.length === 0) throw new Error(t("csv.empty"));
   const header = lines[0].split(",").map((s) => s.trim().toLowerCase());
   const rows = lines.length - 1;
+  /** @type {Record<string, Float64Array>} */
   const out = {};
   for (const name of wanted) {
     const col = header.indexOf(name);
     const arr = new Float64Array(rows);
     if (col === -1) {
-      if (name !== "k") throw new Error(`the CSV file has no column ${JSON.stringify(name)} (it has ${header.join(", ")})`);
+      if (name !== "k") throw new Error(t("csv.noColumn", { column: JSON.stringify(name), columns: header.join(", ") }));
       for (let i = 0; i < rows; i += 1) arr[i] = i;
     } else {
       for (let i = 0; i < rows; i += 1) {

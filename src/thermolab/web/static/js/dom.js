@@ -1,16 +1,21 @@
+// @ts-check
 // Small DOM helpers. Text always goes in through textContent (never innerHTML),
 // so names and messages from the server cannot inject markup.
+
+import { formatDateTime, t } from "./i18n.js";
 
 /**
  * Create an element: h("button", {type: "button", onclick: f}, "Text", child).
  * Attributes starting with "on" become listeners; `class`, `for`, `aria-*`,
  * `data-*` and the rest are set as attributes; false/null/undefined are skipped.
- * @param {string} tag
+ * @template {keyof HTMLElementTagNameMap} K
+ * @param {K} tag
  * @param {Record<string, any> | null} [attrs]
  * @param {...(Node | string | number | null | undefined | false | Array<any>)} children
- * @returns {HTMLElement}
+ * @returns {HTMLElementTagNameMap[K]}
  */
 export function h(tag, attrs, ...children) {
+  /** @type {any} */
   const el = document.createElement(tag);
   if (attrs) {
     for (const [key, value] of Object.entries(attrs)) {
@@ -88,13 +93,13 @@ export function duration(seconds) {
 
 /** Spoken form of a duration: "4 minutes 5 seconds". */
 export function durationWords(seconds) {
-  if (seconds === null || seconds === undefined || !Number.isFinite(seconds)) return "unknown";
+  if (seconds === null || seconds === undefined || !Number.isFinite(seconds)) return t("duration.unknown");
   const s = Math.max(0, Math.round(seconds));
   const m = Math.floor(s / 60);
   const r = s % 60;
   const parts = [];
-  if (m) parts.push(`${m} minute${m === 1 ? "" : "s"}`);
-  if (r || !m) parts.push(`${r} second${r === 1 ? "" : "s"}`);
+  if (m) parts.push(t("duration.minutes", { count: m }));
+  if (r || !m) parts.push(t("duration.seconds", { count: r }));
   return parts.join(" ");
 }
 
@@ -102,5 +107,5 @@ export function durationWords(seconds) {
 export function when(iso) {
   if (!iso) return "–";
   const d = new Date(iso);
-  return Number.isNaN(d.getTime()) ? String(iso) : d.toLocaleString();
+  return Number.isNaN(d.getTime()) ? String(iso) : formatDateTime(d);
 }

@@ -1,3 +1,4 @@
+// @ts-check
 // The live WebSocket client (contract: docs/live-protocol.md).
 //
 // One LiveClient per rig page. It reconnects by itself with exponential
@@ -5,6 +6,8 @@
 // gap, drops anything it has already seen (a replay may overlap), keeps the
 // controller's presence alive with pings, and treats a silent connection as
 // dead (a half-open TCP connection after a network drop never says "closed").
+
+import { t } from "./i18n.js";
 
 /** Close codes of the protocol that mean "do not come back". */
 export const CLOSE_UNAUTHORIZED = 4401;
@@ -53,6 +56,8 @@ export class LiveClient {
    * @param {() => number} [options.random]
    * @param {{setTimeout: Function, clearTimeout: Function}} [options.timers]
    * @param {() => number} [options.now]
+   * @param {number} [options.baseMs] first reconnection delay
+   * @param {number} [options.maxMs] longest reconnection delay
    */
   constructor(rig, { onMessage, onStatus = () => {} }, options = {}) {
     this.rig = rig;
@@ -218,7 +223,7 @@ export class LiveClient {
         } catch {
           // ignore
         }
-        this._scheduleRetry({ code: 4000, reason: "no message from the server" });
+        this._scheduleRetry({ code: 4000, reason: t("live.silent") });
         return;
       }
       try {

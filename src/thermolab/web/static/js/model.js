@@ -1,3 +1,4 @@
+// @ts-check
 // First-order model arithmetic for display: the discrete form of eq. 4, the
 // prediction drawn over the data, and the figures of the paper's Tables I/II.
 // The identification itself happens on the server; nothing here estimates.
@@ -63,7 +64,7 @@ export function predict(u, y0, model, dt, out, x0 = 0) {
  * c / (1 − a); "none" is the raw regression (0 V); a number is the known
  * ambient output. Draw with predict(u, base, model, dt, out, y0 − base).
  * @param {string | number | null | undefined} used
- * @param {ArrayLike<number> | null | undefined} W  the estimate's discrete parameters
+ * @param {number[] | null | undefined} W  the estimate's discrete parameters
  * @param {number} y0  the run's first output
  */
 export function predictionBase(used, W, y0) {

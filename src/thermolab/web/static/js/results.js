@@ -1,3 +1,4 @@
+// @ts-check
 // The figures of the paper's Tables I/II from a method's stored result.
 //
 // The lab computes them when a run ends, with thermolab.ident's own
@@ -6,6 +7,8 @@
 // min of the valid estimates over the last 2000 samples and the samples to
 // converge within ±1 % of that mean. Nothing here recomputes them; a run that
 // is still going has no statistics yet, only its latest estimate.
+
+import { t } from "./i18n.js";
 
 /**
  * @typedef {{mean: number, max: number, min: number}} Stat
@@ -60,7 +63,7 @@ export function readResult(stored, method) {
       W: Array.isArray(latest.W) ? latest.W : null,
     },
     valid,
-    reason: valid ? null : (extras.reason ?? s.error ?? (s.latest ? "no first-order model" : "no estimate")),
+    reason: valid ? null : (extras.reason ?? s.error ?? (s.latest ? t("estimate.noModel") : t("estimate.none"))),
     warnings,
     // From the server once the run is over; while it runs, the latest estimate alone.
     K: figures ? stat(figures.K) : valid ? one(latest.K) : null,

@@ -1,3 +1,4 @@
+// @ts-check
 // Fixed-size buffers for live series: memory is allocated once, so a page left
 // open for hours holds the same amount as after one minute.
 
@@ -153,7 +154,7 @@ export class DecimatingBuffer {
     const out = new Float64Array(this.length + extra);
     out.set(col.subarray(0, this.length));
     if (extra) {
-      const v = this._latest[name];
+      const v = this._latest?.[name];
       out[this.length] = typeof v === "number" ? v : Number.NaN;
     }
     return out;

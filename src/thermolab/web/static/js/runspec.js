@@ -1,20 +1,23 @@
+// @ts-check
 // Runs: the body of POST /api/rigs/{rig}/runs built from a panel, and the run
 // objects of GET /api/runs/{run} read into one shape for the views.
 
+import { t } from "./i18n.js";
+import { findMethod } from "./methods.js";
+
+/** The translated titles of the methods (others show the title the server gives). */
 const METHOD_TITLES = {
-  srm: "Step response (SRM)",
-  lsm: "Least squares (LSM)",
-  blockls: "Block least squares",
-  malsm: "Moving-window LS (MALSM)",
-  wlsm: "Weighted LS (WLSM)",
+  srm: "method.srm",
+  lsm: "method.lsm",
+  blockls: "method.blockls",
+  malsm: "method.malsm",
+  wlsm: "method.wlsm",
 };
 
-/** Methods whose estimates form a trajectory (Ks(k), Ts(k) charts). */
-export const RECURSIVE = new Set(["blockls", "malsm", "wlsm"]);
-
 export function methodTitle(method) {
-  if (method === "srm-lsm") return "step response + least squares";
-  return METHOD_TITLES[method] ?? String(method);
+  if (method === "srm-lsm") return t("method.srmLsm");
+  const key = METHOD_TITLES[method];
+  return key ? t(key) : (findMethod(method)?.title ?? String(method));
 }
 
 /** The square wave of the Automatic option: ten times slower than sampling. */
@@ -27,7 +30,7 @@ export function automaticSignal(low, high, dt) {
  * The body of POST /api/rigs/{rig}/runs (RunIn of /openapi.json) for a panel's
  * checked values.
  * @param {{id: string}} panel
- * @param {Record<string, number | string>} v  checked values (dt, n, setpoint | low/high,
+ * @param {Record<string, any>} v  checked values (dt, n, setpoint | low/high,
  *   block, window, gamma, pmax, a0, b0; offset: the operating-point mode)
  * @param {boolean} automatic
  * @param {{w0?: boolean, offset?: boolean}} [server]  what the server accepts beyond the basics
@@ -58,12 +61,16 @@ export function buildRunSpec(panel, v, automatic, server = {}) {
   return spec;
 }
 
-/** Which panel a run belongs to, from its methods. */
+/** The panel of the step and least-squares methods, which a run belongs to by default. */
+const FIRST_PANEL = "srm-lsm";
+
+/** Which panel a run belongs to, from its methods (methods.js says each one's panel). */
 export function panelOfRun(run) {
-  const names = new Set((run?.methods ?? []).map((m) => (typeof m === "string" ? m : (m.method ?? m.name))));
-  if (names.has("wlsm")) return "wlsm";
-  if (names.has("malsm")) return "malsm";
-  return "srm-lsm";
+  for (const m of run?.methods ?? []) {
+    const panel = findMethod(methodName(m))?.panel;
+    if (panel && panel !== FIRST_PANEL) return panel;
+  }
+  return FIRST_PANEL;
 }
 
 /** The method name of an entry of a run's `methods` list. */
@@ -125,6 +132,6 @@ export function readEstimate(e) {
 /** What drove the input: the signal, or the manual set point. */
 export function inputText(run) {
   if (run.signal) return run.signal;
-  if (run.setpoint !== null && run.setpoint !== undefined) return `set point ${run.setpoint} V (manual)`;
-  return "manual";
+  if (run.setpoint !== null && run.setpoint !== undefined) return t("run.inputManualSetpoint", { setpoint: run.setpoint });
+  return t("run.inputManual");
 }

@@ -1,3 +1,4 @@
+// @ts-check
 // The ranges the server accepts, read from its own OpenAPI document
 // (/openapi.json), so the panels show and check exactly what the server will
 // take, and stay right when the server's limits change.

@@ -1,20 +1,24 @@
+// @ts-check
 // Reading the server's JSON: the one place that knows the field names of
 // GET /api/rigs, GET /api/rigs/{rig}, the `access` object of the live protocol
 // and GET /api/runs/{run}. Views only see the normalised objects below.
 
-/** Human words for the rig states of the live protocol. */
+import { t } from "./i18n.js";
+
+/** The message of each rig state of the live protocol. */
 export const STATE_LABELS = Object.freeze({
-  off: "Off",
-  starting: "Starting",
-  free: "Free",
-  in_use: "In use",
-  cooldown: "Cooling down",
-  fault: "Fault",
-  out_of_service: "Out of service",
+  off: "rigState.off",
+  starting: "rigState.starting",
+  free: "rigState.free",
+  in_use: "rigState.in_use",
+  cooldown: "rigState.cooldown",
+  fault: "rigState.fault",
+  out_of_service: "rigState.out_of_service",
 });
 
 export function stateLabel(state) {
-  return STATE_LABELS[state] ?? String(state ?? "unknown");
+  const key = STATE_LABELS[state];
+  return key ? t(key) : String(state ?? t("rigState.unknown"));
 }
 
 /**

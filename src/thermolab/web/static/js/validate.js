@@ -1,6 +1,9 @@
+// @ts-check
 // Client-side checks of numeric fields, before anything is sent. The server
 // checks again (it is the authority); these only spare a round trip and say
 // exactly what is allowed next to the field.
+
+import { t } from "./i18n.js";
 
 /**
  * @typedef {object} FieldSpec
@@ -16,14 +19,16 @@
 /** Text of the allowed range, e.g. "−10 to 10 V" or "an integer from 10 to 100000". */
 export function rangeText(spec) {
   const unit = spec.unit ? ` ${spec.unit}` : "";
-  const integer = spec.integer ? "an integer " : "";
-  const lo = `${spec.exclusiveMin ? "more than" : "at least"} ${num(spec.min)}`;
-  if (spec.max === undefined || spec.max === Infinity) return `${integer}${lo}${unit}`;
+  const min = num(spec.min);
+  const max = spec.max === undefined ? "" : num(spec.max);
+  const whole = (range) => (spec.integer ? t("range.integer", { range }) : range);
+  const lo = t(spec.exclusiveMin ? "range.moreThan" : "range.atLeast", { min });
+  if (spec.max === undefined || spec.max === Infinity) return whole(lo) + unit;
   if (!spec.exclusiveMin && !spec.exclusiveMax) {
-    return `${spec.integer ? "an integer from " : ""}${num(spec.min)} to ${num(spec.max)}${unit}`;
+    return t(spec.integer ? "range.integerBetween" : "range.between", { min, max }) + unit;
   }
-  const hi = `${spec.exclusiveMax ? "less than" : "at most"} ${num(spec.max)}`;
-  return `${integer}${lo} and ${hi}${unit}`;
+  const hi = t(spec.exclusiveMax ? "range.lessThan" : "range.atMost", { max });
+  return whole(t("range.both", { lo, hi })) + unit;
 }
 
 function num(v) {
@@ -38,24 +43,24 @@ function num(v) {
  * @returns {{ok: true, value: number} | {ok: false, error: string}}
  */
 export function checkNumber(text, spec) {
-  const t = String(text).trim().replace(/^−/, "-").replace(",", ".");
-  if (t === "") return { ok: false, error: `${spec.label} is required (${rangeText(spec)}).` };
+  const cleaned = String(text).trim().replace(/^−/, "-").replace(",", ".");
+  if (cleaned === "") return { ok: false, error: t("check.required", { label: spec.label, range: rangeText(spec) }) };
   // Number("") is 0 and Number("0x10") is 16: accept plain decimal notation only.
-  if (!/^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$/.test(t)) {
-    return { ok: false, error: `${spec.label} must be a number (${rangeText(spec)}).` };
+  if (!/^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$/.test(cleaned)) {
+    return { ok: false, error: t("check.notNumber", { label: spec.label, range: rangeText(spec) }) };
   }
-  const v = Number(t);
+  const v = Number(cleaned);
   if (!Number.isFinite(v)) {
-    return { ok: false, error: `${spec.label} must be a finite number (${rangeText(spec)}).` };
+    return { ok: false, error: t("check.notFinite", { label: spec.label, range: rangeText(spec) }) };
   }
   if (spec.integer && !Number.isInteger(v)) {
-    return { ok: false, error: `${spec.label} must be a whole number (${rangeText(spec)}).` };
+    return { ok: false, error: t("check.notWhole", { label: spec.label, range: rangeText(spec) }) };
   }
   const belowMin = spec.exclusiveMin ? v <= spec.min : v < spec.min;
   const max = spec.max ?? Infinity;
   const aboveMax = spec.exclusiveMax ? v >= max : v > max;
   if (belowMin || aboveMax) {
-    return { ok: false, error: `${spec.label} must be ${rangeText(spec)}; got ${num(v)}.` };
+    return { ok: false, error: t("check.outOfRange", { label: spec.label, range: rangeText(spec), value: num(v) }) };
   }
   return { ok: true, value: v };
 }
@@ -67,7 +72,9 @@ export function checkNumber(text, spec) {
  * @returns {{values: Record<string, number>, errors: Record<string, string>}}
  */
 export function checkAll(texts, specs) {
+  /** @type {Record<string, number>} */
   const values = {};
+  /** @type {Record<string, string>} */
   const errors = {};
   for (const [name, spec] of Object.entries(specs)) {
     const r = checkNumber(texts[name] ?? "", spec);

@@ -1,15 +1,17 @@
+// @ts-check
 // The access panel of a rig page: who controls, the queue, my place in it, the
 // controller's remaining time, and the buttons to ask for or give up control.
 // Changes that matter to me are announced to screen readers (live region).
 
 import { api } from "../api.js";
 import { announce, duration, durationWords, h, setText } from "../dom.js";
+import { t } from "../i18n.js";
 
 export class AccessPanel {
   /**
    * @param {HTMLElement} parent
    * @param {string} rigId
-   * @param {{onError: (msg: string) => void, onChange: () => void}} hooks
+   * @param {{onError: (msg: string) => void, onChange: () => void, onAnswer?: (answer: unknown) => void}} hooks
    */
   constructor(parent, rigId, hooks) {
     this.rigId = rigId;
@@ -24,28 +26,28 @@ export class AccessPanel {
     this.facts = h("dl", { class: "facts" });
     this.fields = {};
     for (const [key, label] of [
-      ["controller", "Controller"],
-      ["timeLeft", "Control time left"],
-      ["idleLeft", "Idle limit in"],
-      ["watchers", "Watching"],
-      ["queueSize", "In the queue"],
-      ["position", "Your place"],
-      ["wait", "Estimated wait"],
+      ["controller", t("access.controller")],
+      ["timeLeft", t("access.timeLeft")],
+      ["idleLeft", t("access.idleLeft")],
+      ["watchers", t("access.watchers")],
+      ["queueSize", t("access.queueSize")],
+      ["position", t("access.position")],
+      ["wait", t("access.wait")],
     ]) {
       const dd = h("dd", { "data-field": key });
       this.fields[key] = dd;
       this.facts.append(h("dt", { "data-for": key }, label), dd);
     }
-    this.askButton = h("button", { type: "button", class: "primary", "data-action": "ask" }, "Ask for control");
-    this.leaveButton = h("button", { type: "button", "data-action": "leave" }, "Leave the queue");
-    this.releaseButton = h("button", { type: "button", "data-action": "release" }, "Release control");
+    this.askButton = h("button", { type: "button", class: "primary", "data-action": "ask" }, t("access.ask"));
+    this.leaveButton = h("button", { type: "button", "data-action": "leave" }, t("access.leave"));
+    this.releaseButton = h("button", { type: "button", "data-action": "release" }, t("access.release"));
     this.askButton.addEventListener("click", () => this._act("ask"));
     this.leaveButton.addEventListener("click", () => this._act("leave"));
     this.releaseButton.addEventListener("click", () => this._act("release"));
     this.el = h(
       "section",
       { class: "card access", "aria-labelledby": "access-heading" },
-      h("h2", { id: "access-heading" }, "Access"),
+      h("h2", { id: "access-heading" }, t("access.heading")),
       this.role,
       this.facts,
       h("div", { class: "buttons" }, this.askButton, this.leaveButton, this.releaseButton),
@@ -79,18 +81,18 @@ export class AccessPanel {
     if (!before) return;
     const rig = this.rigId;
     if (now.role !== before.role) {
-      if (now.role === "controller") announce(`You have control of ${rig}. The controls are unlocked.`);
-      else if (before.role === "controller") announce(`Your control of ${rig} has ended. The controls are locked.`);
+      if (now.role === "controller") announce(t("access.gotControl", { rig }));
+      else if (before.role === "controller") announce(t("access.lostControl", { rig }));
       else if (now.role === "queued" || now.queuePosition) {
-        announce(`You are number ${now.queuePosition} in the queue for ${rig}.`);
-      } else if (before.role === "queued") announce(`You left the queue for ${rig}.`);
+        announce(t("access.queuedFor", { position: now.queuePosition, rig }));
+      } else if (before.role === "queued") announce(t("access.leftQueue", { rig }));
       return;
     }
     if (now.queuePosition && before.queuePosition && now.queuePosition !== before.queuePosition) {
-      announce(`You are now number ${now.queuePosition} in the queue.`);
+      announce(t("access.moved", { position: now.queuePosition }));
     }
     if (now.controller !== before.controller && now.role !== "controller") {
-      announce(now.controller ? `${now.controller} now controls ${rig}.` : `Nobody controls ${rig} now.`);
+      announce(now.controller ? t("access.newController", { user: now.controller, rig }) : t("access.noController", { rig }));
     }
   }
 
@@ -102,23 +104,23 @@ export class AccessPanel {
     const idle = this._idleDeadline ? Math.max(0, (this._idleDeadline - Date.now()) / 1000) : null;
     if (this.isController && idle !== null && idle <= 30 && idle > 28 && !this._warned.has("idle")) {
       this._warned.add("idle");
-      announce("Your control ends in 30 seconds unless you send a command or start a run.");
+      announce(t("access.idleWarning"));
     }
     if (idle !== null && idle > 30) this._warned.delete("idle");
     setText(this.fields.idleLeft, idle === null ? "–" : duration(idle));
-    this.fields.idleLeft.title = "Control ends after this long without a command (a run in progress counts as activity).";
+    this.fields.idleLeft.title = t("access.idleHelp");
     const left = this._secondsLeft();
     const dd = this.fields.timeLeft;
     // Everyone sees the controller's countdown: it tells a watcher when the rig changes hands.
-    setText(this.facts.querySelector('[data-for="timeLeft"]'), this.isController ? "Your time left" : "Controller's time left");
+    setText(this.facts.querySelector('[data-for="timeLeft"]'), this.isController ? t("access.yourTimeLeft") : t("access.controllerTimeLeft"));
     setText(dd, left === null ? "–" : duration(left));
-    dd.setAttribute("aria-label", left === null ? "no time limit running" : durationWords(left));
+    dd.setAttribute("aria-label", left === null ? t("access.noLimit") : durationWords(left));
     if (this.isController && left !== null) {
       // A few spoken warnings, not a ticking announcement every second.
       for (const mark of [60, 10]) {
         if (left <= mark && left > mark - 2 && !this._warned.has(mark)) {
           this._warned.add(mark);
-          announce(`${durationWords(mark)} of control left.`);
+          announce(t("access.timeWarning", { time: durationWords(mark) }));
         }
       }
     }
@@ -127,25 +129,25 @@ export class AccessPanel {
   render() {
     const a = this.access;
     if (!a) {
-      setText(this.role, "Connecting…");
+      setText(this.role, t("lock.connecting"));
       for (const b of [this.askButton, this.leaveButton, this.releaseButton]) b.hidden = true;
       return;
     }
     const roleText = {
-      controller: "You control this rig.",
-      queued: `You are waiting for control: number ${a.queuePosition ?? "?"} in the queue.`,
-      watcher: "You are watching (read-only).",
-      teacher: "You are watching as a teacher.",
+      controller: t("access.roleController"),
+      queued: t("access.roleQueued", { position: a.queuePosition ?? "?" }),
+      watcher: t("access.roleWatcher"),
+      teacher: t("access.roleTeacher"),
     };
     setText(this.role, roleText[a.role] ?? (a.queuePosition ? roleText.queued : roleText.watcher));
     this.role.dataset.role = a.role;
-    setText(this.fields.controller, a.controller ?? "nobody");
+    setText(this.fields.controller, a.controller ?? t("access.nobody"));
     setText(this.fields.watchers, String(a.watchers));
     setText(this.fields.queueSize, String(a.queueSize));
     const queued = a.role === "queued" || (a.queuePosition !== null && a.role !== "controller");
     setText(this.fields.position, queued ? `${a.queuePosition}` : "–");
     // For a watcher the server gives the wait they would have if they asked now.
-    setText(this.facts.querySelector('[data-for="wait"]'), queued ? "Estimated wait" : "Wait if you ask now");
+    setText(this.facts.querySelector('[data-for="wait"]'), queued ? t("access.wait") : t("access.waitIfAsked"));
     setText(this.fields.wait, a.role === "controller" ? "–" : duration(a.estimatedTimeUntilControl));
     this._renderTime();
     const usable = !["fault", "out_of_service"].includes(this.rigState);
@@ -172,7 +174,7 @@ export class AccessPanel {
       this.render();
       // Keep keyboard focus on a visible button after the one pressed hides.
       const visible = [this.releaseButton, this.leaveButton, this.askButton].find((b) => !b.hidden);
-      if (document.activeElement === document.body || document.activeElement?.hidden) (focusAfter && !focusAfter.hidden ? focusAfter : visible)?.focus();
+      if (document.activeElement === document.body || (document.activeElement instanceof HTMLElement && document.activeElement.hidden)) (focusAfter && !focusAfter.hidden ? focusAfter : visible)?.focus();
     }
   }
 

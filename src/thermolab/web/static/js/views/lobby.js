@@ -1,18 +1,20 @@
+// @ts-check
 // The lobby: every rig with its state, controller, watchers and queue.
 // Polled (every rig page has its own live socket; the lobby needs only a glance).
 
 import { api } from "../api.js";
 import { h, setText } from "../dom.js";
 import { readRig, stateLabel } from "../shapes.js";
+import { t } from "../i18n.js";
 
 const POLL_MS = 3000;
 
 export function mount(main, _params, ctx) {
   const status = h("p", { class: "muted", role: "status" });
-  const list = h("ul", { class: "rig-list", "aria-label": "Rigs" });
+  const list = h("ul", { class: "rig-list", "aria-label": t("nav.rigs") });
   main.append(
-    h("h1", null, "Rigs"),
-    h("p", { class: "lede" }, "Choose a rig to watch it live. Anyone may watch; one person at a time controls a rig, the others wait in a queue."),
+    h("h1", null, t("nav.rigs")),
+    h("p", { class: "lede" }, t("lobby.lede")),
     status,
     list,
   );
@@ -24,17 +26,17 @@ export function mount(main, _params, ctx) {
       const data = await api.rigs({ signal: abort.signal });
       const rigs = (Array.isArray(data) ? data : (data?.rigs ?? [])).map(readRig);
       renderList(rigs);
-      setText(status, rigs.length ? "" : "The lab has no rigs.");
+      setText(status, rigs.length ? "" : t("lobby.none"));
     } catch (err) {
       if (err.name === "AbortError") return;
-      setText(status, `Could not load the rigs: ${err.message}`);
+      setText(status, t("lobby.failed", { error: err.message }));
     }
     if (!abort.signal.aborted) timer = setTimeout(refresh, POLL_MS);
   }
 
   /** Update in place, so that focus and the reader's position survive a refresh. */
   function renderList(rigs) {
-    const existing = new Map([...list.children].map((li) => [li.dataset.rig, li]));
+    const existing = new Map([...list.querySelectorAll("li")].map((li) => [li.dataset.rig, li]));
     const keep = new Set();
     for (const rig of rigs) {
       keep.add(rig.id);
@@ -65,13 +67,13 @@ function rigCard(rig) {
     h(
       "dl",
       { class: "facts" },
-      h("dt", null, "State"),
+      h("dt", null, t("lobby.state")),
       h("dd", null, h("span", { class: "badge", "data-field": "state" })),
-      h("dt", null, "Controller"),
+      h("dt", null, t("access.controller")),
       h("dd", { "data-field": "controller" }),
-      h("dt", null, "Watching"),
+      h("dt", null, t("access.watchers")),
       h("dd", { "data-field": "watchers" }),
-      h("dt", null, "Queue"),
+      h("dt", null, t("lobby.queue")),
       h("dd", { "data-field": "queue" }),
     ),
   );
@@ -84,10 +86,10 @@ function updateCard(li, rig, ctx) {
   badge.dataset.state = rig.state;
   const a = rig.access;
   const me = ctx.user?.username;
-  setText(f("controller"), a.controller ? (a.controller === me ? `${a.controller} (you)` : a.controller) : "nobody");
+  setText(f("controller"), a.controller ? (a.controller === me ? t("lobby.you", { user: a.controller }) : a.controller) : t("access.nobody"));
   setText(f("watchers"), String(a.watchers));
-  let queue = a.queueSize === 0 ? "empty" : `${a.queueSize} waiting`;
-  if (a.queuePosition) queue += ` (you are number ${a.queuePosition})`;
+  let queue = t("lobby.waiting", { count: a.queueSize });
+  if (a.queuePosition) queue = t("lobby.waitingYou", { queue, position: a.queuePosition });
   setText(f("queue"), queue);
   if (rig.detail && (rig.state === "fault" || rig.state === "out_of_service")) {
     let note = li.querySelector(".rig-detail");

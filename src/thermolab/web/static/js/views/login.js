@@ -1,7 +1,9 @@
+// @ts-check
 // Log in: a plain form; the server sets an HttpOnly session cookie.
 
 import { api } from "../api.js";
 import { announce, h, setText } from "../dom.js";
+import { t } from "../i18n.js";
 
 export function mount(main, { query }, ctx) {
   if (ctx.user) {
@@ -24,12 +26,12 @@ export function mount(main, { query }, ctx) {
     autocomplete: "current-password",
     required: true,
   });
-  const submit = h("button", { type: "submit", class: "primary" }, "Log in");
+  const submit = h("button", { type: "submit", class: "primary" }, t("login.submit"));
   const form = h(
     "form",
     { class: "card narrow", novalidate: true, "aria-describedby": "login-error" },
-    h("div", { class: "field" }, h("label", { for: "login-username" }, "User name"), username),
-    h("div", { class: "field" }, h("label", { for: "login-password" }, "Password"), password),
+    h("div", { class: "field" }, h("label", { for: "login-username" }, t("login.username")), username),
+    h("div", { class: "field" }, h("label", { for: "login-password" }, t("login.password")), password),
     error,
     submit,
   );
@@ -37,15 +39,15 @@ export function mount(main, { query }, ctx) {
     ev.preventDefault();
     setText(error, "");
     if (!username.value.trim() || !password.value) {
-      setText(error, "Enter your user name and password.");
+      setText(error, t("login.missing"));
       (username.value.trim() ? password : username).focus();
       return;
     }
     submit.disabled = true;
-    setText(submit, "Logging in…");
+    setText(submit, t("login.busy"));
     try {
       await api.login(username.value.trim(), password.value);
-      announce("Logged in.");
+      announce(t("login.done"));
       await ctx.afterLogin(query.get("next"));
     } catch (err) {
       setText(error, err.message);
@@ -53,15 +55,15 @@ export function mount(main, { query }, ctx) {
       password.focus();
     } finally {
       submit.disabled = false;
-      setText(submit, "Log in");
+      setText(submit, t("login.submit"));
     }
   });
   main.append(
-    h("h1", null, "Log in to ThermoLab"),
+    h("h1", null, t("login.heading")),
     h(
       "p",
       { class: "lede" },
-      "Identify the model of a temperature control system on a shared rig: watch live, ask for control, run the paper's three methods.",
+      t("login.lede"),
     ),
     form,
   );

@@ -1,3 +1,4 @@
+// @ts-check
 // One run: what was asked, its charts (output with the model, input, and the
 // convergence of the recursive methods), every method's results, the CSV.
 
@@ -7,6 +8,7 @@ import { h, setText, when } from "../dom.js";
 import { fmt, predict, predictionBase } from "../model.js";
 import { readResult } from "../results.js";
 import { inputText, methodTitle, readRun } from "../runspec.js";
+import { t } from "../i18n.js";
 
 /** At most this many points per chart: longer runs are drawn decimated. */
 const MAX_POINTS = 4000;
@@ -18,6 +20,7 @@ const MAX_POINTS = 4000;
  */
 export function runFigures(exported) {
   const run = readRun(exported.run);
+  if (!run) throw new TypeError("export.json without a run");
   const stored = exported.methods && typeof exported.methods === "object" ? exported.methods : {};
   const found = Object.keys(stored).length ? Object.keys(stored) : Object.keys(run.results);
   // In the order the run asked for them (the paper's order), then any other.
@@ -34,9 +37,9 @@ export function runFigures(exported) {
 
 export function mount(main, { params }, ctx) {
   const id = params[0];
-  ctx.setTitle(`Run ${id}`);
-  const status = h("p", { class: "muted", role: "status" }, "Loading…");
-  main.append(h("p", { class: "crumbs" }, h("a", { href: "#/runs" }, "My runs"), ` › run ${id}`), h("h1", null, `Run ${id}`), status);
+  ctx.setTitle(t("runs.label", { run: id }));
+  const status = h("p", { class: "muted", role: "status" }, t("app.loading"));
+  main.append(h("p", { class: "crumbs" }, h("a", { href: "#/runs" }, t("nav.runs")), t("run.crumb", { run: id })), h("h1", null, t("runs.label", { run: id })), status);
   const abort = new AbortController();
   const charts = [];
   (async () => {
@@ -44,7 +47,7 @@ export function mount(main, { params }, ctx) {
     try {
       exported = await api.exportRun(id, { signal: abort.signal });
     } catch (err) {
-      if (err.name !== "AbortError") setText(status, `Could not load run ${id}: ${err.message}`);
+      if (err.name !== "AbortError") setText(status, t("run.failed", { run: id, error: err.message }));
       return;
     }
     setText(status, "");
@@ -60,49 +63,49 @@ function render(main, exported, charts) {
   const { run, figures } = runFigures(exported);
   const facts = h("dl", { class: "facts" });
   const add = (k, v) => facts.append(h("dt", null, k), h("dd", null, v));
-  add("Rig", run.rig ?? "–");
-  if (run.user) add("Student", run.user);
-  add("Status", run.status + (run.endReason ? ` (${run.endReason})` : ""));
-  add("Started", when(run.startedAt));
-  add("Ended", when(run.endedAt));
-  add("Sample time", `${run.dt} s`);
-  add("Samples", `${run.samples}${run.nSamples ? ` of ${run.nSamples}` : ""}`);
-  add("Input", inputText(run));
-  add("Methods", run.methods.map(methodTitle).join(", "));
+  add(t("runs.rig"), run.rig ?? "–");
+  if (run.user) add(t("runs.student"), run.user);
+  add(t("runs.status"), run.endReason ? t("runs.statusWhy", { status: run.status, reason: run.endReason }) : run.status);
+  add(t("runs.started"), when(run.startedAt));
+  add(t("run.endedAt"), when(run.endedAt));
+  add(t("run.dt"), t("run.seconds", { seconds: run.dt }));
+  add(t("runs.samples"), run.nSamples ? t("run.samplesOf", { samples: run.samples, of: run.nSamples }) : String(run.samples));
+  add(t("runs.input"), inputText(run));
+  add(t("runs.methods"), run.methods.map(methodTitle).join(", "));
   const settings = Object.entries(run.settings ?? {}).filter(([, v]) => v !== null && typeof v !== "object");
-  if (settings.length) add("Settings", settings.map(([k, v]) => `${k} = ${v}`).join(", "));
+  if (settings.length) add(t("run.settings"), settings.map(([k, v]) => `${k} = ${v}`).join(", "));
   const w0 = run.settings?.w0;
-  if (Array.isArray(w0)) add("Initial parameters W0", `[${w0.map((v) => fmt(v)).join(", ")}]`);
+  if (Array.isArray(w0)) add(t("run.w0"), `[${w0.map((v) => fmt(v)).join(", ")}]`);
   if (run.operatingPoint?.used !== null && run.operatingPoint?.used !== undefined) {
-    facts.append(h("dt", null, "Operating point"), h("dd", { "data-testid": "operating-point" }, run.operatingPoint.reason ?? String(run.operatingPoint.used)));
+    facts.append(h("dt", null, t("panel.operatingPoint")), h("dd", { "data-testid": "operating-point" }, run.operatingPoint.reason ?? String(run.operatingPoint.used)));
   }
   main.append(
     h(
       "section",
       { class: "card" },
-      h("h2", null, "The run"),
+      h("h2", null, t("run.heading")),
       facts,
       h(
         "div",
         { class: "buttons" },
-        h("a", { class: "button primary", href: api.csvUrl(run.id), download: `run-${run.id}.csv`, "data-testid": "csv-link" }, "Download the samples (CSV)"),
-        h("a", { class: "button", href: api.exportUrl(run.id), download: `run-${run.id}.json` }, "Everything (JSON)"),
+        h("a", { class: "button primary", href: api.csvUrl(run.id), download: `run-${run.id}.csv`, "data-testid": "csv-link" }, t("run.csv")),
+        h("a", { class: "button", href: api.exportUrl(run.id), download: `run-${run.id}.json` }, t("run.json")),
       ),
     ),
   );
   main.append(resultsSection(figures));
 
   const samples = exported.samples ?? {};
-  const t = Float64Array.from(samples.t ?? []);
+  const time = Float64Array.from(samples.t ?? []);
   const u = Float64Array.from(samples.u ?? []);
   const y = Float64Array.from(samples.y ?? []);
-  const chartBox = h("section", { class: "card", "aria-labelledby": "run-charts" }, h("h2", { id: "run-charts" }, "Charts"));
+  const chartBox = h("section", { class: "card", "aria-labelledby": "run-charts" }, h("h2", { id: "run-charts" }, t("run.charts")));
   const modelPick = h("select", { id: "run-model" });
-  const withModel = figures.filter((f) => f.valid && f.final.K !== null && f.final.tau > 0);
-  modelPick.append(h("option", { value: "" }, "none"), ...withModel.map((f, i) => h("option", { value: String(i) }, methodTitle(f.method))));
+  const withModel = figures.filter((f) => f.valid && f.final.K !== null && (f.final.tau ?? 0) > 0);
+  modelPick.append(h("option", { value: "" }, t("charts.noModel")), ...withModel.map((f, i) => h("option", { value: String(i) }, methodTitle(f.method))));
   const lsm = withModel.findIndex((f) => f.method === "lsm");
   if (withModel.length) modelPick.value = String(lsm >= 0 ? lsm : 0);
-  chartBox.append(h("div", { class: "field inline" }, h("label", { for: "run-model" }, "Model drawn over the output"), modelPick));
+  chartBox.append(h("div", { class: "field inline" }, h("label", { for: "run-model" }, t("charts.overlay")), modelPick));
   main.append(chartBox);
   const yhat = new Float64Array(y.length).fill(Number.NaN);
   const computeModel = () => {
@@ -110,25 +113,25 @@ function render(main, exported, charts) {
     if (!f || y.length === 0) yhat.fill(Number.NaN);
     else {
       const base = predictionBase(run.operatingPoint?.used, f.final.W, y[0]);
-      predict(u, base, { K: f.final.K, tau: f.final.tau }, run.dt, yhat, y[0] - base);
+      predict(u, base, { K: f.final.K ?? Number.NaN, tau: f.final.tau ?? Number.NaN }, run.dt, yhat, y[0] - base);
     }
   };
   computeModel();
-  const thin = thinner(t.length);
+  const thin = thinner(time.length);
   const out = new Chart(chartBox, {
-    label: `Output and model of run ${run.id}`,
-    xLabel: "t (s)",
-    yLabel: "y (V)",
-    series: [{ label: "output y" }, { label: "model", dash: [6, 4], color: "#D55E00", width: 2, auto: false }],
-    source: () => [thin(t), thin(y), thin(yhat)],
+    label: t("run.outputChart", { run: run.id }),
+    xLabel: t("axis.time"),
+    yLabel: t("run.outputAxis"),
+    series: [{ label: t("axis.output") }, { label: t("series.model"), dash: [6, 4], color: "#D55E00", width: 2, auto: false }],
+    source: () => [thin(time), thin(y), thin(yhat)],
   });
   const inp = new Chart(chartBox, {
-    label: `Input of run ${run.id}`,
-    xLabel: "t (s)",
-    yLabel: "u (V)",
+    label: t("run.inputChart", { run: run.id }),
+    xLabel: t("axis.time"),
+    yLabel: t("run.inputAxis"),
     height: 160,
-    series: [{ label: "input u", color: "#009E73" }],
-    source: () => [thin(t), thin(u)],
+    series: [{ label: t("axis.input"), color: "#009E73" }],
+    source: () => [thin(time), thin(u)],
   });
   charts.push(out, inp);
   modelPick.addEventListener("change", () => {
@@ -137,19 +140,20 @@ function render(main, exported, charts) {
   });
 
   for (const f of figures) {
-    if (!f.trajectory) continue;
+    const tr = f.trajectory;
+    if (!tr) continue;
     // Only estimates with a first-order meaning are drawn (uPlot has no NaN gaps).
-    const keep = f.trajectory.k.map((_, i) => Number.isFinite(f.trajectory.K[i]) && Number.isFinite(f.trajectory.tau[i]));
+    const keep = tr.k.map((_, i) => Number.isFinite(tr.K[i]) && Number.isFinite(tr.tau[i]));
     const pick = (a) => Float64Array.from(a.filter((_, i) => keep[i]));
-    const k = pick(f.trajectory.k);
-    const K = pick(f.trajectory.K);
-    const T = pick(f.trajectory.tau);
+    const k = pick(tr.k);
+    const K = pick(tr.K);
+    const T = pick(tr.tau);
     const th = thinner(k.length);
-    const box = h("section", { class: "card conv-pair" }, h("h2", null, `Convergence: ${methodTitle(f.method)}`));
+    const box = h("section", { class: "card conv-pair" }, h("h2", null, t("run.convergence", { method: methodTitle(f.method) })));
     main.append(box);
     charts.push(
-      new Chart(box, { label: `Ks against sample, ${methodTitle(f.method)}`, xLabel: "sample k", yLabel: "Ks", height: 180, series: [{ label: "Ks(k)" }], source: () => [th(k), th(K)] }),
-      new Chart(box, { label: `Ts against sample, ${methodTitle(f.method)}`, xLabel: "sample k", yLabel: "Ts (s)", height: 180, series: [{ label: "Ts(k)", color: "#CC79A7" }], source: () => [th(k), th(T)] }),
+      new Chart(box, { label: t("convergence.kChart", { method: methodTitle(f.method) }), xLabel: t("axis.sample"), yLabel: t("axis.K"), height: 180, series: [{ label: t("series.K") }], source: () => [th(k), th(K)] }),
+      new Chart(box, { label: t("convergence.tauChart", { method: methodTitle(f.method) }), xLabel: t("axis.sample"), yLabel: t("axis.tau"), height: 180, series: [{ label: t("series.tau"), color: "#CC79A7" }], source: () => [th(k), th(T)] }),
     );
   }
 }
@@ -161,9 +165,9 @@ function thinner(length) {
 }
 
 function resultsSection(figures) {
-  const sec = h("section", { class: "card", "aria-labelledby": "run-results" }, h("h2", { id: "run-results" }, "Results"));
+  const sec = h("section", { class: "card", "aria-labelledby": "run-results" }, h("h2", { id: "run-results" }, t("run.results")));
   if (figures.length === 0) {
-    sec.append(h("p", { class: "muted" }, "No results stored for this run."));
+    sec.append(h("p", { class: "muted" }, t("run.noResults")));
     return sec;
   }
   const spread = (s) => (s && s.max !== s.min ? `${fmt(s.mean)} / ${fmt(s.max)} / ${fmt(s.min)}` : "–");
@@ -176,31 +180,31 @@ function resultsSection(figures) {
       h("td", { class: "num", "data-field": "tau" }, f.valid ? fmt(f.final.tau) : "–"),
       h("td", { class: "num", "data-field": "Kstats" }, spread(f.K)),
       h("td", { class: "num", "data-field": "taustats" }, spread(f.tau)),
-      h("td", { class: "num", "data-field": "conv" }, f.converges ? `${f.convergedAt.K ?? "never"} / ${f.convergedAt.tau ?? "never"}` : "–"),
-      h("td", null, [f.valid ? "" : (f.reason ?? "no first-order model"), ...f.warnings].filter(Boolean).join("; ") || "–"),
+      h("td", { class: "num", "data-field": "conv" }, f.converges ? t("run.convergedAt", { K: f.convergedAt.K ?? t("run.never"), tau: f.convergedAt.tau ?? t("run.never") }) : "–"),
+      h("td", null, [f.valid ? "" : (f.reason ?? t("estimate.noModel")), ...f.warnings].filter(Boolean).join("; ") || "–"),
     ),
   );
   sec.append(
     h(
       "div",
-      { class: "table-wrap", tabindex: "0", role: "region", "aria-label": "Results table" },
+      { class: "table-wrap", tabindex: "0", role: "region", "aria-label": t("run.resultsTable") },
       h(
         "table",
         null,
-        h("caption", { class: "visually-hidden" }, "Each method's model; statistics over the last 2000 samples"),
+        h("caption", { class: "visually-hidden" }, t("run.resultsCaption")),
         h(
           "thead",
           null,
           h(
             "tr",
             null,
-            h("th", { scope: "col" }, "Method"),
-            h("th", { scope: "col", class: "num" }, "Ks"),
-            h("th", { scope: "col", class: "num" }, "Ts (s)"),
-            h("th", { scope: "col", class: "num" }, "Ks mean / max / min"),
-            h("th", { scope: "col", class: "num" }, "Ts mean / max / min"),
-            h("th", { scope: "col", class: "num" }, "Samples to converge Ks / Ts"),
-            h("th", { scope: "col" }, "Notes"),
+            h("th", { scope: "col" }, t("table.method")),
+            h("th", { scope: "col", class: "num" }, t("table.K")),
+            h("th", { scope: "col", class: "num" }, t("table.tau")),
+            h("th", { scope: "col", class: "num" }, t("run.Kstats")),
+            h("th", { scope: "col", class: "num" }, t("run.tauStats")),
+            h("th", { scope: "col", class: "num" }, t("run.convergeColumn")),
+            h("th", { scope: "col" }, t("run.notes")),
           ),
         ),
         h("tbody", null, rows),

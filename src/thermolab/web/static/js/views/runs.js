@@ -1,8 +1,10 @@
+// @ts-check
 // My runs: the list, with a choice of runs to compare against the reference model.
 
 import { api } from "../api.js";
 import { h, setText, when } from "../dom.js";
 import { inputText, methodName, methodTitle, panelOfRun, readRun } from "../runspec.js";
+import { t } from "../i18n.js";
 
 /**
  * A table of runs; with `selectable`, each row has a checkbox named "run".
@@ -10,26 +12,26 @@ import { inputText, methodName, methodTitle, panelOfRun, readRun } from "../runs
  * @param {{showUser?: boolean, selectable?: boolean}} [opts]
  */
 export function runsTable(runs, opts = {}) {
-  const list = runs.map(readRun).filter(Boolean);
-  if (list.length === 0) return h("p", { class: "muted" }, "No runs yet.");
+  const list = runs.map(readRun).filter((r) => r !== null);
+  if (list.length === 0) return h("p", { class: "muted" }, t("runs.none"));
   const head = [
-    opts.selectable ? h("th", { scope: "col" }, h("span", { class: "visually-hidden" }, "Compare")) : null,
-    h("th", { scope: "col" }, "Run"),
-    opts.showUser ? h("th", { scope: "col" }, "Student") : null,
-    h("th", { scope: "col" }, "Rig"),
-    h("th", { scope: "col" }, "Started"),
-    h("th", { scope: "col" }, "Methods"),
-    h("th", { scope: "col" }, "Input"),
-    h("th", { scope: "col", class: "num" }, "Samples"),
-    h("th", { scope: "col" }, "Status"),
+    opts.selectable ? h("th", { scope: "col" }, h("span", { class: "visually-hidden" }, t("runs.compareColumn"))) : null,
+    h("th", { scope: "col" }, t("runs.run")),
+    opts.showUser ? h("th", { scope: "col" }, t("runs.student")) : null,
+    h("th", { scope: "col" }, t("runs.rig")),
+    h("th", { scope: "col" }, t("runs.started")),
+    h("th", { scope: "col" }, t("runs.methods")),
+    h("th", { scope: "col" }, t("runs.input")),
+    h("th", { scope: "col", class: "num" }, t("runs.samples")),
+    h("th", { scope: "col" }, t("runs.status")),
   ];
   const rows = list.map((run) => {
-    const label = `Run ${run.id}`;
+    const label = t("runs.label", { run: run.id });
     return h(
       "tr",
       { "data-run": run.id },
       opts.selectable
-        ? h("td", null, h("input", { type: "checkbox", name: "run", value: run.id, id: `pick-${run.id}`, "aria-label": `Compare ${label}` }))
+        ? h("td", null, h("input", { type: "checkbox", name: "run", value: run.id, id: `pick-${run.id}`, "aria-label": t("runs.compareOne", { run: label }) }))
         : null,
       h("td", null, h("a", { href: `#/runs/${encodeURIComponent(run.id)}` }, label)),
       opts.showUser ? h("td", null, run.user ?? "–") : null,
@@ -38,10 +40,10 @@ export function runsTable(runs, opts = {}) {
       h("td", null, run.methods.map((m) => methodTitle(methodName(m))).join(", ") || methodTitle(panelOfRun(run))),
       h("td", null, inputText(run)),
       h("td", { class: "num" }, String(run.samples)),
-      h("td", null, run.status + (run.endReason ? ` (${run.endReason})` : "")),
+      h("td", null, run.endReason ? t("runs.statusWhy", { status: run.status, reason: run.endReason }) : run.status),
     );
   });
-  return h("table", { class: "runs" }, h("caption", { class: "visually-hidden" }, "Runs"), h("thead", null, h("tr", null, head)), h("tbody", null, rows));
+  return h("table", { class: "runs" }, h("caption", { class: "visually-hidden" }, t("runs.caption")), h("thead", null, h("tr", null, head)), h("tbody", null, rows));
 }
 
 /**
@@ -51,16 +53,16 @@ export function runsTable(runs, opts = {}) {
  * @param {{showUser?: boolean, label?: string}} [opts]
  */
 export function runsPicker(runs, ctx, opts = {}) {
-  const box = h("div", { class: "table-wrap", tabindex: "0", role: "region", "aria-label": opts.label ?? "Runs" }, runsTable(runs, { ...opts, selectable: true }));
+  const box = h("div", { class: "table-wrap", tabindex: "0", role: "region", "aria-label": opts.label ?? t("runs.caption") }, runsTable(runs, { ...opts, selectable: true }));
   const error = h("p", { class: "error", role: "alert" });
-  const compare = h("button", { type: "submit", class: "primary", hidden: runs.length === 0 }, "Compare the chosen runs");
+  const compare = h("button", { type: "submit", class: "primary", hidden: runs.length === 0 }, t("runs.compare"));
   const form = h("form", { novalidate: true }, box, error, h("div", { class: "buttons" }, compare));
   form.addEventListener("submit", (ev) => {
     ev.preventDefault();
-    const ids = [...form.querySelectorAll('input[name="run"]:checked')].map((c) => c.value);
+    const ids = [...form.querySelectorAll('input[name="run"]:checked')].map((c) => /** @type {HTMLInputElement} */ (c).value);
     if (ids.length === 0) {
-      setText(error, "Choose at least one run to compare.");
-      form.querySelector('input[name="run"]')?.focus();
+      setText(error, t("runs.chooseOne"));
+      form.querySelector("input")?.focus();
       return;
     }
     ctx.navigate(`/runs/compare?ids=${ids.map(encodeURIComponent).join(",")}`);
@@ -69,11 +71,11 @@ export function runsPicker(runs, ctx, opts = {}) {
 }
 
 export function mount(main, _params, ctx) {
-  const status = h("p", { class: "muted", role: "status" }, "Loading…");
+  const status = h("p", { class: "muted", role: "status" }, t("app.loading"));
   const host = h("div");
   main.append(
-    h("h1", null, "My runs"),
-    h("p", { class: "lede" }, "Every run you made, newest first. Open one for its charts, results and CSV, or tick several and compare them with the reference model, as in the paper's Tables I and II."),
+    h("h1", null, t("nav.runs")),
+    h("p", { class: "lede" }, t("runs.lede")),
     status,
     host,
   );
@@ -82,10 +84,10 @@ export function mount(main, _params, ctx) {
     try {
       // Only the user's own runs (a teacher would otherwise be sent everyone's).
       const data = await api.runs(`?user=${encodeURIComponent(ctx.user?.username ?? "")}`, { signal: abort.signal });
-      host.replaceChildren(runsPicker(Array.isArray(data) ? data : [], ctx, { label: "Your runs" }));
+      host.replaceChildren(runsPicker(Array.isArray(data) ? data : [], ctx, { label: t("runs.yours") }));
       setText(status, "");
     } catch (err) {
-      if (err.name !== "AbortError") setText(status, `Could not load your runs: ${err.message}`);
+      if (err.name !== "AbortError") setText(status, t("runs.failed", { error: err.message }));
     }
   })();
   return () => abort.abort();

@@ -1,3 +1,4 @@
+// @ts-check
 // The teacher's view: every rig with its controller, queue and watchers;
 // extend or cut a turn, end it, remove someone from a queue, take a rig out of
 // service (or back); and every student's runs.
@@ -7,24 +8,25 @@ import { announce, duration, h, setText, when } from "../dom.js";
 import { readRig, stateLabel } from "../shapes.js";
 import { checkNumber, rangeText } from "../validate.js";
 import { runsPicker } from "./runs.js";
+import { t } from "../i18n.js";
 
 const POLL_MS = 3000;
-const EXTEND = { label: "Seconds", min: -86400, max: 86400, unit: "s" };
+const EXTEND = { label: "teacher.seconds", min: -86400, max: 86400, unit: "s" };
 
 export function mount(main, _params, ctx) {
   if (ctx.user?.role !== "teacher") {
-    main.append(h("h1", null, "Teacher"), h("p", { class: "error" }, "This page is for teachers."));
+    main.append(h("h1", null, t("nav.teacher")), h("p", { class: "error" }, t("teacher.only")));
     return null;
   }
   const status = h("p", { class: "muted", role: "status" });
   const list = h("div", { class: "teacher-rigs" });
-  const runsBox = h("div", null, h("p", { class: "muted" }, "Loading…"));
+  const runsBox = h("div", null, h("p", { class: "muted" }, t("app.loading")));
   main.append(
-    h("h1", null, "Teacher"),
-    h("p", { class: "lede" }, "Every rig with its controller, queue and watchers. Changes take effect at once and are recorded with your name."),
+    h("h1", null, t("nav.teacher")),
+    h("p", { class: "lede" }, t("teacher.lede")),
     status,
     list,
-    h("section", { class: "card", "aria-labelledby": "all-runs" }, h("h2", { id: "all-runs" }, "Every student's runs"), runsBox),
+    h("section", { class: "card", "aria-labelledby": "all-runs" }, h("h2", { id: "all-runs" }, t("teacher.allRuns")), runsBox),
   );
   const abort = new AbortController();
   const cards = new Map();
@@ -46,7 +48,7 @@ export function mount(main, _params, ctx) {
       setText(status, "");
     } catch (err) {
       if (err.name === "AbortError") return;
-      setText(status, `Could not load the rigs: ${err.message}`);
+      setText(status, t("lobby.failed", { error: err.message }));
     }
     if (!abort.signal.aborted) timer = setTimeout(refresh, POLL_MS);
   }
@@ -59,10 +61,10 @@ export function mount(main, _params, ctx) {
   async function loadRuns() {
     try {
       const runs = await api.runs("", { signal: abort.signal });
-      runsBox.replaceChildren(runsPicker(Array.isArray(runs) ? runs : [], ctx, { showUser: true, label: "Every student's runs" }));
+      runsBox.replaceChildren(runsPicker(Array.isArray(runs) ? runs : [], ctx, { showUser: true, label: t("teacher.allRuns") }));
     } catch (err) {
       if (err.name === "AbortError") return;
-      runsBox.replaceChildren(h("p", { class: "error" }, `Could not load the runs: ${err.message}`));
+      runsBox.replaceChildren(h("p", { class: "error" }, t("teacher.runsFailed", { error: err.message })));
     }
   }
 
@@ -87,25 +89,26 @@ class RigCard {
     this.badge = h("span", { class: "badge" });
     this.facts = h("dl", { class: "facts" });
     this.f = {};
-    for (const [key, label] of [["controller", "Controller"], ["timeLeft", "Turn ends in"], ["watchers", "Watching"], ["fault", "Fault"]]) {
+    for (const [key, label] of [["controller", t("access.controller")], ["timeLeft", t("teacher.turnEnds")], ["watchers", t("access.watchers")], ["fault", t("rigState.fault")]]) {
       this.f[key] = h("dd", { "data-field": key });
       this.facts.append(h("dt", null, label), this.f[key]);
     }
     this.message = h("p", { class: "error", role: "alert" });
     const secId = `${hid}-seconds`;
+    const extend = { ...EXTEND, label: t(EXTEND.label) };
     this.seconds = h("input", { id: secId, value: "60", "aria-describedby": `${secId}-hint`, autocomplete: "off" });
-    this.extendButton = h("button", { type: "submit" }, "Extend / cut the turn");
+    this.extendButton = h("button", { type: "submit" }, t("teacher.extend"));
     const extendForm = h(
       "form",
       { novalidate: true, class: "field inline" },
-      h("label", { for: secId }, "Seconds to add"),
+      h("label", { for: secId }, t("teacher.secondsToAdd")),
       this.seconds,
       this.extendButton,
-      h("span", { class: "hint", id: `${secId}-hint` }, `${rangeText(EXTEND)}; negative cuts the turn`),
+      h("span", { class: "hint", id: `${secId}-hint` }, t("teacher.extendHint", { range: rangeText(extend) })),
     );
     extendForm.addEventListener("submit", (ev) => {
       ev.preventDefault();
-      const r = checkNumber(this.seconds.value, EXTEND);
+      const r = checkNumber(this.seconds.value, extend);
       if (!r.ok) {
         this.seconds.setAttribute("aria-invalid", "true");
         setText(this.message, r.error);
@@ -113,18 +116,18 @@ class RigCard {
         return;
       }
       this.seconds.removeAttribute("aria-invalid");
-      void this.act(() => api.extendControl(rigId, r.value), r.value >= 0 ? `Turn on ${rigId} extended by ${r.value} s.` : `Turn on ${rigId} cut by ${-r.value} s.`);
+      void this.act(() => api.extendControl(rigId, r.value), r.value >= 0 ? t("teacher.extended", { rig: rigId, seconds: r.value }) : t("teacher.cut", { rig: rigId, seconds: -r.value }));
     });
-    this.endButton = h("button", { type: "button", class: "danger" }, "End this turn");
-    this.endButton.addEventListener("click", () => void this.act(() => api.kick(rigId, null), `The turn on ${rigId} was ended.`));
+    this.endButton = h("button", { type: "button", class: "danger" }, t("teacher.end"));
+    this.endButton.addEventListener("click", () => void this.act(() => api.kick(rigId, null), t("teacher.ended", { rig: rigId })));
     this.serviceButton = h("button", { type: "button" });
     this.serviceButton.addEventListener("click", () => {
       const out = this.rig?.inService;
-      void this.act(() => api.setService(rigId, !out), out ? `${rigId} is out of service.` : `${rigId} is back in service.`);
+      void this.act(() => api.setService(rigId, !out), out ? t("teacher.outOfService", { rig: rigId }) : t("teacher.inService", { rig: rigId }));
     });
     this.controlBox = h("div", null, extendForm, h("div", { class: "buttons" }, this.endButton));
     this.queue = h("ol", { class: "queue-list" });
-    this.queueEmpty = h("p", { class: "muted" }, "empty");
+    this.queueEmpty = h("p", { class: "muted" }, t("teacher.queueEmpty"));
     this.deadline = null;
     this.watchers = h("ul", { class: "watcher-list" });
     this.el = h(
@@ -134,10 +137,10 @@ class RigCard {
       this.facts,
       this.message,
       this.controlBox,
-      h("h3", null, "Queue"),
+      h("h3", null, t("lobby.queue")),
       this.queueEmpty,
       this.queue,
-      h("h3", null, "Watchers"),
+      h("h3", null, t("teacher.watchers")),
       this.watchers,
       h("div", { class: "buttons" }, this.serviceButton),
     );
@@ -170,12 +173,12 @@ class RigCard {
     setText(this.badge, stateLabel(rig.state));
     this.badge.dataset.state = rig.state;
     const a = rig.access;
-    setText(this.f.controller, a.controller ?? "nobody");
+    setText(this.f.controller, a.controller ?? t("access.nobody"));
     this.renderTime();
     setText(this.f.watchers, String(a.watchers));
-    setText(this.f.fault, rig.detail ?? "none");
+    setText(this.f.fault, rig.detail ?? t("teacher.noFault"));
     this.controlBox.hidden = !a.controller;
-    setText(this.serviceButton, rig.inService ? "Take out of service" : "Put back in service");
+    setText(this.serviceButton, rig.inService ? t("teacher.takeOut") : t("teacher.putBack"));
     this.serviceButton.className = rig.inService ? "danger" : "primary";
     const queue = rig.queue ?? [];
     const qKey = JSON.stringify(queue.map((q) => [q.username, q.position]));
@@ -188,8 +191,8 @@ class RigCard {
               h(
                 "li",
                 null,
-                `${q.username} (since ${when(q.joinedAt)}) `,
-                h("button", { type: "button", class: "link-button", "aria-label": `Remove ${q.username} from the queue`, onclick: () => void this.act(() => api.kick(this.rigId, q.username), `${q.username} removed from the queue.`) }, "Remove"),
+                t("teacher.queued", { user: q.username, since: when(q.joinedAt) }) + " ",
+                h("button", { type: "button", class: "link-button", "aria-label": t("teacher.removeLabel", { user: q.username }), onclick: () => void this.act(() => api.kick(this.rigId, q.username), t("teacher.removed", { user: q.username })) }, t("teacher.remove")),
               ),
             )
           : []),
@@ -203,8 +206,8 @@ class RigCard {
       this._watchKey = wKey;
       this.watchers.replaceChildren(
         ...(watchers.length
-          ? watchers.map((w) => h("li", null, `${w.username}${w.connections > 1 ? ` (${w.connections} windows)` : ""}`))
-          : [h("li", { class: "muted" }, "nobody")]),
+          ? watchers.map((w) => h("li", null, w.connections > 1 ? t("teacher.watcherWindows", { user: w.username, count: w.connections }) : w.username))
+          : [h("li", { class: "muted" }, t("access.nobody"))]),
       );
     }
   }

@@ -1,0 +1,165 @@
+"""The interface's message catalogue: every user-facing string in one place.
+
+The views call ``t(key, params)`` (js/i18n.js) with literal keys of
+js/messages/en.js; index.html names its keys in ``data-i18n`` attributes. These
+tests fail when code holds an inline user-facing string, when a key used in
+the code or the page is missing from the catalogue, when a catalogue key is
+used nowhere, or when a message's placeholders differ from what its callers
+pass. The heuristic for "user-facing" is below (``looks_like_text``); a string
+it catches by mistake is better written as a key than hidden by a new rule.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import sys
+from pathlib import Path
+
+import pytest
+
+from thermolab.web import STATIC_DIR
+
+sys.path.insert(0, str(Path(__file__).parent))
+from jsscan import Literal, literals
+
+JS = STATIC_DIR / "js"
+CATALOGUE = JS / "messages" / "en.js"
+KEY = re.compile(r"^[a-z][A-Za-z0-9]*(\.[A-Za-z0-9_-]+)+$")
+#: Code before a literal that makes it a name for the machine, not text for a person.
+MACHINE = re.compile(
+    r"""(
+      \b(class|id|type|role|name|for|href|inputmode|autocomplete|tabindex|scope|method|cache|
+         credentials|key|event|state|mode|dash|color|value|stroke|kind|testid|panel|download)\s*:\s*$
+      | "(data-[\w-]+|aria-(controls|describedby|labelledby|hidden|selected|current|live|atomic))"
+        \s*:\s*$
+      | \b(querySelector|querySelectorAll|getElementById|addEventListener|removeEventListener|
+           createElement|closest|getAttribute|setAttribute|removeAttribute|startsWith|
+           console\.\w+|RangeError|TypeError|import|from|column|push|has|get|includes)\s*\(\s*$
+      | \bh\(\s*$
+      | \bfrom\s*$
+    )""",
+    re.VERBOSE,
+)
+
+
+def catalogue() -> dict[str, str | dict[str, str]]:
+    """The English catalogue: the object literal of js/messages/en.js, which is JSON."""
+    text = CATALOGUE.read_text(encoding="utf-8")
+    body = text[text.index("{", text.index("export const messages")) : text.rindex("}") + 1]
+    data = json.loads(body)
+    assert isinstance(data, dict)
+    return data
+
+
+def code_files() -> list[Path]:
+    return sorted(p for p in JS.rglob("*.js") if "messages" not in p.relative_to(JS).parts)
+
+
+def looks_like_text(lit: Literal) -> bool:
+    """Whether a literal reads as words for a person (and is not a key or a machine name)."""
+    s = lit.text.replace("{}", "").strip()
+    if not s or KEY.match(s) or MACHINE.search(lit.before):
+        return False  # a key or a machine name
+    if lit.text.startswith("/") or "//" in lit.text:
+        return False  # a path or a URL
+    if re.fullmatch(r"GET|POST|PUT|DELETE|PATCH", s):
+        return False
+    if re.search(r"[A-Za-z]{2,}[^\sA-Za-z]*\s+[^\s]*[A-Za-z]", s):
+        return True  # two or more words
+    return bool(re.fullmatch(r"[A-Z][a-z]+|[A-Z]{3,}|[A-Z][a-z]+[.…:]", s))
+
+
+def test_no_code_holds_an_inline_user_facing_string() -> None:
+    found = [
+        f"{p.relative_to(STATIC_DIR)}:{lit.line}: {lit.text!r}"
+        for p in code_files()
+        for lit in literals(p.read_text(encoding="utf-8"))
+        if looks_like_text(lit)
+    ]
+    assert found == [], "move these strings to js/messages/en.js and call t():\n" + "\n".join(found)
+
+
+def test_the_text_heuristic_catches_sentences_labels_and_buttons() -> None:
+    def lit(text: str, before: str = "h('p', null, ") -> Literal:
+        return Literal(text, before, 1)
+
+    assert looks_like_text(lit("Run {} started."))
+    assert looks_like_text(lit("Rigs"))
+    assert looks_like_text(lit("START"))
+    assert looks_like_text(lit("Loading…"))
+    assert not looks_like_text(lit("panel.start"))
+    assert not looks_like_text(lit("field inline", 'h("div", { class: '))
+    assert not looks_like_text(lit("{}-range {}-err", '"aria-describedby": '))
+    assert not looks_like_text(lit("div", "h("))
+
+
+def used_keys() -> dict[str, list[str]]:
+    """Every catalogue-shaped literal of the code and every data-i18n key of index.html."""
+    used: dict[str, list[str]] = {}
+    for p in code_files():
+        for lit in literals(p.read_text(encoding="utf-8")):
+            if KEY.match(lit.text):
+                used.setdefault(lit.text, []).append(f"{p.relative_to(STATIC_DIR)}:{lit.line}")
+    html = (STATIC_DIR / "index.html").read_text(encoding="utf-8")
+    for key in re.findall(r'data-i18n(?:-[a-z-]+)?="([^"]+)"', html):
+        used.setdefault(key, []).append("index.html")
+    return used
+
+
+def called_keys() -> dict[str, list[str]]:
+    """Keys passed literally to t() (the keys that must exist)."""
+    keys: dict[str, list[str]] = {}
+    for p in code_files():
+        text = p.read_text(encoding="utf-8")
+        for m in re.finditer(r"""\bt(?:Plural)?\(\s*["']([^"']+)["']""", text):
+            line = text.count("\n", 0, m.start()) + 1
+            keys.setdefault(m.group(1), []).append(f"{p.relative_to(STATIC_DIR)}:{line}")
+    return keys
+
+
+def test_every_key_used_is_in_the_catalogue() -> None:
+    messages = catalogue()
+    missing = {k: where for k, where in called_keys().items() if k not in messages}
+    html = (STATIC_DIR / "index.html").read_text(encoding="utf-8")
+    in_page = re.findall(r'data-i18n(?:-[a-z-]+)?="([^"]+)"', html)
+    missing |= {k: ["index.html"] for k in in_page if k not in messages}
+    assert missing == {}
+
+
+def test_every_catalogue_key_is_used() -> None:
+    used = used_keys()
+    unused = sorted(k for k in catalogue() if k not in used)
+    assert unused == []
+
+
+def test_catalogue_keys_are_sorted_dotted_names_and_plurals_have_other() -> None:
+    messages = catalogue()
+    assert list(messages) == sorted(messages), "keep the catalogue sorted: translators diff it"
+    for key, value in messages.items():
+        assert KEY.match(key), key
+        if isinstance(value, dict):
+            assert "other" in value, f"{key}: a plural message needs its 'other' form"
+            assert set(value) <= {"zero", "one", "two", "few", "many", "other"}, key
+
+
+@pytest.mark.parametrize("key", sorted(catalogue()))
+def test_placeholders_are_named(key: str) -> None:
+    value = catalogue()[key]
+    forms = value.values() if isinstance(value, dict) else [value]
+    for form in forms:
+        for name in re.findall(r"\{([^}]*)\}", form):
+            assert re.fullmatch(r"[A-Za-z][A-Za-z0-9]*", name), f"{key}: placeholder {{{name}}}"
+
+
+def test_the_page_shell_names_its_keys() -> None:
+    html = (STATIC_DIR / "index.html").read_text(encoding="utf-8")
+    body = html[html.index("<body>") :]
+    # Every element with words in it says which message it shows (the brand is a name).
+    text_elements = re.findall(r"<(\w+)([^>]*)>([^<]*[A-Za-z]{2,}[^<]*)</\1>", body)
+    bare = [
+        (tag, text)
+        for tag, attrs, text in text_elements
+        if "data-i18n" not in attrs and text != "ThermoLab"
+    ]
+    assert bare == []
