@@ -27,8 +27,8 @@ from thermolab.lab.app import create_app
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import LabConfig, RigConfig
 from thermolab.lab.db import Database
+from thermolab.lab.db.models import Base
 from thermolab.lab.hub import RigOpener
-from thermolab.lab.models import Base
 from thermolab.lab.service import Lab
 
 DEFAULT_POSTGRES_URL = "postgresql+psycopg://postgres@127.0.0.1:5432/test"

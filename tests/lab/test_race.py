@@ -22,7 +22,7 @@ from sqlalchemy import create_engine, func, select, text
 
 from thermolab.lab.api import COOKIE_NAME
 from thermolab.lab.app import create_app
-from thermolab.lab.models import ControlSession, LoginSession, QueueEntry, Role, User
+from thermolab.lab.db.models import ControlSession, LoginSession, QueueEntry, Role, User
 from thermolab.lab.security import hash_token, new_token
 from thermolab.lab.service import Lab
 from thermolab.lab.users import Principal

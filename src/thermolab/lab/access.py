@@ -43,21 +43,21 @@ from thermolab.errors import AccessDeniedError, ConflictError, InvalidParameterE
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig, RigConfig
 from thermolab.lab.db import Database
-from thermolab.lab.hub import PublishedRig
-from thermolab.lab.models import (
+from thermolab.lab.db.models import (
     Command,
     ControlSession,
-    EndReason,
     LeaveReason,
     PowerState,
     QueueEntry,
-    Rig,
+    RigRow,
     Role,
     Run,
     RunStatus,
+    TurnEndReason,
     User,
     UTCDateTime,
 )
+from thermolab.lab.hub import PublishedRig
 from thermolab.lab.presence import Presence, Watcher
 from thermolab.lab.users import Principal
 
@@ -262,13 +262,13 @@ class AccessService:
         """
         now = self._clock.now()
         with self._db.write() as session:
-            existing = {rig.id: rig for rig in session.scalars(select(Rig))}
+            existing = {rig.id: rig for rig in session.scalars(select(RigRow))}
             for rig in existing.values():
                 rig.configured = False
             for cfg in self._config.rigs:
                 row = existing.get(cfg.id)
                 if row is None:
-                    row = Rig(
+                    row = RigRow(
                         id=cfg.id,
                         in_service=True,
                         next_ticket=1,
@@ -294,7 +294,7 @@ class AccessService:
                 select(ControlSession).where(ControlSession.ended_at.is_(None))
             ):
                 control.ended_at = now
-                control.end_reason = EndReason.SERVER_RESTART.value
+                control.end_reason = TurnEndReason.SERVER_RESTART.value
                 if control.rig_id in existing and self._cooldown(control.rig_id):
                     existing[control.rig_id].needs_cooldown = True
             for entry in session.scalars(select(QueueEntry).where(QueueEntry.left_at.is_(None))):
@@ -322,7 +322,7 @@ class AccessService:
     def desired(self, rig_id: str) -> tuple[PowerState, int | None]:
         """Return the rig's power state and active control session id (for the hub)."""
         with self._db.read() as session:
-            power = session.scalar(select(Rig.power_state).where(Rig.id == rig_id))
+            power = session.scalar(select(RigRow.power_state).where(RigRow.id == rig_id))
             control = session.scalar(
                 select(ControlSession.id).where(
                     ControlSession.rig_id == rig_id, ControlSession.ended_at.is_(None)
@@ -370,7 +370,7 @@ class AccessService:
             If the rig is out of service or faulted.
         """
 
-        def act(session: Session, rig: Rig, now: datetime) -> None:
+        def act(session: Session, rig: RigRow, now: datetime) -> None:
             if not rig.in_service:
                 raise ConflictError(f"rig {rig.id!r} is out of service; ask a teacher")
             if rig.fault is not None:
@@ -406,10 +406,10 @@ class AccessService:
             If the lab has no such rig.
         """
 
-        def act(session: Session, rig: Rig, now: datetime) -> None:
+        def act(session: Session, rig: RigRow, now: datetime) -> None:
             control = self._active(session, rig.id)
             if control is not None and control.user_id == who.user_id:
-                self._end(session, rig, control, EndReason.RELEASED, now, now)
+                self._end(session, rig, control, TurnEndReason.RELEASED, now, now)
                 return
             entry = self._waiting(session, rig.id, who.user_id)
             if entry is not None:
@@ -427,7 +427,7 @@ class AccessService:
         rig_id: str,
         who: Principal,
         action: str,
-        act: Callable[[Session, Rig, ControlSession, datetime], T],
+        act: Callable[[Session, RigRow, ControlSession, datetime], T],
     ) -> tuple[T, int]:
         """Run ``act`` in the rig's locked transaction if ``who`` controls the rig.
 
@@ -447,7 +447,7 @@ class AccessService:
         """
         out: list[tuple[T, int]] = []
 
-        def guarded(session: Session, rig: Rig, now: datetime) -> None:
+        def guarded(session: Session, rig: RigRow, now: datetime) -> None:
             control = self._active(session, rig.id)
             if control is None or control.user_id != who.user_id:
                 holder = "nobody" if control is None else "another user"
@@ -479,7 +479,7 @@ class AccessService:
         value = _check_input(u, published, rig_id)
 
         def act(
-            session: Session, rig: Rig, control: ControlSession, now: datetime
+            session: Session, rig: RigRow, control: ControlSession, now: datetime
         ) -> CommandRecord:
             command = Command(
                 rig_id=rig.id,
@@ -529,13 +529,15 @@ class AccessService:
                 f"{_MAX_EXTENSION:g}, got {seconds!r}"
             )
 
-        def act(session: Session, rig: Rig, now: datetime) -> None:
+        def act(session: Session, rig: RigRow, now: datetime) -> None:
             control = self._active(session, rig.id)
             if control is None:
                 raise ConflictError(f"nobody controls rig {rig.id!r}; there is no limit to change")
             control.deadline = max(control.deadline + timedelta(seconds=seconds), now)
             if control.deadline <= now:
-                self._end(session, rig, control, EndReason.TIME_LIMIT, now, now, by=who.username)
+                self._end(
+                    session, rig, control, TurnEndReason.TIME_LIMIT, now, now, by=who.username
+                )
 
         return self._write(rig_id, who, act, heartbeat=False)[0]
 
@@ -551,13 +553,13 @@ class AccessService:
         """
         _require_teacher(who, "kick a user off a rig")
 
-        def act(session: Session, rig: Rig, now: datetime) -> None:
+        def act(session: Session, rig: RigRow, now: datetime) -> None:
             control = self._active(session, rig.id)
             name = username.strip().lower() if username is not None else None
             if name is None or (control is not None and control.username == name):
                 if control is None:
                     raise ConflictError(f"nobody controls rig {rig.id!r}")
-                self._end(session, rig, control, EndReason.KICKED, now, now, by=who.username)
+                self._end(session, rig, control, TurnEndReason.KICKED, now, now, by=who.username)
                 return
             user_id = session.scalar(select(User.id).where(User.username == name))
             entry = None if user_id is None else self._waiting(session, rig.id, user_id)
@@ -578,7 +580,7 @@ class AccessService:
         """
         _require_teacher(who, "take rigs in or out of service")
 
-        def act(session: Session, rig: Rig, now: datetime) -> None:
+        def act(session: Session, rig: RigRow, now: datetime) -> None:
             rig.fault = None
             rig.fault_at = None
             rig.in_service = in_service
@@ -586,7 +588,7 @@ class AccessService:
                 return
             control = self._active(session, rig.id)
             if control is not None:
-                self._end(session, rig, control, EndReason.KICKED, now, now, by=who.username)
+                self._end(session, rig, control, TurnEndReason.KICKED, now, now, by=who.username)
             for entry in self._queue(session, rig.id):
                 entry.left_at = now
                 entry.leave_reason = LeaveReason.KICKED.value
@@ -614,14 +616,14 @@ class AccessService:
         if self.snapshot(rig_id).fault is not None:
             return
 
-        def act(session: Session, rig: Rig, now: datetime) -> None:
+        def act(session: Session, rig: RigRow, now: datetime) -> None:
             if rig.fault is not None:
                 return
             rig.fault = message
             rig.fault_at = now
             control = self._active(session, rig.id)
             if control is not None:
-                self._end(session, rig, control, EndReason.RIG_FAULT, now, now)
+                self._end(session, rig, control, TurnEndReason.RIG_FAULT, now, now)
 
         self._write(rig_id, None, act, heartbeat=False)
 
@@ -643,7 +645,7 @@ class AccessService:
         self,
         rig_id: str,
         who: Principal | None,
-        act: Callable[[Session, Rig, datetime], None],
+        act: Callable[[Session, RigRow, datetime], None],
         *,
         heartbeat: bool = True,
     ) -> tuple[RigView, RigSnapshot]:
@@ -676,7 +678,7 @@ class AccessService:
         viewer = who if who is not None else _SYSTEM
         return self._render(snap, cfg, viewer, now), snap
 
-    def _settle(self, session: Session, rig: Rig, cfg: RigConfig, now: datetime) -> None:
+    def _settle(self, session: Session, rig: RigRow, cfg: RigConfig, now: datetime) -> None:
         control = self._active(session, rig.id)
         if control is not None:
             due = self._end_due(control, cfg, now, run_active=self._run_active(session, rig.id))
@@ -689,7 +691,7 @@ class AccessService:
             entry.leave_reason = LeaveReason.CLIENT_GONE.value
         self._advance(session, rig, cfg, now)
 
-    def _advance(self, session: Session, rig: Rig, cfg: RigConfig, now: datetime) -> None:
+    def _advance(self, session: Session, rig: RigRow, cfg: RigConfig, now: datetime) -> None:
         """Move the rig on: finish a cool-down, hand control to the queue, power on or off."""
         session.flush()
         if not rig.in_service or rig.fault is not None:
@@ -752,9 +754,9 @@ class AccessService:
     def _end(
         self,
         session: Session,
-        rig: Rig,
+        rig: RigRow,
         control: ControlSession,
-        reason: EndReason,
+        reason: TurnEndReason,
         at: datetime,
         now: datetime,
         *,
@@ -782,7 +784,7 @@ class AccessService:
 
     def _end_due(
         self, control: ControlSession, cfg: RigConfig, now: datetime, *, run_active: bool
-    ) -> tuple[EndReason, datetime] | None:
+    ) -> tuple[TurnEndReason, datetime] | None:
         return _end_due(
             deadline=control.deadline,
             last_heartbeat=control.last_heartbeat_at,
@@ -861,7 +863,7 @@ class AccessService:
         return abs(reading[0] - ambient) <= cfg.cooldown.tolerance
 
     @staticmethod
-    def _set_power(rig: Rig, power: PowerState, now: datetime) -> None:
+    def _set_power(rig: RigRow, power: PowerState, now: datetime) -> None:
         if rig.power_state != power.value:
             rig.power_state = power.value
             rig.power_changed_at = now
@@ -890,7 +892,7 @@ class AccessService:
         return session.scalar(_Q.run_active, {"rig": rig_id}) is not None
 
     def _snapshot(self, session: Session, rig_id: str) -> RigSnapshot:
-        rig = session.get(Rig, rig_id, populate_existing=True)
+        rig = session.get(RigRow, rig_id, populate_existing=True)
         if rig is None:
             # Configured but not yet in the table: start-up has not run.
             raise ConflictError(f"rig {rig_id!r} is not ready yet; the lab is starting")
@@ -1041,14 +1043,14 @@ def _end_due(
     timeout: timedelta,
     idle_limit: float | None,
     now: datetime,
-) -> tuple[EndReason, datetime] | None:
+) -> tuple[TurnEndReason, datetime] | None:
     # The earliest limit reached wins; on a tie the time limit is the reason given.
-    candidates: list[tuple[datetime, EndReason]] = [
-        (deadline, EndReason.TIME_LIMIT),
-        (last_heartbeat + timeout, EndReason.CLIENT_GONE),
+    candidates: list[tuple[datetime, TurnEndReason]] = [
+        (deadline, TurnEndReason.TIME_LIMIT),
+        (last_heartbeat + timeout, TurnEndReason.CLIENT_GONE),
     ]
     if idle_limit is not None:
-        candidates.append((last_activity + timedelta(seconds=idle_limit), EndReason.IDLE))
+        candidates.append((last_activity + timedelta(seconds=idle_limit), TurnEndReason.IDLE))
     at, reason = min(candidates, key=lambda c: c[0])
     return (reason, at) if at <= now else None
 

@@ -26,7 +26,7 @@ from datetime import datetime
 from thermolab.errors import ConfigError, RigError, ThermoLabError
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig, RigConfig, parse_rig_spec
-from thermolab.lab.models import PowerState
+from thermolab.lab.db.models import PowerState
 from thermolab.rigs import Rig, make_clock, open_rig
 
 __all__ = [

@@ -45,17 +45,17 @@ from thermolab.lab.access import AccessService
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
-from thermolab.lab.hub import RigHub
-from thermolab.lab.models import (
+from thermolab.lab.db.models import (
     Command,
     ControlSession,
-    MethodResult,
-    Rig,
+    MethodResultRow,
+    RigRow,
     Run,
     RunStatus,
     Sample,
     User,
 )
+from thermolab.lab.hub import RigHub
 from thermolab.lab.security import normalize_username
 from thermolab.lab.users import Principal
 from thermolab.runner import EndReason, Event, EventBus, Experiment, RunResult
@@ -497,7 +497,7 @@ class RunService:
             options=options,
         )
 
-        def begin(session: Session, rig: Rig, control: ControlSession, now: datetime) -> int:
+        def begin(session: Session, rig: RigRow, control: ControlSession, now: datetime) -> int:
             running = session.scalar(
                 select(Run.id).where(Run.rig_id == rig.id, Run.status == RunStatus.RUNNING.value)
             )
@@ -932,7 +932,9 @@ class RunService:
         stored settings (the identifiers are deterministic, so this is the
         trajectory the run had) and the figures are stored for next time.
         """
-        rows = list(session.scalars(select(MethodResult).where(MethodResult.run_id == run.id)))
+        rows = list(
+            session.scalars(select(MethodResultRow).where(MethodResultRow.run_id == run.id))
+        )
         out = {
             row.label: {"method": row.method, "params": row.params, "result": row.result}
             for row in rows
@@ -961,7 +963,9 @@ class RunService:
             with self._db.write() as writer:
                 for row_id, result in filled.items():
                     writer.execute(
-                        update(MethodResult).where(MethodResult.id == row_id).values(result=result)
+                        update(MethodResultRow)
+                        .where(MethodResultRow.id == row_id)
+                        .values(result=result)
                     )
         return out
 
@@ -1007,7 +1011,7 @@ class RunService:
         with self._db.write() as session:
             for name, data in stored.items():
                 session.add(
-                    MethodResult(
+                    MethodResultRow(
                         run_id=active.run_id,
                         label=name,
                         method=name,

@@ -15,7 +15,7 @@ from pydantic.alias_generators import to_camel
 from pydantic_core import PydanticCustomError
 
 from thermolab.lab.access import QueueSlot, RigView
-from thermolab.lab.models import ControlSession
+from thermolab.lab.db.models import ControlSession
 from thermolab.lab.presence import Watcher
 from thermolab.lab.runs import MAX_DT, MAX_SAMPLES, MIN_DT, OFFSET_MODES, RunRecord, RunRequest
 from thermolab.lab.service import InputResult

@@ -19,8 +19,8 @@ from thermolab.lab.camera import Picture, PictureCache, draw_twin, fetch_camera
 from thermolab.lab.clock import LabClock, SystemClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
+from thermolab.lab.db.models import Role
 from thermolab.lab.hub import DesiredState, RigHub, RigOpener
-from thermolab.lab.models import Role
 from thermolab.lab.presence import Presence
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.security import LoginThrottle, default_password_hasher

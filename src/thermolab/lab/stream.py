@@ -31,6 +31,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
 
 from thermolab.lab.access import RigSnapshot
 from thermolab.lab.api import COOKIE_NAME
+from thermolab.lab.db.models import LoginSession, Role
 from thermolab.lab.live import (
     CLOSE_TOO_BIG,
     CLOSE_UNAUTHORIZED,
@@ -40,7 +41,6 @@ from thermolab.lab.live import (
     LiveHub,
     encode,
 )
-from thermolab.lab.models import LoginSession, Role
 from thermolab.lab.runs import RunRecord
 from thermolab.lab.schemas import RigOut, RunOut
 from thermolab.lab.service import Lab

@@ -21,12 +21,12 @@ from sqlalchemy.orm import Session
 from thermolab.errors import ConflictError, InvalidParameterError, NotFoundError
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
-from thermolab.lab.models import (
+from thermolab.lab.db.models import (
     ControlSession,
-    EndReason,
     LoginSession,
     QueueEntry,
     Role,
+    TurnEndReason,
     User,
 )
 from thermolab.lab.security import (
@@ -45,7 +45,7 @@ _TOUCH_INTERVAL = timedelta(seconds=60)
 
 
 def parse_role(role: str) -> Role:
-    """Return the :class:`~thermolab.lab.models.Role` called ``role``.
+    """Return the :class:`~thermolab.lab.db.models.Role` called ``role``.
 
     Raises
     ------
@@ -84,7 +84,7 @@ class UserInfo:
 
     @classmethod
     def of(cls, user: User) -> UserInfo:
-        """Build from a :class:`~thermolab.lab.models.User` row."""
+        """Build from a :class:`~thermolab.lab.db.models.User` row."""
         return cls(user.id, user.username, Role(user.role), user.created_at)
 
 
@@ -249,7 +249,7 @@ class UserService:
                 )
             ):
                 control.ended_at = now
-                control.end_reason = EndReason.KICKED.value
+                control.end_reason = TurnEndReason.KICKED.value
                 control.ended_by = "account removed"
             info = UserInfo.of(user)
             session.delete(user)
