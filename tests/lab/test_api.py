@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 
-from thermolab.lab.app import create_app
 from thermolab.lab.clock import ManualClock
+from thermolab.lab.http.app import create_app
 from thermolab.lab.runs import MAX_DT, MAX_SAMPLES, MIN_DT, OFFSET_MODES
 from thermolab.lab.service import Lab
 
@@ -87,7 +87,7 @@ def test_wrong_passwords_are_refused_and_throttled(app_client: Client, clock: Ma
         response = client.post("/api/session", json={"username": "ana", "password": "guess!!!"})
         assert (response.status_code, response.json()) == (
             401,
-            {"detail": "wrong user name or password"},
+            {"detail": "wrong user name or password", "code": "not_authenticated"},
         )
     response = client.post("/api/session", json={"username": "ana", "password": PASSWORD})
     assert response.status_code == 429

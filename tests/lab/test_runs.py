@@ -27,10 +27,10 @@ from thermolab.ident import (
     moving_window_least_squares,
     weighted_least_squares,
 )
-from thermolab.lab.app import create_app
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import CooldownPolicy, RigConfig
 from thermolab.lab.db.models import Command, MethodResultRow, Sample
+from thermolab.lab.http.app import create_app
 from thermolab.lab.runs import RunRequest
 from thermolab.lab.service import Lab
 from thermolab.lab.users import Principal

@@ -57,7 +57,7 @@ from thermolab.lab.db.models import (
     User,
     UTCDateTime,
 )
-from thermolab.lab.hub import PublishedRig
+from thermolab.lab.devices import PublishedRig
 from thermolab.lab.presence import Presence, Watcher
 from thermolab.lab.users import Principal
 

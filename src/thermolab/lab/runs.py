@@ -55,7 +55,7 @@ from thermolab.lab.db.models import (
     Sample,
     User,
 )
-from thermolab.lab.hub import RigHub
+from thermolab.lab.devices import DeviceHub
 from thermolab.lab.security import normalize_username
 from thermolab.lab.users import Principal
 from thermolab.runner import EndReason, Event, EventBus, Experiment, RunResult
@@ -415,7 +415,7 @@ class RunService:
     db : Database
     clock : LabClock
     access : AccessService
-    hub : RigHub
+    hub : DeviceHub
     config : LabConfig
         The rigs' cool-down policies (they say when a rig counts as at rest).
     on_finished : callable
@@ -434,7 +434,7 @@ class RunService:
         db: Database,
         clock: LabClock,
         access: AccessService,
-        hub: RigHub,
+        hub: DeviceHub,
         config: LabConfig,
         on_finished: Callable[[str], None],
         *,

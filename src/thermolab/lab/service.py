@@ -1,7 +1,7 @@
 """The lab as one object: database, accounts, sessions, access model and live rigs.
 
 :class:`Lab` wires the services together for the HTTP app and the command
-line; :func:`thermolab.lab.app.create_app` serves one over HTTP.
+line; :func:`thermolab.lab.http.app.create_app` serves one over HTTP.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from thermolab.lab.clock import LabClock, SystemClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Role
-from thermolab.lab.hub import DesiredState, RigHub, RigOpener
+from thermolab.lab.devices import DesiredState, DeviceHub, RigOpener
 from thermolab.lab.presence import Presence
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.security import LoginThrottle, default_password_hasher
@@ -141,7 +141,7 @@ class Lab:
         self.db = database or Database(config.database)
         policy = config.access
         self.presence = Presence(self.clock, timeout=policy.client_timeout)
-        self.hub = RigHub(config, opener, self.clock)
+        self.hub = DeviceHub(config, opener, self.clock)
         self.users = UserService(self.db, self.clock, hasher or default_password_hasher())
         self.sessions = SessionService(
             self.db,

@@ -1,8 +1,8 @@
 """The lab's hands on its rigs: power, safe state, inputs, readings.
 
 The database says what a rig *should* be doing (powered or not, cooling,
-who controls it); :class:`RigHub` makes the rig do it. After every change of
-access state the lab calls :meth:`RigHub.reconcile` with the rig's current
+who controls it); :class:`DeviceHub` makes the rig do it. After every change of
+access state the lab calls :meth:`DeviceHub.reconcile` with the rig's current
 state read back from the database, under a per-rig lock, so the rig always
 ends up matching the latest committed state whatever order requests finish
 in. Slow device I/O (a TCLab resets for about 2 s when its port opens) never
@@ -31,8 +31,8 @@ from thermolab.rigs import Rig, make_clock, open_rig
 
 __all__ = [
     "DesiredState",
+    "DeviceHub",
     "PublishedRig",
-    "RigHub",
     "RigOpener",
     "device_opener",
     "published_defaults",
@@ -160,7 +160,7 @@ class _Slot:
         self.input: float | None = None
 
 
-class RigHub:
+class DeviceHub:
     """Live rigs of the lab, kept in line with the database.
 
     Parameters
@@ -176,7 +176,7 @@ class RigHub:
     --------
     >>> from pathlib import Path
     >>> from thermolab.lab.config import default_config
-    >>> hub = RigHub(default_config(Path("/tmp/lab")), opener=None)
+    >>> hub = DeviceHub(default_config(Path("/tmp/lab")), opener=None)
     >>> hub.published("twin").input_max
     10.0
     >>> hub.apply("twin", 2.5, controller_session=1) is None  # no device attached

@@ -1,8 +1,8 @@
 """The live WebSocket ``/api/rigs/{rig}/live`` (contract: ``docs/live-protocol.md``).
 
-:class:`LiveBroadcaster` listens to the lab (access changes, runs, runner
+:class:`LiveEndpoint` listens to the lab (access changes, runs, runner
 events, idle readings), turns what it hears into the protocol's messages on
-each rig's :class:`~thermolab.lab.live.LiveChannel`, and serves the clients:
+each rig's :class:`~thermolab.lab.fanout.LiveChannel`, and serves the clients:
 ``hello``, the replay of what a reconnecting client missed (from memory, or
 the current run's samples from the store when memory no longer has them),
 then the live messages. A client's ``ping`` keeps its control or queue place
@@ -10,7 +10,7 @@ alive and is answered with ``pong``.
 
 A connection lives as long as the login it was opened with: when logins end
 (logout, a password change, an account removed — the app calls
-:meth:`LiveBroadcaster.sessions_changed`) and every few seconds in any case (an
+:meth:`LiveEndpoint.sessions_changed`) and every few seconds in any case (an
 account removed from the command line, a login past its lifetime), the
 clients whose login is gone are closed with 4401.
 """
@@ -30,24 +30,24 @@ from sqlalchemy import select
 from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
 
 from thermolab.lab.access import RigSnapshot
-from thermolab.lab.api import COOKIE_NAME
 from thermolab.lab.db.models import LoginSession, Role
-from thermolab.lab.live import (
+from thermolab.lab.fanout import (
     CLOSE_TOO_BIG,
     CLOSE_UNAUTHORIZED,
     CLOSE_UNKNOWN_RIG,
     MAX_CLIENT_MESSAGE,
     LiveClient,
-    LiveHub,
+    LiveFanout,
     encode,
 )
+from thermolab.lab.http.deps import COOKIE_NAME
+from thermolab.lab.http.schemas import RigOut, RunOut
 from thermolab.lab.runs import RunRecord
-from thermolab.lab.schemas import RigOut, RunOut
 from thermolab.lab.service import Lab
 from thermolab.lab.users import Principal
 from thermolab.runner import EstimateEvent, Event, SampleEvent
 
-__all__ = ["LiveBroadcaster"]
+__all__ = ["LiveEndpoint"]
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +60,7 @@ def _dump(model: RigOut | RunOut) -> dict[str, Any]:
     return model.model_dump(mode="json", by_alias=True)
 
 
-class LiveBroadcaster:
+class LiveEndpoint:
     """The lab's live stream: a :class:`~thermolab.lab.service.LabListener` and the endpoint.
 
     Parameters
@@ -85,7 +85,7 @@ class LiveBroadcaster:
         session_check: float | None = 5.0,
     ) -> None:
         self.lab = lab
-        self.hub = LiveHub([rig.id for rig in lab.config.rigs])
+        self.hub = LiveFanout([rig.id for rig in lab.config.rigs])
         self._access_delay = access_delay
         self._client_queue = client_queue
         self._session_check = session_check

@@ -48,7 +48,7 @@ __all__ = [
     "Batch",
     "LiveChannel",
     "LiveClient",
-    "LiveHub",
+    "LiveFanout",
     "encode",
 ]
 
@@ -350,7 +350,7 @@ def _call_soon(loop: asyncio.AbstractEventLoop, action: Callable[[], None]) -> N
         loop.call_soon_threadsafe(action)
 
 
-class LiveHub:
+class LiveFanout:
     """The live channels of every rig of a lab.
 
     Parameters

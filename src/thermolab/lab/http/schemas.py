@@ -62,9 +62,10 @@ class _Out(BaseModel):
 
 
 class ErrorOut(_Out):
-    """Every 4xx answer: ``detail`` says what was wrong and what is allowed."""
+    """Every 4xx answer: ``detail`` says what was wrong and what is allowed; ``code`` is stable."""
 
     detail: str
+    code: str
 
 
 class ValidationErrorOut(_Out):
