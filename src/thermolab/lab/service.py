@@ -24,7 +24,7 @@ from thermolab.lab.devices import DesiredState, DeviceHub, RigOpener
 from thermolab.lab.presence import Presence
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.security import LoginThrottle, default_password_hasher
-from thermolab.lab.users import Principal, SessionService, UserInfo, UserService
+from thermolab.lab.users import LoginsEnded, Principal, SessionService, UserInfo, UserService
 from thermolab.runner import Event
 
 __all__ = ["InputResult", "Lab", "LabListener", "StartupReport"]
@@ -142,12 +142,21 @@ class Lab:
         policy = config.access
         self.presence = Presence(self.clock, timeout=policy.client_timeout)
         self.hub = DeviceHub(config, opener, self.clock)
-        self.users = UserService(self.db, self.clock, hasher or default_password_hasher())
+        # Logins that end (logout, expiry, new password, removed account) are announced
+        # here; the live stream closes their sockets.
+        self.logins_ended = LoginsEnded()
+        self.users = UserService(
+            self.db,
+            self.clock,
+            hasher or default_password_hasher(),
+            logins_ended=self.logins_ended,
+        )
         self.sessions = SessionService(
             self.db,
             self.clock,
             lifetime=policy.session_lifetime,
             idle_timeout=policy.session_idle_timeout,
+            logins_ended=self.logins_ended,
         )
         self.throttle = LoginThrottle(
             self.clock,

@@ -16,7 +16,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 from pathlib import Path
 
 import anyio.to_thread
@@ -27,7 +27,7 @@ from thermolab import __version__
 from thermolab.lab.config import LabConfig
 from thermolab.lab.devices import device_opener
 from thermolab.lab.http.errors import install_error_handlers
-from thermolab.lab.http.limits import ASGIApp, BodyLimit, Message, Receive, Scope, Send
+from thermolab.lab.http.limits import BodyLimit
 from thermolab.lab.http.live_socket import LiveEndpoint
 from thermolab.lab.http.routers import api_router
 from thermolab.lab.service import Lab
@@ -124,7 +124,6 @@ def create_app(
     if static_dir is not None:
         app.mount("/", StaticFiles(directory=static_dir, html=True), name="web")
     app.add_middleware(BodyLimit, max_bytes=config.access.max_body_bytes)
-    app.add_middleware(_LoginsWatch, on_change=live.sessions_changed)
     return app
 
 
@@ -135,40 +134,3 @@ async def _sweep_forever(lab: Lab, interval: float) -> None:
             await anyio.to_thread.run_sync(lab.sweep)
         except Exception:  # a failed sweep must not stop the next ones
             log.exception("sweep of the access limits failed")
-
-
-# -- logins ending ------------------------------------------------------------------------------
-
-
-class _LoginsWatch:
-    """Call ``on_change`` after a request that may have ended logins succeeds.
-
-    Logging out or in again (``/api/session``), changing a password or removing
-    an account (``/api/users/...``): the live stream then closes the sockets
-    of the logins that are gone.
-    """
-
-    def __init__(self, app: ASGIApp, on_change: Callable[[], None]) -> None:
-        self.app = app
-        self.on_change = on_change
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        path = scope.get("path", "")
-        if (
-            scope["type"] != "http"
-            or scope.get("method") in ("GET", "HEAD", "OPTIONS")
-            or not (path == "/api/session" or path.startswith("/api/users/"))
-        ):
-            await self.app(scope, receive, send)
-            return
-        status = 500
-
-        async def watching_send(message: Message) -> None:
-            nonlocal status
-            if message["type"] == "http.response.start":
-                status = message["status"]
-            await send(message)
-
-        await self.app(scope, receive, watching_send)
-        if status < 400:
-            self.on_change()

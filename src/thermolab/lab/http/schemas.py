@@ -323,7 +323,12 @@ class RunIn(_In):
 
     dt: Annotated[
         float,
-        Field(ge=MIN_DT, le=MAX_DT, allow_inf_nan=False, description="sample period, s"),
+        # Published here, checked once by thermolab.lab.runs.request.check_request.
+        Field(
+            allow_inf_nan=False,
+            json_schema_extra={"minimum": MIN_DT, "maximum": MAX_DT},
+            description="sample period, s",
+        ),
     ]
     samples: Annotated[int, Field(ge=1, le=MAX_SAMPLES, description="samples to take")]
     signal: Annotated[

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Annotated
 
 from fastapi import APIRouter, Query, status
@@ -10,6 +9,7 @@ from fastapi.responses import JSONResponse, StreamingResponse
 
 from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, RunId, UserDep, documented_errors
 from thermolab.lab.http.schemas import RunIn, RunOut
+from thermolab.lab.runs import samples_csv
 
 __all__ = ["router"]
 
@@ -94,20 +94,9 @@ def run_samples_csv(run_id: RunId, who: UserDep, lab: LabDep) -> StreamingRespon
     """Columns ``t,u,y`` first (then ``k``): the file feeds straight into
     ``thermolab identify``.
     """
-    lab.runs.get(run_id, who)
-
-    def lines() -> Iterator[str]:
-        yield "t,u,y,k\n"
-        chunk: list[str] = []
-        for k, t, u, y in lab.runs.samples(run_id, who):
-            chunk.append(f"{t!r},{u!r},{y!r},{k}\n")
-            if len(chunk) >= 1000:
-                yield "".join(chunk)
-                chunk = []
-        yield "".join(chunk)
-
+    rows = lab.runs.samples(run_id, who)
     return StreamingResponse(
-        lines(),
+        samples_csv(rows),
         media_type="text/csv",
         headers={"Content-Disposition": f'attachment; filename="run-{run_id}.csv"'},
     )
