@@ -23,12 +23,12 @@ from sqlalchemy import create_engine, text
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import OperationalError
 
-from thermolab.lab.app import create_app
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import LabConfig, RigConfig
 from thermolab.lab.db import Database
-from thermolab.lab.hub import RigOpener
-from thermolab.lab.models import Base
+from thermolab.lab.db.models import Base
+from thermolab.lab.devices import RigOpener
+from thermolab.lab.http.app import create_app
 from thermolab.lab.service import Lab
 
 DEFAULT_POSTGRES_URL = "postgresql+psycopg://postgres@127.0.0.1:5432/test"

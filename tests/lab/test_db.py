@@ -16,7 +16,7 @@ from sqlalchemy.exc import IntegrityError
 
 from thermolab.errors import ConfigError
 from thermolab.lab.db import Database, normalize_database_url
-from thermolab.lab.models import Base, ControlSession, QueueEntry, Rig, User, UTCDateTime
+from thermolab.lab.db.models import Base, ControlSession, QueueEntry, RigRow, User, UTCDateTime
 
 TABLES = {
     "users",
@@ -48,7 +48,7 @@ def test_migrations_create_the_schema_of_the_models(fresh_url: str) -> None:
         assert db.current_revision() is None
         db.upgrade()
         db.upgrade()  # idempotent
-        assert db.current_revision() == "0002"
+        assert db.current_revision() == "0003"
         assert set(db.table_names()) == TABLES | {"alembic_version"}
         with db.engine.connect() as connection:
             context = MigrationContext.configure(connection, opts={"compare_type": True})
@@ -65,7 +65,7 @@ def _seed(db: Database) -> tuple[int, int]:
     now = _now()
     with db.write() as session:
         session.add(
-            Rig(
+            RigRow(
                 id="twin",
                 title="Twin",
                 spec="sim",
@@ -164,11 +164,11 @@ def test_instants_come_back_as_utc_on_every_backend(database_url: str) -> None:
         _seed(db)
         local = datetime(2026, 1, 1, 3, 30, tzinfo=timezone(timedelta(hours=2)))
         with db.write() as session:
-            rig = session.get(Rig, "twin")
+            rig = session.get(RigRow, "twin")
             assert rig is not None
             rig.vacant_since = local
         with db.read() as session:
-            rig = session.get(Rig, "twin")
+            rig = session.get(RigRow, "twin")
             assert rig is not None
             assert rig.vacant_since == datetime(2026, 1, 1, 1, 30, tzinfo=UTC)
             assert rig.vacant_since.tzinfo is UTC

@@ -17,8 +17,8 @@ from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from thermolab.lab.app import create_app
 from thermolab.lab.config import RigConfig
+from thermolab.lab.http.app import create_app
 from thermolab.lab.service import Lab
 from thermolab.rigs import Rig, TwinRig, VirtualClock
 

@@ -21,12 +21,12 @@ from websockets.frames import Frame, Opcode
 from websockets.sync.client import connect
 from websockets.uri import parse_uri
 
-from thermolab.lab.api import COOKIE_NAME
-from thermolab.lab.app import create_app
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import RigConfig
+from thermolab.lab.http.app import create_app
+from thermolab.lab.http.deps import COOKIE_NAME
+from thermolab.lab.http.live_socket import LiveEndpoint
 from thermolab.lab.service import Lab
-from thermolab.lab.stream import LiveBroadcaster
 from thermolab.rigs import Rig, TwinRig, VirtualClock
 
 from .conftest import PASSWORD, LabFactory
@@ -46,7 +46,7 @@ def step_clock() -> Iterator[StepClock]:
     clock.allow(math.inf)
 
 
-def make(make_lab: LabFactory, clock: Any = None) -> tuple[Lab, TestClient, LiveBroadcaster]:
+def make(make_lab: LabFactory, clock: Any = None) -> tuple[Lab, TestClient, LiveEndpoint]:
     def opener(rig: RigConfig) -> Rig:
         return TwinRig("paper" if rig.id == "twin" else "tclab", clock=clock or VirtualClock())
 
@@ -56,7 +56,7 @@ def make(make_lab: LabFactory, clock: Any = None) -> tuple[Lab, TestClient, Live
     lab.users.add("tina", PASSWORD, "teacher")
     app = create_app(lab.config, lab=lab, sweep_interval=None)
     client = TestClient(app)
-    live: LiveBroadcaster = app.state.live
+    live: LiveEndpoint = app.state.live
     return lab, client, live
 
 
@@ -434,7 +434,7 @@ def test_a_stalled_socket_is_cut_over_real_tcp_and_the_others_get_everything(
     """A client that stops reading: the server's writes back up, its queue fills, it is cut."""
     lab, _, _ = make(make_lab)
     app = create_app(lab.config, lab=lab, sweep_interval=None)
-    live: LiveBroadcaster = app.state.live
+    live: LiveEndpoint = app.state.live
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]

@@ -8,7 +8,7 @@ from sqlalchemy import select
 
 from thermolab.errors import ConflictError, InvalidParameterError, NotFoundError
 from thermolab.lab.clock import ManualClock
-from thermolab.lab.models import LoginSession, Role, User
+from thermolab.lab.db.models import LoginSession, Role, User
 from thermolab.lab.security import (
     AuthenticationError,
     LoginThrottle,

@@ -126,8 +126,8 @@ def _check_port_free(host: str, port: int) -> None:
 
 
 def _serve(args: argparse.Namespace) -> int:
-    from thermolab.lab.app import create_app
-    from thermolab.lab.hub import device_opener
+    from thermolab.lab.devices import device_opener
+    from thermolab.lab.http.app import create_app
     from thermolab.lab.service import Lab
     from thermolab.web import STATIC_DIR
 

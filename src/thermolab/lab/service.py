@@ -1,7 +1,7 @@
 """The lab as one object: database, accounts, sessions, access model and live rigs.
 
 :class:`Lab` wires the services together for the HTTP app and the command
-line; :func:`thermolab.lab.app.create_app` serves one over HTTP.
+line; :func:`thermolab.lab.http.app.create_app` serves one over HTTP.
 """
 
 from __future__ import annotations
@@ -19,12 +19,12 @@ from thermolab.lab.camera import Picture, PictureCache, draw_twin, fetch_camera
 from thermolab.lab.clock import LabClock, SystemClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
-from thermolab.lab.hub import DesiredState, RigHub, RigOpener
-from thermolab.lab.models import Role
+from thermolab.lab.db.models import Role
+from thermolab.lab.devices import DesiredState, DeviceHub, RigOpener
 from thermolab.lab.presence import Presence
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.security import LoginThrottle, default_password_hasher
-from thermolab.lab.users import Principal, SessionService, UserInfo, UserService
+from thermolab.lab.users import LoginsEnded, Principal, SessionService, UserInfo, UserService
 from thermolab.runner import Event
 
 __all__ = ["InputResult", "Lab", "LabListener", "StartupReport"]
@@ -141,13 +141,22 @@ class Lab:
         self.db = database or Database(config.database)
         policy = config.access
         self.presence = Presence(self.clock, timeout=policy.client_timeout)
-        self.hub = RigHub(config, opener, self.clock)
-        self.users = UserService(self.db, self.clock, hasher or default_password_hasher())
+        self.hub = DeviceHub(config, opener, self.clock)
+        # Logins that end (logout, expiry, new password, removed account) are announced
+        # here; the live stream closes their sockets.
+        self.logins_ended = LoginsEnded()
+        self.users = UserService(
+            self.db,
+            self.clock,
+            hasher or default_password_hasher(),
+            logins_ended=self.logins_ended,
+        )
         self.sessions = SessionService(
             self.db,
             self.clock,
             lifetime=policy.session_lifetime,
             idle_timeout=policy.session_idle_timeout,
+            logins_ended=self.logins_ended,
         )
         self.throttle = LoginThrottle(
             self.clock,

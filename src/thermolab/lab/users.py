@@ -9,6 +9,7 @@ command line can manage accounts while the server runs.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 
@@ -21,12 +22,12 @@ from sqlalchemy.orm import Session
 from thermolab.errors import ConflictError, InvalidParameterError, NotFoundError
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
-from thermolab.lab.models import (
+from thermolab.lab.db.models import (
     ControlSession,
-    EndReason,
     LoginSession,
     QueueEntry,
     Role,
+    TurnEndReason,
     User,
 )
 from thermolab.lab.security import (
@@ -38,14 +39,21 @@ from thermolab.lab.security import (
     validate_password,
 )
 
-__all__ = ["Principal", "SessionService", "UserInfo", "UserService", "parse_role"]
+__all__ = [
+    "LoginsEnded",
+    "Principal",
+    "SessionService",
+    "UserInfo",
+    "UserService",
+    "parse_role",
+]
 
 # A last-seen time is rewritten at most this often, so that reads stay reads.
 _TOUCH_INTERVAL = timedelta(seconds=60)
 
 
 def parse_role(role: str) -> Role:
-    """Return the :class:`~thermolab.lab.models.Role` called ``role``.
+    """Return the :class:`~thermolab.lab.db.models.Role` called ``role``.
 
     Raises
     ------
@@ -84,7 +92,7 @@ class UserInfo:
 
     @classmethod
     def of(cls, user: User) -> UserInfo:
-        """Build from a :class:`~thermolab.lab.models.User` row."""
+        """Build from a :class:`~thermolab.lab.db.models.User` row."""
         return cls(user.id, user.username, Role(user.role), user.created_at)
 
 
@@ -124,9 +132,19 @@ class UserService:
     clock : LabClock
     hasher : PasswordHasher
         Argon2 hasher (tests pass a cheap one).
+    logins_ended : LoginsEnded, optional
+        Where the logins a new password or a removed account ends are announced.
     """
 
-    def __init__(self, db: Database, clock: LabClock, hasher: PasswordHasher) -> None:
+    def __init__(
+        self,
+        db: Database,
+        clock: LabClock,
+        hasher: PasswordHasher,
+        *,
+        logins_ended: LoginsEnded | None = None,
+    ) -> None:
+        self._ended = logins_ended or LoginsEnded()
         self._db = db
         self._clock = clock
         self._hasher = hasher
@@ -205,11 +223,10 @@ class UserService:
             user = self._find(session, username)
             user.password_hash = password_hash
             user.password_changed_at = self._clock.now()
-            session.execute(
-                delete(LoginSession).where(
-                    LoginSession.user_id == user.id, LoginSession.id != (keep_session or -1)
-                )
-            )
+            which = (LoginSession.user_id == user.id) & (LoginSession.id != (keep_session or -1))
+            ended = list(session.scalars(select(LoginSession.id).where(which)))
+            session.execute(delete(LoginSession).where(which))
+        self._ended.publish(ended)
 
     def remove(self, username: str) -> UserInfo:
         """Remove an account with its logins, queue places and runs.
@@ -249,11 +266,15 @@ class UserService:
                 )
             ):
                 control.ended_at = now
-                control.end_reason = EndReason.KICKED.value
+                control.end_reason = TurnEndReason.KICKED.value
                 control.ended_by = "account removed"
             info = UserInfo.of(user)
+            ended = list(
+                session.scalars(select(LoginSession.id).where(LoginSession.user_id == user.id))
+            )
             session.delete(user)
-            return info
+        self._ended.publish(ended)
+        return info
 
     def verify(self, username: str, password: str) -> UserInfo:
         """Check a user name and password.
@@ -318,6 +339,39 @@ class _DummyHashes:
 _DUMMY_HASH = _DummyHashes()
 
 
+class LoginsEnded:
+    """The event "these logins have ended", for whoever listens (the live stream).
+
+    Published after the change is committed, from the thread that made it,
+    with the ids of the login sessions that ended (logout, expiry, a new
+    password, a removed account).
+
+    Examples
+    --------
+    >>> seen = []
+    >>> event = LoginsEnded()
+    >>> event.subscribe(seen.append)
+    >>> event.publish([3, 4])
+    >>> event.publish([])
+    >>> seen
+    [frozenset({3, 4})]
+    """
+
+    def __init__(self) -> None:
+        self._listeners: list[Callable[[frozenset[int]], None]] = []
+
+    def subscribe(self, listener: Callable[[frozenset[int]], None]) -> None:
+        """Call ``listener`` with the ids of every batch of logins that ends."""
+        self._listeners.append(listener)
+
+    def publish(self, session_ids: Iterable[int]) -> None:
+        """Announce that ``session_ids`` ended (nothing for none)."""
+        ended = frozenset(session_ids)
+        if ended:
+            for listener in list(self._listeners):
+                listener(ended)
+
+
 class SessionService:
     """Server-side login sessions.
 
@@ -329,12 +383,21 @@ class SessionService:
         Seconds a session lasts at most.
     idle_timeout : float
         Seconds without a request after which a session ends.
+    logins_ended : LoginsEnded, optional
+        Where ended sessions are announced.
     """
 
     def __init__(
-        self, db: Database, clock: LabClock, *, lifetime: float, idle_timeout: float
+        self,
+        db: Database,
+        clock: LabClock,
+        *,
+        lifetime: float,
+        idle_timeout: float,
+        logins_ended: LoginsEnded | None = None,
     ) -> None:
         self._db = db
+        self._ended = logins_ended or LoginsEnded()
         self._clock = clock
         self._lifetime = timedelta(seconds=lifetime)
         self._idle = timedelta(seconds=idle_timeout)
@@ -393,18 +456,19 @@ class SessionService:
         """End the session of ``token`` (no error if there is none)."""
         if not token:
             return
+        digest = hash_token(token)
         with self._db.write() as session:
-            digest = hash_token(token)
-            session.execute(delete(LoginSession).where(LoginSession.token_hash == digest))
+            which = LoginSession.token_hash == digest
+            ended = list(session.scalars(select(LoginSession.id).where(which)))
+            session.execute(delete(LoginSession).where(which))
+        self._ended.publish(ended)
 
     def purge_expired(self) -> int:
         """Delete expired sessions; return how many."""
         now = self._clock.now()
+        which = (LoginSession.expires_at <= now) | (LoginSession.last_seen_at <= now - self._idle)
         with self._db.write() as session:
-            result = session.execute(
-                delete(LoginSession).where(
-                    (LoginSession.expires_at <= now)
-                    | (LoginSession.last_seen_at <= now - self._idle)
-                )
-            )
-            return int(getattr(result, "rowcount", 0) or 0)
+            ended = list(session.scalars(select(LoginSession.id).where(which)))
+            session.execute(delete(LoginSession).where(LoginSession.id.in_(ended)))
+        self._ended.publish(ended)
+        return len(ended)

@@ -11,7 +11,7 @@ from __future__ import annotations
 from alembic import context
 from sqlalchemy import Connection
 
-from thermolab.lab.models import Base
+from thermolab.lab.db.models import Base
 
 
 def _run_migrations() -> None:

@@ -1,8 +1,8 @@
 """The lab's hands on its rigs: power, safe state, inputs, readings.
 
 The database says what a rig *should* be doing (powered or not, cooling,
-who controls it); :class:`RigHub` makes the rig do it. After every change of
-access state the lab calls :meth:`RigHub.reconcile` with the rig's current
+who controls it); :class:`DeviceHub` makes the rig do it. After every change of
+access state the lab calls :meth:`DeviceHub.reconcile` with the rig's current
 state read back from the database, under a per-rig lock, so the rig always
 ends up matching the latest committed state whatever order requests finish
 in. Slow device I/O (a TCLab resets for about 2 s when its port opens) never
@@ -23,16 +23,22 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import datetime
 
-from thermolab.errors import ConfigError, RigError, ThermoLabError
+from thermolab.errors import RigError, ThermoLabError
 from thermolab.lab.clock import LabClock
-from thermolab.lab.config import LabConfig, RigConfig, parse_rig_spec
-from thermolab.lab.models import PowerState
+from thermolab.lab.config import LabConfig, RigConfig
+from thermolab.lab.config.rig_kinds import (
+    PublishedRig,
+    narrow_range,
+    parse_rig_spec,
+    published_defaults,
+)
+from thermolab.lab.db.models import PowerState
 from thermolab.rigs import Rig, make_clock, open_rig
 
 __all__ = [
     "DesiredState",
+    "DeviceHub",
     "PublishedRig",
-    "RigHub",
     "RigOpener",
     "device_opener",
     "published_defaults",
@@ -67,29 +73,6 @@ def device_opener(speedup: float = 1.0) -> RigOpener:
 
 
 @dataclass(frozen=True, slots=True)
-class PublishedRig:
-    """What the lab tells users a rig accepts.
-
-    Attributes
-    ----------
-    input_min, input_max : float
-        The allowed input range (the rig's own, narrowed by the configuration).
-    input_unit, output_unit : str
-    safe_input : float
-        Input the rig rests at without a controller.
-    live : bool
-        ``True`` when a driver is attached and inputs reach a device.
-    """
-
-    input_min: float
-    input_max: float
-    input_unit: str
-    output_unit: str
-    safe_input: float
-    live: bool
-
-
-@dataclass(frozen=True, slots=True)
 class DesiredState:
     """What the database says a rig should be doing.
 
@@ -102,45 +85,6 @@ class DesiredState:
 
     power: PowerState
     controller_session: int | None
-
-
-def published_defaults(rig: RigConfig) -> PublishedRig:
-    """Return the published range of a rig without opening it.
-
-    The paper's box takes -10..10 V and reports volts; TCLab kits (and their
-    twin) take 0..100 % heater power and report degrees Celsius. A configured
-    ``input_range`` narrows the range.
-
-    Raises
-    ------
-    ConfigError
-        If the configured range is not inside the rig's own.
-
-    Examples
-    --------
-    >>> tclab = published_defaults(RigConfig("a", "A", "sim:tclab"))
-    >>> tclab.input_min, tclab.input_max, tclab.input_unit, tclab.output_unit
-    (0.0, 100.0, '%', 'degC')
-    """
-    kind, arg = parse_rig_spec(rig.spec)
-    if kind == "tclab" or arg == "tclab":
-        base = PublishedRig(0.0, 100.0, "%", "degC", 0.0, False)
-    else:
-        base = PublishedRig(-10.0, 10.0, "V", "V", 0.0, False)
-    return _narrow(base, rig)
-
-
-def _narrow(base: PublishedRig, rig: RigConfig) -> PublishedRig:
-    if rig.input_range is None:
-        return base
-    low, high = rig.input_range
-    if low < base.input_min or high > base.input_max:
-        raise ConfigError(
-            f"rig {rig.id!r}: input_range [{low:g}, {high:g}] goes beyond the rig's own range "
-            f"[{base.input_min:g}, {base.input_max:g}] {base.input_unit}"
-        )
-    safe = min(max(base.safe_input, low), high)
-    return PublishedRig(low, high, base.input_unit, base.output_unit, safe, base.live)
 
 
 class _Slot:
@@ -160,7 +104,7 @@ class _Slot:
         self.input: float | None = None
 
 
-class RigHub:
+class DeviceHub:
     """Live rigs of the lab, kept in line with the database.
 
     Parameters
@@ -176,7 +120,7 @@ class RigHub:
     --------
     >>> from pathlib import Path
     >>> from thermolab.lab.config import default_config
-    >>> hub = RigHub(default_config(Path("/tmp/lab")), opener=None)
+    >>> hub = DeviceHub(default_config(Path("/tmp/lab")), opener=None)
     >>> hub.published("twin").input_max
     10.0
     >>> hub.apply("twin", 2.5, controller_session=1) is None  # no device attached
@@ -221,7 +165,7 @@ class RigHub:
                     info.safe_input,
                     True,
                 )
-                slot.published = _narrow(base, slot.config)
+                slot.published = narrow_range(base, slot.config)
                 slot.driver = driver
                 slot.fault = None
                 return None

@@ -45,17 +45,17 @@ __all__ = [
     "Base",
     "Command",
     "ControlSession",
-    "EndReason",
     "LeaveReason",
     "LoginSession",
-    "MethodResult",
+    "MethodResultRow",
     "PowerState",
     "QueueEntry",
-    "Rig",
+    "RigRow",
     "Role",
     "Run",
     "RunStatus",
     "Sample",
+    "TurnEndReason",
     "UTCDateTime",
     "User",
 ]
@@ -85,7 +85,7 @@ class PowerState(enum.StrEnum):
     COOLING = "cooling"
 
 
-class EndReason(enum.StrEnum):
+class TurnEndReason(enum.StrEnum):
     """Why a control session ended."""
 
     RELEASED = "released"
@@ -181,7 +181,7 @@ class LoginSession(Base):
     user_agent: Mapped[str | None] = mapped_column(String(256))
 
 
-class Rig(Base):
+class RigRow(Base):
     """Runtime state of a rig (its limits live in the configuration)."""
 
     __tablename__ = "rigs"
@@ -210,7 +210,7 @@ class ControlSession(Base):
 
     __tablename__ = "control_sessions"
     __table_args__ = (
-        CheckConstraint(_in("end_reason", EndReason), name="end_reason"),
+        CheckConstraint(_in("end_reason", TurnEndReason), name="end_reason"),
         CheckConstraint(
             "(ended_at IS NULL AND end_reason IS NULL) "
             "OR (ended_at IS NOT NULL AND end_reason IS NOT NULL)",
@@ -340,7 +340,7 @@ class Command(Base):
     applied: Mapped[bool] = mapped_column(Boolean)
 
 
-class MethodResult(Base):
+class MethodResultRow(Base):
     """The result of one identification method of a run (final estimate and trajectories)."""
 
     __tablename__ = "method_results"

@@ -32,14 +32,15 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
-import math
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
+
+from thermolab.jsonsafe import json_safe
 
 __all__ = [
     "CLOSE_TOO_SLOW",
@@ -48,7 +49,7 @@ __all__ = [
     "Batch",
     "LiveChannel",
     "LiveClient",
-    "LiveHub",
+    "LiveFanout",
     "encode",
 ]
 
@@ -65,7 +66,7 @@ MAX_FRAME_MESSAGES = 1000
 REPLAYED = frozenset({"sample", "estimate", "run"})
 
 
-def encode(message: dict[str, Any]) -> str:
+def encode(message: Mapping[str, Any]) -> str:
     """Return ``message`` as compact JSON, non-finite numbers as ``null``.
 
     Examples
@@ -73,17 +74,7 @@ def encode(message: dict[str, Any]) -> str:
     >>> encode({"type": "sample", "y": float("nan")})
     '{"type":"sample","y":null}'
     """
-    return json.dumps(_finite(message), separators=(",", ":"), allow_nan=False)
-
-
-def _finite(value: Any) -> Any:
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    return value
+    return json.dumps(json_safe(message), separators=(",", ":"), allow_nan=False)
 
 
 @dataclass(frozen=True, slots=True)
@@ -245,7 +236,7 @@ class LiveChannel:
             self._loop = loop
             self._pending.clear()
 
-    def publish(self, message: dict[str, Any]) -> int | None:
+    def publish(self, message: Mapping[str, Any]) -> int | None:
         """Send ``message`` to every client; return its ``seq`` if it is replayable.
 
         Thread-safe and never blocks on a client: the text joins the pending
@@ -257,8 +248,9 @@ class LiveChannel:
             if replayable:
                 self.seq += 1
                 seq = self.seq
-                message = {**message, "seq": seq}
-                self._ring.append((seq, message))
+                numbered = {**message, "seq": seq}
+                self._ring.append((seq, numbered))
+                message = numbered
             loop = self._loop
             if loop is None:
                 return seq
@@ -350,7 +342,7 @@ def _call_soon(loop: asyncio.AbstractEventLoop, action: Callable[[], None]) -> N
         loop.call_soon_threadsafe(action)
 
 
-class LiveHub:
+class LiveFanout:
     """The live channels of every rig of a lab.
 
     Parameters
@@ -370,7 +362,7 @@ class LiveHub:
         for channel in self.channels.values():
             channel.bind(loop)
 
-    def publish(self, rig_id: str, message: dict[str, Any]) -> None:
+    def publish(self, rig_id: str, message: Mapping[str, Any]) -> None:
         """Publish on a rig's channel (unknown rigs are ignored)."""
         channel = self.channels.get(rig_id)
         if channel is not None:

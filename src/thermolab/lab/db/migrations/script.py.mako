@@ -10,7 +10,7 @@ from __future__ import annotations
 import sqlalchemy as sa
 from alembic import op
 
-import thermolab.lab.models
+import thermolab.lab.db.models
 
 ${imports if imports else ""}
 revision: str = ${repr(up_revision)}

@@ -1,18 +1,18 @@
 """The live WebSocket ``/api/rigs/{rig}/live`` (contract: ``docs/live-protocol.md``).
 
-:class:`LiveBroadcaster` listens to the lab (access changes, runs, runner
+:class:`LiveEndpoint` listens to the lab (access changes, runs, runner
 events, idle readings), turns what it hears into the protocol's messages on
-each rig's :class:`~thermolab.lab.live.LiveChannel`, and serves the clients:
+each rig's :class:`~thermolab.lab.fanout.LiveChannel`, and serves the clients:
 ``hello``, the replay of what a reconnecting client missed (from memory, or
 the current run's samples from the store when memory no longer has them),
 then the live messages. A client's ``ping`` keeps its control or queue place
 alive and is answered with ``pong``.
 
-A connection lives as long as the login it was opened with: when logins end
-(logout, a password change, an account removed — the app calls
-:meth:`LiveBroadcaster.sessions_changed`) and every few seconds in any case (an
-account removed from the command line, a login past its lifetime), the
-clients whose login is gone are closed with 4401.
+A connection lives as long as the login it was opened with: the lab
+announces every login it ends (logout, expiry, a password change, an account
+removed) as a :class:`~thermolab.lab.users.LoginsEnded` event, and those
+clients are closed with 4401 at once; a check every few seconds catches
+logins ended by another process (an account removed from the command line).
 """
 
 from __future__ import annotations
@@ -23,31 +23,40 @@ import json
 import logging
 from collections.abc import Callable, Collection
 from datetime import datetime, timedelta
-from typing import Any
+from typing import Any, Literal
 
 import anyio.to_thread
 from sqlalchemy import select
 from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
 
 from thermolab.lab.access import RigSnapshot
-from thermolab.lab.api import COOKIE_NAME
-from thermolab.lab.live import (
+from thermolab.lab.db.models import LoginSession, Role
+from thermolab.lab.fanout import (
     CLOSE_TOO_BIG,
     CLOSE_UNAUTHORIZED,
     CLOSE_UNKNOWN_RIG,
     MAX_CLIENT_MESSAGE,
     LiveClient,
-    LiveHub,
+    LiveFanout,
     encode,
 )
-from thermolab.lab.models import LoginSession, Role
+from thermolab.lab.http.deps import COOKIE_NAME
+from thermolab.lab.http.live_messages import (
+    AccessMessage,
+    ErrorMessage,
+    EstimateMessage,
+    HelloMessage,
+    RunMessage,
+    SampleMessage,
+    StateMessage,
+)
+from thermolab.lab.http.schemas import RigOut, RunOut
 from thermolab.lab.runs import RunRecord
-from thermolab.lab.schemas import RigOut, RunOut
 from thermolab.lab.service import Lab
 from thermolab.lab.users import Principal
 from thermolab.runner import EstimateEvent, Event, SampleEvent
 
-__all__ = ["LiveBroadcaster"]
+__all__ = ["LiveEndpoint"]
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +69,7 @@ def _dump(model: RigOut | RunOut) -> dict[str, Any]:
     return model.model_dump(mode="json", by_alias=True)
 
 
-class LiveBroadcaster:
+class LiveEndpoint:
     """The lab's live stream: a :class:`~thermolab.lab.service.LabListener` and the endpoint.
 
     Parameters
@@ -72,8 +81,9 @@ class LiveBroadcaster:
     client_queue : int
         Messages a client may have waiting before it is cut as too slow.
     session_check : float or None
-        Seconds between checks that every client's login still exists
-        (``None``: only when :meth:`sessions_changed` says so).
+        Seconds between checks that every client's login still exists, for
+        logins ended by another process (``thermolab user remove``); logins
+        this lab ends arrive at once as :attr:`Lab.logins_ended` events.
     """
 
     def __init__(
@@ -85,7 +95,7 @@ class LiveBroadcaster:
         session_check: float | None = 5.0,
     ) -> None:
         self.lab = lab
-        self.hub = LiveHub([rig.id for rig in lab.config.rigs])
+        self.hub = LiveFanout([rig.id for rig in lab.config.rigs])
         self._access_delay = access_delay
         self._client_queue = client_queue
         self._session_check = session_check
@@ -94,6 +104,7 @@ class LiveBroadcaster:
         self._checking: asyncio.Task[None] | None = None
         self._check_again = False
         self._watchdog: asyncio.Task[None] | None = None
+        lab.logins_ended.subscribe(self.logins_ended)
 
     # -- the lab's side (worker threads) ---------------------------------------------------
 
@@ -103,54 +114,63 @@ class LiveBroadcaster:
 
     def run_changed(self, rig_id: str, event: str, record: RunRecord) -> None:
         """Publish ``run`` (started / ended)."""
-        self.hub.publish(rig_id, {"type": "run", "event": event, "run": _dump(RunOut.of(record))})
+        kind: Literal["started", "ended"] = "started" if event == "started" else "ended"
+        message: RunMessage = {"type": "run", "event": kind, "run": _dump(RunOut.of(record))}
+        self.hub.publish(rig_id, message)
 
     def run_event(self, rig_id: str, run_id: int, event: Event) -> None:
         """Publish a run's samples and estimates."""
         if isinstance(event, SampleEvent):
-            self.hub.publish(
-                rig_id,
-                {
-                    "type": "sample",
-                    "run": run_id,
-                    "k": event.k,
-                    "t": event.t,
-                    "u": event.u,
-                    "y": event.y,
-                },
-            )
+            sample: SampleMessage = {
+                "type": "sample",
+                "run": run_id,
+                "k": event.k,
+                "t": event.t,
+                "u": event.u,
+                "y": event.y,
+            }
+            self.hub.publish(rig_id, sample)
         elif isinstance(event, EstimateEvent):
             estimate = event.estimate.to_dict()
-            self.hub.publish(
-                rig_id,
-                {
-                    "type": "estimate",
-                    "run": run_id,
-                    "method": event.method,
-                    "k": event.k,
-                    "K": estimate.get("K"),
-                    "tau": estimate.get("tau"),
-                    "W": estimate.get("W"),
-                    "valid": estimate.get("valid"),
-                    "final": event.final,
-                    # Why there is no model (not excited yet, unstable a, ...), else null.
-                    "reason": (estimate.get("extras") or {}).get("reason"),
-                },
-            )
+            message: EstimateMessage = {
+                "type": "estimate",
+                "run": run_id,
+                "method": event.method,
+                "k": event.k,
+                "K": estimate.get("K"),
+                "tau": estimate.get("tau"),
+                "W": estimate.get("W"),
+                "valid": estimate.get("valid"),
+                "final": event.final,
+                # Why there is no model (not excited yet, unstable a, ...), else null.
+                "reason": (estimate.get("extras") or {}).get("reason"),
+            }
+            self.hub.publish(rig_id, message)
 
     def reading(self, rig_id: str, u: float | None, y: float, at: datetime) -> None:
         """Publish an idle-monitoring sample (no run: ``run`` and ``k`` are null)."""
-        self.hub.publish(
-            rig_id, {"type": "sample", "run": None, "k": None, "t": at.timestamp(), "u": u, "y": y}
-        )
+        sample: SampleMessage = {
+            "type": "sample",
+            "run": None,
+            "k": None,
+            "t": at.timestamp(),
+            "u": u,
+            "y": y,
+        }
+        self.hub.publish(rig_id, sample)
 
     # -- the event loop's side --------------------------------------------------------------
 
-    def sessions_changed(self) -> None:
-        """Logins may have ended: close the connections whose login is gone (any thread)."""
+    def logins_ended(self, session_ids: frozenset[int]) -> None:
+        """Close the connections of logins that ended (any thread)."""
         loop = self.hub.loop
         if loop is not None and not loop.is_closed():
-            loop.call_soon_threadsafe(self._check_sessions)
+            loop.call_soon_threadsafe(self._close_logins, session_ids)
+
+    def _close_logins(self, session_ids: frozenset[int]) -> None:
+        for client in self.hub.clients():
+            if client.key.session_id in session_ids:
+                client.close(CLOSE_UNAUTHORIZED, "your session has ended; log in again")
 
     def bind(self, loop: asyncio.AbstractEventLoop | None) -> None:
         """Serve clients on ``loop`` (``None`` when the server stops; call in the loop)."""
@@ -225,13 +245,15 @@ class LiveBroadcaster:
                 if key not in texts:
                     view = self.lab.access.render(snap, client.key, watchers)
                     access = _dump(RigOut.of(view))["access"]
-                    texts[key] = encode({"type": "access", "access": access})
+                    message: AccessMessage = {"type": "access", "access": access}
+                    texts[key] = encode(message)
             return (system.state, system.fault), texts
 
         state, texts = await anyio.to_thread.run_sync(render)
         if self._states.get(rig_id) != state:
             self._states[rig_id] = state
-            channel.publish({"type": "state", "state": state[0], "detail": state[1]})
+            changed: StateMessage = {"type": "state", "state": state[0], "detail": state[1]}
+            channel.publish(changed)
         for client in clients:
             client.offer(texts[_viewpoint(snap, client.key)])
 
@@ -279,9 +301,14 @@ class LiveBroadcaster:
         if run_id is not None:
             record = await anyio.to_thread.run_sync(self.lab.runs.record, run_id)
             run = _dump(RunOut.of(record))
-        await websocket.send_text(
-            encode({"type": "hello", "rig": rig, "access": rig["access"], "run": run, "seq": seq})
-        )
+        hello: HelloMessage = {
+            "type": "hello",
+            "rig": rig,
+            "access": rig["access"],
+            "run": run,
+            "seq": seq,
+        }
+        await websocket.send_text(encode(hello))
 
     async def _replay(self, websocket: WebSocket, rig_id: str, since: int, upto: int) -> None:
         channel = self.hub.channels[rig_id]
@@ -361,7 +388,8 @@ async def _serve(
                 await anyio.to_thread.run_sync(on_ping)
                 client.offer('{"type":"pong"}')
             else:
-                client.offer(encode({"type": "error", "detail": kind}))
+                error: ErrorMessage = {"type": "error", "detail": kind}
+                client.offer(encode(error))
 
     # The client being cut ends the connection at once, even while a send waits for a
     # stalled socket to drain (the send is abandoned; nothing of it was written).

@@ -35,7 +35,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from sqlalchemy.pool import ConnectionPoolEntry
 
 from thermolab.errors import ConfigError, NotFoundError
-from thermolab.lab.models import Rig
+from thermolab.lab.db.models import RigRow
 
 __all__ = ["MIGRATIONS_DIR", "Database", "normalize_database_url"]
 
@@ -168,7 +168,7 @@ class Database:
         with self._sqlite_writer, self._writer() as session, session.begin():
             yield session
 
-    def lock_rig(self, session: Session, rig_id: str) -> Rig:
+    def lock_rig(self, session: Session, rig_id: str) -> RigRow:
         """Lock and return a rig's row for the rest of a :meth:`write` transaction.
 
         On PostgreSQL this is ``SELECT ... FOR UPDATE``: every transaction that
@@ -181,7 +181,9 @@ class Database:
         NotFoundError
             If there is no such rig.
         """
-        rig = session.scalars(select(Rig).where(Rig.id == rig_id).with_for_update()).one_or_none()
+        rig = session.scalars(
+            select(RigRow).where(RigRow.id == rig_id).with_for_update()
+        ).one_or_none()
         if rig is None:
             raise NotFoundError(f"no rig called {rig_id!r}")
         return rig

@@ -15,7 +15,7 @@ from pydantic.alias_generators import to_camel
 from pydantic_core import PydanticCustomError
 
 from thermolab.lab.access import QueueSlot, RigView
-from thermolab.lab.models import ControlSession
+from thermolab.lab.db.models import ControlSession
 from thermolab.lab.presence import Watcher
 from thermolab.lab.runs import MAX_DT, MAX_SAMPLES, MIN_DT, OFFSET_MODES, RunRecord, RunRequest
 from thermolab.lab.service import InputResult
@@ -62,9 +62,10 @@ class _Out(BaseModel):
 
 
 class ErrorOut(_Out):
-    """Every 4xx answer: ``detail`` says what was wrong and what is allowed."""
+    """Every 4xx answer: ``detail`` says what was wrong and what is allowed; ``code`` is stable."""
 
     detail: str
+    code: str
 
 
 class ValidationErrorOut(_Out):
@@ -322,7 +323,12 @@ class RunIn(_In):
 
     dt: Annotated[
         float,
-        Field(ge=MIN_DT, le=MAX_DT, allow_inf_nan=False, description="sample period, s"),
+        # Published here, checked once by thermolab.lab.runs.request.check_request.
+        Field(
+            allow_inf_nan=False,
+            json_schema_extra={"minimum": MIN_DT, "maximum": MAX_DT},
+            description="sample period, s",
+        ),
     ]
     samples: Annotated[int, Field(ge=1, le=MAX_SAMPLES, description="samples to take")]
     signal: Annotated[

@@ -1,0 +1,285 @@
+"""What a rig's access state looks like: snapshots read in one transaction, and each user's view.
+
+Pure presentation: :func:`render_access` and :func:`state_name` read a
+:class:`RigSnapshot` and the time; they change nothing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from datetime import datetime, timedelta
+from typing import Literal, Protocol
+
+from thermolab.lab.access.rules import Turn, TurnState, Waiting
+from thermolab.lab.config import RigConfig
+from thermolab.lab.db.models import PowerState
+from thermolab.lab.devices import PublishedRig
+from thermolab.lab.presence import Watcher
+from thermolab.lab.users import Principal
+
+__all__ = [
+    "AccessRole",
+    "AccessView",
+    "CommandRecord",
+    "ControlRecord",
+    "QueueSlot",
+    "RigMonitor",
+    "RigSnapshot",
+    "RigStateName",
+    "RigView",
+    "render_access",
+    "render_view",
+    "state_name",
+]
+
+AccessRole = Literal["controller", "queued", "watcher"]
+RigStateName = Literal["off", "starting", "free", "in_use", "cooldown", "fault", "out_of_service"]
+
+
+class RigMonitor(Protocol):
+    """What the access model needs to know of a live rig (the hub provides it)."""
+
+    def published(self, rig_id: str) -> PublishedRig:
+        """The rig's input range, units and safe input."""
+        ...
+
+    def reading(self, rig_id: str) -> tuple[float, datetime] | None:
+        """The latest reading of the rig's output and when it was taken, if any."""
+        ...
+
+
+@dataclass(frozen=True, slots=True)
+class ControlRecord:
+    """The active control session of a rig."""
+
+    id: int
+    user_id: int | None
+    username: str
+    started_at: datetime
+    deadline: datetime
+    last_heartbeat_at: datetime
+    last_activity_at: datetime
+
+
+@dataclass(frozen=True, slots=True)
+class QueueSlot:
+    """A user waiting for a rig (``position`` counts from 1)."""
+
+    user_id: int
+    username: str
+    ticket: int
+    position: int
+    joined_at: datetime
+    last_heartbeat_at: datetime
+
+
+@dataclass(frozen=True, slots=True)
+class RigSnapshot:
+    """A rig's access state, read in one transaction."""
+
+    id: str
+    title: str
+    in_service: bool
+    power: PowerState
+    fault: str | None
+    needs_cooldown: bool
+    cooling_since: datetime | None
+    vacant_since: datetime | None
+    ambient_output: float | None
+    controller: ControlRecord | None
+    queue: tuple[QueueSlot, ...]
+    run_active: bool
+    last_input: float | None
+
+    def turn_state(self) -> TurnState:
+        """The part of the snapshot the turn rules read."""
+        c = self.controller
+        return TurnState(
+            in_service=self.in_service,
+            faulted=self.fault is not None,
+            power=self.power,
+            needs_cooldown=self.needs_cooldown,
+            cooling_since=self.cooling_since,
+            vacant_since=self.vacant_since,
+            ambient_output=self.ambient_output,
+            turn=None
+            if c is None
+            else Turn(c.user_id, c.started_at, c.deadline, c.last_heartbeat_at, c.last_activity_at),
+            queue=tuple(Waiting(s.user_id, s.last_heartbeat_at) for s in self.queue),
+            run_active=self.run_active,
+        )
+
+    def slot_of(self, user_id: int) -> QueueSlot | None:
+        """Return the queue slot of ``user_id``, if queued."""
+        for slot in self.queue:
+            if slot.user_id == user_id:
+                return slot
+        return None
+
+
+@dataclass(frozen=True, slots=True)
+class AccessView:
+    """A rig's access state as one user sees it (the Go-Lab Smart Device names).
+
+    Attributes
+    ----------
+    role : {"controller", "queued", "watcher"}
+    queue_size : int
+        Users waiting.
+    queue_position : int or None
+        The caller's place in the queue (1 = next), if queued.
+    estimated_time_until_control : float or None
+        Seconds until the caller would control the rig: 0 for the controller;
+        for a queued user, an upper bound assuming everyone ahead uses their
+        full time (and cool-down); for a watcher, the same bound if they asked
+        now. ``None`` when the rig cannot be controlled (fault, out of service).
+    time_left : float or None
+        The controller's seconds until the time limit, shown to everyone (it
+        tells watchers and the queue when the rig changes hands); ``None``
+        when nobody controls the rig.
+    idle_time_left : float or None
+        The controller's seconds until the idle limit, for the controller only
+        (``None`` otherwise, or if no idle limit applies).
+    controller : str or None
+        Who controls the rig.
+    watchers : int
+        How many users watch the rig.
+    """
+
+    role: AccessRole
+    queue_size: int
+    queue_position: int | None
+    estimated_time_until_control: float | None
+    time_left: float | None
+    idle_time_left: float | None
+    controller: str | None
+    watchers: int
+
+
+@dataclass(frozen=True, slots=True)
+class RigView:
+    """A rig as one user sees it: state, limits and access.
+
+    ``queue`` and ``watcher_list`` are filled for teachers only.
+    """
+
+    id: str
+    title: str
+    kind: str
+    state: RigStateName
+    in_service: bool
+    fault: str | None
+    published: PublishedRig
+    last_input: float | None
+    config: RigConfig
+    client_timeout: float
+    access: AccessView
+    queue: tuple[QueueSlot, ...] | None = None
+    watcher_list: tuple[Watcher, ...] | None = None
+    snapshot: RigSnapshot | None = field(default=None, repr=False)
+
+
+@dataclass(frozen=True, slots=True)
+class CommandRecord:
+    """An input command accepted from a controller."""
+
+    id: int
+    rig_id: str
+    control_session: int
+    u: float
+    at: datetime
+
+
+def state_name(snap: RigSnapshot) -> RigStateName:
+    """The rig's state as the API names it."""
+    if not snap.in_service:
+        return "out_of_service"
+    if snap.fault is not None:
+        return "fault"
+    if snap.power is PowerState.COOLING:
+        return "cooldown"
+    if snap.controller is not None:
+        return "in_use"
+    if snap.power is PowerState.OFF:
+        return "off"
+    return "free"
+
+
+def render_access(
+    snap: RigSnapshot, cfg: RigConfig, who: Principal, now: datetime, watchers: int
+) -> AccessView:
+    """The access part of the rig as ``who`` sees it at ``now``."""
+    c = snap.controller
+    controllable = snap.in_service and snap.fault is None
+    controller_name = c.username if c is not None else None
+    if c is not None and c.user_id == who.user_id:
+        idle_left = None
+        if cfg.idle_limit is not None and not snap.run_active:
+            idle_left = _seconds_until(c.last_activity_at + timedelta(seconds=cfg.idle_limit), now)
+        return AccessView(
+            role="controller",
+            queue_size=len(snap.queue),
+            queue_position=None,
+            estimated_time_until_control=0.0,
+            time_left=_seconds_until(c.deadline, now),
+            idle_time_left=idle_left,
+            controller=controller_name,
+            watchers=watchers,
+        )
+    slot = snap.slot_of(who.user_id)
+    position = slot.position if slot is not None else len(snap.queue) + 1
+    eta = _eta(snap, cfg, position, now) if controllable else None
+    return AccessView(
+        role="queued" if slot is not None else "watcher",
+        queue_size=len(snap.queue),
+        queue_position=slot.position if slot is not None else None,
+        estimated_time_until_control=eta,
+        time_left=None if c is None else _seconds_until(c.deadline, now),
+        idle_time_left=None,
+        controller=controller_name,
+        watchers=watchers,
+    )
+
+
+def _eta(snap: RigSnapshot, cfg: RigConfig, position: int, now: datetime) -> float:
+    """Upper bound on the wait of queue place ``position``: every turn ahead runs in full."""
+    cooldown = cfg.cooldown.max_seconds if cfg.cooldown.enabled else 0.0
+    if snap.controller is not None:
+        first = _seconds_until(snap.controller.deadline, now) + cooldown
+    elif snap.power is PowerState.COOLING and snap.cooling_since is not None:
+        first = max(0.0, cooldown - (now - snap.cooling_since).total_seconds())
+    else:
+        first = 0.0
+    return first + (position - 1) * (cfg.control_time_limit + cooldown)
+
+
+def _seconds_until(instant: datetime, now: datetime) -> float:
+    return max(0.0, (instant - now).total_seconds())
+
+
+def render_view(
+    snap: RigSnapshot,
+    cfg: RigConfig,
+    who: Principal,
+    now: datetime,
+    watchers: list[Watcher],
+    published: PublishedRig,
+    client_timeout: timedelta,
+) -> RigView:
+    """The rig as ``who`` sees it at ``now`` (queue and watchers for teachers only)."""
+    return RigView(
+        id=snap.id,
+        title=snap.title,
+        kind=cfg.kind,
+        state=state_name(snap),
+        in_service=snap.in_service,
+        fault=snap.fault,
+        published=published,
+        last_input=snap.last_input,
+        config=cfg,
+        client_timeout=client_timeout.total_seconds(),
+        access=render_access(snap, cfg, who, now, len(watchers)),
+        queue=snap.queue if who.is_teacher else None,
+        watcher_list=tuple(watchers) if who.is_teacher else None,
+        snapshot=snap,
+    )

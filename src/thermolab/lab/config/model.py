@@ -1,0 +1,352 @@
+"""The lab's configuration: which rigs it serves, their limits, the access policy.
+
+A lab runs with no configuration file at all (one digital twin, a SQLite
+database in the data folder). A TOML file declares more::
+
+    title = "Control lab, room 2.14"
+    database_url = "postgresql+psycopg://lab@db.example/thermolab"   # optional
+    speedup = 1.0            # twin rigs run this many times faster than real time
+
+    [access]                 # lab-wide policy (every key optional)
+    client_timeout = 15      # s without contact before a controller's client counts as gone
+    session_lifetime = 43200 # s a login lasts at most
+    session_idle_timeout = 7200
+    login_failures_per_user = 5
+    login_attempts_per_address = 30
+    login_window = 60        # s over which the two limits above count
+    cookie_samesite = "strict"   # or "lax"
+    cookie_secure = "auto"       # "auto" (when the request is https), "always", "never"
+    max_body_bytes = 65536
+
+    [rig_defaults]           # limits every rig inherits unless it sets its own
+    control_time_limit = 300 # s of control per turn
+    idle_limit = 120         # s without a command before control ends (0: never)
+    power_off_grace = 60     # s a free rig with an empty queue stays powered
+
+    [[rigs]]
+    id = "twin-1"
+    title = "Digital twin of the paper's box"
+    spec = "sim"             # sim, sim:PRESET (paper, paper-practical, tclab), tclab, tclab:PORT
+    input_range = [0, 10]    # optional, narrows the rig's published range
+    cooldown = { mode = "ambient", tolerance = 0.05, max_seconds = 900, input = -10 }
+
+Every key is checked; an error names the key, what was wrong and what is
+allowed (:class:`~thermolab.errors.ConfigError`).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Literal
+
+import platformdirs
+
+from thermolab.errors import ConfigError, NotFoundError
+
+__all__ = [
+    "DATABASE_FILE",
+    "RIG_ID",
+    "AccessPolicy",
+    "CooldownPolicy",
+    "LabConfig",
+    "RigConfig",
+    "check_number",
+    "check_speedup",
+    "default_config",
+    "default_database_url",
+    "describe_value",
+    "resolve_data_dir",
+]
+
+RIG_ID = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
+DATABASE_FILE = "thermolab.sqlite3"
+
+
+@dataclass(frozen=True, slots=True)
+class CooldownPolicy:
+    """Whether a rig is cooled back to ambient before the next controller starts.
+
+    Attributes
+    ----------
+    mode : {"none", "ambient"}
+        ``"ambient"``: after a turn ends, the rig is held at ``input`` until its
+        output is within ``tolerance`` of ambient (the step method needs a cold
+        start), at most ``max_seconds``.
+    tolerance : float
+        How close to ambient counts as cold, in the rig's output unit.
+    max_seconds : float
+        Longest cool-down; after it the next controller starts anyway.
+    input : float or None
+        Input held during the cool-down (a fan: negative volts); ``None`` is
+        the rig's safe input.
+    ambient : float or None
+        The ambient output; ``None`` takes the first reading after the lab
+        powers the rig on from its safe state.
+
+    Examples
+    --------
+    >>> CooldownPolicy().mode
+    'none'
+    """
+
+    mode: Literal["none", "ambient"] = "none"
+    tolerance: float = 0.5
+    max_seconds: float = 1800.0
+    input: float | None = None
+    ambient: float | None = None
+
+    @property
+    def enabled(self) -> bool:
+        """``True`` when the rig cools down between turns."""
+        return self.mode == "ambient"
+
+
+@dataclass(frozen=True, slots=True)
+class AccessPolicy:
+    """Lab-wide rules for sessions, logins and requests.
+
+    Attributes
+    ----------
+    client_timeout : float
+        Seconds without contact after which a controller (or a queued user)
+        counts as gone.
+    session_lifetime : float
+        Seconds a login lasts at most.
+    session_idle_timeout : float
+        Seconds without any request after which a login expires.
+    login_failures_per_user : int
+        Failed logins per user name within ``login_window`` before 429.
+    login_attempts_per_address : int
+        Login attempts per client address within ``login_window`` before 429.
+    login_window : float
+        Seconds over which the two login limits count.
+    cookie_samesite : {"strict", "lax"}
+        SameSite attribute of the session cookie.
+    cookie_secure : {"auto", "always", "never"}
+        Secure attribute: ``"auto"`` sets it when the request came over https.
+    max_body_bytes : int
+        Largest request body accepted (413 beyond).
+
+    Examples
+    --------
+    >>> AccessPolicy().client_timeout
+    15.0
+    """
+
+    client_timeout: float = 15.0
+    session_lifetime: float = 12 * 3600.0
+    session_idle_timeout: float = 2 * 3600.0
+    login_failures_per_user: int = 5
+    login_attempts_per_address: int = 30
+    login_window: float = 60.0
+    cookie_samesite: Literal["strict", "lax"] = "strict"
+    cookie_secure: Literal["auto", "always", "never"] = "auto"
+    max_body_bytes: int = 64 * 1024
+
+
+@dataclass(frozen=True, slots=True)
+class RigConfig:
+    """One rig the lab serves.
+
+    Attributes
+    ----------
+    id : str
+        Short name used in URLs (lower case letters, digits, ``-``, ``_``).
+    title : str
+        Human-readable name.
+    spec : str
+        What the rig is: ``sim`` (digital twin of the paper's box),
+        ``sim:PRESET`` (another twin preset, e.g. ``sim:tclab``), ``tclab``
+        (a TCLab kit, found automatically) or ``tclab:PORT`` (a kit on that port).
+    input_range : tuple of float or None
+        Narrows the rig's published input range; ``None`` keeps it.
+    control_time_limit : float
+        Seconds of control per turn.
+    idle_limit : float or None
+        Seconds without a command after which control ends; ``None``: never.
+    power_off_grace : float
+        Seconds a rig with no controller and an empty queue stays powered.
+    cooldown : CooldownPolicy
+        Cool-down between turns.
+    camera : str or None
+        Camera of a real rig (URL or device); ``None`` draws the twin's state.
+
+    Examples
+    --------
+    >>> RigConfig("twin", "Digital twin", "sim").control_time_limit
+    300.0
+    """
+
+    id: str
+    title: str
+    spec: str
+    input_range: tuple[float, float] | None = None
+    control_time_limit: float = 300.0
+    idle_limit: float | None = 120.0
+    power_off_grace: float = 60.0
+    cooldown: CooldownPolicy = field(default_factory=CooldownPolicy)
+    camera: str | None = None
+
+    @property
+    def kind(self) -> str:
+        """``"sim"`` or ``"tclab"`` (the part of ``spec`` before the colon)."""
+        # Imported here: the spec grammar reads this module's RigConfig.
+        from thermolab.lab.config.rig_kinds import parse_rig_spec
+
+        return parse_rig_spec(self.spec)[0]
+
+
+@dataclass(frozen=True, slots=True)
+class LabConfig:
+    """Everything ``thermolab serve`` needs to start a lab.
+
+    Attributes
+    ----------
+    data_dir : Path
+        Folder for the SQLite database and run records.
+    rigs : tuple of RigConfig
+        The rigs, in display order (ids unique).
+    access : AccessPolicy
+        Lab-wide rules.
+    database_url : str or None
+        SQLAlchemy URL; ``None`` is SQLite in ``data_dir``.
+    speedup : float
+        Twin rigs run this many times faster than real time.
+    title : str
+        Name of the lab shown to users.
+
+    Examples
+    --------
+    >>> config = default_config(Path("/tmp/lab"))
+    >>> [rig.id for rig in config.rigs], config.database
+    (['twin'], 'sqlite:////tmp/lab/thermolab.sqlite3')
+    """
+
+    data_dir: Path
+    rigs: tuple[RigConfig, ...]
+    access: AccessPolicy = field(default_factory=AccessPolicy)
+    database_url: str | None = None
+    speedup: float = 1.0
+    title: str = "ThermoLab"
+
+    def __post_init__(self) -> None:
+        ids = [rig.id for rig in self.rigs]
+        if not ids:
+            raise ConfigError("a lab needs at least one rig")
+        duplicates = sorted({i for i in ids if ids.count(i) > 1})
+        if duplicates:
+            raise ConfigError(f"rig ids must be unique; repeated: {', '.join(duplicates)}")
+
+    @property
+    def database(self) -> str:
+        """The database URL in use (the SQLite default when none was given)."""
+        return self.database_url or default_database_url(self.data_dir)
+
+    def rig(self, rig_id: str) -> RigConfig:
+        """Return the rig called ``rig_id``.
+
+        Raises
+        ------
+        NotFoundError
+            If there is no such rig (the message lists the rigs there are).
+        """
+        for rig in self.rigs:
+            if rig.id == rig_id:
+                return rig
+        known = ", ".join(rig.id for rig in self.rigs)
+        raise NotFoundError(f"no rig called {rig_id!r}; the lab has: {known}")
+
+    def with_overrides(
+        self, *, database_url: str | None = None, speedup: float | None = None
+    ) -> LabConfig:
+        """Return a copy with command-line overrides applied (``None`` keeps a value).
+
+        Raises
+        ------
+        ConfigError
+            If ``speedup`` is not a positive finite number.
+        """
+        if speedup is not None:
+            check_speedup(speedup, "--speedup")
+        return replace(
+            self,
+            database_url=database_url if database_url is not None else self.database_url,
+            speedup=speedup if speedup is not None else self.speedup,
+        )
+
+
+def resolve_data_dir(data_dir: str | os.PathLike[str] | None = None) -> Path:
+    """Return the data folder: the argument, else ``$THERMOLAB_DATA_DIR``, else a per-user one.
+
+    Parameters
+    ----------
+    data_dir : path-like, optional
+        The ``--data-dir`` given on the command line.
+
+    Returns
+    -------
+    Path
+        An absolute path (not created here).
+
+    Examples
+    --------
+    >>> resolve_data_dir("/srv/lab")
+    PosixPath('/srv/lab')
+    """
+    if data_dir is not None:
+        return Path(data_dir).expanduser().resolve()
+    env = os.environ.get("THERMOLAB_DATA_DIR")
+    if env:
+        return Path(env).expanduser().resolve()
+    return Path(platformdirs.user_data_dir("thermolab", appauthor=False)).resolve()
+
+
+def default_database_url(data_dir: Path) -> str:
+    """Return the SQLite URL of the database file in ``data_dir``.
+
+    Examples
+    --------
+    >>> default_database_url(Path("/srv/lab"))
+    'sqlite:////srv/lab/thermolab.sqlite3'
+    """
+    return f"sqlite:///{data_dir / DATABASE_FILE}"
+
+
+def default_config(data_dir: Path) -> LabConfig:
+    """Return the configuration of a lab started without a file: one digital twin.
+
+    Examples
+    --------
+    >>> default_config(Path("/srv/lab")).rigs[0].spec
+    'sim'
+    """
+    return LabConfig(
+        data_dir=data_dir,
+        rigs=(RigConfig("twin", "Digital twin of the paper's box", "sim"),),
+    )
+
+
+def describe_value(value: object) -> str:
+    """A value with its TOML type, for error messages."""
+    return f"{type(value).__name__} {value!r}"
+
+
+def check_number(value: object, key: str, *, minimum: float = 0.0, strict: bool = True) -> float:
+    """``value`` as a finite float above ``minimum`` (at or above, unless ``strict``)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ConfigError(f"{key}: expected a number, got {describe_value(value)}")
+    number = float(value)
+    ok = math.isfinite(number) and (number > minimum if strict else number >= minimum)
+    if not ok:
+        bound = f"> {minimum:g}" if strict else f">= {minimum:g}"
+        raise ConfigError(f"{key}: expected a finite number {bound}, got {value!r}")
+    return number
+
+
+def check_speedup(value: float, key: str) -> float:
+    """A twin speed-up factor: a positive finite number."""
+    return check_number(value, key, minimum=0.0, strict=True)

@@ -1,0 +1,136 @@
+"""The lab's web application: :func:`create_app`.
+
+The app serves the JSON API under ``/api`` (documented at ``/openapi.json``
+and ``/docs``) and, when given a folder, the browser interface at ``/``. It
+does not import :mod:`thermolab.web`: ``thermolab serve`` hands the folder in.
+
+Every 4xx answer is JSON with a ``detail`` sentence naming the problem. The
+lab's exceptions map to status codes as follows: not logged in or wrong
+password 401, not allowed 403, unknown rig/user/path 404, clash with the
+current state 409, bad value 422, too many logins 429 (with Retry-After);
+a body over the configured size is refused with 413 before it is read in full.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import AsyncIterator
+from pathlib import Path
+
+import anyio.to_thread
+from fastapi import FastAPI
+from fastapi.staticfiles import StaticFiles
+
+from thermolab import __version__
+from thermolab.lab.config import LabConfig
+from thermolab.lab.devices import device_opener
+from thermolab.lab.http.errors import install_error_handlers
+from thermolab.lab.http.limits import BodyLimit
+from thermolab.lab.http.live_socket import LiveEndpoint
+from thermolab.lab.http.routers import api_router
+from thermolab.lab.service import Lab
+
+__all__ = ["create_app"]
+
+log = logging.getLogger(__name__)
+
+
+def create_app(
+    config: LabConfig,
+    static_dir: Path | None = None,
+    *,
+    lab: Lab | None = None,
+    close_lab: bool | None = None,
+    sweep_interval: float | None = 1.0,
+) -> FastAPI:
+    """Build the lab's ASGI application.
+
+    Parameters
+    ----------
+    config : LabConfig
+        The lab's configuration.
+    static_dir : Path, optional
+        Folder of the browser interface, served at ``/``.
+    lab : Lab, optional
+        A lab built by the caller (tests inject a clock, a cheap password
+        hasher, rig drivers); by default one is built from ``config``, with the
+        rigs opened by :func:`thermolab.rigs.open_rig`. The app starts it
+        (migrations, safe state) when it starts.
+    close_lab : bool, optional
+        Close the lab when the app shuts down (runs aborted, rigs safe);
+        default: only a lab the app built itself. ``thermolab serve`` passes
+        ``True``: uvicorn re-raises SIGTERM after its shutdown, so nothing
+        after ``uvicorn.run`` would run.
+    sweep_interval : float or None
+        Seconds between sweeps of the access limits in the background;
+        ``None`` for none (tests sweep by hand).
+
+    Returns
+    -------
+    FastAPI
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from thermolab.lab.config import default_config
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     app = create_app(default_config(Path(tmp)))
+    >>> "/api/rigs/{rig_id}/control" in app.openapi()["paths"]
+    True
+    """
+    owned = lab is None if close_lab is None else close_lab
+    the_lab = lab if lab is not None else Lab(config, opener=device_opener(config.speedup))
+    live = LiveEndpoint(the_lab)
+    the_lab.add_listener(live)
+
+    @contextlib.asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        report = await anyio.to_thread.run_sync(the_lab.start)
+        app.state.startup = report
+        live.bind(asyncio.get_running_loop())
+        sweeper = (
+            asyncio.create_task(_sweep_forever(the_lab, sweep_interval))
+            if sweep_interval is not None
+            else None
+        )
+        try:
+            yield
+        finally:
+            live.bind(None)
+            if sweeper is not None:
+                sweeper.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await sweeper
+            if owned:
+                await anyio.to_thread.run_sync(the_lab.close)
+
+    app = FastAPI(
+        title=config.title,
+        version=__version__,
+        description=(
+            "ThermoLab remote laboratory: watch rigs, take turns controlling them, "
+            "identify the model of a temperature control system. Log in with "
+            "POST /api/session; every other route needs the session cookie."
+        ),
+        lifespan=lifespan,
+    )
+    app.state.lab = the_lab
+    app.state.live = live
+    app.include_router(api_router)
+    app.add_api_websocket_route("/api/rigs/{rig_id}/live", live.endpoint, name="live")
+    install_error_handlers(app)
+    if static_dir is not None:
+        app.mount("/", StaticFiles(directory=static_dir, html=True), name="web")
+    app.add_middleware(BodyLimit, max_bytes=config.access.max_body_bytes)
+    return app
+
+
+async def _sweep_forever(lab: Lab, interval: float) -> None:
+    while True:
+        await asyncio.sleep(interval)
+        try:
+            await anyio.to_thread.run_sync(lab.sweep)
+        except Exception:  # a failed sweep must not stop the next ones
+            log.exception("sweep of the access limits failed")

@@ -1,0 +1,84 @@
+"""What every route depends on: the lab, the logged-in user, path parameters, error docs.
+
+Routes are plain functions: FastAPI runs them in its thread pool, and each
+opens its own short database transactions.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import Depends, Path, Request, Security
+from fastapi.security import APIKeyCookie
+
+from thermolab.lab.http.schemas import ErrorOut, ValidationErrorOut
+from thermolab.lab.security import AuthenticationError
+from thermolab.lab.service import Lab
+from thermolab.lab.users import Principal
+
+__all__ = [
+    "AUTHENTICATED",
+    "COOKIE_NAME",
+    "LabDep",
+    "RigId",
+    "RunId",
+    "UserDep",
+    "current_user",
+    "documented_errors",
+    "get_lab",
+]
+
+COOKIE_NAME = "thermolab_session"
+
+_cookie = APIKeyCookie(
+    name=COOKIE_NAME,
+    auto_error=False,
+    description="Session cookie set by POST /api/session.",
+)
+
+
+def documented_errors(*codes: int) -> dict[int | str, dict[str, Any]]:
+    """The OpenAPI ``responses`` entry of a route that may answer ``codes``."""
+    shown: dict[int | str, dict[str, Any]] = {}
+    for code in codes:
+        model = ValidationErrorOut if code == 422 else ErrorOut
+        shown[code] = {"model": model}
+    return shown
+
+
+def get_lab(request: Request) -> Lab:
+    """Return the :class:`~thermolab.lab.service.Lab` the app serves."""
+    lab: Lab = request.app.state.lab
+    return lab
+
+
+LabDep = Annotated[Lab, Depends(get_lab)]
+
+
+def current_user(lab: LabDep, token: Annotated[str | None, Security(_cookie)]) -> Principal:
+    """Return the logged-in user of the request.
+
+    Raises
+    ------
+    AuthenticationError
+        Without a live session (HTTP 401).
+    """
+    if not token:
+        raise AuthenticationError(
+            "not logged in: POST /api/session with your user name and password"
+        )
+    principal = lab.sessions.resolve(token)
+    if principal is None:
+        raise AuthenticationError("your session has ended; log in again")
+    return principal
+
+
+UserDep = Annotated[Principal, Depends(current_user)]
+RigId = Annotated[str, Path(min_length=1, max_length=64, description="the rig's id")]
+RunId = Annotated[int, Path(ge=1, description="the run's number")]
+
+AUTHENTICATED: dict[str, Any] = {
+    "dependencies": [Depends(current_user)],
+    "responses": documented_errors(401),
+}
+"""Keyword arguments of an ``APIRouter`` whose every route needs a logged-in user."""

@@ -1,0 +1,103 @@
+"""The live protocol's server messages, typed (the contract is ``docs/live-protocol.md``).
+
+Each message the live endpoint sends is one of these ``TypedDict`` shapes: the
+type checker holds every builder to its fields, and the JSON is the dict as
+is (no per-message model object on the hot path: one sample is encoded once
+for every watcher). ``seq`` is added by the fan-out when a message is
+published.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal, TypedDict
+
+__all__ = [
+    "AccessMessage",
+    "ErrorMessage",
+    "EstimateMessage",
+    "HelloMessage",
+    "RunMessage",
+    "SampleItem",
+    "SampleMessage",
+    "SamplesMessage",
+    "StateMessage",
+]
+
+
+class SampleItem(TypedDict):
+    """One sample: of run ``run`` (``k`` its index), or of idle monitoring (both null)."""
+
+    run: int | None
+    k: int | None
+    t: float
+    u: float | None
+    y: float
+
+
+class SampleMessage(SampleItem):
+    """``sample``: every sample of a run, and of the idle monitoring of a powered rig."""
+
+    type: Literal["sample"]
+
+
+class SamplesMessage(TypedDict, total=False):
+    """``samples``: a replayed gap, in batches (``seq`` absent for samples from the store)."""
+
+    type: Literal["samples"]
+    seq: int
+    items: list[dict[str, Any]]
+
+
+class EstimateMessage(TypedDict):
+    """``estimate``: an identifier produced an estimate (``reason``: why no model, else null)."""
+
+    type: Literal["estimate"]
+    run: int
+    method: str
+    k: int
+    K: float | None
+    tau: float | None
+    W: list[float] | None
+    valid: bool | None
+    final: bool
+    reason: str | None
+
+
+class RunMessage(TypedDict):
+    """``run``: START / END / fault; ``run`` as ``GET /api/runs/{run}``."""
+
+    type: Literal["run"]
+    event: Literal["started", "ended"]
+    run: dict[str, Any]
+
+
+class AccessMessage(TypedDict):
+    """``access``: the rig's access as this client sees it."""
+
+    type: Literal["access"]
+    access: dict[str, Any]
+
+
+class StateMessage(TypedDict):
+    """``state``: the rig's state changed."""
+
+    type: Literal["state"]
+    state: str
+    detail: str | None
+
+
+class HelloMessage(TypedDict):
+    """``hello``: the first message after connecting."""
+
+    type: Literal["hello"]
+    rig: dict[str, Any]
+    access: dict[str, Any]
+    run: dict[str, Any] | None
+    seq: int
+
+
+class ErrorMessage(TypedDict):
+    """``error``: a malformed client message (the connection stays open)."""
+
+    type: Literal["error"]
+    detail: str

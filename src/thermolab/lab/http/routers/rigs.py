@@ -1,0 +1,156 @@
+"""Routes of the rigs: state, access (control, queue, heartbeat), teachers, input, camera."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Response
+
+from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, UserDep, documented_errors
+from thermolab.lab.http.schemas import (
+    ControlSessionOut,
+    ExtendIn,
+    InputIn,
+    InputOut,
+    KickIn,
+    RigOut,
+    ServiceIn,
+)
+
+__all__ = ["router"]
+
+router = APIRouter(**AUTHENTICATED)
+
+
+@router.get("/rigs", response_model=list[RigOut], tags=["rigs"], summary="All rigs")
+def list_rigs(who: UserDep, lab: LabDep) -> list[RigOut]:
+    """Every rig with its state, limits and access as the caller sees them (a glance at
+    the list is neither a heartbeat nor watching: it changes no watcher count).
+    """
+    return [RigOut.of(view) for view in lab.access.views(who)]
+
+
+@router.get(
+    "/rigs/{rig_id}",
+    response_model=RigOut,
+    tags=["rigs"],
+    summary="One rig",
+    responses=documented_errors(404),
+)
+def get_rig(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
+    """A rig as the caller sees it; counts as the caller's heartbeat for the rig (and as
+    watching it, like the live socket; listing every rig does not).
+    """
+    return RigOut.of(lab.access.view(rig_id, who))
+
+
+@router.post(
+    "/rigs/{rig_id}/control",
+    response_model=RigOut,
+    tags=["access"],
+    summary="Ask for control",
+    responses=documented_errors(404, 409),
+)
+def request_control(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
+    """Take control of a free rig or join its queue (asking again changes nothing)."""
+    return RigOut.of(lab.access.request_control(rig_id, who))
+
+
+@router.delete(
+    "/rigs/{rig_id}/control",
+    response_model=RigOut,
+    tags=["access"],
+    summary="Release control or leave the queue",
+    responses=documented_errors(404),
+)
+def release_control(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
+    """Give up control (the next in the queue gets it at once) or leave the queue."""
+    return RigOut.of(lab.access.release(rig_id, who))
+
+
+@router.post(
+    "/rigs/{rig_id}/heartbeat",
+    response_model=RigOut,
+    tags=["access"],
+    summary="I am still here",
+    responses=documented_errors(404),
+)
+def heartbeat(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
+    """Keep the caller's control or queue place alive (any request for the rig does too)."""
+    return RigOut.of(lab.access.heartbeat(rig_id, who))
+
+
+@router.post(
+    "/rigs/{rig_id}/control/extend",
+    response_model=RigOut,
+    tags=["teachers"],
+    summary="Extend or cut the controller's time",
+    responses=documented_errors(403, 404, 409, 422),
+)
+def extend_control(rig_id: RigId, body: ExtendIn, who: UserDep, lab: LabDep) -> RigOut:
+    """Move the controller's time limit by ``seconds`` (negative cuts it; teachers only)."""
+    return RigOut.of(lab.access.extend(rig_id, who, body.seconds))
+
+
+@router.post(
+    "/rigs/{rig_id}/control/kick",
+    response_model=RigOut,
+    tags=["teachers"],
+    summary="End a user's turn or queue place",
+    responses=documented_errors(403, 404, 409, 422),
+)
+def kick(rig_id: RigId, who: UserDep, lab: LabDep, body: KickIn | None = None) -> RigOut:
+    """End the controller's turn, or remove ``username`` from the queue (teachers only)."""
+    return RigOut.of(lab.access.kick(rig_id, who, body.username if body is not None else None))
+
+
+@router.put(
+    "/rigs/{rig_id}/service",
+    response_model=RigOut,
+    tags=["teachers"],
+    summary="Take a rig in or out of service",
+    responses=documented_errors(403, 404, 422),
+)
+def set_service(rig_id: RigId, body: ServiceIn, who: UserDep, lab: LabDep) -> RigOut:
+    """Out of service ends the turn and empties the queue; either way clears a fault."""
+    return RigOut.of(lab.set_service(rig_id, who, body.in_service))
+
+
+@router.put(
+    "/rigs/{rig_id}/input",
+    response_model=InputOut,
+    tags=["access"],
+    summary="Set the rig's input",
+    responses=documented_errors(403, 404, 422),
+)
+def set_input(rig_id: RigId, body: InputIn, who: UserDep, lab: LabDep) -> InputOut:
+    """Set the input (controller only); ``u`` must be inside the rig's published range."""
+    return InputOut.of(lab.apply_input(rig_id, who, body.u))
+
+
+@router.get(
+    "/rigs/{rig_id}/control-sessions",
+    response_model=list[ControlSessionOut],
+    tags=["access"],
+    summary="Who controlled the rig, and how each turn ended",
+    responses=documented_errors(404),
+)
+def control_history(rig_id: RigId, who: UserDep, lab: LabDep) -> list[ControlSessionOut]:
+    """Turns at the rig, newest first: all of them for teachers, the caller's own otherwise."""
+    lab.config.rig(rig_id)
+    rows = lab.access.history(rig_id, None if who.is_teacher else who.user_id)
+    return [ControlSessionOut.of(row) for row in rows]
+
+
+@router.get(
+    "/rigs/{rig_id}/camera",
+    tags=["rigs"],
+    summary="The rig's live image",
+    response_class=Response,
+    responses={200: {"content": {"image/jpeg": {}}}, **documented_errors(404, 503)},
+)
+def camera(rig_id: RigId, who: UserDep, lab: LabDep) -> Response:
+    """The current image (JPEG): the rig's camera, or for a twin its state drawn (lamp glow
+    with the heating power, fan with the cooling, the output).
+    """
+    image = lab.camera(rig_id)
+    lab.presence.touch(rig_id, who.username)  # looking at the rig is watching it
+    return Response(image, media_type="image/jpeg", headers={"Cache-Control": "no-store"})

@@ -1,0 +1,89 @@
+"""Routes of the login session: ``/api/session`` (log in, who am I, log out)."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Request, Response, status
+
+from thermolab.lab.http.deps import (
+    AUTHENTICATED,
+    COOKIE_NAME,
+    LabDep,
+    UserDep,
+    documented_errors,
+)
+from thermolab.lab.http.schemas import CredentialsIn, SessionOut
+from thermolab.lab.security import AuthenticationError
+
+__all__ = ["router"]
+
+router = APIRouter()
+_authed = AUTHENTICATED
+
+
+@router.post(
+    "/session",
+    response_model=SessionOut,
+    tags=["session"],
+    summary="Log in",
+    responses=documented_errors(401, 422, 429),
+)
+def login(body: CredentialsIn, request: Request, response: Response, lab: LabDep) -> SessionOut:
+    """Check the user name and password and open a session (sets the session cookie).
+
+    Attempts are limited per user name and per client address (429 with
+    Retry-After).
+    """
+    address = request.client.host if request.client is not None else "unknown"
+    key = body.username.strip().lower()
+    lab.throttle.check(key, address)
+    try:
+        user = lab.users.verify(body.username, body.password)
+    except AuthenticationError:
+        lab.throttle.record(key, address, success=False)
+        raise
+    lab.throttle.record(key, address, success=True)
+    lab.sessions.end(request.cookies.get(COOKIE_NAME))
+    token, principal = lab.sessions.create(
+        user, client_address=address, user_agent=request.headers.get("user-agent")
+    )
+    policy = lab.config.access
+    secure = policy.cookie_secure == "always" or (
+        policy.cookie_secure == "auto" and request.url.scheme == "https"
+    )
+    response.set_cookie(
+        COOKIE_NAME,
+        token,
+        max_age=int(policy.session_lifetime),
+        path="/",
+        httponly=True,
+        samesite=policy.cookie_samesite,
+        secure=secure,
+    )
+    return SessionOut.of(principal)
+
+
+@router.get(
+    "/session",
+    response_model=SessionOut,
+    tags=["session"],
+    summary="Who am I",
+    **_authed,
+)
+def whoami(who: UserDep) -> SessionOut:
+    """Return the logged-in user."""
+    return SessionOut.of(who)
+
+
+@router.delete(
+    "/session",
+    status_code=status.HTTP_204_NO_CONTENT,
+    tags=["session"],
+    summary="Log out",
+    **_authed,
+)
+def logout(request: Request, lab: LabDep) -> Response:
+    """End the session and clear its cookie."""
+    lab.sessions.end(request.cookies.get(COOKIE_NAME))
+    response = Response(status_code=status.HTTP_204_NO_CONTENT)
+    response.delete_cookie(COOKIE_NAME, path="/", httponly=True)
+    return response

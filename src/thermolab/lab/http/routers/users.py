@@ -1,0 +1,107 @@
+"""Routes of the accounts (teachers), and of a user's own password."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Path, Response, status
+
+from thermolab.errors import AccessDeniedError, InvalidParameterError
+from thermolab.lab.http.deps import AUTHENTICATED, LabDep, UserDep, documented_errors
+from thermolab.lab.http.schemas import NewUserIn, PasswordIn, UserOut
+from thermolab.lab.security import AuthenticationError, normalize_username
+from thermolab.lab.users import Principal
+
+__all__ = ["router"]
+
+router = APIRouter(**AUTHENTICATED)
+
+
+def _teacher(who: Principal, action: str) -> None:
+    if not who.is_teacher:
+        raise AccessDeniedError(f"only a teacher may {action}")
+
+
+@router.get(
+    "/users",
+    response_model=list[UserOut],
+    tags=["users"],
+    summary="All accounts",
+    responses=documented_errors(403),
+)
+def list_users(who: UserDep, lab: LabDep) -> list[UserOut]:
+    """Every account (teachers only)."""
+    _teacher(who, "list accounts")
+    return [UserOut.of(u) for u in lab.users.list()]
+
+
+@router.post(
+    "/users",
+    response_model=UserOut,
+    status_code=status.HTTP_201_CREATED,
+    tags=["users"],
+    summary="Create an account",
+    responses=documented_errors(403, 409, 422),
+)
+def add_user(body: NewUserIn, who: UserDep, lab: LabDep) -> UserOut:
+    """Create an account (teachers only)."""
+    _teacher(who, "create accounts")
+    return UserOut.of(lab.users.add(body.username, body.password, body.role))
+
+
+@router.delete(
+    "/users/{username}",
+    status_code=status.HTTP_204_NO_CONTENT,
+    tags=["users"],
+    summary="Remove an account",
+    responses=documented_errors(403, 404, 409),
+)
+def remove_user(
+    username: Annotated[str, Path(max_length=64)], who: UserDep, lab: LabDep
+) -> Response:
+    """Remove an account with its sessions, queue places and runs (teachers only)."""
+    _teacher(who, "remove accounts")
+    if _same_user(username, who):
+        raise AccessDeniedError("you cannot remove your own account; ask another teacher")
+    lab.remove_user(username)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+@router.put(
+    "/users/{username}/password",
+    status_code=status.HTTP_204_NO_CONTENT,
+    tags=["users"],
+    summary="Change a password",
+    responses=documented_errors(403, 404, 422),
+)
+def change_password(
+    username: Annotated[str, Path(max_length=64)],
+    body: PasswordIn,
+    who: UserDep,
+    lab: LabDep,
+) -> Response:
+    """Change your own password (give the current one), or anyone's as a teacher.
+
+    Every other session of the account ends.
+    """
+    if _same_user(username, who):
+        if body.current_password is None:
+            raise InvalidParameterError("currentPassword is required to change your own password")
+        try:
+            lab.users.verify(who.username, body.current_password)
+        except AuthenticationError:
+            raise AccessDeniedError("the current password is wrong") from None
+    elif not who.is_teacher:
+        raise AccessDeniedError("you may only change your own password")
+    else:
+        lab.users.get(username)
+    keep = who.session_id if _same_user(username, who) else None
+    lab.users.set_password(username, body.password, keep_session=keep)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+def _same_user(username: str, who: Principal) -> bool:
+    try:
+        return normalize_username(username) == who.username
+    except InvalidParameterError:
+        return False

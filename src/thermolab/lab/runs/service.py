@@ -1,0 +1,436 @@
+"""Experiment runs on the lab's rigs: START, set point changes, END.
+
+A run is the paper's application on a shared rig: the controller starts it
+(dt, number of samples, a signal or a manual set point, the identification
+methods with their settings), may change the input while it runs, and ends
+it; otherwise it ends after its samples. The sampling itself is
+:class:`thermolab.runner.Experiment`, on the rig's driver, in a worker thread.
+
+A run belongs to a turn at the controls: when the turn ends (time limit,
+client gone, kicked...) the run is ended as by END, so that its data and
+estimates are kept. While a run holds a rig, the lab's device hub leaves the
+device to the runner. Storage is :mod:`.store`; the request's checks are
+:mod:`.request`; the operating point is :mod:`.operating_point`.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from thermolab.errors import AccessDeniedError, ConflictError, ThermoLabError
+from thermolab.ident.online import OnlineIdentifier
+from thermolab.jsonsafe import json_safe
+from thermolab.lab.access import AccessService
+from thermolab.lab.clock import LabClock
+from thermolab.lab.config import LabConfig
+from thermolab.lab.db import Database
+from thermolab.lab.db.models import ControlSession, RigRow, Run, RunStatus
+from thermolab.lab.devices import DeviceHub
+from thermolab.lab.runs.operating_point import OperatingPoint, OperatingPointPolicy
+from thermolab.lab.runs.request import RunRequest, build_run_identifiers, check_request
+from thermolab.lab.runs.statistics import method_statistics
+from thermolab.lab.runs.store import (
+    DatabaseRecorder,
+    RunRecord,
+    RunStore,
+    StoredSample,
+    run_command,
+    status_of,
+)
+from thermolab.lab.users import Principal
+from thermolab.runner import EndReason, Event, EventBus, Experiment, RunResult
+from thermolab.runner.methods import parse_methods
+
+__all__ = ["RunService"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class _Active:
+    run_id: int
+    rig_id: str
+    control_session: int
+    experiment: Experiment
+    identifiers: dict[str, OnlineIdentifier]
+    thread: threading.Thread | None = None
+    stopped_by: str | None = None
+
+
+class RunService:
+    """Starts, stops, stores and lists runs.
+
+    Parameters
+    ----------
+    db : Database
+    clock : LabClock
+    access : AccessService
+    hub : DeviceHub
+    config : LabConfig
+        The rigs' cool-down policies (they say when a rig counts as at rest).
+    on_finished : callable
+        Called with the rig id after a run has ended and been stored (the lab
+        hands the rig back to the hub).
+    on_run : callable, optional
+        Called with ``(rig_id, "started" | "ended", record)``.
+    on_event : callable, optional
+        Called with ``(rig_id, run_id, event)`` for every runner event
+        (:class:`~thermolab.runner.SampleEvent`, ``EstimateEvent``...), on a
+        thread of the run's own; a failure there never stops the run.
+    """
+
+    def __init__(
+        self,
+        db: Database,
+        clock: LabClock,
+        access: AccessService,
+        hub: DeviceHub,
+        config: LabConfig,
+        on_finished: Callable[[str], None],
+        *,
+        on_run: Callable[[str, str, RunRecord], None] | None = None,
+        on_event: Callable[[str, int, Event], None] | None = None,
+    ) -> None:
+        self._db = db
+        self._clock = clock
+        self._access = access
+        self._hub = hub
+        self._config = config
+        self._on_finished = on_finished
+        self._on_run = on_run
+        self._on_event = on_event
+        self._active: dict[str, _Active] = {}
+        self._lock = threading.Lock()
+
+        self._store = RunStore(db)
+        self._policy = OperatingPointPolicy(db, clock, access, hub, config)
+
+    def start(self, rig_id: str, who: Principal, request: RunRequest) -> RunRecord:
+        """START a run on the rig ``who`` controls.
+
+        Raises
+        ------
+        NotFoundError
+            For an unknown rig.
+        AccessDeniedError
+            If ``who`` does not control the rig.
+        InvalidParameterError
+            For a bad dt, sample count, signal, set point, method or setting.
+        ConflictError
+            If a run is already going on the rig, or the rig has no device.
+        """
+        published = self._hub.published(rig_id)
+        experiment_args = check_request(request, (published.input_min, published.input_max))
+        methods = parse_methods(request.methods)
+        driver = self._hub.driver(rig_id)
+        if driver is None:
+            raise ConflictError(f"rig {rig_id!r} has no device attached; a run needs one")
+        with self._lock:
+            if rig_id in self._active:
+                raise ConflictError(f"a run is already going on rig {rig_id!r}; END it first")
+        point = self.operating_point(rig_id, request.offset, methods)
+        identifiers, settings = build_run_identifiers(request, point.used)
+
+        def begin(session: Session, rig: RigRow, control: ControlSession, now: datetime) -> int:
+            running = session.scalar(
+                select(Run.id).where(Run.rig_id == rig.id, Run.status == RunStatus.RUNNING.value)
+            )
+            if running is not None:
+                raise ConflictError(f"run {running} is already going on rig {rig.id!r}")
+            run = Run(
+                rig_id=rig.id,
+                user_id=who.user_id,
+                control_session_id=control.id,
+                status=RunStatus.RUNNING.value,
+                dt=request.dt,
+                n_samples=request.samples,
+                signal=request.signal,
+                setpoint=request.setpoint,
+                methods=list(identifiers),
+                meta={
+                    "settings": settings,
+                    "username": who.username,
+                    "operating_point": point.to_dict(),
+                },
+                started_at=now,
+                samples_stored=0,
+            )
+            session.add(run)
+            session.flush()
+            session.add(run_command(rig.id, control, who, now, "run_start", None, run.id, settings))
+            return run.id
+
+        run_id, control_id = self._access.within_control(rig_id, who, "start a run", begin)
+        recorder = DatabaseRecorder(
+            self._db, run_id, on_sample=lambda u, y: self._hub.note_sample(rig_id, u, y)
+        )
+        experiment = Experiment(
+            driver,
+            request.dt,
+            request.samples,
+            identifiers=identifiers,
+            recorder=recorder,
+            events=EventBus(),
+            **experiment_args,
+        )
+        active = _Active(run_id, rig_id, control_id, experiment, identifiers)
+        with self._lock:
+            self._active[rig_id] = active
+        record = self.get(run_id, who)
+        if self._on_run is not None:
+            # Announced before the first sample, so that watchers see the run begin.
+            self._on_run(rig_id, "started", record)
+        self._hub.claim(rig_id)
+        if self._on_event is not None:
+            forward = self._on_event
+            experiment.events.subscribe_callback(
+                lambda event: forward(rig_id, run_id, event),
+                maxsize=100_000,
+                name="live",
+                fatal_errors=False,
+            )
+        experiment.start()
+        active.thread = threading.Thread(
+            target=self._finish, args=(active,), name=f"thermolab-run-{run_id}-end", daemon=True
+        )
+        active.thread.start()
+        return record
+
+    def stop(self, rig_id: str, who: Principal) -> RunRecord:
+        """END the rig's current run (its controller, or a teacher); returns at once.
+
+        Raises
+        ------
+        AccessDeniedError
+            If ``who`` neither controls the rig nor is a teacher.
+        ConflictError
+            If no run is going on the rig.
+        """
+        with self._lock:
+            active = self._active.get(rig_id)
+        if active is None:
+            raise ConflictError(f"no run is going on rig {rig_id!r}")
+        if not who.is_teacher:
+            snap = self._access.snapshot(rig_id)
+            if snap.controller is None or snap.controller.user_id != who.user_id:
+                raise AccessDeniedError(f"only the controller of rig {rig_id!r} may END its run")
+        active.stopped_by = who.username
+        active.experiment.end()
+        return self.get(active.run_id, who)
+
+    def set_input(self, rig_id: str, u: float) -> int | None:
+        """Hand a new input to the rig's run; return the run id (``None``: no run)."""
+        with self._lock:
+            active = self._active.get(rig_id)
+        if active is None:
+            return None
+        active.experiment.set_input(u)
+        return active.run_id
+
+    def control_changed(self, rig_id: str, controller_session: int | None) -> None:
+        """END the rig's run if the turn it belongs to has ended."""
+        with self._lock:
+            active = self._active.get(rig_id)
+        if active is not None and active.control_session != controller_session:
+            active.stopped_by = active.stopped_by or "end of the turn at the controls"
+            active.experiment.end()
+
+    def running(self, rig_id: str) -> int | None:
+        """Return the id of the run going on the rig, if any."""
+        with self._lock:
+            active = self._active.get(rig_id)
+        return active.run_id if active is not None else None
+
+    def wait(self, rig_id: str, timeout: float | None = None) -> None:
+        """Wait until the rig's run (if any) has ended and been stored."""
+        with self._lock:
+            active = self._active.get(rig_id)
+        if active is not None and active.thread is not None:
+            active.thread.join(timeout)
+
+    def shutdown(self, timeout: float = 10.0) -> None:
+        """Abort every run (server stopping): actuators safe, runs marked interrupted."""
+        with self._lock:
+            actives = list(self._active.values())
+        for active in actives:
+            active.stopped_by = "the server stopped"
+            active.experiment.abort("the server stopped")
+        for active in actives:
+            if active.thread is not None:
+                active.thread.join(timeout)
+
+    # -- the operating point ---------------------------------------------------------------
+
+    def operating_point(
+        self, rig_id: str, asked: str | float, methods: Sequence[str]
+    ) -> OperatingPoint:
+        """Decide how a run's identifiers treat the rig's operating point (see the policy)."""
+        return self._policy.choose(rig_id, asked, methods)
+
+    def at_rest(self, rig_id: str) -> tuple[bool, str]:
+        """Whether the rig rests at its equilibrium at the safe input, and why (in words)."""
+        return self._policy.at_rest(rig_id)
+
+    # -- reading -------------------------------------------------------------------------
+
+    def get(self, run_id: int, who: Principal) -> RunRecord:
+        """Return one run (a student's own or one that is running; any for a teacher).
+
+        Raises
+        ------
+        NotFoundError
+            If there is no such run.
+        AccessDeniedError
+            If it belongs to another user and ``who`` is a student.
+        """
+        self._store.owned_run(run_id, who)
+        return self.record(run_id)
+
+    def record(self, run_id: int) -> RunRecord:
+        """Return one run, whoever owns it (for the lab's own use: the live stream).
+
+        Raises
+        ------
+        NotFoundError
+            If there is no such run.
+        """
+        run, stored = self._store.read(run_id)
+        return self._record(run, {data["method"]: data["result"] for data in stored.values()})
+
+    def list(
+        self,
+        who: Principal,
+        rig_id: str | None = None,
+        limit: int = 200,
+        *,
+        user: str | None = None,
+    ) -> list[RunRecord]:
+        """Return runs, newest first: a student's own, or everyone's for a teacher.
+
+        ``user`` narrows it to one user: anyone for a teacher, only themselves
+        for a student.
+
+        Raises
+        ------
+        AccessDeniedError
+            If a student asks for another user's runs.
+        NotFoundError
+            If a teacher names a user who does not exist.
+        InvalidParameterError
+            If ``user`` is not a valid user name.
+        """
+        return [self._record(run, None) for run in self._store.rows(who, rig_id, limit, user)]
+
+    def samples(self, run_id: int, who: Principal) -> Iterator[StoredSample]:
+        """Yield ``(k, t, u, y)`` of every stored sample of a run, in order (checked as get)."""
+        self._store.owned_run(run_id, who)
+        return self._store.samples(run_id)
+
+    def export(self, run_id: int, who: Principal) -> dict[str, Any]:
+        """Return a run with its samples and every method's stored result (JSON-ready)."""
+        record = self.get(run_id, who)
+        ks, ts, us, ys = [], [], [], []
+        for k, t, u, y in self._store.samples(run_id):
+            ks.append(k)
+            ts.append(t)
+            us.append(u)
+            ys.append(y)
+        _, methods = self._store.read(run_id)
+        exported: dict[str, Any] = json_safe(
+            {
+                "run": record,
+                "samples": {"k": ks, "t": ts, "u": us, "y": ys},
+                "methods": methods,
+            }
+        )
+        return exported
+
+    # -- internals -------------------------------------------------------------------------
+
+    def _finish(self, active: _Active) -> None:
+        result = active.experiment.wait()
+        try:
+            if result is not None:
+                self._save_end(active, result)
+        except Exception:
+            log.exception("run %s: storing the end of the run failed", active.run_id)
+        finally:
+            with self._lock:
+                self._active.pop(active.rig_id, None)
+            self._hub.release(active.rig_id)
+            if result is not None and result.end_reason is EndReason.RIG_FAULT:
+                self._access.report_fault(active.rig_id, result.message or "rig fault")
+            self._on_finished(active.rig_id)
+            if self._on_run is not None:
+                try:
+                    self._on_run(active.rig_id, "ended", self.record(active.run_id))
+                except Exception:
+                    log.exception("run %s: announcing the end failed", active.run_id)
+
+    def _save_end(self, active: _Active, result: RunResult) -> None:
+        now = self._clock.now()
+        status = status_of(result.end_reason)
+        if active.stopped_by == "the server stopped":
+            status = RunStatus.INTERRUPTED
+        reason = result.end_reason.value
+        if result.message:
+            reason = f"{reason}: {result.message}"
+        if result.end_reason is EndReason.ENDED and active.stopped_by:
+            reason = f"ended by {active.stopped_by}"
+        results: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {}
+        for name, method in result.methods.items():
+            identifier = active.identifiers.get(name)
+            data = method.to_dict(trajectory=True)
+            try:  # computed once, here, and stored with the result
+                data["stats"] = method_statistics(name, identifier, data.get("latest"))
+            except ThermoLabError as exc:  # the figures are a summary: never lose the run
+                log.warning("run %s: statistics of %s failed: %s", active.run_id, name, exc)
+            results[name] = (_params(identifier), data)
+        self._store.save_end(active.run_id, status, reason, now, results)
+
+    def _record(self, run: Run, stored: dict[str, Any] | None) -> RunRecord:
+        with self._lock:
+            active = self._active.get(run.rig_id)
+        live = active is not None and active.run_id == run.id
+        results: dict[str, Any] = {}
+        taken = run.samples_stored
+        if live and active is not None:
+            snapshot = active.experiment.snapshot()
+            taken = snapshot.samples
+            for name, method in snapshot.methods.items():
+                results[name] = json_safe(method.to_dict())
+        elif stored is not None:
+            for name, result in stored.items():
+                results[name] = {k: v for k, v in result.items() if k != "trajectory"}
+        return RunRecord(
+            id=run.id,
+            rig_id=run.rig_id,
+            username=str(run.meta.get("username", "")),
+            user_id=run.user_id,
+            status=run.status,
+            dt=run.dt,
+            samples=run.n_samples,
+            samples_stored=run.samples_stored,
+            samples_taken=taken,
+            signal=run.signal,
+            setpoint=run.setpoint,
+            methods=list(run.methods),
+            settings=dict(run.meta.get("settings", {})),
+            started_at=run.started_at,
+            ended_at=run.ended_at,
+            end_reason=run.end_reason,
+            results=results,
+            operating_point=run.meta.get("operating_point"),
+        )
+
+
+def _params(identifier: OnlineIdentifier | None) -> dict[str, Any]:
+    return dict(identifier.params) if identifier is not None else {}

@@ -1,0 +1,131 @@
+"""The turn rules as a pure transition table (no database, no clock)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from datetime import UTC, datetime, timedelta
+
+import pytest
+
+from thermolab.lab.access.rules import (
+    Turn,
+    TurnRules,
+    TurnState,
+    Waiting,
+    end_turn,
+    is_due,
+    next_state,
+)
+from thermolab.lab.config import CooldownPolicy
+from thermolab.lab.db.models import PowerState, TurnEndReason
+
+T0 = datetime(2026, 1, 1, tzinfo=UTC)
+COOLING = CooldownPolicy(mode="ambient", tolerance=0.5, max_seconds=600.0, ambient=20.0)
+
+
+def rules(cooldown: CooldownPolicy | None = None, idle: float | None = 120.0) -> TurnRules:
+    return TurnRules(timedelta(seconds=15), 300.0, idle, 60.0, cooldown or CooldownPolicy())
+
+
+def at(seconds: float) -> datetime:
+    return T0 + timedelta(seconds=seconds)
+
+
+def free(**changes: object) -> TurnState:
+    state = TurnState(
+        in_service=True,
+        faulted=False,
+        power=PowerState.ON,
+        needs_cooldown=False,
+        cooling_since=None,
+        vacant_since=None,
+        ambient_output=20.0,
+        turn=None,
+        queue=(),
+        run_active=False,
+    )
+    return replace(state, **changes)  # type: ignore[arg-type]
+
+
+def turn(user: int = 1, *, seen: float = 0.0, active: float = 0.0) -> Turn:
+    return Turn(user, T0, at(300), at(seen), at(active))
+
+
+def test_the_head_of_the_queue_gets_a_free_rig_at_once() -> None:
+    after = next_state(free(queue=(Waiting(7, T0), Waiting(8, T0))), rules(), T0, None)
+    assert after.turn == Turn(7, T0, at(300), T0, T0)
+    assert after.queue == (Waiting(8, T0),)
+    assert after.vacant_since is None
+
+
+@pytest.mark.parametrize(
+    ("state", "now", "reason", "ended_at"),
+    [
+        (free(turn=turn(seen=290, active=290)), at(300), TurnEndReason.TIME_LIMIT, at(300)),
+        (free(turn=turn(seen=0, active=0)), at(20), TurnEndReason.CLIENT_GONE, at(15)),
+        (free(turn=turn(seen=200, active=0)), at(200), TurnEndReason.IDLE, at(120)),
+    ],
+)
+def test_a_turn_ends_at_the_first_limit_reached_dated_when_it_was(
+    state: TurnState, now: datetime, reason: TurnEndReason, ended_at: datetime
+) -> None:
+    assert is_due(state, rules(), now, None)
+    after = next_state(state, rules(), now, None)
+    assert after.turn is None
+    assert after.ended is not None
+    assert (after.ended.reason, after.ended.at) == (reason, ended_at)
+
+
+def test_the_idle_limit_does_not_run_while_a_run_samples() -> None:
+    sampling = free(turn=turn(seen=200, active=0), run_active=True)
+    assert not is_due(sampling, rules(), at(200), None)
+
+
+def test_silent_queue_places_are_dropped_when_their_client_timed_out() -> None:
+    state = free(turn=turn(seen=100, active=100), queue=(Waiting(7, at(0)), Waiting(8, at(95))))
+    after = next_state(state, rules(), at(100), None)
+    assert after.queue == (Waiting(8, at(95)),)
+    assert after.left == ((Waiting(7, at(0)), at(15)),)
+
+
+def test_a_rig_with_a_cooldown_cools_between_turns_then_hands_over() -> None:
+    r = rules(COOLING)
+    ended = end_turn(
+        free(turn=turn(), queue=(Waiting(7, at(9)),)), TurnEndReason.RELEASED, at(10), r, at(10)
+    )
+    assert (ended.power, ended.needs_cooldown, ended.cooling_since) == (
+        PowerState.COOLING,
+        True,
+        at(10),
+    )
+    waiting = next_state(ended, r, at(10), (25.0, at(10)))
+    assert waiting.turn is None  # still warm
+    assert not is_due(replace(waiting, queue=(Waiting(7, at(19)),)), r, at(20), (25.0, at(19)))
+    cooled = next_state(replace(waiting, queue=(Waiting(7, at(29)),)), r, at(30), (20.2, at(29)))
+    assert cooled.power is PowerState.ON
+    assert cooled.turn is not None
+    assert cooled.turn.user_id == 7
+
+
+def test_a_vacant_rig_powers_off_after_its_grace() -> None:
+    vacant = next_state(free(), rules(), T0, None)
+    assert vacant.vacant_since == T0
+    assert not is_due(vacant, rules(), at(59), None)
+    assert next_state(vacant, rules(), at(60), None).power is PowerState.OFF
+
+
+@pytest.mark.parametrize("changes", [{"in_service": False}, {"faulted": True}])
+def test_out_of_service_or_faulted_rigs_are_off_and_hand_nothing_over(
+    changes: dict[str, object],
+) -> None:
+    state = free(queue=(Waiting(7, T0),), **changes)
+    after = next_state(state, rules(), T0, None)
+    assert (after.power, after.turn, after.queue) == (PowerState.OFF, None, state.queue)
+    assert not is_due(after, rules(), T0, None)
+
+
+def test_the_first_reading_of_a_cold_powered_rig_is_its_ambient() -> None:
+    cold = free(ambient_output=None, vacant_since=T0)
+    assert not is_due(cold, rules(), T0, None)
+    assert is_due(cold, rules(), T0, (21.5, T0))
+    assert next_state(cold, rules(), T0, (21.5, T0)).ambient_output == 21.5
