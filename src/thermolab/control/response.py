@@ -238,6 +238,7 @@ def predict_closed_loop(
     u = np.empty(samples)
     past = np.zeros(samples + whole + 2)  # v, shifted by whole + 1 (zeros before START)
     x = 0.0
+    pid.track(u0, y0, y0)  # at rest: the integral holds u0
     for k in range(samples):
         y[k] = y0 + x
         if t[k] < step_at:
