@@ -225,3 +225,23 @@ def test_bad_control_input_is_refused(clock: VirtualClock, twin: HookedTwin) -> 
     exp = Experiment(twin, 1.0, 10, controller=ControlLoop(gains, setpoint=1.0))
     with pytest.raises(InvalidParameterError, match="output range"):
         exp.set_setpoint(5.5)
+
+
+def test_a_setpoint_profile_steps_the_loop(kit_twin: HookedTwin) -> None:
+    from thermolab.signals import parse_signal
+
+    loop = ControlLoop(
+        tune(KIT, "simc").gains, setpoint=parse_signal("step:21:40@50", limits=(0.0, 90.0))
+    )
+    result = Experiment(kit_twin, 1.0, 800, controller=loop).run()
+    r = result.extra["r"]
+    np.testing.assert_allclose(r[:50], 21.0)
+    np.testing.assert_allclose(r[50:], 40.0)
+    assert abs(result.y[-1] - 40.0) < 0.1
+    with pytest.raises(InvalidParameterError, match="output range"):
+        Experiment(
+            kit_twin,
+            1.0,
+            800,
+            controller=ControlLoop(loop.gains, parse_signal("step:21:95@50", limits=(0.0, 100.0))),
+        )

@@ -19,7 +19,10 @@ takes effect at the next sample; the law itself is
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
 
 from thermolab.control import PID, AdaptiveTuner, PIDGains
 from thermolab.errors import InvalidParameterError
@@ -27,7 +30,16 @@ from thermolab.records import ChannelSpec
 from thermolab.rigs import RigInfo
 from thermolab.runner.interlocks import Interlocks
 
-__all__ = ["ControlLoop"]
+__all__ = ["ControlLoop", "SetpointProfile"]
+
+
+@runtime_checkable
+class SetpointProfile(Protocol):
+    """A set point defined in time: anything with ``value(t) -> float`` (a Signal)."""
+
+    def value(self, t: float) -> float:
+        """Return the set point ``t`` seconds after START."""
+        ...
 
 
 class ControlLoop:
@@ -37,8 +49,10 @@ class ControlLoop:
     ----------
     gains : PIDGains
         The PID's gains.
-    setpoint : float
-        The set point in the rig's output unit.
+    setpoint : float or InputSignal
+        The set point in the rig's output unit: a number, or a profile in time
+        since START (anything with ``value(t)``, e.g.
+        ``parse_signal("step:21:50@100")`` for a set-point step at 100 s).
     auto : bool, optional
         Start in AUTO (default) or in MANUAL (the run's signal or manual input
         drives until :meth:`request_auto`).
@@ -75,7 +89,7 @@ class ControlLoop:
     def __init__(
         self,
         gains: PIDGains,
-        setpoint: float,
+        setpoint: float | SetpointProfile,
         *,
         auto: bool = True,
         derivative_filter: float = 10.0,
@@ -88,7 +102,12 @@ class ControlLoop:
                 f"tuner must be an AdaptiveTuner, got {type(tuner).__name__}"
             )
         self._initial_gains = gains
-        self._setpoint = self._finite_setpoint(setpoint)
+        self._profile: SetpointProfile | None = None
+        if isinstance(setpoint, SetpointProfile):
+            self._profile = setpoint
+            self._setpoint = self._finite_setpoint(setpoint.value(0.0))
+        else:
+            self._setpoint = self._finite_setpoint(setpoint)
         self._auto = bool(auto)
         self._derivative_filter = derivative_filter
         self.tuner = tuner
@@ -104,8 +123,15 @@ class ControlLoop:
 
     # -- binding to a rig -------------------------------------------------------------------
 
-    def bind(self, info: RigInfo, interlocks: Interlocks) -> None:
+    def bind(self, info: RigInfo, interlocks: Interlocks, times: Sequence[float] = ()) -> None:
         """Check the loop against a rig and make its PID (the experiment calls this).
+
+        Parameters
+        ----------
+        info : RigInfo
+        interlocks : Interlocks
+        times : sequence of float, optional
+            The run's sample times, at which a set-point profile is checked.
 
         Raises
         ------
@@ -120,6 +146,18 @@ class ControlLoop:
         self._info = info
         self._interlocks = interlocks
         self.check_setpoint(self._setpoint)
+        profile = self._profile
+        if profile is not None and len(times):
+            sample = getattr(profile, "sample", None)
+            values = (
+                np.asarray(sample(np.asarray(times, dtype=np.float64)), dtype=np.float64)
+                if callable(sample)
+                else np.array([profile.value(t) for t in times], dtype=np.float64)
+            )
+            if not np.isfinite(values).all():
+                raise InvalidParameterError("the set-point profile must be finite at every sample")
+            self.check_setpoint(float(values.min()))
+            self.check_setpoint(float(values.max()))
         self._pid = PID(
             self._initial_gains,
             info.input_min,
@@ -194,8 +232,10 @@ class ControlLoop:
     # -- requests (any thread) --------------------------------------------------------------
 
     def request_setpoint(self, value: float) -> None:
-        """Change the set point from the next sample on."""
-        self._setpoint = self.check_setpoint(value)
+        """Hold the set point at ``value`` from the next sample on (ends a profile)."""
+        r = self.check_setpoint(value)
+        self._profile = None
+        self._setpoint = r
 
     def request_auto(self) -> None:
         """Switch to AUTO at the next sample, bumplessly from the input in force."""
@@ -213,10 +253,13 @@ class ControlLoop:
 
     # -- the sampling loop's side ------------------------------------------------------------
 
-    def command(self, y: float, u_open: float, dt: float) -> float:
-        """The input to apply at this sample: the PID's in AUTO, ``u_open`` in MANUAL."""
+    def command(self, y: float, u_open: float, dt: float, t: float) -> float:
+        """The input to apply at sample time ``t``: the PID's in AUTO, ``u_open`` in MANUAL."""
         pid = self._pid
         assert pid is not None, "bind() first"
+        profile = self._profile
+        if profile is not None:
+            self._setpoint = float(profile.value(t))
         r = self._setpoint
         previous_r = r if self._last_r is None else self._last_r
         self._last_r = r
@@ -267,6 +310,9 @@ class ControlLoop:
         return {
             "mode": "auto" if self._auto else "manual",
             "setpoint": self._setpoint,
+            "setpoint_profile": None
+            if self._profile is None
+            else getattr(self._profile, "spec", type(self._profile).__name__),
             "switches": self._switches,
             "gains": self.gains.to_dict(),
             "pid": None if self._pid is None else self._pid.to_dict(),

@@ -480,7 +480,7 @@ class Experiment:
         self._control = controller
         control_channels: tuple[ChannelSpec, ...] = ()
         if controller is not None:
-            controller.bind(self._info, self._interlocks)
+            controller.bind(self._info, self._interlocks, (np.arange(samples) * dt).tolist())
             control_channels = controller.channels()
         self._control_channels = control_channels
         self._channels = (
@@ -1114,7 +1114,7 @@ class Experiment:
             if control is not None:
                 # The interlock on y was checked above and the input range is checked
                 # below: the controller can never override either.
-                u = control.command(y, u, dt)
+                u = control.command(y, u, dt, t_k)
             if not in_min <= u <= in_max:
                 problem = Interlocks.check_input(u, info)
                 raise _TripError(EndReason.INTERLOCK, "interlock", f"interlock: {problem}")
