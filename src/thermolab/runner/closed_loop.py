@@ -196,6 +196,11 @@ class ControlLoop:
         return self._auto
 
     @property
+    def initial_gains(self) -> PIDGains:
+        """The gains the loop was made with (before any change or retune)."""
+        return self._initial_gains
+
+    @property
     def gains(self) -> PIDGains:
         """The gains in force."""
         return self._initial_gains if self._pid is None else self._pid.gains
