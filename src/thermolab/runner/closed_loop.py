@@ -158,6 +158,10 @@ class ControlLoop:
                 raise InvalidParameterError("the set-point profile must be finite at every sample")
             self.check_setpoint(float(values.min()))
             self.check_setpoint(float(values.max()))
+        # A loop bound again (a new run) starts afresh.
+        self._started = False
+        self._last_r = None
+        self._want_auto = self._want_gains = None
         self._pid = PID(
             self._initial_gains,
             info.input_min,
