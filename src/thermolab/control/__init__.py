@@ -15,16 +15,37 @@ Numerics only (no threads, clocks, rigs or I/O); the runner drives them
   imported lazily).
 """
 
+from typing import TYPE_CHECKING, Any
+
 from thermolab.control.adaptive import AdaptiveTuner, GainBounds
 from thermolab.control.convert import to_control
 from thermolab.control.pid import GAIN_LIMITS, PID, PIDGains
-from thermolab.control.response import (
-    ClosedLoopResponse,
-    StepMetrics,
-    predict_closed_loop,
-    step_metrics,
-)
 from thermolab.control.tuning import FOPDT, RULE_FORMS, RULES, Tuning, as_fopdt, tune
+
+if TYPE_CHECKING:
+    from thermolab.control.response import (
+        ClosedLoopResponse,
+        StepMetrics,
+        predict_closed_loop,
+        step_metrics,
+    )
+
+# The response module needs NumPy; the rest is plain Python, so that the command
+# line can list the rules without loading NumPy (tests/ident/test_registry.py).
+_LAZY = {"ClosedLoopResponse", "StepMetrics", "predict_closed_loop", "step_metrics"}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        from thermolab.control import response
+
+        return getattr(response, name)
+    raise AttributeError(f"module 'thermolab.control' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | _LAZY)
+
 
 __all__ = [
     "FOPDT",

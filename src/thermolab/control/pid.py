@@ -234,7 +234,10 @@ class PID:
         self._last_y = measurement
         demand = g.Kp * e + self.integral + self.derivative
         u = min(max(demand, self.u_min), self.u_max)
-        self.integral += g.Kp * dt / g.Ti * e + dt / self.tracking_time * (u - demand)
+        # dt/Tt is capped at 1: a tracking time shorter than the period would overshoot the
+        # reset (and a vanishing Td would make it infinite); at 1 the integral is reset so
+        # that the demand equals the limit.
+        self.integral += g.Kp * dt / g.Ti * e + min(1.0, dt / self.tracking_time) * (u - demand)
         self.output = u
         return u
 
