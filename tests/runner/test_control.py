@@ -20,8 +20,8 @@ from thermolab.control import (
 )
 from thermolab.errors import InvalidParameterError
 from thermolab.ident import make_identifier
-from thermolab.records import read_record
-from thermolab.rigs import Reading, VirtualClock
+from thermolab.records import ChannelSpec, read_record
+from thermolab.rigs import Reading, Rig, VirtualClock
 from thermolab.rigs.tclab import TCLabRig
 from thermolab.rigs.tclab_emulator import TCLabEmulator
 from thermolab.rigs.twin import TwinRig
@@ -33,6 +33,7 @@ from thermolab.runner import (
     Interlocks,
     SampleEvent,
 )
+from thermolab.runner.experiment import ChannelSource
 
 from .conftest import HookedTwin
 
@@ -118,11 +119,41 @@ def test_anti_windup_on_the_emulated_kit(kit: TCLabRig) -> None:
     assert abs(result.y[-1] - 55.0) < 0.5
 
 
-def test_bumpless_transfer_both_ways_while_running(kit_twin: HookedTwin) -> None:
+@pytest.fixture(params=["twin", "emulator"])
+def any_kit(request: pytest.FixtureRequest, clock: VirtualClock) -> Iterator[Rig]:
+    """The kit's twin and the emulated kit behind the TCLab driver."""
+    if request.param == "twin":
+        with TwinRig("tclab", clock=clock, realism=False) as rig:
+            yield rig
+    else:
+        with (
+            TCLabEmulator(clock=clock, seed=0, realism=False) as emulator,
+            TCLabRig(
+                emulator.port, clock=clock, reset_wait=0.0, timeout=5.0, watchdog=None
+            ) as kit_rig,
+        ):
+            yield kit_rig
+
+
+def _at_samples(exp_box: list[Experiment], actions: dict[int, str]) -> ChannelSource:
+    """A source that acts on the run at given samples (after the input is applied)."""
+
+    def act(t: float, u: float, y: float) -> float:
+        name = actions.get(round(t))
+        if name is not None:
+            getattr(exp_box[0], name)()
+        return 0.0
+
+    return (ChannelSpec("hook"), act)
+
+
+def test_bumpless_transfer_both_ways_while_running(any_kit: Rig) -> None:
     loop = ControlLoop(tune(KIT, "simc").gains, setpoint=35.0, auto=False)
-    exp = Experiment(kit_twin, 1.0, 700, set_point=30.0, controller=loop)
-    kit_twin.hooks[300] = lambda: exp.set_auto()  # manual -> auto at k = 300
-    kit_twin.hooks[600] = lambda: exp.set_manual()  # auto -> manual, hold the output
+    box: list[Experiment] = []
+    # Requested after sample 299 and 599 are applied: in force from 300 and 600.
+    hook = _at_samples(box, {299: "set_auto", 599: "set_manual"})
+    exp = Experiment(any_kit, 1.0, 700, set_point=30.0, controller=loop, sources=[hook])
+    box.append(exp)
     result = exp.run()
     u, auto = result.u, result.extra["auto"]
     assert auto[299] == 0.0
@@ -170,14 +201,16 @@ def test_the_interlock_wins_over_a_pid_demanding_full_heat(clock: VirtualClock) 
         assert rig.applied_input == 0.0  # ...the heater is off
 
 
-def test_an_output_interlock_still_applies(kit_twin: HookedTwin) -> None:
+def test_an_output_interlock_still_applies(any_kit: Rig) -> None:
     loop = ControlLoop(PIDGains(50.0, 20.0), setpoint=39.0)
     result = Experiment(
-        kit_twin, 1.0, 600, controller=loop, interlocks=Interlocks(output_max=40.0)
+        any_kit, 1.0, 600, controller=loop, interlocks=Interlocks(output_max=40.0)
     ).run()
-    # The delay makes an aggressive PID overshoot past the interlock: the run stops, safe.
+    # The lags make an aggressive PID overshoot past the interlock: the run stops, safe.
     assert result.end_reason is EndReason.INTERLOCK
-    assert kit_twin.applied_input == 0.0
+    assert result.u.max() == 100.0
+    heater = any_kit.heater if isinstance(any_kit, TCLabRig) else any_kit.applied_input  # type: ignore[attr-defined]
+    assert heater == 0.0  # as confirmed by the kit (emulator) or the twin
 
 
 def test_adaptive_mode_retunes_within_its_bounds(clock: VirtualClock) -> None:
