@@ -278,3 +278,11 @@ def test_a_setpoint_profile_steps_the_loop(kit_twin: HookedTwin) -> None:
             800,
             controller=ControlLoop(loop.gains, parse_signal("step:21:95@50", limits=(0.0, 100.0))),
         )
+
+
+def test_manual_before_any_sample_holds_the_safe_input(twin: HookedTwin) -> None:
+    exp = Experiment(twin, 1.0, 5, controller=ControlLoop(PIDGains(10.0, 100.0), setpoint=1.0))
+    exp.set_manual()  # the PID has no output yet: hold the rig's safe input
+    result = exp.run()
+    np.testing.assert_allclose(result.u, 0.0)
+    assert set(result.extra["auto"]) == {0.0}

@@ -168,7 +168,7 @@ class PID:
         self.integral = 0.0
         self.derivative = 0.0
         self._last_y: float | None = None
-        self.output = self.u_min
+        self.output = math.nan  # nothing computed or tracked yet
 
     @property
     def gains(self) -> PIDGains:
@@ -251,5 +251,6 @@ class PID:
             "tracking_time": self.tracking_time,
             "anti_windup": "back-calculation",
             "integral": self.integral,
-            "output": self.output,
+            # Not jsonsafe.finite_or_none: that module loads NumPy, this one must not.
+            "output": self.output if math.isfinite(self.output) else None,
         }
