@@ -8,6 +8,7 @@ import sys
 import textwrap
 
 NUMERIC_MODULES = [
+    "thermolab.control",
     "thermolab.ident",
     "thermolab.signals",
     "thermolab.simulation",

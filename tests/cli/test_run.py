@@ -288,3 +288,102 @@ def test_any_identifier_setting_reaches_its_methods(capsys: pytest.CaptureFixtur
     # offset="fit" adds the constant to both; p0 would be refused in the paper's form.
     assert len(report["methods"]["lsm"]["latest"]["W"]) == 3
     assert len(report["methods"]["wlsm"]["latest"]["W"]) == 3
+
+
+# -- closed-loop control (--control pid) --------------------------------------------------
+
+PID_RUN = ["run", "--rig", "sim:tclab", "--dt", "1", "--duration", "1200", "--fast",
+           "--seed", "1", "--method", "srm", "--control", "pid"]  # fmt: skip
+
+
+def test_pid_tuned_from_a_model_prints_measured_and_predicted_figures(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "pid.csv"
+    status = main(
+        [*PID_RUN, "--setpoint", "step:21:50@60", "--tune", "simc",
+         "--model", "0.6,140,15.9", "--out", str(out), "--json"]
+    )  # fmt: skip
+    assert status == 0
+    report = json.loads(capsys.readouterr().out)
+    control = report["control"]
+    assert control["tuning"]["rule"] == "simc"
+    assert_allclose(control["gains"]["Kp"], 140 / (0.6 * 31.8), rtol=1e-12)
+    measured = control["closed_loop"]["measured"]
+    predicted = control["closed_loop"]["predicted"]
+    assert measured["step_time"] == predicted["step_time"] == 60.0
+    assert abs(measured["overshoot"] - predicted["overshoot"]) < 3.0
+    assert abs(measured["settling_time"] - predicted["settling_time"]) < 30.0
+    rows = _rows(out)
+    assert list(rows[0])[-4:] == ["r", "u_pid", "e", "auto"]
+    assert float(rows[100]["r"]) == 50.0
+    assert abs(float(rows[-1]["y"]) - 50.0) < 0.5
+
+
+def test_pid_with_given_gains_prints_a_control_table(capsys: pytest.CaptureFixture[str]) -> None:
+    status = main([*PID_RUN, "--setpoint", "40", "--kp", "7", "--ti", "130", "--td", "5"])
+    assert status == 0
+    out = capsys.readouterr().out
+    assert "control: PID auto   set point 40 degC   Kp 7  Ti 130 s  Td 5 s" in out
+    assert "measured" in out
+    assert "predicted" not in out  # no --model, no prediction
+
+
+def test_adaptive_pid_from_the_command_line(capsys: pytest.CaptureFixture[str]) -> None:
+    status = main(
+        ["run", "--rig", "sim", "--dt", "1", "--samples", "1000", "--fast", "--method", "srm",
+         "--control", "pid", "--setpoint", "1", "--kp", "20", "--ti", "100", "--adaptive",
+         "--tune", "imc", "--tau-c", "100", "--pid-form", "pi", "--max-change", "0.1",
+         "--kp-range", "5,60", "--json"]
+    )  # fmt: skip
+    assert status == 0
+    adaptive = json.loads(capsys.readouterr().out)["control"]["adaptive"]
+    assert adaptive["retunes"] > 5
+    assert adaptive["bounds"]["kp"] == [5.0, 60.0]
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--setpoint", "40", "--kp", "nan", "--ti", "100"], "kp must be finite"),
+        (["--setpoint", "40", "--kp", "1e9", "--ti", "100"], "kp must be finite"),
+        (["--setpoint", "40", "--kp", "5", "--ti", "0"], "ti must be finite"),
+        (["--setpoint", "95", "--kp", "5", "--ti", "100"], "outside the rig's output range"),
+        (["--setpoint", "step:21:95@10", "--kp", "5", "--ti", "100"], "output range"),
+        (["--kp", "5", "--ti", "100"], "needs --setpoint"),
+        (["--setpoint", "40"], "needs gains"),
+        (["--setpoint", "40", "--kp", "5"], "--kp needs --ti"),
+        (["--setpoint", "40", "--tune", "zn", "--model", "0.6,140"], "needs a dead time"),
+        (["--setpoint", "40", "--tune", "simc", "--model", "0.6"], "--model takes 2 or 3"),
+        (
+            ["--setpoint", "40", "--tune", "simc", "--model", "1,2,3", "--pid-form", "pid"],
+            "defines the form",
+        ),
+    ],
+)
+def test_bad_control_options_are_one_line_errors(
+    extra: list[str], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    status = main([*PID_RUN, *extra])
+    err = capsys.readouterr().err
+    assert status in (1, 2)
+    (line,) = err.strip().splitlines()
+    assert message in line
+
+
+def test_pid_options_need_control_pid(capsys: pytest.CaptureFixture[str]) -> None:
+    status = main([*FAST_STEP, "--signal", "const:1", "--kp", "3"])
+    assert status == 2
+    assert "--kp need --control pid" in capsys.readouterr().err
+    status = main(FAST_STEP)
+    assert status == 2
+    assert "--signal is required" in capsys.readouterr().err
+
+
+def test_pid_on_a_rig_without_an_output_unit(
+    capsys: pytest.CaptureFixture[str], opened: Callable[..., list[Rig]]
+) -> None:
+    opened(output_unit="")
+    status = main([*PID_RUN, "--setpoint", "40", "--kp", "5", "--ti", "100"])
+    assert status == 1
+    assert "has no output unit" in capsys.readouterr().err

@@ -191,7 +191,10 @@ def test_every_entry_point_agrees_with_the_registry(
 COMMAND_OPTIONS = {
     "identify": {"help", "file", "method", "dt", "json", "plot"},
     "run": {"help", "rig", "dt", "duration", "samples", "signal", "method", "speedup", "fast",
-            "seed", "out", "json", "max_output", "watchdog"},
+            "seed", "out", "json", "max_output", "watchdog",
+            # closed-loop control (thermolab.control), not identifier settings
+            "control", "setpoint", "kp", "ti", "td", "tune", "model", "tau_c", "pid_form",
+            "adaptive", "retune_every", "max_change", "kp_range", "ti_range"},
 }  # fmt: skip
 
 

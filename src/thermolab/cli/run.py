@@ -6,6 +6,14 @@ a number of samples, writes every sample to a CSV file as it is taken (columns
 the chosen online identifiers at every sample and prints each method's Ks and
 Ts at the end (a table, or JSON with ``--json``).
 
+With ``--control pid`` the run is closed-loop: a PID holds the output at
+``--setpoint`` (a number or a profile such as ``step:21:50@60``, in the rig's
+output unit), with gains given (``--kp/--ti/--td``) or tuned from an FOPDT
+model (``--tune simc --model K,TAU,THETA [--tau-c S]``), optionally retuned
+live from WLSM (``--adaptive``). The set point, the PID's output, the error and
+the mode are columns of the CSV; the summary adds the closed-loop figures
+(overshoot, 2 % settling time, IAE) measured and, with ``--model``, predicted.
+
 Exit status: 0 when the run completes; 1 when it stops on a device fault or an
 interlock (one line on standard error; the samples already taken stay in the
 CSV and the heater is off); 130 on SIGINT and 143 on SIGTERM (same safe end).
@@ -33,6 +41,10 @@ examples:
   thermolab run --rig sim:paper-practical --dt 1 --samples 3000 \\
       --signal square:4:6:0.1 --method lsm,malsm,wlsm --speedup 100 --out run.csv
   thermolab run --rig tclab --dt 1 --duration 600 --signal step:0:50@30 --out kit.csv
+  thermolab run --rig sim:tclab --dt 1 --duration 1200 --fast --control pid \
+      --setpoint step:21:50@60 --tune simc --model 0.6,140,15.9
+  thermolab run --rig sim --dt 1 --samples 3000 --fast --control pid --setpoint 1 \
+      --kp 20 --ti 100 --adaptive --tune imc --tau-c 100 --pid-form pi --max-change 0.1
 """
 
 
@@ -67,10 +79,10 @@ def register(subparsers: Any) -> None:
     length.add_argument("--samples", type=int, metavar="N", help="number of samples")
     parser.add_argument(
         "--signal",
-        required=True,
         metavar="SPEC",
         help="input signal: const:U, step:U0:U1@T, square:LOW:HIGH:FREQ_HZ, "
-        "sine:OFFSET:AMPLITUDE:FREQ_HZ, prbs:LOW:HIGH:BIT_SECONDS[:SEED]",
+        "sine:OFFSET:AMPLITUDE:FREQ_HZ, prbs:LOW:HIGH:BIT_SECONDS[:SEED] "
+        "(required unless --control pid)",
     )
     parser.add_argument(
         "--method",
@@ -109,7 +121,215 @@ def register(subparsers: Any) -> None:
         metavar="S",
         help="make the rig safe if the sampling loop stalls for S wall-clock seconds (default 10)",
     )
+    _add_control_options(parser.add_argument_group("closed-loop control"))
     parser.set_defaults(handler=_run)
+
+
+def _add_control_options(group: Any) -> None:
+    from thermolab.control import RULES
+
+    group.add_argument(
+        "--control",
+        choices=("manual", "pid"),
+        default="manual",
+        help="manual: the signal drives the input (default); pid: a PID holds --setpoint",
+    )
+    group.add_argument(
+        "--setpoint",
+        metavar="SPEC",
+        help="the PID's set point in the rig's output unit: a number, or a profile in the "
+        "signal grammar (step:R0:R1@T ...)",
+    )
+    group.add_argument("--kp", type=float, metavar="KP", help="proportional gain")
+    group.add_argument("--ti", type=float, metavar="S", help="integral time in seconds")
+    group.add_argument(
+        "--td", type=float, metavar="S", help="derivative time in seconds (default 0)"
+    )
+    group.add_argument(
+        "--tune",
+        choices=tuple(RULES),
+        metavar="RULE",
+        help=f"tune from --model by a rule: {', '.join(RULES)} (instead of --kp/--ti/--td; "
+        "the rule --adaptive uses, default simc)",
+    )
+    group.add_argument(
+        "--model", metavar="K,TAU[,THETA]", help="the FOPDT model to tune from (gain, s, s)"
+    )
+    group.add_argument(
+        "--tau-c", type=float, metavar="S", help="closed-loop time constant (imc, simc)"
+    )
+    group.add_argument(
+        "--pid-form", choices=("pi", "pid"), help="the rule's controller form (default: the rule's)"
+    )
+    group.add_argument(
+        "--adaptive",
+        action="store_true",
+        help="retune the PID live from WLSM estimates (off by default)",
+    )
+    group.add_argument(
+        "--retune-every", type=int, default=50, metavar="N", help="retune every N samples"
+    )
+    group.add_argument(
+        "--max-change",
+        type=float,
+        default=0.2,
+        metavar="F",
+        help="largest relative gain change per retune (default 0.2)",
+    )
+    group.add_argument("--kp-range", metavar="LOW,HIGH", help="bounds of |Kp| when adaptive")
+    group.add_argument("--ti-range", metavar="LOW,HIGH", help="bounds of Ti (s) when adaptive")
+
+
+_PID_OPTIONS = (
+    "setpoint", "kp", "ti", "td", "tune", "model", "tau_c", "pid_form", "kp_range", "ti_range",
+)  # fmt: skip
+# A set-point profile's own range check is the control loop's (the rig's output range).
+_PROFILE_LIMITS = (-1e9, 1e9)
+
+
+def _numbers(option: str, text: str, counts: tuple[int, ...]) -> tuple[float, ...]:
+    from thermolab.cli import CliError
+
+    try:
+        values = tuple(float(part) for part in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) not in counts or not all(math.isfinite(v) for v in values):
+        shape = " or ".join(str(c) for c in counts)
+        raise CliError(f"{option} takes {shape} comma-separated numbers, got {text!r}", status=2)
+    return values
+
+
+def _control_loop(args: argparse.Namespace) -> tuple[Any, Any, Any]:
+    """(ControlLoop or None, Tuning or None, FOPDT or None) from the options."""
+    from thermolab.cli import CliError
+    from thermolab.control import FOPDT, AdaptiveTuner, GainBounds, PIDGains, tune
+    from thermolab.runner import ControlLoop
+    from thermolab.signals import parse_signal
+
+    if args.control != "pid":
+        given = [o for o in _PID_OPTIONS if getattr(args, o) is not None]
+        if args.adaptive:
+            given.append("adaptive")
+        if given:
+            names = ", ".join("--" + o.replace("_", "-") for o in given)
+            raise CliError(f"{names} need --control pid", status=2)
+        if args.signal is None:
+            raise CliError("--signal is required (or give --control pid)", status=2)
+        return None, None, None
+    if args.setpoint is None:
+        raise CliError("--control pid needs --setpoint (a number or a profile)", status=2)
+    model = None
+    if args.model is not None:
+        model = FOPDT(*_numbers("--model", args.model, (2, 3)))
+    tuning = None
+    if args.kp is not None:
+        if args.ti is None:
+            raise CliError("--kp needs --ti (integral time in seconds)", status=2)
+        if args.tune is not None and not args.adaptive:
+            raise CliError("give either --kp/--ti/--td or --tune, not both", status=2)
+        gains = PIDGains(args.kp, args.ti, 0.0 if args.td is None else args.td)
+    elif args.ti is not None or args.td is not None:
+        raise CliError("--ti and --td need --kp", status=2)
+    elif args.tune is None or model is None:
+        raise CliError(
+            "--control pid needs gains: --kp/--ti[/--td], or --tune RULE --model K,TAU,THETA",
+            status=2,
+        )
+    else:
+        tuning = tune(model, args.tune, form=args.pid_form, tau_c=args.tau_c)
+        gains = tuning.gains
+    tuner = None
+    if args.adaptive:
+        from thermolab.ident import make_identifier
+
+        ranges: dict[str, tuple[float, float]] = {}
+        for option, key in (("--kp-range", "kp_range"), ("--ti-range", "ti_range")):
+            text = getattr(args, key)
+            if text is not None:
+                low, high = _numbers(option, text, (2,))
+                ranges[key[:2]] = (low, high)
+        tuner = AdaptiveTuner(
+            make_identifier("wlsm", args.dt),
+            args.tune or "simc",
+            every=args.retune_every,
+            form=args.pid_form,
+            tau_c=args.tau_c,
+            theta=0.0 if model is None else model.theta,
+            max_change=args.max_change,
+            bounds=GainBounds(**ranges),
+        )
+    elif args.kp_range is not None or args.ti_range is not None:
+        raise CliError("--kp-range and --ti-range need --adaptive", status=2)
+    try:
+        setpoint: Any = float(args.setpoint)
+    except ValueError:
+        setpoint = parse_signal(args.setpoint, limits=_PROFILE_LIMITS)
+    return ControlLoop(gains, setpoint, tuner=tuner), tuning, model
+
+
+def _closed_loop_figures(result: Any, loop: Any, model: Any) -> dict[str, Any]:
+    """Measured (and, with a model, predicted) overshoot, settling time and IAE."""
+    import numpy as np
+
+    from thermolab.control import predict_closed_loop, step_metrics
+    from thermolab.errors import InvalidDataError
+
+    figures: dict[str, Any] = {"measured": None, "predicted": None, "note": None}
+    try:
+        measured = step_metrics(result.t, result.extra["r"], result.y)
+    except InvalidDataError as exc:
+        figures["note"] = str(exc)
+        return figures
+    figures["measured"] = measured.to_dict()
+    if model is not None:
+        i0 = int(np.searchsorted(result.t, measured.step_time))
+        rig = result.rig
+        # From rest at the record's operating point just before the step, with the
+        # gains the run started with.
+        predicted = predict_closed_loop(
+            model,
+            loop.initial_gains,
+            dt=result.dt,
+            samples=result.samples,
+            setpoint=float(result.extra["r"][-1]),
+            step_at=measured.step_time,
+            y0=float(result.y[i0 - 1] if i0 else result.y[0]),
+            u0=float(result.u[i0 - 1] if i0 else result.u[0]),
+            u_limits=(rig.input_min, rig.input_max),
+        )
+        figures["predicted"] = predicted.metrics.to_dict()
+    return figures
+
+
+def _control_table(result: Any, loop: Any, tuning: Any, figures: dict[str, Any]) -> str:
+    rig = result.rig
+    g = loop.gains
+    how = f"  ({tuning.rule} {tuning.form}" if tuning is not None else ""
+    if tuning is not None and tuning.tau_c is not None:
+        how += f", tau_c {tuning.tau_c:g} s"
+    how += ")" if tuning is not None else ""
+    lines = [
+        f"control: PID {'auto' if loop.auto else 'manual'}   set point {loop.setpoint:g} "
+        f"{rig.output_unit}   Kp {g.Kp:.6g}  Ti {g.Ti:.6g} s  Td {g.Td:.6g} s{how}"
+    ]
+    if loop.tuner is not None:
+        lines.append(
+            f"adaptive: {loop.tuner.retunes} retunes, {loop.tuner.skipped} skipped "
+            f"(rule {loop.tuner.rule}, every {loop.tuner.every} samples)"
+        )
+    if figures["note"]:
+        lines.append(f"closed loop: {figures['note']}")
+        return "\n".join(lines)
+    header = f"{'closed loop':<12} {'overshoot (%)':>14} {'settling (s)':>13} {'IAE':>12}"
+    lines += ["", header, "-" * len(header)]
+    for name in ("measured", "predicted"):
+        m = figures[name]
+        if m is None:
+            continue
+        settling = "-" if m["settling_time"] is None else f"{m['settling_time']:.1f}"
+        lines.append(f"{name:<12} {m['overshoot']:>14.2f} {settling:>13} {m['iae']:>12.4g}")
+    return "\n".join(lines)
 
 
 def _identifier_settings() -> tuple[Setting, ...]:
@@ -258,7 +478,7 @@ def _summary_table(result: Any, csv_path: str | None) -> str:
     return "\n".join(lines)
 
 
-def _json_report(result: Any, csv_path: str | None, signal_spec: str) -> dict[str, Any]:
+def _json_report(result: Any, csv_path: str | None, signal_spec: str | None) -> dict[str, Any]:
     report: dict[str, Any] = result.to_dict()
     report["signal"] = signal_spec
     report["csv"] = csv_path
@@ -270,6 +490,8 @@ def _json_report(result: Any, csv_path: str | None, signal_spec: str) -> dict[st
 
 def _run(args: argparse.Namespace) -> int:
     from thermolab.cli import CliError
+    from thermolab.jsonsafe import json_safe
+    from thermolab.records import RUN_CHANNELS
     from thermolab.rigs import open_rig
     from thermolab.runner import (
         CsvRecorder,
@@ -284,6 +506,7 @@ def _run(args: argparse.Namespace) -> int:
 
     n = _number_of_samples(args)
     methods = parse_methods(args.method)
+    loop, tuning, model = _control_loop(args)
     # Only hardware is bound to real time; an unknown rig is reported by open_rig.
     simulated = args.rig.strip().partition(":")[0] != "tclab"
     clock = _clock_for(args, simulated)
@@ -294,11 +517,17 @@ def _run(args: argparse.Namespace) -> int:
     # handlers the rig's driver installed are back as they were.
     with open_rig(args.rig, clock=clock, seed=args.seed) as rig, termination_signals():
         info = rig.describe()
-        signal = parse_signal(args.signal, limits=info.input_range)
+        signal = None if args.signal is None else parse_signal(args.signal, limits=info.input_range)
         identifiers = build_identifiers(
             methods, args.dt, **given_settings(args, _identifier_settings())
         )
-        recorder = CsvRecorder(args.out, fsync=not simulated) if args.out else None
+        channels = RUN_CHANNELS
+        if loop is not None:
+            loop.bind(info, interlocks)
+            channels = (*RUN_CHANNELS, *loop.channels())
+        recorder = (
+            CsvRecorder(args.out, fsync=not simulated, channels=channels) if args.out else None
+        )
         experiment = Experiment(
             rig,
             args.dt,
@@ -307,6 +536,7 @@ def _run(args: argparse.Namespace) -> int:
             identifiers=identifiers,
             recorder=recorder,
             interlocks=interlocks,
+            controller=loop,
         )
         progress = _Progress(experiment, sys.stderr) if sys.stderr.isatty() else None
         try:
@@ -325,10 +555,23 @@ def _run(args: argparse.Namespace) -> int:
             print(f"interrupted by {name}: {info.name} made safe{kept}", file=sys.stderr)
             return 128 + signum
     assert result is not None
+    figures = None if loop is None else _closed_loop_figures(result, loop, model)
     if args.json:
-        print(json.dumps(_json_report(result, args.out, signal.spec), indent=2))
+        report = _json_report(result, args.out, None if signal is None else signal.spec)
+        if loop is not None:
+            report["control"] = {
+                **report.get("control", {}),
+                "tuning": None if tuning is None else tuning.to_dict(),
+                "model": None if model is None else model.to_dict(),
+                "closed_loop": figures,
+            }
+        print(json.dumps(json_safe(report), indent=2))
     else:
         print(_summary_table(result, args.out))
+        if loop is not None:
+            assert figures is not None
+            print()
+            print(_control_table(result, loop, tuning, figures))
     if not result.ok:
         kept = f"; {result.samples} samples kept in {args.out}" if args.out else ""
         raise CliError(

@@ -9,6 +9,7 @@ publishes and how subscribers receive it without delaying sampling),
 settings; imported on its own because it loads the compiled kernels).
 """
 
+from thermolab.runner.closed_loop import ControlLoop
 from thermolab.runner.events import (
     EstimateEvent,
     Event,
@@ -32,6 +33,7 @@ from thermolab.runner.termination import Terminated, interrupt_signal, terminati
 
 __all__ = [
     "CSV_COLUMNS",
+    "ControlLoop",
     "CsvRecorder",
     "EndReason",
     "EstimateEvent",

@@ -37,10 +37,12 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
+from thermolab.control import PIDGains
 from thermolab.errors import InvalidParameterError, RigError, RunStateError, ThermoLabError
 from thermolab.jsonsafe import json_safe
 from thermolab.records import RUN_CHANNELS, ChannelSpec, channel_names
 from thermolab.rigs import Rig, RigInfo, VirtualClock
+from thermolab.runner.closed_loop import ControlLoop
 from thermolab.runner.events import (
     NO_EXTRA,
     EstimateEvent,
@@ -297,6 +299,9 @@ class RunResult:
     channels : tuple of ChannelSpec
         Every channel of the record, in column order (``t, u, y, k, t_read,
         jitter, lateness``, then the extra ones).
+    control : dict or None
+        The control loop at the end (:meth:`ControlLoop.to_dict`: mode, set
+        point, gains), or ``None`` for an open-loop run.
     """
 
     rig: RigInfo
@@ -320,6 +325,7 @@ class RunResult:
     error: BaseException | None = None
     extra: dict[str, _FloatArray] = field(default_factory=dict)
     channels: tuple[ChannelSpec, ...] = RUN_CHANNELS
+    control: dict[str, Any] | None = None
 
     @property
     def samples(self) -> int:
@@ -367,6 +373,8 @@ class RunResult:
                 out[key] = getattr(self, key).tolist()
             out["extra"] = {name: json_safe(v) for name, v in self.extra.items()}
         out["channels"] = [c.to_dict() for c in self.channels]
+        if self.control is not None:
+            out["control"] = self.control
         return out
 
 
@@ -405,13 +413,22 @@ class Experiment:
         standard values, in this order), :attr:`SampleEvent.extra` and
         :attr:`RunResult.extra`. A recorder used with sources must declare the
         same :attr:`channels` (``CsvRecorder(path, channels=exp.channels)``).
+    controller : ControlLoop, optional
+        A PID on the output (:class:`~thermolab.runner.closed_loop.ControlLoop`).
+        In AUTO it computes the input; in MANUAL the signal or the manual
+        input drives and the PID tracks it. Its channels (``r, u_pid, e,
+        auto``...) come after the standard ones, before the sources'. The
+        interlocks and the safe state are checked before and after it, as
+        for any input.
 
     Raises
     ------
     InvalidParameterError
         If ``dt``, ``samples``, ``late_tolerance`` or the set point is invalid,
         or both a signal and a set point are given, or an extra channel's
-        name is taken or repeated, or the recorder's channels differ.
+        name is taken or repeated, or the recorder's channels differ, or the
+        controller does not fit the rig (no output unit, set point outside
+        the output range).
 
     Examples
     --------
@@ -439,6 +456,7 @@ class Experiment:
         late_tolerance: float | None = None,
         events: EventBus | None = None,
         sources: Sequence[ChannelSource] = (),
+        controller: ControlLoop | None = None,
     ) -> None:
         if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0):
             raise InvalidParameterError(f"dt must be a positive number of seconds, got {dt!r}")
@@ -453,7 +471,23 @@ class Experiment:
                 f"late_tolerance must be a number of seconds >= 0, got {late_tolerance!r}"
             )
         self._sources = tuple((spec, fn) for spec, fn in sources)
-        self._channels = (*RUN_CHANNELS, *(spec for spec, _ in self._sources))
+        self._interlocks = interlocks if interlocks is not None else Interlocks()
+        self._info = rig.describe()
+        if controller is not None and not isinstance(controller, ControlLoop):
+            raise InvalidParameterError(
+                f"controller must be a ControlLoop, got {type(controller).__name__}"
+            )
+        self._control = controller
+        control_channels: tuple[ChannelSpec, ...] = ()
+        if controller is not None:
+            controller.bind(self._info, self._interlocks, (np.arange(samples) * dt).tolist())
+            control_channels = controller.channels()
+        self._control_channels = control_channels
+        self._channels = (
+            *RUN_CHANNELS,
+            *control_channels,
+            *(spec for spec, _ in self._sources),
+        )
         names = channel_names(self._channels)
         for name in names[len(RUN_CHANNELS) :]:
             if names.count(name) > 1:
@@ -468,12 +502,10 @@ class Experiment:
                 f"the run has {','.join(names)}; give the recorder channels=Experiment.channels"
             )
         self._rig = rig
-        self._info = rig.describe()
         self._clock = rig.clock
         self._dt = float(dt)
         self._samples = int(samples)
         self._late_tolerance = float(late_tolerance)
-        self._interlocks = interlocks if interlocks is not None else Interlocks()
         self._recorder = recorder
         self._identifiers = dict(identifiers or {})
         for name, ident in self._identifiers.items():
@@ -504,7 +536,7 @@ class Experiment:
         self._jitter = np.empty(n)
         self._lateness = np.empty(n)
         self._busy = np.empty(n)
-        self._extra = {spec.name: np.empty(n) for spec, _ in self._sources}
+        self._extra = {spec.name: np.empty(n) for spec in self._channels[len(RUN_CHANNELS) :]}
         self._late = 0
         self._missed = 0
         self._tracks = {name: _Track() for name in self._identifiers}
@@ -558,6 +590,9 @@ class Experiment:
     def set_input(self, u: float) -> None:
         """Switch to manual input ``u`` (a set point), from the next sample on.
 
+        With a controller, this also switches it to MANUAL (its PID then
+        tracks ``u``).
+
         Parameters
         ----------
         u : float
@@ -574,6 +609,8 @@ class Experiment:
         value = self._checked_input(u)
         self._refuse_when_over("change the input")
         self._manual = value
+        if self._control is not None:
+            self._control.request_manual()
 
     def set_signal(self, signal: InputSignal) -> None:
         """Let ``signal`` drive the input from the next sample on (time since START).
@@ -597,6 +634,84 @@ class Experiment:
         self._refuse_when_over("change the input")
         self._signal = signal
         self._manual = None
+        if self._control is not None:
+            self._control.request_manual()
+
+    @property
+    def controller(self) -> ControlLoop | None:
+        """The control loop, or ``None`` for an open-loop run."""
+        return self._control
+
+    def _require_control(self, action: str) -> ControlLoop:
+        if self._control is None:
+            raise InvalidParameterError(
+                f"cannot {action}: this run has no controller (Experiment(controller=...))"
+            )
+        self._refuse_when_over(action)
+        return self._control
+
+    def set_auto(self, setpoint: float | None = None) -> None:
+        """Switch the controller to AUTO from the next sample on, without a bump.
+
+        Parameters
+        ----------
+        setpoint : float, optional
+            A new set point (output unit); default: the one in force.
+
+        Raises
+        ------
+        InvalidParameterError
+            If the run has no controller or the set point is not valid.
+        RunStateError
+            If the run is already over.
+        """
+        control = self._require_control("switch to automatic")
+        if setpoint is not None:
+            control.request_setpoint(setpoint)
+        control.request_auto()
+
+    def set_manual(self, u: float | None = None) -> None:
+        """Switch the controller to MANUAL; hold its last output unless ``u`` is given.
+
+        Holding the last output is the bumpless transfer from AUTO to MANUAL.
+
+        Raises
+        ------
+        InvalidParameterError
+            If the run has no controller or ``u`` is not a valid input.
+        RunStateError
+            If the run is already over.
+        """
+        control = self._require_control("switch to manual")
+        held = control.output if u is None else u
+        if u is None and not math.isfinite(held):
+            held = self._info.safe_input  # nothing applied yet
+        self.set_input(held)
+
+    def set_setpoint(self, setpoint: float) -> None:
+        """Change the controller's set point (output unit) from the next sample on.
+
+        Raises
+        ------
+        InvalidParameterError
+            If the run has no controller or the set point is outside the rig's
+            output range.
+        RunStateError
+            If the run is already over.
+        """
+        self._require_control("change the set point").request_setpoint(setpoint)
+
+    def set_gains(self, gains: PIDGains) -> None:
+        """Change the PID's gains from the next sample on, without a bump.
+
+        Raises
+        ------
+        InvalidParameterError
+            If the run has no controller or ``gains`` is not :class:`PIDGains`.
+        RunStateError
+            If the run is already over.
+        """
+        self._require_control("change the gains").request_gains(gains)
 
     def end(self) -> None:
         """END: stop sampling after the current sample and compute the final estimates.
@@ -912,6 +1027,7 @@ class Experiment:
             error=error,
             extra={name: values[:n].copy() for name, values in self._extra.items()},
             channels=self._channels,
+            control=None if self._control is None else self._control.to_dict(),
         )
 
     def _loop(self, watchdog: Watchdog | None) -> tuple[EndReason, str]:
@@ -938,6 +1054,9 @@ class Experiment:
         )
         active = [(name, ident, self._tracks[name]) for name, ident in self._identifiers.items()]
         sources = [(spec.name, fn, self._extra[spec.name]) for spec, fn in self._sources]
+        control = self._control
+        control_arrays = [(spec.name, self._extra[spec.name]) for spec in self._control_channels]
+        with_extra = bool(sources) or control is not None
         extra: Mapping[str, float] = NO_EXTRA
         # The signal's values for a block of samples ahead (see _signal_table).
         table: list[float] = []
@@ -992,6 +1111,10 @@ class Experiment:
                     table, table_signal, table_start = _signal_table(signal, k, n, dt), signal, k
                     table_end = k + len(table) if table else k
                 u = table[k - table_start] if table else float(signal.value(t_k))
+            if control is not None:
+                # The interlock on y was checked above and the input range is checked
+                # below: the controller can never override either.
+                u = control.command(y, u, dt, t_k)
             if not in_min <= u <= in_max:
                 problem = Interlocks.check_input(u, info)
                 raise _TripError(EndReason.INTERLOCK, "interlock", f"interlock: {problem}")
@@ -1005,8 +1128,13 @@ class Experiment:
             t_read_arr[k] = t_read
             jitter_arr[k] = jitter
             late_arr[k] = lateness
-            if sources:
+            if with_extra:
                 extra = {}
+                if control is not None:
+                    for (name, values), value in zip(
+                        control_arrays, control.after(u, y), strict=True
+                    ):
+                        values[k] = extra[name] = value
                 for name, source, values in sources:
                     values[k] = extra[name] = float(source(t_k, u, y))
                 if recorder is not None:
