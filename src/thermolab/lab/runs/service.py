@@ -108,6 +108,10 @@ class RunService:
         self._on_run = on_run
         self._on_event = on_event
         self._active: dict[str, _Active] = {}
+        # Every run's ending thread until it has returned: after a run leaves
+        # _active its thread still announces the end (database reads), and the
+        # lab must not close the database under it.
+        self._ending: set[threading.Thread] = set()
         self._lock = threading.Lock()
 
         self._store = RunStore(db)
@@ -201,6 +205,8 @@ class RunService:
         active.thread = threading.Thread(
             target=self._finish, args=(active,), name=f"thermolab-run-{run_id}-end", daemon=True
         )
+        with self._lock:
+            self._ending.add(active.thread)
         active.thread.start()
         return record
 
@@ -256,16 +262,25 @@ class RunService:
         if active is not None and active.thread is not None:
             active.thread.join(timeout)
 
-    def shutdown(self, timeout: float = 10.0) -> None:
-        """Abort every run (server stopping): actuators safe, runs marked interrupted."""
+    def shutdown(self, timeout: float = 60.0) -> None:
+        """Abort every run (server stopping): actuators safe, runs marked interrupted.
+
+        Waits for each run's ending thread (it stores the samples and the
+        statistics) before returning, so the database is not closed under it:
+        the abort itself makes the actuator safe at once, and on a loaded
+        machine the storing can take seconds.
+        """
         with self._lock:
             actives = list(self._active.values())
         for active in actives:
             active.stopped_by = "the server stopped"
             active.experiment.abort("the server stopped")
-        for active in actives:
-            if active.thread is not None:
-                active.thread.join(timeout)
+        with self._lock:
+            ending = list(self._ending)
+        for thread in ending:
+            thread.join(timeout)
+            if thread.is_alive():
+                log.warning("%s: still storing after %.0f s", thread.name, timeout)
 
     # -- the operating point ---------------------------------------------------------------
 
@@ -356,6 +371,13 @@ class RunService:
     # -- internals -------------------------------------------------------------------------
 
     def _finish(self, active: _Active) -> None:
+        try:
+            self._end_run(active)
+        finally:
+            with self._lock:
+                self._ending.discard(threading.current_thread())
+
+    def _end_run(self, active: _Active) -> None:
         result = active.experiment.wait()
         try:
             if result is not None:
