@@ -160,19 +160,17 @@ export function formatNumber(value, options) {
 }
 
 /**
- * A number as a reader would type it back into a field: the language's
- * decimal mark, no grouping, every digit the value has, a true minus sign.
+ * A number as a reader would type it back into a field: JavaScript's
+ * shortest form that reads back as the same number (so a default shown in a
+ * field is sent unchanged), with the language's decimal mark and a true minus
+ * sign; no grouping.
  * @param {number} value
  * @returns {string}
  *
  * @example formatDecimal(-0.96) // "−0.96" in English, "−0,96" in pt-BR
  */
 export function formatDecimal(value) {
-  if (!Number.isFinite(value)) return String(value);
-  if (value !== 0 && (Math.abs(value) >= 1e21 || Math.abs(value) < 1e-6)) {
-    return value.toExponential().replace(".", decimalMark()).replace(/^-/, "−");
-  }
-  return formatNumber(value, { useGrouping: false, maximumFractionDigits: 20 }).replace(/^-/, "−");
+  return String(value).replace(".", decimalMark()).replace(/^-/, "−");
 }
 
 /** The current language's decimal mark ("." or ","). */
