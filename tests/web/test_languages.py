@@ -213,3 +213,33 @@ def test_a_number_shown_in_a_field_reads_back_as_the_same_number(
         # float(): Playwright hands a large whole JS number over as a Python int.
         assert math.copysign(1.0, read) == math.copysign(1.0, value) or value == 0.0
         assert float(read) == value  # exact: the shortest round-trip form, no rounding
+
+
+def test_a_server_error_is_translated_by_its_code_else_shown_as_sent(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        """
+        const i18n = await import('/js/i18n.js');
+        const { errorMessage } = await import('/js/api.js');
+        const pt = (await import('/js/messages/pt-BR.js')).messages;
+        i18n.setLanguage('pt-BR', { ...pt, 'error.rig_busy': 'A bancada {rig} está ocupada.' });
+        return [
+          errorMessage({ detail: 'Rig twin is busy.', code: 'rig_busy', params: { rig: 'twin' } },
+                       '?'),
+          errorMessage({ detail: { code: 'rig_busy', message: 'Rig x is busy.',
+                                   params: { rig: 'x' } } }, '?'),
+          errorMessage({ detail: 'Something new.', code: 'not_in_catalogue' }, '?'),
+          errorMessage({ detail: { code: 'not_in_catalogue' } }, 'fallback'),
+          errorMessage({ detail: 'Plain.' }, '?'),
+          i18n.serverMessage('../evil', 'as sent'),
+        ];
+        """,
+    )
+    assert r == [
+        "A bancada twin está ocupada.",
+        "A bancada x está ocupada.",
+        "Something new.",
+        "fallback",
+        "Plain.",
+        "as sent",
+    ]

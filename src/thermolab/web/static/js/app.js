@@ -79,12 +79,15 @@ function shell(id) {
   return el;
 }
 
+/** The translated words for a user's role (others show the server's word). */
+const ROLE_TEXT = { student: "role.student", teacher: "role.teacher" };
+
 function updateChrome() {
   const user = ctx.user;
   shell("nav").hidden = user === null;
   shell("who").hidden = user === null;
   shell("nav-teacher").hidden = user?.role !== "teacher";
-  setText(shell("who-name"), user ? t("app.who", { user: user.username, role: user.role }) : "");
+  setText(shell("who-name"), user ? t("app.who", { user: user.username, role: ROLE_TEXT[user.role] ? t(ROLE_TEXT[user.role]) : user.role }) : "");
 }
 
 function markNav(name) {

@@ -151,6 +151,22 @@ export function t(key, params = {}) {
 }
 
 /**
+ * A message from the server in the reader's language: the answer's stable
+ * `code` names the catalogue message "error.<code>" (filled with `params`);
+ * when the catalogue has no such message (a server newer than the page, or a
+ * code not translated yet) the server's own text, `detail`, is shown.
+ * @param {unknown} code
+ * @param {string} detail
+ * @param {Record<string, string | number | null | undefined>} [params]
+ * @returns {string}
+ */
+export function serverMessage(code, detail, params = {}) {
+  if (typeof code !== "string" || !/^[A-Za-z0-9_.-]+$/.test(code)) return detail;
+  const key = `error.${code}`;
+  return key in catalogue || key in fallback ? t(key, params) : detail;
+}
+
+/**
  * A number in the current language's form (decimal comma in pt-BR).
  * @param {number} value
  * @param {Intl.NumberFormatOptions} [options]

@@ -245,6 +245,8 @@ export const messages = {
   "rigState.out_of_service": "Fuera de servicio",
   "rigState.starting": "Arrancando",
   "rigState.unknown": "desconocido",
+  "role.student": "estudiante",
+  "role.teacher": "profesor",
   "run.Kstats": "Ks media / máx. / mín.",
   "run.charts": "Gráficas",
   "run.convergeColumn": "Muestras hasta converger Ks / Ts",
@@ -278,6 +280,12 @@ export const messages = {
   "run.started": "Ensayo {run} iniciado.",
   "run.tauStats": "Ts media / máx. / mín.",
   "run.w0": "Parámetros iniciales W0",
+  "runStatus.aborted": "abortado",
+  "runStatus.failed": "fallido",
+  "runStatus.finished": "terminado",
+  "runStatus.interrupted": "interrumpido",
+  "runStatus.running": "en curso",
+  "runStatus.stopped": "detenido",
   "runs.caption": "Ensayos",
   "runs.chooseOne": "Elige al menos un ensayo para comparar.",
   "runs.compare": "Comparar los ensayos elegidos",
@@ -332,5 +340,6 @@ export const messages = {
     "one": "{user} ({count} ventana)",
     "other": "{user} ({count} ventanas)"
   },
-  "teacher.watchers": "Observadores"
+  "teacher.watchers": "Observadores",
+  "unit.samples": "muestras"
 };

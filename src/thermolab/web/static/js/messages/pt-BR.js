@@ -245,6 +245,8 @@ export const messages = {
   "rigState.out_of_service": "Fora de serviço",
   "rigState.starting": "Iniciando",
   "rigState.unknown": "desconhecido",
+  "role.student": "aluno",
+  "role.teacher": "professor",
   "run.Kstats": "Ks média / máx. / mín.",
   "run.charts": "Gráficos",
   "run.convergeColumn": "Amostras até convergir Ks / Ts",
@@ -278,6 +280,12 @@ export const messages = {
   "run.started": "Ensaio {run} iniciado.",
   "run.tauStats": "Ts média / máx. / mín.",
   "run.w0": "Parâmetros iniciais W0",
+  "runStatus.aborted": "abortado",
+  "runStatus.failed": "com falha",
+  "runStatus.finished": "concluído",
+  "runStatus.interrupted": "interrompido",
+  "runStatus.running": "em andamento",
+  "runStatus.stopped": "parado",
   "runs.caption": "Ensaios",
   "runs.chooseOne": "Escolha pelo menos um ensaio para comparar.",
   "runs.compare": "Comparar os ensaios escolhidos",
@@ -332,5 +340,6 @@ export const messages = {
     "one": "{user} ({count} janela)",
     "other": "{user} ({count} janelas)"
   },
-  "teacher.watchers": "Quem assiste"
+  "teacher.watchers": "Quem assiste",
+  "unit.samples": "amostras"
 };
