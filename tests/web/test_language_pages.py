@@ -4,7 +4,7 @@ The browser's language preference (Playwright's ``locale``, which sets
 ``navigator.languages``) picks the interface's language; the page is then read
 as a student sees it: any piece of an English message visible on a Brazilian
 or Spanish page fails the test (login, lobby, rig page with its three panels,
-a run made in that language, My runs and the run's page). The run is started
+a run made in that language, My runs, the comparison and the run's page). The run is started
 with a decimal comma typed in the sample-time field; what is sent to the API
 is a JSON number.
 """
@@ -184,6 +184,14 @@ def test_the_key_pages_speak_the_browsers_language(
         page.click("#nav a[data-nav=runs]")
         page.wait_for_selector("table.runs tbody tr")
         assert_no_english(page, language, "My runs")
+        # The comparison with the reference model (the paper's Table I).
+        page.check("table.runs tbody tr:first-child input[name=run]")
+        page.click("main button.primary[type=submit]")
+        page.wait_for_selector("table.compare tbody tr")
+        assert f"0{want['mark']}14009" in page.inner_text("main")  # the reference Ks
+        assert_no_english(page, language, "the comparison")
+        page.go_back()
+        page.wait_for_selector("table.runs tbody tr")
         page.click("table.runs tbody tr:first-child a")
         page.wait_for_selector("[data-testid=csv-link]")
         assert f"0{want['mark']}5" in page.inner_text("main")  # the sample time, 0.5 s

@@ -243,3 +243,23 @@ def test_a_server_error_is_translated_by_its_code_else_shown_as_sent(module_page
         "Plain.",
         "as sent",
     ]
+
+
+def test_the_servers_own_sentences_are_marked_as_english_on_other_pages(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        """
+        const i18n = await import('/js/i18n.js');
+        const { serverText, tParts } = await import('/js/dom.js');
+        const show = (parts) =>
+          parts.map((p) => typeof p === 'string' ? p : `<${p.lang}>${p.textContent}`);
+        const english = show(tParts('panel.endedWhy',
+          { run: 3, status: 'stopped', reason: serverText('stopped by the teacher') }));
+        await i18n.useLanguage('pt-BR');
+        const pt = show(tParts('panel.endedWhy',
+          { run: 3, status: 'parado', reason: serverText('stopped by the teacher') }));
+        return { english, pt };
+        """,
+    )
+    assert r["english"] == ["Run #3 stopped (stopped by the teacher)."]
+    assert r["pt"] == ["Ensaio nº 3 parado (", "<en>stopped by the teacher", ")."]

@@ -145,3 +145,14 @@ export function tParts(key, params) {
     .map((part, i) => (i % 2 ? nodes[Number(part)] : part))
     .filter((part) => part !== "");
 }
+
+/**
+ * Show DOM children (tParts) in an element, touching it only when its text
+ * changes (like setText: a live region is not re-announced for nothing).
+ * @param {HTMLElement} el
+ * @param {Array<Node | string>} parts
+ */
+export function setParts(el, parts) {
+  const text = parts.map((p) => (typeof p === "string" ? p : p.textContent)).join("");
+  if (el.textContent !== text) el.replaceChildren(...parts);
+}

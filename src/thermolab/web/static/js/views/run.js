@@ -4,7 +4,7 @@
 
 import { api } from "../api.js";
 import { Chart } from "../charts.js";
-import { h, serverText, setText, when } from "../dom.js";
+import { h, serverText, setText, tParts, when } from "../dom.js";
 import { fmt, predict, predictionBase } from "../model.js";
 import { readResult } from "../results.js";
 import { inputText, methodTitle, readRun, runStatusText } from "../runspec.js";
@@ -77,7 +77,7 @@ function render(main, exported, charts) {
   const add = (k, v) => facts.append(h("dt", null, k), h("dd", null, v));
   add(t("runs.rig"), run.rig ?? "–");
   if (run.user) add(t("runs.student"), run.user);
-  add(t("runs.status"), run.endReason ? t("runs.statusWhy", { status: runStatusText(run.status), reason: run.endReason }) : runStatusText(run.status));
+  add(t("runs.status"), run.endReason ? tParts("runs.statusWhy", { status: runStatusText(run.status), reason: serverText(run.endReason) }) : runStatusText(run.status));
   add(t("runs.started"), when(run.startedAt));
   add(t("run.endedAt"), when(run.endedAt));
   add(t("run.dt"), t("run.seconds", { seconds: run.dt }));

@@ -44,14 +44,18 @@ export function runningText(run, k) {
   return t(key, { run: run.id, sample: k, samples: n });
 }
 
-/** The status line of a panel whose run ended, or that has had none. */
-export function idleText(run, panelId) {
+/**
+ * The status line of a panel whose run ended, or that has had none (DOM
+ * children: the server's end reason is its own sentence, see serverText).
+ * @returns {Array<Node | string>}
+ */
+export function idleParts(run, panelId) {
   if (run && panelOfRun(run) === panelId) {
     return run.endReason
-      ? t("panel.endedWhy", { run: run.id, status: runStatusText(run.status), reason: run.endReason })
-      : t("panel.ended", { run: run.id, status: runStatusText(run.status) });
+      ? tParts("panel.endedWhy", { run: run.id, status: runStatusText(run.status), reason: serverText(run.endReason) })
+      : [t("panel.ended", { run: run.id, status: runStatusText(run.status) })];
   }
-  return t("panel.noRun");
+  return [t("panel.noRun")];
 }
 
 /** The status line of a panel while another panel's run is going. */
