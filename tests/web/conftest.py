@@ -145,6 +145,7 @@ USERS = {
     "carol": "student",
     "dave": "student",
     "erin": "student",
+    "lucia": "student",
     "tess": "teacher",
 }
 
@@ -165,6 +166,11 @@ spec = "sim"
 [[rigs]]
 id = "twin-phone"
 title = "Twin for the phone test"
+spec = "sim"
+
+[[rigs]]
+id = "twin-lang"
+title = "Twin for the language tests"
 spec = "sim"
 """
 

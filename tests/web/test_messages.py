@@ -43,9 +43,13 @@ MACHINE = re.compile(
 )
 
 
-def catalogue() -> dict[str, str | dict[str, str]]:
-    """The English catalogue: the object literal of js/messages/en.js, which is JSON."""
-    text = CATALOGUE.read_text(encoding="utf-8")
+#: The translations of the English catalogue (js/i18n.js LANGUAGES).
+TRANSLATIONS = ("pt-BR", "es")
+
+
+def catalogue(language: str = "en") -> dict[str, str | dict[str, str]]:
+    """A catalogue: the object literal of js/messages/<language>.js, which is JSON."""
+    text = (JS / "messages" / f"{language}.js").read_text(encoding="utf-8")
     body = text[text.index("{", text.index("export const messages")) : text.rindex("}") + 1]
     data = json.loads(body)
     assert isinstance(data, dict)
@@ -127,9 +131,13 @@ def test_every_key_used_is_in_the_catalogue() -> None:
     assert missing == {}
 
 
+#: Keys looked up by name at run time: "error.<code>" translates the server's stable error codes.
+LOOKED_UP = re.compile(r"^error\.")
+
+
 def test_every_catalogue_key_is_used() -> None:
     used = used_keys()
-    unused = sorted(k for k in catalogue() if k not in used)
+    unused = sorted(k for k in catalogue() if k not in used and not LOOKED_UP.match(k))
     assert unused == []
 
 
@@ -163,3 +171,121 @@ def test_the_page_shell_names_its_keys() -> None:
         if "data-i18n" not in attrs and text != "ThermoLab"
     ]
     assert bare == []
+
+
+def test_every_language_of_the_interface_has_a_catalogue() -> None:
+    i18n = (JS / "i18n.js").read_text(encoding="utf-8")
+    declared = re.findall(r'^\s*"?([A-Za-z-]+)"?: \{ name: "language\.', i18n, re.MULTILINE)
+    assert sorted(declared) == sorted(["en", *TRANSLATIONS])
+    for tag in TRANSLATIONS:
+        assert f'import("./messages/{tag}.js")' in i18n
+
+
+@pytest.mark.parametrize("language", TRANSLATIONS)
+def test_a_translation_has_every_key_and_no_other(language: str) -> None:
+    english, translated = catalogue(), catalogue(language)
+    assert sorted(set(english) - set(translated)) == [], "untranslated keys"
+    assert sorted(set(translated) - set(english)) == [], "keys English does not have"
+    assert list(translated) == sorted(translated), "keep the catalogue sorted: translators diff it"
+
+
+def forms(message: str | dict[str, str]) -> list[str]:
+    return list(message.values()) if isinstance(message, dict) else [message]
+
+
+def placeholders(text: str) -> set[str]:
+    return set(re.findall(r"\{([A-Za-z0-9]+)\}", text))
+
+
+@pytest.mark.parametrize("language", TRANSLATIONS)
+def test_a_translation_keeps_the_placeholders_and_plural_forms(language: str) -> None:
+    english, translated = catalogue(), catalogue(language)
+    wrong = []
+    for key, message in english.items():
+        other = translated[key]
+        if isinstance(message, dict) != isinstance(other, dict):
+            wrong.append(f"{key}: plural forms in one language and not the other")
+            continue
+        if isinstance(other, dict):
+            if "other" not in other or not set(other) <= {
+                "zero",
+                "one",
+                "two",
+                "few",
+                "many",
+                "other",
+            }:
+                wrong.append(f"{key}: plural forms {sorted(other)}")
+            if "zero" in message and "zero" not in other:
+                wrong.append(f"{key}: English says 'zero' apart; so must the translation")
+        wanted = set().union(*(placeholders(f) for f in forms(message)))
+        for form in forms(other):
+            if placeholders(form) != wanted and not (
+                # A singular form may spell the number out ("um minuto").
+                isinstance(other, dict) and placeholders(form) == wanted - {"count"}
+            ):
+                wrong.append(f"{key}: {sorted(placeholders(form))} instead of {sorted(wanted)}")
+    assert wrong == []
+
+
+#: Words that are the same in every language of the lab: names, units, symbols,
+#: the paper's method acronyms and the languages' own names (autonyms).
+SAME_IN_EVERY_LANGUAGE = {
+    "ThermoLab", "Ks", "Ts", "CSV", "JSON", "PID", "FIFO", "LSM", "MALSM", "WLSM", "SRM",
+    "pmax", "W0", "a0", "b0", "Hz", "V", "s", "u", "y", "t", "k", "P", "I",
+    "English", "Español", "Português", "Brasil",
+}  # fmt: skip
+#: Messages whose words happen to be the same in a language (checked one by one).
+SAME_BY_CHANCE = {
+    ("pt-BR", "run.inputManual"),  # "manual" is Portuguese too
+    ("es", "run.inputManual"),  # and Spanish
+    ("es", "panel.legend"),  # "Panel" is Spanish too
+}
+
+
+def untranslated_words(text: str) -> list[str]:
+    """The words of a message that are neither placeholders nor the same in every language."""
+    words = re.findall(r"[^\W\d_]+\d*", re.sub(r"\{[A-Za-z0-9]+\}", " ", text))
+    return [w for w in words if w not in SAME_IN_EVERY_LANGUAGE]
+
+
+def paired_forms(
+    english: str | dict[str, str], other: str | dict[str, str]
+) -> list[tuple[str, str]]:
+    """A message's English forms with the translation's, by plural category."""
+    if isinstance(english, dict) and isinstance(other, dict):
+        return [(english[c], other[c]) for c in english if c in other]
+    return [(str(english), str(other))]
+
+
+@pytest.mark.parametrize("language", TRANSLATIONS)
+def test_no_message_is_left_in_english(language: str) -> None:
+    english, translated = catalogue(), catalogue(language)
+    left = [
+        f"{key}: {english_form!r}"
+        for key, message in english.items()
+        if (language, key) not in SAME_BY_CHANCE
+        for english_form, form in paired_forms(message, translated[key])
+        if form == english_form and untranslated_words(form)
+    ]
+    assert left == [], f"translate these into {language}"
+
+
+def test_the_untranslated_check_catches_english_and_passes_symbols() -> None:
+    assert untranslated_words("Run {run} started.") == ["Run", "started"]
+    assert untranslated_words("{page} · ThermoLab") == []
+    assert untranslated_words("Ts (s)") == []
+    assert untranslated_words("Ks(k)") == []
+    assert untranslated_words("Download the samples (CSV)") == ["Download", "the", "samples"]
+
+
+@pytest.mark.parametrize("language", TRANSLATIONS)
+def test_a_translation_writes_numbers_with_its_decimal_comma(language: str) -> None:
+    # pt-BR and es write 0,140090: a number copied from English with a point is a slip.
+    slips = [
+        f"{key}: {form!r}"
+        for key, message in catalogue(language).items()
+        for form in forms(message)
+        if re.search(r"(?<![\w.])\d+\.\d+", form)
+    ]
+    assert slips == []

@@ -1,9 +1,10 @@
 // @ts-check
 // The HTTP API (issue 4, /openapi.json): one place that knows how requests are
-// made and how the server's errors look, so every view shows the server's own
-// message (`detail`) as it comes.
+// made and how the server's errors look, so every view shows the server's
+// message: the catalogue's translation of its stable `code` when there is one,
+// else its own text (`detail`) as it comes.
 
-import { t } from "./i18n.js";
+import { serverMessage, t } from "./i18n.js";
 
 /** An HTTP answer that was not 2xx, carrying the server's message. */
 export class ApiError extends Error {
@@ -30,6 +31,11 @@ export class ApiError extends Error {
 export function errorMessage(body, fallback) {
   if (body && typeof body === "object" && "detail" in body) {
     const detail = /** @type {any} */ (body).detail;
+    // A stable code beside the text ({"detail": "...", "code": "..."}) or with
+    // it ({"detail": {"code": "...", "message": "...", "params": {...}}}).
+    const coded = detail && typeof detail === "object" && !Array.isArray(detail) ? detail : body;
+    const text = typeof detail === "string" ? detail : typeof coded.message === "string" ? coded.message : "";
+    if (typeof coded.code === "string") return serverMessage(coded.code, text || fallback, coded.params ?? {});
     if (typeof detail === "string" && detail) return detail;
     if (Array.isArray(detail) && detail.length) {
       return detail

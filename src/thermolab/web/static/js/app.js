@@ -8,7 +8,7 @@
 
 import { api, ApiError, setUnauthorizedHandler } from "./api.js";
 import { announce, h, replaceChildren, setText } from "./dom.js";
-import { t, translatePage } from "./i18n.js";
+import { LANGUAGES, language, preferredLanguage, t, translatePage, useLanguage } from "./i18n.js";
 
 /** Routes: pattern → view module loader. The first match wins. */
 const ROUTES = [
@@ -79,12 +79,15 @@ function shell(id) {
   return el;
 }
 
+/** The translated words for a user's role (others show the server's word). */
+const ROLE_TEXT = { student: "role.student", teacher: "role.teacher" };
+
 function updateChrome() {
   const user = ctx.user;
   shell("nav").hidden = user === null;
   shell("who").hidden = user === null;
   shell("nav-teacher").hidden = user?.role !== "teacher";
-  setText(shell("who-name"), user ? t("app.who", { user: user.username, role: user.role }) : "");
+  setText(shell("who-name"), user ? t("app.who", { user: user.username, role: ROLE_TEXT[user.role] ? t(ROLE_TEXT[user.role]) : user.role }) : "");
 }
 
 function markNav(name) {
@@ -94,7 +97,12 @@ function markNav(name) {
   }
 }
 
-async function render() {
+/**
+ * Show the current page (again).
+ * @param {{keepFocus?: boolean}} [opts]  keepFocus: leave focus where it is
+ *   (on the language switcher) instead of moving it to the new page
+ */
+async function render(opts = {}) {
   const token = ++renderToken;
   const { path, query } = parseHash(window.location.hash);
   const route = ROUTES.find((r) => r.pattern.test(path));
@@ -132,6 +140,7 @@ async function render() {
   main.replaceChildren();
   const result = mod.mount(main, { params, query }, ctx);
   cleanup = typeof result === "function" ? result : null;
+  if (opts.keepFocus) return;
   // Move focus to the new page so keyboard and screen-reader users start there.
   const heading = main.querySelector("h1");
   if (heading) {
@@ -160,8 +169,44 @@ async function afterLogin(next) {
   navigate(next && next.startsWith("/") && !next.startsWith("/login") ? next : "/");
 }
 
-async function start() {
+/** The header's language switcher: one option per language, named in its own words. */
+function setUpLanguageSwitcher() {
+  const select = /** @type {HTMLSelectElement} */ (shell("language"));
+  select.replaceChildren(
+    ...Object.entries(LANGUAGES).map(([tag, { name }]) => h("option", { value: tag, lang: tag }, t(name))),
+  );
+  select.value = language();
+  select.addEventListener("change", () => void switchLanguage(select.value));
+}
+
+/**
+ * Speak another language now and next time: the shell is translated in place
+ * and the current view is mounted again (its sockets reconnect and replay the
+ * run's history), so every message, number and date is re-rendered without
+ * reloading the page.
+ * @param {string} tag
+ */
+async function switchLanguage(tag) {
+  try {
+    await useLanguage(tag, { remember: true });
+  } catch (err) {
+    announce(t("app.pageFailed", { error: String(err) }), "alert");
+    return;
+  }
   translatePage(document);
+  updateChrome();
+  await render({ keepFocus: true });
+}
+
+async function start() {
+  try {
+    await useLanguage(preferredLanguage());
+  } catch (err) {
+    // The catalogue could not be loaded: English is built in and still works.
+    console.error(err);
+  }
+  translatePage(document);
+  setUpLanguageSwitcher();
   setUnauthorizedHandler(() => {
     if (ctx.user === null) return;
     ctx.user = null;

@@ -9,10 +9,30 @@
 
 import uPlot from "../vendor/uplot/uPlot.esm.js";
 import { h } from "./dom.js";
-import { t } from "./i18n.js";
+import { formatNumber, t } from "./i18n.js";
 
 /** Colours that stay distinguishable for the common colour-vision deficiencies (Okabe–Ito). */
 export const COLORS = ["#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000"];
+
+/**
+ * Axis tick labels in the current language's form (decimal comma in pt-BR),
+ * each with the decimals the tick spacing needs (uPlot's axis `values` hook).
+ * @param {unknown} _plot
+ * @param {number[]} splits  the tick values
+ * @param {number} _axis
+ * @param {number} _space
+ * @param {number} incr  the spacing between ticks
+ * @returns {string[]}
+ */
+export function tickLabels(_plot, splits, _axis, _space, incr) {
+  const step = String(Number(incr.toPrecision(10)));
+  const [mantissa, exponent] = step.split("e");
+  const fraction = mantissa.split(".")[1]?.length ?? 0;
+  const decimals = Math.min(20, Math.max(0, fraction - Number(exponent ?? 0)));
+  return splits.map((v) =>
+    formatNumber(v, { minimumFractionDigits: decimals, maximumFractionDigits: decimals, useGrouping: false }),
+  );
+}
 
 export class Chart {
   /**
@@ -65,8 +85,8 @@ export class Chart {
         series,
         scales: { x: { time: false } },
         axes: [
-          { label: opts.xLabel, size: 40, labelSize: 18 },
-          { label: opts.yLabel, size: 60, labelSize: 18 },
+          { label: opts.xLabel, size: 40, labelSize: 18, values: tickLabels },
+          { label: opts.yLabel, size: 60, labelSize: 18, values: tickLabels },
         ],
         legend: { show: true, live: false },
         cursor: { drag: { x: false, y: false } },

@@ -2,7 +2,7 @@
 // Small DOM helpers. Text always goes in through textContent (never innerHTML),
 // so names and messages from the server cannot inject markup.
 
-import { formatDateTime, t } from "./i18n.js";
+import { DEFAULT_LANGUAGE, formatDateTime, language, t } from "./i18n.js";
 
 /**
  * Create an element: h("button", {type: "button", onclick: f}, "Text", child).
@@ -108,4 +108,51 @@ export function when(iso) {
   if (!iso) return "–";
   const d = new Date(iso);
   return Number.isNaN(d.getTime()) ? String(iso) : formatDateTime(d);
+}
+
+/**
+ * A sentence the server wrote without a code to translate it by (an
+ * estimate's or a run's reason): the server writes English (until its
+ * messages are translated), so on a page in another language it is marked
+ * lang="en" and screen readers pronounce it as English (WCAG 3.1.2).
+ * @param {string} text
+ * @returns {Node | string}
+ */
+export function serverText(text) {
+  return language() === DEFAULT_LANGUAGE ? text : h("span", { lang: DEFAULT_LANGUAGE }, text);
+}
+
+/**
+ * The message `key` as DOM children, where a parameter may be a node (e.g. a
+ * serverText) placed where its placeholder stands.
+ * @param {string} key
+ * @param {Record<string, Node | string | number | null | undefined>} params
+ * @returns {Array<Node | string>}
+ */
+export function tParts(key, params) {
+  /** @type {Record<string, string | number | null | undefined>} */
+  const flat = {};
+  /** @type {Node[]} */
+  const nodes = [];
+  for (const [name, value] of Object.entries(params)) {
+    if (value instanceof Node) {
+      flat[name] = `\u0000${nodes.length}\u0000`;
+      nodes.push(value);
+    } else flat[name] = value;
+  }
+  return t(key, flat)
+    .split("\u0000")
+    .map((part, i) => (i % 2 ? nodes[Number(part)] : part))
+    .filter((part) => part !== "");
+}
+
+/**
+ * Show DOM children (tParts) in an element, touching it only when its text
+ * changes (like setText: a live region is not re-announced for nothing).
+ * @param {HTMLElement} el
+ * @param {Array<Node | string>} parts
+ */
+export function setParts(el, parts) {
+  const text = parts.map((p) => (typeof p === "string" ? p : p.textContent)).join("");
+  if (el.textContent !== text) el.replaceChildren(...parts);
 }

@@ -3,6 +3,8 @@
 // prediction drawn over the data, and the figures of the paper's Tables I/II.
 // The identification itself happens on the server; nothing here estimates.
 
+import { decimalMark, formatNumber } from "./i18n.js";
+
 /** The paper's reference model, eq. 16 (step method on the real rig, T = 1 s). */
 export const REFERENCE_MODEL = Object.freeze({ K: 0.14009, tau: 250.126233 });
 
@@ -92,6 +94,8 @@ export function fmt(v, digits = 6) {
   if (v === null || v === undefined || !Number.isFinite(v)) return "–";
   if (v === 0) return "0";
   const mag = Math.abs(v);
-  if (mag >= 1e6 || mag < 1e-4) return v.toExponential(Math.max(0, digits - 1));
-  return Number(v.toPrecision(digits)).toString();
+  // In the current language's form (decimal comma in pt-BR), without grouping:
+  // table cells are read digit by digit against the paper's values.
+  if (mag >= 1e6 || mag < 1e-4) return v.toExponential(Math.max(0, digits - 1)).replace(".", decimalMark());
+  return formatNumber(Number(v.toPrecision(digits)), { useGrouping: false, maximumFractionDigits: 20 });
 }

@@ -20,6 +20,25 @@ export function methodTitle(method) {
   return key ? t(key) : (findMethod(method)?.title ?? String(method));
 }
 
+/** The translated words for a run's status (others show the server's word). */
+const RUN_STATUS_TEXT = {
+  running: "runStatus.running",
+  finished: "runStatus.finished",
+  stopped: "runStatus.stopped",
+  interrupted: "runStatus.interrupted",
+  failed: "runStatus.failed",
+  aborted: "runStatus.aborted",
+};
+
+/**
+ * A run's status (RunOut.status) in the reader's language.
+ * @param {string} status
+ */
+export function runStatusText(status) {
+  const key = RUN_STATUS_TEXT[status];
+  return key ? t(key) : String(status);
+}
+
 /** The square wave of the Automatic option: ten times slower than sampling. */
 export function automaticSignal(low, high, dt) {
   const freq = 1 / (10 * dt);

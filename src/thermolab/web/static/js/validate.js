@@ -3,7 +3,7 @@
 // checks again (it is the authority); these only spare a round trip and say
 // exactly what is allowed next to the field.
 
-import { t } from "./i18n.js";
+import { formatDecimal, t } from "./i18n.js";
 
 /**
  * @typedef {object} FieldSpec
@@ -32,8 +32,26 @@ export function rangeText(spec) {
 }
 
 function num(v) {
-  // A true minus sign reads better and screen readers say "minus".
-  return String(v).replace(/^-/, "−");
+  // The language's decimal mark, and a true minus sign (it reads better and
+  // screen readers say "minus").
+  return formatDecimal(v);
+}
+
+/**
+ * The number a person typed, in plain decimal notation: a decimal comma
+ * (pt-BR, es: "0,96") or point is the decimal mark in any language, since a
+ * student types what their keyboard and habit give; a leading "−" is a minus.
+ * Grouped thousands ("1.000,5", "1,000.5") carry two marks and are refused
+ * rather than guessed at, as are "0x10" and "" (which Number() would accept).
+ * @param {string} text
+ * @returns {number | null}  null when the text is not a number
+ *
+ * @example parseDecimal("0,96") // 0.96
+ */
+export function parseDecimal(text) {
+  const cleaned = String(text).trim().replace(/^−/, "-").replace(",", ".");
+  if (!/^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$/.test(cleaned)) return null;
+  return Number(cleaned);
 }
 
 /**
@@ -43,13 +61,11 @@ function num(v) {
  * @returns {{ok: true, value: number} | {ok: false, error: string}}
  */
 export function checkNumber(text, spec) {
-  const cleaned = String(text).trim().replace(/^−/, "-").replace(",", ".");
-  if (cleaned === "") return { ok: false, error: t("check.required", { label: spec.label, range: rangeText(spec) }) };
-  // Number("") is 0 and Number("0x10") is 16: accept plain decimal notation only.
-  if (!/^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$/.test(cleaned)) {
+  if (String(text).trim() === "") return { ok: false, error: t("check.required", { label: spec.label, range: rangeText(spec) }) };
+  const v = parseDecimal(text);
+  if (v === null) {
     return { ok: false, error: t("check.notNumber", { label: spec.label, range: rangeText(spec) }) };
   }
-  const v = Number(cleaned);
   if (!Number.isFinite(v)) {
     return { ok: false, error: t("check.notFinite", { label: spec.label, range: rangeText(spec) }) };
   }

@@ -134,6 +134,10 @@ export const messages = {
   "field.setpoint": "Initial set point",
   "field.w0Unavailable": "This server does not take initial parameters yet: it starts WLSM from W0 = [0, 0].",
   "field.window": "Window",
+  "language.en": "English",
+  "language.es": "Español",
+  "language.label": "Language",
+  "language.pt-BR": "Português (Brasil)",
   "live.silent": "no message from the server",
   "lobby.failed": "Could not load the rigs: {error}",
   "lobby.lede": "Choose a rig to watch it live. Anyone may watch; one person at a time controls a rig, the others wait in a queue.",
@@ -241,6 +245,8 @@ export const messages = {
   "rigState.out_of_service": "Out of service",
   "rigState.starting": "Starting",
   "rigState.unknown": "unknown",
+  "role.student": "student",
+  "role.teacher": "teacher",
   "run.Kstats": "Ks mean / max / min",
   "run.charts": "Charts",
   "run.convergeColumn": "Samples to converge Ks / Ts",
@@ -274,6 +280,12 @@ export const messages = {
   "run.started": "Run {run} started.",
   "run.tauStats": "Ts mean / max / min",
   "run.w0": "Initial parameters W0",
+  "runStatus.aborted": "aborted",
+  "runStatus.failed": "failed",
+  "runStatus.finished": "finished",
+  "runStatus.interrupted": "interrupted",
+  "runStatus.running": "running",
+  "runStatus.stopped": "stopped",
   "runs.caption": "Runs",
   "runs.chooseOne": "Choose at least one run to compare.",
   "runs.compare": "Compare the chosen runs",
@@ -328,5 +340,6 @@ export const messages = {
     "one": "{user} ({count} window)",
     "other": "{user} ({count} windows)"
   },
-  "teacher.watchers": "Watchers"
+  "teacher.watchers": "Watchers",
+  "unit.samples": "samples"
 };

@@ -9,7 +9,7 @@ import { deviation, fmt, REFERENCE_MODEL } from "../model.js";
 import { inputText, methodTitle } from "../runspec.js";
 import { runFigures } from "./run.js";
 import { checkNumber, rangeText } from "../validate.js";
-import { t } from "../i18n.js";
+import { formatDecimal, t } from "../i18n.js";
 
 const KREF = { label: "compare.refK", min: -1e6, max: 1e6 };
 const TREF = { label: "compare.refTau", min: 0, max: 1e9, exclusiveMin: true, unit: "s" };
@@ -18,8 +18,8 @@ export function mount(main, { query }, _ctx) {
   const ids = (query.get("ids") ?? "").split(",").map((s) => s.trim()).filter(Boolean);
   const kRef = { ...KREF, label: t(KREF.label) };
   const tauRef = { ...TREF, label: t(TREF.label) };
-  const kIn = h("input", { id: "ref-k", value: String(REFERENCE_MODEL.K), autocomplete: "off", "aria-describedby": "ref-k-hint ref-error" });
-  const tIn = h("input", { id: "ref-tau", value: String(REFERENCE_MODEL.tau), autocomplete: "off", "aria-describedby": "ref-tau-hint ref-error" });
+  const kIn = h("input", { id: "ref-k", value: formatDecimal(REFERENCE_MODEL.K), autocomplete: "off", "aria-describedby": "ref-k-hint ref-error" });
+  const tIn = h("input", { id: "ref-tau", value: formatDecimal(REFERENCE_MODEL.tau), autocomplete: "off", "aria-describedby": "ref-tau-hint ref-error" });
   const refError = h("p", { class: "error", id: "ref-error", role: "alert" });
   const refForm = h(
     "form",

@@ -16,12 +16,12 @@
 // at rest and fit the operating point of a warm one, and the run's result says
 // which it did and why.
 
-import { h, setText } from "../dom.js";
+import { h, setParts, setText } from "../dom.js";
 import { checkNumber } from "../validate.js";
 import { panelOfRun } from "../runspec.js";
 import { panelDefinitions } from "./panels/definitions.js";
 import { buildPanelView, checkPanel } from "./panels/form.js";
-import { idleText, otherRunText, renderResults, runningText } from "./panels/results.js";
+import { idleParts, otherRunText, renderResults, runningText } from "./panels/results.js";
 import { t } from "../i18n.js";
 
 export class Panels {
@@ -190,7 +190,7 @@ export class Panels {
       view.runFieldset.closest("form").hidden = !mine;
       if (mine) setText(view.status, runningText(this.run, this.run.samples ?? 0));
       else if (running) setText(view.status, otherRunText(runPanel, this.defs.find((d) => d.id === runPanel)?.number));
-      else setText(view.status, idleText(this.run, view.def.id));
+      else setParts(view.status, idleParts(this.run, view.def.id));
     }
   }
 

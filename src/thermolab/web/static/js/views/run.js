@@ -4,11 +4,23 @@
 
 import { api } from "../api.js";
 import { Chart } from "../charts.js";
-import { h, setText, when } from "../dom.js";
+import { h, serverText, setText, tParts, when } from "../dom.js";
 import { fmt, predict, predictionBase } from "../model.js";
 import { readResult } from "../results.js";
-import { inputText, methodTitle, readRun } from "../runspec.js";
+import { inputText, methodTitle, readRun, runStatusText } from "../runspec.js";
+import { operatingPointHow } from "./panels/results.js";
 import { t } from "../i18n.js";
+
+/**
+ * Why a method has no model, and its warnings: the server's sentences, "–" when none.
+ * @param {{valid: boolean, reason?: string | null, warnings: string[]}} f
+ * @returns {Array<Node | string>}
+ */
+function reasonCell(f) {
+  const notes = [f.valid ? null : f.reason ? serverText(f.reason) : t("estimate.noModel"), ...f.warnings.map(serverText)];
+  const shown = /** @type {Array<Node | string>} */ (notes.filter((n) => n !== null && n !== ""));
+  return shown.length ? shown.flatMap((n, i) => (i ? ["; ", n] : [n])) : ["–"];
+}
 
 /** At most this many points per chart: longer runs are drawn decimated. */
 const MAX_POINTS = 4000;
@@ -65,7 +77,7 @@ function render(main, exported, charts) {
   const add = (k, v) => facts.append(h("dt", null, k), h("dd", null, v));
   add(t("runs.rig"), run.rig ?? "–");
   if (run.user) add(t("runs.student"), run.user);
-  add(t("runs.status"), run.endReason ? t("runs.statusWhy", { status: run.status, reason: run.endReason }) : run.status);
+  add(t("runs.status"), run.endReason ? tParts("runs.statusWhy", { status: runStatusText(run.status), reason: serverText(run.endReason) }) : runStatusText(run.status));
   add(t("runs.started"), when(run.startedAt));
   add(t("run.endedAt"), when(run.endedAt));
   add(t("run.dt"), t("run.seconds", { seconds: run.dt }));
@@ -77,7 +89,7 @@ function render(main, exported, charts) {
   const w0 = run.settings?.w0;
   if (Array.isArray(w0)) add(t("run.w0"), `[${w0.map((v) => fmt(v)).join(", ")}]`);
   if (run.operatingPoint?.used !== null && run.operatingPoint?.used !== undefined) {
-    facts.append(h("dt", null, t("panel.operatingPoint")), h("dd", { "data-testid": "operating-point" }, run.operatingPoint.reason ?? String(run.operatingPoint.used)));
+    facts.append(h("dt", null, t("panel.operatingPoint")), h("dd", { "data-testid": "operating-point" }, operatingPointHow(run.operatingPoint)));
   }
   main.append(
     h(
@@ -181,7 +193,7 @@ function resultsSection(figures) {
       h("td", { class: "num", "data-field": "Kstats" }, spread(f.K)),
       h("td", { class: "num", "data-field": "taustats" }, spread(f.tau)),
       h("td", { class: "num", "data-field": "conv" }, f.converges ? t("run.convergedAt", { K: f.convergedAt.K ?? t("run.never"), tau: f.convergedAt.tau ?? t("run.never") }) : "–"),
-      h("td", null, [f.valid ? "" : (f.reason ?? t("estimate.noModel")), ...f.warnings].filter(Boolean).join("; ") || "–"),
+      h("td", null, reasonCell(f)),
     ),
   );
   sec.append(

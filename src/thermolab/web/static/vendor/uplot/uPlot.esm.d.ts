@@ -16,6 +16,8 @@ declare namespace uPlot {
     label?: string;
     size?: number;
     labelSize?: number;
+    /** Tick labels: (plot, tick values, axis index, space, tick spacing) -> texts. */
+    values?: (u: uPlot, splits: number[], axisIdx: number, space: number, incr: number) => string[];
   }
   interface Scale {
     time?: boolean;

@@ -123,7 +123,7 @@ export function panelDefinitions(limits) {
       fields: [
         ...common,
         // 0 is "off"; otherwise the server's block range (checked in checkPanel).
-        { name: "block", label: t("field.block"), min: 0, max: r.block.max, integer: true, unit: "samples", value: 0, blockMin: r.block.min },
+        { name: "block", label: t("field.block"), min: 0, max: r.block.max, integer: true, unit: t("unit.samples"), value: 0, blockMin: r.block.min },
         setpoint(0),
         ...auto(4, 6),
       ],
@@ -138,7 +138,7 @@ export function panelDefinitions(limits) {
       title: t("panel.malsm.title"),
       short: t("panel.malsm.tab"),
       intro: t("panel.malsm.intro"),
-      fields: [...common, { name: "window", label: t("field.window"), ...r.window, integer: true, unit: "samples", value: defaultOf("malsm", "window") }, setpoint(5), ...auto(4, 6)],
+      fields: [...common, { name: "window", label: t("field.window"), ...r.window, integer: true, unit: t("unit.samples"), value: defaultOf("malsm", "window") }, setpoint(5), ...auto(4, 6)],
       methods: panelMethods("malsm"),
       automaticDefault: true,
       stepHint: 6,

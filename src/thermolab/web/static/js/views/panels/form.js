@@ -5,9 +5,9 @@
 
 import { h, nextId, setText } from "../../dom.js";
 import { fmt } from "../../model.js";
-import { checkAll, rangeText } from "../../validate.js";
+import { checkAll, parseDecimal, rangeText } from "../../validate.js";
 import { OFFSET_HINT, OFFSET_LABELS } from "./definitions.js";
-import { t } from "../../i18n.js";
+import { formatDecimal, t } from "../../i18n.js";
 
 /**
  * @typedef {object} PanelView  one panel's elements and definition
@@ -75,7 +75,7 @@ export function buildPanelView(def, limits, panelId, tabId, on) {
       if (f.automaticOnly) row.hidden = !automatic;
       if (f.manualOnly) row.hidden = automatic;
     }
-    const dt = Number(view.inputs.dt.value);
+    const dt = parseDecimal(view.inputs.dt.value) ?? Number.NaN;
     const freq = dt > 0 ? 1 / (10 * dt) : Number.NaN;
     setText(autoHint, t("panel.automaticHint", { frequency: fmt(freq, 3) }));
   };
@@ -118,7 +118,7 @@ function runControls(view, def, limits, on) {
     name: "setpoint-live",
     type: "text",
     inputmode: limits.inputMin >= 0 ? "decimal" : null,
-    value: def.stepHint,
+    value: typeof def.stepHint === "number" ? formatDecimal(def.stepHint) : def.stepHint,
     "aria-describedby": `${spId}-range ${spId}-err`,
   });
   view.spError = h("span", { class: "field-error", id: `${spId}-err` });
@@ -160,7 +160,7 @@ function fieldRow(view, f) {
     type: "text",
     // iOS's decimal keypad has no minus sign: offer it only where negatives are not allowed.
     inputmode: f.min >= 0 ? (f.integer ? "numeric" : "decimal") : null,
-    value: f.value,
+    value: typeof f.value === "number" ? formatDecimal(f.value) : f.value,
     autocomplete: "off",
     "aria-describedby": `${id}-range ${id}-err`,
     disabled: Boolean(f.unavailable),

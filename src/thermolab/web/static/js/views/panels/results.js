@@ -2,23 +2,39 @@
 // What a panel says about its run: the status line, the operating point and
 // the table of the current estimates of each of its methods.
 
-import { h, setText } from "../../dom.js";
+import { h, serverText, setText, tParts } from "../../dom.js";
 import { fmt } from "../../model.js";
-import { methodName, methodTitle, panelOfRun } from "../../runspec.js";
-import { t } from "../../i18n.js";
+import { methodName, methodTitle, panelOfRun, runStatusText } from "../../runspec.js";
+import { DEFAULT_LANGUAGE, formatDecimal, language, t } from "../../i18n.js";
+import { OFFSET_LABELS } from "./definitions.js";
 
-/** How a run handled the operating point, in words (RunOut.operatingPoint). */
-export function operatingPointText(op) {
+/**
+ * How a run handled the operating point (RunOut.operatingPoint), in words,
+ * or "" when the run says nothing. The server explains its choice in English
+ * (`reason`, until its messages are translated): that sentence is shown to
+ * English readers; the others read the mode in their language ("inicial"),
+ * which the hint under the panel's select explains.
+ */
+export function operatingPointHow(op) {
   if (!op || typeof op !== "object") return "";
   if (op.used === null || op.used === undefined) return "";
-  return t("panel.operatingPointUsed", { how: op.reason ?? op.used });
+  if (op.reason && language() === DEFAULT_LANGUAGE) return String(op.reason);
+  const label = OFFSET_LABELS[op.used];
+  return label ? t(label) : typeof op.used === "number" ? formatDecimal(op.used) : String(op.used);
+}
+
+/** The panel's sentence on the operating point ("" when the run says nothing). */
+export function operatingPointText(op) {
+  const how = operatingPointHow(op);
+  return how ? t("panel.operatingPointUsed", { how }) : "";
 }
 
 /** What an estimate's status cell says: final or live, and why there is no model. */
 export function estimateStatus(est) {
   if (!est) return t("estimate.waiting");
   const when = est.final ? t("estimate.final") : t("estimate.live");
-  return est.valid ? when : t("estimate.withReason", { when, reason: est.reason ?? t("estimate.noModel") });
+  if (est.valid) return when;
+  return tParts("estimate.withReason", { when, reason: est.reason ? serverText(est.reason) : t("estimate.noModel") });
 }
 
 /** The status line of the panel running `run`: its progress. */
@@ -28,14 +44,18 @@ export function runningText(run, k) {
   return t(key, { run: run.id, sample: k, samples: n });
 }
 
-/** The status line of a panel whose run ended, or that has had none. */
-export function idleText(run, panelId) {
+/**
+ * The status line of a panel whose run ended, or that has had none (DOM
+ * children: the server's end reason is its own sentence, see serverText).
+ * @returns {Array<Node | string>}
+ */
+export function idleParts(run, panelId) {
   if (run && panelOfRun(run) === panelId) {
     return run.endReason
-      ? t("panel.endedWhy", { run: run.id, status: run.status, reason: run.endReason })
-      : t("panel.ended", { run: run.id, status: run.status });
+      ? tParts("panel.endedWhy", { run: run.id, status: runStatusText(run.status), reason: serverText(run.endReason) })
+      : [t("panel.ended", { run: run.id, status: runStatusText(run.status) })];
   }
-  return t("panel.noRun");
+  return [t("panel.noRun")];
 }
 
 /** The status line of a panel while another panel's run is going. */

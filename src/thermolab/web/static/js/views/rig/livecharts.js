@@ -10,7 +10,7 @@ import { parseCsv } from "../../csv.js";
 import { h, setText } from "../../dom.js";
 import { predict, predictionBase } from "../../model.js";
 import { RingBuffer } from "../../ring.js";
-import { methodName, methodTitle } from "../../runspec.js";
+import { methodName, methodTitle, runStatusText } from "../../runspec.js";
 import { t } from "../../i18n.js";
 
 /** Samples shown by the live charts (the 2000-sample window). */
@@ -100,7 +100,7 @@ export class LiveCharts {
     let text;
     if (seg.run === null) text = t("charts.idle");
     else if (run && run.id === seg.run && run.status !== "running") {
-      text = t("charts.runEnded", { run: seg.run, status: run.status });
+      text = t("charts.runEnded", { run: seg.run, status: runStatusText(run.status) });
     } else text = t("charts.runLive", { run: seg.run });
     if (seg.loading) text = t("charts.loading", { note: text });
     setText(this.note, text);
