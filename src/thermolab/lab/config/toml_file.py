@@ -10,12 +10,13 @@ import math
 import os
 import tomllib
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal, cast
 
 from thermolab.errors import ConfigError
 from thermolab.lab.config.model import (
+    DEFAULT_RIG,
     RIG_ID,
     AccessPolicy,
     CooldownPolicy,
@@ -138,7 +139,7 @@ class _Table:
         return str(value)
 
 
-_LIMIT_KEYS = ("control_time_limit", "idle_limit", "power_off_grace", "cooldown")
+_LIMIT_KEYS = ("control_time_limit", "idle_limit", "power_off_grace", "max_run_seconds", "cooldown")
 _ACCESS_KEYS = tuple(AccessPolicy.__dataclass_fields__)
 _COOLDOWN_KEYS = tuple(CooldownPolicy.__dataclass_fields__)
 _RIG_KEYS = ("id", "title", "spec", "input_range", "camera", *_LIMIT_KEYS)
@@ -147,10 +148,12 @@ _TOP_KEYS = ("title", "database_url", "speedup", "access", "rig_defaults", "rigs
 
 @dataclass(frozen=True, slots=True)
 class _RigDefaults:
-    control_time_limit: float = 300.0
-    idle_limit: float | None = 120.0
-    power_off_grace: float = 60.0
-    cooldown: CooldownPolicy = field(default_factory=CooldownPolicy)
+    # The defaults are RigConfig's own (declared once, there).
+    control_time_limit: float = DEFAULT_RIG.control_time_limit
+    idle_limit: float | None = DEFAULT_RIG.idle_limit
+    power_off_grace: float = DEFAULT_RIG.power_off_grace
+    max_run_seconds: float = DEFAULT_RIG.max_run_seconds
+    cooldown: CooldownPolicy = field(default_factory=lambda: DEFAULT_RIG.cooldown)
 
 
 def _read_limits(table: _Table, base: _RigDefaults) -> _RigDefaults:
@@ -167,6 +170,7 @@ def _read_limits(table: _Table, base: _RigDefaults) -> _RigDefaults:
         power_off_grace=table.number(
             "power_off_grace", base.power_off_grace, minimum=0.0, strict=False
         ),
+        max_run_seconds=table.number("max_run_seconds", base.max_run_seconds),
         cooldown=cooldown,
     )
 
@@ -244,10 +248,12 @@ def _build_config(raw: Mapping[str, Any], data_dir: Path) -> LabConfig:
 
     raw_rigs = top.get("rigs")
     if raw_rigs is None:
-        raise ConfigError("rigs: declare at least one rig with a [[rigs]] table")
-    if not isinstance(raw_rigs, list) or not raw_rigs:
+        # No rig declared: the default twin, with the file's rig defaults.
+        rigs: tuple[RigConfig, ...] = (_with_limits(DEFAULT_RIG, defaults),)
+    elif not isinstance(raw_rigs, list) or not raw_rigs:
         raise ConfigError("rigs: expected one or more [[rigs]] tables")
-    rigs = tuple(_read_rig(item, f"rigs[{i}]", defaults) for i, item in enumerate(raw_rigs))
+    else:
+        rigs = tuple(_read_rig(item, f"rigs[{i}]", defaults) for i, item in enumerate(raw_rigs))
     return LabConfig(
         data_dir=data_dir,
         rigs=rigs,
@@ -283,10 +289,17 @@ def _read_rig(raw: object, path: str, defaults: _RigDefaults) -> RigConfig:
         title=table.string("title", rig_id),
         spec=spec,
         input_range=input_range,
+        camera=camera,
+    )
+    return _with_limits(rig, limits)
+
+
+def _with_limits(rig: RigConfig, limits: _RigDefaults) -> RigConfig:
+    return replace(
+        rig,
         control_time_limit=limits.control_time_limit,
         idle_limit=limits.idle_limit,
         power_off_grace=limits.power_off_grace,
+        max_run_seconds=limits.max_run_seconds,
         cooldown=limits.cooldown,
-        camera=camera,
     )
-    return rig

@@ -405,7 +405,6 @@ class OperatingPointOut(_Out):
     used: str | float | None = Field(
         description="the mode used; null when no chosen method regresses on the output"
     )
-    at_rest: bool | None = Field(description="whether the lab judged the rig at rest at START")
     reason: str
 
 
@@ -436,6 +435,17 @@ class RunOut(_Out):
     operating_point: OperatingPointOut | None = Field(
         description="how the operating point was handled (null for runs from before it was kept)"
     )
+    ends_at: datetime | None = Field(
+        default=None,
+        description="the run's planned end: START plus samples × dt in real time (null for "
+        "runs from before it was kept)",
+    )
+    timing: dict[str, Any] | None = Field(
+        default=None,
+        description="once the run is over: basis ('t_read' for a real rig, 't' for a twin, "
+        "whose data are exact), maxLateness and p95Lateness (s; null for a twin), "
+        "periodSpread (std of the sample periods over their median) and warnings",
+    )
 
     @classmethod
     def of(cls, run: RunRecord) -> RunOut:
@@ -459,6 +469,8 @@ class RunOut(_Out):
                 "end_reason": run.end_reason,
                 "results": run.results,
                 "operating_point": run.operating_point,
+                "ends_at": run.ends_at,
+                "timing": run.timing,
             }
         )
 
