@@ -10,17 +10,19 @@ import math
 from collections.abc import Iterator
 from datetime import timedelta
 
+import numpy as np
 import pytest
 
 from thermolab.errors import InvalidParameterError
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import RigConfig
 from thermolab.lab.runs import RunRequest
+from thermolab.lab.runs.timing import JITTER_LIMIT, timing_summary
 from thermolab.lab.service import Lab
 from thermolab.rigs import Rig, TwinRig
 
 from .conftest import LabFactory
-from .test_runs import StepClock, person, until
+from .test_runs import StepClock, api_client, person, until
 
 
 @pytest.fixture
@@ -68,6 +70,11 @@ def test_the_papers_2000_sample_run_ends_under_the_default_limits(
     lab.runs.wait("twin", timeout=30)
     done = lab.runs.get(run.id, ana)
     assert (done.status, done.samples_stored) == ("finished", 2000)
+    # A twin's data are exact: timed by its own axis, no wall-clock lateness, no warning.
+    assert done.timing is not None
+    assert (done.timing["basis"], done.timing["maxLateness"]) == ("t", None)
+    assert done.timing["periodSpread"] == pytest.approx(0.0, abs=1e-12)
+    assert done.timing["warnings"] == []
     # The turn's time ran out long ago: it ends once the run is over.
     lab.sweep()
     assert lab.access.view("twin", ben).access.role == "controller"
@@ -95,3 +102,37 @@ def test_a_run_longer_than_the_rig_allows_is_refused_with_the_longest_allowed(
     lab.runs.stop("twin", ana)
     step_clock.allow(math.inf)
     lab.runs.wait("twin", timeout=30)
+
+
+def test_a_real_rigs_timing_shows_its_lateness_and_warns_on_a_spread_period() -> None:
+    rng = np.random.default_rng(8)
+    t = np.arange(600.0)
+    lateness = rng.uniform(0.0, 0.2, t.size)
+    real = timing_summary(t, t + lateness, lateness, 1.0, simulated=False)
+    assert real["basis"] == "t_read"
+    assert real["maxLateness"] == pytest.approx(lateness.max(), rel=1e-12)
+    assert real["p95Lateness"] == pytest.approx(np.percentile(lateness, 95), rel=1e-12)
+    assert real["periodSpread"] > JITTER_LIMIT
+    assert real["warnings"][0].startswith("timing jitter: the sample period spreads")
+    steady = timing_summary(t, t + 0.01, np.full(t.size, 0.01), 1.0, simulated=False)
+    assert steady["warnings"] == []
+    assert steady["maxLateness"] == pytest.approx(0.01, rel=1e-12)
+    # The same lateness on a twin: its data were taken at t, exactly.
+    twin = timing_summary(t, t + lateness, lateness, 1.0, simulated=True)
+    assert (twin["basis"], twin["maxLateness"], twin["warnings"]) == ("t", None, [])
+
+
+def test_a_too_long_run_is_a_422_with_the_reason(
+    make_lab: LabFactory, step_clock: StepClock
+) -> None:
+    lab = stepped_lab(make_lab, step_clock, max_run_seconds=100.0)
+    ana = person(lab, "ana")
+    lab.access.request_control("twin", ana)
+    with api_client(lab, "ana") as client:
+        response = client.post(
+            "/api/rigs/twin/runs", json={"dt": 1, "samples": 101, "methods": ["lsm"]}
+        )
+    assert response.status_code == 422, response.text
+    body = response.json()
+    assert "longer than rig 'twin' allows (100 s): at this dt at most 100 samples" in body["detail"]
+    assert body["code"] == "invalid_parameter"

@@ -21,7 +21,7 @@ import { checkNumber } from "../validate.js";
 import { panelOfRun } from "../runspec.js";
 import { panelDefinitions } from "./panels/definitions.js";
 import { buildPanelView, checkPanel } from "./panels/form.js";
-import { idleText, otherRunText, renderResults, runningText } from "./panels/results.js";
+import { idleText, otherRunText, renderProgress, renderResults, runningText } from "./panels/results.js";
 import { t } from "../i18n.js";
 
 export class Panels {
@@ -188,6 +188,7 @@ export class Panels {
       view.spInput.disabled = view.spButton.disabled = this.locked || !mine || automaticRun;
       view.endButton.disabled = this.locked || !mine;
       view.runFieldset.closest("form").hidden = !mine;
+      renderProgress(view, mine ? this.run : null, this.run?.samples ?? 0);
       if (mine) setText(view.status, runningText(this.run, this.run.samples ?? 0));
       else if (running) setText(view.status, otherRunText(runPanel, this.defs.find((d) => d.id === runPanel)?.number));
       else setText(view.status, idleText(this.run, view.def.id));
@@ -199,6 +200,9 @@ export class Panels {
     if (!this.run || this.run.status !== "running") return;
     this.run.samples = k + 1;
     const view = this._runView();
-    if (view) setText(view.status, runningText(this.run, k + 1));
+    if (view) {
+      setText(view.status, runningText(this.run, k + 1));
+      renderProgress(view, this.run, k + 1);
+    }
   }
 }

@@ -9,6 +9,7 @@ import { fmt, predict, predictionBase } from "../model.js";
 import { readResult } from "../results.js";
 import { inputText, methodTitle, readRun } from "../runspec.js";
 import { t } from "../i18n.js";
+import { timingText } from "./panels/results.js";
 
 /** At most this many points per chart: longer runs are drawn decimated. */
 const MAX_POINTS = 4000;
@@ -78,6 +79,9 @@ function render(main, exported, charts) {
   if (Array.isArray(w0)) add(t("run.w0"), `[${w0.map((v) => fmt(v)).join(", ")}]`);
   if (run.operatingPoint?.used !== null && run.operatingPoint?.used !== undefined) {
     facts.append(h("dt", null, t("panel.operatingPoint")), h("dd", { "data-testid": "operating-point" }, run.operatingPoint.reason ?? String(run.operatingPoint.used)));
+  }
+  if (run.timing) {
+    facts.append(h("dt", null, t("run.timing")), h("dd", { "data-testid": "timing" }, [timingText(run.timing), ...(run.timing.warnings ?? [])].join(" ")));
   }
   main.append(
     h(
@@ -174,14 +178,14 @@ function resultsSection(figures) {
   const rows = figures.map((f) =>
     h(
       "tr",
-      { "data-method": f.method },
+      { "data-method": f.method, class: f.valid && !f.trusted ? "not-trusted" : null, "data-trusted": String(f.trusted) },
       h("th", { scope: "row" }, methodTitle(f.method)),
       h("td", { class: "num", "data-field": "K" }, f.valid ? fmt(f.final.K) : "–"),
       h("td", { class: "num", "data-field": "tau" }, f.valid ? fmt(f.final.tau) : "–"),
       h("td", { class: "num", "data-field": "Kstats" }, spread(f.K)),
       h("td", { class: "num", "data-field": "taustats" }, spread(f.tau)),
       h("td", { class: "num", "data-field": "conv" }, f.converges ? t("run.convergedAt", { K: f.convergedAt.K ?? t("run.never"), tau: f.convergedAt.tau ?? t("run.never") }) : "–"),
-      h("td", null, [f.valid ? "" : (f.reason ?? t("estimate.noModel")), ...f.warnings].filter(Boolean).join("; ") || "–"),
+      h("td", null, [f.valid ? (f.trusted ? "" : t("estimate.notTrusted")) : (f.reason ?? t("estimate.noModel")), ...f.warnings].filter(Boolean).join("; ") || "–"),
     ),
   );
   sec.append(
