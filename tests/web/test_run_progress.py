@@ -101,3 +101,34 @@ def test_untrusted_results_never_look_final_and_every_warning_is_listed(module_p
     assert r["items"][1].endswith(": not settled: the output still moves; run longer")
     assert r["twin"].startswith("exact: the twin advances by dt per sample")
     assert r["real"].startswith("samples read up to 0.25 s late (95 % within 0.1 s)")
+
+
+def test_each_method_says_the_operating_point_it_used_and_found(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        """
+        const { renderResults } = await import('/js/views/panels/results.js');
+        const { readRun } = await import('/js/runspec.js');
+        const { predictionBase } = await import('/js/model.js');
+        const op = { handling: 'fit', start: 'settled', ambient: 0.25,
+                     reason: 'the record starts settled under 5 V' };
+        const latest = { K: 0.14, tau: 250, k: 999, valid: true, final: true,
+                         W: [0.9, 0.014, 0.025], extras: { operating_point: op } };
+        const run = readRun({ id: 5, status: 'finished', dt: 1, samples: 1000, methods: ['lsm'],
+                              results: { lsm: { latest } },
+                              operatingPoint: { asked: 'auto', used: 'auto',
+                                                reason: 'auto: each method decides' } });
+        const view = { def: { title: 'Panel 1', methods: ['srm', 'lsm'], optional: ['srm'] },
+                       results: document.createElement('div'),
+                       operatingPoint: document.createElement('p') };
+        renderResults(view, run);
+        return { text: view.operatingPoint.textContent,
+                 base: predictionBase('auto', latest.W, 3.0),
+                 initial: predictionBase('auto', [0.9, 0.014], 3.0) };
+        """,
+    )
+    assert r["text"].startswith("Operating point: auto: each method decides")
+    assert "Least squares" in r["text"] or "LSM" in r["text"]
+    assert ": fit, ambient 0.25 V (the record starts settled under 5 V)." in r["text"]
+    assert abs(r["base"] - 0.25) < 1e-12  # c / (1 - a): the method fitted the constant term
+    assert r["initial"] == 3.0  # no constant term: the first output is the base

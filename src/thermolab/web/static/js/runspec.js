@@ -133,6 +133,9 @@ export function readEstimate(e) {
     // The library's warnings on this estimate (each says what it means and what to do);
     // an estimate with any, or marked untrusted, never shows as final.
     warnings: estimateWarnings(e),
+    // How this method handled the operating point and what it found (offset "auto":
+    // decided from the record by the library), or null.
+    operatingPoint: e.extras?.operating_point && typeof e.extras.operating_point === "object" ? e.extras.operating_point : null,
     trusted: e.extras?.trusted ?? e.trusted ?? estimateWarnings(e).length === 0,
   };
 }

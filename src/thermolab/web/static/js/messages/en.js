@@ -195,6 +195,7 @@ export const messages = {
   "panel.model": "Model",
   "panel.noRun": "No run yet in this panel.",
   "panel.operatingPoint": "Operating point",
+  "panel.operatingPointFound": "{method}: {handling}, ambient {ambient} V ({reason}).",
   "panel.operatingPointUsed": "Operating point: {how}",
   "panel.otherRun": "A {method} run is going (panel {panel}).",
   "panel.progressLabel": "Run progress",

@@ -14,6 +14,23 @@ export function operatingPointText(op) {
   return t("panel.operatingPointUsed", { how: op.reason ?? op.used });
 }
 
+/**
+ * The operating point each method used and found (the library's decision for
+ * offset "auto": handling, how the record starts, the ambient), one line each.
+ * @param {string[]} methods
+ * @param {Map<string, any>} estimates
+ */
+export function operatingPointsFound(methods, estimates) {
+  const lines = [];
+  for (const m of methods) {
+    const op = estimates?.get(m)?.operatingPoint;
+    if (!op || !op.handling) continue;
+    const ambient = typeof op.ambient === "number" && Number.isFinite(op.ambient) ? fmt(op.ambient) : "–";
+    lines.push(t("panel.operatingPointFound", { method: methodTitle(m), handling: op.handling, ambient, reason: op.reason ?? "" }));
+  }
+  return lines;
+}
+
 /** What an estimate's status cell says: final or live, not trusted, and why there is no model. */
 export function estimateStatus(est) {
   if (!est) return t("estimate.waiting");
@@ -123,7 +140,8 @@ export function otherRunText(runPanel, number) {
  * @param {any} run
  */
 export function renderResults(view, run) {
-  setText(view.operatingPoint, operatingPointText(run?.operatingPoint));
+  const found = run ? operatingPointsFound(run.methods.map(methodName), run.estimates) : [];
+  setText(view.operatingPoint, [operatingPointText(run?.operatingPoint), ...found].filter(Boolean).join(" "));
   view.operatingPoint.hidden = !view.operatingPoint.textContent;
   const asked = new Set(run ? run.methods.map(methodName) : []);
   const shown = view.def.methods.filter((m) => !(view.def.optional ?? []).includes(m) || asked.has(m));
