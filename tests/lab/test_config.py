@@ -210,3 +210,39 @@ def test_max_run_seconds_is_a_rig_limit(tmp_path: Path) -> None:
     assert [rig.max_run_seconds for rig in config.rigs] == [600.0, 5000.0]
     # The default lets the paper's 2000-sample experiment at T = 1 s run in real time.
     assert default_config(tmp_path).rigs[0].max_run_seconds >= 2000 * 1.0
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (
+            "[access]\nmax_body_bytes=100\n",
+            r"access\.max_body_bytes: expected a finite number >= 1024",
+        ),
+        ("speedup='fast'\n", "speedup: expected a number, got str 'fast'"),
+        ("speedup=true\n", "speedup: expected a number, got bool True"),
+        ("title=''\n", "title: expected a non-empty string"),
+        ("[access]\nlogin_window=nan\n", r"access\.login_window: expected a finite number"),
+        (A + "input_range=[0, 'x']\n", r"rigs\[0\]\.input_range\[1\]: expected a number"),
+        (A + "input_range=[0, 1, 2]\n", r"rigs\[0\]\.input_range: expected \[min, max\]"),
+        ("access = 3\n", "access: expected a table, got int 3"),
+        ("[rigs]\nid='a'\n", r"rigs: expected one or more \[\[rigs\]\] tables"),
+    ],
+)
+def test_pydantic_errors_keep_the_key_path_in_one_line(
+    tmp_path: Path, text: str, message: str
+) -> None:
+    with pytest.raises(ConfigError, match=message) as info:
+        load_config(write(tmp_path, text), tmp_path)
+    assert "\n" not in str(info.value)
+
+
+def test_a_key_left_out_inherits_the_one_declared_default(tmp_path: Path) -> None:
+    text = "[rig_defaults]\ncooldown = { mode = 'ambient', tolerance = 0.2 }\n"
+    text += A + "cooldown = { max_seconds = 100 }\n"
+    (rig,) = load_config(write(tmp_path, text), tmp_path).rigs
+    assert rig.cooldown == CooldownPolicy(mode="ambient", tolerance=0.2, max_seconds=100.0)
+    assert (
+        load_config(write(tmp_path, "title='x'\n"), tmp_path).access
+        == default_config(tmp_path).access
+    )
