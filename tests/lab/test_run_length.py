@@ -72,7 +72,7 @@ def test_the_papers_2000_sample_run_ends_under_the_default_limits(
     assert (done.status, done.samples_stored) == ("finished", 2000)
     # A twin's data are exact: timed by its own axis, no wall-clock lateness, no warning.
     assert done.timing is not None
-    assert (done.timing["basis"], done.timing["maxLateness"]) == ("t", None)
+    assert (done.timing["rig"], done.timing["maxLateness"]) == ("twin", None)
     assert done.timing["periodSpread"] == pytest.approx(0.0, abs=1e-12)
     assert done.timing["warnings"] == []
     # The turn's time ran out long ago: it ends once the run is over.
@@ -108,18 +108,22 @@ def test_a_real_rigs_timing_shows_its_lateness_and_warns_on_a_spread_period() ->
     rng = np.random.default_rng(8)
     t = np.arange(600.0)
     lateness = rng.uniform(0.0, 0.2, t.size)
-    real = timing_summary(t, t + lateness, lateness, 1.0, simulated=False)
-    assert real["basis"] == "t_read"
+    real = timing_summary(t + lateness, lateness, 1.0, simulated=False)
+    assert real["rig"] == "real"
     assert real["maxLateness"] == pytest.approx(lateness.max(), rel=1e-12)
     assert real["p95Lateness"] == pytest.approx(np.percentile(lateness, 95), rel=1e-12)
     assert real["periodSpread"] > JITTER_LIMIT
     assert real["warnings"][0].startswith("timing jitter: the sample period spreads")
-    steady = timing_summary(t, t + 0.01, np.full(t.size, 0.01), 1.0, simulated=False)
+    steady = timing_summary(t + 0.01, np.full(t.size, 0.01), 1.0, simulated=False)
     assert steady["warnings"] == []
     assert steady["maxLateness"] == pytest.approx(0.01, rel=1e-12)
-    # The same lateness on a twin: its data were taken at t, exactly.
-    twin = timing_summary(t, t + lateness, lateness, 1.0, simulated=True)
-    assert (twin["basis"], twin["maxLateness"], twin["warnings"]) == ("t", None, [])
+    # A twin: wall-clock lateness is no part of its data; its readings' times are exact...
+    twin = timing_summary(t, lateness, 1.0, simulated=True)
+    assert (twin["rig"], twin["maxLateness"], twin["warnings"]) == ("twin", None, [])
+    # ...unless its preset simulates jitter: then it warns like a real rig.
+    jittery = timing_summary(t + lateness, lateness, 1.0, simulated=True)
+    assert jittery["maxLateness"] is None
+    assert jittery["warnings"][0].startswith("timing jitter")
 
 
 def test_a_too_long_run_is_a_422_with_the_reason(

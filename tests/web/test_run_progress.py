@@ -79,7 +79,7 @@ def test_untrusted_results_never_look_final_and_every_warning_is_listed(module_p
         const run = readRun({ id: 4, status: 'finished', dt: 1, samples: 2000,
                               methods: ['srm', 'lsm'], results: { srm: { latest: flagged },
                               lsm: { latest: clean } },
-                              timing: { basis: 't_read', maxLateness: 0.25, p95Lateness: 0.1,
+                              timing: { rig: 'real', maxLateness: 0.25, p95Lateness: 0.1,
                                         periodSpread: 0.08, warnings: ['timing jitter: ...'] } });
         const view = { def: { title: 'Panel 1', methods: ['srm', 'lsm'] },
                        results: document.createElement('div'),
@@ -91,7 +91,7 @@ def test_untrusted_results_never_look_final_and_every_warning_is_listed(module_p
         return { srm: [status('srm'), row('srm').dataset.trusted, row('srm').className],
                  lsm: [status('lsm'), row('lsm').dataset.trusted],
                  items: items.map((li) => li.textContent),
-                 twin: timingText({ basis: 't' }), real: timingText(run.timing) };
+                 twin: timingText({ rig: 'twin' }), real: timingText(run.timing) };
         """,
     )
     assert r["srm"] == ["not trusted: see the warnings", "false", "not-trusted"]

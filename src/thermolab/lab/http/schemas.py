@@ -442,9 +442,9 @@ class RunOut(_Out):
     )
     timing: dict[str, Any] | None = Field(
         default=None,
-        description="once the run is over: basis ('t_read' for a real rig, 't' for a twin, "
-        "whose data are exact), maxLateness and p95Lateness (s; null for a twin), "
-        "periodSpread (std of the sample periods over their median) and warnings",
+        description="once the run is over: rig ('real' or 'twin'), maxLateness and "
+        "p95Lateness (wall-clock, s; null for a twin, whose data are exact), periodSpread (std "
+        "of the periods between the readings' times over their median) and warnings",
     )
 
     @classmethod

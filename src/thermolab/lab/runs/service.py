@@ -424,9 +424,7 @@ class RunService:
             results[name] = (_params(identifier), data)
         self._store.save_end(active.run_id, status, reason, now, results)
         simulated = self._config.rig(active.rig_id).kind == "sim"
-        timing = timing_summary(
-            result.t, result.t_read, result.lateness, result.dt, simulated=simulated
-        )
+        timing = timing_summary(result.t_read, result.lateness, result.dt, simulated=simulated)
         with self._db.write() as session:
             run = session.get(Run, active.run_id)
             if run is not None:  # a new dict: the JSON column sees the change

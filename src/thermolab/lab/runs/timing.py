@@ -8,9 +8,10 @@ with the run (API and page).
 
 A twin is different: it advances by exactly ``dt`` per sample whatever the
 wall clock does (the runner hands it each sample's scheduled instant), so its
-data are exact and wall-clock lateness says nothing about them. For a twin the
-spread is measured on the reading's own time axis (``t``, the instant the
-twin's state was taken at); it is zero unless the twin's preset simulates
+data are exact and wall-clock lateness says nothing about them: for a twin no
+lateness is reported. The spread is measured on the reading's own time
+(``t_read``, the instant the state was actually taken) for both kinds: for a
+twin that is exactly the scheduled instant unless its preset simulates
 jitter, and then it warns like a real rig.
 """
 
@@ -31,7 +32,6 @@ JITTER_LIMIT = 0.05
 
 
 def timing_summary(
-    t: npt.ArrayLike,
     t_read: npt.ArrayLike,
     lateness: npt.ArrayLike,
     dt: float,
@@ -42,8 +42,8 @@ def timing_summary(
 
     Parameters
     ----------
-    t, t_read, lateness : array_like
-        The runner's per-sample scheduled time, reading time and lateness (s).
+    t_read, lateness : array_like
+        The runner's per-sample reading time and wall-clock lateness (s).
     dt : float
         The run's sample period (s).
     simulated : bool
@@ -52,21 +52,21 @@ def timing_summary(
     Returns
     -------
     dict
-        ``basis`` (``"t_read"`` for a real rig, ``"t"`` for a twin),
-        ``maxLateness`` and ``p95Lateness`` (s; ``None`` for a twin: not part
-        of its data), ``periodSpread`` (std of the periods over their median),
-        ``warnings`` (list of str).
+        ``rig`` (``"real"`` or ``"twin"``), ``maxLateness`` and
+        ``p95Lateness`` (s; ``None`` for a twin: not part of its data),
+        ``periodSpread`` (std of the periods over their median), ``warnings``
+        (list of str).
 
     Examples
     --------
     >>> t = np.arange(5.0)
-    >>> timing_summary(t, t + [0, 0.3, 0, 0.3, 0], [0, 0.3, 0, 0.3, 0], 1.0, simulated=False)[
+    >>> timing_summary(t + [0, 0.3, 0, 0.3, 0], [0, 0.3, 0, 0.3, 0], 1.0, simulated=False)[
     ...     "warnings"][0][:40]
     'timing jitter: the sample period spreads'
-    >>> timing_summary(t, t + 0.3, t * 0 + 0.3, 1.0, simulated=True)["warnings"]
-    []
+    >>> timing_summary(t, t * 0 + 0.3, 1.0, simulated=True)["maxLateness"] is None
+    True
     """
-    times = np.asarray(t_read if not simulated else t, dtype=float)
+    times = np.asarray(t_read, dtype=float)
     late = np.asarray(lateness, dtype=float)
     spread = 0.0
     if times.size >= 3:
@@ -83,7 +83,7 @@ def timing_summary(
         )
     real = not simulated and late.size > 0
     return {
-        "basis": "t" if simulated else "t_read",
+        "rig": "twin" if simulated else "real",
         "maxLateness": finite_or_none(float(late.max())) if real else None,
         "p95Lateness": finite_or_none(float(np.percentile(late, 95))) if real else None,
         "periodSpread": finite_or_none(spread),

@@ -114,7 +114,7 @@ export function renderProgress(view, run, taken) {
 /** The run's timing in words (RunOut.timing): lateness for a real rig, exact for a twin. */
 export function timingText(timing) {
   if (!timing || typeof timing !== "object") return "";
-  if (timing.basis === "t") return t("run.timingTwin");
+  if (timing.rig === "twin") return t("run.timingTwin");
   const s = (v) => (typeof v === "number" && Number.isFinite(v) ? fmt(v, 3) : "–");
   return t("run.timingReal", { max: s(timing.maxLateness), p95: s(timing.p95Lateness), spread: fmt(100 * (timing.periodSpread ?? 0), 2) });
 }
