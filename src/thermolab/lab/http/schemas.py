@@ -376,8 +376,8 @@ class RunIn(_In):
         Field(
             description="the operating point: 'initial' removes the first sample (an "
             "equilibrium at 0 V), 'fit' estimates a constant term, 'none' is the raw "
-            "regression, a number is the known ambient output; 'auto' is 'initial' on a rig "
-            "at rest and 'fit' on a warm one (the run's operatingPoint says which and why)"
+            "regression, a number is the known ambient output; 'auto' is decided from the data "
+            "(the run's operatingPoint and each result say what was used and found)"
         ),
     ] = "auto"
 

@@ -84,7 +84,7 @@ class RunService:
     access : AccessService
     hub : DeviceHub
     config : LabConfig
-        The rigs' cool-down policies (they say when a rig counts as at rest).
+        The rigs' limits (``max_run_seconds``) and the twins' speed-up.
     on_finished : callable
         Called with the rig id after a run has ended and been stored (the lab
         hands the rig back to the hub).

@@ -174,7 +174,7 @@ export const messages = {
   "nav.teacher": "Teacher",
   "offset.auto": "auto (the lab decides)",
   "offset.fit": "fit",
-  "offset.hint": "auto: initial on a rig at rest, fit on a warm one (still cooling after a run). initial: the first sample is the equilibrium at 0 V and is removed. fit: a constant term is estimated with the model. none: the raw regression.",
+  "offset.hint": "auto: decided from the data (a record at ambient, settled under an input, or moving); the result says what was used and found. initial: the first sample is the equilibrium at 0 V and is removed. fit: a constant term is estimated with the model. none: the raw regression.",
   "offset.initial": "initial",
   "offset.none": "none",
   "panel.automatic": "Automatic (square wave)",

@@ -12,9 +12,8 @@
 // panels/results.js shows its run. The server's own message is shown when it
 // refuses. The forms are locked for anyone who is not the controller, and
 // unlock as soon as they are. Each panel also says how the operating point is
-// handled (RunIn.offset): "auto" lets the lab remove the first sample of a rig
-// at rest and fit the operating point of a warm one, and the run's result says
-// which it did and why.
+// handled (RunIn.offset): "auto" leaves it to the data (the library decides per
+// record), and the run's result says what was used and found.
 
 import { h, setText } from "../dom.js";
 import { checkNumber } from "../validate.js";
