@@ -15,6 +15,7 @@ from thermolab.lab.access.rules import (
     end_turn,
     is_due,
     next_state,
+    queue_wait,
 )
 from thermolab.lab.config import CooldownPolicy
 from thermolab.lab.db.models import PowerState, TurnEndReason
@@ -79,6 +80,34 @@ def test_a_turn_ends_at_the_first_limit_reached_dated_when_it_was(
 def test_the_idle_limit_does_not_run_while_a_run_samples() -> None:
     sampling = free(turn=turn(seen=200, active=0), run_active=True)
     assert not is_due(sampling, rules(), at(200), None)
+
+
+def test_a_running_run_covers_the_turn_until_it_ends() -> None:
+    # Past the time limit, the client in touch: the run goes on, the turn with it.
+    sampling = free(
+        turn=turn(seen=1990, active=1990), run_active=True, queue=(Waiting(7, at(1990)),)
+    )
+    assert not is_due(sampling, rules(), at(2000), None)
+    # The client gone still ends it (the run is then ENDed, its data kept).
+    gone = next_state(sampling, rules(), at(2010), None)
+    assert gone.ended is not None
+    assert gone.ended.reason is TurnEndReason.CLIENT_GONE
+    # The run over, the time limit applies at once, dated when it was reached.
+    after = next_state(replace(sampling, run_active=False), rules(), at(2000), None)
+    assert after.ended is not None
+    assert (after.ended.reason, after.ended.at) == (TurnEndReason.TIME_LIMIT, at(300))
+    assert after.turn is not None
+    assert after.turn.user_id == 7
+
+
+def test_the_queues_wait_counts_the_run_going() -> None:
+    r = rules()
+    assert queue_wait(100.0, None, 0.0, 1, r) == 100.0
+    assert queue_wait(100.0, 1700.0, 0.0, 1, r) == 1700.0  # the run outlasts the turn
+    assert queue_wait(100.0, 50.0, 0.0, 3, r) == 100.0 + 2 * 300.0
+    assert queue_wait(None, None, 42.0, 2, r) == 42.0 + 300.0  # cooling, nobody controls
+    cooling = rules(COOLING)
+    assert queue_wait(100.0, 1700.0, 0.0, 2, cooling) == 1700.0 + 600.0 + (300.0 + 600.0)
 
 
 def test_silent_queue_places_are_dropped_when_their_client_timed_out() -> None:

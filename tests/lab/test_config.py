@@ -123,7 +123,12 @@ A = "[[rigs]]\nid='a'\nspec='sim'\n"  # the smallest valid file
         (A + "input_range=[5, 1]\n", r"rigs\[0\]\.input_range: min must be below max"),
         (A + "input_range=[5]\n", r"rigs\[0\]\.input_range: expected \[min, max\]"),
         (A + A, "rig ids must be unique; repeated: a"),
-        ("title='x'\n", "rigs: declare at least one rig"),
+        ("rigs = []\n", "rigs: expected one or more"),
+        (
+            "[rig_defaults]\nmax_run_seconds=0\n",
+            r"rig_defaults\.max_run_seconds: expected a finite number > 0, got 0",
+        ),
+        (A + "max_run_seconds='1h'\n", r"rigs\[0\]\.max_run_seconds: expected a number"),
         (
             "[access]\ncookie_samesite='none'\n" + A,
             r"access\.cookie_samesite: expected one of 'strict', 'lax', got 'none'",
@@ -184,3 +189,60 @@ def test_data_dir_from_the_option_the_environment_or_a_per_user_folder(
     monkeypatch.delenv("THERMOLAB_DATA_DIR")
     monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))
     assert resolve_data_dir() == tmp_path / "xdg" / "thermolab"
+
+
+def test_rig_defaults_apply_to_the_default_twin(tmp_path: Path) -> None:
+    # A teacher changes one limit without declaring the rig: the others keep their defaults.
+    config = load_config(write(tmp_path, "[rig_defaults]\ncontrol_time_limit = 900\n"), tmp_path)
+    default = default_config(tmp_path).rigs[0]
+    (twin,) = config.rigs
+    assert (twin.id, twin.spec, twin.control_time_limit) == ("twin", "sim", 900.0)
+    assert (twin.idle_limit, twin.max_run_seconds) == (default.idle_limit, default.max_run_seconds)
+    config = load_config(write(tmp_path, "[rig_defaults]\nmax_run_seconds = 7200\n"), tmp_path)
+    assert config.rigs[0].max_run_seconds == 7200.0
+    assert config.rigs[0].control_time_limit == default.control_time_limit
+
+
+def test_max_run_seconds_is_a_rig_limit(tmp_path: Path) -> None:
+    text = "[rig_defaults]\nmax_run_seconds = 600\n[[rigs]]\nid='a'\nspec='sim'\n"
+    text += "[[rigs]]\nid='b'\nspec='sim'\nmax_run_seconds = 5000\n"
+    config = load_config(write(tmp_path, text), tmp_path)
+    assert [rig.max_run_seconds for rig in config.rigs] == [600.0, 5000.0]
+    # The default lets the paper's 2000-sample experiment at T = 1 s run in real time.
+    assert default_config(tmp_path).rigs[0].max_run_seconds >= 2000 * 1.0
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (
+            "[access]\nmax_body_bytes=100\n",
+            r"access\.max_body_bytes: expected a finite number >= 1024",
+        ),
+        ("speedup='fast'\n", "speedup: expected a number, got str 'fast'"),
+        ("speedup=true\n", "speedup: expected a number, got bool True"),
+        ("title=''\n", "title: expected a non-empty string"),
+        ("[access]\nlogin_window=nan\n", r"access\.login_window: expected a finite number"),
+        (A + "input_range=[0, 'x']\n", r"rigs\[0\]\.input_range\[1\]: expected a number"),
+        (A + "input_range=[0, 1, 2]\n", r"rigs\[0\]\.input_range: expected \[min, max\]"),
+        ("access = 3\n", "access: expected a table, got int 3"),
+        ("[rigs]\nid='a'\n", r"rigs: expected one or more \[\[rigs\]\] tables"),
+    ],
+)
+def test_pydantic_errors_keep_the_key_path_in_one_line(
+    tmp_path: Path, text: str, message: str
+) -> None:
+    with pytest.raises(ConfigError, match=message) as info:
+        load_config(write(tmp_path, text), tmp_path)
+    assert "\n" not in str(info.value)
+
+
+def test_a_key_left_out_inherits_the_one_declared_default(tmp_path: Path) -> None:
+    text = "[rig_defaults]\ncooldown = { mode = 'ambient', tolerance = 0.2 }\n"
+    text += A + "cooldown = { max_seconds = 100 }\n"
+    (rig,) = load_config(write(tmp_path, text), tmp_path).rigs
+    assert rig.cooldown == CooldownPolicy(mode="ambient", tolerance=0.2, max_seconds=100.0)
+    assert (
+        load_config(write(tmp_path, "title='x'\n"), tmp_path).access
+        == default_config(tmp_path).access
+    )

@@ -28,10 +28,11 @@ from thermolab.ident import (
     weighted_least_squares,
 )
 from thermolab.lab.clock import ManualClock
-from thermolab.lab.config import CooldownPolicy, RigConfig
+from thermolab.lab.config import RigConfig
 from thermolab.lab.db.models import Command, MethodResultRow, Sample
 from thermolab.lab.http.app import create_app
 from thermolab.lab.runs import RunRequest
+from thermolab.lab.runs.operating_point import identifiers_decide
 from thermolab.lab.service import Lab
 from thermolab.lab.users import Principal
 from thermolab.rigs import Rig, TwinRig, VirtualClock
@@ -417,13 +418,7 @@ def test_three_initial_parameters_go_with_a_fitted_operating_point(make_lab: Lab
     run = lab.runs.start("twin", ana, request)
     lab.runs.wait("twin", timeout=30)
     done = lab.runs.get(run.id, ana)
-    assert done.operating_point == {
-        "asked": "fit",
-        "used": "fit",
-        "atRest": True,
-        "reason": "fit, as asked (the rig is at rest: not driven for 1800 s; its ambient is not "
-        "known yet)",
-    }
+    assert done.operating_point == {"asked": "fit", "used": "fit", "reason": "fit, as asked"}
     with lab.db.read() as session:
         params = session.scalars(select(MethodResultRow.params)).one()
     assert (params["w0"], params["offset"]) == ([0.9, 0.01, 0.0], "fit")
@@ -447,8 +442,9 @@ TRUE_K, TRUE_TAU = 0.140090, 250.126233
 def test_back_to_back_runs_on_a_warm_twin_give_valid_models_by_default(
     make_lab: LabFactory, method: str, signal: str, settings: dict[str, object]
 ) -> None:
-    """A run started right after another finds the rig warm: the default fits the operating
-    point, where "initial" (the first sample taken as the equilibrium at 0 V) goes wrong.
+    """A run started right after another finds the rig warm: the default handles the operating
+    point from the data, where "initial" (the first sample taken as the equilibrium at 0 V)
+    goes wrong. The lab does not look at the clock: both runs are handled alike.
 
     The twin's clock stands still between runs, so the second run starts exactly where the
     first one left the box: as warm as it can be.
@@ -461,63 +457,37 @@ def test_back_to_back_runs_on_a_warm_twin_give_valid_models_by_default(
         cold = finish(client, lab, body)
         warm = finish(client, lab, body)
         forced = finish(client, lab, {**body, "offset": "initial"})
-    assert cold["operatingPoint"]["used"] == "initial"
-    assert cold["operatingPoint"]["atRest"] is True
-    assert warm["operatingPoint"]["used"] == "fit"
-    assert warm["operatingPoint"]["atRest"] is False
-    assert f"run {cold['id']} on it ended" in warm["operatingPoint"]["reason"]
+    assert cold["operatingPoint"] == warm["operatingPoint"]
+    assert warm["operatingPoint"]["asked"] == "auto"
+    assert warm["operatingPoint"]["used"] == ("auto" if identifiers_decide() else "fit")
+    assert "atRest" not in warm["operatingPoint"]  # no judgement of the rig by the clock
     assert warm["settings"]["offset"] == "auto"
     for run in (cold, warm):
         latest = run["results"][method]["latest"]
         assert latest["valid"] is True
         np.testing.assert_allclose([latest["K"], latest["tau"]], [TRUE_K, TRUE_TAU], rtol=1e-5)
-    # What the default avoids: "initial" on the warm rig, kept as asked, with a warning.
-    assert forced["operatingPoint"]["used"] == "initial"
-    assert "although the rig is not at rest" in forced["operatingPoint"]["reason"]
+    # What the default avoids: "initial" on the warm rig, kept as asked.
+    assert forced["operatingPoint"] == {
+        "asked": "initial",
+        "used": "initial",
+        "reason": "initial, as asked",
+    }
     wrong = forced["results"][method]["latest"]
     assert not (wrong["valid"] and abs(wrong["K"] / TRUE_K - 1) < 0.5)
 
 
-def test_the_rig_is_judged_warm_by_its_input_recent_commands_and_its_output(
-    make_lab: LabFactory, clock: ManualClock
-) -> None:
-    twins: dict[str, TwinRig] = {}
-
-    def opener(rig: RigConfig) -> Rig:
-        twins[rig.id] = TwinRig("paper", clock=VirtualClock())
-        return twins[rig.id]
-
-    # Ambient known (0 V), "back near ambient" within 0.05 V, no drive counts after 600 s.
-    cooldown = CooldownPolicy(tolerance=0.05, max_seconds=600, ambient=0.0)
-    lab = make_lab(opener=opener, cooldown=cooldown)
-    ana = person(lab, "ana")
-    lab.access.request_control("twin", ana)
-    assert lab.runs.at_rest("twin") == (True, "not driven for 600 s; its ambient is not known yet")
-    lab.sweep()  # the lab reads the cold rig
-    rest, why = lab.runs.at_rest("twin")
-    assert rest is True
-    assert why == "not driven for 600 s, output within 0.05 V of its ambient 0 V"
-
-    lab.apply_input("twin", ana, 5.0)
-    assert lab.runs.at_rest("twin") == (False, "its input is 5 V, not the safe 0 V")
-    twins["twin"].clock.sleep_until(200.0)  # the box heats for 200 s at 5 V
-    lab.apply_input("twin", ana, 0.0)
-    assert lab.runs.at_rest("twin") == (
-        False,
-        "an input of 5 V was applied 0 s ago; it may still be cooling",
-    )
-    clock.advance(601)  # past the longest cool-down: only the output can tell now
-    lab.sweep()
-    rest, why = lab.runs.at_rest("twin")
-    assert rest is False
-    assert why.startswith("its output 0.38")
-    assert why.endswith("from its ambient 0 V, more than the tolerance 0.05 V")
-    point = lab.runs.operating_point("twin", "auto", ("lsm",))
-    assert (point.used, point.at_rest) == ("fit", False)
-    assert lab.runs.operating_point("twin", "none", ("wlsm",)).used == "none"
-    assert lab.runs.operating_point("twin", 0.0, ("malsm",)).used == 0.0
-    srm = lab.runs.operating_point("twin", "auto", ("srm",))
-    assert (srm.used, srm.at_rest) == (None, None)
+def test_the_operating_point_is_left_to_the_data(lab: Lab) -> None:
+    auto = lab.runs.operating_point("auto", ("lsm", "srm"))
+    assert auto.used == ("auto" if identifiers_decide() else "fit")
+    assert lab.runs.operating_point("none", ("wlsm",)).used == "none"
+    assert lab.runs.operating_point(0.0, ("malsm",)).to_dict() == {
+        "asked": 0.0,
+        "used": 0.0,
+        "reason": "0.0, as asked",
+    }
+    assert lab.runs.operating_point("auto", ("srm",)).used is None
+    with pytest.raises(InvalidParameterError, match="offset is a setting of lsm"):
+        lab.runs.operating_point("fit", ("srm",))
 
 
 def test_each_methods_statistics_are_stored_as_thermolab_ident_computes_them(

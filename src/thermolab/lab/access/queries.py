@@ -101,6 +101,15 @@ def run_active(session: Session, rig_id: str) -> bool:
     return session.scalar(_Q.run_active, {"rig": rig_id}) is not None
 
 
+def run_ends_at(session: Session, rig_id: str) -> datetime | None:
+    """The planned end of the run sampling the rig (``None``: no run, or none planned)."""
+    meta = session.scalar(
+        select(Run.meta).where(Run.rig_id == rig_id, Run.status == RunStatus.RUNNING.value)
+    )
+    ends_at = None if meta is None else meta.get("ends_at")
+    return None if ends_at is None else datetime.fromisoformat(ends_at)
+
+
 def read_snapshot(session: Session, rig_id: str) -> RigSnapshot:
     """Read a rig's access state.
 
@@ -147,6 +156,7 @@ def read_snapshot(session: Session, rig_id: str) -> RigSnapshot:
         queue=slots,
         run_active=run_active(session, rig_id),
         last_input=last_input,
+        run_ends_at=run_ends_at(session, rig_id),
     )
 
 

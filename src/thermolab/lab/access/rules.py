@@ -48,6 +48,7 @@ __all__ = [
     "is_due",
     "limit_reached",
     "next_state",
+    "queue_wait",
 ]
 
 Reading = tuple[float, datetime]
@@ -127,18 +128,59 @@ def limit_reached(
 ) -> TurnEnd | None:
     """The limit that ended ``turn`` by ``now``, dated when it was reached, if any.
 
-    The earliest limit wins; on a tie the time limit is the reason given. The
-    idle limit does not apply while a run samples.
+    The earliest limit wins; on a tie the time limit is the reason given.
+    While a run samples, the turn covers it: neither the time limit nor the
+    idle limit applies (a started run is never cut because the turn's time ran
+    out; START refuses a run longer than the rig's ``max_run_seconds``). The
+    turn ends at the first transition after the run, if its time is up.
     """
     candidates: list[tuple[datetime, TurnEndReason]] = [
-        (turn.deadline, TurnEndReason.TIME_LIMIT),
         (turn.last_heartbeat_at + rules.client_timeout, TurnEndReason.CLIENT_GONE),
     ]
+    if not run_active:
+        candidates.insert(0, (turn.deadline, TurnEndReason.TIME_LIMIT))
     if rules.idle_limit is not None and not run_active:
         idle_at = turn.last_activity_at + timedelta(seconds=rules.idle_limit)
         candidates.append((idle_at, TurnEndReason.IDLE))
     at, reason = min(candidates, key=lambda c: c[0])
     return TurnEnd(reason, max(at, turn.started_at)) if at <= now else None
+
+
+def queue_wait(
+    turn_left: float | None,
+    run_left: float | None,
+    cooling_left: float,
+    position: int,
+    rules: TurnRules,
+) -> float:
+    """Upper bound on the wait, in seconds, of queue place ``position`` (from 1).
+
+    The current turn lasts until its time is up or, when a run goes longer,
+    until the run ends (the run covers the turn); then the rig cools down (if
+    it does) and every turn ahead runs in full.
+
+    Parameters
+    ----------
+    turn_left : float or None
+        Seconds until the current turn's time limit (``None``: nobody controls).
+    run_left : float or None
+        Seconds until the current run's planned end (``None``: no run).
+    cooling_left : float
+        Seconds the rig may still cool when nobody controls it.
+    position : int
+    rules : TurnRules
+
+    Examples
+    --------
+    >>> from thermolab.lab.config import CooldownPolicy
+    >>> rules = TurnRules(timedelta(seconds=30), 300.0, None, 60.0, CooldownPolicy())
+    >>> queue_wait(100.0, None, 0.0, 2, rules), queue_wait(100.0, 1900.0, 0.0, 1, rules)
+    (400.0, 1900.0)
+    """
+    cooldown = rules.cooldown.max_seconds if rules.cooldown.enabled else 0.0
+    # Nobody controls: only a cool-down may stand before the head of the queue.
+    first = cooling_left if turn_left is None else max(turn_left, run_left or 0.0) + cooldown
+    return first + (position - 1) * (rules.control_time_limit + cooldown)
 
 
 def end_turn(

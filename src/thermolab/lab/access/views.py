@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 from typing import Literal, Protocol
 
-from thermolab.lab.access.rules import Turn, TurnState, Waiting
+from thermolab.lab.access.rules import Turn, TurnRules, TurnState, Waiting, queue_wait
 from thermolab.lab.config import RigConfig
 from thermolab.lab.db.models import PowerState
 from thermolab.lab.devices import PublishedRig
@@ -90,6 +90,8 @@ class RigSnapshot:
     queue: tuple[QueueSlot, ...]
     run_active: bool
     last_input: float | None
+    run_ends_at: datetime | None = None
+    """The planned end of the run going, if any (the queue's estimate counts it)."""
 
     def turn_state(self) -> TurnState:
         """The part of the snapshot the turn rules read."""
@@ -242,15 +244,15 @@ def render_access(
 
 
 def _eta(snap: RigSnapshot, cfg: RigConfig, position: int, now: datetime) -> float:
-    """Upper bound on the wait of queue place ``position``: every turn ahead runs in full."""
+    """Upper bound on the wait of queue place ``position`` (:func:`.rules.queue_wait`)."""
     cooldown = cfg.cooldown.max_seconds if cfg.cooldown.enabled else 0.0
-    if snap.controller is not None:
-        first = _seconds_until(snap.controller.deadline, now) + cooldown
-    elif snap.power is PowerState.COOLING and snap.cooling_since is not None:
-        first = max(0.0, cooldown - (now - snap.cooling_since).total_seconds())
-    else:
-        first = 0.0
-    return first + (position - 1) * (cfg.control_time_limit + cooldown)
+    turn_left = None if snap.controller is None else _seconds_until(snap.controller.deadline, now)
+    run_left = None if snap.run_ends_at is None else _seconds_until(snap.run_ends_at, now)
+    cooling_left = 0.0
+    if snap.power is PowerState.COOLING and snap.cooling_since is not None:
+        cooling_left = max(0.0, cooldown - (now - snap.cooling_since).total_seconds())
+    rules = TurnRules.of(cfg, timedelta(0))  # the client timeout plays no part in the wait
+    return queue_wait(turn_left, run_left, cooling_left, position, rules)
 
 
 def _seconds_until(instant: datetime, now: datetime) -> float:

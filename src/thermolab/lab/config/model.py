@@ -22,6 +22,7 @@ database in the data folder). A TOML file declares more::
     control_time_limit = 300 # s of control per turn
     idle_limit = 120         # s without a command before control ends (0: never)
     power_off_grace = 60     # s a free rig with an empty queue stays powered
+    max_run_seconds = 3600   # s of real time the longest run may last (a run covers the turn)
 
     [[rigs]]
     id = "twin-1"
@@ -29,6 +30,9 @@ database in the data folder). A TOML file declares more::
     spec = "sim"             # sim, sim:PRESET (paper, paper-practical, tclab), tclab, tclab:PORT
     input_range = [0, 10]    # optional, narrows the rig's published range
     cooldown = { mode = "ambient", tolerance = 0.05, max_seconds = 900, input = -10 }
+
+Without ``[[rigs]]`` the lab serves its one default twin, with the file's
+``[rig_defaults]`` applied (a teacher changes one limit without declaring it).
 
 Every key is checked; an error names the key, what was wrong and what is
 allowed (:class:`~thermolab.errors.ConfigError`).
@@ -49,6 +53,7 @@ from thermolab.errors import ConfigError, NotFoundError
 
 __all__ = [
     "DATABASE_FILE",
+    "DEFAULT_RIG",
     "RIG_ID",
     "AccessPolicy",
     "CooldownPolicy",
@@ -165,7 +170,12 @@ class RigConfig:
     input_range : tuple of float or None
         Narrows the rig's published input range; ``None`` keeps it.
     control_time_limit : float
-        Seconds of control per turn.
+        Seconds of control per turn. A run going when they run out is not cut:
+        the turn lasts until the run ends (see ``max_run_seconds``).
+    max_run_seconds : float
+        Longest run START accepts, in seconds of real time (samples × dt, over
+        the speed-up for a twin). The default lets the paper's 2000-sample
+        experiment at T = 1 s run to its end.
     idle_limit : float or None
         Seconds without a command after which control ends; ``None``: never.
     power_off_grace : float
@@ -190,6 +200,7 @@ class RigConfig:
     power_off_grace: float = 60.0
     cooldown: CooldownPolicy = field(default_factory=CooldownPolicy)
     camera: str | None = None
+    max_run_seconds: float = 3600.0
 
     @property
     def kind(self) -> str:
@@ -316,6 +327,10 @@ def default_database_url(data_dir: Path) -> str:
     return f"sqlite:///{data_dir / DATABASE_FILE}"
 
 
+#: The rig a lab serves when no rig is declared (no file, or a file without ``[[rigs]]``).
+DEFAULT_RIG = RigConfig("twin", "Digital twin of the paper's box", "sim")
+
+
 def default_config(data_dir: Path) -> LabConfig:
     """Return the configuration of a lab started without a file: one digital twin.
 
@@ -324,10 +339,7 @@ def default_config(data_dir: Path) -> LabConfig:
     >>> default_config(Path("/srv/lab")).rigs[0].spec
     'sim'
     """
-    return LabConfig(
-        data_dir=data_dir,
-        rigs=(RigConfig("twin", "Digital twin of the paper's box", "sim"),),
-    )
+    return LabConfig(data_dir=data_dir, rigs=(DEFAULT_RIG,))
 
 
 def describe_value(value: object) -> str:

@@ -1,27 +1,32 @@
 """Reading a lab's TOML configuration file: every key checked, every error named.
 
-An error names the file, the key, what was wrong and what is allowed
-(:class:`~thermolab.errors.ConfigError`).
+The file's shape is a set of pydantic v2 models (``extra="forbid"``: an
+unknown key is an error). They declare no defaults of their own: a key left
+out inherits, from ``[rig_defaults]`` for a rig's limits, else from the
+configuration's dataclasses (:mod:`.model`), where each default is declared
+once. An error names the file, the key path, what was wrong and what is
+allowed (:class:`~thermolab.errors.ConfigError`), in one line.
 """
 
 from __future__ import annotations
 
-import math
 import os
 import tomllib
-from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Literal, cast
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic_core import ErrorDetails
 
 from thermolab.errors import ConfigError
 from thermolab.lab.config.model import (
+    DEFAULT_RIG,
     RIG_ID,
     AccessPolicy,
     CooldownPolicy,
     LabConfig,
     RigConfig,
-    check_number,
     describe_value,
 )
 from thermolab.lab.config.rig_kinds import parse_rig_spec
@@ -69,224 +74,224 @@ def load_config(path: str | os.PathLike[str], data_dir: Path) -> LabConfig:
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{file}: not valid TOML ({exc})") from None
     try:
-        return _build_config(raw, data_dir)
+        parsed = _File.model_validate(raw)
+    except ValidationError as exc:
+        raise ConfigError(f"{file}: {_describe(exc.errors()[0])}") from None
+    try:
+        return parsed.build(data_dir)
     except ConfigError as exc:
         raise ConfigError(f"{file}: {exc}") from None
 
 
-# -- validation -------------------------------------------------------------------------
+# -- the file's shape -------------------------------------------------------------------
+
+# Numbers: TOML integers or floats (never strings or booleans), finite.
+_Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
+_Positive = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
+_NonNegative = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0)]
+_Count = Annotated[int, Field(strict=True, ge=1)]
+_Text = Annotated[str, Field(strict=True, min_length=1)]
 
 
-class _Table:
-    """A TOML table being read: typed getters that name the key, and a check for leftovers."""
+class _Table(BaseModel):
+    """A TOML table: unknown keys are errors; a key left out is ``None`` (inherited)."""
 
-    def __init__(self, raw: object, path: str, allowed: tuple[str, ...]) -> None:
-        if not isinstance(raw, Mapping):
-            raise ConfigError(f"{path or 'the file'}: expected a table, got {describe_value(raw)}")
-        self._raw: Mapping[str, Any] = raw
-        self._path = path
-        unknown = sorted(set(raw) - set(allowed))
-        if unknown:
-            raise ConfigError(
-                f"{self.key(unknown[0])}: unknown key (allowed here: {', '.join(allowed)})"
-            )
+    model_config = ConfigDict(extra="forbid", frozen=True, str_strip_whitespace=True)
 
-    def key(self, name: str) -> str:
-        return f"{self._path}.{name}" if self._path else name
-
-    def has(self, name: str) -> bool:
-        return name in self._raw
-
-    def get(self, name: str) -> object:
-        return self._raw.get(name)
-
-    def string(self, name: str, default: str | None = None) -> str:
-        value = self.get(name)
-        if value is None:
-            if default is None:
-                raise ConfigError(f"{self.key(name)}: required (a string)")
-            return default
-        if not isinstance(value, str) or not value.strip():
-            raise ConfigError(f"{self.key(name)}: expected a non-empty string, got {value!r}")
-        return value.strip()
-
-    def number(
-        self, name: str, default: float, *, minimum: float = 0.0, strict: bool = True
-    ) -> float:
-        value = self.get(name)
-        if value is None:
-            return default
-        return check_number(value, self.key(name), minimum=minimum, strict=strict)
-
-    def integer(self, name: str, default: int, *, minimum: int = 1) -> int:
-        value = self.get(name)
-        if value is None:
-            return default
-        if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-            raise ConfigError(
-                f"{self.key(name)}: expected a whole number >= {minimum}, got {value!r}"
-            )
-        return value
-
-    def choice(self, name: str, default: str, allowed: tuple[str, ...]) -> str:
-        value = self.get(name)
-        if value is None:
-            return default
-        if value not in allowed:
-            options = ", ".join(repr(a) for a in allowed)
-            raise ConfigError(f"{self.key(name)}: expected one of {options}, got {value!r}")
-        return str(value)
+    def given(self) -> dict[str, Any]:
+        """The keys the file sets (to apply over the inherited values)."""
+        return {k: getattr(self, k) for k in self.model_fields_set}
 
 
-_LIMIT_KEYS = ("control_time_limit", "idle_limit", "power_off_grace", "cooldown")
-_ACCESS_KEYS = tuple(AccessPolicy.__dataclass_fields__)
-_COOLDOWN_KEYS = tuple(CooldownPolicy.__dataclass_fields__)
-_RIG_KEYS = ("id", "title", "spec", "input_range", "camera", *_LIMIT_KEYS)
-_TOP_KEYS = ("title", "database_url", "speedup", "access", "rig_defaults", "rigs")
+class _Cooldown(_Table):
+    mode: Literal["none", "ambient"] | None = None
+    tolerance: _Positive | None = None
+    max_seconds: _Positive | None = None
+    input: _Number | None = None
+    ambient: _Number | None = None
+
+    def over(self, base: CooldownPolicy) -> CooldownPolicy:
+        return replace(base, **self.given())
 
 
 @dataclass(frozen=True, slots=True)
-class _RigDefaults:
-    control_time_limit: float = 300.0
-    idle_limit: float | None = 120.0
-    power_off_grace: float = 60.0
-    cooldown: CooldownPolicy = field(default_factory=CooldownPolicy)
+class _Limits:
+    """A rig's limits as inherited: RigConfig's defaults, then ``[rig_defaults]``."""
+
+    control_time_limit: float = DEFAULT_RIG.control_time_limit
+    idle_limit: float | None = DEFAULT_RIG.idle_limit
+    power_off_grace: float = DEFAULT_RIG.power_off_grace
+    max_run_seconds: float = DEFAULT_RIG.max_run_seconds
+    cooldown: CooldownPolicy = DEFAULT_RIG.cooldown
 
 
-def _read_limits(table: _Table, base: _RigDefaults) -> _RigDefaults:
-    idle = base.idle_limit
-    if table.has("idle_limit"):
-        value = table.number("idle_limit", 0.0, minimum=0.0, strict=False)
-        idle = value if value > 0 else None
-    cooldown = base.cooldown
-    if table.has("cooldown"):
-        cooldown = _read_cooldown(table.get("cooldown"), table.key("cooldown"), base.cooldown)
-    return _RigDefaults(
-        control_time_limit=table.number("control_time_limit", base.control_time_limit),
-        idle_limit=idle,
-        power_off_grace=table.number(
-            "power_off_grace", base.power_off_grace, minimum=0.0, strict=False
-        ),
-        cooldown=cooldown,
-    )
+class _LimitsTable(_Table):
+    control_time_limit: _Positive | None = None
+    idle_limit: _NonNegative | None = None  # 0: never
+    power_off_grace: _NonNegative | None = None
+    max_run_seconds: _Positive | None = None
+    cooldown: _Cooldown | None = None
+
+    def over(self, base: _Limits) -> _Limits:
+        given = {k: v for k, v in self.given().items() if k in _Limits.__dataclass_fields__}
+        if "idle_limit" in given:
+            given["idle_limit"] = given["idle_limit"] or None
+        if self.cooldown is not None:
+            given["cooldown"] = self.cooldown.over(base.cooldown)
+        return replace(base, **given)
 
 
-def _read_cooldown(raw: object, path: str, base: CooldownPolicy) -> CooldownPolicy:
-    table = _Table(raw, path, _COOLDOWN_KEYS)
-    mode = table.choice("mode", base.mode, ("none", "ambient"))
-    input_value = table.get("input")
-    ambient = table.get("ambient")
-    policy = CooldownPolicy(
-        mode=cast(Literal["none", "ambient"], mode),
-        tolerance=table.number("tolerance", base.tolerance),
-        max_seconds=table.number("max_seconds", base.max_seconds),
-        input=(
-            base.input
-            if input_value is None
-            else check_number(input_value, table.key("input"), minimum=-math.inf, strict=False)
-        ),
-        ambient=(
-            base.ambient
-            if ambient is None
-            else check_number(ambient, table.key("ambient"), minimum=-math.inf, strict=False)
-        ),
-    )
-    return policy
+class _Rig(_LimitsTable):
+    id: _Text
+    title: _Text | None = None
+    spec: _Text
+    input_range: tuple[_Number, _Number] | None = None
+    camera: _Text | None = None
+
+    @field_validator("id")
+    @classmethod
+    def _id(cls, value: str) -> str:
+        if not RIG_ID.match(value):
+            raise ValueError(
+                f"{value!r} is not a valid rig id (lower-case letters, digits, '-' and '_', at "
+                "most 64 characters, starting with a letter or digit)"
+            )
+        return value
+
+    @field_validator("spec")
+    @classmethod
+    def _spec(cls, value: str) -> str:
+        parse_rig_spec(value)  # a ConfigError is a ValueError: pydantic names the key
+        return value
+
+    @field_validator("input_range")
+    @classmethod
+    def _range(cls, value: tuple[float, float] | None) -> tuple[float, float] | None:
+        if value is not None and not value[0] < value[1]:
+            raise ValueError(f"min must be below max, got [{value[0]:g}, {value[1]:g}]")
+        return value
+
+    def build(self, limits: _Limits) -> RigConfig:
+        rig = RigConfig(
+            id=self.id,
+            title=self.title or self.id,
+            spec=self.spec,
+            input_range=self.input_range,
+            camera=self.camera,
+        )
+        return _with_limits(rig, self.over(limits))
 
 
-def _read_range(raw: object, key: str) -> tuple[float, float]:
-    if not isinstance(raw, list) or len(raw) != 2:
-        raise ConfigError(f"{key}: expected [min, max], got {raw!r}")
-    low = check_number(raw[0], f"{key}[0]", minimum=-math.inf, strict=False)
-    high = check_number(raw[1], f"{key}[1]", minimum=-math.inf, strict=False)
-    if not low < high:
-        raise ConfigError(f"{key}: min must be below max, got [{low:g}, {high:g}]")
-    return (low, high)
+class _Access(_Table):
+    client_timeout: _Positive | None = None
+    session_lifetime: _Positive | None = None
+    session_idle_timeout: _Positive | None = None
+    login_failures_per_user: _Count | None = None
+    login_attempts_per_address: _Count | None = None
+    login_window: _Positive | None = None
+    cookie_samesite: Literal["strict", "lax"] | None = None
+    cookie_secure: Literal["auto", "always", "never"] | None = None
+    max_body_bytes: Annotated[int, Field(strict=True, ge=1024)] | None = None
 
 
-def _build_config(raw: Mapping[str, Any], data_dir: Path) -> LabConfig:
-    top = _Table(raw, "", _TOP_KEYS)
-    title = top.string("title", "ThermoLab")
-    database_url = top.get("database_url")
-    if database_url is not None and (not isinstance(database_url, str) or not database_url):
-        raise ConfigError(f"database_url: expected a database URL string, got {database_url!r}")
-    speedup = top.number("speedup", 1.0)
+class _File(_Table):
+    title: _Text | None = None
+    database_url: _Text | None = None
+    speedup: _Positive | None = None
+    access: _Access | None = None
+    rig_defaults: _LimitsTable | None = None
+    rigs: Annotated[list[_Rig], Field(min_length=1)] | None = None
 
-    access = AccessPolicy()
-    if top.has("access"):
-        table = _Table(top.get("access"), "access", _ACCESS_KEYS)
-        access = AccessPolicy(
-            client_timeout=table.number("client_timeout", access.client_timeout),
-            session_lifetime=table.number("session_lifetime", access.session_lifetime),
-            session_idle_timeout=table.number("session_idle_timeout", access.session_idle_timeout),
-            login_failures_per_user=table.integer(
-                "login_failures_per_user", access.login_failures_per_user
-            ),
-            login_attempts_per_address=table.integer(
-                "login_attempts_per_address", access.login_attempts_per_address
-            ),
-            login_window=table.number("login_window", access.login_window),
-            cookie_samesite=cast(
-                Literal["strict", "lax"],
-                table.choice("cookie_samesite", access.cookie_samesite, ("strict", "lax")),
-            ),
-            cookie_secure=cast(
-                Literal["auto", "always", "never"],
-                table.choice("cookie_secure", access.cookie_secure, ("auto", "always", "never")),
-            ),
-            max_body_bytes=table.integer("max_body_bytes", access.max_body_bytes, minimum=1024),
+    def build(self, data_dir: Path) -> LabConfig:
+        limits = _Limits() if self.rig_defaults is None else self.rig_defaults.over(_Limits())
+        if self.rigs is None:
+            # No rig declared: the default twin, with the file's rig defaults.
+            rigs: tuple[RigConfig, ...] = (_with_limits(DEFAULT_RIG, limits),)
+        else:
+            rigs = tuple(rig.build(limits) for rig in self.rigs)
+        access = (
+            AccessPolicy()
+            if self.access is None
+            else replace(AccessPolicy(), **self.access.given())
+        )
+        top = self.given()
+        return LabConfig(
+            data_dir=data_dir,
+            rigs=rigs,
+            access=access,
+            database_url=self.database_url,
+            **{k: top[k] for k in ("speedup", "title") if k in top},
         )
 
-    defaults = _RigDefaults()
-    if top.has("rig_defaults"):
-        table = _Table(top.get("rig_defaults"), "rig_defaults", _LIMIT_KEYS)
-        defaults = _read_limits(table, defaults)
 
-    raw_rigs = top.get("rigs")
-    if raw_rigs is None:
-        raise ConfigError("rigs: declare at least one rig with a [[rigs]] table")
-    if not isinstance(raw_rigs, list) or not raw_rigs:
-        raise ConfigError("rigs: expected one or more [[rigs]] tables")
-    rigs = tuple(_read_rig(item, f"rigs[{i}]", defaults) for i, item in enumerate(raw_rigs))
-    return LabConfig(
-        data_dir=data_dir,
-        rigs=rigs,
-        access=access,
-        database_url=database_url,
-        speedup=speedup,
-        title=title,
-    )
-
-
-def _read_rig(raw: object, path: str, defaults: _RigDefaults) -> RigConfig:
-    table = _Table(raw, path, _RIG_KEYS)
-    rig_id = table.string("id")
-    if not RIG_ID.match(rig_id):
-        raise ConfigError(
-            f"{table.key('id')}: {rig_id!r} is not a valid rig id (lower-case letters, digits, "
-            "'-' and '_', at most 64 characters, starting with a letter or digit)"
-        )
-    spec = table.string("spec")
-    try:
-        parse_rig_spec(spec)
-    except ConfigError as exc:
-        raise ConfigError(f"{table.key('spec')}: {exc}") from None
-    input_range = None
-    if table.has("input_range"):
-        input_range = _read_range(table.get("input_range"), table.key("input_range"))
-    limits = _read_limits(table, defaults)
-    camera = table.get("camera")
-    if camera is not None and (not isinstance(camera, str) or not camera.strip()):
-        raise ConfigError(f"{table.key('camera')}: expected a URL or device path, got {camera!r}")
-    rig = RigConfig(
-        id=rig_id,
-        title=table.string("title", rig_id),
-        spec=spec,
-        input_range=input_range,
+def _with_limits(rig: RigConfig, limits: _Limits) -> RigConfig:
+    return replace(
+        rig,
         control_time_limit=limits.control_time_limit,
         idle_limit=limits.idle_limit,
         power_off_grace=limits.power_off_grace,
+        max_run_seconds=limits.max_run_seconds,
         cooldown=limits.cooldown,
-        camera=camera,
     )
-    return rig
+
+
+# -- errors in one line, with the key path --------------------------------------------------
+
+
+def _key_path(loc: tuple[int | str, ...]) -> str:
+    path = ""
+    for part in loc:
+        path += f"[{part}]" if isinstance(part, int) else (f".{part}" if path else str(part))
+    return path
+
+
+def _table_at(loc: tuple[int | str, ...]) -> type[_Table]:
+    """The model of the table at ``loc`` (to list the keys allowed there)."""
+    model: type[_Table] = _File
+    nested: dict[str, type[_Table]] = {
+        "access": _Access,
+        "rig_defaults": _LimitsTable,
+        "rigs": _Rig,
+        "cooldown": _Cooldown,
+    }
+    for part in loc:
+        if isinstance(part, str) and part in nested:
+            model = nested[part]
+    return model
+
+
+def _describe(error: ErrorDetails) -> str:
+    """One pydantic error as ``key.path: what was wrong (what is allowed)``."""
+    loc = tuple(error["loc"])
+    kind, ctx, value = error["type"], error.get("ctx", {}), error.get("input")
+    key = _key_path(loc) or "the file"
+    if kind == "extra_forbidden":
+        allowed = ", ".join(_table_at(loc[:-1]).model_fields)
+        return f"{key}: unknown key (allowed here: {allowed})"
+    if "input_range" in loc and kind in ("missing", "too_long", "too_short", "tuple_type"):
+        # A range of the wrong length: name the range, not its missing or extra entry.
+        whole = loc[: loc.index("input_range") + 1]
+        return f"{_key_path(whole)}: expected [min, max]"
+    if kind == "missing":
+        return f"{key}: required"
+    if kind in ("greater_than", "greater_than_equal"):
+        bound = f"> {ctx['gt']:g}" if kind == "greater_than" else f">= {ctx['ge']:g}"
+        noun = "finite number"
+        return f"{key}: expected a {noun} {bound}, got {value!r}"
+    if kind in ("float_type", "float_parsing", "int_type", "int_parsing", "int_from_float"):
+        what = "a whole number" if kind.startswith("int") else "a number"
+        return f"{key}: expected {what}, got {describe_value(value)}"
+    if kind == "finite_number":
+        return f"{key}: expected a finite number, got {value!r}"
+    if kind == "literal_error":
+        return f"{key}: expected one of {ctx['expected'].replace(' or ', ', ')}, got {value!r}"
+    if kind in ("model_type", "model_attributes_type", "dict_type"):
+        return f"{key}: expected a table, got {describe_value(value)}"
+    if kind in ("list_type", "tuple_type", "too_short", "too_long") and loc[-1:] == ("rigs",):
+        return f"{key}: expected one or more [[rigs]] tables, got {value!r}"
+    if kind in ("list_type", "tuple_type", "too_short", "too_long"):
+        return f"{key}: expected [min, max], got {value!r}"
+    if kind in ("string_type", "string_too_short"):
+        return f"{key}: expected a non-empty string, got {value!r}"
+    message = str(error["msg"]).removeprefix("Value error, ")
+    return f"{key}: {message}"

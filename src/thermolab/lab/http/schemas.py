@@ -376,8 +376,8 @@ class RunIn(_In):
         Field(
             description="the operating point: 'initial' removes the first sample (an "
             "equilibrium at 0 V), 'fit' estimates a constant term, 'none' is the raw "
-            "regression, a number is the known ambient output; 'auto' is 'initial' on a rig "
-            "at rest and 'fit' on a warm one (the run's operatingPoint says which and why)"
+            "regression, a number is the known ambient output; 'auto' is decided from the data "
+            "(the run's operatingPoint and each result say what was used and found)"
         ),
     ] = "auto"
 
@@ -405,7 +405,6 @@ class OperatingPointOut(_Out):
     used: str | float | None = Field(
         description="the mode used; null when no chosen method regresses on the output"
     )
-    at_rest: bool | None = Field(description="whether the lab judged the rig at rest at START")
     reason: str
 
 
@@ -436,6 +435,17 @@ class RunOut(_Out):
     operating_point: OperatingPointOut | None = Field(
         description="how the operating point was handled (null for runs from before it was kept)"
     )
+    ends_at: datetime | None = Field(
+        default=None,
+        description="the run's planned end: START plus samples × dt in real time (null for "
+        "runs from before it was kept)",
+    )
+    timing: dict[str, Any] | None = Field(
+        default=None,
+        description="once the run is over: rig ('real' or 'twin'), maxLateness and "
+        "p95Lateness (wall-clock, s; null for a twin, whose data are exact), periodSpread (std "
+        "of the periods between the readings' times over their median) and warnings",
+    )
 
     @classmethod
     def of(cls, run: RunRecord) -> RunOut:
@@ -459,6 +469,8 @@ class RunOut(_Out):
                 "end_reason": run.end_reason,
                 "results": run.results,
                 "operating_point": run.operating_point,
+                "ends_at": run.ends_at,
+                "timing": run.timing,
             }
         )
 

@@ -1,14 +1,15 @@
 """Experiment runs on the lab's rigs.
 
 * :mod:`.request` — :class:`RunRequest` and its one validation;
-* :mod:`.operating_point` — the lab's operating-point policy;
+* :mod:`.operating_point` — the identifiers' ``offset`` (``auto``: the data decide);
+* :mod:`.timing` — how well a run kept its sampling times (lateness, period spread);
 * :mod:`.statistics` — the paper's figures, computed once at the end of a run;
 * :mod:`.store` — samples, results and reading them back (and the CSV export);
 * :mod:`.service` — :class:`RunService`: START, input, END, threads.
 """
 
 from thermolab.jsonsafe import json_safe
-from thermolab.lab.runs.operating_point import OperatingPoint, OperatingPointPolicy
+from thermolab.lab.runs.operating_point import OperatingPoint, choose_operating_point
 from thermolab.lab.runs.request import (
     MAX_DT,
     MAX_SAMPLES,
@@ -30,12 +31,12 @@ __all__ = [
     "STATS_LAST",
     "DatabaseRecorder",
     "OperatingPoint",
-    "OperatingPointPolicy",
     "RunRecord",
     "RunRequest",
     "RunService",
     "RunStore",
     "check_request",
+    "choose_operating_point",
     "json_safe",
     "method_statistics",
     "samples_csv",

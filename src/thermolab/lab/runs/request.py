@@ -36,8 +36,8 @@ MAX_SAMPLES = 200_000
 #: Shortest and longest sample period of a run, in seconds (the API schema publishes these).
 MIN_DT = 0.01
 MAX_DT = 3600.0
-#: How a run's identifiers may treat the operating point: ``"auto"`` (chosen by the lab,
-#: see :meth:`RunService.operating_point`) or one of :mod:`thermolab.ident`'s modes; a
+#: How a run's identifiers may treat the operating point: ``"auto"`` (decided from the
+#: data, see :mod:`thermolab.lab.runs.operating_point`) or one of :mod:`thermolab.ident`'s modes; a
 #: number is also accepted (a known ambient output).
 OFFSET_MODES = ("auto", "initial", "fit", "none")
 #: The paper's tables: statistics over the last 2000 samples, convergence within ±1 %.
@@ -72,9 +72,9 @@ class RunRequest:
         b0, c0]`` with ``offset="fit"``, ``c0`` the constant term); ``None`` is
         the paper's ``W0 = [0.96329, 9.9082e-4]``.
     offset : str or float
-        How the identifiers treat the operating point: ``"auto"`` (the lab
-        chooses ``"initial"`` for a rig at rest and ``"fit"`` for a warm one,
-        see :meth:`OperatingPointPolicy.choose`), ``"initial"``, ``"fit"``,
+        How the identifiers treat the operating point: ``"auto"`` (decided
+        from the data, see :func:`.operating_point.choose_operating_point`),
+        ``"initial"``, ``"fit"``,
         ``"none"``, or a number (the known ambient output).
     """
 

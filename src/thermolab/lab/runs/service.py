@@ -6,8 +6,11 @@ methods with their settings), may change the input while it runs, and ends
 it; otherwise it ends after its samples. The sampling itself is
 :class:`thermolab.runner.Experiment`, on the rig's driver, in a worker thread.
 
-A run belongs to a turn at the controls: when the turn ends (time limit,
-client gone, kicked...) the run is ended as by END, so that its data and
+A run belongs to a turn at the controls, and the turn covers it: the turn's
+time limit does not cut a started run (see :func:`thermolab.lab.access.rules.limit_reached`);
+instead START refuses a run longer than the rig's ``max_run_seconds``
+(:meth:`RunService.run_seconds`). When the turn ends otherwise (client gone,
+kicked, released...) the run is ended as by END, so that its data and
 estimates are kept. While a run holds a rig, the lab's device hub leaves the
 device to the runner. Storage is :mod:`.store`; the request's checks are
 :mod:`.request`; the operating point is :mod:`.operating_point`.
@@ -19,13 +22,18 @@ import logging
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import datetime, timedelta
 from typing import Any
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from thermolab.errors import AccessDeniedError, ConflictError, ThermoLabError
+from thermolab.errors import (
+    AccessDeniedError,
+    ConflictError,
+    InvalidParameterError,
+    ThermoLabError,
+)
 from thermolab.ident.online import OnlineIdentifier
 from thermolab.jsonsafe import json_safe
 from thermolab.lab.access import AccessService
@@ -34,7 +42,7 @@ from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import ControlSession, RigRow, Run, RunStatus
 from thermolab.lab.devices import DeviceHub
-from thermolab.lab.runs.operating_point import OperatingPoint, OperatingPointPolicy
+from thermolab.lab.runs.operating_point import OperatingPoint, choose_operating_point
 from thermolab.lab.runs.request import RunRequest, build_run_identifiers, check_request
 from thermolab.lab.runs.statistics import method_statistics
 from thermolab.lab.runs.store import (
@@ -45,6 +53,7 @@ from thermolab.lab.runs.store import (
     run_command,
     status_of,
 )
+from thermolab.lab.runs.timing import timing_summary
 from thermolab.lab.users import Principal
 from thermolab.runner import EndReason, Event, EventBus, Experiment, RunResult
 from thermolab.runner.methods import parse_methods
@@ -75,7 +84,7 @@ class RunService:
     access : AccessService
     hub : DeviceHub
     config : LabConfig
-        The rigs' cool-down policies (they say when a rig counts as at rest).
+        The rigs' limits (``max_run_seconds``) and the twins' speed-up.
     on_finished : callable
         Called with the rig id after a run has ended and been stored (the lab
         hands the rig back to the hub).
@@ -115,7 +124,6 @@ class RunService:
         self._lock = threading.Lock()
 
         self._store = RunStore(db)
-        self._policy = OperatingPointPolicy(db, clock, access, hub, config)
 
     def start(self, rig_id: str, who: Principal, request: RunRequest) -> RunRecord:
         """START a run on the rig ``who`` controls.
@@ -128,19 +136,22 @@ class RunService:
             If ``who`` does not control the rig.
         InvalidParameterError
             For a bad dt, sample count, signal, set point, method or setting.
+            Also for a run longer than the rig's ``max_run_seconds`` (the message
+            gives the longest run allowed).
         ConflictError
             If a run is already going on the rig, or the rig has no device.
         """
         published = self._hub.published(rig_id)
         experiment_args = check_request(request, (published.input_min, published.input_max))
         methods = parse_methods(request.methods)
+        length = self._check_length(rig_id, request)
         driver = self._hub.driver(rig_id)
         if driver is None:
             raise ConflictError(f"rig {rig_id!r} has no device attached; a run needs one")
         with self._lock:
             if rig_id in self._active:
                 raise ConflictError(f"a run is already going on rig {rig_id!r}; END it first")
-        point = self.operating_point(rig_id, request.offset, methods)
+        point = choose_operating_point(request.offset, methods)
         identifiers, settings = build_run_identifiers(request, point.used)
 
         def begin(session: Session, rig: RigRow, control: ControlSession, now: datetime) -> int:
@@ -163,6 +174,8 @@ class RunService:
                     "settings": settings,
                     "username": who.username,
                     "operating_point": point.to_dict(),
+                    # The run's planned end: the queue's estimated wait counts it.
+                    "ends_at": (now + timedelta(seconds=length)).isoformat(),
                 },
                 started_at=now,
                 samples_stored=0,
@@ -282,17 +295,32 @@ class RunService:
             if thread.is_alive():
                 log.warning("%s: still storing after %.0f s", thread.name, timeout)
 
-    # -- the operating point ---------------------------------------------------------------
+    # -- run length and operating point ------------------------------------------------------
 
-    def operating_point(
-        self, rig_id: str, asked: str | float, methods: Sequence[str]
-    ) -> OperatingPoint:
-        """Decide how a run's identifiers treat the rig's operating point (see the policy)."""
-        return self._policy.choose(rig_id, asked, methods)
+    def run_seconds(self, rig_id: str, samples: int, dt: float) -> float:
+        """The real time a run of ``samples`` × ``dt`` takes on the rig.
 
-    def at_rest(self, rig_id: str) -> tuple[bool, str]:
-        """Whether the rig rests at its equilibrium at the safe input, and why (in words)."""
-        return self._policy.at_rest(rig_id)
+        A twin runs the lab's ``speedup`` times faster than real time.
+        """
+        cfg = self._config.rig(rig_id)
+        speedup = self._config.speedup if cfg.kind == "sim" else 1.0
+        return samples * dt / speedup
+
+    def _check_length(self, rig_id: str, request: RunRequest) -> float:
+        length = self.run_seconds(rig_id, request.samples, request.dt)
+        longest = self._config.rig(rig_id).max_run_seconds
+        if length > longest:
+            per_sample = length / request.samples
+            raise InvalidParameterError(
+                f"a run of {request.samples} samples at dt = {request.dt:g} s lasts "
+                f"{length:g} s, longer than rig {rig_id!r} allows ({longest:g} s): at this dt "
+                f"at most {int(longest / per_sample + 1e-9)} samples"
+            )
+        return length
+
+    def operating_point(self, asked: str | float, methods: Sequence[str]) -> OperatingPoint:
+        """What a run's identifiers are given as ``offset`` (see :mod:`.operating_point`)."""
+        return choose_operating_point(asked, methods)
 
     # -- reading -------------------------------------------------------------------------
 
@@ -417,6 +445,12 @@ class RunService:
                 log.warning("run %s: statistics of %s failed: %s", active.run_id, name, exc)
             results[name] = (_params(identifier), data)
         self._store.save_end(active.run_id, status, reason, now, results)
+        simulated = self._config.rig(active.rig_id).kind == "sim"
+        timing = timing_summary(result.t_read, result.lateness, result.dt, simulated=simulated)
+        with self._db.write() as session:
+            run = session.get(Run, active.run_id)
+            if run is not None:  # a new dict: the JSON column sees the change
+                run.meta = {**run.meta, "timing": timing}
 
     def _record(self, run: Run, stored: dict[str, Any] | None) -> RunRecord:
         with self._lock:
@@ -451,7 +485,15 @@ class RunService:
             end_reason=run.end_reason,
             results=results,
             operating_point=run.meta.get("operating_point"),
+            ends_at=_planned_end(run),
+            timing=run.meta.get("timing"),
         )
+
+
+def _planned_end(run: Run) -> datetime | None:
+    """The run's planned end, stored at START (``None`` for runs from before it was)."""
+    ends_at = run.meta.get("ends_at")
+    return None if ends_at is None else datetime.fromisoformat(ends_at)
 
 
 def _params(identifier: OnlineIdentifier | None) -> dict[str, Any]:

@@ -61,7 +61,10 @@ class RunRecord:
     ``None`` before the first), why it stopped if it did (``error``) and, once
     the run is over, its statistics (``stats``, see :func:`method_statistics`).
     ``operating_point`` is :meth:`OperatingPoint.to_dict` of the run (``None``
-    for runs stored before the lab recorded it).
+    for runs stored before the lab recorded it). ``ends_at`` is the run's planned
+    end (START time plus its length in real time; ``None`` for older runs).
+    ``timing`` is how well the run kept its sampling times, from its end
+    (:func:`thermolab.lab.runs.timing.timing_summary`; ``None`` before).
     """
 
     id: int
@@ -82,6 +85,8 @@ class RunRecord:
     end_reason: str | None
     results: dict[str, Any] = field(default_factory=dict)
     operating_point: dict[str, Any] | None = None
+    ends_at: datetime | None = None
+    timing: dict[str, Any] | None = None
 
 
 class DatabaseRecorder:

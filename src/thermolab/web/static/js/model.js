@@ -72,7 +72,8 @@ export function predict(u, y0, model, dt, out, x0 = 0) {
 export function predictionBase(used, W, y0) {
   if (typeof used === "number" && Number.isFinite(used)) return used;
   if (used === "none") return 0;
-  if (used === "fit" && W && W.length === 3) {
+  // "auto" left it to the data: a constant term in W means the method chose "fit".
+  if ((used === "fit" || used === "auto") && W && W.length === 3) {
     const [a, , c] = W;
     if (a > 0 && a < 1 && Number.isFinite(c)) return c / (1 - a);
   }

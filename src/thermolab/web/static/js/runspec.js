@@ -124,6 +124,10 @@ export function readRun(r) {
     methods: Array.isArray(r.methods) ? r.methods.map(methodName) : [],
     settings: r.settings ?? {},
     startedAt: r.startedAt ?? null,
+    // The planned end (START plus samples × dt in real time; null for older runs).
+    endsAt: r.endsAt ?? null,
+    // How well the run kept its sampling times (once it is over; null before).
+    timing: r.timing && typeof r.timing === "object" ? r.timing : null,
     endedAt: r.endedAt ?? null,
     endReason: r.endReason ?? null,
     samples: Number(r.samplesTaken ?? r.samplesStored ?? 0),
@@ -145,7 +149,20 @@ export function readEstimate(e) {
     final: Boolean(e.final),
     W: e.W,
     reason: e.reason ?? e.extras?.reason ?? null,
+    // The library's warnings on this estimate (each says what it means and what to do);
+    // an estimate with any, or marked untrusted, never shows as final.
+    warnings: estimateWarnings(e),
+    // How this method handled the operating point and what it found (offset "auto":
+    // decided from the record by the library), or null.
+    operatingPoint: e.extras?.operating_point && typeof e.extras.operating_point === "object" ? e.extras.operating_point : null,
+    trusted: e.extras?.trusted ?? e.trusted ?? estimateWarnings(e).length === 0,
   };
+}
+
+/** The warnings an estimate carries (its extras', from the online identifiers). */
+function estimateWarnings(e) {
+  const list = e.extras?.warnings ?? e.warnings;
+  return Array.isArray(list) ? list.map(String) : [];
 }
 
 /** What drove the input: the signal, or the manual set point. */

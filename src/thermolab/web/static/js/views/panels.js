@@ -12,16 +12,15 @@
 // panels/results.js shows its run. The server's own message is shown when it
 // refuses. The forms are locked for anyone who is not the controller, and
 // unlock as soon as they are. Each panel also says how the operating point is
-// handled (RunIn.offset): "auto" lets the lab remove the first sample of a rig
-// at rest and fit the operating point of a warm one, and the run's result says
-// which it did and why.
+// handled (RunIn.offset): "auto" leaves it to the data (the library decides per
+// record), and the run's result says what was used and found.
 
 import { h, setParts, setText } from "../dom.js";
 import { checkNumber } from "../validate.js";
 import { panelOfRun } from "../runspec.js";
 import { panelDefinitions } from "./panels/definitions.js";
 import { buildPanelView, checkPanel } from "./panels/form.js";
-import { idleParts, otherRunText, renderResults, runningText } from "./panels/results.js";
+import { idleParts, otherRunText, renderProgress, renderResults, runningText } from "./panels/results.js";
 import { t } from "../i18n.js";
 
 export class Panels {
@@ -188,6 +187,7 @@ export class Panels {
       view.spInput.disabled = view.spButton.disabled = this.locked || !mine || automaticRun;
       view.endButton.disabled = this.locked || !mine;
       view.runFieldset.closest("form").hidden = !mine;
+      renderProgress(view, mine ? this.run : null, this.run?.samples ?? 0);
       if (mine) setText(view.status, runningText(this.run, this.run.samples ?? 0));
       else if (running) setText(view.status, otherRunText(runPanel, this.defs.find((d) => d.id === runPanel)?.number));
       else setParts(view.status, idleParts(this.run, view.def.id));
@@ -199,6 +199,9 @@ export class Panels {
     if (!this.run || this.run.status !== "running") return;
     this.run.samples = k + 1;
     const view = this._runView();
-    if (view) setText(view.status, runningText(this.run, k + 1));
+    if (view) {
+      setText(view.status, runningText(this.run, k + 1));
+      renderProgress(view, this.run, k + 1);
+    }
   }
 }

@@ -8,16 +8,17 @@ import { h, serverText, setText, tParts, when } from "../dom.js";
 import { fmt, predict, predictionBase } from "../model.js";
 import { readResult } from "../results.js";
 import { inputText, methodTitle, readRun, runStatusText } from "../runspec.js";
-import { operatingPointHow } from "./panels/results.js";
+import { operatingPointHow, timingText } from "./panels/results.js";
 import { t } from "../i18n.js";
 
 /**
  * Why a method has no model, and its warnings: the server's sentences, "–" when none.
- * @param {{valid: boolean, reason?: string | null, warnings: string[]}} f
+ * @param {{valid: boolean, trusted?: boolean, reason?: string | null, warnings: string[]}} f
  * @returns {Array<Node | string>}
  */
 function reasonCell(f) {
-  const notes = [f.valid ? null : f.reason ? serverText(f.reason) : t("estimate.noModel"), ...f.warnings.map(serverText)];
+  const status = f.valid ? (f.trusted === false ? t("estimate.notTrusted") : null) : f.reason ? serverText(f.reason) : t("estimate.noModel");
+  const notes = [status, ...f.warnings.map(serverText)];
   const shown = /** @type {Array<Node | string>} */ (notes.filter((n) => n !== null && n !== ""));
   return shown.length ? shown.flatMap((n, i) => (i ? ["; ", n] : [n])) : ["–"];
 }
@@ -90,6 +91,9 @@ function render(main, exported, charts) {
   if (Array.isArray(w0)) add(t("run.w0"), `[${w0.map((v) => fmt(v)).join(", ")}]`);
   if (run.operatingPoint?.used !== null && run.operatingPoint?.used !== undefined) {
     facts.append(h("dt", null, t("panel.operatingPoint")), h("dd", { "data-testid": "operating-point" }, operatingPointHow(run.operatingPoint)));
+  }
+  if (run.timing) {
+    facts.append(h("dt", null, t("run.timing")), h("dd", { "data-testid": "timing" }, [timingText(run.timing), ...(run.timing.warnings ?? []).flatMap((w) => [" ", serverText(w)])]));
   }
   main.append(
     h(
@@ -186,7 +190,7 @@ function resultsSection(figures) {
   const rows = figures.map((f) =>
     h(
       "tr",
-      { "data-method": f.method },
+      { "data-method": f.method, class: f.valid && !f.trusted ? "not-trusted" : null, "data-trusted": String(f.trusted) },
       h("th", { scope: "row" }, methodTitle(f.method)),
       h("td", { class: "num", "data-field": "K" }, f.valid ? fmt(f.final.K) : "–"),
       h("td", { class: "num", "data-field": "tau" }, f.valid ? fmt(f.final.tau) : "–"),

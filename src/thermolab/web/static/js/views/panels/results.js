@@ -2,10 +2,10 @@
 // What a panel says about its run: the status line, the operating point and
 // the table of the current estimates of each of its methods.
 
-import { h, serverText, setText, tParts } from "../../dom.js";
+import { duration, durationWords, h, serverText, setText, tParts } from "../../dom.js";
 import { fmt } from "../../model.js";
 import { methodName, methodTitle, panelOfRun, runStatusText } from "../../runspec.js";
-import { DEFAULT_LANGUAGE, formatDecimal, language, t } from "../../i18n.js";
+import { DEFAULT_LANGUAGE, formatDecimal, formatTime, language, t } from "../../i18n.js";
 import { OFFSET_LABELS } from "./definitions.js";
 
 /**
@@ -29,12 +29,52 @@ export function operatingPointText(op) {
   return how ? t("panel.operatingPointUsed", { how }) : "";
 }
 
-/** What an estimate's status cell says: final or live, and why there is no model. */
+/**
+ * The operating point each method used and found (the library's decision for
+ * offset "auto": handling, how the record starts, the ambient), one line each.
+ * @param {string[]} methods
+ * @param {Map<string, any>} estimates
+ */
+export function operatingPointsFound(methods, estimates) {
+  const lines = [];
+  for (const m of methods) {
+    const op = estimates?.get(m)?.operatingPoint;
+    if (!op || !op.handling) continue;
+    const ambient = typeof op.ambient === "number" && Number.isFinite(op.ambient) ? fmt(op.ambient) : "–";
+    lines.push(t("panel.operatingPointFound", { method: methodTitle(m), handling: op.handling, ambient, reason: op.reason ?? "" }));
+  }
+  return lines;
+}
+
+/** What an estimate's status cell says: final or live, not trusted, and why there is no model. */
 export function estimateStatus(est) {
   if (!est) return t("estimate.waiting");
-  const when = est.final ? t("estimate.final") : t("estimate.live");
+  // An estimate the library does not trust never looks final.
+  const when = est.trusted === false ? t("estimate.notTrusted") : est.final ? t("estimate.final") : t("estimate.live");
   if (est.valid) return when;
   return tParts("estimate.withReason", { when, reason: est.reason ? serverText(est.reason) : t("estimate.noModel") });
+}
+
+/**
+ * Every warning of the run's estimates, per method: what it means and what to
+ * do is in each line (the library's own words); null when there are none.
+ * @param {string[]} methods
+ * @param {Map<string, any>} estimates
+ * @param {any} [timing]  the run's timing (RunOut.timing): its warning concerns every method
+ */
+export function warningsList(methods, estimates, timing = null) {
+  const items = [];
+  for (const w of timing?.warnings ?? []) items.push(h("li", { "data-method": "timing" }, serverText(w)));
+  for (const m of methods) {
+    for (const w of estimates?.get(m)?.warnings ?? []) items.push(h("li", { "data-method": m }, tParts("panel.warning", { method: methodTitle(m), warning: serverText(w) })));
+  }
+  if (!items.length) return null;
+  return h(
+    "div",
+    { class: "estimate-warnings", role: "note", "data-testid": "estimate-warnings" },
+    h("p", null, t("panel.warningsIntro")),
+    h("ul", null, items),
+  );
 }
 
 /** The status line of the panel running `run`: its progress. */
@@ -42,6 +82,57 @@ export function runningText(run, k) {
   const n = run.nSamples;
   const key = n ? (run.signal ? "panel.runningOfAutomatic" : "panel.runningOf") : run.signal ? "panel.runningAutomatic" : "panel.running";
   return t(key, { run: run.id, sample: k, samples: n });
+}
+
+/**
+ * How far the run is: samples taken of the declared number, the time left and
+ * the planned end (RunOut.endsAt: START plus samples × dt in real time, so a
+ * twin's speed-up is in it). Null for a run without a declared length.
+ * @param {any} run  runspec.readRun
+ * @param {number} taken  samples taken
+ * @param {number} now  ms since the epoch
+ */
+export function runProgress(run, taken, now) {
+  const n = run?.nSamples;
+  if (!n) return null;
+  const left = Math.max(0, n - taken);
+  const ends = run.endsAt ? Date.parse(run.endsAt) : Number.NaN;
+  const secondsLeft = Number.isFinite(ends) ? Math.max(0, (ends - now) / 1000) : left * run.dt;
+  const end = Number.isFinite(ends) ? new Date(ends) : new Date(now + secondsLeft * 1000);
+  return { taken: Math.min(taken, n), samples: n, secondsLeft, end };
+}
+
+/**
+ * Show the progress of the panel's running run as an accessible bar (a native
+ * <progress>: role progressbar with its values) with the time left and the end.
+ * @param {{results: HTMLElement, progress?: any}} view
+ * @param {any} run  the run, or null to hide the bar
+ * @param {number} taken
+ */
+export function renderProgress(view, run, taken) {
+  if (!view.progress) {
+    const bar = h("progress", { "data-testid": "run-progress", "aria-label": t("panel.progressLabel") });
+    const text = h("p", { class: "run-progress-text", "data-testid": "run-progress-text" });
+    view.progress = { el: h("div", { class: "run-progress" }, bar, text), bar, text };
+    view.results.before(view.progress.el);
+  }
+  const p = run && run.status === "running" ? runProgress(run, taken, Date.now()) : null;
+  view.progress.el.hidden = !p;
+  if (!p) return;
+  const { bar, text } = view.progress;
+  bar.max = p.samples;
+  bar.value = p.taken;
+  const words = { sample: p.taken, samples: p.samples, left: durationWords(p.secondsLeft), end: formatTime(p.end) };
+  bar.setAttribute("aria-valuetext", t("panel.progressText", words));
+  setText(text, t("panel.progressText", { ...words, left: duration(p.secondsLeft) }));
+}
+
+/** The run's timing in words (RunOut.timing): lateness for a real rig, exact for a twin. */
+export function timingText(timing) {
+  if (!timing || typeof timing !== "object") return "";
+  if (timing.rig === "twin") return t("run.timingTwin");
+  const s = (v) => (typeof v === "number" && Number.isFinite(v) ? fmt(v, 3) : "–");
+  return t("run.timingReal", { max: s(timing.maxLateness), p95: s(timing.p95Lateness), spread: fmt(100 * (timing.periodSpread ?? 0), 2) });
 }
 
 /**
@@ -69,7 +160,8 @@ export function otherRunText(runPanel, number) {
  * @param {any} run
  */
 export function renderResults(view, run) {
-  setText(view.operatingPoint, operatingPointText(run?.operatingPoint));
+  const found = run ? operatingPointsFound(run.methods.map(methodName), run.estimates) : [];
+  setText(view.operatingPoint, [operatingPointText(run?.operatingPoint), ...found].filter(Boolean).join(" "));
   view.operatingPoint.hidden = !view.operatingPoint.textContent;
   const asked = new Set(run ? run.methods.map(methodName) : []);
   const shown = view.def.methods.filter((m) => !(view.def.optional ?? []).includes(m) || asked.has(m));
@@ -77,7 +169,7 @@ export function renderResults(view, run) {
     const est = run?.estimates?.get(m) ?? null;
     return h(
       "tr",
-      { "data-method": m },
+      { "data-method": m, class: est && est.trusted === false ? "not-trusted" : null, "data-trusted": est ? String(est.trusted !== false) : null },
       h("th", { scope: "row" }, methodTitle(m)),
       h("td", { "data-field": "K" }, est ? fmt(est.K) : "–"),
       h("td", { "data-field": "tau" }, est ? fmt(est.tau) : "–"),
@@ -98,5 +190,6 @@ export function renderResults(view, run) {
         h("tbody", null, rows),
       ),
     ),
+    ...[warningsList(shown, run?.estimates, run?.timing)].filter((w) => w !== null),
   );
 }
