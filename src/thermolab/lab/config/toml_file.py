@@ -128,6 +128,19 @@ class _Table:
             )
         return value
 
+    def strings(self, name: str, default: tuple[str, ...]) -> tuple[str, ...]:
+        value = self.get(name)
+        if value is None:
+            return default
+        if not isinstance(value, list) or not all(
+            isinstance(v, str) and v.strip() and not any(c in v for c in " ;,\n") for v in value
+        ):
+            raise ConfigError(
+                f"{self.key(name)}: expected a list of strings without spaces, ';' or ',', "
+                f"got {value!r}"
+            )
+        return tuple(v.strip() for v in value)
+
     def choice(self, name: str, default: str, allowed: tuple[str, ...]) -> str:
         value = self.get(name)
         if value is None:
@@ -235,6 +248,8 @@ def _build_config(raw: Mapping[str, Any], data_dir: Path) -> LabConfig:
                 table.choice("cookie_secure", access.cookie_secure, ("auto", "always", "never")),
             ),
             max_body_bytes=table.integer("max_body_bytes", access.max_body_bytes, minimum=1024),
+            trusted_proxies=table.strings("trusted_proxies", access.trusted_proxies),
+            frame_ancestors=table.strings("frame_ancestors", access.frame_ancestors),
         )
 
     defaults = _RigDefaults()

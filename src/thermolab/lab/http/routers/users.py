@@ -80,23 +80,27 @@ def change_password(
     who: UserDep,
     lab: LabDep,
 ) -> Response:
-    """Change your own password (give the current one), or anyone's as a teacher.
+    """Change your own password, or anyone's as a teacher; give your current password.
 
-    Every other session of the account ends.
+    Re-authentication (ASVS 4.0 V2.1.6, V3.7.1): the acting user's current
+    password is required in ``currentPassword`` in both cases, so a stolen
+    session alone cannot take over an account. Every other session of the
+    account ends.
     """
-    if _same_user(username, who):
-        if body.current_password is None:
-            raise InvalidParameterError("currentPassword is required to change your own password")
-        try:
-            lab.users.verify(who.username, body.current_password)
-        except AuthenticationError:
-            raise AccessDeniedError("the current password is wrong") from None
-    elif not who.is_teacher:
+    own = _same_user(username, who)
+    if not own and not who.is_teacher:
         raise AccessDeniedError("you may only change your own password")
-    else:
+    if body.current_password is None:
+        raise InvalidParameterError(
+            "currentPassword (your own current password) is required to change a password"
+        )
+    try:
+        lab.users.verify(who.username, body.current_password)
+    except AuthenticationError:
+        raise AccessDeniedError("your current password is wrong") from None
+    if not own:
         lab.users.get(username)
-    keep = who.session_id if _same_user(username, who) else None
-    lab.users.set_password(username, body.password, keep_session=keep)
+    lab.users.set_password(username, body.password, keep_session=who.session_id if own else None)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
