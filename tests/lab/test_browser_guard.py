@@ -84,11 +84,11 @@ def test_reading_from_anywhere_is_not_a_state_change(lab: Lab) -> None:
 def test_the_live_socket_refuses_a_foreign_origin(lab: Lab) -> None:
     headers = _logged_in(lab)
     with _client(lab) as client:
-        with pytest.raises(WebSocketDisconnect) as refused:
-            with client.websocket_connect(
-                "/api/rigs/twin/live", headers={**headers, "origin": FOREIGN}
-            ):
-                pass
+        with (
+            pytest.raises(WebSocketDisconnect) as refused,
+            client.websocket_connect("/api/rigs/twin/live", headers={**headers, "origin": FOREIGN}),
+        ):
+            pass
         assert refused.value.code == 1008
         with client.websocket_connect(
             "/api/rigs/twin/live", headers={**headers, "origin": "http://testserver"}
@@ -103,7 +103,8 @@ def test_security_headers(lab: Lab) -> None:
         refused = client.get("/api/rigs")
     for response in (api, schema, refused):
         csp = response.headers["content-security-policy"]
-        assert "script-src 'self'" in csp and "unsafe-inline" not in csp
+        assert "script-src 'self'" in csp
+        assert "unsafe-inline" not in csp
         assert "frame-ancestors 'self'" in csp
         assert response.headers["x-content-type-options"] == "nosniff"
         assert response.headers["referrer-policy"] == "same-origin"
@@ -127,7 +128,8 @@ def test_api_docs_are_served_from_the_package(lab: Lab) -> None:
         for page in ("/docs", "/redoc"):
             html = client.get(page)
             assert html.status_code == 200
-            assert "cdn" not in html.text.lower() and "https://" not in html.text
+            assert "cdn" not in html.text.lower()
+            assert "https://" not in html.text
             assert "<script>" not in html.text  # no inline script: the CSP forbids it
             csp = html.headers["content-security-policy"]
             assert "script-src 'self';" in csp
@@ -173,5 +175,6 @@ def test_no_answer_echoes_a_submitted_password(lab: Lab) -> None:
         ]
     for response in bodies:
         assert response.status_code == 422
-        assert "hunter2" not in response.text and "12345678" not in response.text
+        assert "hunter2" not in response.text
+        assert "12345678" not in response.text
         assert "zq9zq9" not in response.text

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import stat
 import subprocess
@@ -66,16 +67,13 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[int, Path
 
 def _exchange(port: int, request: bytes, *, wait: float = 5.0) -> bytes:
     with socket.create_connection(("127.0.0.1", port), timeout=wait) as conn:
-        try:
+        # The server may close while a huge request is still being sent.
+        with contextlib.suppress(OSError):
             conn.sendall(request)
-        except OSError:
-            pass  # the server may close while a huge request is still being sent
         answer = b""
-        try:
+        with contextlib.suppress(OSError):
             while chunk := conn.recv(65536):
                 answer += chunk
-        except OSError:
-            pass
         return answer
 
 

@@ -108,7 +108,8 @@ def test_the_sketch_speaks_the_protocol() -> None:
     text = SKETCH.read_text(encoding="ascii")
     for command in ("T1", "T2", "Q1", "Q2", "R1", "R2", "P1", "P2", "LED", "SCAN", "VER", "WDOG"):
         assert f'"{command}"' in text, command
-    assert "TCLab Firmware 2.0.1" in text and "Watchdog" in text
+    assert "TCLab Firmware 2.0.1" in text
+    assert "Watchdog" in text
 
 
 _ARDUINO_AVR = Path("/usr/share/arduino/hardware/arduino/avr")

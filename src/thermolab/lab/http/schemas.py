@@ -18,8 +18,8 @@ from thermolab.lab.access import QueueSlot, RigView
 from thermolab.lab.db.models import ControlSession
 from thermolab.lab.presence import Watcher
 from thermolab.lab.runs import MAX_DT, MAX_SAMPLES, MIN_DT, OFFSET_MODES, RunRecord, RunRequest
-from thermolab.lab.service import InputResult
 from thermolab.lab.security import MAX_PASSWORD_LENGTH, MIN_PASSWORD_LENGTH
+from thermolab.lab.service import InputResult
 from thermolab.lab.users import Principal, UserInfo
 
 __all__ = [
