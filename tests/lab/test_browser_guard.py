@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import pytest
 from starlette.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
+from thermolab.errors import ConfigError
+from thermolab.lab.config import load_config
 from thermolab.lab.http.app import create_app
 from thermolab.lab.http.deps import COOKIE_NAME
 from thermolab.lab.service import Lab
@@ -178,3 +181,21 @@ def test_no_answer_echoes_a_submitted_password(lab: Lab) -> None:
         assert "hunter2" not in response.text
         assert "12345678" not in response.text
         assert "zq9zq9" not in response.text
+
+
+def test_the_new_access_keys_are_read_from_toml(tmp_path: Path) -> None:
+    rig = '[[rigs]]\nid = "twin"\nspec = "sim"\n'
+    config_file = tmp_path / "lab.toml"
+    config_file.write_text(
+        '[access]\ntrusted_proxies = ["10.0.0.2"]\n'
+        'frame_ancestors = ["\'self\'", "https://moodle.example.edu"]\n' + rig,
+        encoding="utf-8",
+    )
+    access = load_config(config_file, tmp_path).access
+    assert access.trusted_proxies == ("10.0.0.2",)
+    assert access.frame_ancestors == ("'self'", "https://moodle.example.edu")
+    config_file.write_text(
+        '[access]\nframe_ancestors = ["a; script-src *"]\n' + rig, encoding="utf-8"
+    )
+    with pytest.raises(ConfigError, match=r"access\.frame_ancestors: expected a list of strings"):
+        load_config(config_file, tmp_path)
