@@ -199,3 +199,17 @@ def test_the_new_access_keys_are_read_from_toml(tmp_path: Path) -> None:
     )
     with pytest.raises(ConfigError, match=r"access\.frame_ancestors: expected a list of strings"):
         load_config(config_file, tmp_path)
+
+
+def test_re_authentication_is_throttled_like_a_login(lab: Lab) -> None:
+    headers = _logged_in(lab, "ana")
+    with _client(lab) as client:
+        codes = [
+            client.put(
+                "/api/users/ana/password",
+                json={"password": "a new passphrase", "currentPassword": "a wrong guess"},
+                headers=headers,
+            ).status_code
+            for _ in range(7)
+        ]
+    assert codes == [403] * 5 + [403, 429]
