@@ -67,7 +67,7 @@ def test_add_list_passwd_remove(
         [*base, "add", "ana", "--role", "student", "--password-stdin"],
         capsys,
         monkeypatch,
-        "pw-ana-123\n",
+        "pw-ana-123-xyz\n",
     )
     status, out, _ = run([*base, "list"], capsys, monkeypatch)
     lines = out.splitlines()
@@ -76,10 +76,10 @@ def test_add_list_passwd_remove(
     users = users_of(data_dir)
     assert users.verify("tina", PASSWORD).username == "tina"
     status, out, _ = run(
-        [*base, "passwd", "ana", "--password-stdin"], capsys, monkeypatch, "a new password\n"
+        [*base, "passwd", "ana", "--password-stdin"], capsys, monkeypatch, "a new passphrase\n"
     )
     assert (status, out.strip()) == (0, "changed the password of 'ana'; their logins have ended")
-    assert users.verify("ana", "a new password").username == "ana"
+    assert users.verify("ana", "a new passphrase").username == "ana"
     status, out, _ = run([*base, "remove", "ana"], capsys, monkeypatch)
     assert (status, out.strip()) == (0, "removed student 'ana'")
     assert [u.username for u in users.list()] == ["tina"]
@@ -90,7 +90,7 @@ def test_add_list_passwd_remove(
     [
         (
             ["add", "tina", "--role", "teacher", "--password-stdin"],
-            "x" * 9 + "\n",
+            PASSWORD + "\n",
             1,
             "error: user 'tina' already exists",
         ),
@@ -110,7 +110,19 @@ def test_add_list_passwd_remove(
             ["add", "bob", "--role", "student", "--password-stdin"],
             "short\n",
             1,
-            "error: password too short: at least 8 characters are needed",
+            "error: password too short: at least 12 characters are needed",
+        ),
+        (
+            ["add", "bob", "--role", "student", "--password-stdin"],
+            "password1234\n",
+            1,
+            "error: this password is in a list of breached passwords; choose another",
+        ),
+        (
+            ["add", "bob.smith", "--role", "student", "--password-stdin"],
+            "Bob.Smith-2024\n",
+            1,
+            "error: the password may not be the user name or a variant of it",
         ),
         (
             ["add", "bob", "--role", "student", "--password-stdin"],
@@ -203,7 +215,7 @@ class _Served:
     def __init__(self) -> None:
         self.calls: list[tuple[Any, str, int]] = []
 
-    def __call__(self, app: Any, host: str, port: int) -> None:
+    def __call__(self, app: Any, host: str, port: int, **limits: Any) -> None:
         self.calls.append((app, host, port))
 
 

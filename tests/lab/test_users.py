@@ -42,7 +42,15 @@ def test_accounts_are_created_listed_and_removed(lab: Lab) -> None:
         ("ana", PASSWORD, "admin", InvalidParameterError, "role 'admin' is not known"),
         ("a b", PASSWORD, "student", InvalidParameterError, "user name 'a b' is not valid"),
         ("", PASSWORD, "student", InvalidParameterError, "is not valid"),
-        ("ana", "short", "student", InvalidParameterError, "at least 8 characters"),
+        ("ana", "elevenchars", "student", InvalidParameterError, "at least 12 characters"),
+        ("ana", " " * 12, "student", InvalidParameterError, "only whitespace"),
+        ("ana", "password1234", "student", InvalidParameterError, "breached"),
+        ("ana", "qwerty123456", "student", InvalidParameterError, "breached"),
+        ("ana", "Dragon2024!!", "student", InvalidParameterError, "breached"),
+        ("ana", "passwordpassword", "student", InvalidParameterError, "breached"),
+        ("tina.lopez", "Tina.Lopez2024", "teacher", InvalidParameterError, "user name"),
+        ("tina.lopez", "zepol.anit!!!", "teacher", InvalidParameterError, "user name"),
+        ("anabel", "anabelanabel", "student", InvalidParameterError, "user name"),
         ("ana", "x" * 1025, "student", InvalidParameterError, "at most 1024"),
     ],
 )
@@ -107,11 +115,11 @@ def test_changing_a_password_ends_the_other_logins(lab: Lab) -> None:
     ana = lab.users.add("ana", PASSWORD, "student")
     kept, principal = lab.sessions.create(ana)
     other, _ = lab.sessions.create(ana)
-    lab.users.set_password("ana", "a new password", keep_session=principal.session_id)
+    lab.users.set_password("ana", "a new passphrase", keep_session=principal.session_id)
     assert lab.sessions.resolve(kept) is not None
     assert lab.sessions.resolve(other) is None
-    lab.users.verify("ana", "a new password")
-    lab.users.set_password("ana", "yet another one")
+    lab.users.verify("ana", "a new passphrase")
+    lab.users.set_password("ana", "yet another passphrase")
     assert lab.sessions.resolve(kept) is None
 
 
@@ -122,22 +130,41 @@ def test_removing_an_account_ends_its_sessions(lab: Lab) -> None:
     assert lab.sessions.resolve(token) is None
 
 
-def test_throttle_per_user_name() -> None:
+def test_a_new_password_is_checked_against_the_name(lab: Lab) -> None:
+    lab.users.add("ana", PASSWORD, "student")
+    with pytest.raises(InvalidParameterError, match="user name") as info:
+        lab.users.set_password("ana", "ANA-ana-ana-2024")
+    assert "ANA-ana" not in str(info.value)  # the message never repeats the password
+    lab.users.verify("ana", PASSWORD)
+
+
+def test_failed_logins_delay_one_name_and_address_and_never_lock_out() -> None:
     clock = ManualClock()
-    throttle = LoginThrottle(clock, failures_per_user=3, attempts_per_address=100, window=60)
-    for _ in range(3):
-        throttle.check("ana", "10.0.0.1")
-        throttle.record("ana", "10.0.0.1", success=False)
-    clock.advance(20)
-    with pytest.raises(RateLimitedError, match="too many failed logins for 'ana'") as info:
-        throttle.check("ana", "10.0.0.2")  # another address does not help
-    assert info.value.retry_after == 40.0
-    throttle.check("ben", "10.0.0.1")  # other users are not affected
-    clock.advance(40)
-    throttle.check("ana", "10.0.0.1")
-    throttle.record("ana", "10.0.0.1", success=True)  # a success clears the failures
-    throttle.record("ana", "10.0.0.1", success=False)
-    throttle.check("ana", "10.0.0.1")
+    throttle = LoginThrottle(clock, failures_per_user=3, attempts_per_address=1000, window=60)
+    waits = []
+    for _ in range(12):
+        while True:
+            try:
+                throttle.check("tina", "10.0.0.66")
+                break
+            except RateLimitedError as exc:
+                waits.append(exc.retry_after)
+                clock.advance(exc.retry_after)
+        throttle.record("tina", "10.0.0.66", success=False)
+    # Free failures, then doubling delays, capped at the window: never a lock-out.
+    assert waits == [1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 60.0, 60.0]
+    with pytest.raises(RateLimitedError, match=r"'tina' from 10\.0\.0\.66; try again in 60 s"):
+        throttle.check("tina", "10.0.0.66")
+    # The teacher's own machine is not delayed by someone guessing elsewhere,
+    throttle.check("tina", "10.0.0.5")
+    throttle.record("tina", "10.0.0.5", success=True)
+    # and the guesser's address gets in once the (bounded) delay has passed.
+    clock.advance(60)
+    throttle.check("tina", "10.0.0.66")
+    throttle.record("tina", "10.0.0.66", success=True)  # a success clears the failures
+    throttle.record("tina", "10.0.0.66", success=False)
+    throttle.check("tina", "10.0.0.66")
+    throttle.check("ben", "10.0.0.66")  # other names are not affected
 
 
 def test_throttle_per_address() -> None:

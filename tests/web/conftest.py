@@ -177,7 +177,7 @@ spec = "sim"
 
 def password(user: str) -> str:
     """The test password of a user."""
-    return f"pw-{user}-0123"
+    return f"pw-{user}-0123-lab"
 
 
 class LabServer:

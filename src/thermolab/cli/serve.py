@@ -5,20 +5,49 @@ SQLite database in the data folder (``--data-dir``, ``$THERMOLAB_DATA_DIR``
 or a per-user folder): nothing else to install. ``--config FILE.toml`` declares
 more rigs and the access policy (see :mod:`thermolab.lab.config`);
 ``--database-url`` uses PostgreSQL instead.
+
+Server limits (issue #13): uvicorn runs the pure-Python h11 parser, whose
+incomplete-event bound refuses request heads over 16 KiB (httptools, which
+uvicorn picks by default, has none), a client has ``--request-timeout``
+seconds to send a whole request (a slow or silent client is cut), an idle
+keep-alive connection is closed after 5 s, and beyond 1000 open connections
+new requests get 503. Files: the process's umask is 077, so the data folder,
+the SQLite database (and its journal) and the run records are the server
+user's only (0700/0600); looser modes found at start are tightened, with a
+warning.
 """
 
 from __future__ import annotations
 
 import argparse
+import asyncio
 import gc
+import os
 import socket
+import stat
 import sys
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from thermolab.lab.config import LabConfig
 
-__all__ = ["add_database_options", "lab_config_from_args", "register"]
+__all__ = [
+    "CONNECTION_LIMIT",
+    "HEAD_LIMIT",
+    "KEEP_ALIVE_TIMEOUT",
+    "add_database_options",
+    "lab_config_from_args",
+    "make_private",
+    "register",
+]
+
+HEAD_LIMIT = 16 * 1024
+"""Largest request head (request line and headers) in bytes; larger ones are refused."""
+KEEP_ALIVE_TIMEOUT = 5
+"""Seconds an idle keep-alive connection stays open."""
+CONNECTION_LIMIT = 1000
+"""Open connections (HTTP and WebSocket) beyond which new requests get 503."""
 
 _EXAMPLES = """\
 examples:
@@ -68,6 +97,13 @@ def register(subparsers: Any) -> None:
         type=float,
         metavar="X",
         help="run simulated rigs X times faster than real time (demos and tests)",
+    )
+    parser.add_argument(
+        "--request-timeout",
+        type=float,
+        default=10.0,
+        metavar="S",
+        help="seconds a client has to send a whole request; slower ones are cut (10)",
     )
     parser.set_defaults(handler=_serve)
 
@@ -125,14 +161,51 @@ def _check_port_free(host: str, port: int) -> None:
             ) from None
 
 
+def make_private(config: LabConfig) -> list[str]:
+    """Make the lab's files the server user's only; return what had to be tightened.
+
+    Sets the process's umask to 077 (so every file the lab creates from now on
+    is 0600, every folder 0700), creates the data folder 0700, and tightens
+    the data folder and an existing SQLite database (with its ``-wal`` and
+    ``-shm`` files) found with looser modes.
+    """
+    from sqlalchemy.engine import make_url
+
+    os.umask(0o077)
+    data_dir = config.data_dir
+    data_dir.mkdir(mode=0o700, parents=True, exist_ok=True)
+    paths = [data_dir]
+    url = make_url(config.database)
+    if url.get_backend_name() == "sqlite" and url.database not in (None, "", ":memory:"):
+        database = Path(str(url.database))
+        paths += [database, *(Path(f"{database}{end}") for end in ("-wal", "-shm", "-journal"))]
+    tightened = []
+    for path in paths:
+        try:
+            mode = stat.S_IMODE(path.stat().st_mode)
+        except FileNotFoundError:
+            continue
+        if mode & 0o077:
+            path.chmod(mode & 0o700)
+            tightened.append(f"{path} (was {mode:o})")
+    return tightened
+
+
 def _serve(args: argparse.Namespace) -> int:
+    from thermolab.cli import CliError
     from thermolab.lab.devices import device_opener
     from thermolab.lab.http.app import create_app
     from thermolab.lab.service import Lab
     from thermolab.web import STATIC_DIR
 
     config = lab_config_from_args(args)
+    if not 0 < args.request_timeout <= 3600:
+        raise CliError(f"--request-timeout {args.request_timeout:g}: use 0 < S <= 3600", status=2)
     _check_port_free(args.host, args.port)
+    for path in make_private(config):
+        print(
+            f"warning: tightened permissions of {path} to the server's user only", file=sys.stderr
+        )
     lab = Lab(config, opener=device_opener(config.speedup))
     try:
         report = lab.start()
@@ -159,13 +232,70 @@ def _serve(args: argparse.Namespace) -> int:
         # thread, the live stream's included, for 0.1-0.2 s each (benchmarks/bench_live.py).
         gc.collect()
         gc.freeze()
-        _run_server(app, args.host, args.port)
+        _run_server(app, args.host, args.port, request_timeout=args.request_timeout)
     finally:
         lab.close()
     return 0
 
 
-def _run_server(app: Any, host: str, port: int) -> None:
+def _bounded_h11(request_timeout: float) -> type[asyncio.Protocol]:
+    """uvicorn's h11 protocol, cutting a client that takes too long to send a request.
+
+    uvicorn bounds the wait between requests (keep-alive) but not the wait for
+    a request: a client that sends a head byte by byte (slowloris), a body
+    slowly, or nothing at all would hold its connection forever. The timer
+    runs from the connection (or the first byte of the next request) until the
+    whole request is in.
+    """
+    import h11
+    from uvicorn.protocols.http.h11_impl import H11Protocol
+
+    class BoundedH11Protocol(H11Protocol):
+        _request_timer: asyncio.TimerHandle | None = None
+
+        def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
+            super().connection_made(transport)
+            self._arm()
+
+        def data_received(self, data: bytes) -> None:
+            super().data_received(data)
+            if self.conn.their_state in (h11.IDLE, h11.SEND_BODY):
+                self._arm(only_if_unarmed=True)  # a request has begun: it must end in time
+            else:
+                self._disarm()
+
+        def connection_lost(self, exc: Exception | None) -> None:
+            self._disarm()
+            super().connection_lost(exc)
+
+        def handle_websocket_upgrade(self, event: h11.Request) -> None:
+            self._disarm()
+            super().handle_websocket_upgrade(event)
+
+        def _arm(self, *, only_if_unarmed: bool = False) -> None:
+            if only_if_unarmed and self._request_timer is not None:
+                return
+            self._disarm()
+            self._request_timer = self.loop.call_later(request_timeout, self._too_slow)
+
+        def _disarm(self) -> None:
+            if self._request_timer is not None:
+                self._request_timer.cancel()
+                self._request_timer = None
+
+        def _too_slow(self) -> None:
+            self._request_timer = None
+            if (
+                self.conn.their_state in (h11.IDLE, h11.SEND_BODY)
+                and not self.transport.is_closing()
+            ):
+                self.logger.info("closed a connection that was too slow to send its request")
+                self.transport.close()
+
+    return BoundedH11Protocol
+
+
+def _run_server(app: Any, host: str, port: int, *, request_timeout: float = 10.0) -> None:
     import uvicorn
 
     # Live messages are small and go to many clients: compressing each one for each
@@ -176,6 +306,12 @@ def _run_server(app: Any, host: str, port: int) -> None:
         host=host,
         port=port,
         log_level="info",
-        proxy_headers=True,
+        # X-Forwarded-For is believed only from access.trusted_proxies, in the app itself
+        # (uvicorn's default would trust any proxy on 127.0.0.1).
+        proxy_headers=False,
         ws_per_message_deflate=False,
+        http=_bounded_h11(request_timeout),
+        h11_max_incomplete_event_size=HEAD_LIMIT,
+        timeout_keep_alive=KEEP_ALIVE_TIMEOUT,
+        limit_concurrency=CONNECTION_LIMIT,
     )

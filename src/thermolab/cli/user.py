@@ -15,7 +15,7 @@ import getpass
 import sys
 from typing import TYPE_CHECKING, Any
 
-from thermolab.cli.serve import add_database_options, lab_config_from_args
+from thermolab.cli.serve import add_database_options, lab_config_from_args, make_private
 
 if TYPE_CHECKING:
     from thermolab.lab.db import Database
@@ -92,6 +92,8 @@ def _users(args: argparse.Namespace) -> tuple[Database, UserService]:
     from thermolab.lab.users import UserService
 
     config = lab_config_from_args(args)
+    for path in make_private(config):
+        print(f"warning: tightened permissions of {path} to this user only", file=sys.stderr)
     db = Database(config.database, pool_size=1, max_overflow=1)
     db.upgrade()
     return db, UserService(db, SystemClock(), default_password_hasher())
@@ -113,10 +115,10 @@ def _read_password(args: argparse.Namespace, name: str) -> str:
                 "pipe it with --password-stdin"
             )
         password = getpass.getpass(f"Password for {name}: ")
-        validate_password(password)
+        validate_password(password, name)
         if getpass.getpass("Repeat the password: ") != password:
             raise CliError("the two passwords differ; nothing was changed")
-    return validate_password(password)
+    return validate_password(password, name)
 
 
 def _add(args: argparse.Namespace) -> int:

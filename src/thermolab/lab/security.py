@@ -5,8 +5,16 @@
   it in an HttpOnly cookie, the database keeps only its SHA-256
   (:func:`hash_token`), so a leaked database cannot be replayed as cookies. A
   fast hash is right here: the token is random, not a guessable password.
-* :class:`LoginThrottle` limits failed logins per user name and attempts per
-  client address over a sliding window, and says how long to wait.
+* A new password (:func:`validate_password`) has 12 to 1024 characters, is not
+  blank, is not the user name or a variant of it, and is not one of the
+  30 000 most common breached passwords. That list is the ``passwords``
+  frequency list shipped by the zxcvbn package (offline, from real breaches;
+  zxcvbn is a well-kept port of Dropbox's estimator, and we only use its
+  list, not its score, which would refuse long passphrases ASVS allows).
+* :class:`LoginThrottle` delays failed logins per (user name, client address)
+  with a doubling, capped delay (never a lock-out: the right password from the
+  teacher's own machine is never refused because someone else guessed), and
+  limits attempts per client address over a sliding window.
 """
 
 from __future__ import annotations
@@ -18,6 +26,7 @@ import secrets
 import threading
 from collections import deque
 from datetime import datetime, timedelta
+from functools import cache
 
 from argon2 import PasswordHasher
 
@@ -36,8 +45,10 @@ __all__ = [
 ]
 
 _USERNAME = re.compile(r"^[a-z0-9][a-z0-9._@-]{0,63}$")
-MIN_PASSWORD_LENGTH = 8
+MIN_PASSWORD_LENGTH = 12
 MAX_PASSWORD_LENGTH = 1024
+# Characters people put around a name to make a "new" password of it.
+_DECORATION = re.compile(r"[\s\d!@#$%^&*()_+=.,;:'\"?<>/\\|`~\[\]{}-]+")
 
 
 class AuthenticationError(ThermoLabError):
@@ -109,18 +120,35 @@ def normalize_username(username: str) -> str:
     return name
 
 
-def validate_password(password: str) -> str:
-    """Check a new password's length and return it unchanged.
+def validate_password(password: str, username: str | None = None) -> str:
+    """Check a new password (OWASP ASVS 4.0 level 1, V2.1) and return it unchanged.
+
+    Parameters
+    ----------
+    password : str
+    username : str, optional
+        The account's name: the password may not be it or a variant of it.
 
     Raises
     ------
     InvalidParameterError
-        If it is shorter than 8 or longer than 1024 characters.
+        If it has fewer than 12 or more than 1024 characters, is only
+        whitespace, is the user name (in any case, reversed, or with digits
+        and punctuation around it), or is a commonly breached password. The
+        message never repeats the password.
 
     Examples
     --------
-    >>> validate_password("long enough")
-    'long enough'
+    >>> validate_password("long enough phrase")
+    'long enough phrase'
+    >>> validate_password("password1234")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    thermolab.errors.InvalidParameterError: this password is in a list of breached ...
+    >>> validate_password("Alice.Smith2024!", "alice.smith")
+    Traceback (most recent call last):
+    ...
+    thermolab.errors.InvalidParameterError: the password may not be the user name or a variant of it
     """
     if len(password) < MIN_PASSWORD_LENGTH:
         raise InvalidParameterError(
@@ -130,47 +158,106 @@ def validate_password(password: str) -> str:
         raise InvalidParameterError(
             f"password too long: at most {MAX_PASSWORD_LENGTH} characters are allowed"
         )
+    if not password.strip():
+        raise InvalidParameterError("the password may not be only whitespace")
+    if username is not None and _is_name_variant(password, username):
+        raise InvalidParameterError("the password may not be the user name or a variant of it")
+    if _is_breached(password):
+        raise InvalidParameterError(
+            "this password is in a list of breached passwords; choose another"
+        )
     return password
 
 
-class LoginThrottle:
-    """Sliding-window limits on login attempts.
+def _core(text: str) -> str:
+    return _DECORATION.sub("", text.casefold())
 
-    Two limits, both over ``window`` seconds: failed logins per user name
-    (guessing one account's password), and attempts of any outcome per client
-    address (trying many accounts). A success clears the user name's failures.
+
+def _is_name_variant(password: str, username: str) -> bool:
+    name = _core(username)
+    core = _core(password)
+    if not name:
+        return False
+    # The name itself, reversed, repeated, or merely decorated with digits and punctuation.
+    return core in (name, name[::-1]) or _repeated_unit(core) == [name]
+
+
+@cache
+def _breached() -> frozenset[str]:
+    from zxcvbn.frequency_lists import FREQUENCY_LISTS
+
+    return frozenset(FREQUENCY_LISTS["passwords"])
+
+
+_AFFIXES = re.compile(r"^[\d\W_]*(.*?)[\d\W_]*$", re.DOTALL)
+
+
+def _is_breached(password: str) -> bool:
+    folded = password.casefold()
+    # The list holds lower-case passwords; people meet length rules by adding digits or
+    # punctuation around one ("password1234", "!!dragon2024") or by repeating it, so the
+    # bare word counts too.
+    stem = _AFFIXES.sub(r"\1", folded)
+    return any(
+        candidate in _breached() for candidate in {folded, stem, *_repeated_unit(stem)} if candidate
+    )
+
+
+def _repeated_unit(text: str) -> list[str]:
+    for size in range(1, len(text) // 2 + 1):
+        if len(text) % size == 0 and text == text[:size] * (len(text) // size):
+            return [text[:size]]
+    return []
+
+
+class LoginThrottle:
+    """Delays on failed logins, and a limit on attempts per client address.
+
+    Failed logins are counted per (user name, client address). The first
+    ``failures_per_user`` are free; each further one doubles the wait before
+    the next attempt of that pair (1 s, 2 s, 4 s, ...), capped at ``window``
+    seconds. Nothing ever locks an account: someone guessing a teacher's
+    password from another address does not delay the teacher at all, and even
+    from the same address the right password is accepted once the (bounded)
+    delay has passed. The count is forgotten 15 minutes after the last
+    failure, and at once after a success. Attempts of any outcome per client
+    address are also limited over a sliding ``window`` (trying many accounts).
 
     Parameters
     ----------
     clock : LabClock
         Source of time.
     failures_per_user : int
-        Failed logins allowed per user name within the window.
+        Failed logins of one (user name, address) pair before delays start.
     attempts_per_address : int
         Attempts allowed per client address within the window.
     window : float
-        Seconds.
+        Seconds: the sliding window of the address limit and the longest delay.
 
     Notes
     -----
     The counts live in memory: they protect one server process, and a restart
-    forgets them (a restart is far slower than the window anyway).
+    forgets them (a restart is far slower than the delays anyway).
 
     Examples
     --------
     >>> from thermolab.lab.clock import ManualClock
     >>> clock = ManualClock()
     >>> throttle = LoginThrottle(clock, failures_per_user=2, attempts_per_address=10, window=60)
-    >>> for _ in range(2):
+    >>> for _ in range(3):
     ...     throttle.check("alice", "10.0.0.1")
     ...     throttle.record("alice", "10.0.0.1", success=False)
-    >>> throttle.check("alice", "10.0.0.1")
+    >>> throttle.check("alice", "10.0.0.1")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    thermolab.lab.security.RateLimitedError: too many failed logins for 'alice'; try again in 60 s
-    >>> clock.advance(60)
+    thermolab.lab.security.RateLimitedError: too many failed logins for 'alice' from 10.0.0.1; ...
+    >>> throttle.check("alice", "10.0.0.2")  # another address is not delayed
+    >>> clock.advance(1)
     >>> throttle.check("alice", "10.0.0.1")
     """
+
+    # A pair's failures are forgotten this long after its last one.
+    _FORGET = timedelta(minutes=15)
 
     def __init__(
         self,
@@ -181,12 +268,27 @@ class LoginThrottle:
         window: float = 60.0,
     ) -> None:
         self._clock = clock
-        self._per_user = failures_per_user
+        self._free = failures_per_user
         self._per_address = attempts_per_address
         self._window = timedelta(seconds=window)
-        self._failures: dict[str, deque[datetime]] = {}
+        self._failures: dict[tuple[str, str], tuple[int, datetime]] = {}
         self._attempts: dict[str, deque[datetime]] = {}
         self._lock = threading.Lock()
+
+    def delay(self, failures: int) -> float:
+        """Seconds to wait after ``failures`` consecutive failures of one pair.
+
+        Examples
+        --------
+        >>> from thermolab.lab.clock import ManualClock
+        >>> t = LoginThrottle(ManualClock(), failures_per_user=5, window=60)
+        >>> [t.delay(n) for n in (5, 6, 7, 8, 20)]
+        [0.0, 1.0, 2.0, 4.0, 60.0]
+        """
+        extra = failures - self._free
+        if extra <= 0:
+            return 0.0
+        return min(2.0 ** min(extra - 1, 32), self._window.total_seconds())
 
     def check(self, username: str, address: str) -> None:
         """Raise if a login for ``username`` from ``address`` must wait.
@@ -198,51 +300,62 @@ class LoginThrottle:
         """
         now = self._clock.now()
         with self._lock:
-            wait = self._wait(self._attempts, address, self._per_address, now)
+            wait = self._address_wait(address, now)
             if wait is not None:
                 raise RateLimitedError(
                     f"too many login attempts from {address}; try again in {_seconds(wait)} s",
                     wait,
                 )
-            wait = self._wait(self._failures, username, self._per_user, now)
-            if wait is not None:
+            failed = self._failures.get((username, address))
+            if failed is None:
+                return
+            count, last = failed
+            if now - last >= self._FORGET:
+                del self._failures[(username, address)]
+                return
+            wait = self.delay(count) - (now - last).total_seconds()
+            if wait > 0:
                 raise RateLimitedError(
-                    f"too many failed logins for {username!r}; try again in {_seconds(wait)} s",
+                    f"too many failed logins for {username!r} from {address}; "
+                    f"try again in {_seconds(wait)} s",
                     wait,
                 )
 
     def record(self, username: str, address: str, *, success: bool) -> None:
         """Count one login attempt and its outcome."""
         now = self._clock.now()
+        key = (username, address)
         with self._lock:
             self._attempts.setdefault(address, deque()).append(now)
             if success:
-                self._failures.pop(username, None)
+                self._failures.pop(key, None)
             else:
-                self._failures.setdefault(username, deque()).append(now)
+                count, last = self._failures.get(key, (0, now))
+                self._failures[key] = (0 if now - last >= self._FORGET else count) + 1, now
             if len(self._attempts) + len(self._failures) > 10_000:
                 self._forget_old(now)
 
-    def _wait(
-        self, table: dict[str, deque[datetime]], key: str, limit: int, now: datetime
-    ) -> float | None:
-        times = table.get(key)
+    def _address_wait(self, address: str, now: datetime) -> float | None:
+        times = self._attempts.get(address)
         if times is None:
             return None
         while times and now - times[0] >= self._window:
             times.popleft()
         if not times:
-            del table[key]
+            del self._attempts[address]
             return None
-        if len(times) < limit:
+        if len(times) < self._per_address:
             return None
         return (times[0] + self._window - now).total_seconds()
 
     def _forget_old(self, now: datetime) -> None:
         # Bound the memory an attacker can make us use with made-up names.
-        for table in (self._attempts, self._failures):
-            for key in [k for k, v in table.items() if not v or now - v[-1] >= self._window]:
-                del table[key]
+        for address in [
+            a for a, v in self._attempts.items() if not v or now - v[-1] >= self._window
+        ]:
+            del self._attempts[address]
+        for key in [k for k, (_, last) in self._failures.items() if now - last >= self._FORGET]:
+            del self._failures[key]
 
 
 def _seconds(wait: float) -> int:

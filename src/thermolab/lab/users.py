@@ -161,7 +161,7 @@ class UserService:
         """
         name = normalize_username(username)
         role = parse_role(role) if isinstance(role, str) else role
-        password_hash = self._hasher.hash(validate_password(password))
+        password_hash = self._hasher.hash(validate_password(password, name))
         now = self._clock.now()
         try:
             with self._db.write() as session:
@@ -216,9 +216,9 @@ class UserService:
         NotFoundError
             If there is no such user.
         InvalidParameterError
-            If the password is too short or too long.
+            If the password does not meet :func:`~thermolab.lab.security.validate_password`.
         """
-        password_hash = self._hasher.hash(validate_password(password))
+        password_hash = self._hasher.hash(validate_password(password, username))
         with self._db.write() as session:
             user = self._find(session, username)
             user.password_hash = password_hash

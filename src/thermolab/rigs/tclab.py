@@ -5,8 +5,17 @@
 firmware 2.0.1 protocol as stated in NOTES.md §6 through pyserial: 115200 baud,
 ``CMD value\\r\\n`` commands, one reply line per command ending in ``\\r\\n``.
 
-The firmware has no over-temperature cut-off and no watchdog, so the driver
-provides both:
+The stock firmware has no over-temperature cut-off and no watchdog, so the
+driver provides both on the host, and arms a watchdog in the kit itself when
+the kit runs ThermoLab's watchdog sketch (``firmware/tclab_watchdog``):
+
+* at connection the driver sends ``WDOG n`` (``firmware_watchdog`` seconds).
+  The sketch answers ``Watchdog n s`` and from then on switches both heaters
+  off by itself after ``n`` seconds without a command, whatever happened to
+  the host; :attr:`TCLabRig.firmware_watchdog` says ``n``. The stock firmware
+  treats ``WDOG`` as an unknown command: it switches the heaters off (they are
+  off already at that point) and echoes ``WDOG``; the driver then records
+  ``None`` and relies on the host-side guards below;
 
 * a reading of sensor 1 above ``max_temperature`` (or an implausibly low one,
   the sign of a disconnected sensor) switches both heaters off and latches a
@@ -18,10 +27,12 @@ provides both:
   after an unhandled exception (``atexit``), and on SIGTERM and SIGINT (a
   handler switches every open kit off at once, then lets the process unwind
   normally, so ``with`` blocks and ``finally`` clauses still run). SIGKILL
-  cannot be caught: the heater keeps its last setting until the board is
-  reset (opening the port again resets it, and ThermoLab switches the heaters
-  off on every connection), so a lab that runs unattended should run under a
-  supervisor that restarts it.
+  cannot be caught: with the stock firmware the heater keeps its last setting
+  until the board is reset (opening the port again resets it, and ThermoLab
+  switches the heaters off on every connection), so a lab that runs
+  unattended should run under a supervisor that restarts it, or flash the
+  watchdog sketch, which switches the heaters off ``firmware_watchdog``
+  seconds after the last command.
 
 Every exchange has a timeout; a kit that does not answer raises
 :class:`~thermolab.errors.RigTimeoutError`, one that answers garbage or
@@ -252,6 +263,17 @@ class TCLabRig(BaseRig):
     min_firmware : tuple of int
         Oldest accepted firmware version (default ``(2, 0, 0)``); version 3
         and later are refused too (an unknown protocol).
+    firmware_watchdog : int or None
+        Seconds of silence after which the watchdog sketch switches the
+        heaters off (1-3600, default 15: longer than the host-side
+        ``watchdog``, so the host's guard acts first while it lives); ``None``:
+        do not ask (the sketch keeps its power-on default).
+
+    Attributes
+    ----------
+    firmware_watchdog : int or None
+        The period the kit's own watchdog was armed with; ``None`` when the
+        kit has none (stock firmware) or it was not asked.
 
     Raises
     ------
@@ -282,6 +304,7 @@ class TCLabRig(BaseRig):
         baudrate: int = 115200,
         candidates: Sequence[str] | None = None,
         min_firmware: tuple[int, int, int] = (2, 0, 0),
+        firmware_watchdog: int | None = 15,
     ) -> None:
         if not (math.isfinite(timeout) and timeout > 0):
             raise InvalidParameterError(f"timeout must be a positive number, got {timeout!r}")
@@ -290,6 +313,13 @@ class TCLabRig(BaseRig):
         if watchdog is not None and not (math.isfinite(watchdog) and watchdog > 0):
             raise InvalidParameterError(
                 f"watchdog must be a positive number of seconds or None, got {watchdog!r}"
+            )
+        if firmware_watchdog is not None and not (
+            isinstance(firmware_watchdog, int) and 1 <= firmware_watchdog <= 3600
+        ):
+            raise InvalidParameterError(
+                "firmware_watchdog must be a whole number of seconds from 1 to 3600 or None, "
+                f"got {firmware_watchdog!r}"
             )
         if not math.isfinite(max_temperature):
             raise InvalidParameterError(
@@ -331,6 +361,11 @@ class TCLabRig(BaseRig):
                 )
             self.version = version
             self._switch_off()
+            self.firmware_watchdog = (
+                self._arm_firmware_watchdog(firmware_watchdog)
+                if firmware_watchdog is not None
+                else None
+            )
         except BaseException:
             self._close_link()
             raise
@@ -432,6 +467,17 @@ class TCLabRig(BaseRig):
                 "heaters switched off"
             )
         return value
+
+    def _arm_firmware_watchdog(self, seconds: int) -> int | None:
+        """Ask the kit for its own watchdog; return the period it armed, or ``None``."""
+        reply = self._exchange(f"WDOG {seconds}")
+        match = re.fullmatch(r"Watchdog (\d+) s", reply.strip())
+        if match is None:
+            # Stock firmware: WDOG is unknown, so it echoed it and switched the heaters off
+            # (they are off already). The host-side guards are all there is.
+            self._heater = 0.0
+            return None
+        return int(match.group(1))
 
     def _switch_off(self) -> None:
         reply = self._exchange("X")

@@ -25,6 +25,12 @@ optional numeric value; every reply line ends in ``\\r\\n``.
 other      both heaters off; the command name echoed upper-cased
 =========  ===============================================================
 
+With ``watchdog_firmware=True`` it is the ThermoLab watchdog sketch
+(``firmware/tclab_watchdog``) instead: the same protocol plus ``WDOG n``
+(seconds, 0 disarms, at most 3600; reply ``Watchdog n s``), armed at
+:data:`FIRMWARE_WATCHDOG_DEFAULT` seconds from power-on; when no command has
+arrived for that long, both heaters go off.
+
 The reset of a real board when its port opens (about 2 s of silence) is not
 emulated: a pseudo-terminal cannot tell when its far end is opened.
 
@@ -49,7 +55,10 @@ from typing import Self
 from thermolab.rigs.clock import Clock, RealClock, make_clock
 from thermolab.rigs.twin import TwinRig
 
-__all__ = ["TCLabEmulator", "main"]
+__all__ = ["FIRMWARE_WATCHDOG_DEFAULT", "TCLabEmulator", "main"]
+
+FIRMWARE_WATCHDOG_DEFAULT = 30
+"""Seconds the watchdog sketch waits for a command after power-on before heaters go off."""
 
 
 class TCLabEmulator:
@@ -71,6 +80,9 @@ class TCLabEmulator:
         ``False``: noise-free, unquantised temperatures (exact checks in tests).
     ambient : float
         Ambient temperature in °C (both sensors start there).
+    watchdog_firmware : bool
+        Emulate the ThermoLab watchdog sketch (``WDOG``) rather than the stock
+        firmware.
 
     Attributes
     ----------
@@ -97,6 +109,10 @@ class TCLabEmulator:
     sensor_disconnected : bool
         When set, both sensors read -50.000 °C, what a TMP36 channel reads at
         ADC code 0 (the sensor unplugged).
+    watchdog_period : int
+        The watchdog sketch's period in seconds (0: disarmed; stock firmware: 0).
+    watchdog_trips : int
+        How often the watchdog switched the heaters off.
 
     Examples
     --------
@@ -118,8 +134,13 @@ class TCLabEmulator:
         version: str = "2.0.1",
         realism: bool = True,
         ambient: float = 21.0,
+        watchdog_firmware: bool = False,
     ) -> None:
         self.clock: Clock = clock if clock is not None else RealClock()
+        self.watchdog_firmware = watchdog_firmware
+        self.watchdog_period = FIRMWARE_WATCHDOG_DEFAULT if watchdog_firmware else 0
+        self.watchdog_trips = 0
+        self._last_command = self.clock.now()
         self.board = board
         self.version = version
         self.commands: list[str] = []
@@ -159,8 +180,28 @@ class TCLabEmulator:
 
     # -- inspection ---------------------------------------------------------------
 
+    def check_watchdog(self) -> None:
+        """Switch the heaters off if the watchdog sketch's period passed without a command.
+
+        The firmware checks in its main loop; the emulator checks before every
+        command, every 20 ms of its serving thread, and whenever a test looks
+        at a heater (so a test on a virtual clock needs no real waiting).
+        """
+        with self._lock:
+            self._check_watchdog()
+
+    def _check_watchdog(self) -> None:
+        if self.watchdog_period <= 0:
+            return
+        if self.clock.now() - self._last_command >= self.watchdog_period:
+            if any(q > 0.0 for q in self._q):
+                self._all_off()
+                self.watchdog_trips += 1
+            self._last_command = self.clock.now()  # as the sketch: re-armed after tripping
+
     def heater(self, n: int) -> float:
         """Return the setting of heater ``n`` (1 or 2) in percent."""
+        self.check_watchdog()
         with self._lock:
             return self._q[self._index(n)]
 
@@ -228,6 +269,7 @@ class TCLabEmulator:
             try:
                 ready, _, _ = select.select([self._master], [], [], 0.02)
                 if not ready:
+                    self.check_watchdog()
                     continue
                 chunk = os.read(self._master, 4096)
             except OSError:
@@ -262,6 +304,8 @@ class TCLabEmulator:
         name, _, argument = command.upper().partition(" ")
         argument = argument.strip()
         with self._lock:
+            self._check_watchdog()
+            self._last_command = self.clock.now()
             self.commands.append(command.upper())
             if name in ("T1", "T2"):
                 return [self._temperature(int(name[1]))]
@@ -289,6 +333,9 @@ class TCLabEmulator:
             if name == "X":
                 self._all_off()
                 return ["Stop"]
+            if name == "WDOG" and self.watchdog_firmware:
+                self.watchdog_period = int(_clip(_number(argument), 0.0, 3600.0))
+                return [f"Watchdog {self.watchdog_period} s"]
             self._all_off()
             return [name]
 

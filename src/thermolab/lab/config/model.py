@@ -17,6 +17,8 @@ database in the data folder). A TOML file declares more::
     cookie_samesite = "strict"   # or "lax"
     cookie_secure = "auto"       # "auto" (when the request is https), "always", "never"
     max_body_bytes = 65536
+    trusted_proxies = []         # addresses whose X-Forwarded-For is believed (default: none)
+    frame_ancestors = ["'self'"] # CSP frame-ancestors: who may embed the lab (e.g. an LMS)
 
     [rig_defaults]           # limits every rig inherits unless it sets its own
     control_time_limit = 300 # s of control per turn
@@ -124,17 +126,23 @@ class AccessPolicy:
     session_idle_timeout : float
         Seconds without any request after which a login expires.
     login_failures_per_user : int
-        Failed logins per user name within ``login_window`` before 429.
+        Failed logins of one (user name, address) before the doubling delays start.
     login_attempts_per_address : int
         Login attempts per client address within ``login_window`` before 429.
     login_window : float
-        Seconds over which the two login limits count.
+        Seconds over which the address limit counts; also the longest login delay.
     cookie_samesite : {"strict", "lax"}
         SameSite attribute of the session cookie.
     cookie_secure : {"auto", "always", "never"}
         Secure attribute: ``"auto"`` sets it when the request came over https.
     max_body_bytes : int
         Largest request body accepted (413 beyond).
+    trusted_proxies : tuple of str
+        Addresses (or networks) of reverse proxies whose ``X-Forwarded-For``
+        and ``X-Forwarded-Proto`` are believed; empty: none, the peer address
+        is the client.
+    frame_ancestors : tuple of str
+        CSP ``frame-ancestors`` sources: who may show the lab in a frame.
 
     Examples
     --------
@@ -151,6 +159,8 @@ class AccessPolicy:
     cookie_samesite: Literal["strict", "lax"] = "strict"
     cookie_secure: Literal["auto", "always", "never"] = "auto"
     max_body_bytes: int = 64 * 1024
+    trusted_proxies: tuple[str, ...] = ()
+    frame_ancestors: tuple[str, ...] = ("'self'",)
 
 
 @dataclass(frozen=True, slots=True)

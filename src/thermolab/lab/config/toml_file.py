@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator
 from pydantic_core import ErrorDetails
 
 from thermolab.errors import ConfigError
@@ -91,6 +91,16 @@ _Positive = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
 _NonNegative = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0)]
 _Count = Annotated[int, Field(strict=True, ge=1)]
 _Text = Annotated[str, Field(strict=True, min_length=1)]
+
+
+def _one_word(value: str) -> str:
+    # An address or a CSP source: a space, ';' or ',' would split the header it goes into.
+    if not value.strip() or any(c in value for c in " \t\n;,"):
+        raise ValueError(f"expected one word without spaces, ';' or ',', got {value!r}")
+    return value.strip()
+
+
+_Token = Annotated[str, Field(strict=True), AfterValidator(_one_word)]
 
 
 class _Table(BaseModel):
@@ -192,6 +202,8 @@ class _Access(_Table):
     cookie_samesite: Literal["strict", "lax"] | None = None
     cookie_secure: Literal["auto", "always", "never"] | None = None
     max_body_bytes: Annotated[int, Field(strict=True, ge=1024)] | None = None
+    trusted_proxies: tuple[_Token, ...] | None = None
+    frame_ancestors: tuple[_Token, ...] | None = None
 
 
 class _File(_Table):

@@ -9,6 +9,10 @@ lab's exceptions map to status codes as follows: not logged in or wrong
 password 401, not allowed 403, unknown rig/user/path 404, clash with the
 current state 409, bad value 422, too many logins 429 (with Retry-After);
 a body over the configured size is refused with 413 before it is read in full.
+State-changing requests from another origin are refused with 403
+(:mod:`~thermolab.lab.http.browser_guard`, which also adds the security
+headers); the API docs come from the package (:mod:`~thermolab.lab.http.api_docs`).
+``X-Forwarded-For`` is believed only from ``access.trusted_proxies``.
 """
 
 from __future__ import annotations
@@ -22,10 +26,13 @@ from pathlib import Path
 import anyio.to_thread
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
+from uvicorn.middleware.proxy_headers import ProxyHeadersMiddleware
 
 from thermolab import __version__
 from thermolab.lab.config import LabConfig
 from thermolab.lab.devices import device_opener
+from thermolab.lab.http.api_docs import install_api_docs
+from thermolab.lab.http.browser_guard import BrowserGuard
 from thermolab.lab.http.errors import install_error_handlers
 from thermolab.lab.http.limits import BodyLimit
 from thermolab.lab.http.live_socket import LiveEndpoint
@@ -115,15 +122,24 @@ def create_app(
             "POST /api/session; every other route needs the session cookie."
         ),
         lifespan=lifespan,
+        docs_url=None,
+        redoc_url=None,
     )
     app.state.lab = the_lab
     app.state.live = live
     app.include_router(api_router)
     app.add_api_websocket_route("/api/rigs/{rig_id}/live", live.endpoint, name="live")
     install_error_handlers(app)
+    install_api_docs(app)
     if static_dir is not None:
         app.mount("/", StaticFiles(directory=static_dir, html=True), name="web")
     app.add_middleware(BodyLimit, max_bytes=config.access.max_body_bytes)
+    app.add_middleware(BrowserGuard, frame_ancestors=config.access.frame_ancestors)
+    if config.access.trusted_proxies:
+        # Outermost, so that the guard and the routes see the client's address and scheme.
+        app.add_middleware(
+            ProxyHeadersMiddleware, trusted_hosts=list(config.access.trusted_proxies)
+        )
     return app
 
 

@@ -127,6 +127,10 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(StarletteHTTPException, http_error)
 
 
+# Fields whose submitted value is never repeated in an answer (ASVS V7.1.1, V8.3.x).
+_SECRET_FIELDS = frozenset({"password", "currentPassword", "current_password"})
+
+
 def _where(loc: tuple[Any, ...] | list[Any]) -> str:
     parts = [str(p) for p in loc]
     if parts and parts[0] in ("body", "path", "query", "header", "cookie"):
@@ -146,7 +150,9 @@ def _describe_error(error: Any) -> str:
     if kind == "extra_forbidden":
         return f"{where}: unknown field"
     message = error.get("msg", "invalid value")
-    if "input" in error and kind != "missing":
+    loc = error.get("loc", ())
+    secret = bool(loc) and str(loc[-1]) in _SECRET_FIELDS
+    if "input" in error and kind != "missing" and not secret:
         shown = repr(error["input"])
         shown = shown if len(shown) <= 60 else shown[:57] + "..."
         return f"{where}: {message} (got {shown})"

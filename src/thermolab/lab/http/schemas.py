@@ -18,6 +18,7 @@ from thermolab.lab.access import QueueSlot, RigView
 from thermolab.lab.db.models import ControlSession
 from thermolab.lab.presence import Watcher
 from thermolab.lab.runs import MAX_DT, MAX_SAMPLES, MIN_DT, OFFSET_MODES, RunRecord, RunRequest
+from thermolab.lab.security import MAX_PASSWORD_LENGTH, MIN_PASSWORD_LENGTH
 from thermolab.lab.service import InputResult
 from thermolab.lab.users import Principal, UserInfo
 
@@ -115,15 +116,22 @@ class NewUserIn(_In):
     """A new account (teachers only)."""
 
     username: Annotated[str, Field(min_length=1, max_length=64)]
-    password: Annotated[str, Field(min_length=8, max_length=1024)]
+    password: Annotated[str, Field(min_length=MIN_PASSWORD_LENGTH, max_length=MAX_PASSWORD_LENGTH)]
     role: Literal["student", "teacher"]
 
 
 class PasswordIn(_In):
-    """A new password; users changing their own also give the current one."""
+    """A new password, with the acting user's current password (re-authentication)."""
 
-    password: Annotated[str, Field(min_length=8, max_length=1024)]
-    current_password: Annotated[str | None, Field(max_length=1024)] = None
+    password: Annotated[str, Field(min_length=MIN_PASSWORD_LENGTH, max_length=MAX_PASSWORD_LENGTH)]
+    current_password: Annotated[
+        str | None,
+        Field(
+            max_length=MAX_PASSWORD_LENGTH,
+            description="the password of the user making the change (required, also for "
+            "a teacher changing someone else's)",
+        ),
+    ] = None
 
 
 # -- rigs ---------------------------------------------------------------------------------------

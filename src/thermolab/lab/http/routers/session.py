@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+
 from fastapi import APIRouter, Request, Response, status
 
 from thermolab.lab.http.deps import (
@@ -12,11 +14,12 @@ from thermolab.lab.http.deps import (
     documented_errors,
 )
 from thermolab.lab.http.schemas import CredentialsIn, SessionOut
-from thermolab.lab.security import AuthenticationError
+from thermolab.lab.security import AuthenticationError, RateLimitedError
 
 __all__ = ["router"]
 
 router = APIRouter()
+log = logging.getLogger(__name__)
 _authed = AUTHENTICATED
 
 
@@ -30,16 +33,24 @@ _authed = AUTHENTICATED
 def login(body: CredentialsIn, request: Request, response: Response, lab: LabDep) -> SessionOut:
     """Check the user name and password and open a session (sets the session cookie).
 
-    Attempts are limited per user name and per client address (429 with
-    Retry-After).
+    Failed attempts delay further ones per (user name, client address), and
+    attempts are limited per client address (429 with Retry-After); the
+    client address is the proxy's ``X-Forwarded-For`` only when the request
+    came from an address listed in ``access.trusted_proxies``.
     """
     address = request.client.host if request.client is not None else "unknown"
     key = body.username.strip().lower()
-    lab.throttle.check(key, address)
+    try:
+        lab.throttle.check(key, address)
+    except RateLimitedError:
+        log.warning("login delayed: user %r from %s (too many attempts)", key[:64], address)
+        raise
     try:
         user = lab.users.verify(body.username, body.password)
     except AuthenticationError:
         lab.throttle.record(key, address, success=False)
+        # ASVS V7.2.1: a failed login is attributable (name and address; never the password).
+        log.warning("login failed: user %r from %s", key[:64], address)
         raise
     lab.throttle.record(key, address, success=True)
     lab.sessions.end(request.cookies.get(COOKIE_NAME))

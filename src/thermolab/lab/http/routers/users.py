@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Path, Response, status
+from fastapi import APIRouter, Path, Request, Response, status
 
 from thermolab.errors import AccessDeniedError, InvalidParameterError
 from thermolab.lab.http.deps import AUTHENTICATED, LabDep, UserDep, documented_errors
@@ -72,31 +72,41 @@ def remove_user(
     status_code=status.HTTP_204_NO_CONTENT,
     tags=["users"],
     summary="Change a password",
-    responses=documented_errors(403, 404, 422),
+    responses=documented_errors(403, 404, 422, 429),
 )
 def change_password(
     username: Annotated[str, Path(max_length=64)],
     body: PasswordIn,
     who: UserDep,
     lab: LabDep,
+    request: Request,
 ) -> Response:
-    """Change your own password (give the current one), or anyone's as a teacher.
+    """Change your own password, or anyone's as a teacher; give your current password.
 
-    Every other session of the account ends.
+    Re-authentication (ASVS 4.0 V2.1.6, V3.7.1): the acting user's current
+    password is required in ``currentPassword`` in both cases, so a stolen
+    session alone cannot take over an account. Every other session of the
+    account ends.
     """
-    if _same_user(username, who):
-        if body.current_password is None:
-            raise InvalidParameterError("currentPassword is required to change your own password")
-        try:
-            lab.users.verify(who.username, body.current_password)
-        except AuthenticationError:
-            raise AccessDeniedError("the current password is wrong") from None
-    elif not who.is_teacher:
+    own = _same_user(username, who)
+    if not own and not who.is_teacher:
         raise AccessDeniedError("you may only change your own password")
-    else:
+    if body.current_password is None:
+        raise InvalidParameterError(
+            "currentPassword (your own current password) is required to change a password"
+        )
+    # The same delays as a login: a stolen session must not become a password oracle.
+    address = request.client.host if request.client is not None else "unknown"
+    lab.throttle.check(who.username, address)
+    try:
+        lab.users.verify(who.username, body.current_password)
+    except AuthenticationError:
+        lab.throttle.record(who.username, address, success=False)
+        raise AccessDeniedError("your current password is wrong") from None
+    lab.throttle.record(who.username, address, success=True)
+    if not own:
         lab.users.get(username)
-    keep = who.session_id if _same_user(username, who) else None
-    lab.users.set_password(username, body.password, keep_session=keep)
+    lab.users.set_password(username, body.password, keep_session=who.session_id if own else None)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 

@@ -1,0 +1,211 @@
+"""Browser-side protections: same-origin checks (CSRF) and security headers.
+
+:class:`BrowserGuard` is a plain ASGI middleware (no request body is read):
+
+* **CSRF** (ASVS 4.0 V4.2.2, V13.2.3). A state-changing request (POST, PUT,
+  PATCH, DELETE, body or not) and the live WebSocket's handshake must come
+  from the lab's own pages. Browsers say where a request comes from: with
+  ``Sec-Fetch-Site`` (Fetch Metadata), only ``same-origin`` and ``none`` (typed
+  by the user) pass; without it, an ``Origin`` header must name the host the
+  request was sent to. A refused request gets 403 ``{"code": "cross_origin"}``;
+  a refused handshake is closed before it is accepted (HTTP 403). A request
+  with neither header is not from a browser page (``curl``, scripts), which
+  cannot carry a victim's cookie, so it passes. The SameSite=Strict cookie is
+  the second line of defence.
+* **Headers** on every answer: a strict Content-Security-Policy (scripts and
+  styles only from the lab itself: the page has no inline script, and must
+  keep it so), ``frame-ancestors`` from ``access.frame_ancestors`` (default
+  ``'self'``: clickjacking), ``X-Content-Type-Options: nosniff``,
+  ``Referrer-Policy: same-origin``, and ``Cache-Control: no-store`` on the API
+  and its schema (answers carry personal data and session state).
+
+The API docs pages (``/docs``, ``/redoc``) get the same policy except that
+their renderers need inline *styles* and a worker from ``blob:``; scripts stay
+``'self'`` only (see :mod:`thermolab.lab.http.api_docs`).
+
+Hand-written: the checks are a few lines over the ASGI scope, and no
+well-kept package does Fetch-Metadata + Origin for both HTTP and WebSocket.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable
+from urllib.parse import urlsplit
+
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+__all__ = ["BrowserGuard", "content_security_policy", "is_same_origin"]
+
+_STATE_CHANGING = frozenset({"POST", "PUT", "PATCH", "DELETE"})
+_DOCS_PATHS = ("/docs", "/redoc")
+_NO_STORE_PREFIXES = ("/api/", "/openapi.json")
+_DEFAULT_PORTS = {"http": 80, "https": 443, "ws": 80, "wss": 443}
+
+
+def content_security_policy(frame_ancestors: Iterable[str], *, docs: bool = False) -> str:
+    """Return the Content-Security-Policy header value.
+
+    Parameters
+    ----------
+    frame_ancestors : iterable of str
+        Sources allowed to frame the lab (``'self'``, ``https://lms.example``).
+    docs : bool
+        The policy of the API docs pages (inline styles and ``blob:`` workers).
+
+    Examples
+    --------
+    >>> policy = content_security_policy(["'self'"])
+    >>> "script-src 'self'" in policy and "frame-ancestors 'self'" in policy
+    True
+    >>> "unsafe-inline" in policy
+    False
+    """
+    style = "'self' 'unsafe-inline'" if docs else "'self'"
+    parts = [
+        "default-src 'self'",
+        "script-src 'self'",
+        f"style-src {style}",
+        "img-src 'self' data: blob:",
+        "connect-src 'self'",
+        "font-src 'self'",
+        "object-src 'none'",
+        "base-uri 'self'",
+        "form-action 'self'",
+        f"frame-ancestors {' '.join(frame_ancestors) or chr(39) + 'none' + chr(39)}",
+    ]
+    if docs:
+        parts.append("worker-src 'self' blob:")
+    return "; ".join(parts)
+
+
+def _header(scope: Scope, name: bytes) -> str | None:
+    for key, value in scope.get("headers", ()):
+        if key == name:
+            return str(value.decode("latin-1"))
+    return None
+
+
+def _netloc(scheme: str, host: str) -> str:
+    """``host[:port]`` in lower case, without the scheme's default port."""
+    parts = urlsplit(f"//{host.strip().lower()}")
+    try:
+        port = parts.port
+    except ValueError:
+        return host.strip().lower()
+    name = parts.hostname or ""
+    if ":" in name:
+        name = f"[{name}]"
+    if port is None or port == _DEFAULT_PORTS.get(scheme):
+        return name
+    return f"{name}:{port}"
+
+
+def is_same_origin(scope: Scope) -> bool:
+    """Whether a request or handshake comes from the lab's own pages (or not from a page).
+
+    Examples
+    --------
+    >>> scope = {"scheme": "http", "headers": [(b"host", b"lab:8000"),
+    ...                                        (b"origin", b"http://lab:8000")]}
+    >>> is_same_origin(scope)
+    True
+    >>> scope["headers"][1] = (b"origin", b"https://evil.example")
+    >>> is_same_origin(scope)
+    False
+    >>> is_same_origin({"scheme": "http", "headers": [(b"sec-fetch-site", b"cross-site")]})
+    False
+    """
+    site = _header(scope, b"sec-fetch-site")
+    if site is not None:
+        return site.strip().lower() in ("same-origin", "none")
+    origin = _header(scope, b"origin")
+    if origin is None:
+        return True
+    parts = urlsplit(origin.strip())
+    host = _header(scope, b"host")
+    if not parts.scheme or not parts.netloc or host is None:
+        return False  # "null" (sandboxed frame, file:) or nothing to compare with
+    return _netloc(parts.scheme, parts.netloc) == _netloc(str(scope.get("scheme", "http")), host)
+
+
+class BrowserGuard:
+    """ASGI middleware: refuse cross-origin state changes, add security headers.
+
+    Parameters
+    ----------
+    app : ASGIApp
+        The application to guard.
+    frame_ancestors : iterable of str
+        CSP ``frame-ancestors`` sources.
+    """
+
+    def __init__(self, app: ASGIApp, *, frame_ancestors: Iterable[str] = ("'self'",)) -> None:
+        self.app = app
+        ancestors = tuple(frame_ancestors)
+        self._headers = [
+            (b"x-content-type-options", b"nosniff"),
+            (b"referrer-policy", b"same-origin"),
+            (b"cross-origin-opener-policy", b"same-origin"),
+        ]
+        if ancestors == ("'self'",):
+            self._headers.append((b"x-frame-options", b"SAMEORIGIN"))  # browsers without CSP 2
+        self._csp = content_security_policy(ancestors).encode("latin-1")
+        self._docs_csp = content_security_policy(ancestors, docs=True).encode("latin-1")
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] == "websocket":
+            if not is_same_origin(scope):
+                await receive()  # the websocket.connect message
+                await send({"type": "websocket.close", "code": 1008})  # HTTP 403 before accept
+                return
+            await self.app(scope, receive, send)
+            return
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        path: str = scope.get("path", "")
+        if scope.get("method", "GET").upper() in _STATE_CHANGING and not is_same_origin(scope):
+            await self._refuse(send)
+            return
+        csp = self._docs_csp if path.startswith(_DOCS_PATHS) else self._csp
+        no_store = path.startswith(_NO_STORE_PREFIXES)
+        extra = [*self._headers, (b"content-security-policy", csp)]
+
+        async def send_with_headers(message: Message) -> None:
+            if message["type"] == "http.response.start":
+                headers = [
+                    (k, v)
+                    for k, v in message.get("headers", ())
+                    if not (no_store and k.lower() == b"cache-control")
+                ]
+                headers += extra
+                if no_store:
+                    headers.append((b"cache-control", b"no-store"))
+                message = {**message, "headers": headers}
+            await send(message)
+
+        await self.app(scope, receive, send_with_headers)
+
+    async def _refuse(self, send: Send) -> None:
+        body = json.dumps(
+            {
+                "detail": "cross-origin request refused: state-changing requests must come "
+                "from the lab's own pages (Origin / Sec-Fetch-Site)",
+                "code": "cross_origin",
+            }
+        ).encode("utf-8")
+        await send(
+            {
+                "type": "http.response.start",
+                "status": 403,
+                "headers": [
+                    (b"content-type", b"application/json"),
+                    (b"content-length", str(len(body)).encode("ascii")),
+                    (b"cache-control", b"no-store"),
+                    *self._headers,
+                    (b"content-security-policy", self._csp),
+                ],
+            }
+        )
+        await send({"type": "http.response.body", "body": body})
