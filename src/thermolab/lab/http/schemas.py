@@ -10,14 +10,23 @@ import math
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, PlainValidator, WithJsonSchema
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    PlainValidator,
+    WithJsonSchema,
+)
 from pydantic.alias_generators import to_camel
 from pydantic_core import PydanticCustomError
 
+from thermolab.ident.registry import METHOD_NAMES
 from thermolab.lab.access import QueueSlot, RigView
 from thermolab.lab.db.models import ControlSession
 from thermolab.lab.presence import Watcher
 from thermolab.lab.runs import MAX_DT, MAX_SAMPLES, MIN_DT, OFFSET_MODES, RunRecord, RunRequest
+from thermolab.lab.runs.request import RUN_SETTINGS
 from thermolab.lab.service import InputResult
 from thermolab.lab.users import Principal, UserInfo
 
@@ -314,12 +323,55 @@ def _offset(value: object) -> str | float:
         return float(value)
     raise PydanticCustomError(
         "offset",
-        "Input should be 'auto', 'initial', 'fit', 'none' or a finite number (a known ambient)",
+        "Input should be {modes} or a finite number (a known ambient)",
+        {"modes": ", ".join(repr(m) for m in OFFSET_MODES)},
     )
 
 
+def _method_name(value: str) -> str:
+    if value not in METHOD_NAMES:
+        raise PydanticCustomError(
+            "method", "Input should be one of {names}", {"names": ", ".join(METHOD_NAMES)}
+        )
+    return value
+
+
+def _setting(name: str) -> Any:
+    """The field of run setting ``name``: its range, unit and help from the registry.
+
+    The range is :data:`thermolab.lab.runs.request.RUN_SETTINGS`' (the registry's,
+    narrowed where the lab says why); ``null`` stands for the registry's default.
+    """
+    setting = RUN_SETTINGS[name]
+    ranged = setting.type in ("integer", "number")
+    low = setting.minimum if ranged else None
+    high = setting.maximum if ranged else None
+    unit = f" ({setting.unit})" if setting.unit else ""
+    default = setting.default
+    shown = list(default) if isinstance(default, tuple) else default
+    return Field(
+        gt=low if setting.exclusive_minimum else None,
+        ge=None if setting.exclusive_minimum else low,
+        lt=high if setting.exclusive_maximum else None,
+        le=None if setting.exclusive_maximum else high,
+        allow_inf_nan=False if setting.type == "number" else None,
+        description=f"{setting.help}{unit}; null: the registry's default {shown!r}",
+    )
+
+
+#: The method names, checked and published from the registry.
+MethodName = Annotated[
+    str, AfterValidator(_method_name), WithJsonSchema({"enum": list(METHOD_NAMES)})
+]
+
+
 class RunIn(_In):
-    """START: the run's schedule, input and identification methods (the paper's panels)."""
+    """START: the run's schedule, input and identification methods (the paper's panels).
+
+    The method settings (``window``...``w0``) are the registry's
+    (:mod:`thermolab.ident.registry`, published at ``GET /api/methods``) as the
+    lab narrows them in :data:`thermolab.lab.runs.request.RUN_SETTINGS`.
+    """
 
     dt: Annotated[
         float,
@@ -344,29 +396,17 @@ class RunIn(_In):
         Field(allow_inf_nan=False, description="manual input at START (with no signal)"),
     ] = None
     methods: Annotated[
-        list[Literal["srm", "lsm", "blockls", "malsm", "wlsm"]],
-        Field(min_length=1, max_length=5, description="identification methods"),
+        list[MethodName],
+        Field(min_length=1, max_length=len(METHOD_NAMES), description="identification methods"),
     ] = ["srm", "lsm"]
-    window: Annotated[int | None, Field(ge=2, le=100_000, description="MALSM window")] = None
-    block: Annotated[int | None, Field(ge=2, le=100_000, description="block-LSM block")] = None
-    # The lab runs WLSM in the paper's form, where gamma = 1 has no meaning (alpha = 0).
-    gamma: Annotated[
-        float | None,
-        Field(gt=0, lt=1, allow_inf_nan=False, description="WLSM forgetting factor"),
-    ] = None
-    pmax: Annotated[
-        float | None, Field(gt=0, allow_inf_nan=False, description="WLSM initial covariance")
-    ] = None
-    w0: Annotated[
-        list[FiniteFloat] | None,
-        Field(
-            min_length=2,
-            max_length=3,
-            description="WLSM initial parameters [a0, b0] of y(k+1) = a y(k) + b u(k) "
-            "([a0, b0, c0] with offset 'fit', c0 the constant term); "
-            "null: the paper's W0 = [0.96329, 9.9082e-4]",
-        ),
-    ] = None
+    window: Annotated[int | None, _setting("window")] = None
+    block: Annotated[int | None, _setting("block")] = None
+    gamma: Annotated[float | None, _setting("gamma")] = None
+    pmax: Annotated[float | None, _setting("pmax")] = None
+    # [a0, b0] of the first-order model, or [a0, b0, c0] with offset "fit".
+    w0: Annotated[list[FiniteFloat] | None, _setting("w0"), Field(min_length=2, max_length=3)] = (
+        None
+    )
     offset: Annotated[
         str | float,
         PlainValidator(_offset),
@@ -383,18 +423,17 @@ class RunIn(_In):
 
     def request(self) -> RunRequest:
         """The run service's request."""
+        settings = {name: getattr(self, name) for name in RUN_SETTINGS}
+        if settings["w0"] is not None:
+            settings["w0"] = tuple(settings["w0"])
         return RunRequest(
             dt=self.dt,
             samples=self.samples,
             signal=self.signal,
             setpoint=self.setpoint,
             methods=tuple(self.methods),
-            window=self.window,
-            block=self.block,
-            gamma=self.gamma,
-            pmax=self.pmax,
-            w0=None if self.w0 is None else tuple(self.w0),
             offset=self.offset,
+            **settings,
         )
 
 
