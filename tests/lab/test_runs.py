@@ -13,6 +13,7 @@ import math
 import threading
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -34,6 +35,7 @@ from thermolab.lab.http.app import create_app
 from thermolab.lab.runs import RunRequest
 from thermolab.lab.service import Lab
 from thermolab.lab.users import Principal
+from thermolab.records import read_record
 from thermolab.rigs import Rig, TwinRig, VirtualClock
 from thermolab.runner import EstimateEvent
 
@@ -96,7 +98,7 @@ def stored_samples(lab: Lab, run_id: int) -> int:
 
 
 def test_a_run_is_sampled_identified_stored_and_exported(
-    make_lab: LabFactory, clock: ManualClock
+    make_lab: LabFactory, clock: ManualClock, tmp_path: Path
 ) -> None:
     lab = twin_lab(make_lab)
     ana = person(lab, "ana")
@@ -133,8 +135,15 @@ def test_a_run_is_sampled_identified_stored_and_exported(
         # The CSV feeds straight back into the identification methods.
         text = client.get(f"/api/runs/{run_id}/samples.csv").text
         rows = list(csv.DictReader(io.StringIO(text)))
-        assert list(rows[0]) == ["t", "u", "y", "k"]
+        # Every channel of the run, by name (thermolab.records.RUN_CHANNELS).
+        assert list(rows[0]) == ["t", "u", "y", "k", "t_read", "jitter", "lateness"]
         assert len(rows) == 2000
+        (tmp_path / "run.csv").write_text(text, encoding="utf-8")
+        record = read_record(tmp_path / "run.csv")  # the library reads what the lab writes
+        assert [c.name for c in record.channels] == list(rows[0])
+        assert [c.role for c in record.channels[:3]] == ["time", "input", "output"]
+        np.testing.assert_array_equal(record.columns["y"], [float(r["y"]) for r in rows])
+        assert all(float(r["lateness"]) >= 0 for r in rows)
         u = np.array([float(r["u"]) for r in rows])
         y = np.array([float(r["y"]) for r in rows])
         again = least_squares(u, y, 1.0)
@@ -144,6 +153,10 @@ def test_a_run_is_sampled_identified_stored_and_exported(
         assert exported["run"]["id"] == run_id
         assert len(exported["samples"]["y"]) == 2000
         assert exported["samples"]["y"] == [float(r["y"]) for r in rows]
+        assert [c["name"] for c in exported["channels"]] == list(rows[0])
+        assert exported["channels"][1]["role"] == "input"
+        assert exported["samples"]["jitter"] == [float(r["jitter"]) for r in rows]
+        assert exported["samples"]["k"] == list(range(2000))
         wlsm = exported["methods"]["wlsm"]
         assert wlsm["params"]["gamma"] == 0.96
         assert len(wlsm["result"]["trajectory"]["K"]) == wlsm["result"]["estimates"] > 1000
@@ -381,7 +394,10 @@ def test_wlsm_starts_from_the_papers_w0_or_the_one_given(make_lab: LabFactory) -
     [
         ({"w0": [0.9, 0.01, 0.0]}, "w0 must have 2 entries [a0, b0] (3, with the constant"),
         ({"w0": [0.9, 0.01, 0.0, 1.0]}, "w0 must have 2 entries"),
-        ({"w0": [0.9, math.inf]}, "w0 must hold finite numbers"),
+        (
+            {"w0": [0.9, math.inf]},
+            "w0 = [0.9, inf] is not allowed; allowed: a list of finite numbers",
+        ),
         ({"methods": ("lsm",), "w0": [0.9, 0.01]}, "w0 is a setting of wlsm"),
         ({"methods": ("srm",), "offset": "fit"}, "offset is a setting of lsm, blockls"),
         ({"offset": "warm"}, "offset must be one of 'auto', 'initial', 'fit', 'none'"),
@@ -594,7 +610,7 @@ def test_runs_stored_without_statistics_get_them_from_the_migration(
     # A read never computes or stores them.
     assert all("stats" not in r for r in lab.runs.get(run.id, ana).results.values())
     lab.db.upgrade()
-    assert lab.db.current_revision() == "0003"
+    assert lab.db.current_revision() == "0004"
     again = lab.runs.get(run.id, ana).results
     for method in ("lsm", "malsm", "wlsm"):
         assert again[method]["stats"] == fresh[method]["stats"]
