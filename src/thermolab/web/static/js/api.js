@@ -109,6 +109,7 @@ export const api = {
     request("POST", `/api/rigs/${enc(rig)}/control/kick`, username ? { username } : {}),
   controlSessions: (rig, opts) => request("GET", `/api/rigs/${enc(rig)}/control-sessions`, undefined, opts),
   setService: (rig, inService) => request("PUT", `/api/rigs/${enc(rig)}/service`, { inService }),
+  methods: (opts) => request("GET", "/api/methods", undefined, opts),
   runs: (query = "", opts) => request("GET", `/api/runs${query}`, undefined, opts),
   run: (id, opts) => request("GET", `/api/runs/${enc(id)}`, undefined, opts),
   csvUrl: (id) => `/api/runs/${enc(id)}/samples.csv`,
