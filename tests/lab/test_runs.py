@@ -21,7 +21,7 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import func, select, text
 
-from thermolab.errors import InvalidParameterError
+from thermolab.errors import InvalidParameterError, ThermoLabError
 from thermolab.ident import (
     block_least_squares,
     least_squares,
@@ -682,3 +682,36 @@ def test_an_invalid_estimate_handed_to_the_live_stream_carries_its_reason(
     invalid = [e for e in heard if not e.estimate.valid]
     assert invalid
     assert all(e.estimate.extras["reason"].startswith("not excited") for e in invalid)
+
+
+def test_extra_channels_are_stored_and_exported_by_name(make_lab: LabFactory) -> None:
+    """A rig's extra channels (a set point, a second sensor) reach the store and both exports."""
+    from sqlalchemy import delete
+
+    from thermolab.lab.runs.store import DatabaseRecorder
+    from thermolab.records import RUN_CHANNELS, ChannelSpec
+
+    lab = twin_lab(make_lab)
+    lab.users.add("ana", PASSWORD, "student")
+    with TestClient(create_app(lab.config, lab=lab, sweep_interval=None)) as client:
+        client.post("/api/session", json={"username": "ana", "password": PASSWORD})
+        client.post("/api/rigs/twin/control")
+        run = finish(client, lab, {"dt": 1, "samples": 5, "setpoint": 2.0, "methods": ["lsm"]})
+        with lab.db.write() as session:
+            session.execute(delete(Sample).where(Sample.run_id == run["id"]))
+        extra = (ChannelSpec("r", "V", "setpoint"), ChannelSpec("y2", "degC", "output"))
+        recorder = DatabaseRecorder(lab.db, run["id"], channels=(*RUN_CHANNELS, *extra))
+        recorder.open()
+        for k in range(3):
+            recorder.write(k, float(k), 2.0, 0.1 * k, k + 0.01, 0.01, 0.0, 5.0, math.nan)
+        recorder.close()
+        text = client.get(f"/api/runs/{run['id']}/samples.csv").text
+        exported = client.get(f"/api/runs/{run['id']}/export.json").json()
+    header, first = text.splitlines()[:2]
+    assert header == "t,u,y,k,t_read,jitter,lateness,r,y2"
+    assert first == "0,2.0,0.0,0,0.01,0.01,0.0,5.0,nan"
+    assert [c["name"] for c in exported["channels"]][-2:] == ["r", "y2"]
+    assert exported["samples"]["r"] == [5.0, 5.0, 5.0]
+    assert exported["samples"]["y2"] == [None, None, None]  # JSON has no NaN
+    with pytest.raises(ThermoLabError, match="RUN_CHANNELS"):
+        DatabaseRecorder(lab.db, run["id"], channels=extra)
