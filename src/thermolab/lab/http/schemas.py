@@ -1,32 +1,24 @@
 """JSON bodies of the lab's HTTP API (pydantic models, camelCase on the wire).
 
 Request bodies refuse unknown fields and values of the wrong type, so a typo
-is a 422 naming the field rather than a silently ignored setting.
+is a 422 naming the field rather than a silently ignored setting (the base
+models are :mod:`.bodies`). A run's bodies are in :mod:`.run_schemas`,
+re-exported here.
 """
 
 from __future__ import annotations
 
-import math
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import (
-    AfterValidator,
-    BaseModel,
-    ConfigDict,
-    Field,
-    PlainValidator,
-    WithJsonSchema,
-)
-from pydantic.alias_generators import to_camel
-from pydantic_core import PydanticCustomError
+from pydantic import Field
 
-from thermolab.ident.registry import METHOD_NAMES
 from thermolab.lab.access import QueueSlot, RigView
 from thermolab.lab.db.models import ControlSession
+from thermolab.lab.http.bodies import In as _In
+from thermolab.lab.http.bodies import Out as _Out
+from thermolab.lab.http.run_schemas import OperatingPointOut, RunIn, RunOut
 from thermolab.lab.presence import Watcher
-from thermolab.lab.runs import MAX_DT, MAX_SAMPLES, MIN_DT, OFFSET_MODES, RunRecord, RunRequest
-from thermolab.lab.runs.request import RUN_SETTINGS
 from thermolab.lab.service import InputResult
 from thermolab.lab.users import Principal, UserInfo
 
@@ -55,16 +47,6 @@ __all__ = [
     "ValidationErrorOut",
     "WatcherOut",
 ]
-
-
-class _In(BaseModel):
-    model_config = ConfigDict(
-        alias_generator=to_camel, populate_by_name=True, extra="forbid", strict=True
-    )
-
-
-class _Out(BaseModel):
-    model_config = ConfigDict(alias_generator=to_camel, populate_by_name=True)
 
 
 # -- errors --------------------------------------------------------------------------------
@@ -309,196 +291,6 @@ class InputOut(_Out):
         """Build from an input result."""
         return cls(
             rig=result.rig_id, u=result.u, applied=result.applied, at=result.at, run=result.run_id
-        )
-
-
-FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
-
-
-def _offset(value: object) -> str | float:
-    # One message for the one choice (a union type would report each branch's error).
-    if isinstance(value, str) and value in OFFSET_MODES:
-        return value
-    if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
-        return float(value)
-    raise PydanticCustomError(
-        "offset",
-        "Input should be {modes} or a finite number (a known ambient)",
-        {"modes": ", ".join(repr(m) for m in OFFSET_MODES)},
-    )
-
-
-def _method_name(value: str) -> str:
-    if value not in METHOD_NAMES:
-        raise PydanticCustomError(
-            "method", "Input should be one of {names}", {"names": ", ".join(METHOD_NAMES)}
-        )
-    return value
-
-
-def _setting(name: str) -> Any:
-    """The field of run setting ``name``: its range, unit and help from the registry.
-
-    The range is :data:`thermolab.lab.runs.request.RUN_SETTINGS`' (the registry's,
-    narrowed where the lab says why); ``null`` stands for the registry's default.
-    """
-    setting = RUN_SETTINGS[name]
-    ranged = setting.type in ("integer", "number")
-    low = setting.minimum if ranged else None
-    high = setting.maximum if ranged else None
-    unit = f" ({setting.unit})" if setting.unit else ""
-    default = setting.default
-    shown = list(default) if isinstance(default, tuple) else default
-    return Field(
-        gt=low if setting.exclusive_minimum else None,
-        ge=None if setting.exclusive_minimum else low,
-        lt=high if setting.exclusive_maximum else None,
-        le=None if setting.exclusive_maximum else high,
-        allow_inf_nan=False if setting.type == "number" else None,
-        description=f"{setting.help}{unit}; null: the registry's default {shown!r}",
-    )
-
-
-#: The method names, checked and published from the registry.
-MethodName = Annotated[
-    str, AfterValidator(_method_name), WithJsonSchema({"enum": list(METHOD_NAMES)})
-]
-
-
-class RunIn(_In):
-    """START: the run's schedule, input and identification methods (the paper's panels).
-
-    The method settings (``window``...``w0``) are the registry's
-    (:mod:`thermolab.ident.registry`, published at ``GET /api/methods``) as the
-    lab narrows them in :data:`thermolab.lab.runs.request.RUN_SETTINGS`.
-    """
-
-    dt: Annotated[
-        float,
-        # Published here, checked once by thermolab.lab.runs.request.check_request.
-        Field(
-            allow_inf_nan=False,
-            json_schema_extra={"minimum": MIN_DT, "maximum": MAX_DT},
-            description="sample period, s",
-        ),
-    ]
-    samples: Annotated[int, Field(ge=1, le=MAX_SAMPLES, description="samples to take")]
-    signal: Annotated[
-        str | None,
-        Field(
-            max_length=200,
-            description="input signal: const:U, step:U0:U1@T, square:LOW:HIGH:HZ, "
-            "sine:OFFSET:AMP:HZ, prbs:LOW:HIGH:BIT_S[:SEED]; null for a manual set point",
-        ),
-    ] = None
-    setpoint: Annotated[
-        float | None,
-        Field(allow_inf_nan=False, description="manual input at START (with no signal)"),
-    ] = None
-    methods: Annotated[
-        list[MethodName],
-        Field(min_length=1, max_length=len(METHOD_NAMES), description="identification methods"),
-    ] = ["srm", "lsm"]
-    window: Annotated[int | None, _setting("window")] = None
-    block: Annotated[int | None, _setting("block")] = None
-    gamma: Annotated[float | None, _setting("gamma")] = None
-    pmax: Annotated[float | None, _setting("pmax")] = None
-    # [a0, b0] of the first-order model, or [a0, b0, c0] with offset "fit".
-    w0: Annotated[list[FiniteFloat] | None, _setting("w0"), Field(min_length=2, max_length=3)] = (
-        None
-    )
-    offset: Annotated[
-        str | float,
-        PlainValidator(_offset),
-        WithJsonSchema(
-            {"anyOf": [{"type": "string", "enum": list(OFFSET_MODES)}, {"type": "number"}]}
-        ),
-        Field(
-            description="the operating point: 'initial' removes the first sample (an "
-            "equilibrium at 0 V), 'fit' estimates a constant term, 'none' is the raw "
-            "regression, a number is the known ambient output; 'auto' is 'initial' on a rig "
-            "at rest and 'fit' on a warm one (the run's operatingPoint says which and why)"
-        ),
-    ] = "auto"
-
-    def request(self) -> RunRequest:
-        """The run service's request."""
-        settings = {name: getattr(self, name) for name in RUN_SETTINGS}
-        if settings["w0"] is not None:
-            settings["w0"] = tuple(settings["w0"])
-        return RunRequest(
-            dt=self.dt,
-            samples=self.samples,
-            signal=self.signal,
-            setpoint=self.setpoint,
-            methods=tuple(self.methods),
-            offset=self.offset,
-            **settings,
-        )
-
-
-class OperatingPointOut(_Out):
-    """How a run's identifiers treat the operating point, and why."""
-
-    asked: str | float = Field(description="the request's offset")
-    used: str | float | None = Field(
-        description="the mode used; null when no chosen method regresses on the output"
-    )
-    at_rest: bool | None = Field(description="whether the lab judged the rig at rest at START")
-    reason: str
-
-
-class RunOut(_Out):
-    """A run: what was asked, how far it got, how it ended, each method's latest estimate."""
-
-    id: int
-    rig: str
-    username: str
-    status: Literal["running", "finished", "stopped", "interrupted", "failed"]
-    dt: float
-    samples: int | None
-    samples_stored: int
-    samples_taken: int
-    signal: str | None
-    setpoint: float | None
-    methods: list[str]
-    settings: dict[str, Any]
-    started_at: datetime
-    ended_at: datetime | None
-    end_reason: str | None
-    results: dict[str, Any] = Field(
-        description="per method: latest estimate (K, tau, W, valid, final, extras.reason...), "
-        "error, and once the run is over stats: mean/max/min of K and tau over the last "
-        "2000 samples and converged_at, the samples to converge within ±1 % "
-        "(thermolab.ident.Trajectory.stats / converged_at)"
-    )
-    operating_point: OperatingPointOut | None = Field(
-        description="how the operating point was handled (null for runs from before it was kept)"
-    )
-
-    @classmethod
-    def of(cls, run: RunRecord) -> RunOut:
-        """Build from a run record."""
-        return cls.model_validate(
-            {
-                "id": run.id,
-                "rig": run.rig_id,
-                "username": run.username,
-                "status": run.status,
-                "dt": run.dt,
-                "samples": run.samples,
-                "samples_stored": run.samples_stored,
-                "samples_taken": run.samples_taken,
-                "signal": run.signal,
-                "setpoint": run.setpoint,
-                "methods": run.methods,
-                "settings": run.settings,
-                "started_at": run.started_at,
-                "ended_at": run.ended_at,
-                "end_reason": run.end_reason,
-                "results": run.results,
-                "operating_point": run.operating_point,
-            }
         )
 
 
