@@ -189,25 +189,6 @@ class RunOut(Out):
 
     @classmethod
     def of(cls, run: RunRecord) -> RunOut:
-        """Build from a run record."""
-        return cls.model_validate(
-            {
-                "id": run.id,
-                "rig": run.rig_id,
-                "username": run.username,
-                "status": run.status,
-                "dt": run.dt,
-                "samples": run.samples,
-                "samples_stored": run.samples_stored,
-                "samples_taken": run.samples_taken,
-                "signal": run.signal,
-                "setpoint": run.setpoint,
-                "methods": run.methods,
-                "settings": run.settings,
-                "started_at": run.started_at,
-                "ended_at": run.ended_at,
-                "end_reason": run.end_reason,
-                "results": run.results,
-                "operating_point": run.operating_point,
-            }
-        )
+        """Build from a run record (every field by the record's name; ``rig`` is its ``rig_id``)."""
+        fields = {name: getattr(run, name) for name in cls.model_fields if name != "rig"}
+        return cls.model_validate({**fields, "rig": run.rig_id})

@@ -114,7 +114,7 @@ export const api = {
   run: (id, opts) => request("GET", `/api/runs/${enc(id)}`, undefined, opts),
   csvUrl: (id) => `/api/runs/${enc(id)}/samples.csv`,
   exportUrl: (id) => `/api/runs/${enc(id)}/export.json`,
-  /** Everything stored about a run: {run, samples: {k, t, u, y}, methods: {label: {method, params, result}}}. */
+  /** Everything stored about a run: {run, channels: [{name, unit, role, description}], samples: {channel name: values}, methods: {label: {method, params, result}}}. */
   exportRun: (id, opts) => request("GET", `/api/runs/${enc(id)}/export.json`, undefined, opts),
   cameraUrl: (rig) => `/api/rigs/${enc(rig)}/camera`,
 };
