@@ -12,6 +12,7 @@ function and add it to :data:`ENTRY_POINTS`.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import inspect
 import json
 import math
@@ -170,12 +171,91 @@ def check_runner(method: Method, setting: Setting) -> None:
         assert (setting.name in ident.params) == (name in owners(setting.name))
 
 
+def _run_in_property(name: str) -> tuple[dict[str, object], str]:
+    """The non-null branch of a RunIn property's JSON schema, and its description."""
+    from thermolab.lab.http.schemas import RunIn
+
+    prop = RunIn.model_json_schema(by_alias=True)["properties"][name]
+    branch = next((b for b in prop.get("anyOf", [prop]) if b.get("type") != "null"), prop)
+    return branch, str(prop.get("description"))
+
+
+def check_server_schema(method: Method, setting: Setting) -> None:
+    """The lab's run schema takes the setting with the registry's range (or none of it).
+
+    The lab narrows a range only in ``LAB_NARROWING``; a setting it does not
+    carry gets the registry's default in the run's identifier.
+    """
+    from pydantic import ValidationError
+
+    from thermolab.lab.http.schemas import RunIn
+    from thermolab.lab.runs.request import LAB_NARROWING, RUN_SETTINGS, RunRequest
+    from thermolab.lab.runs.request import build_run_identifiers as build
+
+    if setting.role == "statistics":
+        assert setting.name not in RunIn.model_fields
+        return
+    if setting.name == "offset":  # the lab's own default "auto", then the registry's choices
+        from thermolab.lab.runs.request import OFFSET_MODES
+
+        assert ("auto", *setting.choices) == OFFSET_MODES
+        return
+    run_setting = RUN_SETTINGS.get(setting.name)
+    if run_setting is None:
+        assert setting.name not in RunIn.model_fields
+    else:
+        narrowed = dataclasses.replace(setting, **LAB_NARROWING.get(setting.name, {}))
+        assert run_setting == narrowed
+        assert RunIn.model_fields[setting.name].default is None  # None: the registry's default
+        prop, description = _run_in_property(setting.name)
+        if setting.type in ("number", "integer"):
+            low = "exclusiveMinimum" if narrowed.exclusive_minimum else "minimum"
+            high = "exclusiveMaximum" if narrowed.exclusive_maximum else "maximum"
+            assert prop.get(low) == narrowed.minimum
+            assert prop.get(high) == narrowed.maximum
+            for value in _outside(narrowed):
+                with pytest.raises(ValidationError, match=setting.name):
+                    RunIn.model_validate(
+                        {"dt": 1.0, "samples": 10, "methods": [method.name], setting.name: value}
+                    )
+        assert setting.help in description
+    if setting.structural_default is not None or setting.type == "arx_order":
+        return
+    idents, _ = build(RunRequest(dt=1.0, samples=10, methods=(method.name,)), "initial")
+    params = idents[method.name].params
+    if setting.name in params and setting.default is not None:
+        assert params[setting.name] == setting.default
+
+
+def check_api_methods(method: Method, setting: Setting) -> None:
+    """``GET /api/methods`` lists the method and the setting as the registry declares them."""
+    from thermolab.lab.http.routers.methods import MethodsOut, list_methods
+    from thermolab.lab.runs.request import RUN_SETTINGS
+
+    doc = MethodsOut.model_validate(list_methods()).model_dump(by_alias=True)
+    served = next(m for m in doc["methods"] if m["name"] == method.name)
+    assert {k: served[k] for k in ("title", "description", "panel")} == {
+        "title": method.title,
+        "description": method.description,
+        "panel": method.panel,
+    }
+    entry = next(s for s in served["settings"] if s["name"] == setting.name)
+    assert entry == setting.to_json()
+    run_settings = {s["name"]: s for s in doc["runSettings"]}
+    if setting.name in RUN_SETTINGS:
+        assert run_settings[setting.name] == RUN_SETTINGS[setting.name].to_json()
+    else:
+        assert setting.name not in run_settings
+
+
 ENTRY_POINTS: dict[str, Callable[[Method, Setting], None]] = {
     "batch function": check_batch_function,
     "make_identifier": check_make_identifier,
     "thermolab identify": check_identify_options,
     "thermolab run": check_run_options,
     "runner.methods": check_runner,
+    "lab run schema": check_server_schema,
+    "GET /api/methods": check_api_methods,
 }
 
 
@@ -217,7 +297,11 @@ def test_the_commands_offer_exactly_the_registered_settings() -> None:
 
 
 def test_method_names_agree_everywhere() -> None:
+    from thermolab.lab.http.schemas import RunIn
+
     assert runner_methods.METHOD_NAMES == METHOD_NAMES
+    items = RunIn.model_json_schema()["properties"]["methods"]["items"]
+    assert tuple(items["enum"]) == METHOD_NAMES
     assert typing.get_args(reproduction.Method) == METHOD_NAMES
     action = next(a for a in _subcommand("identify")._actions if a.dest == "method")
     assert tuple(action.choices or ()) == METHOD_NAMES

@@ -424,7 +424,10 @@ def test_the_browser_interface_is_served_when_given(lab: Lab, tmp_path: Path) ->
             {"dt": 1, "samples": 10, "signal": "const:1", "setpoint": 1},
             "give either a signal or a setpoint",
         ),
-        ({"dt": 1, "samples": 10, "methods": ["rls"]}, "methods.0: Input should be 'srm'"),
+        (
+            {"dt": 1, "samples": 10, "methods": ["rls"]},
+            "methods.0: Input should be one of srm, lsm, blockls, malsm, wlsm",
+        ),
         ({"dt": 1, "samples": 10, "methods": ["srm"], "gamma": 0.9}, "gamma is a setting of wlsm"),
         ({"dt": 1, "samples": 10, "colour": "red"}, "colour: unknown field"),
         ({"dt": 1, "samples": 10, "methods": []}, "methods: List should have at least 1 item"),

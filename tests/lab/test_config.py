@@ -115,9 +115,12 @@ A = "[[rigs]]\nid='a'\nspec='sim'\n"  # the smallest valid file
         ),
         (
             "[[rigs]]\nid='a'\nspec='lab'\n",
-            r"rigs\[0\]\.spec: rig spec 'lab' is not understood; use one of: sim, sim:paper",
+            r"rigs\[0\]\.spec: unknown rig 'lab'; use one of: sim, sim:paper",
         ),
-        ("[[rigs]]\nid='a'\nspec='sim:nope'\n", r"rigs\[0\]\.spec: rig spec 'sim:nope'"),
+        (
+            "[[rigs]]\nid='a'\nspec='sim:nope'\n",
+            r"rigs\[0\]\.spec: unknown preset 'nope' in rig 'sim:nope'",
+        ),
         ("[[rigs]]\nid='A b'\nspec='sim'\n", r"rigs\[0\]\.id: 'A b' is not a valid rig id"),
         ("[[rigs]]\nspec='sim'\n", r"rigs\[0\]\.id: required"),
         (A + "input_range=[5, 1]\n", r"rigs\[0\]\.input_range: min must be below max"),
@@ -172,12 +175,14 @@ def test_the_configured_range_must_lie_inside_the_rigs_own(tmp_path: Path) -> No
 
 
 def test_rig_specs() -> None:
-    assert parse_rig_spec("sim") == ("sim", None)
+    assert parse_rig_spec("sim") == ("sim", "paper")  # the rigs layer's default preset
     assert parse_rig_spec("sim:tclab") == ("sim", "tclab")
     assert parse_rig_spec("tclab") == ("tclab", None)
     assert parse_rig_spec("tclab:/dev/ttyACM0") == ("tclab", "/dev/ttyACM0")
-    with pytest.raises(ConfigError):
+    with pytest.raises(ConfigError, match="names no port"):
         parse_rig_spec("tclab:")
+    with pytest.raises(ConfigError, match="unknown rig 'oven'"):
+        parse_rig_spec("oven")
 
 
 def test_data_dir_from_the_option_the_environment_or_a_per_user_folder(

@@ -125,6 +125,10 @@ def test_hello_then_a_run_in_order(make_lab: LabFactory) -> None:
         assert [m["k"] for m in samples] == list(range(60))
         assert {m["run"] for m in samples} == {run_id}
         assert samples[10]["u"] == 10.0
+        # Every channel of the sample by name (additive to t, u, y, k).
+        channels = samples[10]["channels"]
+        assert list(channels) == ["t", "u", "y", "k", "t_read", "jitter", "lateness"]
+        assert (channels["u"], channels["k"]) == (10.0, 10)
         estimates = [m for m in seen if m["type"] == "estimate"]
         assert {m["method"] for m in estimates} == {"lsm", "wlsm"}
         assert any(m["final"] and m["method"] == "lsm" for m in estimates)

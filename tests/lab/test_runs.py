@@ -13,6 +13,7 @@ import math
 import threading
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -20,7 +21,7 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import func, select, text
 
-from thermolab.errors import InvalidParameterError
+from thermolab.errors import InvalidParameterError, ThermoLabError
 from thermolab.ident import (
     block_least_squares,
     least_squares,
@@ -35,6 +36,7 @@ from thermolab.lab.runs import RunRequest
 from thermolab.lab.runs.operating_point import identifiers_decide
 from thermolab.lab.service import Lab
 from thermolab.lab.users import Principal
+from thermolab.records import read_record
 from thermolab.rigs import Rig, TwinRig, VirtualClock
 from thermolab.runner import EstimateEvent
 
@@ -97,7 +99,7 @@ def stored_samples(lab: Lab, run_id: int) -> int:
 
 
 def test_a_run_is_sampled_identified_stored_and_exported(
-    make_lab: LabFactory, clock: ManualClock
+    make_lab: LabFactory, clock: ManualClock, tmp_path: Path
 ) -> None:
     lab = twin_lab(make_lab)
     ana = person(lab, "ana")
@@ -134,8 +136,15 @@ def test_a_run_is_sampled_identified_stored_and_exported(
         # The CSV feeds straight back into the identification methods.
         text = client.get(f"/api/runs/{run_id}/samples.csv").text
         rows = list(csv.DictReader(io.StringIO(text)))
-        assert list(rows[0]) == ["t", "u", "y", "k"]
+        # Every channel of the run, by name (thermolab.records.RUN_CHANNELS).
+        assert list(rows[0]) == ["t", "u", "y", "k", "t_read", "jitter", "lateness"]
         assert len(rows) == 2000
+        (tmp_path / "run.csv").write_text(text, encoding="utf-8")
+        record = read_record(tmp_path / "run.csv")  # the library reads what the lab writes
+        assert [c.name for c in record.channels] == list(rows[0])
+        assert [c.role for c in record.channels[:3]] == ["time", "input", "output"]
+        np.testing.assert_array_equal(record.columns["y"], [float(r["y"]) for r in rows])
+        assert all(float(r["lateness"]) >= 0 for r in rows)
         u = np.array([float(r["u"]) for r in rows])
         y = np.array([float(r["y"]) for r in rows])
         again = least_squares(u, y, 1.0)
@@ -145,6 +154,10 @@ def test_a_run_is_sampled_identified_stored_and_exported(
         assert exported["run"]["id"] == run_id
         assert len(exported["samples"]["y"]) == 2000
         assert exported["samples"]["y"] == [float(r["y"]) for r in rows]
+        assert [c["name"] for c in exported["channels"]] == list(rows[0])
+        assert exported["channels"][1]["role"] == "input"
+        assert exported["samples"]["jitter"] == [float(r["jitter"]) for r in rows]
+        assert exported["samples"]["k"] == list(range(2000))
         wlsm = exported["methods"]["wlsm"]
         assert wlsm["params"]["gamma"] == 0.96
         assert len(wlsm["result"]["trajectory"]["K"]) == wlsm["result"]["estimates"] > 1000
@@ -382,7 +395,10 @@ def test_wlsm_starts_from_the_papers_w0_or_the_one_given(make_lab: LabFactory) -
     [
         ({"w0": [0.9, 0.01, 0.0]}, "w0 must have 2 entries [a0, b0] (3, with the constant"),
         ({"w0": [0.9, 0.01, 0.0, 1.0]}, "w0 must have 2 entries"),
-        ({"w0": [0.9, math.inf]}, "w0 must hold finite numbers"),
+        (
+            {"w0": [0.9, math.inf]},
+            "w0 = [0.9, inf] is not allowed; allowed: a list of finite numbers",
+        ),
         ({"methods": ("lsm",), "w0": [0.9, 0.01]}, "w0 is a setting of wlsm"),
         ({"methods": ("srm",), "offset": "fit"}, "offset is a setting of lsm, blockls"),
         ({"offset": "warm"}, "offset must be one of 'auto', 'initial', 'fit', 'none'"),
@@ -564,7 +580,7 @@ def test_runs_stored_without_statistics_get_them_from_the_migration(
     # A read never computes or stores them.
     assert all("stats" not in r for r in lab.runs.get(run.id, ana).results.values())
     lab.db.upgrade()
-    assert lab.db.current_revision() == "0003"
+    assert lab.db.current_revision() == "0004"
     again = lab.runs.get(run.id, ana).results
     for method in ("lsm", "malsm", "wlsm"):
         assert again[method]["stats"] == fresh[method]["stats"]
@@ -636,3 +652,36 @@ def test_an_invalid_estimate_handed_to_the_live_stream_carries_its_reason(
     invalid = [e for e in heard if not e.estimate.valid]
     assert invalid
     assert all(e.estimate.extras["reason"].startswith("not excited") for e in invalid)
+
+
+def test_extra_channels_are_stored_and_exported_by_name(make_lab: LabFactory) -> None:
+    """A rig's extra channels (a set point, a second sensor) reach the store and both exports."""
+    from sqlalchemy import delete
+
+    from thermolab.lab.runs.store import DatabaseRecorder
+    from thermolab.records import RUN_CHANNELS, ChannelSpec
+
+    lab = twin_lab(make_lab)
+    lab.users.add("ana", PASSWORD, "student")
+    with TestClient(create_app(lab.config, lab=lab, sweep_interval=None)) as client:
+        client.post("/api/session", json={"username": "ana", "password": PASSWORD})
+        client.post("/api/rigs/twin/control")
+        run = finish(client, lab, {"dt": 1, "samples": 5, "setpoint": 2.0, "methods": ["lsm"]})
+        with lab.db.write() as session:
+            session.execute(delete(Sample).where(Sample.run_id == run["id"]))
+        extra = (ChannelSpec("r", "V", "setpoint"), ChannelSpec("y2", "degC", "output"))
+        recorder = DatabaseRecorder(lab.db, run["id"], channels=(*RUN_CHANNELS, *extra))
+        recorder.open()
+        for k in range(3):
+            recorder.write(k, float(k), 2.0, 0.1 * k, k + 0.01, 0.01, 0.0, 5.0, math.nan)
+        recorder.close()
+        text = client.get(f"/api/runs/{run['id']}/samples.csv").text
+        exported = client.get(f"/api/runs/{run['id']}/export.json").json()
+    header, first = text.splitlines()[:2]
+    assert header == "t,u,y,k,t_read,jitter,lateness,r,y2"
+    assert first == "0,2.0,0.0,0,0.01,0.01,0.0,5.0,nan"
+    assert [c["name"] for c in exported["channels"]][-2:] == ["r", "y2"]
+    assert exported["samples"]["r"] == [5.0, 5.0, 5.0]
+    assert exported["samples"]["y2"] == [None, None, None]  # JSON has no NaN
+    with pytest.raises(ThermoLabError, match="RUN_CHANNELS"):
+        DatabaseRecorder(lab.db, run["id"], channels=extra)

@@ -381,6 +381,7 @@ def test_each_panel_builds_its_run_request(module_page: Any) -> None:
     r = run_js(
         module_page,
         """
+        (await import('/js/methods.js')).useMethods(SERVED);  // the panels' methods
         const { buildRunSpec, automaticSignal, panelOfRun } = await import('/js/runspec.js');
         const p1 = buildRunSpec({ id: 'srm-lsm' }, { dt: 1, n: 2000, setpoint: 0, block: 0 },
                                 false);
@@ -399,7 +400,7 @@ def test_each_panel_builds_its_run_request(module_page: Any) -> None:
                                    true);
         return { p1, p1b, p2, p3, p3w0, p3fit, p2old, sig: automaticSignal(4, 6, 1),
                  panels: [panelOfRun(p1), panelOfRun(p2), panelOfRun(p3)] };
-        """,
+        """.replace("SERVED", _served_methods()),
     )
     assert r["sig"] == "square:4:6:0.1"
     assert r["p1"] == {"dt": 1, "samples": 2000, "setpoint": 0, "methods": ["srm", "lsm"]}
@@ -640,52 +641,82 @@ def test_messages_fill_placeholders_pick_plurals_and_fall_back_to_english(module
     assert r["pt"]["htmlLang"] == "pt-BR"
 
 
-def test_panels_take_their_methods_from_the_registry_shape(module_page: Any) -> None:
-    """Panels read methods shaped as GET /api/methods: the server's can replace the copy."""
-    r = run_js(
-        module_page,
-        """
-        const m = await import('/js/methods.js');
-        const { panelOfRun, methodTitle } = await import('/js/runspec.js');
-        const { panelDefinitions, panelLimits } = await import('/js/views/panels/definitions.js');
-        const field = (defs, panel, name) =>
-          defs.find((d) => d.id === panel).fields.find((f) => f.name === name);
-        const before = panelDefinitions(panelLimits(null, null));
-        const out = {
-          local: before.map((d) => d.methods),
-          window: field(before, 'malsm', 'window').value,
-          gamma: ['value', 'exclusiveMin'].map((k) => field(before, 'wlsm', 'gamma')[k]),
-          trajectory: ['srm', 'malsm', 'wlsm#2'].map(m.hasTrajectory),
-          panel: panelOfRun({ methods: ['srm', 'lsm', 'blockls'] }),
-        };
-        let refused = '';
-        try { m.useMethods({ methods: [{ title: 'x' }] }); } catch (e) { refused = e.name; }
-        out.refused = refused;
-        const server = JSON.parse(JSON.stringify({ methods: m.LOCAL_METHODS }));
-        server.methods.find((x) => x.name === 'malsm').settings[0].default = 250;
-        server.methods.push({ name: 'rls', title: 'Recursive LS', panel: 'wlsm',
-                              returns: ['trajectory'], settings: [] });
-        m.useMethods(server);
-        const after = panelDefinitions(panelLimits(null, null));
-        out.served = {
-          window: field(after, 'malsm', 'window').value,
-          wlsmMethods: after.find((d) => d.id === 'wlsm').methods,
-          panel: panelOfRun({ methods: ['rls'] }),
-          title: methodTitle('rls'),
-          trajectory: m.hasTrajectory('rls'),
-        };
-        m.useMethods({ methods: m.LOCAL_METHODS });
-        return out;
-        """,
-    )
-    assert r["local"] == [["srm", "lsm", "blockls"], ["malsm"], ["wlsm"]]
-    assert r["window"] == 100
-    assert r["gamma"] == [0.96, True]
-    assert r["trajectory"] == [False, True, True]
+def _served_methods() -> str:
+    """The body of GET /api/methods, as JSON text for a page."""
+    from thermolab.lab.http.routers.methods import list_methods
+
+    return json.dumps(list_methods(), allow_nan=False)
+
+
+PANELS_FROM_SERVED_METHODS = """
+    const m = await import('/js/methods.js');
+    const { panelOfRun, methodTitle } = await import('/js/runspec.js');
+    const { panelDefinitions, panelLimits } = await import('/js/views/panels/definitions.js');
+    const field = (defs, panel, name) =>
+      defs.find((d) => d.id === panel).fields.find((f) => f.name === name);
+    const served = SERVED;
+    m.useMethods(served);
+    const defs = panelDefinitions(panelLimits(null, null));
+    const pick = (f) => ({ min: f.min, max: f.max, value: f.value,
+                           exclusiveMin: !!f.exclusiveMin, exclusiveMax: !!f.exclusiveMax });
+    const out = {
+      methods: defs.map((d) => d.methods),
+      window: pick(field(defs, 'malsm', 'window')),
+      gamma: pick(field(defs, 'wlsm', 'gamma')),
+      pmax: pick(field(defs, 'wlsm', 'pmax')),
+      a0b0: [field(defs, 'wlsm', 'a0').value, field(defs, 'wlsm', 'b0').value],
+      trajectory: ['srm', 'malsm', 'wlsm#2'].map(m.hasTrajectory),
+      panel: panelOfRun({ methods: ['srm', 'lsm', 'blockls'] }),
+    };
+    let refused = '';
+    try { m.useMethods({ methods: [{ title: 'x' }] }); } catch (e) { refused = e.name; }
+    out.refused = refused;
+    const more = JSON.parse(JSON.stringify(served));
+    more.methods.push({ name: 'rls', title: 'Recursive LS', panel: 3,
+                        returns: ['trajectory'], settings: [] });
+    m.useMethods(more);
+    const after = panelDefinitions(panelLimits(null, null));
+    out.added = {
+      wlsmMethods: after.find((d) => d.id === 'wlsm').methods,
+      panel: panelOfRun({ methods: ['rls'] }),
+      title: methodTitle('rls'),
+      trajectory: m.hasTrajectory('rls'),
+    };
+    m.useMethods(served);
+    return out;
+"""
+
+
+def test_panels_take_their_methods_from_get_api_methods(module_page: Any) -> None:
+    """Panels are built from GET /api/methods: the registry and the lab's run ranges."""
+    from thermolab.ident.registry import SETTINGS, get_method
+    from thermolab.lab.runs.request import RUN_SETTINGS
+
+    r = run_js(module_page, PANELS_FROM_SERVED_METHODS.replace("SERVED", _served_methods()))
+    assert r["methods"] == [["srm", "lsm", "blockls"], ["malsm"], ["wlsm"]]
+
+    def expected(name: str) -> dict[str, Any]:
+        s = RUN_SETTINGS[name]
+        return {
+            "min": s.minimum,
+            "max": s.maximum,
+            "value": s.default,
+            "exclusiveMin": s.exclusive_minimum,
+            "exclusiveMax": s.exclusive_maximum,
+        }
+
+    assert r["window"] == expected("window")
+    assert r["gamma"] == expected("gamma")  # the lab's narrowing: gamma < 1
+    assert r["gamma"]["exclusiveMax"] is True
+    assert r["pmax"]["min"] == 0
+    assert r["pmax"]["value"] == SETTINGS["pmax"].default
+    assert r["a0b0"] == list(SETTINGS["w0"].default)
+    assert r["trajectory"] == [
+        "trajectory" in get_method(n).returns for n in ("srm", "malsm", "wlsm")
+    ]
     assert r["panel"] == "srm-lsm"
     assert r["refused"] == "TypeError"
-    assert r["served"] == {
-        "window": 250,
+    assert r["added"] == {
         "wlsmMethods": ["wlsm", "rls"],
         "panel": "wlsm",
         "title": "Recursive LS",

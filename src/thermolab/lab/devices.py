@@ -26,14 +26,9 @@ from datetime import datetime
 from thermolab.errors import RigError, ThermoLabError
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig, RigConfig
-from thermolab.lab.config.rig_kinds import (
-    PublishedRig,
-    narrow_range,
-    parse_rig_spec,
-    published_defaults,
-)
+from thermolab.lab.config.rig_kinds import PublishedRig, narrow_range, published_defaults
 from thermolab.lab.db.models import PowerState
-from thermolab.rigs import Rig, make_clock, open_rig
+from thermolab.rigs import Rig, RigSpec, make_clock
 
 __all__ = [
     "DesiredState",
@@ -51,7 +46,7 @@ RigOpener = Callable[[RigConfig], Rig]
 
 
 def device_opener(speedup: float = 1.0) -> RigOpener:
-    """Return the opener of real rigs: :func:`thermolab.rigs.open_rig` on the rig's spec.
+    """Return the opener of real rigs: :meth:`thermolab.rigs.RigSpec.open` on the rig's spec.
 
     Twins run ``speedup`` times faster than real time; hardware always runs
     in real time.
@@ -65,9 +60,8 @@ def device_opener(speedup: float = 1.0) -> RigOpener:
     """
 
     def open_configured(rig: RigConfig) -> Rig:
-        simulated = parse_rig_spec(rig.spec)[0] == "sim"
-        clock = make_clock(speedup if simulated else 1.0)
-        return open_rig(rig.spec, clock=clock)
+        spec = RigSpec.parse(rig.spec)
+        return spec.open(clock=make_clock(speedup if spec.simulated else 1.0))
 
     return open_configured
 
@@ -156,15 +150,7 @@ class DeviceHub:
             try:
                 driver = self._opener(slot.config)
                 driver.power_off()
-                info = driver.describe()
-                base = PublishedRig(
-                    info.input_min,
-                    info.input_max,
-                    info.input_unit,
-                    info.output_unit,
-                    info.safe_input,
-                    True,
-                )
+                base = PublishedRig.of(driver.describe(), live=True)
                 slot.published = narrow_range(base, slot.config)
                 slot.driver = driver
                 slot.fault = None

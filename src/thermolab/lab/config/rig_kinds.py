@@ -1,17 +1,21 @@
-"""Rig kinds as the lab knows them: the spec grammar and each kind's units and ranges.
+"""Rig specs as the lab reads them: :class:`thermolab.rigs.RigSpec`, and the published range.
 
-The one place the lab reads a rig spec (``sim``, ``sim:PRESET``, ``tclab``,
-``tclab:PORT``) and the one place it states a kind's units and input range,
-so that reading them from the rigs layer instead is a change here only.
+The rigs layer owns the spec grammar (:meth:`RigSpec.parse`) and each kind's
+units, input range and safe input (:meth:`RigSpec.describe`, which opens
+nothing). The lab adds only what is its own: a configured ``input_range``
+narrowing the rig's range, and whether a driver is attached (``live``).
+:func:`parse_rig_spec` turns the rigs layer's error into a
+:class:`~thermolab.errors.ConfigError` so the configuration reader can name
+the key.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from thermolab.errors import ConfigError
+from thermolab.errors import ConfigError, InvalidParameterError
 from thermolab.lab.config.model import RigConfig
-from thermolab.rigs import PRESETS, RIG_SPECS
+from thermolab.rigs import RigInfo, RigSpec
 
 __all__ = ["PublishedRig", "narrow_range", "parse_rig_spec", "published_defaults"]
 
@@ -38,59 +42,68 @@ class PublishedRig:
     safe_input: float
     live: bool
 
+    @classmethod
+    def of(cls, info: RigInfo, *, live: bool) -> PublishedRig:
+        """What a rig described by ``info`` accepts, before the configuration narrows it."""
+        return cls(
+            info.input_min,
+            info.input_max,
+            info.input_unit,
+            info.output_unit,
+            info.safe_input,
+            live,
+        )
+
 
 def parse_rig_spec(spec: str) -> tuple[str, str | None]:
-    """Split a rig spec into its kind and argument, checking it names a known rig.
+    """Split a rig spec into its kind and argument with :meth:`RigSpec.parse`.
 
     Parameters
     ----------
     spec : str
-        ``sim`` (the paper's twin), ``sim:PRESET`` (a twin preset of
-        :data:`thermolab.rigs.PRESETS`), ``tclab`` (a kit, auto-detected) or
-        ``tclab:PORT``.
+        ``sim``, ``sim:PRESET``, ``tclab`` or ``tclab:PORT`` (see
+        :mod:`thermolab.rigs.spec`).
 
     Returns
     -------
     tuple
-        ``(kind, argument)``: ``("sim", None)``, ``("sim", "tclab")``,
-        ``("tclab", "/dev/ttyUSB0")``.
+        ``(kind, argument)``; a bare word takes its kind's default argument
+        (``sim`` is ``sim:paper``; ``tclab`` keeps ``None``: auto-detect).
 
     Raises
     ------
     ConfigError
-        If the spec is not one of the forms above.
+        With the rigs layer's message, when the spec is not understood.
 
     Examples
     --------
     >>> parse_rig_spec("tclab:/dev/ttyUSB0")
     ('tclab', '/dev/ttyUSB0')
     >>> parse_rig_spec("sim")
-    ('sim', None)
+    ('sim', 'paper')
     """
-    kind, sep, arg = spec.strip().partition(":")
-    arg = arg.strip()
-    if kind == "sim" and not sep:
-        return ("sim", None)
-    if kind == "sim" and arg in PRESETS:
-        return ("sim", arg)
-    if kind == "tclab" and not sep:
-        return ("tclab", None)
-    if kind == "tclab" and arg:
-        return ("tclab", arg)
-    raise ConfigError(f"rig spec {spec!r} is not understood; use one of: {', '.join(RIG_SPECS)}")
+    parsed = _spec(spec)
+    return (parsed.kind, parsed.argument)
+
+
+def _spec(spec: str) -> RigSpec:
+    try:
+        return RigSpec.parse(spec)
+    except InvalidParameterError as exc:
+        raise ConfigError(str(exc)) from None
 
 
 def published_defaults(rig: RigConfig) -> PublishedRig:
     """Return the published range of a rig without opening it.
 
-    The paper's box takes -10..10 V and reports volts; TCLab kits (and their
-    twin) take 0..100 % heater power and report degrees Celsius. A configured
-    ``input_range`` narrows the range.
+    Units, range and safe input are the rig kind's own
+    (:meth:`RigSpec.describe`); a configured ``input_range`` narrows the range.
 
     Raises
     ------
     ConfigError
-        If the configured range is not inside the rig's own.
+        If the spec is not understood or the configured range is not inside the
+        rig's own.
 
     Examples
     --------
@@ -98,12 +111,7 @@ def published_defaults(rig: RigConfig) -> PublishedRig:
     >>> tclab.input_min, tclab.input_max, tclab.input_unit, tclab.output_unit
     (0.0, 100.0, '%', 'degC')
     """
-    kind, arg = parse_rig_spec(rig.spec)
-    if kind == "tclab" or arg == "tclab":
-        base = PublishedRig(0.0, 100.0, "%", "degC", 0.0, False)
-    else:
-        base = PublishedRig(-10.0, 10.0, "V", "V", 0.0, False)
-    return narrow_range(base, rig)
+    return narrow_range(PublishedRig.of(_spec(rig.spec).describe(), live=False), rig)
 
 
 def narrow_range(base: PublishedRig, rig: RigConfig) -> PublishedRig:

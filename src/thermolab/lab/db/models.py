@@ -305,7 +305,15 @@ class Run(Base):
 
 
 class Sample(Base):
-    """One sample of a run: index, time, input and output."""
+    """One sample of a run: every channel of :data:`thermolab.records.RUN_CHANNELS`, and extras.
+
+    The runner's standard channels are columns (typed, compact, read in order by
+    the export); the channels a rig or controller adds (a set point, a second
+    heater) differ from run to run, so they go in ``extra`` as ``{name: value}``
+    (JSON; ``null`` for a non-finite value) rather than a table with one row
+    per value, which would multiply the rows and make every export a pivot.
+    The timing channels are null for samples stored before revision 0004.
+    """
 
     __tablename__ = "samples"
 
@@ -314,6 +322,10 @@ class Sample(Base):
     t: Mapped[float] = mapped_column(Float)
     u: Mapped[float] = mapped_column(Float)
     y: Mapped[float] = mapped_column(Float)
+    t_read: Mapped[float | None] = mapped_column(Float)
+    jitter: Mapped[float | None] = mapped_column(Float)
+    lateness: Mapped[float | None] = mapped_column(Float)
+    extra: Mapped[dict[str, float | None] | None] = mapped_column(JSON)
 
 
 class Command(Base):

@@ -1,9 +1,10 @@
 """The lab's HTTP side: the app factory, one router per resource, schemas, the live socket.
 
 * :mod:`.app` — :func:`create_app` (lifespan, sweeps, middleware);
-* :mod:`.routers` — ``session``, ``rigs``, ``runs``, ``users``;
+* :mod:`.routers` — ``session``, ``rigs``, ``runs``, ``methods``, ``users``;
 * :mod:`.deps` — the lab and the logged-in user as route dependencies;
-* :mod:`.schemas` — request and answer bodies (pydantic, camelCase);
+* :mod:`.schemas` — request and answer bodies (pydantic, camelCase; base models in
+  :mod:`.bodies`, a run's in :mod:`.run_schemas`, built from the method registry);
 * :mod:`.errors` — each error class's HTTP status and stable code;
 * :mod:`.limits` — the request size limit;
 * :mod:`.live_socket` — the WebSocket endpoint ``/api/rigs/{rig}/live``.

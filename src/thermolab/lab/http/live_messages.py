@@ -35,9 +35,15 @@ class SampleItem(TypedDict):
 
 
 class SampleMessage(SampleItem):
-    """``sample``: every sample of a run, and of the idle monitoring of a powered rig."""
+    """``sample``: every sample of a run, and of the idle monitoring of a powered rig.
+
+    ``channels`` holds every channel of a run's sample by name
+    (:meth:`thermolab.runner.SampleEvent.channels`: ``t,u,y,k,t_read,jitter,lateness``
+    and any a rig adds); an idle reading has only ``t``, ``u``, ``y``.
+    """
 
     type: Literal["sample"]
+    channels: dict[str, float | None]
 
 
 class SamplesMessage(TypedDict, total=False):

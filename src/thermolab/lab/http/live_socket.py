@@ -29,6 +29,7 @@ import anyio.to_thread
 from sqlalchemy import select
 from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
 
+from thermolab.jsonsafe import finite_or_none
 from thermolab.lab.access import RigSnapshot
 from thermolab.lab.db.models import LoginSession, Role
 from thermolab.lab.fanout import (
@@ -128,6 +129,7 @@ class LiveEndpoint:
                 "t": event.t,
                 "u": event.u,
                 "y": event.y,
+                "channels": {n: finite_or_none(v) for n, v in event.channels().items()},
             }
             self.hub.publish(rig_id, sample)
         elif isinstance(event, EstimateEvent):
@@ -156,6 +158,7 @@ class LiveEndpoint:
             "t": at.timestamp(),
             "u": u,
             "y": y,
+            "channels": {"t": at.timestamp(), "u": u, "y": y},
         }
         self.hub.publish(rig_id, sample)
 

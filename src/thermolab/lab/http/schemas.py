@@ -1,23 +1,24 @@
 """JSON bodies of the lab's HTTP API (pydantic models, camelCase on the wire).
 
 Request bodies refuse unknown fields and values of the wrong type, so a typo
-is a 422 naming the field rather than a silently ignored setting.
+is a 422 naming the field rather than a silently ignored setting (the base
+models are :mod:`.bodies`). A run's bodies are in :mod:`.run_schemas`,
+re-exported here.
 """
 
 from __future__ import annotations
 
-import math
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, PlainValidator, WithJsonSchema
-from pydantic.alias_generators import to_camel
-from pydantic_core import PydanticCustomError
+from pydantic import Field
 
 from thermolab.lab.access import QueueSlot, RigView
 from thermolab.lab.db.models import ControlSession
+from thermolab.lab.http.bodies import In as _In
+from thermolab.lab.http.bodies import Out as _Out
+from thermolab.lab.http.run_schemas import OperatingPointOut, RunIn, RunOut
 from thermolab.lab.presence import Watcher
-from thermolab.lab.runs import MAX_DT, MAX_SAMPLES, MIN_DT, OFFSET_MODES, RunRecord, RunRequest
 from thermolab.lab.security import MAX_PASSWORD_LENGTH, MIN_PASSWORD_LENGTH
 from thermolab.lab.service import InputResult
 from thermolab.lab.users import Principal, UserInfo
@@ -47,16 +48,6 @@ __all__ = [
     "ValidationErrorOut",
     "WatcherOut",
 ]
-
-
-class _In(BaseModel):
-    model_config = ConfigDict(
-        alias_generator=to_camel, populate_by_name=True, extra="forbid", strict=True
-    )
-
-
-class _Out(BaseModel):
-    model_config = ConfigDict(alias_generator=to_camel, populate_by_name=True)
 
 
 # -- errors --------------------------------------------------------------------------------
@@ -308,178 +299,6 @@ class InputOut(_Out):
         """Build from an input result."""
         return cls(
             rig=result.rig_id, u=result.u, applied=result.applied, at=result.at, run=result.run_id
-        )
-
-
-FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
-
-
-def _offset(value: object) -> str | float:
-    # One message for the one choice (a union type would report each branch's error).
-    if isinstance(value, str) and value in OFFSET_MODES:
-        return value
-    if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
-        return float(value)
-    raise PydanticCustomError(
-        "offset",
-        "Input should be 'auto', 'initial', 'fit', 'none' or a finite number (a known ambient)",
-    )
-
-
-class RunIn(_In):
-    """START: the run's schedule, input and identification methods (the paper's panels)."""
-
-    dt: Annotated[
-        float,
-        # Published here, checked once by thermolab.lab.runs.request.check_request.
-        Field(
-            allow_inf_nan=False,
-            json_schema_extra={"minimum": MIN_DT, "maximum": MAX_DT},
-            description="sample period, s",
-        ),
-    ]
-    samples: Annotated[int, Field(ge=1, le=MAX_SAMPLES, description="samples to take")]
-    signal: Annotated[
-        str | None,
-        Field(
-            max_length=200,
-            description="input signal: const:U, step:U0:U1@T, square:LOW:HIGH:HZ, "
-            "sine:OFFSET:AMP:HZ, prbs:LOW:HIGH:BIT_S[:SEED]; null for a manual set point",
-        ),
-    ] = None
-    setpoint: Annotated[
-        float | None,
-        Field(allow_inf_nan=False, description="manual input at START (with no signal)"),
-    ] = None
-    methods: Annotated[
-        list[Literal["srm", "lsm", "blockls", "malsm", "wlsm"]],
-        Field(min_length=1, max_length=5, description="identification methods"),
-    ] = ["srm", "lsm"]
-    window: Annotated[int | None, Field(ge=2, le=100_000, description="MALSM window")] = None
-    block: Annotated[int | None, Field(ge=2, le=100_000, description="block-LSM block")] = None
-    # The lab runs WLSM in the paper's form, where gamma = 1 has no meaning (alpha = 0).
-    gamma: Annotated[
-        float | None,
-        Field(gt=0, lt=1, allow_inf_nan=False, description="WLSM forgetting factor"),
-    ] = None
-    pmax: Annotated[
-        float | None, Field(gt=0, allow_inf_nan=False, description="WLSM initial covariance")
-    ] = None
-    w0: Annotated[
-        list[FiniteFloat] | None,
-        Field(
-            min_length=2,
-            max_length=3,
-            description="WLSM initial parameters [a0, b0] of y(k+1) = a y(k) + b u(k) "
-            "([a0, b0, c0] with offset 'fit', c0 the constant term); "
-            "null: the paper's W0 = [0.96329, 9.9082e-4]",
-        ),
-    ] = None
-    offset: Annotated[
-        str | float,
-        PlainValidator(_offset),
-        WithJsonSchema(
-            {"anyOf": [{"type": "string", "enum": list(OFFSET_MODES)}, {"type": "number"}]}
-        ),
-        Field(
-            description="the operating point: 'initial' removes the first sample (an "
-            "equilibrium at 0 V), 'fit' estimates a constant term, 'none' is the raw "
-            "regression, a number is the known ambient output; 'auto' is decided from the data "
-            "(the run's operatingPoint and each result say what was used and found)"
-        ),
-    ] = "auto"
-
-    def request(self) -> RunRequest:
-        """The run service's request."""
-        return RunRequest(
-            dt=self.dt,
-            samples=self.samples,
-            signal=self.signal,
-            setpoint=self.setpoint,
-            methods=tuple(self.methods),
-            window=self.window,
-            block=self.block,
-            gamma=self.gamma,
-            pmax=self.pmax,
-            w0=None if self.w0 is None else tuple(self.w0),
-            offset=self.offset,
-        )
-
-
-class OperatingPointOut(_Out):
-    """How a run's identifiers treat the operating point, and why."""
-
-    asked: str | float = Field(description="the request's offset")
-    used: str | float | None = Field(
-        description="the mode used; null when no chosen method regresses on the output"
-    )
-    reason: str
-
-
-class RunOut(_Out):
-    """A run: what was asked, how far it got, how it ended, each method's latest estimate."""
-
-    id: int
-    rig: str
-    username: str
-    status: Literal["running", "finished", "stopped", "interrupted", "failed"]
-    dt: float
-    samples: int | None
-    samples_stored: int
-    samples_taken: int
-    signal: str | None
-    setpoint: float | None
-    methods: list[str]
-    settings: dict[str, Any]
-    started_at: datetime
-    ended_at: datetime | None
-    end_reason: str | None
-    results: dict[str, Any] = Field(
-        description="per method: latest estimate (K, tau, W, valid, final, extras.reason...), "
-        "error, and once the run is over stats: mean/max/min of K and tau over the last "
-        "2000 samples and converged_at, the samples to converge within ±1 % "
-        "(thermolab.ident.Trajectory.stats / converged_at)"
-    )
-    operating_point: OperatingPointOut | None = Field(
-        description="how the operating point was handled (null for runs from before it was kept)"
-    )
-    ends_at: datetime | None = Field(
-        default=None,
-        description="the run's planned end: START plus samples × dt in real time (null for "
-        "runs from before it was kept)",
-    )
-    timing: dict[str, Any] | None = Field(
-        default=None,
-        description="once the run is over: rig ('real' or 'twin'), maxLateness and "
-        "p95Lateness (wall-clock, s; null for a twin, whose data are exact), periodSpread (std "
-        "of the periods between the readings' times over their median) and warnings",
-    )
-
-    @classmethod
-    def of(cls, run: RunRecord) -> RunOut:
-        """Build from a run record."""
-        return cls.model_validate(
-            {
-                "id": run.id,
-                "rig": run.rig_id,
-                "username": run.username,
-                "status": run.status,
-                "dt": run.dt,
-                "samples": run.samples,
-                "samples_stored": run.samples_stored,
-                "samples_taken": run.samples_taken,
-                "signal": run.signal,
-                "setpoint": run.setpoint,
-                "methods": run.methods,
-                "settings": run.settings,
-                "started_at": run.started_at,
-                "ended_at": run.ended_at,
-                "end_reason": run.end_reason,
-                "results": run.results,
-                "operating_point": run.operating_point,
-                "ends_at": run.ends_at,
-                "timing": run.timing,
-            }
         )
 
 

@@ -1,31 +1,38 @@
 """A run request: what a controller asks for at START, and its one validation.
 
-The bounds (:data:`MIN_DT`, :data:`MAX_DT`, :data:`MAX_SAMPLES`,
-:data:`OFFSET_MODES`) are declared here; the HTTP schema publishes them and
-:func:`check_request` enforces them, once. The identification methods' own
-settings are built into identifiers here too (:func:`build_run_identifiers`),
-so that the method registry can replace this one module.
+The run's own bounds (:data:`MIN_DT`, :data:`MAX_DT`, :data:`MAX_SAMPLES`) are
+declared here. The identification methods, their settings, defaults and
+ranges are the registry's (:mod:`thermolab.ident.registry`):
+:data:`RUN_SETTINGS` picks the settings a run request carries and is the one
+place the lab narrows a registry range (:data:`LAB_NARROWING`, each with its
+reason). The HTTP schema (:class:`thermolab.lab.http.schemas.RunIn`) is built
+from :data:`RUN_SETTINGS` and :func:`check_request` enforces it, once;
+``tests/ident/test_registry.py`` checks both against the registry.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Any
 
 from thermolab.errors import InvalidParameterError
 from thermolab.ident.online import OnlineIdentifier
+from thermolab.ident.registry import SETTINGS, Setting, owners
 from thermolab.runner.methods import build_identifiers, parse_methods
 from thermolab.signals import parse_signal
-from thermolab.simulation import PAPER_W0
 
 __all__ = [
+    "LAB_NARROWING",
     "MAX_DT",
     "MAX_SAMPLES",
     "MIN_DT",
     "OFFSET_METHODS",
     "OFFSET_MODES",
+    "RUN_SETTINGS",
     "RunRequest",
     "build_run_identifiers",
     "check_request",
@@ -37,13 +44,34 @@ MAX_SAMPLES = 200_000
 MIN_DT = 0.01
 MAX_DT = 3600.0
 #: How a run's identifiers may treat the operating point: ``"auto"`` (decided from the
-#: data, see :mod:`thermolab.lab.runs.operating_point`) or one of :mod:`thermolab.ident`'s modes; a
-#: number is also accepted (a known ambient output).
-OFFSET_MODES = ("auto", "initial", "fit", "none")
-#: The paper's tables: statistics over the last 2000 samples, convergence within ±1 %.
+#: data, see :func:`thermolab.lab.runs.operating_point.choose_operating_point`) or one of
+#: the registry's ``offset`` choices; a number is also accepted (a known ambient output).
+OFFSET_MODES: tuple[str, ...] = ("auto", *SETTINGS["offset"].choices)
 
 #: Methods that regress on the output and so have an operating point to handle.
-OFFSET_METHODS = ("lsm", "blockls", "malsm", "wlsm")
+OFFSET_METHODS: tuple[str, ...] = owners("offset")
+
+#: Where the lab deliberately accepts less than the registry allows, and why. Every
+#: other bound of a run setting is the registry's.
+LAB_NARROWING: Mapping[str, Mapping[str, Any]] = MappingProxyType(
+    {
+        # The lab runs WLSM in the paper's form, where gamma = 1 has no meaning (alpha = 0).
+        "gamma": {"maximum": 1.0, "exclusive_maximum": True},
+        # A window or block longer than the longest run could never fill.
+        "window": {"maximum": MAX_SAMPLES},
+        "block": {"maximum": MAX_SAMPLES},
+    }
+)
+
+#: The method settings a run request carries (each the registry's, narrowed by
+#: :data:`LAB_NARROWING`); the others keep the registry's default. ``offset`` is
+#: apart: the lab adds ``"auto"`` (:data:`OFFSET_MODES`).
+RUN_SETTINGS: Mapping[str, Setting] = MappingProxyType(
+    {
+        name: dataclasses.replace(SETTINGS[name], **LAB_NARROWING.get(name, {}))
+        for name in ("window", "block", "gamma", "pmax", "w0")
+    }
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,7 +98,7 @@ class RunRequest:
     w0 : tuple of float or None
         WLSM initial parameters ``[a0, b0]`` of the first-order model (``[a0,
         b0, c0]`` with ``offset="fit"``, ``c0`` the constant term); ``None`` is
-        the paper's ``W0 = [0.96329, 9.9082e-4]``.
+        the registry's default (the paper's W0).
     offset : str or float
         How the identifiers treat the operating point: ``"auto"`` (decided
         from the data, see :func:`.operating_point.choose_operating_point`),
@@ -142,6 +170,8 @@ def check_request(request: RunRequest, limits: tuple[float, float]) -> dict[str,
             f"samples must be between 1 and {MAX_SAMPLES}, got {request.samples!r}"
         )
     methods = parse_methods(request.methods)
+    for name, setting in RUN_SETTINGS.items():
+        setting.check(getattr(request, name))
     _check_offset(request.offset)
     if request.w0 is not None:
         _check_w0(request.w0, request.offset, methods)
@@ -166,26 +196,22 @@ def build_run_identifiers(
     """Build a checked request's identifiers with the chosen ``offset``.
 
     Returns the identifiers by method and the settings stored with the run
-    (``w0`` filled in with the paper's W0 when WLSM runs without one).
+    (``w0`` filled in with the start WLSM used: the registry's default when
+    none was given).
     """
     methods = parse_methods(request.methods)
     options: dict[str, dict[str, Any]] = {
         m: {"offset": offset} for m in methods if m in OFFSET_METHODS
     }
     settings = request.settings()
-    if "wlsm" in methods:
-        w0 = list(PAPER_W0) if request.w0 is None else list(request.w0)
-        options["wlsm"]["w0"] = w0
-        settings["w0"] = w0
     identifiers = build_identifiers(
         methods,
         request.dt,
-        window=request.window,
-        block=request.block,
-        gamma=request.gamma,
-        pmax=request.pmax,
         options=options,
+        **{name: getattr(request, name) for name in RUN_SETTINGS},
     )
+    if "wlsm" in identifiers:
+        settings["w0"] = list(identifiers["wlsm"].params["w0"])
     return identifiers, settings
 
 
@@ -217,7 +243,3 @@ def _check_w0(w0: Sequence[float], offset: str | float, methods: Sequence[str]) 
             else "2 entries [a0, b0] (3, with the constant term c0, only with offset 'fit')"
         )
         raise InvalidParameterError(f"w0 must have {allowed}, got {len(w0)}")
-    if any(
-        isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) for v in w0
-    ):
-        raise InvalidParameterError(f"w0 must hold finite numbers, got {list(w0)!r}")

@@ -55,6 +55,7 @@ from thermolab.lab.runs.store import (
 )
 from thermolab.lab.runs.timing import timing_summary
 from thermolab.lab.users import Principal
+from thermolab.records import ChannelSpec
 from thermolab.runner import EndReason, Event, EventBus, Experiment, RunResult
 from thermolab.runner.methods import parse_methods
 
@@ -377,22 +378,21 @@ class RunService:
         self._store.owned_run(run_id, who)
         return self._store.samples(run_id)
 
+    def record_rows(
+        self, run_id: int, who: Principal
+    ) -> tuple[tuple[ChannelSpec, ...], Iterator[tuple[float, ...]]]:
+        """Return a run's channels and its samples' values of them (checked as get)."""
+        self._store.owned_run(run_id, who)
+        channels = self._store.channels(run_id)
+        return channels, self._store.channel_rows(run_id, channels)
+
     def export(self, run_id: int, who: Principal) -> dict[str, Any]:
         """Return a run with its samples and every method's stored result (JSON-ready)."""
         record = self.get(run_id, who)
-        ks, ts, us, ys = [], [], [], []
-        for k, t, u, y in self._store.samples(run_id):
-            ks.append(k)
-            ts.append(t)
-            us.append(u)
-            ys.append(y)
         _, methods = self._store.read(run_id)
+        # The samples by channel name, with the channels' units (thermolab.records).
         exported: dict[str, Any] = json_safe(
-            {
-                "run": record,
-                "samples": {"k": ks, "t": ts, "u": us, "y": ys},
-                "methods": methods,
-            }
+            {"run": record, **self._store.record(run_id), "methods": methods}
         )
         return exported
 

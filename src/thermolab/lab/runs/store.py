@@ -6,14 +6,23 @@ writer thread inserts the buffer at least once a second, so a crash of the
 server loses at most about a second of samples. At the end the methods'
 results (final estimate, trajectories and statistics) go to
 ``method_results`` and the run row records how it ended
-(:meth:`RunStore.save_end`). The CSV export is :func:`samples_csv`.
+(:meth:`RunStore.save_end`).
+
+A sample keeps every channel of the run (:data:`thermolab.records.RUN_CHANNELS`
+and the extra channels a rig or controller adds, see
+:class:`~thermolab.lab.db.models.Sample`); :meth:`RunStore.channels` and
+:meth:`RunStore.channel_rows` read them back by name, and the CSV export
+(:func:`samples_csv`) writes them with :mod:`thermolab.records`, the one
+record format.
 """
 
 from __future__ import annotations
 
+import io
 import logging
+import math
 import threading
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
@@ -22,7 +31,7 @@ from sqlalchemy import func, insert, select, update
 from sqlalchemy.orm import Session
 
 from thermolab.errors import AccessDeniedError, NotFoundError, ThermoLabError
-from thermolab.jsonsafe import json_safe
+from thermolab.jsonsafe import finite_or_none, json_safe
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import (
     Command,
@@ -35,6 +44,7 @@ from thermolab.lab.db.models import (
 )
 from thermolab.lab.security import normalize_username
 from thermolab.lab.users import Principal
+from thermolab.records import RUN_CHANNELS, ChannelSpec, RecordWriter
 from thermolab.runner import EndReason
 
 __all__ = [
@@ -51,6 +61,11 @@ log = logging.getLogger(__name__)
 
 StoredSample = tuple[int, float, float, float]
 """``(k, t, u, y)`` of a stored sample."""
+
+#: The channels of a sample stored before revision 0004 (no timing, no extras).
+_EARLY_CHANNELS: tuple[ChannelSpec, ...] = RUN_CHANNELS[:4]
+#: The standard channels, each a column of ``samples``.
+_COLUMNS = {c.name: getattr(Sample, c.name) for c in RUN_CHANNELS}
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,6 +119,10 @@ class DatabaseRecorder:
         Longest time (seconds) a sample waits in memory.
     on_sample : callable, optional
         Called with each sample's ``(u, y)`` (keeps the lab's view of the rig fresh).
+    channels : sequence of ChannelSpec, optional
+        The run's channels (``Experiment.channels``): :data:`~thermolab.records.RUN_CHANNELS`
+        (the default), then any extra channels, whose values ``write`` takes
+        after the standard ones.
     """
 
     def __init__(
@@ -113,7 +132,12 @@ class DatabaseRecorder:
         *,
         interval: float = 0.5,
         on_sample: Callable[[float, float], None] | None = None,
+        channels: Sequence[ChannelSpec] = RUN_CHANNELS,
     ) -> None:
+        if tuple(channels[: len(RUN_CHANNELS)]) != RUN_CHANNELS:
+            raise ThermoLabError("a run's channels start with thermolab.records.RUN_CHANNELS")
+        self.channels = tuple(channels)
+        self._extra = tuple(c.name for c in channels[len(RUN_CHANNELS) :])
         self._db = db
         self.run_id = run_id
         self._interval = interval
@@ -134,14 +158,36 @@ class DatabaseRecorder:
         self._thread.start()
 
     def write(
-        self, k: int, t: float, u: float, y: float, t_read: float, jitter: float, lateness: float
+        self,
+        k: int,
+        t: float,
+        u: float,
+        y: float,
+        t_read: float,
+        jitter: float,
+        lateness: float,
+        *extra: float,
     ) -> None:
-        """Queue one sample for the database (never blocks on it)."""
+        """Queue one sample, every channel, for the database (never blocks on it)."""
         if self.error is not None:
             # The store failed: stop the run rather than lose samples silently.
             raise ThermoLabError(f"cannot store the run's samples: {self.error}")
+        row = {
+            "run_id": self.run_id,
+            "k": k,
+            "t": t,
+            "u": u,
+            "y": y,
+            "t_read": t_read,
+            "jitter": jitter,
+            "lateness": lateness,
+            # JSON has no NaN (PostgreSQL refuses it): a missing value is null.
+            "extra": {n: finite_or_none(v) for n, v in zip(self._extra, extra, strict=True)}
+            if self._extra
+            else None,
+        }
         with self._lock:
-            self._buffer.append({"run_id": self.run_id, "k": k, "t": t, "u": u, "y": y})
+            self._buffer.append(row)
         if self._on_sample is not None:
             self._on_sample(u, y)
 
@@ -180,25 +226,30 @@ class DatabaseRecorder:
                 return
 
 
-def samples_csv(samples: Iterable[StoredSample]) -> Iterator[str]:
-    r"""The CSV text of a run's samples, in chunks: ``t,u,y`` first (then ``k``).
+def samples_csv(channels: Sequence[ChannelSpec], rows: Iterable[Sequence[float]]) -> Iterator[str]:
+    r"""The CSV text of a run's record, in chunks, in the one record format.
 
-    The file feeds straight into ``thermolab identify``.
+    Written by :class:`thermolab.records.RecordWriter`.
+
+    Columns ``t,u,y`` first, then the other channels: the file feeds straight
+    into ``thermolab identify`` and :func:`thermolab.records.read_record`.
 
     Examples
     --------
-    >>> "".join(samples_csv([(0, 0.0, 1.0, 0.5), (1, 1.0, 1.0, 0.625)]))
-    't,u,y,k\n0.0,1.0,0.5,0\n1.0,1.0,0.625,1\n'
+    >>> from thermolab.records import RUN_CHANNELS
+    >>> "".join(samples_csv(RUN_CHANNELS[:4], [(0.0, 1.0, 0.5, 0), (1.0, 1.0, 0.625, 1)]))
+    't,u,y,k\n0,1.0,0.5,0\n1,1.0,0.625,1\n'
     """
-
-    yield "t,u,y,k\n"
-    chunk: list[str] = []
-    for k, t, u, y in samples:
-        chunk.append(f"{t!r},{u!r},{y!r},{k}\n")
-        if len(chunk) >= 1000:
-            yield "".join(chunk)
-            chunk = []
-    yield "".join(chunk)
+    buffer = io.StringIO()
+    writer = RecordWriter(buffer, channels)
+    writer.write_header()
+    for row in rows:
+        writer.write_row(row)
+        if writer.rows % 1000 == 0:
+            yield buffer.getvalue()
+            buffer.seek(0)
+            buffer.truncate()
+    yield buffer.getvalue()
 
 
 class RunStore:
@@ -269,6 +320,67 @@ class RunStore:
             )
             for row in rows:
                 yield (row[0], row[1], row[2], row[3])
+
+    def channels(self, run_id: int) -> tuple[ChannelSpec, ...]:
+        """The channels of a run's stored samples, in record order.
+
+        :data:`~thermolab.records.RUN_CHANNELS` and the extra channels of the
+        first sample (by name; ``t,u,y,k`` for samples stored before revision
+        0004, which have no timing).
+        """
+        with self._db.read() as session:
+            first = session.execute(
+                select(Sample.t_read, Sample.extra)
+                .where(Sample.run_id == run_id)
+                .order_by(Sample.k)
+                .limit(1)
+            ).first()
+        if first is None or first[0] is None:
+            return _EARLY_CHANNELS
+        return (*RUN_CHANNELS, *(ChannelSpec(name) for name in first[1] or {}))
+
+    def channel_rows(
+        self, run_id: int, channels: Sequence[ChannelSpec]
+    ) -> Iterator[tuple[float, ...]]:
+        """Yield each stored sample's values of ``channels`` (from :meth:`channels`), in order.
+
+        A value missing from a sample (an extra channel it lacks, a null) is NaN.
+        """
+        standard = [c.name for c in channels if c.name in _COLUMNS]
+        extra = [c.name for c in channels if c.name not in _COLUMNS]
+        order = [c.name for c in channels]
+        with self._db.read() as session:
+            rows = session.execute(
+                select(*(_COLUMNS[name] for name in standard), Sample.extra)
+                .where(Sample.run_id == run_id)
+                .order_by(Sample.k)
+                .execution_options(yield_per=2000)
+            )
+            for row in rows:
+                values = dict(zip(standard, row, strict=False))
+                stored = row[-1] or {}
+                values.update({name: stored.get(name) for name in extra})
+                yield tuple(math.nan if values[n] is None else values[n] for n in order)
+
+    def record(self, run_id: int) -> dict[str, Any]:
+        """A run's samples by channel, for ``export.json``.
+
+        Returns
+        -------
+        dict
+            ``{"channels": [ChannelSpec.to_dict(), ...], "samples": {name: [value, ...]}}``
+            (non-finite values as ``None``), in record order.
+        """
+        channels = self.channels(run_id)
+        columns: list[list[float]] = [[] for _ in channels]
+        for row in self.channel_rows(run_id, channels):
+            for column, value in zip(columns, row, strict=True):
+                column.append(value)
+        samples = {c.name: column for c, column in zip(channels, columns, strict=True)}
+        for c in channels:
+            if c.integer:
+                samples[c.name] = [int(v) for v in samples[c.name]]
+        return {"channels": [c.to_dict() for c in channels], "samples": json_safe(samples)}
 
     def save_end(
         self,

@@ -91,12 +91,13 @@ def get_run(run_id: RunId, who: UserDep, lab: LabDep) -> RunOut:
     responses={200: {"content": {"text/csv": {}}}, **documented_errors(403, 404)},
 )
 def run_samples_csv(run_id: RunId, who: UserDep, lab: LabDep) -> StreamingResponse:
-    """Columns ``t,u,y`` first (then ``k``): the file feeds straight into
-    ``thermolab identify``.
+    """Columns ``t,u,y`` first, then every other channel of the run by name (``k``,
+    ``t_read``, ``jitter``, ``lateness``, and any a rig adds): the file feeds straight
+    into ``thermolab identify`` (format: :mod:`thermolab.records`).
     """
-    rows = lab.runs.samples(run_id, who)
+    channels, rows = lab.runs.record_rows(run_id, who)
     return StreamingResponse(
-        samples_csv(rows),
+        samples_csv(channels, rows),
         media_type="text/csv",
         headers={"Content-Disposition": f'attachment; filename="run-{run_id}.csv"'},
     )

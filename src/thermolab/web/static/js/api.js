@@ -115,11 +115,12 @@ export const api = {
     request("POST", `/api/rigs/${enc(rig)}/control/kick`, username ? { username } : {}),
   controlSessions: (rig, opts) => request("GET", `/api/rigs/${enc(rig)}/control-sessions`, undefined, opts),
   setService: (rig, inService) => request("PUT", `/api/rigs/${enc(rig)}/service`, { inService }),
+  methods: (opts) => request("GET", "/api/methods", undefined, opts),
   runs: (query = "", opts) => request("GET", `/api/runs${query}`, undefined, opts),
   run: (id, opts) => request("GET", `/api/runs/${enc(id)}`, undefined, opts),
   csvUrl: (id) => `/api/runs/${enc(id)}/samples.csv`,
   exportUrl: (id) => `/api/runs/${enc(id)}/export.json`,
-  /** Everything stored about a run: {run, samples: {k, t, u, y}, methods: {label: {method, params, result}}}. */
+  /** Everything stored about a run: {run, channels: [{name, unit, role, description}], samples: {channel name: values}, methods: {label: {method, params, result}}}. */
   exportRun: (id, opts) => request("GET", `/api/runs/${enc(id)}/export.json`, undefined, opts),
   cameraUrl: (rig) => `/api/rigs/${enc(rig)}/camera`,
 };

@@ -9,6 +9,7 @@
 import { api, ApiError, setUnauthorizedHandler } from "./api.js";
 import { announce, h, replaceChildren, setText } from "./dom.js";
 import { LANGUAGES, language, preferredLanguage, t, translatePage, useLanguage } from "./i18n.js";
+import { loadMethods } from "./methods.js";
 
 /** Routes: pattern → view module loader. The first match wins. */
 const ROUTES = [
@@ -131,6 +132,8 @@ async function render(opts = {}) {
   const params = path.match(route.pattern).slice(1).map(decodeURIComponent);
   let mod;
   try {
+    // The identification methods (GET /api/methods) before any view builds panels or results.
+    if (!route.open) await loadMethods();
     mod = await route.view();
   } catch (err) {
     replaceChildren(main, h("p", { class: "error" }, t("app.pageFailed", { error: String(err) })));

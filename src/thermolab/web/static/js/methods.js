@@ -1,20 +1,22 @@
 // @ts-check
-// The identification methods, in the shape the server is to publish at
-// GET /api/methods (issue 9): name, title, panel, what each returns and its
-// settings with their defaults and ranges. Until the server publishes it,
-// LOCAL_METHODS is the interface's copy of the library's registry (the one
-// table of method facts in the browser code); useMethods() swaps in the
-// server's answer, and every view reads the methods through this module.
+// The identification methods, as the server publishes them at GET /api/methods
+// (thermolab.ident.registry: name, title, paper's panel, what each returns and
+// its settings with their defaults and ranges, plus the ranges the lab narrows
+// for a run in `runSettings`). The browser holds no copy of them: loadMethods()
+// fetches them once per page load (app.js awaits it before mounting a view) and
+// every view reads the methods through this module.
+
+import { api } from "./api.js";
 
 /**
  * @typedef {object} Setting  one setting of a method (GET /api/methods)
  * @property {string} name
- * @property {string} type  "int", "float" or "float[]"
+ * @property {string} type  "integer", "number", "number_list", "choice", ...
  * @property {unknown} default
  * @property {number | null} [minimum]
  * @property {number | null} [maximum]
- * @property {number | null} [exclusiveMinimum]
- * @property {number | null} [exclusiveMaximum]
+ * @property {boolean | null} [exclusiveMinimum]  true: the minimum itself is not allowed
+ * @property {boolean | null} [exclusiveMaximum]  true: the maximum itself is not allowed
  * @property {string[] | null} [choices]
  * @property {string | null} [unit]
  * @property {string} [help]
@@ -24,48 +26,30 @@
  * @property {string} name
  * @property {string} title
  * @property {string} [description]
- * @property {string} panel  the paper's panel that runs it
+ * @property {string} panel  the id of the interface's panel that runs it
  * @property {string[]} returns  "final" and/or "trajectory" (an estimate per sample or block)
  * @property {Setting[]} settings
  */
 
-/**
- * The interface's copy, until the server publishes its own. Titles are left
- * to the message catalogue (runspec.methodTitle), so each is the method's name.
- * @type {readonly Method[]}
- */
-export const LOCAL_METHODS = Object.freeze([
-  { name: "srm", title: "srm", panel: "srm-lsm", returns: ["final"], settings: [] },
-  { name: "lsm", title: "lsm", panel: "srm-lsm", returns: ["final"], settings: [] },
-  {
-    name: "blockls",
-    title: "blockls",
-    panel: "srm-lsm",
-    returns: ["final", "trajectory"],
-    settings: [{ name: "block", type: "int", default: null, minimum: 2, maximum: 100000, unit: "samples" }],
-  },
-  {
-    name: "malsm",
-    title: "malsm",
-    panel: "malsm",
-    returns: ["final", "trajectory"],
-    settings: [{ name: "window", type: "int", default: 100, minimum: 2, maximum: 100000, unit: "samples" }],
-  },
-  {
-    name: "wlsm",
-    title: "wlsm",
-    panel: "wlsm",
-    returns: ["final", "trajectory"],
-    settings: [
-      { name: "gamma", type: "float", default: 0.96, exclusiveMinimum: 0, exclusiveMaximum: 1 },
-      { name: "pmax", type: "float", default: 10000, exclusiveMinimum: 0 },
-      { name: "w0", type: "float[]", default: [0.96329, 9.9082e-4] },
-    ],
-  },
-]);
+/** The interface's panel ids of the paper's panels 1, 2 and 3 (the registry's `panel`). */
+export const PANEL_IDS = Object.freeze(["srm-lsm", "malsm", "wlsm"]);
 
 /** @type {readonly Method[]} */
-let current = LOCAL_METHODS;
+let current = Object.freeze([]);
+/** @type {Promise<void> | null} */
+let loading = null;
+
+/**
+ * Fetch GET /api/methods once and offer its methods (later calls share the answer).
+ * @returns {Promise<void>}
+ */
+export function loadMethods() {
+  loading ??= api.methods().then(useMethods, (err) => {
+    loading = null; // try again on the next page
+    throw err;
+  });
+  return loading;
+}
 
 /** The methods the interface offers now. */
 export function methods() {
@@ -73,22 +57,39 @@ export function methods() {
 }
 
 /**
- * Read the answer of GET /api/methods; throws TypeError on another shape.
+ * A panel id from the registry's panel number (1, 2, 3) or an id already.
+ * @param {unknown} panel
+ */
+function panelId(panel) {
+  if (typeof panel === "number") return PANEL_IDS[panel - 1];
+  return typeof panel === "string" ? panel : undefined;
+}
+
+/**
+ * Read the answer of GET /api/methods; throws TypeError on another shape. A setting
+ * the lab narrows for a run (`runSettings`) takes the lab's range.
  * @param {any} json
  * @returns {Method[]}
  */
 export function readMethods(json) {
   const list = json && typeof json === "object" ? json.methods : null;
   if (!Array.isArray(list)) throw new TypeError("GET /api/methods: no methods list");
+  /** @type {Map<string, Setting>} */
+  const narrowed = new Map();
+  for (const s of Array.isArray(json.runSettings) ? json.runSettings : []) {
+    if (s && typeof s.name === "string") narrowed.set(s.name, s);
+  }
   return list.map((m) => {
-    if (!m || typeof m.name !== "string" || typeof m.panel !== "string") throw new TypeError("GET /api/methods: a method without name or panel");
+    const panel = m ? panelId(m.panel) : undefined;
+    if (!m || typeof m.name !== "string" || panel === undefined) throw new TypeError("GET /api/methods: a method without name or panel");
+    const settings = Array.isArray(m.settings) ? m.settings.filter((s) => s && typeof s.name === "string") : [];
     return {
       name: m.name,
       title: String(m.title ?? m.name),
       description: typeof m.description === "string" ? m.description : undefined,
-      panel: m.panel,
+      panel,
       returns: Array.isArray(m.returns) ? m.returns.map(String) : ["final"],
-      settings: Array.isArray(m.settings) ? m.settings.filter((s) => s && typeof s.name === "string") : [],
+      settings: settings.map((s) => narrowed.get(s.name) ?? s),
     };
   });
 }
@@ -128,7 +129,8 @@ export function panelMethods(panel) {
 
 /**
  * A setting's allowed range as the form checks it (validate.js's FieldSpec
- * less the label), and its default.
+ * less the label), and its default; an open range and no default while the
+ * methods are not loaded (the panels are locked until then).
  * @param {string} method
  * @param {string} setting
  * @returns {{min: number, max: number, exclusiveMin?: boolean, exclusiveMax?: boolean,
@@ -136,15 +138,13 @@ export function panelMethods(panel) {
  */
 export function settingRange(method, setting) {
   const s = findMethod(method)?.settings.find((x) => x.name === setting);
-  if (!s) throw new RangeError(`no setting ${setting} of ${method}`);
-  const lo = s.exclusiveMinimum ?? s.minimum ?? -Infinity;
-  const hi = s.exclusiveMaximum ?? s.maximum ?? Infinity;
+  if (!s) return { min: -Infinity, max: Infinity, value: undefined };
   return {
-    min: lo,
-    max: hi,
-    ...(s.exclusiveMinimum !== undefined && s.exclusiveMinimum !== null ? { exclusiveMin: true } : {}),
-    ...(s.exclusiveMaximum !== undefined && s.exclusiveMaximum !== null ? { exclusiveMax: true } : {}),
-    ...(s.type === "int" ? { integer: true } : {}),
+    min: s.minimum ?? -Infinity,
+    max: s.maximum ?? Infinity,
+    ...(s.exclusiveMinimum ? { exclusiveMin: true } : {}),
+    ...(s.exclusiveMaximum ? { exclusiveMax: true } : {}),
+    ...(s.type === "integer" ? { integer: true } : {}),
     ...(s.unit ? { unit: s.unit } : {}),
     value: s.default,
   };

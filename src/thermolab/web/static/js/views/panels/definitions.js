@@ -96,7 +96,7 @@ export function panelLimits(rig, doc) {
 export function panelDefinitions(limits) {
   /** @type {Record<string, any>} */
   const r = { ...defaultRanges(), ...limits.ranges };
-  const w0 = /** @type {number[]} */ (settingRange("wlsm", "w0").value);
+  const w0 = /** @type {number[]} */ (settingRange("wlsm", "w0").value ?? [Number.NaN, Number.NaN]);
   const u = { min: limits.inputMin, max: limits.inputMax, unit: limits.inputUnit };
   const common = [
     { name: "dt", label: t("field.dt"), ...r.dt, unit: "s", value: 1 },
@@ -107,9 +107,8 @@ export function panelDefinitions(limits) {
     { name: "low", label: t("field.low"), ...u, value: lo, automaticOnly: true },
     { name: "high", label: t("field.high"), ...u, value: hi, automaticOnly: true },
   ];
-  // The paper's form of WLSM has no meaning at γ = 1 (α = 1 − γ = 0): refused by
-  // the identification, so refused here too, whatever the schema's bound.
-  const gamma = { ...r.gamma, max: Math.min(1, r.gamma.max ?? 1), exclusiveMax: true };
+  // γ < 1 (the paper's form) is the lab's narrowing, published in /api/methods' runSettings.
+  const gamma = r.gamma;
   const w0Note = limits.w0
     ? null
     : t("field.w0Unavailable");

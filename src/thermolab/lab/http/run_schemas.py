@@ -1,0 +1,204 @@
+"""JSON bodies of a run: START's request (:class:`RunIn`) and a run (:class:`RunOut`).
+
+:class:`RunIn` is built from the method registry as the lab carries it
+(:data:`thermolab.lab.runs.request.RUN_SETTINGS`): method names, each
+setting's range, unit and help; ``null`` is the registry's default.
+``tests/ident/test_registry.py`` checks it against the registry.
+"""
+
+from __future__ import annotations
+
+import math
+from datetime import datetime
+from typing import Annotated, Any, Literal
+
+from pydantic import AfterValidator, Field, PlainValidator, WithJsonSchema
+from pydantic_core import PydanticCustomError
+
+from thermolab.ident.registry import METHOD_NAMES
+from thermolab.lab.http.bodies import In, Out
+from thermolab.lab.runs import MAX_DT, MAX_SAMPLES, MIN_DT, OFFSET_MODES, RunRecord, RunRequest
+from thermolab.lab.runs.request import RUN_SETTINGS
+
+__all__ = ["MethodName", "OperatingPointOut", "RunIn", "RunOut"]
+
+
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+
+
+def _offset(value: object) -> str | float:
+    # One message for the one choice (a union type would report each branch's error).
+    if isinstance(value, str) and value in OFFSET_MODES:
+        return value
+    if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
+        return float(value)
+    raise PydanticCustomError(
+        "offset",
+        "Input should be {modes} or a finite number (a known ambient)",
+        {"modes": ", ".join(repr(m) for m in OFFSET_MODES)},
+    )
+
+
+def _method_name(value: str) -> str:
+    if value not in METHOD_NAMES:
+        raise PydanticCustomError(
+            "method", "Input should be one of {names}", {"names": ", ".join(METHOD_NAMES)}
+        )
+    return value
+
+
+def _setting(name: str) -> Any:
+    """The field of run setting ``name``: its range, unit and help from the registry.
+
+    The range is :data:`thermolab.lab.runs.request.RUN_SETTINGS`' (the registry's,
+    narrowed where the lab says why); ``null`` stands for the registry's default.
+    """
+    setting = RUN_SETTINGS[name]
+    ranged = setting.type in ("integer", "number")
+    low = setting.minimum if ranged else None
+    high = setting.maximum if ranged else None
+    unit = f" ({setting.unit})" if setting.unit else ""
+    default = setting.default
+    shown = list(default) if isinstance(default, tuple) else default
+    return Field(
+        gt=low if setting.exclusive_minimum else None,
+        ge=None if setting.exclusive_minimum else low,
+        lt=high if setting.exclusive_maximum else None,
+        le=None if setting.exclusive_maximum else high,
+        allow_inf_nan=False if setting.type == "number" else None,
+        description=f"{setting.help}{unit}; null: the registry's default {shown!r}",
+    )
+
+
+#: The method names, checked and published from the registry.
+MethodName = Annotated[
+    str, AfterValidator(_method_name), WithJsonSchema({"enum": list(METHOD_NAMES)})
+]
+
+
+class RunIn(In):
+    """START: the run's schedule, input and identification methods (the paper's panels).
+
+    The method settings (``window``...``w0``) are the registry's
+    (:mod:`thermolab.ident.registry`, published at ``GET /api/methods``) as the
+    lab narrows them in :data:`thermolab.lab.runs.request.RUN_SETTINGS`.
+    """
+
+    dt: Annotated[
+        float,
+        # Published here, checked once by thermolab.lab.runs.request.check_request.
+        Field(
+            allow_inf_nan=False,
+            json_schema_extra={"minimum": MIN_DT, "maximum": MAX_DT},
+            description="sample period, s",
+        ),
+    ]
+    samples: Annotated[int, Field(ge=1, le=MAX_SAMPLES, description="samples to take")]
+    signal: Annotated[
+        str | None,
+        Field(
+            max_length=200,
+            description="input signal: const:U, step:U0:U1@T, square:LOW:HIGH:HZ, "
+            "sine:OFFSET:AMP:HZ, prbs:LOW:HIGH:BIT_S[:SEED]; null for a manual set point",
+        ),
+    ] = None
+    setpoint: Annotated[
+        float | None,
+        Field(allow_inf_nan=False, description="manual input at START (with no signal)"),
+    ] = None
+    methods: Annotated[
+        list[MethodName],
+        Field(min_length=1, max_length=len(METHOD_NAMES), description="identification methods"),
+    ] = ["srm", "lsm"]  # noqa: RUF012 (pydantic copies a mutable default per instance)
+    window: Annotated[int | None, _setting("window")] = None
+    block: Annotated[int | None, _setting("block")] = None
+    gamma: Annotated[float | None, _setting("gamma")] = None
+    pmax: Annotated[float | None, _setting("pmax")] = None
+    # [a0, b0] of the first-order model, or [a0, b0, c0] with offset "fit".
+    w0: Annotated[list[FiniteFloat] | None, _setting("w0"), Field(min_length=2, max_length=3)] = (
+        None
+    )
+    offset: Annotated[
+        str | float,
+        PlainValidator(_offset),
+        WithJsonSchema(
+            {"anyOf": [{"type": "string", "enum": list(OFFSET_MODES)}, {"type": "number"}]}
+        ),
+        Field(
+            description="the operating point: 'initial' removes the first sample (an "
+            "equilibrium at 0 V), 'fit' estimates a constant term, 'none' is the raw "
+            "regression, a number is the known ambient output; 'auto' is decided from the data "
+            "(the run's operatingPoint and each result say what was used and found)"
+        ),
+    ] = "auto"
+
+    def request(self) -> RunRequest:
+        """The run service's request."""
+        settings = {name: getattr(self, name) for name in RUN_SETTINGS}
+        if settings["w0"] is not None:
+            settings["w0"] = tuple(settings["w0"])
+        return RunRequest(
+            dt=self.dt,
+            samples=self.samples,
+            signal=self.signal,
+            setpoint=self.setpoint,
+            methods=tuple(self.methods),
+            offset=self.offset,
+            **settings,
+        )
+
+
+class OperatingPointOut(Out):
+    """How a run's identifiers treat the operating point, and why."""
+
+    asked: str | float = Field(description="the request's offset")
+    used: str | float | None = Field(
+        description="the mode used; null when no chosen method regresses on the output"
+    )
+    reason: str
+
+
+class RunOut(Out):
+    """A run: what was asked, how far it got, how it ended, each method's latest estimate."""
+
+    id: int
+    rig: str
+    username: str
+    status: Literal["running", "finished", "stopped", "interrupted", "failed"]
+    dt: float
+    samples: int | None
+    samples_stored: int
+    samples_taken: int
+    signal: str | None
+    setpoint: float | None
+    methods: list[str]
+    settings: dict[str, Any]
+    started_at: datetime
+    ended_at: datetime | None
+    end_reason: str | None
+    results: dict[str, Any] = Field(
+        description="per method: latest estimate (K, tau, W, valid, final, extras.reason...), "
+        "error, and once the run is over stats: mean/max/min of K and tau over the last "
+        "2000 samples and converged_at, the samples to converge within ±1 % "
+        "(thermolab.ident.Trajectory.stats / converged_at)"
+    )
+    operating_point: OperatingPointOut | None = Field(
+        description="how the operating point was handled (null for runs from before it was kept)"
+    )
+    ends_at: datetime | None = Field(
+        default=None,
+        description="the run's planned end: START plus samples × dt in real time (null for "
+        "runs from before it was kept)",
+    )
+    timing: dict[str, Any] | None = Field(
+        default=None,
+        description="once the run is over: rig ('real' or 'twin'), maxLateness and "
+        "p95Lateness (wall-clock, s; null for a twin, whose data are exact), periodSpread (std "
+        "of the periods between the readings' times over their median) and warnings",
+    )
+
+    @classmethod
+    def of(cls, run: RunRecord) -> RunOut:
+        """Build from a run record (every field by the record's name; ``rig`` is its ``rig_id``)."""
+        fields = {name: getattr(run, name) for name in cls.model_fields if name != "rig"}
+        return cls.model_validate({**fields, "rig": run.rig_id})
