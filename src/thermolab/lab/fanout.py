@@ -60,6 +60,8 @@ CLOSE_UNKNOWN_RIG = 4404
 CLOSE_TOO_SLOW = 4408
 CLOSE_TOO_BIG = 1009
 MAX_CLIENT_MESSAGE = 4096
+MAX_CLIENT_NESTING = 8
+"""Client messages nest at most this deep (a ping nests 1); deeper ones get an ``error``."""
 MAX_FRAME_MESSAGES = 1000
 """At most this many messages travel in one frame (a backlog goes in several)."""
 

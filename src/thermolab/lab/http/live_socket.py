@@ -32,10 +32,10 @@ from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
 from thermolab.lab.access import RigSnapshot
 from thermolab.lab.db.models import LoginSession, Role
 from thermolab.lab.fanout import (
-    CLOSE_TOO_BIG,
     CLOSE_UNAUTHORIZED,
     CLOSE_UNKNOWN_RIG,
     MAX_CLIENT_MESSAGE,
+    MAX_CLIENT_NESTING,
     LiveClient,
     LiveFanout,
     encode,
@@ -380,9 +380,8 @@ async def _serve(
             text = message.get("text")
             if text is None:
                 text = (message.get("bytes") or b"").decode("utf-8", errors="replace")
-            if len(text) > MAX_CLIENT_MESSAGE:
-                client.close(CLOSE_TOO_BIG, f"messages are at most {MAX_CLIENT_MESSAGE} bytes")
-                return
+            # An oversized or over-deep message is answered like any bad message: the
+            # socket stays open (a client's mistake is not a reason to cut its stream).
             kind = _message_type(text)
             if kind == "ping":
                 await anyio.to_thread.run_sync(on_ping)
@@ -446,7 +445,20 @@ def _viewpoint(snap: RigSnapshot, who: Principal) -> Any:
 
 
 def _message_type(text: str) -> str:
-    """``"ping"`` for a ping, else the problem with the message, in words."""
+    """``"ping"`` for a ping, else the problem with the message, in words.
+
+    Examples
+    --------
+    >>> _message_type('{"type": "ping"}')
+    'ping'
+    >>> _message_type("[" * 10_000)
+    'messages nest at most 8 levels of brackets'
+    """
+    if len(text) > MAX_CLIENT_MESSAGE:
+        return f"messages are at most {MAX_CLIENT_MESSAGE} bytes"
+    if _nesting(text) > MAX_CLIENT_NESTING:
+        # json.loads recurses once per level: a few kB of brackets would overflow the stack.
+        return f"messages nest at most {MAX_CLIENT_NESTING} levels of brackets"
     try:
         data = json.loads(text)
     except ValueError:
@@ -459,6 +471,32 @@ def _message_type(text: str) -> str:
     return (
         f"unknown message type {kind!r}; the only one is 'ping' (commands go through the HTTP API)"
     )
+
+
+def _nesting(text: str) -> int:
+    """The deepest nesting of ``[``/``{`` in ``text`` outside JSON strings (linear, no recursion).
+
+    >>> _nesting('{"a": [1, {"b": "[[["}]}')
+    3
+    """
+    depth = deepest = 0
+    in_string = escaped = False
+    for char in text:
+        if in_string:
+            if escaped:
+                escaped = False
+            elif char == "\\":
+                escaped = True
+            elif char == '"':
+                in_string = False
+        elif char == '"':
+            in_string = True
+        elif char in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif char in "]}":
+            depth -= 1
+    return deepest
 
 
 def _log_failure(task: asyncio.Future[None]) -> None:
