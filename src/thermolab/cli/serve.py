@@ -133,7 +133,7 @@ def _serve(args: argparse.Namespace) -> int:
 
     config = lab_config_from_args(args)
     _check_port_free(args.host, args.port)
-    lab = Lab(config, opener=device_opener(config.speedup))
+    lab = Lab(config, opener=device_opener(config.speedup), exclusive=True)
     try:
         report = lab.start()
         rigs = ", ".join(f"{rig.id} ({rig.spec})" for rig in config.rigs)
