@@ -82,7 +82,8 @@ def test_a_second_server_on_a_served_database_refuses_to_start(
         assert "Traceback" not in second.stderr
         # The first server's turn was left alone (start-up never ran in the second).
         controller = first.access.snapshot("twin").controller
-        assert controller is not None and controller.user_id == ana.user_id
+        assert controller is not None
+        assert controller.user_id == ana.user_id
     finally:
         first.close()
     # Once the first has stopped, a server starts.
@@ -105,7 +106,8 @@ def test_the_lease_is_taken_over_only_when_its_holder_is_gone(
     # The holder stops renewing (hung, or on another host): after the TTL it is taken over.
     clock.advance(LEASE_TTL.total_seconds() + 1)
     rival.acquire()
-    assert first.lease is not None and not first.lease.renew()
+    assert first.lease is not None
+    assert not first.lease.renew()
     # A holder of this host that no longer exists is replaced at once.
     dead = subprocess.run(
         [sys.executable, "-c", "import os; print(os.getpid())"],

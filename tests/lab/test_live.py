@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import socket
@@ -499,3 +500,24 @@ def test_a_stalled_socket_is_cut_over_real_tcp_and_the_others_get_everything(
     finally:
         server.should_exit = True
         thread.join(timeout=10)
+
+
+def test_a_login_holds_at_most_four_live_sockets(make_lab: LabFactory) -> None:
+    lab, client, _ = make(make_lab)
+    with client, contextlib.ExitStack() as stack:
+        ana = login(lab, "ana")
+        for _ in range(4):
+            ws = stack.enter_context(client.websocket_connect("/api/rigs/twin/live", headers=ana))
+            assert receive(ws)["type"] == "hello"
+        with (
+            client.websocket_connect("/api/rigs/other/live", headers=ana) as ws,
+            pytest.raises(WebSocketDisconnect) as info,
+        ):
+            ws.receive_json()
+        assert info.value.code == 4429
+        # Another login of the same lab is not affected.
+        with client.websocket_connect("/api/rigs/twin/live", headers=login(lab, "ana")) as ws:
+            assert receive(ws)["type"] == "hello"
+    # Closed sockets count no more.
+    with client, client.websocket_connect("/api/rigs/twin/live", headers=ana) as ws:
+        assert receive(ws)["type"] == "hello"

@@ -18,6 +18,7 @@ logins ended by another process (an account removed from the command line).
 from __future__ import annotations
 
 import asyncio
+import collections
 import contextlib
 import json
 import logging
@@ -32,10 +33,13 @@ from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
 from thermolab.lab.access import RigSnapshot
 from thermolab.lab.db.models import LoginSession, Role
 from thermolab.lab.fanout import (
+    CLOSE_TOO_MANY,
     CLOSE_UNAUTHORIZED,
     CLOSE_UNKNOWN_RIG,
     MAX_CLIENT_MESSAGE,
     MAX_CLIENT_NESTING,
+    MAX_SOCKETS_PER_LOGIN,
+    LiveChannel,
     LiveClient,
     LiveFanout,
     encode,
@@ -93,8 +97,11 @@ class LiveEndpoint:
         access_delay: float = 0.2,
         client_queue: int = 2000,
         session_check: float | None = 5.0,
+        sockets_per_login: int = MAX_SOCKETS_PER_LOGIN,
     ) -> None:
         self.lab = lab
+        self._sockets_per_login = sockets_per_login
+        self._sockets: collections.Counter[int | None] = collections.Counter()
         self.hub = LiveFanout([rig.id for rig in lab.config.rigs])
         self._access_delay = access_delay
         self._client_queue = client_queue
@@ -269,6 +276,29 @@ class LiveEndpoint:
         if channel is None:
             await websocket.close(CLOSE_UNKNOWN_RIG, f"no rig called {rig_id!r}")
             return
+        # One login cannot hold the server's sockets (and replays) for everyone.
+        if self._sockets[who.session_id] >= self._sockets_per_login:
+            await websocket.close(
+                CLOSE_TOO_MANY,
+                f"at most {self._sockets_per_login} live sockets per login; close one first",
+            )
+            return
+        self._sockets[who.session_id] += 1
+        try:
+            await self._attached(websocket, channel, rig_id, who, since)
+        finally:
+            self._sockets[who.session_id] -= 1
+            if self._sockets[who.session_id] <= 0:
+                del self._sockets[who.session_id]
+
+    async def _attached(
+        self,
+        websocket: WebSocket,
+        channel: LiveChannel,
+        rig_id: str,
+        who: Principal,
+        since: int | None,
+    ) -> None:
         client = LiveClient(key=who, maxsize=self._client_queue)
         presence = self.lab.presence.connect(rig_id, who.username)
         start = channel.attach(client)
