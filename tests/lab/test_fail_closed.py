@@ -75,7 +75,8 @@ class Scene:
         lab = self.lab
         if lab.runs.running(RIG) is not None:
             lab.runs.stop(RIG, self.tina)
-            self.settle()
+            self.rig_clock.allow(self.rig_clock.now() + 5.0)
+            lab.runs.wait(RIG, timeout=30)
         lab.set_service(RIG, self.tina, True)
         lab.access.request_control(RIG, self.ana)
         assert lab.access.snapshot(RIG).controller is not None
@@ -83,7 +84,14 @@ class Scene:
     def settle(self) -> None:
         """Let ended runs take their last sample and be stored."""
         self.rig_clock.allow(self.rig_clock.now() + 5.0)
-        self.lab.runs.wait(RIG, timeout=30)
+        running = self.lab.runs.running(RIG)
+        if running is None:
+            return
+        with self.lab.db.read() as session:
+            turn = session.scalar(select(Run.control_session_id).where(Run.id == running))
+        controller = self.lab.access.snapshot(RIG).controller
+        if controller is None or controller.id != turn:  # its turn is over: it must end
+            self.lab.runs.wait(RIG, timeout=30)
 
     def race(self, other: str) -> dict[str, BaseException | None]:
         lab = self.lab
