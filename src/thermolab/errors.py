@@ -27,6 +27,7 @@ __all__ = [
     "SignalSpecError",
     "SubscriberCutError",
     "ThermoLabError",
+    "TurnEndedError",
 ]
 
 
@@ -95,6 +96,10 @@ class NotFoundError(ThermoLabError, LookupError):
 
 class ConflictError(ThermoLabError, RuntimeError):
     """The request clashes with the current state (duplicate user, rig out of service)."""
+
+
+class TurnEndedError(ConflictError):
+    """The turn at the controls ended while the request was being decided (it lost the race)."""
 
 
 class AccessDeniedError(ThermoLabError, PermissionError):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import socket
@@ -215,10 +216,15 @@ def test_refusals_close_with_the_protocol_codes(make_lab: LabFactory) -> None:
             ws.send_text(json.dumps({"type": "input", "u": 5}))
             error, _ = receive_until(ws, "error")
             assert "only one is 'ping'" in error["detail"]
+            # Oversized or over-deep messages get an error, and the socket stays open.
             ws.send_text("x" * 5000)
-            with pytest.raises(WebSocketDisconnect) as info:
-                receive_until(ws, "never")
-            assert info.value.code == 1009
+            error, _ = receive_until(ws, "error")
+            assert "at most 4096 bytes" in error["detail"]
+            ws.send_text("[" * 2000 + "]" * 2000)
+            error, _ = receive_until(ws, "error")
+            assert "at most 8 levels" in error["detail"]
+            ws.send_text(json.dumps({"type": "ping"}))
+            receive_until(ws, "pong")
         # The session survived all of that.
         assert client.get("/api/session", headers=ana).status_code == 200
 
@@ -498,3 +504,24 @@ def test_a_stalled_socket_is_cut_over_real_tcp_and_the_others_get_everything(
     finally:
         server.should_exit = True
         thread.join(timeout=10)
+
+
+def test_a_login_holds_at_most_four_live_sockets(make_lab: LabFactory) -> None:
+    lab, client, _ = make(make_lab)
+    with client, contextlib.ExitStack() as stack:
+        ana = login(lab, "ana")
+        for _ in range(4):
+            ws = stack.enter_context(client.websocket_connect("/api/rigs/twin/live", headers=ana))
+            assert receive(ws)["type"] == "hello"
+        with (
+            client.websocket_connect("/api/rigs/other/live", headers=ana) as ws,
+            pytest.raises(WebSocketDisconnect) as info,
+        ):
+            ws.receive_json()
+        assert info.value.code == 4429
+        # Another login of the same lab is not affected.
+        with client.websocket_connect("/api/rigs/twin/live", headers=login(lab, "ana")) as ws:
+            assert receive(ws)["type"] == "hello"
+    # Closed sockets count no more.
+    with client, client.websocket_connect("/api/rigs/twin/live", headers=ana) as ws:
+        assert receive(ws)["type"] == "hello"

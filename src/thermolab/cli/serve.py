@@ -206,7 +206,7 @@ def _serve(args: argparse.Namespace) -> int:
         print(
             f"warning: tightened permissions of {path} to the server's user only", file=sys.stderr
         )
-    lab = Lab(config, opener=device_opener(config.speedup))
+    lab = Lab(config, opener=device_opener(config.speedup), exclusive=True)
     try:
         report = lab.start()
         rigs = ", ".join(f"{rig.id} ({rig.spec})" for rig in config.rigs)

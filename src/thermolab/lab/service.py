@@ -21,6 +21,7 @@ from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Role
 from thermolab.lab.devices import DesiredState, DeviceHub, RigOpener
+from thermolab.lab.lease import DatabaseLease
 from thermolab.lab.presence import Presence
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.security import LoginThrottle, default_password_hasher
@@ -135,10 +136,13 @@ class Lab:
         hasher: PasswordHasher | None = None,
         opener: RigOpener | None = None,
         database: Database | None = None,
+        exclusive: bool = False,
     ) -> None:
         self.config = config
         self.clock: LabClock = clock or SystemClock()
         self.db = database or Database(config.database)
+        # ``thermolab serve`` is the one server of its database (tests share one freely).
+        self.lease = DatabaseLease(self.db, self.clock) if exclusive else None
         policy = config.access
         self.presence = Presence(self.clock, timeout=policy.client_timeout)
         self.hub = DeviceHub(config, opener, self.clock)
@@ -191,6 +195,9 @@ class Lab:
         if self._report is not None:
             return self._report
         self.db.upgrade()
+        if self.lease is not None:
+            # Before start-up touches any run or turn: another live server's are not ours.
+            self.lease.acquire()
         faults = self.hub.open_all()
         self.access.startup()
         for rig in self.config.rigs:
@@ -208,6 +215,8 @@ class Lab:
         """
         with self._sweep_lock:
             now = self.clock.now()
+            if self.lease is not None and self.lease.held and not self.lease.renew():
+                log.critical("another server process took over this database's lease")
             self.hub.poll(now)
             self._announce_readings(now)
             for rig in self.config.rigs:
@@ -229,7 +238,11 @@ class Lab:
         run_id = self.runs.running(rig_id)
         record = self.access.record_input(rig_id, who, u, run_id=run_id)
         applied: float | None
-        if run_id is not None and self.runs.set_input(rig_id, record.u) is not None:
+        if (
+            run_id is not None
+            and self.runs.set_input(rig_id, record.u, control_session=record.control_session)
+            is not None
+        ):
             applied = record.u
         else:
             applied = self.hub.apply(rig_id, record.u, controller_session=record.control_session)
@@ -294,6 +307,8 @@ class Lab:
         """End every run, leave every rig safe and close the database connections."""
         self.runs.shutdown()
         self.hub.close()
+        if self.lease is not None:
+            self.lease.release()
         self.db.close()
 
     def _announce_readings(self, now: datetime) -> None:

@@ -55,6 +55,7 @@ __all__ = [
     "Run",
     "RunStatus",
     "Sample",
+    "ServerLease",
     "TurnEndReason",
     "UTCDateTime",
     "User",
@@ -365,3 +366,16 @@ class MethodResultRow(Base):
     params: Mapped[dict[str, Any]] = mapped_column(JSON)
     result: Mapped[dict[str, Any]] = mapped_column(JSON)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime)
+
+
+class ServerLease(Base):
+    """The one server process allowed on this database (see :mod:`thermolab.lab.lease`)."""
+
+    __tablename__ = "server_lease"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    host: Mapped[str] = mapped_column(String(255))
+    pid: Mapped[int] = mapped_column(Integer)
+    token: Mapped[str] = mapped_column(String(128))
+    acquired_at: Mapped[datetime] = mapped_column(UTCDateTime)
+    expires_at: Mapped[datetime] = mapped_column(UTCDateTime)

@@ -75,7 +75,11 @@ def current_user(lab: LabDep, token: Annotated[str | None, Security(_cookie)]) -
 
 UserDep = Annotated[Principal, Depends(current_user)]
 RigId = Annotated[str, Path(min_length=1, max_length=64, description="the rig's id")]
-RunId = Annotated[int, Path(ge=1, description="the run's number")]
+# The largest row id the databases store (a signed 32-bit INTEGER on PostgreSQL): a
+# larger id in a path is refused by the schema (422) instead of failing in the driver.
+MAX_ROW_ID = 2**31 - 1
+
+RunId = Annotated[int, Path(ge=1, le=MAX_ROW_ID, description="the run's number")]
 
 AUTHENTICATED: dict[str, Any] = {
     "dependencies": [Depends(current_user)],

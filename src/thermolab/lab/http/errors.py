@@ -26,6 +26,7 @@ from thermolab.errors import (
     NotFoundError,
     RigError,
     ThermoLabError,
+    TurnEndedError,
 )
 from thermolab.lab.camera import CameraError
 from thermolab.lab.http.deps import COOKIE_NAME
@@ -49,6 +50,7 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     AccessDeniedError: HttpFault(403, "access_denied"),
     NotFoundError: HttpFault(404, "not_found"),
     ConflictError: HttpFault(409, "conflict"),
+    TurnEndedError: HttpFault(409, "turn_ended"),
     RigError: HttpFault(409, "rig_unavailable"),
     CameraError: HttpFault(503, "camera_unavailable"),
     RateLimitedError: HttpFault(429, "rate_limited"),

@@ -18,6 +18,7 @@ logins ended by another process (an account removed from the command line).
 from __future__ import annotations
 
 import asyncio
+import collections
 import contextlib
 import json
 import logging
@@ -33,10 +34,13 @@ from thermolab.jsonsafe import finite_or_none
 from thermolab.lab.access import RigSnapshot
 from thermolab.lab.db.models import LoginSession, Role
 from thermolab.lab.fanout import (
-    CLOSE_TOO_BIG,
+    CLOSE_TOO_MANY,
     CLOSE_UNAUTHORIZED,
     CLOSE_UNKNOWN_RIG,
     MAX_CLIENT_MESSAGE,
+    MAX_CLIENT_NESTING,
+    MAX_SOCKETS_PER_LOGIN,
+    LiveChannel,
     LiveClient,
     LiveFanout,
     encode,
@@ -94,8 +98,11 @@ class LiveEndpoint:
         access_delay: float = 0.2,
         client_queue: int = 2000,
         session_check: float | None = 5.0,
+        sockets_per_login: int = MAX_SOCKETS_PER_LOGIN,
     ) -> None:
         self.lab = lab
+        self._sockets_per_login = sockets_per_login
+        self._sockets: collections.Counter[int | None] = collections.Counter()
         self.hub = LiveFanout([rig.id for rig in lab.config.rigs])
         self._access_delay = access_delay
         self._client_queue = client_queue
@@ -272,6 +279,29 @@ class LiveEndpoint:
         if channel is None:
             await websocket.close(CLOSE_UNKNOWN_RIG, f"no rig called {rig_id!r}")
             return
+        # One login cannot hold the server's sockets (and replays) for everyone.
+        if self._sockets[who.session_id] >= self._sockets_per_login:
+            await websocket.close(
+                CLOSE_TOO_MANY,
+                f"at most {self._sockets_per_login} live sockets per login; close one first",
+            )
+            return
+        self._sockets[who.session_id] += 1
+        try:
+            await self._attached(websocket, channel, rig_id, who, since)
+        finally:
+            self._sockets[who.session_id] -= 1
+            if self._sockets[who.session_id] <= 0:
+                del self._sockets[who.session_id]
+
+    async def _attached(
+        self,
+        websocket: WebSocket,
+        channel: LiveChannel,
+        rig_id: str,
+        who: Principal,
+        since: int | None,
+    ) -> None:
         client = LiveClient(key=who, maxsize=self._client_queue)
         presence = self.lab.presence.connect(rig_id, who.username)
         start = channel.attach(client)
@@ -383,9 +413,8 @@ async def _serve(
             text = message.get("text")
             if text is None:
                 text = (message.get("bytes") or b"").decode("utf-8", errors="replace")
-            if len(text) > MAX_CLIENT_MESSAGE:
-                client.close(CLOSE_TOO_BIG, f"messages are at most {MAX_CLIENT_MESSAGE} bytes")
-                return
+            # An oversized or over-deep message is answered like any bad message: the
+            # socket stays open (a client's mistake is not a reason to cut its stream).
             kind = _message_type(text)
             if kind == "ping":
                 await anyio.to_thread.run_sync(on_ping)
@@ -449,7 +478,20 @@ def _viewpoint(snap: RigSnapshot, who: Principal) -> Any:
 
 
 def _message_type(text: str) -> str:
-    """``"ping"`` for a ping, else the problem with the message, in words."""
+    """``"ping"`` for a ping, else the problem with the message, in words.
+
+    Examples
+    --------
+    >>> _message_type('{"type": "ping"}')
+    'ping'
+    >>> _message_type("[" * 10_000)
+    'messages nest at most 8 levels of brackets'
+    """
+    if len(text) > MAX_CLIENT_MESSAGE:
+        return f"messages are at most {MAX_CLIENT_MESSAGE} bytes"
+    if _nesting(text) > MAX_CLIENT_NESTING:
+        # json.loads recurses once per level: a few kB of brackets would overflow the stack.
+        return f"messages nest at most {MAX_CLIENT_NESTING} levels of brackets"
     try:
         data = json.loads(text)
     except ValueError:
@@ -462,6 +504,32 @@ def _message_type(text: str) -> str:
     return (
         f"unknown message type {kind!r}; the only one is 'ping' (commands go through the HTTP API)"
     )
+
+
+def _nesting(text: str) -> int:
+    """The deepest nesting of ``[``/``{`` in ``text`` outside JSON strings (linear, no recursion).
+
+    >>> _nesting('{"a": [1, {"b": "[[["}]}')
+    3
+    """
+    depth = deepest = 0
+    in_string = escaped = False
+    for char in text:
+        if in_string:
+            if escaped:
+                escaped = False
+            elif char == "\\":
+                escaped = True
+            elif char == '"':
+                in_string = False
+        elif char == '"':
+            in_string = True
+        elif char in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif char in "]}":
+            depth -= 1
+    return deepest
 
 
 def _log_failure(task: asyncio.Future[None]) -> None:

@@ -33,6 +33,7 @@ from thermolab.errors import (
     ConflictError,
     InvalidParameterError,
     ThermoLabError,
+    TurnEndedError,
 )
 from thermolab.ident.online import OnlineIdentifier
 from thermolab.jsonsafe import json_safe
@@ -62,6 +63,9 @@ from thermolab.runner.methods import parse_methods
 __all__ = ["RunService"]
 
 log = logging.getLogger(__name__)
+
+# How long a START waits for the previous turn's run to finish storing (seconds).
+_HANDOVER_WAIT = 10.0
 
 
 @dataclass
@@ -149,9 +153,7 @@ class RunService:
         driver = self._hub.driver(rig_id)
         if driver is None:
             raise ConflictError(f"rig {rig_id!r} has no device attached; a run needs one")
-        with self._lock:
-            if rig_id in self._active:
-                raise ConflictError(f"a run is already going on rig {rig_id!r}; END it first")
+        self._await_previous_turn(rig_id)
         point = choose_operating_point(request.offset, methods)
         identifiers, settings = build_run_identifiers(request, point.used)
 
@@ -186,42 +188,69 @@ class RunService:
             session.add(run_command(rig.id, control, who, now, "run_start", None, run.id, settings))
             return run.id
 
-        run_id, control_id = self._access.within_control(rig_id, who, "start a run", begin)
-        recorder = DatabaseRecorder(
-            self._db, run_id, on_sample=lambda u, y: self._hub.note_sample(rig_id, u, y)
-        )
-        experiment = Experiment(
-            driver,
-            request.dt,
-            request.samples,
-            identifiers=identifiers,
-            recorder=recorder,
-            events=EventBus(),
-            **experiment_args,
-        )
-        active = _Active(run_id, rig_id, control_id, experiment, identifiers)
-        with self._lock:
-            self._active[rig_id] = active
-        record = self.get(run_id, who)
-        if self._on_run is not None:
-            # Announced before the first sample, so that watchers see the run begin.
-            self._on_run(rig_id, "started", record)
-        self._hub.claim(rig_id)
-        if self._on_event is not None:
-            forward = self._on_event
-            experiment.events.subscribe_callback(
-                lambda event: forward(rig_id, run_id, event),
-                maxsize=100_000,
-                name="live",
-                fatal_errors=False,
+        # START and the end of a turn are one decision: the lab reconciles a rig (and
+        # ends its run when the turn is over) under the hub's lock for that rig, so
+        # holding it from the check of control to the run's registration means a turn
+        # that ends meanwhile is seen either here (the run is aborted before it
+        # starts) or by that reconcile, after the run is registered (it is ENDed).
+        with self._hub.locked(rig_id):
+            with self._lock:
+                if rig_id in self._active:
+                    raise ConflictError(f"a run is already going on rig {rig_id!r}; END it first")
+            run_id, control_id = self._access.within_control(rig_id, who, "start a run", begin)
+            recorder = DatabaseRecorder(
+                self._db, run_id, on_sample=lambda u, y: self._hub.note_sample(rig_id, u, y)
             )
-        experiment.start()
-        active.thread = threading.Thread(
-            target=self._finish, args=(active,), name=f"thermolab-run-{run_id}-end", daemon=True
-        )
-        with self._lock:
-            self._ending.add(active.thread)
-        active.thread.start()
+            experiment = Experiment(
+                driver,
+                request.dt,
+                request.samples,
+                identifiers=identifiers,
+                recorder=recorder,
+                events=EventBus(),
+                **experiment_args,
+            )
+            active = _Active(run_id, rig_id, control_id, experiment, identifiers)
+            if self._access.desired(rig_id)[1] != control_id:
+                # The turn ended between our commit and now: the run never starts.
+                active.stopped_by = "the end of the turn at the controls"
+                experiment.abort("the turn ended before the run started")
+                self._finish(active)
+                raise TurnEndedError(
+                    f"the turn at the controls of rig {rig_id!r} ended while run {run_id} "
+                    "was starting; the run was aborted before its first sample"
+                )
+            record = self.get(run_id, who)
+            if self._on_run is not None:
+                # Announced before the first sample, so that watchers see the run begin.
+                self._on_run(rig_id, "started", record)
+            self._hub.claim(rig_id)
+            if self._on_event is not None:
+                forward = self._on_event
+                experiment.events.subscribe_callback(
+                    lambda event: forward(rig_id, run_id, event),
+                    maxsize=100_000,
+                    name="live",
+                    fatal_errors=False,
+                )
+            try:
+                experiment.start()
+            except Exception:
+                # Fail closed: the run is stored as aborted and the hub takes the
+                # device back to its safe state.
+                experiment.abort("the run failed to start")
+                self._finish(active)
+                raise
+            active.thread = threading.Thread(
+                target=self._finish,
+                args=(active,),
+                name=f"thermolab-run-{run_id}-end",
+                daemon=True,
+            )
+            with self._lock:
+                self._active[rig_id] = active
+                self._ending.add(active.thread)
+            active.thread.start()
         return record
 
     def stop(self, rig_id: str, who: Principal) -> RunRecord:
@@ -246,28 +275,53 @@ class RunService:
         active.experiment.end()
         return self.get(active.run_id, who)
 
-    def set_input(self, rig_id: str, u: float) -> int | None:
-        """Hand a new input to the rig's run; return the run id (``None``: no run)."""
+    def set_input(self, rig_id: str, u: float, *, control_session: int | None = None) -> int | None:
+        """Hand a new input to the rig's run; return the run id (``None``: no run).
+
+        With ``control_session``, only a run of that turn takes the input (an
+        input of the next controller never lands in the previous one's run).
+        """
         with self._lock:
             active = self._active.get(rig_id)
         if active is None:
+            return None
+        if control_session is not None and active.control_session != control_session:
             return None
         active.experiment.set_input(u)
         return active.run_id
 
     def control_changed(self, rig_id: str, controller_session: int | None) -> None:
-        """END the rig's run if the turn it belongs to has ended."""
+        """END the rig's run if the turn it belongs to has ended.
+
+        Called under the hub's lock for the rig (see :meth:`start`). If ENDing
+        fails the run is aborted, which puts the actuator at its safe value.
+        """
         with self._lock:
             active = self._active.get(rig_id)
-        if active is not None and active.control_session != controller_session:
-            active.stopped_by = active.stopped_by or "end of the turn at the controls"
+        if active is None or active.control_session == controller_session:
+            return
+        active.stopped_by = active.stopped_by or "end of the turn at the controls"
+        try:
             active.experiment.end()
+        except Exception:
+            log.exception("run %s: ENDing at the end of the turn failed; aborting", active.run_id)
+            active.experiment.abort("the turn ended")
 
     def running(self, rig_id: str) -> int | None:
         """Return the id of the run going on the rig, if any."""
         with self._lock:
             active = self._active.get(rig_id)
         return active.run_id if active is not None else None
+
+    def _await_previous_turn(self, rig_id: str) -> None:
+        # Right after a hand-over the previous turn's run may still be storing its
+        # end: the new controller's START waits for it instead of getting a 409.
+        with self._lock:
+            active = self._active.get(rig_id)
+        if active is None or active.thread is None:
+            return
+        if self._access.desired(rig_id)[1] != active.control_session:
+            active.thread.join(_HANDOVER_WAIT)
 
     def wait(self, rig_id: str, timeout: float | None = None) -> None:
         """Wait until the rig's run (if any) has ended and been stored."""

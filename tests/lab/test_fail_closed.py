@@ -1,0 +1,231 @@
+"""Fail closed: a run exists only inside a live turn, whatever order requests race in.
+
+Each example is a sequence of steps. A racing step sends the controller's
+START at the same instant (threads behind a barrier) as something else:
+an input, the controller's release, a teacher's kick, taking the rig out of
+service, or the turn's time limit running out (the clock moved, then the
+sweep). A restart step closes the lab and opens a new one on the database.
+After every step the invariant is checked: at most one controller, no run
+outside a turn, the device left to the hub (safe) when no run goes. The rig's
+clock is a :class:`StepClock`: time passes only as far as the test allows.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from sqlalchemy import func, select
+
+from thermolab.errors import AccessDeniedError, ConflictError, NotFoundError
+from thermolab.lab.clock import ManualClock
+from thermolab.lab.config import RigConfig
+from thermolab.lab.db.models import ControlSession, Run, RunStatus
+from thermolab.lab.service import Lab
+from thermolab.lab.users import Principal
+from thermolab.rigs import Rig, TwinRig
+
+from .conftest import PASSWORD, LabFactory
+from .test_runs import StepClock, lab_request
+
+RIG = "twin"
+RACERS = ("input", "release", "kick", "out_of_service", "expiry")
+STEPS = st.lists(st.sampled_from((*RACERS, "restart")), min_size=1, max_size=3)
+
+
+class Scene:
+    """A lab on the test database, its users, and the rig clock the runs sleep on."""
+
+    def __init__(self, make_lab: LabFactory, clock: ManualClock) -> None:
+        self.make_lab = make_lab
+        self.clock = clock
+        self.rig_clock = StepClock()
+        self.lab = self._open()
+        self.ana = self._person("ana", "student")
+        self.tina = self._person("tina", "teacher")
+
+    def _open(self) -> Lab:
+        rig_clock = self.rig_clock
+
+        def opener(rig: RigConfig) -> Rig:
+            return TwinRig("paper" if rig.id == RIG else "tclab", clock=rig_clock)
+
+        return self.make_lab(opener=opener, control_time_limit=60.0, max_run_seconds=1e6)
+
+    def _person(self, name: str, role: str) -> Principal:
+        try:  # the database outlives one Hypothesis example
+            info = self.lab.users.get(name)
+        except NotFoundError:
+            info = self.lab.users.add(name, PASSWORD, role)
+        return Principal(info.id, info.username, info.role)
+
+    def restart(self) -> None:
+        self.rig_clock.allow(math.inf)
+        self.lab.close()
+        self.rig_clock = StepClock()
+        self.lab = self._open()
+
+    def ready(self) -> None:
+        """Ana controls the rig in service, with no run going."""
+        lab = self.lab
+        if lab.runs.running(RIG) is not None:
+            lab.runs.stop(RIG, self.tina)
+            self.rig_clock.allow(self.rig_clock.now() + 5.0)
+            lab.runs.wait(RIG, timeout=30)
+        lab.set_service(RIG, self.tina, True)
+        lab.access.request_control(RIG, self.ana)
+        assert lab.access.snapshot(RIG).controller is not None
+
+    def settle(self) -> None:
+        """Let ended runs take their last sample and be stored."""
+        self.rig_clock.allow(self.rig_clock.now() + 5.0)
+        running = self.lab.runs.running(RIG)
+        if running is None:
+            return
+        with self.lab.db.read() as session:
+            turn = session.scalar(select(Run.control_session_id).where(Run.id == running))
+        controller = self.lab.access.snapshot(RIG).controller
+        if controller is None or controller.id != turn:  # its turn is over: it must end
+            self.lab.runs.wait(RIG, timeout=30)
+
+    def race(self, other: str) -> dict[str, BaseException | None]:
+        lab = self.lab
+        actions: dict[str, Callable[[], Any]] = {
+            "start": lambda: lab.runs.start(RIG, self.ana, lab_request(samples=100_000)),
+            "input": lambda: lab.apply_input(RIG, self.ana, 3.0),
+            "release": lambda: lab.access.release(RIG, self.ana),
+            "kick": lambda: lab.access.kick(RIG, self.tina),
+            "out_of_service": lambda: lab.set_service(RIG, self.tina, False),
+            "expiry": self._expire,
+        }
+        barrier = threading.Barrier(2)
+        outcome: dict[str, BaseException | None] = {}
+
+        def run(name: str) -> None:
+            barrier.wait()
+            try:
+                actions[name]()
+                outcome[name] = None
+            except Exception as exc:  # judged below
+                outcome[name] = exc
+
+        threads = [threading.Thread(target=run, args=(name,)) for name in ("start", other)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join(60)
+        return outcome
+
+    def _expire(self) -> None:
+        self.clock.advance(61.0)
+        self.lab.sweep()
+
+    def check(self) -> None:
+        """The invariant: one controller at most; a run only inside the live turn."""
+        lab = self.lab
+        with lab.db.read() as session:
+            controls = list(
+                session.scalars(
+                    select(ControlSession.id).where(
+                        ControlSession.rig_id == RIG, ControlSession.ended_at.is_(None)
+                    )
+                )
+            )
+            running = list(
+                session.scalars(
+                    select(Run).where(Run.rig_id == RIG, Run.status == RunStatus.RUNNING.value)
+                )
+            )
+        assert len(controls) <= 1
+        assert len(running) <= 1
+        live = lab.runs.running(RIG)
+        if running:
+            assert controls == [running[0].control_session_id], "a run outside its turn"
+            assert live == running[0].id
+        else:
+            assert live is None
+        if not controls:
+            # No turn: no run, and the hub holds the rig at its safe input or off.
+            assert not lab.hub.powered(RIG) or lab.hub.applied(RIG) in (
+                None,
+                lab.hub.published(RIG).safe_input,
+            )
+
+
+@settings(
+    max_examples=4,
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
+@given(steps=STEPS)
+def test_a_run_never_outlives_its_turn(
+    make_lab: LabFactory, clock: ManualClock, steps: list[str]
+) -> None:
+    scene = Scene(make_lab, clock)
+    try:
+        for step in steps:
+            scene.ready()
+            if step == "restart":
+                scene.lab.runs.start(RIG, scene.ana, lab_request(samples=100_000))
+                scene.restart()
+                scene.check()
+                assert scene.lab.access.snapshot(RIG).controller is None
+                continue
+            outcome = scene.race(step)
+            # The turn-ending request always succeeds; START may lose with a 409/403.
+            assert outcome[step] is None, outcome[step]
+            start = outcome["start"]
+            assert start is None or isinstance(start, ConflictError | AccessDeniedError), start
+            scene.lab.sweep()
+            scene.settle()
+            scene.check()
+    finally:
+        scene.rig_clock.allow(math.inf)
+        scene.lab.runs.wait(RIG, timeout=30)
+
+
+def test_the_next_controller_starts_right_after_a_hand_over(make_lab: LabFactory) -> None:
+    rig_clock = StepClock()
+
+    def opener(rig: RigConfig) -> Rig:
+        return TwinRig("paper", clock=rig_clock)
+
+    lab = make_lab(opener=opener)
+    ana = Principal(*_add(lab, "ana"))
+    ben = Principal(*_add(lab, "ben"))
+    lab.access.request_control(RIG, ana)
+    lab.access.request_control(RIG, ben)
+    lab.runs.start(RIG, ana, lab_request(samples=1000))
+    lab.access.release(RIG, ana)  # ben controls now; ana's run is still taking its sample
+    threading.Timer(0.2, lambda: rig_clock.allow(5.0)).start()
+    run = lab.runs.start(RIG, ben, lab_request(samples=1000))  # no spurious 409
+    assert run.status == "running"
+    rig_clock.allow(math.inf)
+    lab.runs.stop(RIG, ben)
+    lab.runs.wait(RIG, timeout=30)
+    with lab.db.read() as session:
+        ended = session.scalar(select(func.count()).where(Run.status != RunStatus.RUNNING.value))
+    assert ended == 2
+
+
+def _add(lab: Lab, name: str) -> tuple[int, str, Any]:
+    info = lab.users.add(name, PASSWORD, "student")
+    return info.id, info.username, info.role
+
+
+@pytest.mark.parametrize("run_id", ["2147483648", "99999999999999999999999", "0", "-1"])
+@pytest.mark.parametrize("suffix", ["", "/samples.csv", "/export.json"])
+def test_a_run_id_out_of_range_is_refused_not_a_500(
+    app_client: Callable[..., Any], lab: Lab, run_id: str, suffix: str
+) -> None:
+    lab.users.add("ana", PASSWORD, "student")
+    client = app_client("ana")
+    response = client.get(f"/api/runs/{run_id}{suffix}")
+    assert response.status_code == 422, response.text
+    assert response.json()["code"] == "invalid_request"
+    assert client.get(f"/api/runs/2147483647{suffix}").status_code == 404
