@@ -123,6 +123,24 @@ def check_offset(offset: object) -> str | float:
     return v
 
 
+#: The offset mode that decides the operating point from the data
+#: (:func:`thermolab.ident.operating_point.decide_operating_point`).
+AUTO_OFFSET = "auto"
+
+
+def check_offset_or_auto(offset: object) -> str | float:
+    """``"auto"``, one of :data:`OFFSET_MODES` or a finite float."""
+    if offset == AUTO_OFFSET:
+        return AUTO_OFFSET
+    if isinstance(offset, str) and offset not in OFFSET_MODES:
+        raise InvalidParameterError(
+            "offset must be one of 'auto' (decided from the data), "
+            f"{', '.join(repr(m) for m in OFFSET_MODES)} or a number "
+            f"(the known ambient output in volts), got {offset!r}"
+        )
+    return check_offset(offset)
+
+
 def check_min_samples(n: int, needed: int, why: str) -> None:
     """Too few samples: say how many are needed and why."""
     if n < needed:

@@ -372,7 +372,7 @@ def weighted_least_squares(
     >>> y = REFERENCE_MODEL.simulate(u)
     >>> tr = weighted_least_squares(u, y, 1.0, gamma=0.7, pmax=1e4, w0=PAPER_W0)
     >>> print(tr.final)
-    FirstOrderModel(K=0.14009..., tau=250.126233..., reason=None)
+    FirstOrderModel(K=0.14009..., tau=250.126233..., reason=None, theta=0.0)
     >>> tr.converged_at()["K"] < 100
     True
     """

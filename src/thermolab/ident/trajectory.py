@@ -143,7 +143,9 @@ class Trajectory:
         code = int(self.reason_code[-1])
         if code:
             return FirstOrderModel(math.nan, math.nan, INVALID_REASONS[code])
-        return FirstOrderModel(float(self.K[-1]), float(self.tau[-1]))
+        return FirstOrderModel(
+            float(self.K[-1]), float(self.tau[-1]), theta=self.order.delay * self.dt
+        )
 
     def _series(self, name: str) -> FloatArray:
         if name == "K":
