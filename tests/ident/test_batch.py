@@ -145,8 +145,10 @@ def test_offset_modes_on_a_record_that_starts_warm() -> None:
     assert fit.param_names == ("a", "b", "c")
     assert_allclose(fit.W[2], 2.5 * (1 - fit.W[0]), rtol=1e-8)
     # The paper's raw form reads the ambient as part of the dynamics: biased.
-    with pytest.warns(IdentificationWarning, match="residual test failed"):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentificationWarning)
         raw = least_squares(u, y, 1.0, offset="none")
+    assert any(w.startswith("residual test failed") for w in raw.warnings)
     assert abs(raw.K - 0.140090) > 0.01 or not raw.model.valid
 
 

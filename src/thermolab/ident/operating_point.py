@@ -138,12 +138,12 @@ def _first_change(u: FloatArray) -> int:
 
 def _ambient_with_stderr(
     u: FloatArray, y: FloatArray, order: ArxOrder
-) -> tuple[float, float, float]:
-    """The constant-term model's ambient ``c / (1 - sum(a))``, its stderr and its gain."""
+) -> tuple[float, float, float, float]:
+    """The constant-term model's ambient ``c / (1 - sum(a))``, its stderr, gain and noise."""
     reg = _reg.build(u, y, order, "fit")
     sol = _reg.solve(reg.D, reg.Y)
     if not sol.ok:
-        return math.nan, math.nan, math.nan
+        return math.nan, math.nan, math.nan, math.nan
     W = sol.W
     res = reg.Y - reg.D @ W
     dof = reg.Y.size - W.size
@@ -153,13 +153,14 @@ def _ambient_with_stderr(
     na = order.na
     den = 1.0 - float(W[:na].sum())
     if not den > 0.0:
-        return math.nan, math.nan, math.nan
+        return math.nan, math.nan, math.nan, math.nan
     c = float(W[-1])
     grad = np.zeros(W.size)
     grad[:na] = c / den**2
     grad[-1] = 1.0 / den
     gain = float(W[na : na + order.nb].sum()) / den
-    return c / den, math.sqrt(max(float(grad @ cov @ grad), 0.0)), gain
+    se = math.sqrt(max(float(grad @ cov @ grad), 0.0))
+    return c / den, se, gain, math.sqrt(sigma2)
 
 
 def decide_operating_point(
@@ -197,8 +198,7 @@ def decide_operating_point(
        the constant term cannot be told from the gain, so the record is taken
        to start at ambient (``"initial"``, the paper's LSM(1)).
     2. Otherwise the constant-term model is fitted; its ambient ``c / (1 - a)``
-       agreeing with ``y[0]`` within ``3`` standard errors (or three times the
-       noise) means an ambient start: ``"initial"``. Disagreeing means
+       agreeing with ``y[0]`` within ``3`` standard errors means an ambient start: ``"initial"``. Disagreeing means
        ``"fit"``, labelled ``"settled"`` when the output is flat (within the
        noise) until the input changes, else ``"moving"``.
     3. When the two starts the data must tell apart, at ambient and settled
@@ -238,10 +238,9 @@ def decide_operating_point(
             "the input is constant through the record (a step at the first sample), so the "
             "record is taken to start at rest at ambient (offset='initial')",
         )
-    noise = noise_level(y_arr)
-    amb, se, gain = _ambient_with_stderr(u_arr, y_arr, ord_)
+    amb, se, gain, noise = _ambient_with_stderr(u_arr, y_arr, ord_)
     scale = max(1.0, abs(y0), float(np.ptp(y_arr)))
-    tolerance = max(_AGREE_SIGMAS * se, _AGREE_SIGMAS * noise, 1e-9 * scale)
+    tolerance = max(_AGREE_SIGMAS * se, 1e-9 * scale)
     # An ambient start and a start settled under u0 differ by K u0 in the ambient:
     # when that is inside the uncertainty, the data cannot tell them apart.
     if not math.isfinite(se) or (u0 != 0.0 and abs(gain * u0) <= 2.0 * tolerance):
