@@ -310,7 +310,7 @@ def _simulate_delayed(
     held = np.concatenate([np.full(d + 1, u_past), u])
     n = u.size
     # drive[k] = b1 u[k-d] + b2 u[k-d-1], for k = 0 .. n-2.
-    drive = b1 * held[1 : n] + b2 * held[: n - 1]
+    drive = b1 * held[1:n] + b2 * held[: n - 1]
     if n == 1:
         return np.array([x0])
     rest_of: FloatArray = lfilter([1.0], [1.0, -a], drive, zi=[a * x0])[0]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from thermolab.errors import IdentifierStateError, InvalidDataError, InvalidParameterError
 from thermolab.ident import (
     ArxOrder,
+    IdentificationWarning,
     block_least_squares,
     least_squares,
     moving_window_least_squares,
@@ -147,8 +149,11 @@ def test_online_lsm_gives_its_estimate_at_finish() -> None:
     u, y = record(1, 800, 2.5, 1e-3)
     ident = make_identifier("lsm", 1.0)
     assert all(e is None for e in feed(ident, u, y))
-    est = ident.finish()
-    batch = least_squares(u, y, 1.0)
+    with warnings.catch_warnings():
+        # Measurement noise on an ARX fit: the residual test flags it (tests/ident/test_batch.py).
+        warnings.simplefilter("ignore", IdentificationWarning)
+        est = ident.finish()
+        batch = least_squares(u, y, 1.0, order=ArxOrder(), offset="initial")
     assert est is not None
     assert est.final
     assert est.k == 799

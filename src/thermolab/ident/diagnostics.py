@@ -187,9 +187,7 @@ def residual_test(
         return ResidualTest(zeros, np.zeros(lag + 1), bound, True, True, exact=True)
     auto = np.array([float(ec[j:] @ ec[: n - j]) for j in range(1, lag + 1)]) / ee
     if uu > 0.0:
-        cross = np.array([float(ec[j:] @ uc[: n - j]) for j in range(lag + 1)]) / math.sqrt(
-            ee * uu
-        )
+        cross = np.array([float(ec[j:] @ uc[: n - j]) for j in range(lag + 1)]) / math.sqrt(ee * uu)
     else:
         cross = np.zeros(lag + 1)
     return ResidualTest(auto, cross, bound, not _outside(auto, bound), not _outside(cross, bound))

@@ -177,7 +177,7 @@ FIRST_ORDER = ArxOrder()
 
 @dataclass(frozen=True)
 class FirstOrderModel:
-    """A first-order lag plus dead time ``K exp(-theta s) / (tau s + 1)``, or why a model is not one.
+    """A first-order lag plus dead time ``K exp(-theta s) / (tau s + 1)``, or why it is not one.
 
     Parameters
     ----------
