@@ -53,6 +53,8 @@ def test_malsm_reproduces_table_one_at_every_window() -> None:
     assert {f"{v:.6f}" for v in tr.tau[99:]} == {"250.126233"}
 
 
+# Random plants include taus under two sample periods, which are flagged (not checked here).
+@pytest.mark.filterwarnings("ignore::thermolab.ident.IdentificationWarning")
 @settings(max_examples=30, deadline=None)
 @given(
     seed=st.integers(0, 2**32 - 1),
@@ -94,7 +96,8 @@ def test_every_malsm_estimate_equals_a_fresh_solve_of_its_window(
             assert tr.reason_code[t] == 2
             continue
         s = np.linalg.svd(D / norms, compute_uv=False)
-        kappa2 = (s[0] / s[-1]) ** 2
+        with np.errstate(divide="ignore"):  # an exactly singular window: kappa is inf
+            kappa2 = (s[0] / s[-1]) ** 2
         if tr.reason_code[t] == 2:
             assert kappa2 > 1e11
             continue
@@ -198,6 +201,8 @@ def test_malsm_needs_one_window_of_data() -> None:
 # -- WLSM ----------------------------------------------------------------------------
 
 
+# Random plants include taus under two sample periods, which are flagged (not checked here).
+@pytest.mark.filterwarnings("ignore::thermolab.ident.IdentificationWarning")
 @settings(max_examples=30, deadline=None)
 @given(
     seed=st.integers(0, 2**32 - 1),

@@ -17,6 +17,7 @@ from . import _validation as _v
 from . import diagnostics as _diag
 from .deadtime import DelaySearch, default_max_delay, search_delay
 from .models import NOT_EXCITED, ArxModel, ArxOrder, FirstOrderModel
+from ._trust import resolve_offset, with_warnings
 from .operating_point import OperatingPoint, decide_operating_point
 from .step import IdentificationWarning
 from .trajectory import Trajectory
@@ -565,7 +566,9 @@ def block_least_squares(
     block: int = 100,
     *,
     order: ArxOrder | None = None,
-    offset: str | float = "initial",
+    offset: str | float = "auto",
+    t: npt.ArrayLike | None = None,
+    expected_sign: int | None = None,
 ) -> Trajectory:
     """Least squares over consecutive non-overlapping blocks: the paper's LSM(2) and LSM(3).
 
@@ -585,9 +588,14 @@ def block_least_squares(
         Samples per block, default 100; at least ``order.lag + 1 + n_params``.
     order : ArxOrder, optional
         Model structure; default first order.
-    offset : {"initial", "fit", "none"} or float, optional
+    offset : {"auto", "initial", "fit", "none"} or float, optional
         As in :func:`least_squares`; ``"initial"`` takes the ambient from the
-        record's first sample, for every block.
+        record's first sample, for every block. Default ``"auto"``, decided from
+        the whole record (until this release ``"initial"``).
+    t : array_like, optional
+        Sample times: blocks that span a gap in time, and jitter, are flagged.
+    expected_sign : {1, -1}, optional
+        The sign the gain must have; a final gain of the other sign is flagged.
 
     Returns
     -------
@@ -617,7 +625,7 @@ def block_least_squares(
     u_arr, y_arr = _v.as_record(u, y)
     step = _v.check_dt(dt)
     ord_ = _v.check_order(order)
-    off = _v.check_offset(offset)
+    off, op = resolve_offset(u_arr, y_arr, step, ord_, offset)
     size = _v.integer("block", block, 1, "samples per block")
     p = ord_.na + ord_.nb + int(off == "fit")
     rows, n_blocks = block_rows(ord_, size, p, y_arr.size)
@@ -629,7 +637,7 @@ def block_least_squares(
     W[at] = sol.W
     status = np.zeros(y_arr.size, dtype=np.int8)
     status[at[~sol.ok]] = NOT_EXCITED
-    return Trajectory(
+    tr = Trajectory(
         method="blockls",
         dt=step,
         W=W,
@@ -638,4 +646,6 @@ def block_least_squares(
         param_names=ord_.param_names(constant=reg.constant),
         status=status,
         params={"block": size},
+        operating_point=op,
     )
+    return with_warnings(tr, op, t, expected_sign, window=size)

@@ -13,6 +13,7 @@ from thermolab.errors import InvalidParameterError
 from . import _regression as _reg
 from . import _validation as _v
 from .models import ArxOrder
+from ._trust import resolve_offset, with_warnings
 from .trajectory import Trajectory
 
 __all__ = ["moving_window_least_squares", "weighted_least_squares"]
@@ -111,8 +112,10 @@ def moving_window_least_squares(
     window: int = 100,
     *,
     order: ArxOrder | None = None,
-    offset: str | float = "initial",
+    offset: str | float = "auto",
     recompute_every: int | None = None,
+    t: npt.ArrayLike | None = None,
+    expected_sign: int | None = None,
 ) -> Trajectory:
     """Moving-window least squares: the paper's MALSM, one estimate per sample.
 
@@ -132,12 +135,17 @@ def moving_window_least_squares(
         Samples in the window, default 100; at least ``order.lag + 1 + n_params``.
     order : ArxOrder, optional
         Model structure; default first order.
-    offset : {"initial", "fit", "none"} or float, optional
+    offset : {"auto", "initial", "fit", "none"} or float, optional
         As in :func:`~thermolab.ident.least_squares` (``"initial"``: the record's
-        first sample is the ambient, for every window).
+        first sample is the ambient, for every window). Default ``"auto"``,
+        decided from the whole record (until this release ``"initial"``).
     recompute_every : int, optional
         Rows between exact recomputations of the running sums; default the
         window's row count (O(1) amortised cost per sample).
+    t : array_like, optional
+        Sample times: windows that span a gap in time, and jitter, are flagged.
+    expected_sign : {1, -1}, optional
+        The sign the gain must have; a final gain of the other sign is flagged.
 
     Returns
     -------
@@ -183,7 +191,7 @@ def moving_window_least_squares(
     u_arr, y_arr = _v.as_record(u, y)
     step = _v.check_dt(dt)
     ord_ = _v.check_order(order)
-    off = _v.check_offset(offset)
+    off, op = resolve_offset(u_arr, y_arr, step, ord_, offset)
     size = _v.integer("window", window, 1, "samples in the moving window")
     constant = off == "fit"
     p = ord_.na + ord_.nb + int(constant)
@@ -192,7 +200,7 @@ def moving_window_least_squares(
     _v.check_min_samples(y_arr.size, size, f"one window of {size} samples")
     shift, _ = _reg.offset_shift(off, float(y_arr[0]))
     W, code = run_malsm(u_arr, _shifted(y_arr, shift), ord_, constant, rows, every)
-    return Trajectory(
+    tr = Trajectory(
         method="malsm",
         dt=step,
         W=W,
@@ -201,7 +209,9 @@ def moving_window_least_squares(
         param_names=ord_.param_names(constant=constant),
         status=np.where(code == 2, code, 0).astype(np.int8),
         params={"window": size, "recompute_every": every},
+        operating_point=op,
     )
+    return with_warnings(tr, op, t, expected_sign, window=size)
 
 
 def check_wlsm_params(
@@ -303,7 +313,9 @@ def weighted_least_squares(
     form: Literal["paper", "standard"] = "paper",
     p0: float | npt.ArrayLike | None = None,
     order: ArxOrder | None = None,
-    offset: str | float = "initial",
+    offset: str | float = "auto",
+    t: npt.ArrayLike | None = None,
+    expected_sign: int | None = None,
 ) -> Trajectory:
     """Weighted (recursive) least squares with a forgetting factor: the paper's WLSM.
 
@@ -344,8 +356,13 @@ def weighted_least_squares(
         symmetric positive-definite matrix.
     order : ArxOrder, optional
         Model structure; default first order.
-    offset : {"initial", "fit", "none"} or float, optional
-        As in :func:`~thermolab.ident.least_squares`.
+    offset : {"auto", "initial", "fit", "none"} or float, optional
+        As in :func:`~thermolab.ident.least_squares`; default ``"auto"``,
+        decided from the whole record (until this release ``"initial"``).
+    t : array_like, optional
+        Sample times: gaps and jitter are flagged.
+    expected_sign : {1, -1}, optional
+        The sign the gain must have; a final gain of the other sign is flagged.
 
     Returns
     -------
@@ -379,7 +396,7 @@ def weighted_least_squares(
     u_arr, y_arr = _v.as_record(u, y)
     step = _v.check_dt(dt)
     ord_ = _v.check_order(order)
-    off = _v.check_offset(offset)
+    off, op = resolve_offset(u_arr, y_arr, step, ord_, offset)
     constant = off == "fit"
     n_dyn = ord_.na + ord_.nb
     p = n_dyn + int(constant)
@@ -391,7 +408,7 @@ def weighted_least_squares(
     params["w0"] = W0.tolist()
     if p0 is not None:
         params["p0"] = P0.tolist()
-    return Trajectory(
+    tr = Trajectory(
         method="wlsm",
         dt=step,
         W=W,
@@ -400,4 +417,6 @@ def weighted_least_squares(
         param_names=ord_.param_names(constant=constant),
         status=np.where(code == 6, code, 0).astype(np.int8),
         params=params,
+        operating_point=op,
     )
+    return with_warnings(tr, op, t, expected_sign)
