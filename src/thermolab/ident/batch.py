@@ -15,9 +15,9 @@ from thermolab.errors import InvalidParameterError
 from . import _regression as _reg
 from . import _validation as _v
 from . import diagnostics as _diag
+from ._trust import resolve_offset, with_warnings
 from .deadtime import DelaySearch, default_max_delay, search_delay
 from .models import NOT_EXCITED, ArxModel, ArxOrder, FirstOrderModel
-from ._trust import resolve_offset, with_warnings
 from .operating_point import OperatingPoint, decide_operating_point
 from .step import IdentificationWarning
 from .trajectory import Trajectory

@@ -12,8 +12,8 @@ from thermolab.errors import InvalidParameterError
 
 from . import _regression as _reg
 from . import _validation as _v
-from .models import ArxOrder
 from ._trust import resolve_offset, with_warnings
+from .models import ArxOrder
 from .trajectory import Trajectory
 
 __all__ = ["moving_window_least_squares", "weighted_least_squares"]
