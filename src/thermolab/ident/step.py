@@ -119,7 +119,9 @@ class StepResponseResult:
     theta : float
         Dead time in seconds: first order plus dead time fitted through the
         28.3 % and 63.2 % crossings (``t28 = theta + tau/3``, ``t63 = theta +
-        tau``); ``tau`` is then ``t63 - theta``. 0 when the two agree with no delay.
+        tau``); ``tau`` is then ``t63 - theta``. 0 when the two agree with no delay,
+        or when the delay found is within what the noise could make (two standard
+        deviations of the two-point estimate).
     theta_first_response : float
         Time from the step to the last sample before the output first leaves the
         noise band (four noise deviations) for good: the dead time as seen
@@ -470,7 +472,12 @@ def step_response(
             # Two points of K (1 - exp(-(t - theta)/tau)) give tau and theta.
             tau_two = 1.5 * (tau - t28)
             theta_two = tau - tau_two
-            if tau_two > 0.0 and theta_two > 1e-9 * tau:
+            # theta = 1.5 t28 - 0.5 t63; a crossing time is uncertain by the noise
+            # over the response's slope there, (noise/|change|) tau / (1 - level).
+            # A dead time the noise could make is not reported (about 2 sigma).
+            rel = noise / abs(change) * tau
+            sigma = math.hypot(1.5 * rel / (1.0 - LEVEL_28), 0.5 * rel / (1.0 - LEVEL_63))
+            if tau_two > 0.0 and theta_two > max(1e-9 * tau, 2.0 * sigma):
                 theta, tau = theta_two, tau_two
     theta_seen = _first_response(tr, yr * math.copysign(1.0, change), noise)
     if tau is None:
