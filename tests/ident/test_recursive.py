@@ -246,8 +246,10 @@ def test_standard_rls_without_forgetting_approaches_batch_least_squares() -> Non
     rng = np.random.default_rng(2)
     u = exciting_input(rng, 2000)
     y = REFERENCE_MODEL.simulate(u) + 1e-3 * rng.standard_normal(2000)
-    rls = weighted_least_squares(u, y, 1.0, 1.0, 1e8, [0.0, 0.0], form="standard")
-    lsm = least_squares(u, y, 1.0)
+    rls = weighted_least_squares(u, y, 1.0, 1.0, 1e8, [0.0, 0.0], form="standard", offset="initial")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentificationWarning)  # coloured residuals: noise
+        lsm = least_squares(u, y, 1.0, order=ArxOrder(), offset="initial")
     assert_allclose(rls.W[-1], lsm.W, rtol=1e-5)
 
 

@@ -56,19 +56,21 @@ _CRITERIA = {
 }
 
 
-def _smallest_near_best(sse: FloatArray, m: int) -> int:
+def _smallest_near_best(sse: FloatArray, m: int, rounding: float) -> int:
     """The shortest delay whose error is within the BIC margin of the least.
 
     A longer delay must lower ``m log(SSE)`` by more than ``log(m)`` (what one
     more parameter costs in the Bayesian information criterion) to be kept:
     noise alone then rarely buys a delay the plant does not have, and a
     periodic input's aliases (a delay one period longer fits as well) lose.
+    Errors under ``rounding`` are ties (an exact fit at several delays: a
+    single step lets a long delay pass the response off as the record's start).
     """
     finite = np.isfinite(sse)
     if not finite.any():
         return 0
     least = float(sse[finite].min())
-    margin = least * (1.0 + math.log(max(m, 2)) / max(m, 1))
+    margin = max(least * (1.0 + math.log(max(m, 2)) / max(m, 1)), rounding)
     return int(np.flatnonzero(finite & (sse <= margin))[0])
 
 
@@ -143,8 +145,9 @@ def search_delay(
     Notes
     -----
     Every candidate regresses the same rows ``y[1] .. y[n-1]``: the input before
-    the record is taken as held at ``u[0]`` (the record starts settled or at
-    rest), so a long delay does not cost the rows that hold the step. Each
+    the record is taken as 0 V (at rest) for a record without a constant term and
+    as held at ``u[0]`` (settled) with one, so a long delay does not cost the
+    rows that hold the step. Each
     candidate is solved from its 2×2 or 3×3 normal equations (four dot products
     of the record), which is accurate enough to rank them; the chosen one is
     then solved properly by the caller. Only the first :data:`SEARCH_SAMPLES`
@@ -170,7 +173,9 @@ def search_delay(
     delays = tuple(range(max_delay + 1))
     y_shift, constant = _reg.offset_shift(offset, float(y[0]))
     ys = y - y_shift
-    held = np.concatenate([np.full(max_delay, u[0]), u])
+    # Before the record the plant rested with the input off ("initial", a known
+    # ambient, the paper's raw form) or sat under the first input ("fit").
+    held = np.concatenate([np.full(max_delay, u[0] if constant else 0.0), u])
     m = y.size - 1
     prev, Y = ys[:-1], ys[1:]
     pp, pY = float(prev @ prev), float(prev @ Y)
@@ -180,21 +185,38 @@ def search_delay(
         ud = held[max_delay - d : max_delay - d + m]
         pu, uu, uY = float(prev @ ud), float(ud @ ud), float(ud @ Y)
         if constant:
+            # The rows before the delayed input enters (k < d) see the input from
+            # before the record, unknown for a moving start: a column that is 1 on
+            # those rows absorbs b (u_before - u[0]) exactly.
             u1 = float(ud.sum())
-            G = np.array([[pp, pu, p1], [pu, uu, u1], [p1, u1, float(m)]])
-            rhs = np.array([pY, uY, Y1])
+            pre_p, pre_u, pre_Y = float(prev[:d].sum()), float(ud[:d].sum()), float(Y[:d].sum())
+            G = np.array(
+                [
+                    [pp, pu, p1, pre_p],
+                    [pu, uu, u1, pre_u],
+                    [p1, u1, float(m), float(d)],
+                    [pre_p, pre_u, float(d), float(d)],
+                ]
+            )
+            rhs = np.array([pY, uY, Y1, pre_Y])
         else:
             G = np.array([[pp, pu], [pu, uu]])
             rhs = np.array([pY, uY])
         W, *_ = np.linalg.lstsq(G, rhs, rcond=None)
         if criterion == "simulation":
             drive = W[1] * ud + (W[2] if constant else 0.0)
+            if constant:
+                drive[:d] += W[3]
             with np.errstate(all="ignore"):
                 sim = lfilter([1.0], [1.0, -W[0]], drive, zi=[W[0] * ys[0]])[0]
                 err = float(np.sum((Y - sim) ** 2))
         else:
-            res = Y - W[0] * prev - W[1] * ud - (W[2] if constant else 0.0)
+            res = Y - W[0] * prev - W[1] * ud
+            if constant:
+                res = res - W[2]
+                res[:d] -= W[3]
             err = float(res @ res)
         sse.append(err if math.isfinite(err) else math.inf)
-    best = _smallest_near_best(np.asarray(sse), Y.size)
+    scale = max(float(np.max(np.abs(ys))), 1e-300)
+    best = _smallest_near_best(np.asarray(sse), Y.size, Y.size * (1e-9 * scale) ** 2)
     return DelaySearch(best, delays, tuple(sse), _CRITERIA[criterion])
