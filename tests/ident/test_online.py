@@ -62,6 +62,8 @@ ORDERS = st.sampled_from([None, ArxOrder(2, 1, 0), ArxOrder(1, 2, 1)])
 OFFSETS = st.sampled_from(["initial", "fit", "none", 0.5])
 
 
+# Random settings give implausible final estimates, which are flagged (not checked here).
+@pytest.mark.filterwarnings("ignore::thermolab.ident.IdentificationWarning")
 @settings(max_examples=12, deadline=None)
 @given(
     seed=st.integers(0, 2**32 - 1),
@@ -83,6 +85,8 @@ def test_online_malsm_equals_the_batch_function(
     assert_array_equal(online.reason_code, batch.reason_code)
 
 
+# Random settings give implausible final estimates, which are flagged (not checked here).
+@pytest.mark.filterwarnings("ignore::thermolab.ident.IdentificationWarning")
 @settings(max_examples=12, deadline=None)
 @given(
     seed=st.integers(0, 2**32 - 1),
@@ -121,6 +125,8 @@ def test_online_wlsm_equals_the_batch_function(
     assert_array_equal(ident.trajectory().W, batch.W)
 
 
+# Random settings give implausible final estimates, which are flagged (not checked here).
+@pytest.mark.filterwarnings("ignore::thermolab.ident.IdentificationWarning")
 @settings(max_examples=10, deadline=None)
 @given(
     seed=st.integers(0, 2**32 - 1),

@@ -175,48 +175,72 @@ def search_delay(
     ys = y - y_shift
     # Before the record the plant rested with the input off ("initial", a known
     # ambient, the paper's raw form) or sat under the first input ("fit").
-    held = np.concatenate([np.full(max_delay, u[0] if constant else 0.0), u])
+    pad = float(u[0]) if constant else 0.0
+    held = np.concatenate([np.full(max_delay, pad), u])
     m = y.size - 1
+    held = held[: max_delay + m]
     prev, Y = ys[:-1], ys[1:]
+    nd = max_delay + 1
+    d = np.arange(nd)
+    start = max_delay - d  # the input column of delay d is held[start : start + m]
+    # Every delay's normal equations at once: sliding sums and correlations.
+    cs = np.concatenate([[0.0], np.cumsum(held)])
+    cs2 = np.concatenate([[0.0], np.cumsum(held * held)])
+    u1 = cs[start + m] - cs[start]
+    uu = cs2[start + m] - cs2[start]
+    pu = np.correlate(held, prev, "valid")[start]
+    uY = np.correlate(held, Y, "valid")[start]
     pp, pY = float(prev @ prev), float(prev @ Y)
-    p1, Y1 = float(prev.sum()), float(Y.sum())
-    sse: list[float] = []
-    for d in delays:
-        ud = held[max_delay - d : max_delay - d + m]
-        pu, uu, uY = float(prev @ ud), float(ud @ ud), float(ud @ Y)
-        if constant:
-            # The rows before the delayed input enters (k < d) see the input from
-            # before the record, unknown for a moving start: a column that is 1 on
-            # those rows absorbs b (u_before - u[0]) exactly.
-            u1 = float(ud.sum())
-            pre_p, pre_u, pre_Y = float(prev[:d].sum()), float(ud[:d].sum()), float(Y[:d].sum())
-            G = np.array(
-                [
-                    [pp, pu, p1, pre_p],
-                    [pu, uu, u1, pre_u],
-                    [p1, u1, float(m), float(d)],
-                    [pre_p, pre_u, float(d), float(d)],
-                ]
-            )
-            rhs = np.array([pY, uY, Y1, pre_Y])
-        else:
-            G = np.array([[pp, pu], [pu, uu]])
-            rhs = np.array([pY, uY])
-        W, *_ = np.linalg.lstsq(G, rhs, rcond=None)
+    G = np.empty((nd, 4 if constant else 2, 4 if constant else 2))
+    G[:, 0, 0], G[:, 0, 1], G[:, 1, 1] = pp, pu, uu
+    rhs = np.empty((nd, G.shape[1]))
+    rhs[:, 0], rhs[:, 1] = pY, uY
+    if constant:
+        # The rows before the delayed input enters (k < d) see the input from
+        # before the record, unknown for a moving start: a column that is 1 on
+        # those rows absorbs b (u_before - u[0]) exactly.
+        cp = np.concatenate([[0.0], np.cumsum(prev)])
+        cY = np.concatenate([[0.0], np.cumsum(Y)])
+        G[:, 0, 2], G[:, 1, 2], G[:, 2, 2] = cp[-1], u1, float(m)
+        G[:, 0, 3], G[:, 1, 3], G[:, 2, 3], G[:, 3, 3] = cp[d], pad * d, d, d
+        rhs[:, 2], rhs[:, 3] = cY[-1], cY[d]
+    upper = np.triu_indices(G.shape[1], 1)
+    G[:, upper[1], upper[0]] = G[:, upper[0], upper[1]]
+    # Equilibrate, then a pseudo-inverse: the pre-record column is empty at d = 0.
+    diag = np.sqrt(np.einsum("kii->ki", G))
+    scale_cols = np.where(diag > 0.0, 1.0 / np.where(diag > 0.0, diag, 1.0), 0.0)
+    Gs = G * scale_cols[:, :, None] * scale_cols[:, None, :]
+    W = (np.linalg.pinv(Gs, rcond=1e-13) @ (rhs * scale_cols)[..., None])[..., 0] * scale_cols
+
+    def exact(k: int) -> float:
+        ud = held[start[k] : start[k] + m]
         if criterion == "simulation":
-            drive = W[1] * ud + (W[2] if constant else 0.0)
+            drive = W[k, 1] * ud + (W[k, 2] if constant else 0.0)
             if constant:
-                drive[:d] += W[3]
+                drive[: d[k]] += W[k, 3]
             with np.errstate(all="ignore"):
-                sim = lfilter([1.0], [1.0, -W[0]], drive, zi=[W[0] * ys[0]])[0]
-                err = float(np.sum((Y - sim) ** 2))
+                out = lfilter([1.0], [1.0, -W[k, 0]], drive, zi=[W[k, 0] * ys[0]])[0]
+                err = float(np.sum((Y - out) ** 2))
         else:
-            res = Y - W[0] * prev - W[1] * ud
+            res = Y - W[k, 0] * prev - W[k, 1] * ud
             if constant:
-                res = res - W[2]
-                res[:d] -= W[3]
+                res -= W[k, 2]
+                res[: d[k]] -= W[k, 3]
             err = float(res @ res)
-        sse.append(err if math.isfinite(err) else math.inf)
+        return err if math.isfinite(err) else math.inf
+
+    YY = float(Y @ Y)
+    if criterion == "simulation":
+        sse = [exact(k) for k in range(nd)]
+    else:
+        # One-step errors from the normal equations, YᵀY - Wᵀ rhs; that
+        # difference cancels to about 1e-13 YᵀY, so the few candidates near the
+        # least are recomputed from their residuals.
+        quick = np.maximum(YY - np.einsum("ki,ki->k", W, rhs), 0.0)
+        sse = quick.tolist()
+        near = np.flatnonzero(quick <= 10.0 * float(quick.min()) + 1e-10 * YY)
+        for k in near[:16].tolist() + np.argsort(quick)[:3].tolist():
+            sse[k] = exact(int(k))
     scale = max(float(np.max(np.abs(ys))), 1e-300)
     best = _smallest_near_best(np.asarray(sse), Y.size, Y.size * (1e-9 * scale) ** 2)
     return DelaySearch(best, delays, tuple(sse), _CRITERIA[criterion])
