@@ -389,7 +389,10 @@ class _LeastSquares(OnlineIdentifier):
             return None
         u, y = self._record()
         try:
-            res = least_squares(u, y, self.dt, order=self._order, offset=self._offset)
+            with warnings.catch_warnings():
+                # The warnings are kept in extras["warnings"]; do not repeat them at END.
+                warnings.simplefilter("ignore")
+                res = least_squares(u, y, self.dt, order=self._order, offset=self._offset)
         except InvalidDataError as exc:
             return _invalid(self.method, self._n - 1, str(exc))
         extras: dict[str, Any] = {
@@ -398,6 +401,7 @@ class _LeastSquares(OnlineIdentifier):
             "tau_stderr": res.tau_stderr,
             "cond": res.cond,
             "cond_scaled": res.cond_scaled,
+            "warnings": list(res.warnings),
             "fit_one_step": res.fit_one_step,
             "fit_simulation": res.fit_simulation,
             "ambient": res.ambient,
@@ -458,9 +462,11 @@ class _BlockLeastSquares(OnlineIdentifier):
                 "blockls", self.dt, np.full((self._n, p), np.nan), self._order, self._offset,
                 self._order.param_names(constant=self._offset == "fit"), params=dict(self.params),
             )  # fmt: skip
-        return block_least_squares(
-            u, y, self.dt, self._block, order=self._order, offset=self._offset
-        )
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # kept in the trajectory's warnings
+            return block_least_squares(
+                u, y, self.dt, self._block, order=self._order, offset=self._offset
+            )
 
 
 class _Recursive(OnlineIdentifier):
