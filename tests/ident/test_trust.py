@@ -343,3 +343,26 @@ def test_bad_dead_times_and_lags_are_refused() -> None:
         residual_test(np.ones(20), np.ones(20), max_lag=15)
     with pytest.raises(InvalidDataError, match="strictly increasing"):
         timing_warnings([0.0, 1.0, 1.0])
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    K=st.floats(0.05, 5.0) | st.floats(-5.0, -0.05),
+    tau=st.floats(6.0, 300.0),
+    theta=st.floats(0.0, 40.0),
+    ambient=st.floats(-5.0, 30.0),
+    amplitude=st.floats(1.0, 50.0),
+)
+def test_step_response_recovers_a_first_order_plus_dead_time(
+    K: float, tau: float, theta: float, ambient: float, amplitude: float
+) -> None:
+    """Domain: dt = 1 s, tau 6..300 s, any dead time 0..40 s (not only whole samples),
+    a step from rest at ambient after 10 samples, recorded for 8 tau + theta. Noise-free,
+    the step response gives K, tau and theta to 1e-6 of tau."""
+    n = int(10 + theta + 8 * tau)
+    t = np.arange(float(n))
+    u = np.where(t >= 10, amplitude, 0.0)
+    y = simulate_first_order(u, K, tau, 1.0, ambient=ambient, theta=theta)
+    r = quiet(step_response, t, u, y, min_samples=0)
+    assert_allclose(r.K, K, rtol=1e-6)
+    assert_allclose([r.tau, r.theta], [tau, theta], rtol=0, atol=1e-6 * tau)
