@@ -366,3 +366,27 @@ def test_step_response_recovers_a_first_order_plus_dead_time(
     r = quiet(step_response, t, u, y, min_samples=0)
     assert_allclose(r.K, K, rtol=1e-6)
     assert_allclose([r.tau, r.theta], [tau, theta], rtol=0, atol=1e-6 * tau)
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    K=st.floats(0.05, 5.0),
+    tau=st.floats(5.0, 150.0),
+    theta=st.floats(0.0, 20.0),
+    ambient=st.floats(-5.0, 30.0),
+    settled=st.booleans(),
+)
+def test_output_error_recovers_any_dead_time(
+    seed: int, K: float, tau: float, theta: float, ambient: float, settled: bool
+) -> None:
+    """Domain: dt = 1 s, tau 5..150 s, dead time 0..20 s (fractions of a sample too),
+    1500 samples of random steps from ambient at rest or settled under the first input.
+    Noise-free, the output-error fit gives K, tau to 1e-4 and theta to 1e-3 tau."""
+    rng = np.random.default_rng(seed)
+    u = random_steps(rng, 1500, first_hold=int(rng.integers(20, 60)))
+    y0 = ambient + K * u[0] if settled else None
+    y = simulate_first_order(u, K, tau, 1.0, y0=y0, ambient=ambient, theta=theta)
+    r = quiet(output_error, u, y, 1.0)
+    assert_allclose([r.K, r.tau], [K, tau], rtol=1e-4)
+    assert abs(r.theta - theta) <= 1e-3 * tau

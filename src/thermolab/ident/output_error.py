@@ -18,8 +18,9 @@ with ``a = exp(-dt/tau)``, ``theta = d dt + phi`` (``0 <= phi < dt``),
 The free parameters are ``K``, ``tau``, ``theta``, the ambient and, unless the
 record starts at rest at ambient (decided as for ``offset="auto"`` by
 :mod:`thermolab.ident.operating_point`), the initial deviation ``x[0]`` with
-the input before the record held at ``u[0]``: right for a record that starts
-at ambient, settled under an input or moving.
+the input before the record (which the dead time carries into the first
+samples): right for a record that starts at ambient, settled under an input or
+moving.
 :func:`scipy.optimize.least_squares` (trust region reflective, bounds on
 ``tau`` and ``theta``) minimises the simulation error, started from the
 least-squares (ARX) estimate with its dead time search.
@@ -278,7 +279,6 @@ def output_error(
     # would make the ambient, the initial state and the gain indistinguishable
     # after a single step.
     at_rest = arx.operating_point is not None and arx.operating_point.handling == "initial"
-    u_past = 0.0 if at_rest else None
     if not arx.model.valid:
         raise InsufficientExcitationError(
             f"the output-error fit needs a starting model, and least squares gave none: "
@@ -294,25 +294,30 @@ def output_error(
     th0 = float(min(max(th0, 0.0), theta_hi * 0.999))
     scale_y = max(float(np.std(y_arr)), 1e-12)
 
-    names = ["K", "log_tau", "ambient"] + ([] if at_rest else ["x0"])
+    # Not at rest: the initial state and the input before the record (which the
+    # dead time carries into the first samples) are free too.
+    names = ["K", "log_tau", "ambient"] + ([] if at_rest else ["x0", "u_before"])
     names += ["theta"] if fixed_theta is None else []
 
-    def unpack(p: FloatArray) -> tuple[float, float, float, float, float]:
+    def unpack(p: FloatArray) -> tuple[float, float, float, float, float, float]:
         v = dict(zip(names, (float(x) for x in p), strict=True))
         th = fixed_theta if fixed_theta is not None else v["theta"]
-        return v["K"], math.exp(v["log_tau"]), th, v["ambient"], v.get("x0", 0.0)
+        past = v.get("u_before", 0.0)
+        return v["K"], math.exp(v["log_tau"]), th, v["ambient"], v.get("x0", 0.0), past
 
     def residual(p: FloatArray) -> FloatArray:
-        K, tau, th, amb, x0 = unpack(p)
-        x = simulate_fopdt(u_arr, K, tau, th, step, x0, u_past)
+        K, tau, th, amb, x0, past = unpack(p)
+        x = simulate_fopdt(u_arr, K, tau, th, step, x0, past)
         r: FloatArray = amb + x - y_arr
         return r
 
     start = {"K": K0, "log_tau": math.log(tau0), "ambient": amb0, "x0": x00, "theta": th0}
+    start["u_before"] = float(u_arr[0])
     lower = {"log_tau": math.log(tau_lo), "theta": 0.0}
     upper = {"log_tau": math.log(tau_hi), "theta": theta_hi}
     widths = {"K": max(abs(K0), 1e-6), "log_tau": 0.1, "ambient": scale_y, "x0": scale_y}
     widths["theta"] = step
+    widths["u_before"] = max(float(np.ptp(u_arr)), 1e-12)
     p0 = [start[k] for k in names]
     lo = [lower.get(k, -np.inf) for k in names]
     hi = [upper.get(k, np.inf) for k in names]
@@ -328,11 +333,12 @@ def output_error(
         gtol=1e-12,
         max_nfev=400,
     )
-    K, tau, th, amb, x0 = unpack(best.x)
+    K, tau, th, amb, x0, _ = unpack(best.x)
     res = -best.fun
     model = FirstOrderModel(K, tau, theta=th)
     stderr = _stderr(best.jac, res, names)
     stderr["tau"] = tau * stderr.pop("log_tau", math.nan)
+    stderr.pop("u_before", None)
     sim = y_arr - res
     fit = _diag.fit_percent(y_arr, sim)
     # The optimiser stops at about 1e-6 of the output (its tolerances), not at
