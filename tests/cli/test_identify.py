@@ -265,7 +265,7 @@ def test_method_errors_are_one_line(run: Run, square_csv: Path, tmp_path: Path) 
         (["--method", "lsm", "--order", "1,2"], "--order must be three whole numbers"),
         (
             ["--method", "lsm", "--offset", "warm"],
-            "--offset must be one of initial, fit, none or a finite number",
+            "--offset must be one of auto, initial, fit, none or a finite number",
         ),
         (["--method", "lsm", "--dt", "-1"], "--dt must be > 0"),
         (["--method", "fast"], "invalid choice: 'fast'"),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -14,8 +15,13 @@ from thermolab.jsonsafe import finite_or_none
 
 from . import _regression as _reg
 from . import _validation as _v
+from . import diagnostics as _diag
+from ._trust import resolve_offset, with_warnings
+from .deadtime import DelaySearch, default_max_delay, search_delay
 from .models import NOT_EXCITED, ArxModel, ArxOrder, FirstOrderModel
+from .operating_point import OperatingPoint, decide_operating_point
 from .registry import SETTINGS
+from .step import IdentificationWarning
 from .trajectory import Trajectory
 
 if TYPE_CHECKING:
@@ -82,6 +88,19 @@ class LeastSquaresResult:
     y_shift : float
         The value subtracted from ``y`` before regressing (``y[0]`` for
         ``"initial"``, the given value for a float, else 0).
+    operating_point : OperatingPoint or None
+        How ``offset="auto"`` decided the handling (None when it was given).
+    delay_search : DelaySearch or None
+        The dead time search (None when the order was given).
+    residual_test : ResidualTest or None
+        Whiteness and input independence of the residuals (MATLAB's ``resid``).
+    fit_holdout : float
+        Fit % of the free-run simulation on the last ``holdout`` part of the
+        record, by a model fitted to the rest (NaN when too short or when the
+        input does not change in that part).
+    warnings : tuple of str
+        Everything that makes the model less trustworthy (also emitted as
+        :class:`IdentificationWarning`), each with the likely cause.
     """
 
     W: FloatArray
@@ -106,11 +125,26 @@ class LeastSquaresResult:
     n_samples: int
     ambient: float
     y_shift: float
+    operating_point: OperatingPoint | None = None
+    delay_search: DelaySearch | None = None
+    residual_test: _diag.ResidualTest | None = None
+    fit_holdout: float = math.nan
+    warnings: tuple[str, ...] = ()
 
     @property
     def K(self) -> float:  # noqa: N802 - the paper's symbol
         """Static (DC) gain; NaN when the model has no first-order meaning."""
         return self.model.K
+
+    @property
+    def theta(self) -> float:
+        """Dead time in seconds: ``order.delay * dt``."""
+        return self.order.delay * self.dt
+
+    @property
+    def trusted(self) -> bool:
+        """A valid first-order model with no warning: one to show as final."""
+        return self.model.valid and not self.warnings
 
     @property
     def tau(self) -> float:
@@ -137,7 +171,12 @@ class LeastSquaresResult:
             ``method`` (``"lsm"``), ``dt``, ``K``, ``tau``, ``valid``, ``reason``,
             ``W``, ``param_names``, ``stderr``, ``K_stderr``, ``tau_stderr``,
             ``cond``, ``cond_scaled``, ``fit_one_step``, ``fit_simulation``,
-            ``n_samples``, ``n_rows``, ``order``, ``offset``, ``ambient``.
+            ``n_samples``, ``n_rows``, ``order``, ``offset``, ``ambient``, and
+            ``theta`` (dead time, s), ``fit_holdout``, ``operating_point``
+            (:meth:`OperatingPoint.to_dict` or None), ``delay_search``
+            (:meth:`DelaySearch.to_dict` or None), ``residual_test``
+            (:meth:`ResidualTest.to_dict` or None), ``warnings`` (list of str) and
+            ``trusted`` (valid and no warning).
         """
         out: dict[str, Any] = {
             "method": "lsm",
@@ -160,6 +199,15 @@ class LeastSquaresResult:
             "order": self.order.to_dict(),
             "offset": self.offset,
             "ambient": finite_or_none(self.ambient),
+            "theta": self.theta,
+            "fit_holdout": finite_or_none(self.fit_holdout),
+            "operating_point": None
+            if self.operating_point is None
+            else self.operating_point.to_dict(),
+            "delay_search": None if self.delay_search is None else self.delay_search.to_dict(),
+            "residual_test": None if self.residual_test is None else self.residual_test.to_dict(),
+            "warnings": list(self.warnings),
+            "trusted": self.trusted,
         }
         if arrays:
             for name in ("y_measured", "y_one_step", "y_simulated", "residuals"):
@@ -250,6 +298,10 @@ def least_squares(
     *,
     order: ArxOrder | None = None,
     offset: str | float = SETTINGS["offset"].default,
+    max_delay: int | None = SETTINGS["max_delay"].default,
+    expected_sign: int | None = SETTINGS["expected_sign"].default,
+    holdout: float = SETTINGS["holdout"].default,
+    t: npt.ArrayLike | None = None,
 ) -> LeastSquaresResult:
     """Batch least squares over the whole record: the paper's LSM, eq. 12.
 
@@ -265,17 +317,37 @@ def least_squares(
     dt : float
         Sample period in seconds, > 0.
     order : ArxOrder, optional
-        Model structure; default first order (eq. 4).
-    offset : {"initial", "fit", "none"} or float, optional
+        Model structure. Default: first order with the dead time chosen from
+        the data (:func:`thermolab.ident.deadtime.search_delay` over
+        ``0 .. max_delay`` samples); give ``ArxOrder(1, 1, 0)`` for eq. 4 exactly.
+    offset : {"auto", "initial", "fit", "none"} or float, optional
         How the operating point is handled:
 
-        * ``"initial"`` (default): ``y[0]`` is the ambient equilibrium at 0 V
+        * ``"auto"`` (default): decided from the record by
+          :func:`thermolab.ident.operating_point.decide_operating_point`
+          (``"initial"`` for a record that starts at ambient, ``"fit"`` for one
+          that starts settled under an input or moving); the result's
+          ``operating_point`` says which and why. Until this release the
+          default was ``"initial"``;
+        * ``"initial"``: ``y[0]`` is the ambient equilibrium at 0 V
           input and is subtracted from ``y`` (right for a record that starts
           from rest, the paper's procedure);
         * ``"fit"``: a constant term ``c`` is estimated with the other
           parameters; ``ambient = c / (1 - sum(a))``;
         * ``"none"``: the paper's raw form (correct only when the ambient is 0 V);
         * a float: the known ambient output in volts, subtracted from ``y``.
+    max_delay : int, optional
+        Longest dead time tried when ``order`` is None, in samples; default
+        :func:`thermolab.ident.deadtime.default_max_delay` (60, at most a tenth
+        of the record).
+    expected_sign : {1, -1}, optional
+        The sign the gain must have (1 for a heater); a gain of the other sign is
+        flagged. Default None: not checked.
+    holdout : float, optional
+        Fraction of the record held out for ``fit_holdout`` (0 to 0.5; default
+        0.3; 0 skips it).
+    t : array_like, optional
+        The sample times, if known: an irregular axis (jitter, gaps) is flagged.
 
     Returns
     -------
@@ -292,7 +364,14 @@ def least_squares(
         If ``D`` is rank-deficient: the input was held constant (e.g. kept at 0 V)
         or the output never moved, so ``DᵀD`` is singular.
     InvalidParameterError
-        If ``dt``, ``order`` or ``offset`` is not allowed.
+        If ``dt``, ``order``, ``offset``, ``max_delay``, ``expected_sign`` or
+        ``holdout`` is not allowed.
+
+    Warns
+    -----
+    IdentificationWarning
+        For each entry of the result's ``warnings``: failed residual tests,
+        implausible estimates, a poorly determined operating point, timing jitter.
 
     Notes
     -----
@@ -320,8 +399,42 @@ def least_squares(
     """
     u_arr, y_arr = _v.as_record(u, y)
     step = _v.check_dt(dt)
-    ord_ = _v.check_order(order)
-    off = _v.check_offset(offset)
+    off_in = _v.check_offset_or_auto(offset)
+    held = _v.real("holdout", holdout)
+    if not 0.0 <= held <= 0.5:
+        raise InvalidParameterError(f"holdout must be a fraction from 0 to 0.5, got {held!r}")
+    t_arr = None if t is None else _v.check_time(t, y_arr.size)
+    search: DelaySearch | None = None
+    longest = 0
+    if order is None:
+        if max_delay is None:
+            longest = default_max_delay(y_arr.size)
+        else:
+            longest = _v.integer("max_delay", max_delay, 0, "0 turns the search off")
+            if longest > 1000 or longest > y_arr.size // 4:
+                raise InvalidParameterError(
+                    f"max_delay must be at most 1000 and a quarter of the record "
+                    f"({y_arr.size // 4} samples), got {longest}"
+                )
+    op: OperatingPoint | None = None
+    if off_in == _v.AUTO_OFFSET:
+        op = decide_operating_point(
+            u_arr,
+            y_arr,
+            step,
+            order=None if order is None else _v.check_order(order),
+            max_delay=longest,
+        )
+        off: str | float = op.handling
+        search = op.delay_search
+    else:
+        off = off_in
+        if order is None and longest > 0:
+            search = search_delay(u_arr, y_arr, off, longest)
+    if order is None:
+        ord_ = ArxOrder(1, 1, 0 if search is None else search.delay)
+    else:
+        ord_ = _v.check_order(order)
     p = ord_.na + ord_.nb + int(off == "fit")
     _v.check_min_samples(
         y_arr.size, ord_.lag + 1 + p, f"least squares of {p} parameters with order {ord_}"
@@ -355,6 +468,24 @@ def least_squares(
     sim = _simulate(reg, W, y_arr - reg.y_shift)
     s_raw = np.linalg.svd(reg.D, compute_uv=False)
     ambient = arx.ambient if reg.constant else reg.y_shift
+    scale = max(float(np.max(np.abs(y_arr))), 1e-300)
+    rtest = (
+        _diag.residual_test(residuals, u_arr[reg.first_target :], scale=scale) if m >= 36 else None
+    )
+    fit_sim = _nrmse_fit(reg.Y, sim)
+    fit_held = _holdout_fit(u_arr, y_arr, ord_, off, reg.y_shift, held) if held else math.nan
+    notes = list(op.warnings) if op is not None else []
+    notes += _diag.plausibility_warnings(
+        model.K, model.tau, step, y_arr.size * step, expected_sign=expected_sign
+    )
+    if rtest is not None:
+        advice = _diag.residual_advice(rtest, search is not None or ord_.delay > 0)
+        if advice:
+            notes.append(advice)
+    if t_arr is not None:
+        notes += _diag.timing_warnings(t_arr)
+    for note in notes:
+        warnings.warn(note, IdentificationWarning, stacklevel=2)
     return LeastSquaresResult(
         W=W,
         param_names=ord_.param_names(constant=reg.constant),
@@ -374,11 +505,44 @@ def least_squares(
         y_simulated=sim + reg.y_shift,
         residuals=residuals,
         fit_one_step=_nrmse_fit(reg.Y, one_step),
-        fit_simulation=_nrmse_fit(reg.Y, sim),
+        fit_simulation=fit_sim,
         n_samples=int(y_arr.size),
         ambient=float(ambient),
         y_shift=reg.y_shift,
+        operating_point=op,
+        delay_search=search,
+        residual_test=rtest,
+        fit_holdout=fit_held,
+        warnings=tuple(notes),
     )
+
+
+def _holdout_fit(
+    u: FloatArray,
+    y: FloatArray,
+    order: ArxOrder,
+    offset: str | float,
+    y_shift: float,
+    fraction: float,
+) -> float:
+    """Fit % of the free run over the last ``fraction`` by a model fitted to the rest."""
+    n = y.size
+    split = round(n * (1.0 - fraction))
+    p = order.na + order.nb + int(offset == "fit")
+    if split - order.lag - 1 < 3 * p or n - split < 10:
+        return math.nan
+    if np.ptp(u[split - order.delay - order.nb :]) == 0.0:
+        return math.nan  # nothing excites the held-out part: its fit % means nothing
+    # The shift of the whole record, so the two parts share one frame.
+    frame: str | float = y_shift if offset == "initial" else offset
+    first = _reg.build(u[:split], y[:split], order, frame)
+    sol = _reg.solve(first.D, first.Y)
+    if not sol.ok:
+        return math.nan
+    start = split - order.lag - 1
+    tail = _reg.build(u[start:], y[start:], order, frame)
+    sim = _simulate(tail, sol.W, y[start:] - tail.y_shift)
+    return _nrmse_fit(tail.Y, sim)
 
 
 def block_rows(order: ArxOrder, block: int, n_params: int, n_samples: int) -> tuple[int, int]:
@@ -401,6 +565,8 @@ def block_least_squares(
     *,
     order: ArxOrder | None = None,
     offset: str | float = SETTINGS["offset"].default,
+    t: npt.ArrayLike | None = None,
+    expected_sign: int | None = SETTINGS["expected_sign"].default,
 ) -> Trajectory:
     """Least squares over consecutive non-overlapping blocks: the paper's LSM(2) and LSM(3).
 
@@ -420,9 +586,14 @@ def block_least_squares(
         Samples per block, default 100; at least ``order.lag + 1 + n_params``.
     order : ArxOrder, optional
         Model structure; default first order.
-    offset : {"initial", "fit", "none"} or float, optional
+    offset : {"auto", "initial", "fit", "none"} or float, optional
         As in :func:`least_squares`; ``"initial"`` takes the ambient from the
-        record's first sample, for every block.
+        record's first sample, for every block. Default ``"auto"``, decided from
+        the whole record (until this release ``"initial"``).
+    t : array_like, optional
+        Sample times: blocks that span a gap in time, and jitter, are flagged.
+    expected_sign : {1, -1}, optional
+        The sign the gain must have; a final gain of the other sign is flagged.
 
     Returns
     -------
@@ -452,7 +623,7 @@ def block_least_squares(
     u_arr, y_arr = _v.as_record(u, y)
     step = _v.check_dt(dt)
     ord_ = _v.check_order(order)
-    off = _v.check_offset(offset)
+    off, op = resolve_offset(u_arr, y_arr, step, ord_, offset)
     size = _v.integer("block", block, 1, "samples per block")
     p = ord_.na + ord_.nb + int(off == "fit")
     rows, n_blocks = block_rows(ord_, size, p, y_arr.size)
@@ -464,7 +635,7 @@ def block_least_squares(
     W[at] = sol.W
     status = np.zeros(y_arr.size, dtype=np.int8)
     status[at[~sol.ok]] = NOT_EXCITED
-    return Trajectory(
+    tr = Trajectory(
         method="blockls",
         dt=step,
         W=W,
@@ -473,4 +644,6 @@ def block_least_squares(
         param_names=ord_.param_names(constant=reg.constant),
         status=status,
         params={"block": size},
+        operating_point=op,
     )
+    return with_warnings(tr, op, t, expected_sign, window=size)

@@ -27,16 +27,22 @@ import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal, overload
 
 import numpy as np
 import numpy.typing as npt
 
-from thermolab.errors import IdentifierStateError, InvalidDataError
+from thermolab.errors import (
+    IdentifierStateError,
+    InsufficientExcitationError,
+    InvalidDataError,
+    InvalidParameterError,
+)
 from thermolab.jsonsafe import json_safe
 
 from . import _regression as _reg
 from . import _validation as _v
+from ._trust import with_warnings
 from .batch import block_least_squares, block_rows, least_squares
 from .models import (
     INVALID_REASONS,
@@ -374,34 +380,42 @@ class _StepResponse(OnlineIdentifier):
 class _LeastSquares(OnlineIdentifier):
     method = "lsm"
 
-    def __init__(self, dt: float, params: dict[str, Any], order: ArxOrder, offset: str | float):
+    def __init__(
+        self, dt: float, params: dict[str, Any], order: ArxOrder | None, offset: str | float
+    ):
         super().__init__(dt, params)
         self._order = order
         self._offset = offset
+        self._result: Any = None
 
     @classmethod
     def from_settings(cls, dt: float, settings: dict[str, Any]) -> OnlineIdentifier:
-        order, offset, common = _model(settings)
-        return cls(dt, common, order, offset)
+        order, offset, common = _model(settings, search=True)
+        trust = {k: settings[k] for k in ("max_delay", "holdout", "expected_sign")}
+        return cls(dt, {**common, **trust}, order, offset)
 
     def _on_finish(self) -> Estimate | None:
         if self._n == 0:
             return None
         u, y = self._record()
+        p = self.params
         try:
-            res = least_squares(u, y, self.dt, order=self._order, offset=self._offset)
+            with warnings.catch_warnings():
+                # The warnings are kept in extras["warnings"]; do not repeat them at END.
+                warnings.simplefilter("ignore")
+                res = least_squares(
+                    u, y, self.dt, order=self._order, offset=self._offset,
+                    max_delay=p["max_delay"], holdout=p["holdout"],
+                    expected_sign=p["expected_sign"],
+                )  # fmt: skip
         except InvalidDataError as exc:
             return _invalid(self.method, self._n - 1, str(exc))
+        self._result = res
+        summary = res.to_dict()
         extras: dict[str, Any] = {
             "stderr": res.stderr.tolist(),
-            "K_stderr": res.K_stderr,
-            "tau_stderr": res.tau_stderr,
-            "cond": res.cond,
-            "cond_scaled": res.cond_scaled,
-            "fit_one_step": res.fit_one_step,
-            "fit_simulation": res.fit_simulation,
-            "ambient": res.ambient,
             "param_names": list(res.param_names),
+            **{k: summary[k] for k in _LSM_EXTRAS},
         }
         if res.model.reason is not None:
             extras["reason"] = res.model.reason
@@ -411,14 +425,47 @@ class _LeastSquares(OnlineIdentifier):
         )  # fmt: skip
 
     def trajectory(self) -> Trajectory:
-        p = self._order.na + self._order.nb + int(self._offset == "fit")
-        W = np.full((self._n, p), np.nan)
-        if self._final is not None and len(self._final.W) == p:
-            W[-1] = self._final.W
+        res = self._result
+        order = res.order if res is not None else (self._order or ArxOrder())
+        offset = res.offset if res is not None else self._offset
+        constant = offset == "fit"
+        W = np.full((self._n, order.na + order.nb + int(constant)), np.nan)
+        if res is not None:
+            W[-1] = res.W
         return Trajectory(
-            "lsm", self.dt, W, self._order, self._offset,
-            self._order.param_names(constant=self._offset == "fit"), params=dict(self.params),
+            "lsm", self.dt, W, order, "initial" if offset == "auto" else offset,
+            order.param_names(constant=constant), params=dict(self.params),
         )  # fmt: skip
+
+
+#: What the online LSM's final estimate carries from the batch result.
+_LSM_EXTRAS = (
+    "K_stderr", "tau_stderr", "cond", "cond_scaled", "fit_one_step", "fit_simulation",
+    "fit_holdout", "ambient", "theta", "order", "offset", "operating_point", "delay_search",
+    "residual_test", "warnings", "trusted",
+)  # fmt: skip
+
+
+class _OutputError(OnlineIdentifier):
+    """The output-error fit at END (it needs the whole record, like LSM)."""
+
+    method = "oe"
+
+    def _on_finish(self) -> Estimate | None:
+        if self._n == 0:
+            return None
+        from .output_error import output_error
+
+        u, y = self._record()
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # kept in extras["warnings"]
+                res = output_error(u, y, self.dt, **self.params)
+        except (InvalidDataError, InsufficientExcitationError) as exc:
+            return _invalid(self.method, self._n - 1, str(exc))
+        extras = res.to_dict()
+        extras.pop("method", None)
+        return Estimate(self.method, self._n - 1, res.K, res.tau, (), res.model.valid, True, extras)
 
 
 class _BlockLeastSquares(OnlineIdentifier):
@@ -432,19 +479,26 @@ class _BlockLeastSquares(OnlineIdentifier):
         self._offset = offset
         self._block = block
         self._block_offset: str | float = offset
+        # offset="auto": decided from the record so far at a block's end, again
+        # each time the record has doubled (so the decisions cost O(n) in all).
+        self._decided_at = 0
+        self._expected_sign = params.get("expected_sign")
 
     @classmethod
     def from_settings(cls, dt: float, settings: dict[str, Any]) -> OnlineIdentifier:
         order, offset, common = _model(settings)
         block = settings["block"]
         block_rows(order, block, _n_params(order, offset), block)
-        return cls(dt, {"block": block, **common}, order, offset, block)
+        params = {"block": block, **common, "expected_sign": settings["expected_sign"]}
+        return cls(dt, params, order, offset, block)
 
     def _on_sample(self, k: int, u: float, y: float) -> Estimate | None:
         if k == 0 and self._offset == "initial":
             self._block_offset = y  # every block is taken from the record's first sample
         if (k + 1) % self._block:
             return None
+        if self._offset == _v.AUTO_OFFSET and k + 1 >= 2 * self._decided_at:
+            self._decide(k + 1)
         lo = k + 1 - self._block
         reg = _reg.build(self._u[lo : k + 1], self._y[lo : k + 1], self._order, self._block_offset)
         sol = _reg.solve(reg.D[None], reg.Y[None])
@@ -457,6 +511,24 @@ class _BlockLeastSquares(OnlineIdentifier):
             return _first_order_estimate(self.method, k, float(W[0]), float(W[1]), self.dt)
         return _general_estimate(self.method, k, W, self.dt, self._order)
 
+    def _decide(self, n: int) -> None:
+        from .operating_point import decide_operating_point
+
+        u, y = self._u[:n], self._y[:n]
+        try:
+            handling = decide_operating_point(u, y, self.dt, order=self._order).handling
+        except InvalidDataError:
+            handling = "initial"
+        self._block_offset = float(y[0]) if handling == "initial" else "fit"
+        self._decided_at = n
+
+    def _on_finish(self) -> Estimate | None:
+        if self._latest is None:
+            return None
+        # The batch trajectory decides the operating point over the whole record
+        # and carries the warnings.
+        return _with_trust(self._latest, self.trajectory())
+
     def trajectory(self) -> Trajectory:
         u, y = self._record()
         if self._n < self._block:
@@ -465,9 +537,12 @@ class _BlockLeastSquares(OnlineIdentifier):
                 "blockls", self.dt, np.full((self._n, p), np.nan), self._order, self._offset,
                 self._order.param_names(constant=self._offset == "fit"), params=dict(self.params),
             )  # fmt: skip
-        return block_least_squares(
-            u, y, self.dt, self._block, order=self._order, offset=self._offset
-        )
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # kept in the trajectory's warnings
+            return block_least_squares(
+                u, y, self.dt, self._block, order=self._order, offset=self._offset,
+                expected_sign=self._expected_sign,
+            )  # fmt: skip
 
 
 class _Recursive(OnlineIdentifier):
@@ -485,6 +560,17 @@ class _Recursive(OnlineIdentifier):
         self._k = _kernels
         self._order = order
         self._offset = offset
+        self._settings: dict[str, Any] = {}
+        self._end_trajectory: Trajectory | None = None
+        # offset="auto" online: "initial" until the input first changes (the only
+        # handling a constant input identifies, and right for a record that starts
+        # at rest or with a step at its first sample); then, if the input was on
+        # before the change (a record settled under it, or moving), the constant
+        # term is fitted and the record so far replayed. END decides over the
+        # whole record as the batch function does.
+        self._auto = self._keep_y = offset == _v.AUTO_OFFSET
+        if self._auto:
+            offset = "initial"
         self._initial = offset == "initial"
         self._constant = offset == "fit"
         self._first = order.is_first_order and not self._constant
@@ -497,13 +583,22 @@ class _Recursive(OnlineIdentifier):
         self._start = order.lag + 1
 
     def _growing(self) -> tuple[str, ...]:
-        return ("_u", "_ys", "_W", "_code")
+        grown = ("_u", "_ys", "_W", "_code")
+        return (*grown, "_y") if self._keep_y else grown
 
     def update(self, u: float, y: float) -> Estimate | None:
         uf, yf = self._checked_sample(u, y)
         k = self._n
         if k == self._u.size:
             self._grow()
+        if self._keep_y:
+            if k == 0:
+                self._y = np.empty(self._u.size)
+            self._y[k] = yf
+            if self._auto and k and uf != self._u[k - 1]:
+                self._auto = False  # decided once, at the first change
+                if self._settled_under_input(k):
+                    self._replay_with_constant(k)
         if k == 0 and self._initial:
             self._shift = yf
         self._u[k] = uf
@@ -517,6 +612,42 @@ class _Recursive(OnlineIdentifier):
 
     def _step(self, k: int) -> Estimate | None:
         raise NotImplementedError
+
+    def _settled_under_input(self, k: int) -> bool:
+        """Before the first input change at ``k``: input on and the output flat?
+
+        A record that starts at ambient with the input switched on at its first
+        sample rises at once (the paper's step and square wave); one settled
+        under a nonzero input stays within its noise until the input changes,
+        and its first output is not the ambient.
+        """
+        if self._u[0] == 0.0 or k < 3:
+            return False
+        from .operating_point import noise_level
+
+        before = self._y[:k]
+        scale = max(float(np.max(np.abs(before))), 1e-300)
+        return float(np.ptp(before)) <= 3.0 * noise_level(before) + 1e-9 * scale
+
+    def _replay_with_constant(self, k: int) -> None:
+        """Switch to ``offset="fit"`` at sample ``k`` and replay samples ``0 .. k-1``."""
+        try:
+            fresh = type(self).from_settings(self.dt, {**self._settings, "offset": "fit"})
+        except InvalidParameterError:
+            return  # the window cannot hold a constant term: stay with "initial"
+        assert isinstance(fresh, _Recursive)
+        for i in range(k):
+            fresh.update(float(self._u[i]), float(self._y[i]))
+        params, settings, y = self.params, self._settings, self._y
+        self.__dict__.update(fresh.__dict__)
+        self.params, self._settings, self._y = params, settings, y
+        self._offset = _v.AUTO_OFFSET
+        self._auto, self._keep_y = False, True
+
+    def _on_finish(self) -> Estimate | None:
+        if self._latest is None:
+            return None
+        return _with_trust(self._latest, self.trajectory())
 
     def _from_status(self, k: int, status: int, a: float, b: float) -> Estimate | None:
         if status == 0:
@@ -532,18 +663,35 @@ class _Recursive(OnlineIdentifier):
         return self._from_status(k, status, math.nan, math.nan)
 
     def trajectory(self) -> Trajectory:
+        if self._end_trajectory is not None:
+            return self._end_trajectory
         n = self._n
         code = self._code[:n]
-        return Trajectory(
+        live = Trajectory(
             method=self.method,
             dt=self.dt,
             W=self._W[:n].copy(order="F"),
             order=self._order,
-            offset=self._offset,
+            offset="fit" if self._constant else ("initial" if self._initial else self._offset),
             param_names=self._order.param_names(constant=self._constant),
             status=np.where((code == NOT_EXCITED) | (code == NON_FINITE), code, 0).astype(np.int8),
             params=dict(self.params),
         )
+        if not self._finished:
+            return live
+        if self._offset == _v.AUTO_OFFSET and n > self._order.lag + 5:
+            # END: the operating point decided over the whole record, exactly as
+            # the batch function decides it (the same kernels give the same rows).
+            batch = get_method(self.method).batch_function()
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # kept in the trajectory's warnings
+                tr: Trajectory = batch(self._u[:n], self._y[:n], self.dt, **self._settings)
+        else:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                tr = with_warnings(live, None, None, self._settings.get("expected_sign"))
+        self._end_trajectory = tr
+        return tr
 
 
 class _MovingWindow(_Recursive):
@@ -570,7 +718,9 @@ class _MovingWindow(_Recursive):
         rows = window_rows(order, window, _n_params(order, offset))
         every = check_recompute(settings["recompute_every"], rows)
         params = {"window": window, "recompute_every": every, **common}
-        return cls(dt, params, order, offset, rows, every)
+        ident = cls(dt, params, order, offset, rows, every)
+        ident._settings = dict(settings)
+        return ident
 
     def _step(self, k: int) -> Estimate | None:
         if k < self._start:
@@ -630,7 +780,9 @@ class _Weighted(_Recursive):
         }
         if settings["p0"] is not None:
             params["p0"] = P0.tolist()
-        return cls(dt, params, order, offset, gamma, W0, P0, paper)
+        ident = cls(dt, params, order, offset, gamma, W0, P0, paper)
+        ident._settings = dict(settings)
+        return ident
 
     def _step(self, k: int) -> Estimate | None:
         if k < self._start:
@@ -655,15 +807,59 @@ class _Weighted(_Recursive):
         return self._from_row(k)
 
 
-def _model(settings: dict[str, Any]) -> tuple[ArxOrder, str | float, dict[str, Any]]:
-    """The checked order and offset, and their JSON-ready form for ``params``."""
-    order = _v.check_order(settings["order"])
-    offset = _v.check_offset(settings["offset"])
-    return order, offset, {"order": order.to_dict(), "offset": offset}
+@overload
+def _model(
+    settings: dict[str, Any], *, search: Literal[False] = False
+) -> tuple[ArxOrder, str | float, dict[str, Any]]: ...
+@overload
+def _model(
+    settings: dict[str, Any], *, search: Literal[True]
+) -> tuple[ArxOrder | None, str | float, dict[str, Any]]: ...
+def _model(
+    settings: dict[str, Any], *, search: bool = False
+) -> tuple[ArxOrder | None, str | float, dict[str, Any]]:
+    """The checked order and offset, and their JSON-ready form for ``params``.
+
+    An order not given is the paper's first order, except where the method
+    searches the dead time (``search``: LSM), which keeps None (``params``
+    shows ``None``: searched at END).
+    """
+    given = settings["order"]
+    order = None if given is None and search else _v.check_order(given)
+    offset = _v.check_offset_or_auto(settings["offset"])
+    shown = None if order is None else order.to_dict()
+    common = {"order": shown, "offset": offset}
+    if "expected_sign" in settings:
+        common["expected_sign"] = settings["expected_sign"]
+    return order, offset, common
 
 
 def _n_params(order: ArxOrder, offset: str | float) -> int:
     return order.na + order.nb + int(offset == "fit")
+
+
+def _with_trust(est: Estimate, tr: Trajectory) -> Estimate:
+    """The final estimate with the END trajectory's row, warnings and operating point.
+
+    When END decided another operating point than the live estimates used, the
+    row of the END trajectory replaces the live estimate.
+    """
+    k = est.k
+    if tr.n_samples > k and tr.W.shape[1] and not np.array_equal(tr.W[k], np.asarray(est.W)):
+        ok = bool(tr.valid[k])
+        est = Estimate(
+            est.method, k, float(tr.K[k]), float(tr.tau[k]), tuple(tr.W[k].tolist()), ok,
+            est.final, _NO_EXTRAS if ok else {"reason": tr.invalid_reason[k]},
+        )  # fmt: skip
+    extras = {
+        **est.extras,
+        "theta": tr.order.delay * tr.dt,
+        "offset": tr.offset,
+        "operating_point": None if tr.operating_point is None else tr.operating_point.to_dict(),
+        "warnings": list(tr.warnings),
+        "trusted": est.valid and not tr.warnings,
+    }
+    return dataclasses.replace(est, extras=extras)
 
 
 def make_identifier(method: str, dt: float, **params: Any) -> OnlineIdentifier:
