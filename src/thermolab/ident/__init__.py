@@ -35,9 +35,11 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from .batch import LeastSquaresResult, block_least_squares, least_squares
+    from .batch import least_squares
+    from .blocks import block_least_squares
     from .deadtime import DelaySearch
     from .diagnostics import ResidualTest
+    from .lsm_result import LeastSquaresResult
     from .models import (
         FIRST_ORDER,
         INVALID_REASONS,
@@ -88,8 +90,8 @@ _HOME = {
     "ArxOrder": "models",
     "FirstOrderModel": "models",
     "discrete_to_first_order": "models",
-    "LeastSquaresResult": "batch",
-    "block_least_squares": "batch",
+    "LeastSquaresResult": "lsm_result",
+    "block_least_squares": "blocks",
     "least_squares": "batch",
     "Estimate": "online",
     "OnlineIdentifier": "online",

@@ -43,7 +43,8 @@ from thermolab.jsonsafe import json_safe
 from . import _regression as _reg
 from . import _validation as _v
 from ._trust import with_warnings
-from .batch import block_least_squares, block_rows, least_squares
+from .batch import least_squares
+from .blocks import block_least_squares, block_rows
 from .models import (
     INVALID_REASONS,
     NON_FINITE,

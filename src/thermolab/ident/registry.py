@@ -474,7 +474,7 @@ METHODS: tuple[Method, ...] = (
     Method(
         "blockls", "Block least squares (LSM(2), LSM(3))",
         "least squares over consecutive blocks: one estimate per block",
-        1, ("final", "trajectory"), ".batch:block_least_squares",
+        1, ("final", "trajectory"), ".blocks:block_least_squares",
         ".online:_BlockLeastSquares", (_BLOCK, *_MODEL, *_TRUST, _LAST),
     ),
     Method(
