@@ -462,39 +462,39 @@ METHODS: tuple[Method, ...] = (
     Method(
         "srm", "Step response (SRM)",
         "K from the final value and tau from the 63.2 % crossing of one step",
-        1, ("final",), ".step:step_response", ".online:_StepResponse",
+        1, ("final",), ".step:step_response", "._online_final:_StepResponse",
         (_U_INITIAL, _MIN_STEP, _MIN_SAMPLES, _SETTLE), data=("t", "u", "y"),
     ),
     Method(
         "lsm", "Batch least squares (LSM)",
         "least squares over the whole record (eq. 12), with standard errors and fits",
-        1, ("final",), ".batch:least_squares", ".online:_LeastSquares",
+        1, ("final",), ".batch:least_squares", "._online_final:_LeastSquares",
         (*_MODEL, _MAX_DELAY, _HOLDOUT, *_TRUST),
     ),
     Method(
         "blockls", "Block least squares (LSM(2), LSM(3))",
         "least squares over consecutive blocks: one estimate per block",
         1, ("final", "trajectory"), ".blocks:block_least_squares",
-        ".online:_BlockLeastSquares", (_BLOCK, *_MODEL, *_TRUST, _LAST),
+        "._online_final:_BlockLeastSquares", (_BLOCK, *_MODEL, *_TRUST, _LAST),
     ),
     Method(
         "malsm", "Moving-window least squares (MALSM)",
         "least squares over a window of the latest samples: one estimate per sample",
         2, ("final", "trajectory"), ".recursive:moving_window_least_squares",
-        ".online:_MovingWindow", (_WINDOW, _RECOMPUTE, *_MODEL, *_TRUST, *_SUMMARY),
+        "._online_recursive:_MovingWindow", (_WINDOW, _RECOMPUTE, *_MODEL, *_TRUST, *_SUMMARY),
     ),
     Method(
         "wlsm", "Weighted least squares (WLSM)",
         "recursive least squares with a forgetting factor: one estimate per sample",
         3, ("final", "trajectory"), ".recursive:weighted_least_squares",
-        ".online:_Weighted",
+        "._online_recursive:_Weighted",
         (_GAMMA, _PMAX, _W0, _FORM, _P0, *_MODEL, *_TRUST, *_SUMMARY),
     ),
     Method(
         "oe", "Output error (OE)",
         "K, tau and the dead time that best simulate the record (free-run error): "
         "unbiased by measurement noise, unlike the ARX methods",
-        1, ("final",), ".output_error:output_error", ".online:_OutputError",
+        1, ("final",), ".output_error:output_error", "._online_final:_OutputError",
         (_THETA, _MAX_DELAY, *_TRUST),
     ),
 )  # fmt: skip
