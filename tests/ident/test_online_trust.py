@@ -132,3 +132,16 @@ def test_online_oe_equals_the_batch_fit() -> None:
     assert (est.K, est.tau, est.extras["theta"]) == (batch.K, batch.tau, batch.theta)
     assert est.extras["theta"] == pytest.approx(15.5, rel=0.02)
     assert est.extras["trusted"] is batch.trusted
+
+
+def test_no_public_name_is_shadowed_by_a_submodule() -> None:
+    import importlib
+    import pkgutil
+    import types
+
+    import thermolab.ident as package
+
+    for info in pkgutil.iter_modules(package.__path__):
+        importlib.import_module(f"thermolab.ident.{info.name}")
+    for name in package.__all__:
+        assert not isinstance(getattr(package, name), types.ModuleType), name

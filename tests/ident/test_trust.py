@@ -28,8 +28,8 @@ from thermolab.ident import (
 )
 from thermolab.ident.deadtime import search_delay
 from thermolab.ident.diagnostics import residual_test, timing_warnings
+from thermolab.ident.oe import output_error
 from thermolab.ident.operating_point import decide_operating_point
-from thermolab.ident.output_error import output_error
 from thermolab.simulation import PAPER_W0, REFERENCE_MODEL, simulate_first_order
 
 K_REF, TAU_REF = REFERENCE_MODEL.K, REFERENCE_MODEL.tau

@@ -48,9 +48,9 @@ if TYPE_CHECKING:
         FirstOrderModel,
         discrete_to_first_order,
     )
+    from .oe import OutputErrorResult, output_error
     from .online import Estimate, OnlineIdentifier, make_identifier
     from .operating_point import OperatingPoint, decide_operating_point
-    from .output_error import OutputErrorResult, output_error
     from .recursive import moving_window_least_squares, weighted_least_squares
     from .step import IdentificationWarning, StepResponseResult, step_response
     from .trajectory import Trajectory
@@ -82,7 +82,9 @@ __all__ = [
     "weighted_least_squares",
 ]
 
-# Where each public name lives; read by __getattr__ on first access.
+# Where each public name lives; read by __getattr__ on first access. No module
+# may share a public name (importing ``.x`` sets the package's attribute ``x``
+# to the module, and __getattr__ is then never asked): output_error lives in oe.
 _HOME = {
     "FIRST_ORDER": "models",
     "INVALID_REASONS": "models",
@@ -106,8 +108,8 @@ _HOME = {
     "ResidualTest": "diagnostics",
     "OperatingPoint": "operating_point",
     "decide_operating_point": "operating_point",
-    "OutputErrorResult": "output_error",
-    "output_error": "output_error",
+    "OutputErrorResult": "oe",
+    "output_error": "oe",
 }
 
 

@@ -137,7 +137,7 @@ class _OutputError(OnlineIdentifier):
     def _on_finish(self) -> Estimate | None:
         if self._n == 0:
             return None
-        from .output_error import output_error
+        from .oe import output_error
 
         u, y = self._record()
         try:

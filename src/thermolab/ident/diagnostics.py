@@ -215,7 +215,7 @@ def residual_advice(test: ResidualTest, delay_searched: bool) -> str | None:
         f"residual test failed: the residuals are not white (autocorrelation outside the 99 % "
         f"bound ±{test.bound:.3g}); likely cause: measurement noise, which biases an "
         "equation-error (ARX) fit towards a faster, smaller-gain model; compare with the "
-        "output-error fit (thermolab.ident.output_error), or a drifting offset"
+        "output-error fit (thermolab.ident.output_error, method oe), or a drifting offset"
     )
 
 

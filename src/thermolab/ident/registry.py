@@ -494,7 +494,7 @@ METHODS: tuple[Method, ...] = (
         "oe", "Output error (OE)",
         "K, tau and the dead time that best simulate the record (free-run error): "
         "unbiased by measurement noise, unlike the ARX methods",
-        1, ("final",), ".output_error:output_error", "._online_final:_OutputError",
+        1, ("final",), ".oe:output_error", "._online_final:_OutputError",
         (_THETA, _MAX_DELAY, *_TRUST),
     ),
 )  # fmt: skip

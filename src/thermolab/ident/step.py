@@ -475,7 +475,10 @@ def step_response(
             # theta = 1.5 t28 - 0.5 t63; a crossing time is uncertain by the noise
             # over the response's slope there, (noise/|change|) tau / (1 - level).
             # A dead time the noise could make is not reported (about 2 sigma).
-            rel = noise / abs(change) * tau
+            # The noise from the response's second differences counts a fast
+            # transient's curvature as noise; before the step there is none.
+            quiet = _noise_level(y_arr[: ks + 1]) if ks + 1 >= 10 else noise
+            rel = min(noise, quiet) / abs(change) * tau
             sigma = math.hypot(1.5 * rel / (1.0 - LEVEL_28), 0.5 * rel / (1.0 - LEVEL_63))
             if tau_two > 0.0 and theta_two > max(1e-9 * tau, 2.0 * sigma):
                 theta, tau = theta_two, tau_two
