@@ -128,8 +128,11 @@ def simulate_first_order(
     *,
     y0: float | None = None,
     ambient: float = 0.0,
+    theta: float = 0.0,
 ) -> FloatArray:
     """Simulate eq. 4 exactly: ``y(k+1) - c = a (y(k) - c) + b u(k)``, ``c`` the ambient.
+
+    With a dead time ``theta`` the plant is ``K exp(-theta s) / (tau s + 1)``.
 
     Parameters
     ----------
@@ -147,6 +150,10 @@ def simulate_first_order(
     ambient : float, optional
         Output at rest with zero input: the operating point (ambient temperature
         reading). Default 0, the paper's simulations.
+    theta : float, optional
+        Dead time (transport delay) in seconds, finite and >= 0, any value (not
+        only whole samples). Default 0. Before the record the plant is settled:
+        the input was 0 (``y0`` None) or the one that holds ``y0``.
 
     Returns
     -------
@@ -168,6 +175,13 @@ def simulate_first_order(
     zero-order-hold discretisation, not an ODE integration: for a 0→U step at
     ``k = 0`` the output is ``K U (1 - a**k)`` to rounding.
 
+    With dead time, a delay of ``d`` whole samples plus a fraction ``phi`` of one
+    splits each held input over two samples (exact behind the zero-order hold):
+    ``y(k+1) - c = a (y(k) - c) + b1 u(k-d) + b2 u(k-d-1)`` with
+    ``b1 = K (1 - exp(-(dt - phi)/tau))`` and ``b2 = K (exp(-(dt - phi)/tau) - a)``.
+    (:mod:`thermolab.ident` states the same model for its fits; the two layers
+    are independent by contract, so neither imports the other.)
+
     Examples
     --------
     The paper's 0→10 V step on the reference model, after 2000 samples:
@@ -181,12 +195,22 @@ def simulate_first_order(
 
     >>> simulate_first_order(np.zeros(3), K=0.14, tau=250.0, dt=1.0, ambient=2.5)
     array([2.5, 2.5, 2.5])
+
+    Two seconds of dead time hold the answer back two samples:
+
+    >>> simulate_first_order(np.ones(5), K=1.0, tau=1.0, dt=1.0, theta=2.0).round(4)
+    array([0.    , 0.    , 0.    , 0.6321, 0.8647])
     """
     _check_first_order(K, tau, dt)
     u_arr = _as_input(u)
     ambient_v = _finite("ambient", ambient)
+    theta_v = _finite("theta", theta)
+    if theta_v < 0.0:
+        raise InvalidParameterError(f"theta (dead time) must be >= 0 seconds, got {theta_v!r}")
     x0 = 0.0 if y0 is None else _finite("y0", y0) - ambient_v
     a = math.exp(-dt / tau)
+    if theta_v > 0.0:
+        return _simulate_delayed(u_arr, K, tau, dt, theta_v, x0) + ambient_v
     b = -math.expm1(-dt / tau) * K
     # y[k] = b u[k-1] + a y[k-1] with the filter's single state holding y[0].
     deviation: FloatArray = lfilter([0.0, b], [1.0, -a], u_arr, zi=[x0])[0]
@@ -271,6 +295,26 @@ def simulate_arx(
     zi = lfiltic(num, den, past_w, np.zeros(max(num.size - 1, 1)))
     w: FloatArray = lfilter(num, den, u_arr[: n - 1], zi=zi)[0] if n > 1 else np.empty(0)
     return np.concatenate([[x0], w]) + ambient_v
+
+
+def _simulate_delayed(
+    u: FloatArray, K: float, tau: float, dt: float, theta: float, x0: float
+) -> FloatArray:
+    """Deviation from ambient of a first-order lag plus dead time, settled before ``u``."""
+    d = int(theta // dt)
+    phi = theta - d * dt
+    a = math.exp(-dt / tau)
+    rest = math.exp(-(dt - phi) / tau)
+    b1, b2 = K * (1.0 - rest), K * (rest - a)
+    u_past = x0 / K  # the input that held the plant settled at x0
+    held = np.concatenate([np.full(d + 1, u_past), u])
+    n = u.size
+    # drive[k] = b1 u[k-d] + b2 u[k-d-1], for k = 0 .. n-2.
+    drive = b1 * held[1:n] + b2 * held[: n - 1]
+    if n == 1:
+        return np.array([x0])
+    rest_of: FloatArray = lfilter([1.0], [1.0, -a], drive, zi=[a * x0])[0]
+    return np.concatenate([[x0], rest_of])
 
 
 def _check_first_order(K: float, tau: float, dt: float) -> None:

@@ -185,6 +185,10 @@ def test_readable_tables(run: Run, square_csv: Path, step_csv: Path) -> None:
     assert status == 0
     assert "converged at" in out
     assert "tau (s)" in out
+    # The paper's count by default (issue #8 item 7); --last asks for the last N samples.
+    assert "samples after convergence, ±1 %)" in out
+    assert "trusted          yes" in out
+    status, out, _ = run(str(square_csv), "--method", "wlsm", "--gamma", "0.7", "--last", "2000")
     assert "statistics over the last 2000 samples" in out
     status, out, _ = run(str(step_csv), "--method", "srm")
     assert "0.140042" in out
@@ -265,7 +269,7 @@ def test_method_errors_are_one_line(run: Run, square_csv: Path, tmp_path: Path) 
         (["--method", "lsm", "--order", "1,2"], "--order must be three whole numbers"),
         (
             ["--method", "lsm", "--offset", "warm"],
-            "--offset must be one of initial, fit, none or a finite number",
+            "--offset must be one of auto, initial, fit, none or a finite number",
         ),
         (["--method", "lsm", "--dt", "-1"], "--dt must be > 0"),
         (["--method", "fast"], "invalid choice: 'fast'"),

@@ -65,7 +65,7 @@ def test_fast_run_prints_every_method_and_writes_the_csv(
     lines = captured.out.splitlines()
     assert "samples: 2000/2000 (completed)" in lines[0]
     table = {line.split()[0]: line.split() for line in lines[4:]}
-    assert list(table) == ["srm", "lsm", "blockls", "malsm", "wlsm"]
+    assert list(table) == ["srm", "lsm", "blockls", "malsm", "wlsm", "oe"]
     assert table["lsm"][1:3] == ["0.140090", "250.126233"]
     assert table["srm"][1:3] == ["0.140090", "250.126233"]
     with out.open() as f:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from thermolab.errors import IdentifierStateError, InvalidDataError, InvalidParameterError
 from thermolab.ident import (
     ArxOrder,
+    IdentificationWarning,
     block_least_squares,
     least_squares,
     moving_window_least_squares,
@@ -61,6 +63,8 @@ ORDERS = st.sampled_from([None, ArxOrder(2, 1, 0), ArxOrder(1, 2, 1)])
 OFFSETS = st.sampled_from(["initial", "fit", "none", 0.5])
 
 
+# Random settings give implausible final estimates, which are flagged (not checked here).
+@pytest.mark.filterwarnings("ignore::thermolab.ident.IdentificationWarning")
 @settings(max_examples=12, deadline=None)
 @given(
     seed=st.integers(0, 2**32 - 1),
@@ -82,6 +86,8 @@ def test_online_malsm_equals_the_batch_function(
     assert_array_equal(online.reason_code, batch.reason_code)
 
 
+# Random settings give implausible final estimates, which are flagged (not checked here).
+@pytest.mark.filterwarnings("ignore::thermolab.ident.IdentificationWarning")
 @settings(max_examples=12, deadline=None)
 @given(
     seed=st.integers(0, 2**32 - 1),
@@ -120,6 +126,8 @@ def test_online_wlsm_equals_the_batch_function(
     assert_array_equal(ident.trajectory().W, batch.W)
 
 
+# Random settings give implausible final estimates, which are flagged (not checked here).
+@pytest.mark.filterwarnings("ignore::thermolab.ident.IdentificationWarning")
 @settings(max_examples=10, deadline=None)
 @given(
     seed=st.integers(0, 2**32 - 1),
@@ -148,8 +156,11 @@ def test_online_lsm_gives_its_estimate_at_finish() -> None:
     u, y = record(1, 800, 2.5, 1e-3)
     ident = make_identifier("lsm", 1.0)
     assert all(e is None for e in feed(ident, u, y))
-    est = ident.finish()
-    batch = least_squares(u, y, 1.0)
+    with warnings.catch_warnings():
+        # Measurement noise on an ARX fit: the residual test flags it (tests/ident/test_batch.py).
+        warnings.simplefilter("ignore", IdentificationWarning)
+        est = ident.finish()
+        batch = least_squares(u, y, 1.0, order=ArxOrder(), offset="initial")
     assert est is not None
     assert est.final
     assert est.k == 799
@@ -248,7 +259,7 @@ def test_update_errors() -> None:
         ("blockls", {"block": 0}, "block"),
         ("malsm", {"order": {"na": 0}}, "na"),
         ("malsm", {"order": {"n": 1}}, "order must be"),
-        ("lsm", {"offset": "auto"}, "offset must be one of"),
+        ("lsm", {"offset": "warm"}, "offset must be one of"),
     ],
 )
 def test_factory_errors_list_what_is_allowed(
@@ -293,4 +304,4 @@ def test_the_identifiers_grow_past_their_first_buffer() -> None:
         assert est is not None
         assert est.k == 4999
         assert f"{est.tau:.6f}" == "250.126233"
-    assert set(METHOD_NAMES) == {"srm", "lsm", "blockls", "malsm", "wlsm"}
+    assert set(METHOD_NAMES) == {"srm", "lsm", "blockls", "malsm", "wlsm", "oe"}

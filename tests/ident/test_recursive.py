@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from thermolab.errors import InvalidDataError, InvalidParameterError
 from thermolab.ident import (
     ArxOrder,
+    IdentificationWarning,
     _kernels,
     _regression,
     least_squares,
@@ -51,6 +53,8 @@ def test_malsm_reproduces_table_one_at_every_window() -> None:
     assert {f"{v:.6f}" for v in tr.tau[99:]} == {"250.126233"}
 
 
+# Random plants include taus under two sample periods, which are flagged (not checked here).
+@pytest.mark.filterwarnings("ignore::thermolab.ident.IdentificationWarning")
 @settings(max_examples=30, deadline=None)
 @example(seed=0, n=30, window=5, offset="fit", noise=0.0, every=None)
 @given(
@@ -112,7 +116,9 @@ def test_malsm_equals_batch_lsm_on_the_last_window() -> None:
     u = exciting_input(rng, 700)
     y = REFERENCE_MODEL.simulate(u) + 1e-3 * rng.standard_normal(700)
     tr = moving_window_least_squares(u, y, 1.0, window=200, offset=0.0)
-    last = least_squares(u[-200:], y[-200:], 1.0, offset=0.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentificationWarning)  # coloured residuals: noise
+        last = least_squares(u[-200:], y[-200:], 1.0, order=ArxOrder(), offset=0.0)
     assert_allclose(tr.W[-1], last.W, rtol=1e-10)
 
 
@@ -196,6 +202,8 @@ def test_malsm_needs_one_window_of_data() -> None:
 # -- WLSM ----------------------------------------------------------------------------
 
 
+# Random plants include taus under two sample periods, which are flagged (not checked here).
+@pytest.mark.filterwarnings("ignore::thermolab.ident.IdentificationWarning")
 @settings(max_examples=30, deadline=None)
 @given(
     seed=st.integers(0, 2**32 - 1),
@@ -239,8 +247,10 @@ def test_standard_rls_without_forgetting_approaches_batch_least_squares() -> Non
     rng = np.random.default_rng(2)
     u = exciting_input(rng, 2000)
     y = REFERENCE_MODEL.simulate(u) + 1e-3 * rng.standard_normal(2000)
-    rls = weighted_least_squares(u, y, 1.0, 1.0, 1e8, [0.0, 0.0], form="standard")
-    lsm = least_squares(u, y, 1.0)
+    rls = weighted_least_squares(u, y, 1.0, 1.0, 1e8, [0.0, 0.0], form="standard", offset="initial")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentificationWarning)  # coloured residuals: noise
+        lsm = least_squares(u, y, 1.0, order=ArxOrder(), offset="initial")
     assert_allclose(rls.W[-1], lsm.W, rtol=1e-5)
 
 

@@ -282,7 +282,8 @@ COMMAND_OPTIONS = {
 def test_no_entry_point_takes_an_undeclared_setting(method: Method) -> None:
     declared = set(method.setting_names("identify"))
     params = inspect.signature(method.batch_function()).parameters
-    assert set(params) - set(method.data) == declared
+    # t (the sample times, to flag jitter and gaps) is data, not a setting.
+    assert set(params) - set(method.data) - {"t"} == declared
     with pytest.raises(InvalidParameterError, match="unknown parameter"):
         make_identifier(method.name, 1.0, no_such_setting=1)
     assert set(make_identifier(method.name, 1.0).params) <= declared
@@ -314,7 +315,8 @@ def test_the_shared_declarations() -> None:
     # Concepts other layers also spell out: kept equal to the registry here.
     assert simulation.PAPER_W0 == PAPER_W0 == SETTINGS["w0"].default
     assert tuple(ArxOrder().to_dict().values()) == SETTINGS["order"].default
-    assert SETTINGS["offset"].choices == validation.OFFSET_MODES == ("initial", "fit", "none")
+    assert SETTINGS["offset"].choices == (validation.AUTO_OFFSET, *validation.OFFSET_MODES)
+    assert validation.OFFSET_MODES == ("initial", "fit", "none")
     assert SETTINGS["form"].choices == recursive.WLSM_FORMS == ("paper", "standard")
     from thermolab.ident import step_response
 
@@ -357,7 +359,12 @@ def test_the_batch_and_online_wlsm_start_from_the_same_default() -> None:
 
 
 def test_check_settings_fills_defaults_and_names_what_is_wrong() -> None:
-    assert check_settings("blockls", {}) == {"block": 100, "order": (1, 1, 0), "offset": "initial"}
+    assert check_settings("blockls", {}) == {
+        "block": 100,
+        "order": None,  # the method's own default (eq. 4; LSM searches the dead time)
+        "offset": "auto",
+        "expected_sign": None,
+    }
     assert check_settings("wlsm", {"tol": 0.1}, role="statistics") == {"tol": 0.1, "last": 2000}
     with pytest.raises(InvalidParameterError, match=r"window = 0 is out of range; allowed: an "):
         check_settings("malsm", {"window": 0})
@@ -399,7 +406,7 @@ def test_registry_json_has_the_api_shape() -> None:
         for s in m["settings"]:
             assert set(s) == keys
     panels = {m["name"]: m["panel"] for m in doc["methods"]}
-    assert panels == {"srm": 1, "lsm": 1, "blockls": 1, "malsm": 2, "wlsm": 3}
+    assert panels == {"srm": 1, "lsm": 1, "blockls": 1, "malsm": 2, "wlsm": 3, "oe": 1}
 
 
 def test_the_registry_loads_without_numpy_and_the_package_names_on_demand() -> None:

@@ -52,6 +52,8 @@ def step_practical() -> tuple[FloatArray, FloatArray, FloatArray]:
     return t, u, y
 
 
+# Noisy records fail the residual test of the batch methods (a warning, issue #8).
+@pytest.mark.filterwarnings("ignore::thermolab.ident.IdentificationWarning")
 def test_long_record_methods_stay_close_to_the_reference(
     step_practical: tuple[FloatArray, FloatArray, FloatArray],
 ) -> None:

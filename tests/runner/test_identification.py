@@ -63,6 +63,8 @@ def test_square_wave_recursive_methods_recover_the_true_model_every_sample() -> 
         assert_allclose(est.tau, rig.params.time_constant, rtol=1e-9)
 
 
+# Noisy records fail the residual test of the batch methods (a warning, issue #8).
+@pytest.mark.filterwarnings("ignore::thermolab.ident.IdentificationWarning")
 def test_online_estimates_equal_the_batch_functions_on_the_recorded_data() -> None:
     # The runner feeds the identifiers exactly the (u, y) it records.
     with open_rig("sim:paper-practical", clock=VirtualClock(), seed=7) as rig:
@@ -101,7 +103,7 @@ def test_settings_that_no_chosen_method_uses_are_refused() -> None:
 
 
 def test_method_lists() -> None:
-    assert parse_methods("all") == METHOD_NAMES == ("srm", "lsm", "blockls", "malsm", "wlsm")
+    assert parse_methods("all") == METHOD_NAMES == ("srm", "lsm", "blockls", "malsm", "wlsm", "oe")
     assert parse_methods(["wlsm", "srm", "wlsm"]) == ("wlsm", "srm")
     with pytest.raises(InvalidParameterError, match="no method given"):
         parse_methods(" , ")

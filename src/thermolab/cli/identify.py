@@ -11,6 +11,7 @@ with the file is reported as one line naming the line and column.
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import math
 import sys
@@ -20,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 from thermolab.cli import CliError
 from thermolab.cli._settings import add_setting_options, given_settings, option, settings_of
+from thermolab.ident.advice import advice
 from thermolab.ident.registry import METHOD_NAMES, get_method, owners
 
 if TYPE_CHECKING:  # the records module loads NumPy; `thermolab --help` should not
@@ -102,6 +104,8 @@ def run(args: argparse.Namespace) -> int:
         if text not in notes:
             notes.append(text)
     summary["warnings"] = notes
+    summary["advice"] = [advice(note) for note in notes]
+    summary["trusted"] = bool(summary.get("trusted", summary.get("valid", True))) and not notes
     summary["file"] = str(args.file)
     summary["n_samples"] = record.n
     if args.plot:
@@ -110,8 +114,8 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(summary, allow_nan=False))
     else:
         print(_table(summary))
-        for note in notes:
-            print(f"warning: {note}", file=sys.stderr)
+        for note, what in zip(notes, summary["advice"], strict=True):
+            print(f"warning: {note}\n  what it means, what to do: {what}", file=sys.stderr)
     return 0
 
 
@@ -120,7 +124,10 @@ def _identify(method: str, record: Record, dt: float, args: argparse.Namespace) 
     data = {"t": record.t, "u": record.u, "y": record.y, "dt": dt}
     settings = given_settings(args, m.settings)
     identify = {k: v for k, v in settings.items() if k in m.setting_names("identify")}
-    return m.batch_function()(*(data[name] for name in m.data), **identify)
+    function = m.batch_function()
+    if "t" not in m.data and "t" in inspect.signature(function).parameters:
+        identify["t"] = record.t  # the sample times: jitter and gaps are flagged
+    return function(*(data[name] for name in m.data), **identify)
 
 
 def _summary(method: str, result: Any, dt: float, args: argparse.Namespace) -> dict[str, Any]:
@@ -142,9 +149,13 @@ def _summary(method: str, result: Any, dt: float, args: argparse.Namespace) -> d
         "dt": dt,
         "K": final["K"],
         "tau": final["tau"],
+        "theta": final["theta"],
         "valid": final["valid"],
         "reason": final["reason"],
         "stats": d.pop("stats"),
+        # The paper's count (statistics after convergence) unless --last asks
+        # for the last N samples.
+        "stats_over": "last" if args.last is not None else "after_convergence",
     }
     converged = d.pop("converged_at")
     if "tol" in stats:
@@ -164,24 +175,12 @@ def _table(s: dict[str, Any]) -> str:
         f"file    {s['file']} ({s['n_samples']} samples, dt = {s['dt']:g} s)",
     ]
     if "stats" in s:
-        conv = s.get("converged_at")
-        head = f"{'':10} {'final':>14} {'mean':>14} {'max':>14} {'min':>14}"
-        if conv is not None:
-            head += f" {'converged at':>13}"
-        lines += ["", head]
-        for name, label in (("K", "K"), ("tau", "tau (s)")):
-            st = s["stats"][name]
-            row = f"{label:10} {_num(s[name]):>14} " + " ".join(
-                f"{_num(st[k]):>14}" for k in ("mean", "max", "min")
-            )
-            if conv is not None:
-                row += f" {'-' if conv[name] is None else conv[name]:>13}"
-            lines.append(row)
-        lines.append(f"(statistics over the last {s['last']} samples)")
-        if s.get("reason"):
-            lines.append(f"final estimate not a first-order model: {s['reason']}")
+        lines += _trajectory_table(s)
+        lines += _trust_lines(s)
         return "\n".join(lines)
     rows = [("K", _num(s["K"])), ("tau", f"{_num(s['tau'])} s")]
+    if s.get("theta") is not None:
+        rows.append(("theta (dead time)", f"{_num(s['theta'], '.6g')} s"))
     if method == "srm":
         rows += [
             ("K (paper, last sample)", _num(s["K_last_sample"])),
@@ -201,19 +200,90 @@ def _table(s: dict[str, Any]) -> str:
     else:
         if s.get("reason"):
             rows.append(("not first order", s["reason"]))
+    if method == "oe":
+        rows.append(("fit", f"{_num(s['fit_simulation'], '.2f')} % simulation (record)"))
+    elif method != "srm":
         for name, w, se in zip(s["param_names"], s["W"], s["stderr"], strict=True):
             rows.append((name, f"{_num(w)} ± {_num(se)}"))
+        held = s.get("fit_holdout")
         rows.append(
             (
                 "fit",
                 f"{_num(s['fit_one_step'], '.2f')} % one step, "
-                f"{_num(s['fit_simulation'], '.2f')} % simulation",
+                f"{_num(s['fit_simulation'], '.2f')} % simulation (record)"
+                + ("" if held is None else f", {_num(held, '.2f')} % held out"),
             )
         )
     width = max(len(label) for label, _ in rows)
     lines.append("")
     lines += [f"{label:<{width}}  {value}" for label, value in rows]
+    lines += _trust_lines(s)
     return "\n".join(lines)
+
+
+def _trajectory_table(s: dict[str, Any]) -> list[str]:
+    after = s["after_convergence"]
+    if s["stats_over"] == "after_convergence":
+        stats, conv = after["stats"], after["converged_at"] if after["converged"] else None
+        basis = (
+            f"(statistics over the {after['samples_after']} samples after convergence, "
+            f"±{100 * s.get('tol', 0.01):g} %)"
+            if after["converged"]
+            else "(no convergence within the record: the estimates never stay within "
+            f"±{100 * s.get('tol', 0.01):g} %; statistics not shown)"
+        )
+    else:
+        stats, conv = s["stats"], s.get("converged_at")
+        basis = f"(statistics over the last {s['last']} samples)"
+    head = f"{'':10} {'final':>14} {'mean':>14} {'max':>14} {'min':>14}"
+    if conv is not None:
+        head += f" {'converged at':>13}"
+    lines = ["", head]
+    for name, label in (("K", "K"), ("tau", "tau (s)")):
+        st = stats[name]
+        row = f"{label:10} {_num(s[name]):>14} " + " ".join(
+            f"{_num(st[k]):>14}" for k in ("mean", "max", "min")
+        )
+        if conv is not None:
+            row += f" {'-' if conv[name] is None else conv[name]:>13}"
+        lines.append(row)
+    lines.append(basis)
+    if s.get("theta") is not None:
+        lines.append(
+            f"theta (dead time)  {_num(s['theta'], '.6g')} s "
+            "(the order's delay; lsm and oe search it)"
+        )
+    if s.get("reason"):
+        lines.append(f"final estimate not a first-order model: {s['reason']}")
+    return lines
+
+
+def _trust_lines(s: dict[str, Any]) -> list[str]:
+    """The operating point, the residual test and the verdict: what a student can trust."""
+    lines = [""]
+    op = s.get("operating_point")
+    if op is not None:
+        lines.append(
+            f"operating point  offset={op['handling']} (decided from the data: record starts "
+            f"{op['start']}, ambient {_num(op['ambient'], '.6g')}): {op['reason']}"
+        )
+    elif s.get("offset") is not None:
+        lines.append(f"operating point  offset={s['offset']} (given)")
+    rt = s.get("residual_test")
+    if rt is not None:
+        verdict = "passed" if rt["passed"] else "FAILED"
+        lines.append(
+            f"residual test    {verdict} (whiteness {'ok' if rt['white'] else 'failed'}, "
+            f"input independence {'ok' if rt['independent'] else 'failed'}, 99 % bound "
+            f"±{_num(rt['bound'], '.3g')})"
+        )
+    n = len(s["warnings"])
+    lines.append(
+        "trusted          yes" if s["trusted"] else
+        f"trusted          NO ({n} warning{'s' if n != 1 else ''} below)" if n else
+        "trusted          NO (the estimate is not a valid first-order model)"
+    )  # fmt: skip
+    return lines
 
 
 def _num(x: Any, fmt: str = ".6f") -> str:

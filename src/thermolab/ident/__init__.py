@@ -9,7 +9,15 @@ The paper's four methods, each a function returning a result object:
   :class:`Trajectory`;
 * :func:`weighted_least_squares` — recursive least squares with a forgetting
   factor, in the paper's form and the standard one (WLSM) → :class:`Trajectory`;
-* the step response method lives in :mod:`thermolab.ident.step`.
+* the step response method lives in :mod:`thermolab.ident.step`;
+* :func:`output_error` — the output-error fit of a first order plus dead time
+  (the unbiased alternative to the ARX methods) → :class:`OutputErrorResult`.
+
+What makes a result trustworthy: the operating point decided from the data
+(:mod:`~thermolab.ident.operating_point`, ``offset="auto"``), the dead time
+(:mod:`~thermolab.ident.deadtime`), and validation like MATLAB's ``compare``
+and ``resid`` with plausibility and timing checks
+(:mod:`~thermolab.ident.diagnostics`). Every result lists its ``warnings``.
 
 Sample-by-sample forms of every method, for a running experiment, are in
 :mod:`thermolab.ident.online`; every method and setting is declared once in
@@ -27,7 +35,11 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from .batch import LeastSquaresResult, block_least_squares, least_squares
+    from .batch import least_squares
+    from .blocks import block_least_squares
+    from .deadtime import DelaySearch
+    from .diagnostics import ResidualTest
+    from .lsm_result import LeastSquaresResult
     from .models import (
         FIRST_ORDER,
         INVALID_REASONS,
@@ -36,7 +48,9 @@ if TYPE_CHECKING:
         FirstOrderModel,
         discrete_to_first_order,
     )
+    from .oe import OutputErrorResult, output_error
     from .online import Estimate, OnlineIdentifier, make_identifier
+    from .operating_point import OperatingPoint, decide_operating_point
     from .recursive import moving_window_least_squares, weighted_least_squares
     from .step import IdentificationWarning, StepResponseResult, step_response
     from .trajectory import Trajectory
@@ -46,23 +60,31 @@ __all__ = [
     "INVALID_REASONS",
     "ArxModel",
     "ArxOrder",
+    "DelaySearch",
     "Estimate",
     "FirstOrderModel",
     "IdentificationWarning",
     "LeastSquaresResult",
     "OnlineIdentifier",
+    "OperatingPoint",
+    "OutputErrorResult",
+    "ResidualTest",
     "StepResponseResult",
     "Trajectory",
     "block_least_squares",
+    "decide_operating_point",
     "discrete_to_first_order",
     "least_squares",
     "make_identifier",
     "moving_window_least_squares",
+    "output_error",
     "step_response",
     "weighted_least_squares",
 ]
 
-# Where each public name lives; read by __getattr__ on first access.
+# Where each public name lives; read by __getattr__ on first access. No module
+# may share a public name (importing ``.x`` sets the package's attribute ``x``
+# to the module, and __getattr__ is then never asked): output_error lives in oe.
 _HOME = {
     "FIRST_ORDER": "models",
     "INVALID_REASONS": "models",
@@ -70,8 +92,8 @@ _HOME = {
     "ArxOrder": "models",
     "FirstOrderModel": "models",
     "discrete_to_first_order": "models",
-    "LeastSquaresResult": "batch",
-    "block_least_squares": "batch",
+    "LeastSquaresResult": "lsm_result",
+    "block_least_squares": "blocks",
     "least_squares": "batch",
     "Estimate": "online",
     "OnlineIdentifier": "online",
@@ -82,6 +104,12 @@ _HOME = {
     "StepResponseResult": "step",
     "step_response": "step",
     "Trajectory": "trajectory",
+    "DelaySearch": "deadtime",
+    "ResidualTest": "diagnostics",
+    "OperatingPoint": "operating_point",
+    "decide_operating_point": "operating_point",
+    "OutputErrorResult": "oe",
+    "output_error": "oe",
 }
 
 

@@ -13,7 +13,7 @@ import numpy as np
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from .batch import LeastSquaresResult
+    from .lsm_result import LeastSquaresResult
     from .models import FirstOrderModel
     from .trajectory import Trajectory
 

@@ -20,8 +20,13 @@ from .registry import SETTINGS
 
 FloatArray = npt.NDArray[np.float64]
 
-#: The offset modes accepted everywhere (besides a float, the known ambient output).
-OFFSET_MODES: tuple[str, ...] = SETTINGS["offset"].choices
+#: The offset mode that decides the operating point from the data
+#: (:func:`thermolab.ident.operating_point.decide_operating_point`).
+AUTO_OFFSET = "auto"
+
+#: The offset modes a model is fitted with (besides a float, the known ambient
+#: output); ``"auto"`` resolves to one of them.
+OFFSET_MODES: tuple[str, ...] = tuple(c for c in SETTINGS["offset"].choices if c != AUTO_OFFSET)
 
 
 def as_signal(name: str, values: npt.ArrayLike) -> FloatArray:
@@ -122,6 +127,19 @@ def check_offset(offset: object) -> str | float:
     if not math.isfinite(v):
         raise InvalidParameterError(f"offset (ambient output) must be finite, got {v!r}")
     return v
+
+
+def check_offset_or_auto(offset: object) -> str | float:
+    """``"auto"``, one of :data:`OFFSET_MODES` or a finite float."""
+    if offset == AUTO_OFFSET:
+        return AUTO_OFFSET
+    if isinstance(offset, str) and offset not in OFFSET_MODES:
+        raise InvalidParameterError(
+            "offset must be one of 'auto' (decided from the data), "
+            f"{', '.join(repr(m) for m in OFFSET_MODES)} or a number "
+            f"(the known ambient output in volts), got {offset!r}"
+        )
+    return check_offset(offset)
 
 
 def check_min_samples(n: int, needed: int, why: str) -> None:

@@ -1,194 +1,36 @@
-"""Batch least squares (the paper's eq. 12): over a whole record, and over blocks."""
+"""Batch least squares over a whole record: the paper's eq. 12 (LSM).
+
+The result class is in :mod:`~thermolab.ident.lsm_result`; least squares over
+blocks (LSM(2), LSM(3)) in :mod:`~thermolab.ident.blocks`, re-exported here.
+"""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+import warnings
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from thermolab.errors import InvalidParameterError
-from thermolab.jsonsafe import finite_or_none
 
 from . import _regression as _reg
 from . import _validation as _v
-from .models import NOT_EXCITED, ArxModel, ArxOrder, FirstOrderModel
+from . import diagnostics as _diag
+from .deadtime import DelaySearch, default_max_delay, search_delay
+from .lsm_result import LeastSquaresResult
+from .models import ArxModel, ArxOrder, FirstOrderModel
+from .operating_point import OperatingPoint, decide_operating_point
 from .registry import SETTINGS
-from .trajectory import Trajectory
+from .step import IdentificationWarning
 
 if TYPE_CHECKING:
-    from matplotlib.figure import Figure
+    pass
 
-__all__ = ["LeastSquaresResult", "block_least_squares", "least_squares"]
+__all__ = ["LeastSquaresResult", "least_squares"]
 
 FloatArray = npt.NDArray[np.float64]
-
-
-@dataclass(frozen=True, eq=False)
-class LeastSquaresResult:
-    """The batch least-squares estimate of a record and its diagnostics.
-
-    Attributes
-    ----------
-    W : numpy.ndarray
-        Estimated parameters, named by ``param_names`` (``[a, b]`` for first order,
-        ``[..., c]`` with ``offset="fit"``).
-    param_names : tuple of str
-        Names of ``W``'s entries.
-    order : ArxOrder
-        Model structure.
-    offset : str or float
-        How the operating point was handled (see :func:`least_squares`).
-    dt : float
-        Sample period in seconds.
-    model : FirstOrderModel
-        ``K`` (DC gain) and ``tau`` (dominant time constant), or the reason the
-        estimate has none (``model.reason``).
-    arx : ArxModel
-        The full discrete model (in the offset frame: deviations from ``y_shift``).
-    stderr : numpy.ndarray
-        Standard errors of ``W``: ``sqrt(diag(s² (DᵀD)⁻¹))`` with ``s²`` the
-        residual variance over ``n_rows - n_params`` degrees of freedom (NaN when
-        there are none). Exact for white equation error (the ARX noise model);
-        with white *measurement* noise on ``y`` the estimates are biased and
-        their actual spread is usually smaller than this.
-    K_stderr, tau_stderr : float
-        Standard errors of ``K`` and ``tau`` propagated from the covariance of
-        ``W`` to first order (delta method); NaN when the model is not valid.
-    cond : float
-        2-norm condition number of the regressor matrix ``D``.
-    cond_scaled : float
-        Condition number of ``D`` with unit-norm columns: what limits accuracy
-        (about ``cond_scaled * 1e-16`` relative error in ``W`` for exact data).
-    k : numpy.ndarray of int
-        Sample index of each target ``y[k]`` (``order.lag + 1 .. n-1``).
-    y_measured, y_one_step, y_simulated : numpy.ndarray
-        Measured targets, one-step predictions ``D W`` and the free-run
-        simulation of the model from the record's first samples driven by ``u``,
-        all in absolute volts, aligned with ``k``.
-    residuals : numpy.ndarray
-        ``y_measured - y_one_step``.
-    fit_one_step, fit_simulation : float
-        NRMSE fit in percent, ``100 (1 - ||y - ŷ|| / ||y - mean(y)||)``: 100 is
-        perfect, 0 is no better than the mean; NaN when the output is constant,
-        ``-inf`` when the simulation diverges.
-    n_samples : int
-        Samples in the record.
-    ambient : float
-        The operating point: ``c / (1 - sum(a))`` with ``offset="fit"``, otherwise
-        the output value removed (0 for ``offset="none"``).
-    y_shift : float
-        The value subtracted from ``y`` before regressing (``y[0]`` for
-        ``"initial"``, the given value for a float, else 0).
-    """
-
-    W: FloatArray
-    param_names: tuple[str, ...]
-    order: ArxOrder
-    offset: str | float
-    dt: float
-    model: FirstOrderModel
-    arx: ArxModel
-    stderr: FloatArray
-    K_stderr: float
-    tau_stderr: float
-    cond: float
-    cond_scaled: float
-    k: npt.NDArray[np.intp]
-    y_measured: FloatArray
-    y_one_step: FloatArray
-    y_simulated: FloatArray
-    residuals: FloatArray
-    fit_one_step: float
-    fit_simulation: float
-    n_samples: int
-    ambient: float
-    y_shift: float
-
-    @property
-    def K(self) -> float:  # noqa: N802 - the paper's symbol
-        """Static (DC) gain; NaN when the model has no first-order meaning."""
-        return self.model.K
-
-    @property
-    def tau(self) -> float:
-        """Time constant in seconds; NaN when the model has no first-order meaning."""
-        return self.model.tau
-
-    @property
-    def n_rows(self) -> int:
-        """Number of regression rows (targets)."""
-        return int(self.k.size)
-
-    def to_dict(self, *, arrays: bool = False) -> dict[str, Any]:
-        """A JSON-safe summary (NaN and inf become ``None``).
-
-        Parameters
-        ----------
-        arrays : bool, optional
-            Also include ``k``, ``y_measured``, ``y_one_step``, ``y_simulated`` and
-            ``residuals``. Default False.
-
-        Returns
-        -------
-        dict
-            ``method`` (``"lsm"``), ``dt``, ``K``, ``tau``, ``valid``, ``reason``,
-            ``W``, ``param_names``, ``stderr``, ``K_stderr``, ``tau_stderr``,
-            ``cond``, ``cond_scaled``, ``fit_one_step``, ``fit_simulation``,
-            ``n_samples``, ``n_rows``, ``order``, ``offset``, ``ambient``.
-        """
-        out: dict[str, Any] = {
-            "method": "lsm",
-            "dt": self.dt,
-            "K": finite_or_none(self.K),
-            "tau": finite_or_none(self.tau),
-            "valid": self.model.valid,
-            "reason": self.model.reason,
-            "W": [finite_or_none(x) for x in self.W],
-            "param_names": list(self.param_names),
-            "stderr": [finite_or_none(x) for x in self.stderr],
-            "K_stderr": finite_or_none(self.K_stderr),
-            "tau_stderr": finite_or_none(self.tau_stderr),
-            "cond": finite_or_none(self.cond),
-            "cond_scaled": finite_or_none(self.cond_scaled),
-            "fit_one_step": finite_or_none(self.fit_one_step),
-            "fit_simulation": finite_or_none(self.fit_simulation),
-            "n_samples": self.n_samples,
-            "n_rows": self.n_rows,
-            "order": self.order.to_dict(),
-            "offset": self.offset,
-            "ambient": finite_or_none(self.ambient),
-        }
-        if arrays:
-            for name in ("y_measured", "y_one_step", "y_simulated", "residuals"):
-                arr: FloatArray = getattr(self, name)
-                out[name] = [finite_or_none(x) for x in arr.tolist()]
-            out["k"] = self.k.tolist()
-        return out
-
-    def plot(self, *, title: str | None = None) -> Figure:
-        """Measured output beside the one-step prediction and the free-run simulation.
-
-        Parameters
-        ----------
-        title : str, optional
-            Figure title; default gives ``K``, ``tau`` and the two fits.
-
-        Returns
-        -------
-        matplotlib.figure.Figure
-            A figure not attached to pyplot (save it with ``fig.savefig(path)``).
-
-        Raises
-        ------
-        ImportError
-            If matplotlib is not installed (``pip install 'thermolab[plot]'``).
-        """
-        from ._plotting import plot_least_squares
-
-        return plot_least_squares(self, title=title)
 
 
 def _nrmse_fit(y: FloatArray, yhat: FloatArray) -> float:
@@ -250,6 +92,10 @@ def least_squares(
     *,
     order: ArxOrder | None = None,
     offset: str | float = SETTINGS["offset"].default,
+    max_delay: int | None = SETTINGS["max_delay"].default,
+    expected_sign: int | None = SETTINGS["expected_sign"].default,
+    holdout: float = SETTINGS["holdout"].default,
+    t: npt.ArrayLike | None = None,
 ) -> LeastSquaresResult:
     """Batch least squares over the whole record: the paper's LSM, eq. 12.
 
@@ -265,17 +111,37 @@ def least_squares(
     dt : float
         Sample period in seconds, > 0.
     order : ArxOrder, optional
-        Model structure; default first order (eq. 4).
-    offset : {"initial", "fit", "none"} or float, optional
+        Model structure. Default: first order with the dead time chosen from
+        the data (:func:`thermolab.ident.deadtime.search_delay` over
+        ``0 .. max_delay`` samples); give ``ArxOrder(1, 1, 0)`` for eq. 4 exactly.
+    offset : {"auto", "initial", "fit", "none"} or float, optional
         How the operating point is handled:
 
-        * ``"initial"`` (default): ``y[0]`` is the ambient equilibrium at 0 V
+        * ``"auto"`` (default): decided from the record by
+          :func:`thermolab.ident.operating_point.decide_operating_point`
+          (``"initial"`` for a record that starts at ambient, ``"fit"`` for one
+          that starts settled under an input or moving); the result's
+          ``operating_point`` says which and why. Until this release the
+          default was ``"initial"``;
+        * ``"initial"``: ``y[0]`` is the ambient equilibrium at 0 V
           input and is subtracted from ``y`` (right for a record that starts
           from rest, the paper's procedure);
         * ``"fit"``: a constant term ``c`` is estimated with the other
           parameters; ``ambient = c / (1 - sum(a))``;
         * ``"none"``: the paper's raw form (correct only when the ambient is 0 V);
         * a float: the known ambient output in volts, subtracted from ``y``.
+    max_delay : int, optional
+        Longest dead time tried when ``order`` is None, in samples; default
+        :func:`thermolab.ident.deadtime.default_max_delay` (60, at most a tenth
+        of the record).
+    expected_sign : {1, -1}, optional
+        The sign the gain must have (1 for a heater); a gain of the other sign is
+        flagged. Default None: not checked.
+    holdout : float, optional
+        Fraction of the record held out for ``fit_holdout`` (0 to 0.5; default
+        0.3; 0 skips it).
+    t : array_like, optional
+        The sample times, if known: an irregular axis (jitter, gaps) is flagged.
 
     Returns
     -------
@@ -292,7 +158,14 @@ def least_squares(
         If ``D`` is rank-deficient: the input was held constant (e.g. kept at 0 V)
         or the output never moved, so ``DᵀD`` is singular.
     InvalidParameterError
-        If ``dt``, ``order`` or ``offset`` is not allowed.
+        If ``dt``, ``order``, ``offset``, ``max_delay``, ``expected_sign`` or
+        ``holdout`` is not allowed.
+
+    Warns
+    -----
+    IdentificationWarning
+        For each entry of the result's ``warnings``: failed residual tests,
+        implausible estimates, a poorly determined operating point, timing jitter.
 
     Notes
     -----
@@ -320,8 +193,42 @@ def least_squares(
     """
     u_arr, y_arr = _v.as_record(u, y)
     step = _v.check_dt(dt)
-    ord_ = _v.check_order(order)
-    off = _v.check_offset(offset)
+    off_in = _v.check_offset_or_auto(offset)
+    held = _v.real("holdout", holdout)
+    if not 0.0 <= held <= 0.5:
+        raise InvalidParameterError(f"holdout must be a fraction from 0 to 0.5, got {held!r}")
+    t_arr = None if t is None else _v.check_time(t, y_arr.size)
+    search: DelaySearch | None = None
+    longest = 0
+    if order is None:
+        if max_delay is None:
+            longest = default_max_delay(y_arr.size)
+        else:
+            longest = _v.integer("max_delay", max_delay, 0, "0 turns the search off")
+            if longest > 1000 or longest > y_arr.size // 4:
+                raise InvalidParameterError(
+                    f"max_delay must be at most 1000 and a quarter of the record "
+                    f"({y_arr.size // 4} samples), got {longest}"
+                )
+    op: OperatingPoint | None = None
+    if off_in == _v.AUTO_OFFSET:
+        op = decide_operating_point(
+            u_arr,
+            y_arr,
+            step,
+            order=None if order is None else _v.check_order(order),
+            max_delay=longest,
+        )
+        off: str | float = op.handling
+        search = op.delay_search
+    else:
+        off = off_in
+        if order is None and longest > 0:
+            search = search_delay(u_arr, y_arr, off, longest)
+    if order is None:
+        ord_ = ArxOrder(1, 1, 0 if search is None else search.delay)
+    else:
+        ord_ = _v.check_order(order)
     p = ord_.na + ord_.nb + int(off == "fit")
     _v.check_min_samples(
         y_arr.size, ord_.lag + 1 + p, f"least squares of {p} parameters with order {ord_}"
@@ -355,6 +262,24 @@ def least_squares(
     sim = _simulate(reg, W, y_arr - reg.y_shift)
     s_raw = np.linalg.svd(reg.D, compute_uv=False)
     ambient = arx.ambient if reg.constant else reg.y_shift
+    scale = max(float(np.max(np.abs(y_arr))), 1e-300)
+    rtest = (
+        _diag.residual_test(residuals, u_arr[reg.first_target :], scale=scale) if m >= 36 else None
+    )
+    fit_sim = _nrmse_fit(reg.Y, sim)
+    fit_held = _holdout_fit(u_arr, y_arr, ord_, off, reg.y_shift, held) if held else math.nan
+    notes = list(op.warnings) if op is not None else []
+    notes += _diag.plausibility_warnings(
+        model.K, model.tau, step, y_arr.size * step, expected_sign=expected_sign
+    )
+    if rtest is not None:
+        advice = _diag.residual_advice(rtest, search is not None or ord_.delay > 0)
+        if advice:
+            notes.append(advice)
+    if t_arr is not None:
+        notes += _diag.timing_warnings(t_arr)
+    for note in notes:
+        warnings.warn(note, IdentificationWarning, stacklevel=2)
     return LeastSquaresResult(
         W=W,
         param_names=ord_.param_names(constant=reg.constant),
@@ -374,103 +299,41 @@ def least_squares(
         y_simulated=sim + reg.y_shift,
         residuals=residuals,
         fit_one_step=_nrmse_fit(reg.Y, one_step),
-        fit_simulation=_nrmse_fit(reg.Y, sim),
+        fit_simulation=fit_sim,
         n_samples=int(y_arr.size),
         ambient=float(ambient),
         y_shift=reg.y_shift,
+        operating_point=op,
+        delay_search=search,
+        residual_test=rtest,
+        fit_holdout=fit_held,
+        warnings=tuple(notes),
     )
 
 
-def block_rows(order: ArxOrder, block: int, n_params: int, n_samples: int) -> tuple[int, int]:
-    """``(rows per block, number of full blocks)``, checking the block is big enough."""
-    rows = block - 1 - order.lag
-    if rows < n_params:
-        raise InvalidParameterError(
-            f"block must be >= {order.lag + 1 + n_params} samples to give {n_params} regression "
-            f"rows for {n_params} parameters with order {order}, got {block}"
-        )
-    _v.check_min_samples(n_samples, block, f"one block of {block} samples")
-    return rows, n_samples // block
-
-
-def block_least_squares(
-    u: npt.ArrayLike,
-    y: npt.ArrayLike,
-    dt: float,
-    block: int = SETTINGS["block"].default,
-    *,
-    order: ArxOrder | None = None,
-    offset: str | float = SETTINGS["offset"].default,
-) -> Trajectory:
-    """Least squares over consecutive non-overlapping blocks: the paper's LSM(2) and LSM(3).
-
-    Block ``j`` is the samples ``j*block .. (j+1)*block - 1``; its estimate uses
-    the regression rows whose samples all lie inside the block
-    (``block - 1 - order.lag`` rows) and is placed at the block's last sample.
-    A trailing partial block gives no estimate. Each block is solved like
-    :func:`least_squares` (SVD, no inverse), all blocks in one batched call.
-
-    Parameters
-    ----------
-    u, y : array_like
-        Input and output samples in absolute volts, same length.
-    dt : float
-        Sample period in seconds, > 0.
-    block : int, optional
-        Samples per block, default 100; at least ``order.lag + 1 + n_params``.
-    order : ArxOrder, optional
-        Model structure; default first order.
-    offset : {"initial", "fit", "none"} or float, optional
-        As in :func:`least_squares`; ``"initial"`` takes the ambient from the
-        record's first sample, for every block.
-
-    Returns
-    -------
-    Trajectory
-        Estimates at samples ``block-1, 2*block-1, ...`` and NaN between them
-        (``reason_code`` 1); a block whose regression is singular (not excited)
-        has reason code 2.
-
-    Raises
-    ------
-    InvalidDataError
-        If the data are not finite, differ in length, or hold less than one block.
-    InvalidParameterError
-        If ``block``, ``dt``, ``order`` or ``offset`` is not allowed.
-
-    Examples
-    --------
-    The paper's LSM(3): a 4↔6 V square wave at 0.1 Hz, an estimate every 100 samples.
-
-    >>> import numpy as np
-    >>> from thermolab.simulation import REFERENCE_MODEL
-    >>> u = np.where((np.arange(2000) // 5) % 2 == 0, 6.0, 4.0)
-    >>> tr = block_least_squares(u, REFERENCE_MODEL.simulate(u), 1.0, block=100)
-    >>> np.flatnonzero(tr.valid)[:3], round(tr.stats()["tau"]["min"], 6)
-    (array([ 99, 199, 299]), 250.126233)
-    """
-    u_arr, y_arr = _v.as_record(u, y)
-    step = _v.check_dt(dt)
-    ord_ = _v.check_order(order)
-    off = _v.check_offset(offset)
-    size = _v.integer("block", block, 1, "samples per block")
-    p = ord_.na + ord_.nb + int(off == "fit")
-    rows, n_blocks = block_rows(ord_, size, p, y_arr.size)
-    reg = _reg.build(u_arr, y_arr, ord_, off)
-    idx = np.arange(n_blocks)[:, None] * size + np.arange(rows)[None, :]
-    sol = _reg.solve(reg.D[idx], reg.Y[idx])
-    W = np.full((y_arr.size, p), np.nan)
-    at = np.arange(1, n_blocks + 1) * size - 1
-    W[at] = sol.W
-    status = np.zeros(y_arr.size, dtype=np.int8)
-    status[at[~sol.ok]] = NOT_EXCITED
-    return Trajectory(
-        method="blockls",
-        dt=step,
-        W=W,
-        order=ord_,
-        offset=off,
-        param_names=ord_.param_names(constant=reg.constant),
-        status=status,
-        params={"block": size},
-    )
+def _holdout_fit(
+    u: FloatArray,
+    y: FloatArray,
+    order: ArxOrder,
+    offset: str | float,
+    y_shift: float,
+    fraction: float,
+) -> float:
+    """Fit % of the free run over the last ``fraction`` by a model fitted to the rest."""
+    n = y.size
+    split = round(n * (1.0 - fraction))
+    p = order.na + order.nb + int(offset == "fit")
+    if split - order.lag - 1 < 3 * p or n - split < 10:
+        return math.nan
+    if np.ptp(u[split - order.delay - order.nb :]) == 0.0:
+        return math.nan  # nothing excites the held-out part: its fit % means nothing
+    # The shift of the whole record, so the two parts share one frame.
+    frame: str | float = y_shift if offset == "initial" else offset
+    first = _reg.build(u[:split], y[:split], order, frame)
+    sol = _reg.solve(first.D, first.Y)
+    if not sol.ok:
+        return math.nan
+    start = split - order.lag - 1
+    tail = _reg.build(u[start:], y[start:], order, frame)
+    sim = _simulate(tail, sol.W, y[start:] - tail.y_shift)
+    return _nrmse_fit(tail.Y, sim)

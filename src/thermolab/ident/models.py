@@ -178,7 +178,7 @@ FIRST_ORDER = ArxOrder()
 
 @dataclass(frozen=True)
 class FirstOrderModel:
-    """A first-order lag ``K / (tau s + 1)``, or the reason a discrete model is not one.
+    """A first-order lag plus dead time ``K exp(-theta s) / (tau s + 1)``, or why it is not one.
 
     Parameters
     ----------
@@ -189,11 +189,16 @@ class FirstOrderModel:
     reason : str or None, optional
         Why the model has no first-order meaning (``None``: it has one). Set by
         :meth:`from_discrete`; leave it out when building a model by hand.
+    theta : float, optional
+        Dead time (transport delay) in seconds, >= 0. Default 0: the paper's
+        first-order model. A sampled model with ``delay`` samples of dead time
+        beyond the natural one (:class:`ArxOrder`) has ``theta = delay * dt``.
 
     Raises
     ------
     InvalidParameterError
-        If ``reason`` is None and ``K`` is not finite or ``tau`` is not finite and > 0.
+        If ``reason`` is None and ``K`` is not finite, ``tau`` is not finite and > 0,
+        or ``theta`` is not finite and >= 0.
 
     Examples
     --------
@@ -214,10 +219,16 @@ class FirstOrderModel:
     K: float
     tau: float
     reason: str | None = None
+    theta: float = 0.0
 
     def __post_init__(self) -> None:
         K = _check_real("K", self.K)
         tau = _check_real("tau", self.tau)
+        theta = _check_real("theta", self.theta)
+        if not (math.isfinite(theta) and theta >= 0.0):
+            raise InvalidParameterError(
+                f"theta (dead time) must be finite and >= 0 seconds, got {theta!r}"
+            )
         if self.reason is None:
             if not math.isfinite(K):
                 raise InvalidParameterError(f"K (static gain) must be finite, got {K!r}")
@@ -295,11 +306,22 @@ class FirstOrderModel:
             return cls(math.nan, math.nan, reason)
         return cls(b_v / (1.0 - a_v), -step / math.log(a_v))
 
+    def with_dead_time(self, theta: float) -> FirstOrderModel:
+        """The same lag with dead time ``theta`` seconds.
+
+        Examples
+        --------
+        >>> FirstOrderModel(2.0, 10.0).with_dead_time(3.0).theta
+        3.0
+        """
+        return FirstOrderModel(self.K, self.tau, self.reason, theta)
+
     def to_dict(self) -> dict[str, Any]:
-        """``{"K", "tau", "valid", "reason"}`` (NaN as ``None``, JSON-safe)."""
+        """``{"K", "tau", "theta", "valid", "reason"}`` (NaN as ``None``, JSON-safe)."""
         return {
             "K": finite_or_none(self.K),
             "tau": finite_or_none(self.tau),
+            "theta": finite_or_none(self.theta),
             "valid": self.valid,
             "reason": self.reason,
         }
@@ -403,8 +425,12 @@ class ArxModel:
         Examples
         --------
         >>> ArxModel(a=(1.2, -0.35), b=(0.1, 0.05), dt=2.0).first_order()  # doctest: +NUMBER
-        FirstOrderModel(K=1.0, tau=5.607347, reason=None)
+        FirstOrderModel(K=1.0, tau=5.607347, reason=None, theta=0.0)
         """
+        lag = self._first_order_lag()
+        return lag.with_dead_time(self.delay * self.dt) if lag.valid else lag
+
+    def _first_order_lag(self) -> FirstOrderModel:
         if len(self.a) == 1 and len(self.b) == 1:
             return FirstOrderModel.from_discrete(self.a[0], self.b[0], self.dt)
         coeffs = [*self.a, *self.b]
@@ -454,6 +480,7 @@ class ArxModel:
             "dt": self.dt,
             "K": finite_or_none(fo.K),
             "tau": finite_or_none(fo.tau),
+            "theta": finite_or_none(fo.theta),
             "valid": fo.valid,
             "reason": fo.reason,
             "ambient": finite_or_none(self.ambient),

@@ -23,31 +23,29 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal, overload
 
 import numpy as np
 import numpy.typing as npt
 
-from thermolab.errors import IdentifierStateError, InvalidDataError
+from thermolab.errors import (
+    IdentifierStateError,
+    InvalidDataError,
+)
 from thermolab.jsonsafe import json_safe
 
-from . import _regression as _reg
 from . import _validation as _v
-from .batch import block_least_squares, block_rows, least_squares
 from .models import (
     INVALID_REASONS,
     NON_FINITE,
     NON_POSITIVE_POLE,
-    NOT_EXCITED,
     UNSTABLE,
     ArxOrder,
     discrete_to_first_order,
 )
-from .recursive import check_recompute, check_wlsm_params, window_rows
 from .registry import check_settings, get_method
 from .trajectory import Trajectory
 
@@ -348,322 +346,59 @@ class OnlineIdentifier:
         return self._latest
 
 
-class _StepResponse(OnlineIdentifier):
-    method = "srm"
+@overload
+def _model(
+    settings: dict[str, Any], *, search: Literal[False] = False
+) -> tuple[ArxOrder, str | float, dict[str, Any]]: ...
+@overload
+def _model(
+    settings: dict[str, Any], *, search: Literal[True]
+) -> tuple[ArxOrder | None, str | float, dict[str, Any]]: ...
+def _model(
+    settings: dict[str, Any], *, search: bool = False
+) -> tuple[ArxOrder | None, str | float, dict[str, Any]]:
+    """The checked order and offset, and their JSON-ready form for ``params``.
 
-    def _on_finish(self) -> Estimate | None:
-        if self._n == 0:
-            return None
-        from .step import step_response
-
-        u, y = self._record()
-        t = np.arange(self._n) * self.dt
-        try:
-            with warnings.catch_warnings():
-                # The warnings are also in the result; do not repeat them at END.
-                warnings.simplefilter("ignore")
-                res = step_response(t, u, y, **self.params)
-        except InvalidDataError as exc:
-            return _invalid(self.method, self._n - 1, str(exc))
-        extras = res.to_dict()
-        extras.pop("method", None)
-        valid = math.isfinite(res.K) and math.isfinite(res.tau)
-        return Estimate(self.method, self._n - 1, res.K, res.tau, (), valid, True, extras)
-
-
-class _LeastSquares(OnlineIdentifier):
-    method = "lsm"
-
-    def __init__(self, dt: float, params: dict[str, Any], order: ArxOrder, offset: str | float):
-        super().__init__(dt, params)
-        self._order = order
-        self._offset = offset
-
-    @classmethod
-    def from_settings(cls, dt: float, settings: dict[str, Any]) -> OnlineIdentifier:
-        order, offset, common = _model(settings)
-        return cls(dt, common, order, offset)
-
-    def _on_finish(self) -> Estimate | None:
-        if self._n == 0:
-            return None
-        u, y = self._record()
-        try:
-            res = least_squares(u, y, self.dt, order=self._order, offset=self._offset)
-        except InvalidDataError as exc:
-            return _invalid(self.method, self._n - 1, str(exc))
-        extras: dict[str, Any] = {
-            "stderr": res.stderr.tolist(),
-            "K_stderr": res.K_stderr,
-            "tau_stderr": res.tau_stderr,
-            "cond": res.cond,
-            "cond_scaled": res.cond_scaled,
-            "fit_one_step": res.fit_one_step,
-            "fit_simulation": res.fit_simulation,
-            "ambient": res.ambient,
-            "param_names": list(res.param_names),
-        }
-        if res.model.reason is not None:
-            extras["reason"] = res.model.reason
-        return Estimate(
-            self.method, self._n - 1, res.K, res.tau, tuple(res.W.tolist()), res.model.valid,
-            True, extras,
-        )  # fmt: skip
-
-    def trajectory(self) -> Trajectory:
-        p = self._order.na + self._order.nb + int(self._offset == "fit")
-        W = np.full((self._n, p), np.nan)
-        if self._final is not None and len(self._final.W) == p:
-            W[-1] = self._final.W
-        return Trajectory(
-            "lsm", self.dt, W, self._order, self._offset,
-            self._order.param_names(constant=self._offset == "fit"), params=dict(self.params),
-        )  # fmt: skip
-
-
-class _BlockLeastSquares(OnlineIdentifier):
-    method = "blockls"
-
-    def __init__(
-        self, dt: float, params: dict[str, Any], order: ArxOrder, offset: str | float, block: int
-    ):
-        super().__init__(dt, params)
-        self._order = order
-        self._offset = offset
-        self._block = block
-        self._block_offset: str | float = offset
-
-    @classmethod
-    def from_settings(cls, dt: float, settings: dict[str, Any]) -> OnlineIdentifier:
-        order, offset, common = _model(settings)
-        block = settings["block"]
-        block_rows(order, block, _n_params(order, offset), block)
-        return cls(dt, {"block": block, **common}, order, offset, block)
-
-    def _on_sample(self, k: int, u: float, y: float) -> Estimate | None:
-        if k == 0 and self._offset == "initial":
-            self._block_offset = y  # every block is taken from the record's first sample
-        if (k + 1) % self._block:
-            return None
-        lo = k + 1 - self._block
-        reg = _reg.build(self._u[lo : k + 1], self._y[lo : k + 1], self._order, self._block_offset)
-        sol = _reg.solve(reg.D[None], reg.Y[None])
-        if not sol.ok[0]:
-            return _fast_estimate(
-                self.method, k, math.nan, math.nan, (), False, _REASON_EXTRAS[NOT_EXCITED]
-            )
-        W = sol.W[0]
-        if self._order.is_first_order and W.size == 2:
-            return _first_order_estimate(self.method, k, float(W[0]), float(W[1]), self.dt)
-        return _general_estimate(self.method, k, W, self.dt, self._order)
-
-    def trajectory(self) -> Trajectory:
-        u, y = self._record()
-        if self._n < self._block:
-            p = self._order.na + self._order.nb + int(self._offset == "fit")
-            return Trajectory(
-                "blockls", self.dt, np.full((self._n, p), np.nan), self._order, self._offset,
-                self._order.param_names(constant=self._offset == "fit"), params=dict(self.params),
-            )  # fmt: skip
-        return block_least_squares(
-            u, y, self.dt, self._block, order=self._order, offset=self._offset
-        )
-
-
-class _Recursive(OnlineIdentifier):
-    """Shared machinery of MALSM and WLSM: the shifted record and the kernels' outputs.
-
-    The per-sample path is kept short (a few microseconds): one compiled kernel
-    call on preallocated arrays, which for first order also returns the new
-    ``(status, a, b)``, and an :class:`Estimate` filled without ``__init__``.
+    An order not given is the paper's first order, except where the method
+    searches the dead time (``search``: LSM), which keeps None (``params``
+    shows ``None``: searched at END).
     """
-
-    def __init__(self, dt: float, params: dict[str, Any], order: ArxOrder, offset: str | float):
-        super().__init__(dt, params)
-        from . import _kernels
-
-        self._k = _kernels
-        self._order = order
-        self._offset = offset
-        self._initial = offset == "initial"
-        self._constant = offset == "fit"
-        self._first = order.is_first_order and not self._constant
-        self._p = order.na + order.nb + int(self._constant)
-        self._shift = offset if isinstance(offset, float) else 0.0
-        self._y = np.empty(0)  # the raw output is not needed: the kernels read _ys
-        self._ys = np.empty(self._u.size)
-        self._W = np.empty((self._u.size, self._p), order="F")
-        self._code = np.empty(self._u.size, dtype=np.int8)
-        self._start = order.lag + 1
-
-    def _growing(self) -> tuple[str, ...]:
-        return ("_u", "_ys", "_W", "_code")
-
-    def update(self, u: float, y: float) -> Estimate | None:
-        uf, yf = self._checked_sample(u, y)
-        k = self._n
-        if k == self._u.size:
-            self._grow()
-        if k == 0 and self._initial:
-            self._shift = yf
-        self._u[k] = uf
-        # y - 0.0 is y exactly, so this is the batch functions' shifted record bit for bit.
-        self._ys[k] = yf - self._shift
-        self._n = k + 1
-        est = self._step(k)
-        if est is not None:
-            self._latest = est
-        return est
-
-    def _step(self, k: int) -> Estimate | None:
-        raise NotImplementedError
-
-    def _from_status(self, k: int, status: int, a: float, b: float) -> Estimate | None:
-        if status == 0:
-            return _first_order_estimate(self.method, k, a, b, self.dt)
-        if status == 1:
-            return None
-        return _fast_estimate(self.method, k, math.nan, math.nan, (), False, _REASON_EXTRAS[status])
-
-    def _from_row(self, k: int) -> Estimate | None:
-        status = int(self._code[k])
-        if status == 0:
-            return _general_estimate(self.method, k, self._W[k].copy(), self.dt, self._order)
-        return self._from_status(k, status, math.nan, math.nan)
-
-    def trajectory(self) -> Trajectory:
-        n = self._n
-        code = self._code[:n]
-        return Trajectory(
-            method=self.method,
-            dt=self.dt,
-            W=self._W[:n].copy(order="F"),
-            order=self._order,
-            offset=self._offset,
-            param_names=self._order.param_names(constant=self._constant),
-            status=np.where((code == NOT_EXCITED) | (code == NON_FINITE), code, 0).astype(np.int8),
-            params=dict(self.params),
-        )
-
-
-class _MovingWindow(_Recursive):
-    method = "malsm"
-
-    def __init__(
-        self,
-        dt: float,
-        params: dict[str, Any],
-        order: ArxOrder,
-        offset: str | float,
-        rows: int,
-        every: int,
-    ):
-        super().__init__(dt, params, order, offset)
-        self._buf, self._sums, self._shift_cols, self._ints = self._k.malsm_state(
-            rows, every, self._p, self._first
-        )
-
-    @classmethod
-    def from_settings(cls, dt: float, settings: dict[str, Any]) -> OnlineIdentifier:
-        order, offset, common = _model(settings)
-        window = settings["window"]
-        rows = window_rows(order, window, _n_params(order, offset))
-        every = check_recompute(settings["recompute_every"], rows)
-        params = {"window": window, "recompute_every": every, **common}
-        return cls(dt, params, order, offset, rows, every)
-
-    def _step(self, k: int) -> Estimate | None:
-        if k < self._start:
-            self._code[k] = 1
-            self._W[k] = np.nan
-            return None
-        if self._first:
-            status, a, b = self._k.malsm2_chunk(
-                self._u, self._ys, k, k + 1, self._buf, self._sums, self._ints, self._W, self._code
-            )
-            if status == 0:
-                return _first_order_estimate("malsm", k, a, b, self.dt)
-            return self._from_status(k, status, a, b)
-        o = self._order
-        self._k.malsm_chunk(
-            self._u, self._ys, k, k + 1, o.na, o.nb, o.delay, self._constant,
-            self._buf, self._sums, self._shift_cols, self._ints, self._W, self._code,
-        )  # fmt: skip
-        return self._from_row(k)
-
-
-class _Weighted(_Recursive):
-    method = "wlsm"
-
-    def __init__(
-        self,
-        dt: float,
-        params: dict[str, Any],
-        order: ArxOrder,
-        offset: str | float,
-        gamma: float,
-        W0: FloatArray,
-        P0: FloatArray,
-        paper: bool,
-    ):
-        super().__init__(dt, params, order, offset)
-        self._gamma = gamma
-        self._paper = paper
-        self._W0 = W0
-        self._Wk = W0.copy()
-        self._Pk = P0.copy()
-
-    @classmethod
-    def from_settings(cls, dt: float, settings: dict[str, Any]) -> OnlineIdentifier:
-        order, offset, common = _model(settings)
-        form = settings["form"]
-        gamma, W0, P0, paper = check_wlsm_params(
-            settings["gamma"], settings["pmax"], settings["w0"], form, settings["p0"],
-            _n_params(order, offset), order.na + order.nb,
-        )  # fmt: skip
-        params: dict[str, Any] = {
-            "gamma": gamma,
-            "pmax": settings["pmax"],
-            "w0": W0.tolist(),
-            "form": form,
-            **common,
-        }
-        if settings["p0"] is not None:
-            params["p0"] = P0.tolist()
-        return cls(dt, params, order, offset, gamma, W0, P0, paper)
-
-    def _step(self, k: int) -> Estimate | None:
-        if k < self._start:
-            self._code[k] = 0
-            self._W[k] = self._W0
-            if self._first:
-                return self._from_status(k, 0, float(self._W0[0]), float(self._W0[1]))
-            return self._from_row(k)
-        if self._first:
-            status, a, b = self._k.wlsm2_chunk(
-                self._u, self._ys, k, k + 1, self._paper, self._gamma, self._Wk, self._Pk,
-                self._W, self._code,
-            )  # fmt: skip
-            if status == 0:
-                return _first_order_estimate("wlsm", k, a, b, self.dt)
-            return self._from_status(k, status, a, b)
-        o = self._order
-        self._k.wlsm_chunk(
-            self._u, self._ys, k, k + 1, o.na, o.nb, o.delay, self._constant, self._paper,
-            self._gamma, self._Wk, self._Pk, self._W, self._code,
-        )  # fmt: skip
-        return self._from_row(k)
-
-
-def _model(settings: dict[str, Any]) -> tuple[ArxOrder, str | float, dict[str, Any]]:
-    """The checked order and offset, and their JSON-ready form for ``params``."""
-    order = _v.check_order(settings["order"])
-    offset = _v.check_offset(settings["offset"])
-    return order, offset, {"order": order.to_dict(), "offset": offset}
+    given = settings["order"]
+    order = None if given is None and search else _v.check_order(given)
+    offset = _v.check_offset_or_auto(settings["offset"])
+    shown = None if order is None else order.to_dict()
+    common = {"order": shown, "offset": offset}
+    if "expected_sign" in settings:
+        common["expected_sign"] = settings["expected_sign"]
+    return order, offset, common
 
 
 def _n_params(order: ArxOrder, offset: str | float) -> int:
     return order.na + order.nb + int(offset == "fit")
+
+
+def _with_trust(est: Estimate, tr: Trajectory) -> Estimate:
+    """The final estimate with the END trajectory's row, warnings and operating point.
+
+    When END decided another operating point than the live estimates used, the
+    row of the END trajectory replaces the live estimate.
+    """
+    k = est.k
+    if tr.n_samples > k and tr.W.shape[1] and not np.array_equal(tr.W[k], np.asarray(est.W)):
+        ok = bool(tr.valid[k])
+        est = Estimate(
+            est.method, k, float(tr.K[k]), float(tr.tau[k]), tuple(tr.W[k].tolist()), ok,
+            est.final, _NO_EXTRAS if ok else {"reason": tr.invalid_reason[k]},
+        )  # fmt: skip
+    extras = {
+        **est.extras,
+        "theta": tr.order.delay * tr.dt,
+        "offset": tr.offset,
+        "operating_point": None if tr.operating_point is None else tr.operating_point.to_dict(),
+        "warnings": list(tr.warnings),
+        "trusted": est.valid and not tr.warnings,
+    }
+    return dataclasses.replace(est, extras=extras)
 
 
 def make_identifier(method: str, dt: float, **params: Any) -> OnlineIdentifier:

@@ -12,6 +12,7 @@ from thermolab.errors import InvalidParameterError
 
 from . import _regression as _reg
 from . import _validation as _v
+from ._trust import resolve_offset, with_warnings
 from .models import ArxOrder
 from .registry import SETTINGS, default_w0
 from .trajectory import Trajectory
@@ -114,6 +115,8 @@ def moving_window_least_squares(
     order: ArxOrder | None = None,
     offset: str | float = SETTINGS["offset"].default,
     recompute_every: int | None = SETTINGS["recompute_every"].default,
+    t: npt.ArrayLike | None = None,
+    expected_sign: int | None = SETTINGS["expected_sign"].default,
 ) -> Trajectory:
     """Moving-window least squares: the paper's MALSM, one estimate per sample.
 
@@ -133,12 +136,17 @@ def moving_window_least_squares(
         Samples in the window, default 100; at least ``order.lag + 1 + n_params``.
     order : ArxOrder, optional
         Model structure; default first order.
-    offset : {"initial", "fit", "none"} or float, optional
+    offset : {"auto", "initial", "fit", "none"} or float, optional
         As in :func:`~thermolab.ident.least_squares` (``"initial"``: the record's
-        first sample is the ambient, for every window).
+        first sample is the ambient, for every window). Default ``"auto"``,
+        decided from the whole record (until this release ``"initial"``).
     recompute_every : int, optional
         Rows between exact recomputations of the running sums; default the
         window's row count (O(1) amortised cost per sample).
+    t : array_like, optional
+        Sample times: windows that span a gap in time, and jitter, are flagged.
+    expected_sign : {1, -1}, optional
+        The sign the gain must have; a final gain of the other sign is flagged.
 
     Returns
     -------
@@ -184,7 +192,7 @@ def moving_window_least_squares(
     u_arr, y_arr = _v.as_record(u, y)
     step = _v.check_dt(dt)
     ord_ = _v.check_order(order)
-    off = _v.check_offset(offset)
+    off, op = resolve_offset(u_arr, y_arr, step, ord_, offset)
     size = _v.integer("window", window, 1, "samples in the moving window")
     constant = off == "fit"
     p = ord_.na + ord_.nb + int(constant)
@@ -193,7 +201,7 @@ def moving_window_least_squares(
     _v.check_min_samples(y_arr.size, size, f"one window of {size} samples")
     shift, _ = _reg.offset_shift(off, float(y_arr[0]))
     W, code = run_malsm(u_arr, _shifted(y_arr, shift), ord_, constant, rows, every)
-    return Trajectory(
+    tr = Trajectory(
         method="malsm",
         dt=step,
         W=W,
@@ -202,7 +210,9 @@ def moving_window_least_squares(
         param_names=ord_.param_names(constant=constant),
         status=np.where(code == 2, code, 0).astype(np.int8),
         params={"window": size, "recompute_every": every},
+        operating_point=op,
     )
+    return with_warnings(tr, op, t, expected_sign, window=size)
 
 
 def check_wlsm_params(
@@ -305,6 +315,8 @@ def weighted_least_squares(
     p0: float | npt.ArrayLike | None = SETTINGS["p0"].default,
     order: ArxOrder | None = None,
     offset: str | float = SETTINGS["offset"].default,
+    t: npt.ArrayLike | None = None,
+    expected_sign: int | None = SETTINGS["expected_sign"].default,
 ) -> Trajectory:
     """Weighted (recursive) least squares with a forgetting factor: the paper's WLSM.
 
@@ -347,8 +359,13 @@ def weighted_least_squares(
         symmetric positive-definite matrix.
     order : ArxOrder, optional
         Model structure; default first order.
-    offset : {"initial", "fit", "none"} or float, optional
-        As in :func:`~thermolab.ident.least_squares`.
+    offset : {"auto", "initial", "fit", "none"} or float, optional
+        As in :func:`~thermolab.ident.least_squares`; default ``"auto"``,
+        decided from the whole record (until this release ``"initial"``).
+    t : array_like, optional
+        Sample times: gaps and jitter are flagged.
+    expected_sign : {1, -1}, optional
+        The sign the gain must have; a final gain of the other sign is flagged.
 
     Returns
     -------
@@ -375,14 +392,14 @@ def weighted_least_squares(
     >>> y = REFERENCE_MODEL.simulate(u)
     >>> tr = weighted_least_squares(u, y, 1.0, gamma=0.7, pmax=1e4, w0=PAPER_W0)
     >>> print(tr.final)
-    FirstOrderModel(K=0.14009..., tau=250.126233..., reason=None)
+    FirstOrderModel(K=0.14009..., tau=250.126233..., reason=None, theta=0.0)
     >>> tr.converged_at()["K"] < 100
     True
     """
     u_arr, y_arr = _v.as_record(u, y)
     step = _v.check_dt(dt)
     ord_ = _v.check_order(order)
-    off = _v.check_offset(offset)
+    off, op = resolve_offset(u_arr, y_arr, step, ord_, offset)
     constant = off == "fit"
     n_dyn = ord_.na + ord_.nb
     p = n_dyn + int(constant)
@@ -394,7 +411,7 @@ def weighted_least_squares(
     params["w0"] = W0.tolist()
     if p0 is not None:
         params["p0"] = P0.tolist()
-    return Trajectory(
+    tr = Trajectory(
         method="wlsm",
         dt=step,
         W=W,
@@ -403,4 +420,6 @@ def weighted_least_squares(
         param_names=ord_.param_names(constant=constant),
         status=np.where(code == 6, code, 0).astype(np.int8),
         params=params,
+        operating_point=op,
     )
+    return with_warnings(tr, op, t, expected_sign)

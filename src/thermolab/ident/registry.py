@@ -266,14 +266,38 @@ PAPER_W0: tuple[float, float] = (0.96329, 9.9082e-4)
 
 _ORDER = Setting(
     "order", "arx_order", (1, 1, 0),
-    "ARX order: output lags, input lags, dead time in samples beyond one; 1,1,0 is eq. 4",
-    metavar="NA,NB,DELAY",
+    "ARX order: output lags, input lags, dead time in samples beyond one; 1,1,0 is eq. 4 "
+    "(default: 1,1,0, and for lsm 1,1 with the dead time searched over 0..max_delay)",
+    metavar="NA,NB,DELAY", structural_default=lambda n_dynamic, n_params: None,
 )  # fmt: skip
 _OFFSET = Setting(
-    "offset", "offset", "initial",
-    "operating point: initial removes the first output sample, fit estimates a constant, "
-    "none is the paper's raw form, a number is the known ambient output",
-    choices=("initial", "fit", "none"), unit="V", metavar="none|initial|fit|VALUE",
+    "offset", "offset", "auto",
+    "operating point: auto decides from the data (initial or fit), initial removes the "
+    "first output sample, fit estimates a constant, none is the paper's raw form, a number "
+    "is the known ambient output",
+    choices=("auto", "initial", "fit", "none"), unit="V",
+    metavar="auto|none|initial|fit|VALUE",
+)  # fmt: skip
+_MAX_DELAY = Setting(
+    "max_delay", "integer", None,
+    "longest dead time searched (default: 60 samples, at most a tenth of the record; "
+    "0 turns the search off)",
+    minimum=0, maximum=1000, unit="samples", metavar="N",
+)  # fmt: skip
+_THETA = Setting(
+    "theta", "number", None, "the dead time, if known (default: estimated up to max_delay)",
+    minimum=0.0, unit="s", metavar="S",
+)  # fmt: skip
+_EXPECTED_SIGN = Setting(
+    "expected_sign", "integer", None,
+    "the gain's sign, 1 (a heater: the output rises with the input) or -1; a gain of the "
+    "other sign is flagged (default: not checked)",
+    minimum=-1, maximum=1, metavar="SIGN",
+)  # fmt: skip
+_HOLDOUT = Setting(
+    "holdout", "number", 0.3,
+    "fraction of the record held out for the held-out fit % (0 skips it)",
+    minimum=0.0, maximum=0.5, metavar="F",
 )  # fmt: skip
 _BLOCK = Setting(
     "block", "integer", 100,
@@ -347,7 +371,8 @@ _LAST = Setting(
 
 #: Every setting by name (a shared one, like ``order``, appears once).
 _ALL_SETTINGS = (
-    _ORDER, _OFFSET, _BLOCK, _WINDOW, _RECOMPUTE, _GAMMA, _PMAX, _W0, _FORM, _P0,
+    _ORDER, _OFFSET, _MAX_DELAY, _THETA, _EXPECTED_SIGN, _HOLDOUT,
+    _BLOCK, _WINDOW, _RECOMPUTE, _GAMMA, _PMAX, _W0, _FORM, _P0,
     _U_INITIAL, _MIN_STEP, _MIN_SAMPLES, _SETTLE, _TOL, _LAST,
 )  # fmt: skip
 SETTINGS: Mapping[str, Setting] = MappingProxyType({s.name: s for s in _ALL_SETTINGS})
@@ -429,6 +454,7 @@ class Method:
 
 
 _MODEL = (_ORDER, _OFFSET)
+_TRUST = (_EXPECTED_SIGN,)
 _SUMMARY = (_TOL, _LAST)
 
 #: The methods, in the paper's order.
@@ -436,31 +462,40 @@ METHODS: tuple[Method, ...] = (
     Method(
         "srm", "Step response (SRM)",
         "K from the final value and tau from the 63.2 % crossing of one step",
-        1, ("final",), ".step:step_response", ".online:_StepResponse",
+        1, ("final",), ".step:step_response", "._online_final:_StepResponse",
         (_U_INITIAL, _MIN_STEP, _MIN_SAMPLES, _SETTLE), data=("t", "u", "y"),
     ),
     Method(
         "lsm", "Batch least squares (LSM)",
         "least squares over the whole record (eq. 12), with standard errors and fits",
-        1, ("final",), ".batch:least_squares", ".online:_LeastSquares", _MODEL,
+        1, ("final",), ".batch:least_squares", "._online_final:_LeastSquares",
+        (*_MODEL, _MAX_DELAY, _HOLDOUT, *_TRUST),
     ),
     Method(
         "blockls", "Block least squares (LSM(2), LSM(3))",
         "least squares over consecutive blocks: one estimate per block",
-        1, ("final", "trajectory"), ".batch:block_least_squares",
-        ".online:_BlockLeastSquares", (_BLOCK, *_MODEL, _LAST),
+        1, ("final", "trajectory"), ".blocks:block_least_squares",
+        "._online_final:_BlockLeastSquares", (_BLOCK, *_MODEL, *_TRUST, _LAST),
     ),
     Method(
         "malsm", "Moving-window least squares (MALSM)",
         "least squares over a window of the latest samples: one estimate per sample",
         2, ("final", "trajectory"), ".recursive:moving_window_least_squares",
-        ".online:_MovingWindow", (_WINDOW, _RECOMPUTE, *_MODEL, *_SUMMARY),
+        "._online_recursive:_MovingWindow", (_WINDOW, _RECOMPUTE, *_MODEL, *_TRUST, *_SUMMARY),
     ),
     Method(
         "wlsm", "Weighted least squares (WLSM)",
         "recursive least squares with a forgetting factor: one estimate per sample",
         3, ("final", "trajectory"), ".recursive:weighted_least_squares",
-        ".online:_Weighted", (_GAMMA, _PMAX, _W0, _FORM, _P0, *_MODEL, *_SUMMARY),
+        "._online_recursive:_Weighted",
+        (_GAMMA, _PMAX, _W0, _FORM, _P0, *_MODEL, *_TRUST, *_SUMMARY),
+    ),
+    Method(
+        "oe", "Output error (OE)",
+        "K, tau and the dead time that best simulate the record (free-run error): "
+        "unbiased by measurement noise, unlike the ARX methods",
+        1, ("final",), ".oe:output_error", "._online_final:_OutputError",
+        (_THETA, _MAX_DELAY, *_TRUST),
     ),
 )  # fmt: skip
 
@@ -520,8 +555,9 @@ def check_settings(
 
     Examples
     --------
-    >>> check_settings("malsm", {"window": 50})
-    {'window': 50, 'recompute_every': None, 'order': (1, 1, 0), 'offset': 'initial'}
+    >>> check_settings("malsm", {"window": 50})  # doctest: +NORMALIZE_WHITESPACE
+    {'window': 50, 'recompute_every': None, 'order': None, 'offset': 'auto',
+     'expected_sign': None}
     >>> check_settings("lsm", {"window": 50})
     Traceback (most recent call last):
     ...
@@ -551,6 +587,8 @@ def owners(setting: str) -> tuple[str, ...]:
     --------
     >>> owners("offset")
     ('lsm', 'blockls', 'malsm', 'wlsm')
+    >>> owners("max_delay")
+    ('lsm', 'oe')
     """
     return tuple(m.name for m in METHODS if setting in m.setting_names())
 
@@ -596,7 +634,7 @@ def registry_json() -> dict[str, Any]:
     >>> import json
     >>> doc = registry_json()
     >>> [m["name"] for m in doc["methods"]]
-    ['srm', 'lsm', 'blockls', 'malsm', 'wlsm']
+    ['srm', 'lsm', 'blockls', 'malsm', 'wlsm', 'oe']
     >>> wlsm = doc["methods"][4]
     >>> wlsm["title"], wlsm["panel"], wlsm["returns"]
     ('Weighted least squares (WLSM)', 3, ['final', 'trajectory'])

@@ -33,6 +33,9 @@ FloatArray = npt.NDArray[np.float64]
 
 #: The 63.2 % level of the method, exactly ``1 - 1/e``: an exponential reaches it at t = tau.
 LEVEL_63 = -math.expm1(-1.0)
+#: The 28.3 % level, ``1 - exp(-1/3)``: a first-order lag plus dead time reaches it
+#: at ``theta + tau/3`` (and 63.2 % at ``theta + tau``), so the two give both.
+LEVEL_28 = -math.expm1(-1.0 / 3.0)
 # Input changes smaller than this fraction of the largest one are noise, not another step.
 _OTHER_STEP_FRACTION = 0.1
 # Samples the tail fit needs at least (three parameters and something to spare).
@@ -113,6 +116,16 @@ class StepResponseResult:
     warnings : tuple of str
         Everything that makes the figures less trustworthy (also emitted as
         :class:`~thermolab.ident.IdentificationWarning`).
+    theta : float
+        Dead time in seconds: first order plus dead time fitted through the
+        28.3 % and 63.2 % crossings (``t28 = theta + tau/3``, ``t63 = theta +
+        tau``); ``tau`` is then ``t63 - theta``. 0 when the two agree with no delay,
+        or when the delay found is within what the noise could make (two standard
+        deviations of the two-point estimate).
+    theta_first_response : float
+        Time from the step to the last sample before the output first leaves the
+        noise band (four noise deviations) for good: the dead time as seen
+        directly, to a sample (NaN when not found).
 
     Notes
     -----
@@ -141,14 +154,16 @@ class StepResponseResult:
     n_samples: int
     dt: float
     warnings: tuple[str, ...] = ()
+    theta: float = 0.0
+    theta_first_response: float = math.nan
     t: FloatArray = field(default_factory=lambda: np.empty(0), repr=False, compare=False)
     u: FloatArray = field(default_factory=lambda: np.empty(0), repr=False, compare=False)
     y: FloatArray = field(default_factory=lambda: np.empty(0), repr=False, compare=False)
 
     @property
     def model(self) -> FirstOrderModel:
-        """The identified first-order model ``K / (tau s + 1)`` (settled gain)."""
-        return FirstOrderModel(self.K, self.tau)
+        """The identified model ``K exp(-theta s) / (tau s + 1)`` (settled gain)."""
+        return FirstOrderModel(self.K, self.tau, theta=self.theta)
 
     def to_dict(self, *, arrays: bool = False) -> dict[str, Any]:
         """A JSON-safe summary (NaN and inf become ``None``).
@@ -195,6 +210,8 @@ class StepResponseResult:
             "time_constants_recorded",
             "n_samples",
             "dt",
+            "theta",
+            "theta_first_response",
         ):
             value = getattr(self, name)
             if isinstance(value, float) and not math.isfinite(value):
@@ -230,9 +247,10 @@ class StepResponseResult:
         fig = _figure()
         ax_y, ax_u = fig.subplots(2, 1, sharex=True, height_ratios=(3, 1))
         ax_y.plot(self.t, self.y, color="k", linewidth=1, label="measured")
-        after = self.t >= self.step_time
+        after = self.t >= self.step_time + self.theta
         change = self.final_value - self.baseline
-        model = self.baseline + change * -np.expm1(-(self.t[after] - self.step_time) / self.tau)
+        elapsed = self.t[after] - self.step_time - self.theta
+        model = self.baseline + change * -np.expm1(-elapsed / self.tau)
         ax_y.plot(self.t[after], model, color="tab:red", linewidth=1, label="first-order model")
         ax_y.axhline(self.baseline, color="0.5", linewidth=0.8, linestyle=":")
         ax_y.axhline(
@@ -447,6 +465,24 @@ def step_response(
 
     tau, t63_rel = _crossing_time(tr, yr / change, noise / abs(change))
     tau_basis = "63.2% crossing"
+    theta = 0.0
+    if tau is not None:
+        t28, _ = _crossing_time(tr, yr / change, noise / abs(change), LEVEL_28)
+        if t28 is not None:
+            # Two points of K (1 - exp(-(t - theta)/tau)) give tau and theta.
+            tau_two = 1.5 * (tau - t28)
+            theta_two = tau - tau_two
+            # theta = 1.5 t28 - 0.5 t63; a crossing time is uncertain by the noise
+            # over the response's slope there, (noise/|change|) tau / (1 - level).
+            # A dead time the noise could make is not reported (about 2 sigma).
+            # The noise from the response's second differences counts a fast
+            # transient's curvature as noise; before the step there is none.
+            quiet = _noise_level(y_arr[: ks + 1]) if ks + 1 >= 10 else noise
+            rel = min(noise, quiet) / abs(change) * tau
+            sigma = math.hypot(1.5 * rel / (1.0 - LEVEL_28), 0.5 * rel / (1.0 - LEVEL_63))
+            if tau_two > 0.0 and theta_two > max(1e-9 * tau, 2.0 * sigma):
+                theta, tau = theta_two, tau_two
+    theta_seen = _first_response(tr, yr * math.copysign(1.0, change), noise)
     if tau is None:
         if not math.isfinite(tau_fit):
             raise InsufficientExcitationError(
@@ -518,6 +554,8 @@ def step_response(
         n_samples=n,
         dt=_median_dt(t_arr),
         warnings=tuple(notes),
+        theta=theta,
+        theta_first_response=theta_seen,
         t=t_arr,
         u=u_arr,
         y=y_arr,
@@ -661,8 +699,22 @@ def _separable_fit(x: FloatArray, y: FloatArray, log_tau: float) -> tuple[float,
     return max(syy - slope * sey, 0.0), y_mean - slope * e_mean, -slope
 
 
-def _crossing_time(tr: FloatArray, z: FloatArray, z_noise: float) -> tuple[float | None, float]:
-    """Time (from the step) where the normalised response ``z`` reaches 1 - 1/e.
+def _first_response(tr: FloatArray, yr: FloatArray, noise: float) -> float:
+    """Time of the last sample before ``yr`` (rising) leaves the noise band for good."""
+    band = max(4.0 * noise, 1e-12 * max(1.0, float(np.max(np.abs(yr)))))
+    outside = yr > band
+    inside = np.flatnonzero(~outside)
+    if outside.all():
+        return 0.0
+    if inside.size == 0 or inside[-1] == yr.size - 1:
+        return math.nan
+    return float(tr[int(inside[-1])])
+
+
+def _crossing_time(
+    tr: FloatArray, z: FloatArray, z_noise: float, level: float = LEVEL_63
+) -> tuple[float | None, float]:
+    """Time (from the step) where the normalised response ``z`` reaches ``level`` (1 - 1/e).
 
     ``log(1 - z)`` is linear in time for an exponential, so the crossing is where a
     straight line through ``log(1 - z)`` meets ``-1``. Noise-free, the line goes
@@ -671,7 +723,7 @@ def _crossing_time(tr: FloatArray, z: FloatArray, z_noise: float) -> tuple[float
     fitted to every sample within three noise deviations of the level, which
     averages the noise out instead of taking the first (early) crossing.
     """
-    side = z >= LEVEL_63
+    side = z >= level
     changes = np.flatnonzero(side[1:] != side[:-1]) + 1
     if changes.size == 0:
         if side[0]:
@@ -679,25 +731,27 @@ def _crossing_time(tr: FloatArray, z: FloatArray, z_noise: float) -> tuple[float
         return None, math.nan
     first, last = int(changes[0]), int(changes[-1])
     band = min(3.0 * z_noise, 0.25)
-    sel = np.abs(z - LEVEL_63) <= band
+    sel = np.abs(z - level) <= band
     sel[[first - 1, first, last - 1, last]] = True
     sel &= z < 1.0
     if np.count_nonzero(sel) > 2:
         slope, intercept = np.polyfit(tr[sel], np.log1p(-z[sel]), 1)
         if slope < 0.0:
-            tc = float((-1.0 - intercept) / slope)
+            tc = float((math.log1p(-level) - intercept) / slope)
             if tr[first - 1] - 1e-9 <= tc <= tr[last] + 1e-9 or first == last:
                 return tc, tc
-    tc = 0.5 * (_interpolate_crossing(tr, z, first) + _interpolate_crossing(tr, z, last))
+    tc = 0.5 * (
+        _interpolate_crossing(tr, z, first, level) + _interpolate_crossing(tr, z, last, level)
+    )
     return tc, tc
 
 
-def _interpolate_crossing(tr: FloatArray, z: FloatArray, j: int) -> float:
-    """Crossing of 1 - 1/e between samples j-1 and j, exact for an exponential."""
+def _interpolate_crossing(tr: FloatArray, z: FloatArray, j: int, level: float) -> float:
+    """Crossing of ``level`` between samples j-1 and j, exact for an exponential."""
     r0, r1 = 1.0 - z[j - 1], 1.0 - z[j]
-    target = 1.0 - LEVEL_63
+    target = 1.0 - level
     if r0 > 0.0 and r1 > 0.0 and r0 != r1:
         frac = math.log(r0 / target) / math.log(r0 / r1)
     else:
-        frac = (LEVEL_63 - z[j - 1]) / (z[j] - z[j - 1])
+        frac = (level - z[j - 1]) / (z[j] - z[j - 1])
     return float(tr[j - 1] + frac * (tr[j] - tr[j - 1]))

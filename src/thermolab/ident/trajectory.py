@@ -13,6 +13,7 @@ from thermolab.errors import InvalidParameterError
 from thermolab.jsonsafe import finite_or_none, json_safe
 
 from .models import INVALID_REASONS, ArxOrder, FirstOrderModel, discrete_to_first_order
+from .operating_point import OperatingPoint
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -64,6 +65,11 @@ class Trajectory:
         diverged); see :data:`~thermolab.ident.models.INVALID_REASONS`.
     params : dict, optional
         The method's settings (``window``, ``gamma`` ...), for reports.
+    operating_point : OperatingPoint, optional
+        How ``offset="auto"`` decided the handling (None when it was given).
+    warnings : tuple of str, optional
+        What makes the estimates less trustworthy (implausible final values,
+        windows across a gap in time, jitter, an undetermined operating point).
 
     Notes
     -----
@@ -90,6 +96,8 @@ class Trajectory:
     param_names: tuple[str, ...]
     status: npt.NDArray[np.int8] | None = None
     params: dict[str, Any] = field(default_factory=dict)
+    operating_point: OperatingPoint | None = None
+    warnings: tuple[str, ...] = ()
     K: FloatArray = field(init=False)
     tau: FloatArray = field(init=False)
     reason_code: npt.NDArray[np.int8] = field(init=False)
@@ -141,7 +149,14 @@ class Trajectory:
         code = int(self.reason_code[-1])
         if code:
             return FirstOrderModel(math.nan, math.nan, INVALID_REASONS[code])
-        return FirstOrderModel(float(self.K[-1]), float(self.tau[-1]))
+        return FirstOrderModel(
+            float(self.K[-1]), float(self.tau[-1]), theta=self.order.delay * self.dt
+        )
+
+    @property
+    def trusted(self) -> bool:
+        """A valid final estimate and no warning: one to show as final."""
+        return self.final.valid and not self.warnings
 
     def _series(self, name: str) -> FloatArray:
         if name == "K":
@@ -208,6 +223,86 @@ class Trajectory:
             out[name] = int(after + rows[0]) if rows.size else None
         return out
 
+    def after_convergence(self, tol: float = 0.01) -> dict[str, Any]:
+        """Convergence as the paper counts it: statistics over the samples after it.
+
+        :meth:`converged_at` and :meth:`stats` judge the last ``last`` samples,
+        which on a record only a little longer than the transient still hold the
+        start-up (WLSM(1) on the paper's 2000 samples: Ts mean 246.27, min
+        26.74, "no convergence"). Here the stabilisation value is the mean of
+        the estimates *after* convergence, found by fixed-point iteration: start
+        from the median of the second half of the record, find where each
+        estimate enters and stays in ``±tol`` of it, take the mean after the
+        later of the two, and repeat until the convergence sample stops moving.
+
+        Parameters
+        ----------
+        tol : float, optional
+            Relative tolerance, > 0 (default 0.01: the paper's ±1 %).
+
+        Returns
+        -------
+        dict
+            ``converged`` (bool), ``converged_at`` (``{"K", "tau"}``: sample
+            indices, or None), ``samples_after`` (samples after the later one)
+            and ``stats`` (``{"K": {"mean", "max", "min"}, "tau": {...}}`` over
+            those samples; NaN when it did not converge).
+
+        Raises
+        ------
+        InvalidParameterError
+            If ``tol`` is not > 0.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> a = np.r_[np.linspace(0.5, 0.9, 50), np.full(100, 0.9)]
+        >>> W = np.column_stack([a, 0.2 * (1 - a)])
+        >>> r = Trajectory("wlsm", 1.0, W, ArxOrder(), "initial", ("a", "b")).after_convergence()
+        >>> r["converged"], r["converged_at"], r["samples_after"]
+        (True, {'K': 0, 'tau': 49}, 101)
+        """
+        _check_tol_last(tol, 1)
+        n = self.n_samples
+        has_estimate = self.reason_code != 1
+        series = {name: self._series(name) for name in ("K", "tau")}
+        refs: dict[str, float] = {}
+        for name, x in series.items():
+            half = x[n // 2 :]
+            half = half[np.isfinite(half)]
+            refs[name] = float(np.median(half)) if half.size else math.nan
+        at: dict[str, int | None] = {"K": None, "tau": None}
+        start = -1
+        for _ in range(20):
+            for name, x in series.items():
+                at[name] = _entry(x, refs[name], tol, has_estimate)
+            if at["K"] is None or at["tau"] is None:
+                break
+            later = max(at["K"], at["tau"])
+            if later == start:
+                break
+            start = later
+            for name, x in series.items():
+                tail = x[start:]
+                tail = tail[np.isfinite(tail)]
+                refs[name] = float(tail.mean()) if tail.size else math.nan
+        converged = at["K"] is not None and at["tau"] is not None
+        stats: dict[str, dict[str, float]] = {}
+        for name, x in series.items():
+            tail = x[max(start, 0) :] if converged else x[:0]
+            tail = tail[np.isfinite(tail)]
+            stats[name] = (
+                {"mean": float(tail.mean()), "max": float(tail.max()), "min": float(tail.min())}
+                if tail.size
+                else {"mean": math.nan, "max": math.nan, "min": math.nan}
+            )
+        return {
+            "converged": converged,
+            "converged_at": at if converged else {"K": None, "tau": None},
+            "samples_after": n - start if converged else 0,
+            "stats": stats,
+        }
+
     def stats(self, last: int = 2000) -> dict[str, dict[str, float]]:
         """Mean, maximum and minimum of the valid estimates over the last ``last`` samples.
 
@@ -269,7 +364,8 @@ class Trajectory:
         dict
             ``method``, ``dt``, ``order``, ``offset``, ``params``, ``param_names``,
             ``n_samples``, ``first_estimate``, ``final`` (``{"K", "tau", "valid",
-            "reason"}``), ``stats``, ``converged_at`` and, with ``arrays``, the arrays.
+            "reason"}``), ``stats``, ``converged_at``, ``after_convergence``,
+            ``operating_point``, ``warnings``, ``trusted`` and, with ``arrays``, the arrays.
 
         Examples
         --------
@@ -292,6 +388,12 @@ class Trajectory:
             "final": self.final.to_dict(),
             "stats": {p: {s: finite_or_none(v) for s, v in d.items()} for p, d in stats.items()},
             "converged_at": self.converged_at(tol, last),
+            "after_convergence": _json_after(self.after_convergence(tol)),
+            "operating_point": None
+            if self.operating_point is None
+            else self.operating_point.to_dict(),
+            "warnings": list(self.warnings),
+            "trusted": self.trusted,
         }
         if arrays:
             out["K"] = _json_list(self.K)
@@ -325,6 +427,28 @@ class Trajectory:
         from ._plotting import plot_trajectory
 
         return plot_trajectory(self, reference=reference, title=title)
+
+
+def _entry(
+    x: FloatArray, ref: float, tol: float, has_estimate: npt.NDArray[np.bool_]
+) -> int | None:
+    """First row after which every estimate is valid and within ``±tol·|ref|`` (or None)."""
+    if not math.isfinite(ref):
+        return None
+    with np.errstate(invalid="ignore"):
+        inside = np.abs(x - ref) <= tol * abs(ref)
+    outside = np.flatnonzero(has_estimate & ~inside)
+    after = int(outside[-1]) + 1 if outside.size else 0
+    rows = np.flatnonzero(has_estimate[after:])
+    return after + int(rows[0]) if rows.size else None
+
+
+def _json_after(r: dict[str, Any]) -> dict[str, Any]:
+    stats = r["stats"]
+    return {
+        **r,
+        "stats": {p: {k: finite_or_none(v) for k, v in d.items()} for p, d in stats.items()},
+    }
 
 
 def _check_tol_last(tol: object, last: object) -> None:
