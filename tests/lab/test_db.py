@@ -251,3 +251,19 @@ def test_an_unreachable_database_is_a_one_line_error() -> None:
     with pytest.raises(ConfigError, match=r"cannot open the database .*127\.0\.0\.1.*refused"):
         db.upgrade()
     db.close()
+
+
+@pytest.mark.postgres
+def test_a_connection_still_in_use_at_close_is_closed_when_it_comes_back(
+    postgres_url: str,
+) -> None:
+    # A run's thread may hold a connection while the lab closes the database; it
+    # must be closed when returned, not left to the garbage collector.
+    db = Database(postgres_url, pool_size=1, max_overflow=0)
+    connection = db.engine.connect()
+    raw = connection.connection.dbapi_connection
+    db.close()
+    assert raw is not None
+    assert not raw.closed
+    connection.close()
+    assert raw.closed

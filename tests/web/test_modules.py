@@ -693,7 +693,7 @@ def test_panels_take_their_methods_from_get_api_methods(module_page: Any) -> Non
     from thermolab.lab.runs.request import RUN_SETTINGS
 
     r = run_js(module_page, PANELS_FROM_SERVED_METHODS.replace("SERVED", _served_methods()))
-    assert r["methods"] == [["srm", "lsm", "blockls"], ["malsm"], ["wlsm"]]
+    assert r["methods"] == [["srm", "lsm", "blockls", "oe"], ["malsm"], ["wlsm"]]
 
     def expected(name: str) -> dict[str, Any]:
         s = RUN_SETTINGS[name]

@@ -134,6 +134,11 @@ class Database:
                 self.url, pool_size=pool_size, max_overflow=max_overflow, pool_pre_ping=True
             )
         self.engine: Engine = engine
+        self._closed = False
+        # A connection a thread still holds when the database is closed goes back
+        # to the disposed pool later; close it there, rather than leaving it to the
+        # garbage collector (psycopg warns about a connection deleted while open).
+        event.listen(engine, "checkin", self._close_late_checkin)
         self._sqlite_writer: contextlib.AbstractContextManager[object] = (
             threading.RLock() if self.backend == "sqlite" else contextlib.nullcontext()
         )
@@ -224,8 +229,15 @@ class Database:
         return make_url(self.url).render_as_string(hide_password=True)
 
     def close(self) -> None:
-        """Close every pooled connection."""
+        """Close every pooled connection (and any still in use, when it comes back)."""
+        self._closed = True
         self.engine.dispose()
+
+    def _close_late_checkin(
+        self, dbapi_connection: DBAPIConnection | None, record: ConnectionPoolEntry
+    ) -> None:
+        if self._closed and dbapi_connection is not None:
+            record.invalidate()
 
     def __repr__(self) -> str:
         return f"Database({self.display_url!r})"

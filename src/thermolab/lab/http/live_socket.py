@@ -484,7 +484,7 @@ def _message_type(text: str) -> str:
     --------
     >>> _message_type('{"type": "ping"}')
     'ping'
-    >>> _message_type("[" * 10_000)
+    >>> _message_type("[" * 100)
     'messages nest at most 8 levels of brackets'
     """
     if len(text) > MAX_CLIENT_MESSAGE:

@@ -46,7 +46,7 @@ MAX_DT = 3600.0
 #: How a run's identifiers may treat the operating point: ``"auto"`` (decided from the
 #: data, see :func:`thermolab.lab.runs.operating_point.choose_operating_point`) or one of
 #: the registry's ``offset`` choices; a number is also accepted (a known ambient output).
-OFFSET_MODES: tuple[str, ...] = ("auto", *SETTINGS["offset"].choices)
+OFFSET_MODES: tuple[str, ...] = tuple(dict.fromkeys(("auto", *SETTINGS["offset"].choices)))
 
 #: Methods that regress on the output and so have an operating point to handle.
 OFFSET_METHODS: tuple[str, ...] = owners("offset")

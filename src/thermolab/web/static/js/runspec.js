@@ -12,6 +12,7 @@ const METHOD_TITLES = {
   blockls: "method.blockls",
   malsm: "method.malsm",
   wlsm: "method.wlsm",
+  oe: "method.oe",
 };
 
 export function methodTitle(method) {

@@ -128,7 +128,7 @@ export function panelDefinitions(limits) {
       ],
       methods: panelMethods("srm-lsm"),
       // Block LS runs only when asked for (a block size other than 0).
-      optional: ["blockls"],
+      optional: ["blockls", "oe"],
       stepHint: 10,
     },
     {

@@ -41,7 +41,11 @@ export function operatingPointsFound(methods, estimates) {
     const op = estimates?.get(m)?.operatingPoint;
     if (!op || !op.handling) continue;
     const ambient = typeof op.ambient === "number" && Number.isFinite(op.ambient) ? fmt(op.ambient) : "–";
-    lines.push(t("panel.operatingPointFound", { method: methodTitle(m), handling: op.handling, ambient, reason: op.reason ?? "" }));
+    const label = OFFSET_LABELS[op.handling];
+    const handling = label ? t(label) : String(op.handling);
+    // The library explains its decision in English: shown to English readers only.
+    const reason = op.reason && language() === DEFAULT_LANGUAGE ? ` (${op.reason})` : "";
+    lines.push(t("panel.operatingPointFound", { method: methodTitle(m), handling, ambient, reason }));
   }
   return lines;
 }
