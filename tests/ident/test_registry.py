@@ -195,10 +195,11 @@ def check_server_schema(method: Method, setting: Setting) -> None:
     if setting.role == "statistics":
         assert setting.name not in RunIn.model_fields
         return
-    if setting.name == "offset":  # the lab's own default "auto", then the registry's choices
+    if setting.name == "offset":  # the registry's choices ("auto" first) and its default
         from thermolab.lab.runs.request import OFFSET_MODES
 
-        assert ("auto", *setting.choices) == OFFSET_MODES
+        assert setting.choices == OFFSET_MODES
+        assert RunIn.model_fields["offset"].default == setting.default
         return
     run_setting = RUN_SETTINGS.get(setting.name)
     if run_setting is None:

@@ -129,6 +129,6 @@ def test_each_method_says_the_operating_point_it_used_and_found(module_page: Any
     )
     assert r["text"].startswith("Operating point: auto: each method decides")
     assert "Least squares" in r["text"] or "LSM" in r["text"]
-    assert ": fit, ambient 0.25 V (the record starts settled under 5 V)." in r["text"]
+    assert ": fit, ambient 0.25 (the record starts settled under 5 V)." in r["text"]
     assert abs(r["base"] - 0.25) < 1e-12  # c / (1 - a): the method fitted the constant term
     assert r["initial"] == 3.0  # no constant term: the first output is the base
