@@ -36,7 +36,6 @@ from thermolab.lab.db import MIGRATIONS_DIR
 from thermolab.lab.db.models import Command, MethodResultRow, Sample
 from thermolab.lab.http.app import create_app
 from thermolab.lab.runs import RunRequest
-from thermolab.lab.runs.operating_point import identifiers_decide
 from thermolab.lab.service import Lab
 from thermolab.lab.users import Principal
 from thermolab.records import read_record
@@ -478,7 +477,7 @@ def test_back_to_back_runs_on_a_warm_twin_give_valid_models_by_default(
         forced = finish(client, lab, {**body, "offset": "initial"})
     assert cold["operatingPoint"] == warm["operatingPoint"]
     assert warm["operatingPoint"]["asked"] == "auto"
-    assert warm["operatingPoint"]["used"] == ("auto" if identifiers_decide() else "fit")
+    assert warm["operatingPoint"]["used"] == "auto"
     assert "atRest" not in warm["operatingPoint"]  # no judgement of the rig by the clock
     assert warm["settings"]["offset"] == "auto"
     for run in (cold, warm):
@@ -497,7 +496,7 @@ def test_back_to_back_runs_on_a_warm_twin_give_valid_models_by_default(
 
 def test_the_operating_point_is_left_to_the_data(lab: Lab) -> None:
     auto = lab.runs.operating_point("auto", ("lsm", "srm"))
-    assert auto.used == ("auto" if identifiers_decide() else "fit")
+    assert auto.used == "auto"
     assert lab.runs.operating_point("none", ("wlsm",)).used == "none"
     assert lab.runs.operating_point(0.0, ("malsm",)).to_dict() == {
         "asked": 0.0,

@@ -16,8 +16,6 @@ from typing import Any
 import pytest
 from numpy.testing import assert_allclose
 
-from thermolab.lab.runs.operating_point import identifiers_decide
-
 pytestmark = pytest.mark.browser
 
 ROLE = "[data-testid=access-role]"
@@ -26,7 +24,7 @@ TRUE_K, TRUE_TAU = 0.140090, 250.126233
 LOCK = "[data-testid=lock-notice]"
 
 # What the identifiers are given for offset "auto" (the data decide; "fit" until they can).
-AUTO_USED = "auto" if identifiers_decide() else "fit"
+AUTO_USED = "auto"
 
 
 @pytest.fixture

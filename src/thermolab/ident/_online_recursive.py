@@ -103,6 +103,7 @@ class _Recursive(OnlineIdentifier):
         return est
 
     def _step(self, k: int) -> Estimate | None:
+        # The one hook each recursive method (MALSM, WLSM) fills in: its kernel's update.
         raise NotImplementedError
 
     def _settled_under_input(self, k: int) -> bool:

@@ -7,25 +7,18 @@ library's one procedure (:func:`thermolab.ident.operating_point.decide_operating
 each method's result then reports the handling used and the operating point
 found (its ``extras``). What the lab stores with the run is what was asked,
 what the identifiers were given and why (:class:`OperatingPoint`).
-
-Until the online identifiers accept ``"auto"`` (:func:`identifiers_decide`
-says whether they do), ``"auto"`` gives them ``"fit"``: the constant term
-estimated with the model, right for a record that starts at ambient, settled
-under an input or moving, whenever the input changes during the run.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import cache
 from typing import Any
 
 from thermolab.errors import InvalidParameterError
-from thermolab.ident.online import make_identifier
 from thermolab.lab.runs.request import OFFSET_METHODS
 
-__all__ = ["AUTO", "OperatingPoint", "choose_operating_point", "identifiers_decide"]
+__all__ = ["AUTO", "OperatingPoint", "choose_operating_point"]
 
 #: The request's offset that leaves the decision to the data.
 AUTO = "auto"
@@ -60,16 +53,6 @@ class OperatingPoint:
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (``asked``, ``used``, ``reason``)."""
         return {"asked": self.asked, "used": self.used, "reason": self.reason}
-
-
-@cache
-def identifiers_decide() -> bool:
-    """Whether the library's online identifiers decide ``offset="auto"`` from the data."""
-    try:
-        make_identifier("lsm", 1.0, offset=AUTO)
-    except InvalidParameterError:
-        return False
-    return True
 
 
 def choose_operating_point(asked: str | float, methods: Sequence[str]) -> OperatingPoint:
@@ -109,16 +92,9 @@ def choose_operating_point(asked: str | float, methods: Sequence[str]) -> Operat
         )
     if asked != AUTO:
         return OperatingPoint(asked, asked, f"{asked}, as asked")
-    if identifiers_decide():
-        return OperatingPoint(
-            asked,
-            AUTO,
-            "auto: each method decides from the record (at ambient, settled under an input, "
-            "or moving) and reports the handling used and the operating point found",
-        )
     return OperatingPoint(
         asked,
-        "fit",
-        "fit: the constant term is estimated with the model, right whether the record starts "
-        "at ambient, settled under an input or moving, when the input changes during the run",
+        AUTO,
+        "auto: each method decides from the record (at ambient, settled under an input, "
+        "or moving) and reports the handling used and the operating point found",
     )

@@ -46,7 +46,7 @@ MAX_DT = 3600.0
 #: How a run's identifiers may treat the operating point: ``"auto"`` (decided from the
 #: data, see :func:`thermolab.lab.runs.operating_point.choose_operating_point`) or one of
 #: the registry's ``offset`` choices; a number is also accepted (a known ambient output).
-OFFSET_MODES: tuple[str, ...] = tuple(dict.fromkeys(("auto", *SETTINGS["offset"].choices)))
+OFFSET_MODES: tuple[str, ...] = SETTINGS["offset"].choices
 
 #: Methods that regress on the output and so have an operating point to handle.
 OFFSET_METHODS: tuple[str, ...] = owners("offset")
@@ -65,7 +65,7 @@ LAB_NARROWING: Mapping[str, Mapping[str, Any]] = MappingProxyType(
 
 #: The method settings a run request carries (each the registry's, narrowed by
 #: :data:`LAB_NARROWING`); the others keep the registry's default. ``offset`` is
-#: apart: the lab adds ``"auto"`` (:data:`OFFSET_MODES`).
+#: apart: its modes are the registry's choices (:data:`OFFSET_MODES`).
 RUN_SETTINGS: Mapping[str, Setting] = MappingProxyType(
     {
         name: dataclasses.replace(SETTINGS[name], **LAB_NARROWING.get(name, {}))
