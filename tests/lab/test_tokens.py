@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 import pytest
 from sqlalchemy import select
 
@@ -30,13 +29,16 @@ def test_a_token_is_shown_once_stored_hashed_and_acts_as_its_user(make_lab: LabF
         assert made.status_code == 201, made.text
         body = made.json()
         secret = body["token"]
-        assert secret.startswith("tlab_") and body["prefix"] == secret[:12]
-        assert body["readOnly"] is False and body["name"] == "notebook"
+        assert secret.startswith("tlab_")
+        assert body["prefix"] == secret[:12]
+        assert body["readOnly"] is False
+        assert body["name"] == "notebook"
         with lab.db.read() as session:
             stored = session.scalars(select(ApiToken.token_hash)).all()
         assert stored == [hash_token(secret)]  # the secret itself is nowhere
         listed = client.get("/api/tokens", headers=bearer(secret)).json()
-        assert [t["name"] for t in listed] == ["notebook"] and "token" not in listed[0]
+        assert [t["name"] for t in listed] == ["notebook"]
+        assert "token" not in listed[0]
         me = client.get("/api/session", headers=bearer(secret)).json()
         assert me["username"] == "ana"
         # Asking for control is a state change; a bearer request needs no Origin to pass.
@@ -71,7 +73,8 @@ def test_read_only_tokens_read_and_change_nothing(make_lab: LabFactory) -> None:
         reader = bearer(made["token"])
         assert client.get("/api/rigs", headers=reader).status_code == 200
         refused = client.post("/api/rigs/twin/control", headers=reader)
-        assert refused.status_code == 403 and "read-only" in refused.json()["detail"]
+        assert refused.status_code == 403
+        assert "read-only" in refused.json()["detail"]
         assert client.delete(f"/api/tokens/{made['id']}", headers=reader).status_code == 403
 
 
@@ -85,7 +88,8 @@ def test_tokens_cannot_change_passwords_or_mint_tokens(make_lab: LabFactory) -> 
             headers=token,
             json={"password": "a brand new password", "currentPassword": PASSWORD},
         )
-        assert changed.status_code == 403 and "log in with your password" in changed.text
+        assert changed.status_code == 403
+        assert "log in with your password" in changed.text
         minted = client.post("/api/tokens", headers=token, json={"name": "another"})
         assert minted.status_code == 403
         # A teacher's token has a teacher's rights otherwise.
@@ -129,9 +133,11 @@ def test_a_revoked_token_is_refused_at_once_and_its_sockets_closed(make_lab: Lab
                 assert receive(ws)["type"] == "hello"
             assert client.delete(f"/api/tokens/{one['id']}", headers=cookie).status_code == 204
             assert closed_with(ws1) == 4401
-            assert still_open(ws2) and still_open(ws3)
+            assert still_open(ws2)
+            assert still_open(ws3)
             gone = client.get("/api/rigs", headers=bearer(one["token"]))
-            assert gone.status_code == 401 and "revoked" in gone.json()["detail"]
+            assert gone.status_code == 401
+            assert "revoked" in gone.json()["detail"]
             assert client.get("/api/rigs", headers=bearer(two["token"])).status_code == 200
         # Someone else's token cannot be revoked (nor told apart from a missing one).
         assert client.delete(f"/api/tokens/{two['id']}", headers=login(lab, "ben")).status_code == (
@@ -162,5 +168,6 @@ def test_the_lab_publishes_its_version_without_a_login(make_lab: LabFactory) -> 
     _, client, _ = make(make_lab)
     with client:
         answer = client.get("/api/version").json()
-        assert answer["name"] == "thermolab" and answer["api"] == "1.0"
+        assert answer["name"] == "thermolab"
+        assert answer["api"] == "1.0"
         assert answer["speedup"] == 1.0

@@ -32,8 +32,8 @@ from thermolab.lab.users import LoginsEnded, Principal
 
 __all__ = [
     "DEFAULT_TOKEN_DAYS",
-    "MAX_TOKEN_DAYS",
     "MAX_TOKENS_PER_USER",
+    "MAX_TOKEN_DAYS",
     "MAX_TOKEN_NAME",
     "TOKEN_PREFIX",
     "NewToken",
@@ -141,9 +141,7 @@ class TokenService:
         """
         label = _check_name(name)
         if isinstance(days, bool) or not isinstance(days, int) or not 1 <= days <= MAX_TOKEN_DAYS:
-            raise InvalidParameterError(
-                f"a token lasts 1 to {MAX_TOKEN_DAYS} days; got {days!r}"
-            )
+            raise InvalidParameterError(f"a token lasts 1 to {MAX_TOKEN_DAYS} days; got {days!r}")
         secret = TOKEN_PREFIX + secrets.token_urlsafe(32)
         now = self._clock.now()
         with self._db.write() as session:
@@ -168,13 +166,11 @@ class TokenService:
             session.flush()
             return NewToken(secret, TokenInfo.of(row))
 
-    def list(self, who: Principal) -> list[TokenInfo]:
+    def of_user(self, who: Principal) -> list[TokenInfo]:
         """Return the user's tokens, newest first."""
         with self._db.read() as session:
             rows = session.scalars(
-                select(ApiToken)
-                .where(ApiToken.user_id == who.user_id)
-                .order_by(ApiToken.id.desc())
+                select(ApiToken).where(ApiToken.user_id == who.user_id).order_by(ApiToken.id.desc())
             )
             return [TokenInfo.of(row) for row in rows]
 
@@ -251,4 +247,3 @@ class TokenService:
             session.execute(delete(ApiToken).where(ApiToken.id.in_(ended)))
         self.revoked.publish(ended)
         return len(ended)
-

@@ -36,7 +36,9 @@ def bearer_token(authorization: str | None) -> str | None:
     return token.strip()
 
 
-def resolve_principal(lab: Lab, *, cookie: str | None, authorization: str | None) -> Principal | None:
+def resolve_principal(
+    lab: Lab, *, cookie: str | None, authorization: str | None
+) -> Principal | None:
     """Return the user behind a request's credentials, or ``None`` (call in a worker thread)."""
     if authorization is not None:
         return lab.tokens.resolve(bearer_token(authorization))

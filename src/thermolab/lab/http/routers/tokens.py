@@ -18,7 +18,7 @@ router = APIRouter(**AUTHENTICATED)
 @router.get("/tokens", response_model=list[TokenOut], tags=["tokens"], summary="Your API tokens")
 def list_tokens(who: UserDep, lab: LabDep) -> list[TokenOut]:
     """Your personal API tokens, newest first (never their secrets)."""
-    return [TokenOut.of(info) for info in lab.tokens.list(who)]
+    return [TokenOut.of(info) for info in lab.tokens.of_user(who)]
 
 
 @router.post(
