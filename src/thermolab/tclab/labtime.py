@@ -97,8 +97,9 @@ def clock(
     tol : float
         Lab seconds a step may start late before ``RuntimeError`` (default: any).
     adaptive : bool
-        Sleep to the next multiple of ``step`` (no drift); ``False`` sleeps
-        ``step`` after each body, whatever it took.
+        Sleep to the next multiple of ``step`` (no drift; steps missed by a slow
+        body are skipped, so the loop still ends at ``period``); ``False``
+        sleeps ``step`` after each body, whatever it took.
 
     Raises
     ------
@@ -112,16 +113,16 @@ def clock(
     start = labtime.time()
     k = 0
     while True:
-        now = labtime.time() - start
-        yield round(now, 2)
+        yield round(labtime.time() - start, 2)
         k += 1
-        target = k * step
-        if target > period + 1e-9:
-            return
         now = labtime.time() - start
-        if now > target + tol:
+        if now > k * step + tol:
             raise RuntimeError(
-                f"clock: step {k} is {now - target:.2f} s late (tol = {tol} s); "
+                f"clock: step {k} is {now - k * step:.2f} s late (tol = {tol} s); "
                 "the loop's body takes longer than the step"
             )
-        labtime.sleep(target - now if adaptive else step)
+        if adaptive:
+            k = max(k, math.floor(now / step + 1e-9) + 1)  # skip the steps already missed
+        if k * step > period + 1e-9 or (not adaptive and now + step > period + 1e-9):
+            return
+        labtime.sleep(k * step - now if adaptive else step)
