@@ -171,3 +171,31 @@ def test_the_lab_publishes_its_version_without_a_login(make_lab: LabFactory) -> 
         assert answer["name"] == "thermolab"
         assert answer["api"] == "1.0"
         assert answer["speedup"] == 1.0
+
+
+def test_the_controllers_reading_is_fresh_and_keeps_its_turn_past_the_idle_limit(
+    make_lab: LabFactory, clock: ManualClock
+) -> None:
+    lab, client, _ = make(make_lab)
+    idle = lab.config.rig("twin").idle_limit
+    assert idle is not None
+    with client:
+        ana, ben = login(lab, "ana"), login(lab, "ben")
+        assert client.post("/api/rigs/twin/control", headers=ana).status_code == 200
+        assert client.put("/api/rigs/twin/input", headers=ana, json={"u": 2.0}).status_code == 200
+        mine = client.get("/api/rigs/twin/reading", headers=ana).json()
+        assert mine["fresh"] is True
+        assert mine["u"] == 2.0
+        assert mine["unit"] == "V"
+        theirs = client.get("/api/rigs/twin/reading", headers=ben).json()
+        assert theirs["fresh"] is False  # a watcher gets the latest reading, no device I/O
+        # A step test: the heater set once, then only reads, for longer than the idle limit.
+        for _ in range(int(idle * 1.5 / 10)):
+            clock.advance(10.0)  # within the client timeout: each read is a heartbeat too
+            assert client.get("/api/rigs/twin/reading", headers=ana).json()["fresh"] is True
+        assert client.get("/api/rigs/twin", headers=ana).json()["access"]["role"] == "controller"
+        # Without reads or commands the idle limit still ends the turn.
+        clock.advance(idle + 1)
+        lab.sweep()
+        assert client.get("/api/rigs/twin", headers=ana).json()["access"]["role"] != "controller"
+        assert client.get("/api/rigs/nothing/reading", headers=ana).status_code == 404

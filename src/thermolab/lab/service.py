@@ -6,6 +6,7 @@ line; :func:`thermolab.lab.http.app.create_app` serves one over HTTP.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 from dataclasses import dataclass, field
@@ -14,6 +15,7 @@ from typing import Protocol
 
 from argon2 import PasswordHasher
 
+from thermolab.errors import ThermoLabError
 from thermolab.lab.access import AccessService, RigView
 from thermolab.lab.camera import Picture, PictureCache, draw_twin, fetch_camera
 from thermolab.lab.clock import LabClock, SystemClock
@@ -284,11 +286,19 @@ class Lab:
     def read_output(self, rig_id: str, who: Principal) -> OutputReading:
         """The rig's output: read now for its controller, the latest reading for others.
 
-        Counts as the caller's heartbeat for the rig (a script reading its
-        sensor keeps its turn), like ``GET /api/rigs/{rig}``.
+        Counts as the caller's heartbeat for the rig, like ``GET /api/rigs/{rig}``;
+        the controller's read is also activity for the idle limit: a notebook's
+        step test sets the heater once and then only reads the sensor for minutes,
+        and is still using the rig (the time limit still ends the turn).
         """
         view = self.access.view(rig_id, who)
         fresh = view.access.role == "controller"
+        idle_left = view.access.idle_time_left
+        limit = self.config.rig(rig_id).idle_limit
+        if fresh and idle_left is not None and limit is not None and idle_left < limit / 2:
+            # Written at most twice per idle limit, so that reads stay cheap.
+            with contextlib.suppress(ThermoLabError):  # the turn just ended: a plain read
+                self.access.within_control(rig_id, who, "read it", lambda *_: None)
         reading = self.hub.read_now(rig_id) if fresh else None
         if reading is None:
             fresh = False
