@@ -80,6 +80,12 @@ def test_a_run_is_started_followed_live_and_fetched_as_arrays(served_lab: Served
     assert [m["k"] for m in samples] == list(range(60))
     assert messages[-1]["type"] == "run"
     assert messages[-1]["event"] == "ended"
+    with Lab(served_lab.url, token) as lab:
+        again = list(lab.follow("box", run["id"]))  # over: given from the store, same samples
+    assert [(m["k"], m["y"]) for m in again if m["type"] == "sample"] == [
+        (m["k"], m["y"]) for m in samples
+    ]
+    assert again[-1]["event"] == "ended"
     data = lab_data(served_lab, token, run["id"])
     assert len(data) == 60
     np.testing.assert_allclose(data.t, np.arange(60.0), atol=1e-9)

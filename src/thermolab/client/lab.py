@@ -224,8 +224,32 @@ class Lab:
     def follow(
         self, rig_id: str, run_id: int | None = None, *, timeout: float | None = 60.0
     ) -> Iterator[dict[str, Any]]:
-        """Yield a run's live samples and estimates until it ends (:func:`follow_run`)."""
+        """Yield a run's samples and estimates until it ends (:func:`follow_run`).
+
+        A run that is already over is given from the store: its samples, then
+        its ``run`` message (``ended``), so a short run is never missed.
+        """
+        if run_id is not None:
+            run = self.run(run_id)
+            if run["status"] != "running":
+                return self._replay(run)
         return follow_run(self.url, self.token, rig_id, run_id, timeout=timeout)
+
+    def _replay(self, run: dict[str, Any]) -> Iterator[dict[str, Any]]:
+        data = self.run_data(int(run["id"]))
+        names = list(data.columns)
+        for k in range(len(data)):
+            channels = {name: float(data.columns[name][k]) for name in names}
+            yield {
+                "type": "sample",
+                "run": run["id"],
+                "k": k,
+                "t": channels["t"],
+                "u": channels["u"],
+                "y": channels["y"],
+                "channels": channels,
+            }
+        yield {"type": "run", "event": "ended", "run": run}
 
     # -- taking a turn ----------------------------------------------------------------------
 
