@@ -49,3 +49,20 @@ def test_numerics_import_no_web_database_or_hardware_code() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert json.loads(out.stdout) == []
+
+
+def test_the_clients_import_no_server_database_or_device_code() -> None:
+    code = textwrap.dedent(
+        """
+        import json, sys
+        import thermolab.client, thermolab.tclab
+        forbidden = ["fastapi", "starlette", "sqlalchemy", "alembic", "serial", "uvicorn",
+                     "thermolab.lab", "thermolab.web", "thermolab.cli", "thermolab.runner",
+                     "thermolab.rigs"]
+        print(json.dumps(sorted(
+            m for m in sys.modules if any(m == f or m.startswith(f + ".") for f in forbidden)
+        )))
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert json.loads(out.stdout) == []

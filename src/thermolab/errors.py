@@ -14,6 +14,7 @@ __all__ = [
     "ConfigError",
     "ConflictError",
     "IdentifierStateError",
+    "IncompatibleLabError",
     "InsufficientExcitationError",
     "InvalidDataError",
     "InvalidParameterError",
@@ -104,3 +105,7 @@ class TurnEndedError(ConflictError):
 
 class AccessDeniedError(ThermoLabError, PermissionError):
     """The caller is known but not allowed to do this (a student acting on another's control)."""
+
+
+class IncompatibleLabError(ThermoLabError, RuntimeError):
+    """A client and a lab speak different versions of the API (see ``thermolab.api_version``)."""

@@ -195,6 +195,27 @@ class DeviceHub:
             return None
         return (slot.output, slot.output_at)
 
+    def read_now(self, rig_id: str) -> tuple[float, datetime] | None:
+        """Read the rig's output now (a script's ``T1``); ``None`` if it cannot be read.
+
+        Not read while a run holds the device (the run samples it: its latest
+        sample is :meth:`reading`), nor when the rig is off, faulted or absent.
+        """
+        slot = self._slots[rig_id]
+        with slot.lock:
+            driver = slot.driver
+            if driver is None or slot.claimed or slot.fault is not None or not driver.powered:
+                return None
+            try:
+                slot.output = driver.read().value
+            except RigError as exc:
+                slot.fault = str(exc)
+                slot.powered = False
+                slot.controller_session = None
+                return None
+            slot.output_at = self._clock.now() if self._clock is not None else slot.output_at
+            return None if slot.output_at is None else (slot.output, slot.output_at)
+
     def fault(self, rig_id: str) -> str | None:
         """Return the rig's pending fault, if any."""
         slot = self._slots[rig_id]

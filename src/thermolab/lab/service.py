@@ -6,6 +6,7 @@ line; :func:`thermolab.lab.http.app.create_app` serves one over HTTP.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 from dataclasses import dataclass, field
@@ -14,6 +15,7 @@ from typing import Protocol
 
 from argon2 import PasswordHasher
 
+from thermolab.errors import ThermoLabError
 from thermolab.lab.access import AccessService, RigView
 from thermolab.lab.camera import Picture, PictureCache, draw_twin, fetch_camera
 from thermolab.lab.clock import LabClock, SystemClock
@@ -25,6 +27,7 @@ from thermolab.lab.lease import DatabaseLease
 from thermolab.lab.presence import Presence
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.security import LoginThrottle, default_password_hasher
+from thermolab.lab.tokens import TokenService
 from thermolab.lab.users import LoginsEnded, Principal, SessionService, UserInfo, UserService
 from thermolab.runner import Event
 
@@ -72,6 +75,30 @@ class StartupReport:
 
     teachers: int
     faults: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, slots=True)
+class OutputReading:
+    """A rig's output as :meth:`Lab.read_output` gives it.
+
+    Attributes
+    ----------
+    rig_id : str
+    y : float or None
+        The output (``None``: never read, e.g. the rig is off).
+    at : datetime or None
+        When it was read.
+    u : float or None
+        The input the lab last applied.
+    fresh : bool
+        Read from the device for this request (the controller's reads).
+    """
+
+    rig_id: str
+    y: float | None
+    at: datetime | None
+    u: float | None
+    fresh: bool
 
 
 @dataclass(frozen=True, slots=True)
@@ -162,6 +189,8 @@ class Lab:
             idle_timeout=policy.session_idle_timeout,
             logins_ended=self.logins_ended,
         )
+        # Personal API tokens for scripts; revoked ones are announced like ended logins.
+        self.tokens = TokenService(self.db, self.clock)
         self.throttle = LoginThrottle(
             self.clock,
             failures_per_user=policy.login_failures_per_user,
@@ -227,6 +256,7 @@ class Lab:
             if self._last_purge is None or now - self._last_purge >= _PURGE_INTERVAL:
                 self._last_purge = now
                 self.sessions.purge_expired()
+                self.tokens.purge_expired()
             return changed
 
     def apply_input(self, rig_id: str, who: Principal, u: float) -> InputResult:
@@ -252,6 +282,37 @@ class Lab:
         if fault is not None:
             self.access.report_fault(rig_id, fault)
         return InputResult(rig_id, record.u, applied, record.at, record.id, run_id)
+
+    def read_output(self, rig_id: str, who: Principal) -> OutputReading:
+        """The rig's output: read now for its controller, the latest reading for others.
+
+        Counts as the caller's heartbeat for the rig, like ``GET /api/rigs/{rig}``;
+        the controller's read is also activity for the idle limit: a notebook's
+        step test sets the heater once and then only reads the sensor for minutes,
+        and is still using the rig (the time limit still ends the turn).
+        """
+        view = self.access.view(rig_id, who)
+        fresh = view.access.role == "controller"
+        idle_left = view.access.idle_time_left
+        limit = self.config.rig(rig_id).idle_limit
+        if fresh and idle_left is not None and limit is not None and idle_left < limit / 2:
+            # Written at most twice per idle limit, so that reads stay cheap.
+            with contextlib.suppress(ThermoLabError):  # the turn just ended: a plain read
+                self.access.within_control(rig_id, who, "read it", lambda *_: None)
+        reading = self.hub.read_now(rig_id) if fresh else None
+        if reading is None:
+            fresh = False
+            reading = self.hub.reading(rig_id)
+        fault = self.hub.fault(rig_id)
+        if fault is not None:
+            self.access.report_fault(rig_id, fault)
+        return OutputReading(
+            rig_id,
+            None if reading is None else reading[0],
+            None if reading is None else reading[1],
+            self.hub.applied(rig_id),
+            fresh,
+        )
 
     def set_service(self, rig_id: str, who: Principal, in_service: bool) -> RigView:
         """Take a rig in or out of service; clears its fault (teachers only)."""
@@ -297,7 +358,9 @@ class Lab:
 
     def remove_user(self, username: str) -> UserInfo:
         """Remove an account; rigs it controlled go to the next in their queues."""
+        tokens = self.tokens.ids_of(self.users.get(username).id)
         info = self.users.remove(username)
+        self.tokens.revoked.publish(tokens)  # their live sockets close at once
         self.access.sweep()
         for rig in self.config.rigs:
             self._reconcile(rig.id)

@@ -108,7 +108,12 @@ class Principal:
     session_id : int or None
         The login session (``None`` for work done outside a request).
     expires_at : datetime or None
-        When the login session ends at the latest.
+        When the login session (or the API token) ends at the latest.
+    token_id : int or None
+        The personal API token the request came with (``session_id`` is then
+        ``None``): see :mod:`thermolab.lab.tokens`.
+    read_only : bool
+        A read-only token: it may only read (GET), never change anything.
     """
 
     user_id: int
@@ -116,6 +121,15 @@ class Principal:
     role: Role
     session_id: int | None = None
     expires_at: datetime | None = None
+    token_id: int | None = None
+    read_only: bool = False
+
+    @property
+    def login_key(self) -> tuple[str, int | None]:
+        """What this principal logged in with: ``("session", id)`` or ``("token", id)``."""
+        if self.token_id is not None:
+            return ("token", self.token_id)
+        return ("session", self.session_id)
 
     @property
     def is_teacher(self) -> bool:

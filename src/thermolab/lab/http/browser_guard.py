@@ -11,7 +11,12 @@
   a refused handshake is closed before it is accepted (HTTP 403). A request
   with neither header is not from a browser page (``curl``, scripts), which
   cannot carry a victim's cookie, so it passes. The SameSite=Strict cookie is
-  the second line of defence.
+  the second line of defence. A request with an ``Authorization`` header
+  passes too: it is a script's (a personal API token), judged by that header
+  alone and never by a cookie sent along (``http/credentials``), and a
+  browser never adds the header by itself — a page on another site would
+  have to know the token, and its cross-origin fetch with that header needs a
+  CORS preflight the lab never grants.
 * **Headers** on every answer: a strict Content-Security-Policy (scripts and
   styles only from the lab itself: the page has no inline script, and must
   keep it so), ``frame-ancestors`` from ``access.frame_ancestors`` (default
@@ -104,6 +109,9 @@ def _netloc(scheme: str, host: str) -> str:
 def is_same_origin(scope: Scope) -> bool:
     """Whether a request or handshake comes from the lab's own pages (or not from a page).
 
+    A request with an ``Authorization`` header (a script's API token) passes:
+    it is authenticated by that header alone, never by a cookie.
+
     Examples
     --------
     >>> scope = {"scheme": "http", "headers": [(b"host", b"lab:8000"),
@@ -115,7 +123,12 @@ def is_same_origin(scope: Scope) -> bool:
     False
     >>> is_same_origin({"scheme": "http", "headers": [(b"sec-fetch-site", b"cross-site")]})
     False
+    >>> is_same_origin({"scheme": "http", "headers": [(b"sec-fetch-site", b"cross-site"),
+    ...                                               (b"authorization", b"Bearer tlab_x")]})
+    True
     """
+    if _header(scope, b"authorization") is not None:
+        return True  # a bearer request: authenticated by its token alone, never the cookie
     site = _header(scope, b"sec-fetch-site")
     if site is not None:
         return site.strip().lower() in ("same-origin", "none")

@@ -9,8 +9,10 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 from fastapi import Depends, Path, Request, Security
-from fastapi.security import APIKeyCookie
+from fastapi.security import APIKeyCookie, HTTPAuthorizationCredentials, HTTPBearer
 
+from thermolab.errors import AccessDeniedError
+from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.schemas import ErrorOut, ValidationErrorOut
 from thermolab.lab.security import AuthenticationError
 from thermolab.lab.service import Lab
@@ -35,6 +37,11 @@ _cookie = APIKeyCookie(
     auto_error=False,
     description="Session cookie set by POST /api/session.",
 )
+_bearer = HTTPBearer(
+    auto_error=False,
+    description="A personal API token (POST /api/tokens) for scripts, instead of the cookie.",
+)
+_READS = frozenset({"GET", "HEAD", "OPTIONS"})
 
 
 def documented_errors(*codes: int) -> dict[int | str, dict[str, Any]]:
@@ -55,21 +62,40 @@ def get_lab(request: Request) -> Lab:
 LabDep = Annotated[Lab, Depends(get_lab)]
 
 
-def current_user(lab: LabDep, token: Annotated[str | None, Security(_cookie)]) -> Principal:
-    """Return the logged-in user of the request.
+def current_user(
+    request: Request,
+    lab: LabDep,
+    token: Annotated[str | None, Security(_cookie)],
+    bearer: Annotated[HTTPAuthorizationCredentials | None, Security(_bearer)],
+) -> Principal:
+    """Return the user of the request: a login's cookie or an API token (``Bearer``).
+
+    With an ``Authorization`` header only the token counts (see
+    :mod:`~thermolab.lab.http.credentials`). A read-only token may only read.
 
     Raises
     ------
     AuthenticationError
-        Without a live session (HTTP 401).
+        Without a live session or token (HTTP 401).
+    AccessDeniedError
+        A read-only token asking for a change (HTTP 403).
     """
-    if not token:
+    authorization = request.headers.get("authorization")
+    if authorization is None and not token:
         raise AuthenticationError(
-            "not logged in: POST /api/session with your user name and password"
+            "not logged in: POST /api/session with your user name and password, "
+            "or send a personal API token as 'Authorization: Bearer <token>'"
         )
-    principal = lab.sessions.resolve(token)
+    principal = resolve_principal(lab, cookie=token, authorization=authorization)
     if principal is None:
+        if authorization is not None:
+            raise AuthenticationError(
+                "this API token is unknown, revoked or expired (send 'Authorization: Bearer "
+                "<token>' with a token from your page in the lab)"
+            )
         raise AuthenticationError("your session has ended; log in again")
+    if principal.read_only and request.method.upper() not in _READS:
+        raise AccessDeniedError("this API token is read-only: it may only read (GET)")
     return principal
 
 

@@ -29,6 +29,7 @@ from thermolab.errors import (
     TurnEndedError,
 )
 from thermolab.lab.camera import CameraError
+from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.deps import COOKIE_NAME
 from thermolab.lab.security import AuthenticationError, RateLimitedError
 from thermolab.lab.service import Lab
@@ -92,7 +93,8 @@ def install_error_handlers(app: FastAPI) -> None:
         fault = fault_of(exc)
         headers: dict[str, str] = {}
         if isinstance(exc, AuthenticationError):
-            headers["WWW-Authenticate"] = 'Cookie realm="ThermoLab"'
+            bearer = request.headers.get("authorization") is not None
+            headers["WWW-Authenticate"] = f'{"Bearer" if bearer else "Cookie"} realm="ThermoLab"'
         if isinstance(exc, RateLimitedError):
             headers["Retry-After"] = str(max(1, math.ceil(exc.retry_after)))
         return error_response(fault.status, str(exc), fault.code, headers)
@@ -111,8 +113,11 @@ def install_error_handlers(app: FastAPI) -> None:
         if exc.status_code in (404, 405) and path.startswith("/api/"):
             # Unknown paths under /api are private too: 401 first, then 404/405.
             lab: Lab = request.app.state.lab
-            token = request.cookies.get(COOKIE_NAME)
-            who = await anyio.to_thread.run_sync(lab.sessions.resolve, token)
+            cookie = request.cookies.get(COOKIE_NAME)
+            authorization = request.headers.get("authorization")
+            who = await anyio.to_thread.run_sync(
+                lambda: resolve_principal(lab, cookie=cookie, authorization=authorization)
+            )
             if who is None:
                 return await lab_error(request, AuthenticationError("not logged in"))
         detail = exc.detail

@@ -13,6 +13,9 @@ announces every login it ends (logout, expiry, a password change, an account
 removed) as a :class:`~thermolab.lab.users.LoginsEnded` event, and those
 clients are closed with 4401 at once; a check every few seconds catches
 logins ended by another process (an account removed from the command line).
+A script connects with a personal API token (``Authorization: Bearer`` on
+the handshake, :mod:`~thermolab.lab.http.credentials`); revoking the token
+closes its connections the same way (:attr:`Lab.tokens` ``.revoked``).
 """
 
 from __future__ import annotations
@@ -45,6 +48,7 @@ from thermolab.lab.fanout import (
     LiveFanout,
     encode,
 )
+from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.deps import COOKIE_NAME
 from thermolab.lab.http.live_messages import (
     AccessMessage,
@@ -102,7 +106,7 @@ class LiveEndpoint:
     ) -> None:
         self.lab = lab
         self._sockets_per_login = sockets_per_login
-        self._sockets: collections.Counter[int | None] = collections.Counter()
+        self._sockets: collections.Counter[tuple[str, int | None]] = collections.Counter()
         self.hub = LiveFanout([rig.id for rig in lab.config.rigs])
         self._access_delay = access_delay
         self._client_queue = client_queue
@@ -113,6 +117,7 @@ class LiveEndpoint:
         self._check_again = False
         self._watchdog: asyncio.Task[None] | None = None
         lab.logins_ended.subscribe(self.logins_ended)
+        lab.tokens.revoked.subscribe(self.tokens_revoked)
 
     # -- the lab's side (worker threads) ---------------------------------------------------
 
@@ -179,8 +184,19 @@ class LiveEndpoint:
 
     def _close_logins(self, session_ids: frozenset[int]) -> None:
         for client in self.hub.clients():
-            if client.key.session_id in session_ids:
+            if client.key.token_id is None and client.key.session_id in session_ids:
                 client.close(CLOSE_UNAUTHORIZED, "your session has ended; log in again")
+
+    def tokens_revoked(self, token_ids: frozenset[int]) -> None:
+        """Close the connections of API tokens that were revoked (any thread)."""
+        loop = self.hub.loop
+        if loop is not None and not loop.is_closed():
+            loop.call_soon_threadsafe(self._close_tokens, token_ids)
+
+    def _close_tokens(self, token_ids: frozenset[int]) -> None:
+        for client in self.hub.clients():
+            if client.key.token_id is not None and client.key.token_id in token_ids:
+                client.close(CLOSE_UNAUTHORIZED, "this API token was revoked")
 
     def bind(self, loop: asyncio.AbstractEventLoop | None) -> None:
         """Serve clients on ``loop`` (``None`` when the server stops; call in the loop)."""
@@ -208,12 +224,19 @@ class LiveEndpoint:
         while True:
             self._check_again = False
             clients = self.hub.clients()
-            ids = {client.key.session_id for client in clients}
+            ids = {c.key.session_id for c in clients if c.key.token_id is None}
+            tokens = {c.key.token_id for c in clients if c.key.token_id is not None}
             if ids:
                 alive = await anyio.to_thread.run_sync(self._alive_sessions, ids)
                 for client in clients:
-                    if client.key.session_id not in alive:
+                    if client.key.token_id is None and client.key.session_id not in alive:
                         client.close(CLOSE_UNAUTHORIZED, "your session has ended; log in again")
+            if tokens:
+                live = await anyio.to_thread.run_sync(self.lab.tokens.alive, tokens)
+                for client in clients:
+                    token = client.key.token_id
+                    if token is not None and token not in live:
+                        client.close(CLOSE_UNAUTHORIZED, "this API token was revoked or expired")
             if not self._check_again:
                 return
 
@@ -270,8 +293,11 @@ class LiveEndpoint:
     async def endpoint(self, websocket: WebSocket, rig_id: str, since: int | None = None) -> None:
         """Serve one client (the WebSocket route)."""
         await websocket.accept()
-        token = websocket.cookies.get(COOKIE_NAME)
-        who = await anyio.to_thread.run_sync(self.lab.sessions.resolve, token)
+        cookie = websocket.cookies.get(COOKIE_NAME)
+        authorization = websocket.headers.get("authorization")
+        who = await anyio.to_thread.run_sync(
+            lambda: resolve_principal(self.lab, cookie=cookie, authorization=authorization)
+        )
         if who is None:
             await websocket.close(CLOSE_UNAUTHORIZED, "not logged in")
             return
@@ -280,19 +306,20 @@ class LiveEndpoint:
             await websocket.close(CLOSE_UNKNOWN_RIG, f"no rig called {rig_id!r}")
             return
         # One login cannot hold the server's sockets (and replays) for everyone.
-        if self._sockets[who.session_id] >= self._sockets_per_login:
+        login = who.login_key
+        if self._sockets[login] >= self._sockets_per_login:
             await websocket.close(
                 CLOSE_TOO_MANY,
                 f"at most {self._sockets_per_login} live sockets per login; close one first",
             )
             return
-        self._sockets[who.session_id] += 1
+        self._sockets[login] += 1
         try:
             await self._attached(websocket, channel, rig_id, who, since)
         finally:
-            self._sockets[who.session_id] -= 1
-            if self._sockets[who.session_id] <= 0:
-                del self._sockets[who.session_id]
+            self._sockets[login] -= 1
+            if self._sockets[login] <= 0:
+                del self._sockets[login]
 
     async def _attached(
         self,

@@ -1,14 +1,24 @@
 """One router per resource of the HTTP API, all under ``/api``.
 
-Every route but ``POST /api/session`` needs a logged-in user (401 otherwise).
+Every route but ``POST /api/session`` and ``GET /api/version`` needs a logged-in
+user or an API token (401 otherwise).
 """
 
 from fastapi import APIRouter
 
-from thermolab.lab.http.routers import methods, rigs, runs, session, users
+from thermolab.lab.http.routers import (
+    methods,
+    readings,
+    rigs,
+    runs,
+    session,
+    tokens,
+    users,
+    version,
+)
 
 __all__ = ["api_router"]
 
 api_router = APIRouter(prefix="/api")
-for _resource in (session, rigs, runs, methods, users):
+for _resource in (session, version, rigs, readings, runs, methods, users, tokens):
     api_router.include_router(_resource.router)

@@ -88,6 +88,9 @@ def change_password(
     session alone cannot take over an account. Every other session of the
     account ends.
     """
+    if who.token_id is not None:
+        # Re-authentication means a person with the password: a script's token never will do.
+        raise AccessDeniedError("an API token cannot change passwords; log in with your password")
     own = _same_user(username, who)
     if not own and not who.is_teacher:
         raise AccessDeniedError("you may only change your own password")

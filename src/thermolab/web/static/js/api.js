@@ -123,4 +123,8 @@ export const api = {
   /** Everything stored about a run: {run, channels: [{name, unit, role, description}], samples: {channel name: values}, methods: {label: {method, params, result}}}. */
   exportRun: (id, opts) => request("GET", `/api/runs/${enc(id)}/export.json`, undefined, opts),
   cameraUrl: (rig) => `/api/rigs/${enc(rig)}/camera`,
+  tokens: (opts) => request("GET", "/api/tokens", undefined, opts),
+  /** A new API token: the answer's `token` is the secret, shown this once. */
+  createToken: (spec) => request("POST", "/api/tokens", spec),
+  revokeToken: (id) => request("DELETE", `/api/tokens/${enc(id)}`),
 };

@@ -20,6 +20,7 @@ const ROUTES = [
   { pattern: /^\/runs\/compare$/, view: () => import("./views/compare.js"), title: "compare.title", nav: "runs" },
   { pattern: /^\/runs\/([^/]+)$/, view: () => import("./views/run.js"), title: "run.pageTitle", nav: "runs" },
   { pattern: /^\/teacher$/, view: () => import("./views/teacher.js"), title: "nav.teacher", nav: "teacher" },
+  { pattern: /^\/account$/, view: () => import("./views/account.js"), title: "nav.account", nav: "account" },
 ];
 
 /** Shared state handed to every view. */

@@ -1,0 +1,88 @@
+"""JSON bodies of what scripts use: API tokens, the lab's version, a rig's reading."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Annotated
+
+from pydantic import Field
+
+from thermolab.lab.http.bodies import In, Out
+from thermolab.lab.service import OutputReading
+from thermolab.lab.tokens import DEFAULT_TOKEN_DAYS, MAX_TOKEN_DAYS, MAX_TOKEN_NAME, TokenInfo
+
+__all__ = ["LabVersionOut", "NewTokenOut", "ReadingOut", "TokenIn", "TokenOut"]
+
+
+class TokenIn(In):
+    """A new personal API token."""
+
+    name: Annotated[str, Field(min_length=1, max_length=MAX_TOKEN_NAME, description="a label")]
+    read_only: bool = Field(False, description="GET requests only")
+    days: Annotated[int, Field(ge=1, le=MAX_TOKEN_DAYS, description="lifetime in days")] = (
+        DEFAULT_TOKEN_DAYS
+    )
+
+
+class TokenOut(Out):
+    """A token as its owner sees it (never the secret)."""
+
+    id: int
+    name: str
+    prefix: str = Field(description="the secret's first characters, to recognise it")
+    read_only: bool
+    created_at: datetime
+    last_used_at: datetime | None
+    expires_at: datetime | None
+
+    @classmethod
+    def of(cls, info: TokenInfo) -> TokenOut:
+        """Build from a token's description."""
+        return cls(
+            id=info.id,
+            name=info.name,
+            prefix=info.prefix,
+            read_only=info.read_only,
+            created_at=info.created_at,
+            last_used_at=info.last_used_at,
+            expires_at=info.expires_at,
+        )
+
+
+class NewTokenOut(TokenOut):
+    """A token just created, with its secret: shown this once, never again."""
+
+    token: str = Field(description="the secret: send it as 'Authorization: Bearer <token>'")
+
+
+class LabVersionOut(Out):
+    """What a client checks before speaking to the lab (``thermolab.api_version``)."""
+
+    name: str = Field(description="always 'thermolab'")
+    title: str
+    version: str = Field(description="the lab's package version")
+    api: str = Field(description="the API version, MAJOR.MINOR")
+    speedup: float = Field(description="simulated rigs run this many times faster than real time")
+
+
+class ReadingOut(Out):
+    """A rig's output (``fresh``: read from the device for this request, the controller's)."""
+
+    rig: str
+    y: float | None = Field(description="the output in the rig's unit; null if never read")
+    at: datetime | None
+    u: float | None = Field(description="the input the lab last applied")
+    unit: str
+    fresh: bool
+
+    @classmethod
+    def of(cls, reading: OutputReading, unit: str) -> ReadingOut:
+        """Build from a reading."""
+        return cls(
+            rig=reading.rig_id,
+            y=reading.y,
+            at=reading.at,
+            u=reading.u,
+            unit=unit,
+            fresh=reading.fresh,
+        )

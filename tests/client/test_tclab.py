@@ -1,0 +1,170 @@
+"""``thermolab.tclab``: a kit notebook run against a lab rig with only its import changed (#11)."""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from thermolab.tclab import Historian, SecondHeaterError, clock, labtime, setup
+
+from .conftest import SPEEDUP, ServedLab
+
+# A script as the kit's course notebooks write it (heater step, clock loop, historian).
+KIT_NOTEBOOK = """\
+import sys
+from tclab import TCLab, clock, Historian
+
+with TCLab() as lab:
+    h = Historian(lab.sources)
+    lab.Q1(0)
+    for t in clock(150):
+        if t >= 10:
+            lab.Q1(50)
+        h.update(t)
+    print("T1 at the end:", lab.T1)
+
+h.to_csv(sys.argv[1])
+"""
+
+KIT_INTERRUPTED = """\
+from tclab import TCLab, clock
+
+lab = TCLab()          # no with-block: the way out is the interpreter's end (atexit)
+lab.Q1(80)
+print("heating", flush=True)
+for t in clock(10**9):
+    lab.T1
+"""
+
+
+def run_script(
+    served_lab: ServedLab, user: str, text: str, tmp_path: Path, *args: str
+) -> subprocess.Popen[str]:
+    script = tmp_path / "notebook.py"
+    # The only change a course notebook needs: the import.
+    script.write_text(text.replace("from tclab import", "from thermolab.tclab import"), "utf-8")
+    _, token = served_lab.token(user)
+    env = {
+        **os.environ,
+        "THERMOLAB_URL": served_lab.url,
+        "THERMOLAB_TOKEN": token,
+        "THERMOLAB_RIG": "kit",
+    }
+    return subprocess.Popen(
+        [sys.executable, str(script), *args],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def rig_seen_by_teacher(served_lab: ServedLab) -> tuple[dict[str, Any], dict[str, Any]]:
+    with contextlib.closing(served_lab.cookie_client("tina")) as teacher:
+        rig = teacher.get("/api/rigs/kit").json()
+        reading = teacher.get("/api/rigs/kit/reading").json()
+        return rig, reading
+
+
+def test_a_kit_notebook_runs_against_the_lab_with_only_its_import_changed(
+    served_lab: ServedLab, tmp_path: Path
+) -> None:
+    out = tmp_path / "log.csv"
+    process = run_script(served_lab, "ana", KIT_NOTEBOOK, tmp_path, str(out))
+    stdout, stderr = process.communicate(timeout=120)
+    assert process.returncode == 0, stderr
+    assert "TCLab connected to rig 'kit' at 20x" in stdout
+    assert "TCLab disconnected successfully." in stderr
+    with out.open(encoding="utf-8") as stream:
+        rows = list(csv.reader(stream))
+    assert rows[0] == ["Time", "T1", "Q1"]
+    log = [[float(v) for v in row] for row in rows[1:]]
+    times = [r[0] for r in log]
+    assert times[0] == 0.0
+    assert 145.0 <= times[-1] < 160.0  # clock(150): 150 lab seconds
+    assert len(log) >= 50  # one row per lab second (steps missed on a busy machine skipped)
+    assert times == sorted(times)
+    assert [r[2] for r in log if r[0] >= 11] == [50.0] * sum(r[0] >= 11 for r in log)
+    # The kit's twin: 0.6 degC/% over 140 s behind a 16 s delay: the heater step shows.
+    assert 18.0 < log[0][1] < 25.0
+    assert log[-1][1] > log[0][1] + 8.0
+    rig, reading = rig_seen_by_teacher(served_lab)
+    assert rig["access"]["controller"] is None  # the turn was released
+    assert reading["u"] == 0.0  # and the heater left at the rig's safe input
+
+
+def test_ctrl_c_in_a_script_releases_the_turn_and_leaves_the_rig_safe(
+    served_lab: ServedLab, tmp_path: Path
+) -> None:
+    process = run_script(served_lab, "carl", KIT_INTERRUPTED, tmp_path)
+    try:
+        assert process.stdout is not None
+        deadline = time.monotonic() + 60
+        line = ""
+        while "heating" not in line and time.monotonic() < deadline:
+            line = process.stdout.readline()
+        rig, reading = rig_seen_by_teacher(served_lab)
+        assert rig["access"]["controller"] == "carl"
+        assert reading["u"] == 80.0
+        process.send_signal(signal.SIGINT)
+        process.wait(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+        _, stderr = process.communicate(timeout=30)  # also closes the pipes
+    assert process.returncode != 0
+    assert "KeyboardInterrupt" in stderr
+    assert "TCLab disconnected successfully." in stderr
+    rig, reading = rig_seen_by_teacher(served_lab)
+    assert rig["access"]["controller"] is None
+    assert reading["u"] == 0.0
+    with contextlib.closing(served_lab.cookie_client("carl")) as carl:
+        turns = carl.get("/api/rigs/kit/control-sessions").json()
+    assert turns[0]["endReason"] == "released"
+
+
+def test_the_twin_at_the_labs_speedup_one_heater_and_the_kits_other_names(
+    served_lab: ServedLab, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _, token = served_lab.token("ben")
+    TwinLab = setup(connected=False, speedup=10)
+    with TwinLab(url=served_lab.url, token=token) as lab:
+        assert "runs its twin at 20x, not 10x" in capsys.readouterr().out
+        assert lab.rig_id == "kit"  # the simulated rig with a heater (%)
+        assert labtime.rate == SPEEDUP
+        with pytest.raises(SecondHeaterError, match="one heater and one sensor: Q2"):
+            lab.Q2(10)
+        with pytest.raises(SecondHeaterError, match="T2"):
+            _ = lab.T2
+        assert lab.Q1(150) == 100.0  # clipped to the rig's range, as the kit clips
+        lab.U1 = 20
+        assert lab.Q1() == 20.0
+        assert lab.LED(50) == 50.0
+        t1, t2, q1, q2 = lab.scan()
+        assert 15.0 < t1 < 40.0
+        assert q1 == 20.0
+        assert t2 != t2  # NaN: the rig has no second sensor
+        assert q2 != q2
+        h = Historian(lab.sources)
+        start = time.monotonic()
+        ticks = list(clock(10, 2))
+        for t in ticks[:2]:
+            h.update(t)
+        assert time.monotonic() - start < 10.0 / SPEEDUP * 5  # lab seconds at the lab's pace
+        assert ticks[0] == 0.0
+        assert len(ticks) == 6
+        assert h.columns == ["Time", "T1", "Q1"]
+        assert h.at(0.0)[2] == 20.0
+    with pytest.raises(RuntimeError, match="closed"):
+        lab.Q1(10)
+    with pytest.raises(ValueError, match="speedup must be 1"):
+        setup(connected=True, speedup=5)

@@ -1,0 +1,113 @@
+"""The parts of ``thermolab.tclab`` and ``thermolab.client`` that need no lab: clock, log, chart."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import matplotlib
+import numpy as np
+import pytest
+
+from thermolab.client import RunData
+from thermolab.tclab import Historian, LabTime, Plotter, clock, labtime
+
+matplotlib.use("Agg")
+
+
+@pytest.fixture
+def fast_labtime() -> object:
+    before = labtime.rate
+    labtime.set_rate(50.0)  # a lab second is 20 ms
+    yield labtime
+    labtime.set_rate(before)
+
+
+@pytest.mark.usefixtures("fast_labtime")
+def test_clock_yields_every_step_up_to_the_period() -> None:
+    ticks = list(clock(5))
+    assert ticks[0] == 0.0
+    assert ticks == sorted(ticks)
+    assert 3 <= len(ticks) <= 6  # 6 on time; a step overslept on a busy machine is skipped
+    assert 4.0 <= ticks[-1] < 7.0
+    assert 2 <= len(list(clock(6, 2))) <= 4
+
+
+@pytest.mark.usefixtures("fast_labtime")
+def test_a_slow_body_skips_steps_or_fails_beyond_its_tolerance() -> None:
+    ticks = []
+    for t in clock(20, 1):
+        ticks.append(t)
+        labtime.sleep(3.5)  # the body takes three and a half steps
+    assert 4 <= len(ticks) <= 7  # the loop still ends at 20 lab seconds
+    assert ticks[-1] <= 24.0
+
+    def too_slow() -> None:
+        for _ in clock(20, 1, tol=0.5):
+            labtime.sleep(2.0)
+
+    with pytest.raises(RuntimeError, match="late"):
+        too_slow()
+    with pytest.raises(ValueError, match="positive"):
+        next(clock(5, 0))
+
+
+def test_labtime_pauses_and_refuses_a_bad_rate() -> None:
+    lab = LabTime()
+    lab.stop()
+    frozen = lab.time()
+    assert lab.time() == frozen
+    assert not lab.running
+    lab.start()
+    lab.reset(100.0)
+    assert 100.0 <= lab.time() < 101.0
+    with pytest.raises(ValueError, match="positive finite"):
+        lab.set_rate(0.0)
+
+
+def test_historian_logs_named_sources_and_writes_csv(tmp_path: Path) -> None:
+    values = iter(range(100))
+    h = Historian([("T1", lambda: next(values)), ("Q1", lambda: 50.0)])
+    for t in (0.0, 1.0, 2.0):
+        h.update(t)
+    assert h.logdict == {"Time": [0.0, 1.0, 2.0], "T1": [0.0, 1.0, 2.0], "Q1": [50.0] * 3}
+    assert h.after(1.0, ["T1"]) == [[1.0], [2.0]]
+    assert h.t == [0.0, 1.0, 2.0]
+    with pytest.raises(KeyError, match="no column 'T2'"):
+        h.at(1.0, ["T2"])
+    with pytest.raises(ValueError, match="nothing logged"):
+        h.at(-1.0)
+    h.to_csv(tmp_path / "log.csv")
+    assert (tmp_path / "log.csv").read_text().splitlines()[:2] == ["Time,T1,Q1", "0.0,0.0,50.0"]
+    with pytest.raises(ValueError, match="to_csv"):
+        Historian([("T1", lambda: 0.0)], dbfile="log.db")
+    with pytest.raises(ValueError, match="distinct"):
+        Historian([("T1", lambda: 0.0), ("T1", lambda: 1.0)])
+
+
+def test_plotter_updates_its_historian_and_draws_the_window() -> None:
+    h = Historian([("T1", lambda: 21.0), ("Q1", lambda: 40.0)])
+    p = Plotter(h, twindow=10, layout=[("T1",), ("Q1",)])
+    for t in range(15):
+        p.update(float(t))
+    assert len(h.log) == 15
+    assert p.axes[0].get_xlim() == (4.0, 14.0)
+    assert list(p.lines["Q1"].get_ydata()) == [40.0] * 15
+
+
+def test_run_data_without_pandas_says_how_to_get_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    data = RunData.from_export(
+        {
+            "run": {"id": 3},
+            "channels": [{"name": n, "unit": u} for n, u in (("t", "s"), ("u", "V"), ("y", "V"))],
+            "samples": {"t": [0, 1], "u": [0, 5], "y": [0.0, None]},
+            "methods": {},
+        }
+    )
+    assert np.isnan(data.y[1])
+    assert data.units == {"t": "s", "u": "V", "y": "V"}
+    with pytest.raises(KeyError, match="has no channel 'r'"):
+        data["r"]
+    monkeypatch.setitem(sys.modules, "pandas", None)
+    with pytest.raises(ImportError, match="pip install pandas"):
+        data.to_pandas()
