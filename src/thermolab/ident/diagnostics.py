@@ -34,6 +34,7 @@ from thermolab.errors import InvalidParameterError
 from thermolab.jsonsafe import finite_or_none
 
 from . import _validation as _v
+from ._lagged import shifted_dots
 
 __all__ = [
     "CONFIDENCE_Z99",
@@ -186,9 +187,10 @@ def residual_test(
     if math.sqrt(ee / n) <= _EXACT * max(scale, 1e-300):
         zeros = np.zeros(lag)
         return ResidualTest(zeros, np.zeros(lag + 1), bound, True, True, exact=True)
-    auto = np.array([float(ec[j:] @ ec[: n - j]) for j in range(1, lag + 1)]) / ee
+    # auto[j - 1] = ec[j:] @ ec[:n - j], cross[j] = ec[j:] @ uc[:n - j], in one pass each.
+    auto = shifted_dots(ec, ec, list(range(1, lag + 1))) / ee
     if uu > 0.0:
-        cross = np.array([float(ec[j:] @ uc[: n - j]) for j in range(lag + 1)]) / math.sqrt(ee * uu)
+        cross = shifted_dots(uc, ec, list(range(lag + 1))) / math.sqrt(ee * uu)
     else:
         cross = np.zeros(lag + 1)
     return ResidualTest(auto, cross, bound, not _outside(auto, bound), not _outside(cross, bound))
@@ -316,7 +318,7 @@ def timing_warnings(t: npt.ArrayLike) -> list[str]:
     med = float(np.median(steps))
     out: list[str] = []
     gaps = np.flatnonzero(steps > _GAP_FACTOR * med)
-    regular = np.delete(steps, gaps)
+    regular = np.delete(steps, gaps) if gaps.size else steps
     spread = float(np.std(regular) / med) if regular.size else 0.0
     if spread > _JITTER_LIMIT:
         out.append(
