@@ -123,9 +123,10 @@ def fill_rows(
 
 def input_drive(u: FloatArray, order: ArxOrder, W: FloatArray, rows: int) -> FloatArray:
     """The input and constant part of ``D W`` (``Σ b_j u[t-1-delay-j] + c``) for ``rows`` rows."""
-    out = np.zeros(rows)
-    work = np.empty(rows)
-    for j in range(order.nb):
+    start = order.lag - order.delay
+    out: FloatArray = np.multiply(W[order.na], u[start : start + rows])
+    work = np.empty(rows) if order.nb > 1 else out
+    for j in range(1, order.nb):
         start = order.lag - order.delay - j
         out += np.multiply(W[order.na + j], u[start : start + rows], out=work)
     if W.size > order.na + order.nb:
@@ -179,6 +180,7 @@ def solve_record(
     # Fortran order: each column of a chunk is contiguous, as LAPACK wants it.
     buf = np.empty((CHUNK_ROWS + p + 1, p + 1), order="F")
     R = np.zeros((0, p + 1))
+    below = np.tril_indices(p + 1, -1, p + 1)
     for lo in range(0, m, CHUNK_ROWS):
         rows = min(CHUNK_ROWS, m - lo)
         r = R.shape[0]
@@ -187,7 +189,9 @@ def solve_record(
         qr, _, _, info = lapack.dgeqrf(buf[: r + rows], overwrite_a=True)
         if info != 0:  # pragma: no cover - only for an invalid argument
             raise RuntimeError(f"LAPACK dgeqrf failed (info = {info})")
-        R = np.triu(qr[: min(r + rows, p + 1)])
+        k = min(r + rows, p + 1)
+        R = qr[:k].copy()
+        R[below[0][below[0] < k], below[1][below[0] < k]] = 0.0  # Householder vectors, not R
     full = np.zeros((p + 1, p + 1))
     full[: R.shape[0]] = R
     RD, z, rho = full[:p, :p], full[:p, p], float(full[p, p])
