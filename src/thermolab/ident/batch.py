@@ -212,7 +212,7 @@ def least_squares(
     held = _v.real("holdout", holdout)
     if not 0.0 <= held <= 0.5:
         raise InvalidParameterError(f"holdout must be a fraction from 0 to 0.5, got {held!r}")
-    t_arr = None if t is None else _v.check_time(t, y_arr.size)
+    timing = None if t is None else _v.check_time_steps(t, y_arr.size)
     search: DelaySearch | None = None
     longest = 0
     if order is None:
@@ -301,8 +301,8 @@ def least_squares(
         advice = _diag.residual_advice(rtest, search is not None or ord_.delay > 0)
         if advice:
             notes.append(advice)
-    if t_arr is not None:
-        notes += _diag.timing_warnings(t_arr)
+    if timing is not None:
+        notes += _diag.timing_warnings_from_steps(*timing)
     for note in notes:
         warnings.warn(note, IdentificationWarning, stacklevel=2)
     return LeastSquaresResult(

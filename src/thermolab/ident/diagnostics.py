@@ -43,6 +43,7 @@ __all__ = [
     "plausibility_warnings",
     "residual_test",
     "timing_warnings",
+    "timing_warnings_from_steps",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -311,10 +312,14 @@ def timing_warnings(t: npt.ArrayLike) -> list[str]:
     >>> [w.split(":")[0] for w in timing_warnings(t)]
     ['gap in time']
     """
-    ta = _v.check_time(t)
+    ta, steps = _v.check_time_steps(t)
+    return timing_warnings_from_steps(ta, steps)
+
+
+def timing_warnings_from_steps(ta: FloatArray, steps: FloatArray) -> list[str]:
+    """:func:`timing_warnings` of a checked time axis and its steps (``diff(ta)``)."""
     if ta.size < 3:
         return []
-    steps = np.diff(ta)
     med = float(np.median(steps))
     out: list[str] = []
     gaps = np.flatnonzero(steps > _GAP_FACTOR * med)
