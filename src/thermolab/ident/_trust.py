@@ -54,10 +54,9 @@ def with_warnings(
             )
         ]
     if t is not None:
-        t_arr = _v.check_time(t, tr.n_samples)
-        notes += _diag.timing_warnings(t_arr)
+        t_arr, steps = _v.check_time_steps(t, tr.n_samples)
+        notes += _diag.timing_warnings_from_steps(t_arr, steps)
         if window is not None and t_arr.size > 2:
-            steps = np.diff(t_arr)
             gaps = np.flatnonzero(steps > 1.5 * float(np.median(steps)))
             if gaps.size:
                 first = int(gaps[0]) + 1

@@ -60,6 +60,11 @@ def as_record(u: npt.ArrayLike, y: npt.ArrayLike) -> tuple[FloatArray, FloatArra
 
 def check_time(t: npt.ArrayLike, n: int | None = None) -> FloatArray:
     """Check a time axis: finite, one-dimensional, strictly increasing, ``n`` samples."""
+    return check_time_steps(t, n)[0]
+
+
+def check_time_steps(t: npt.ArrayLike, n: int | None = None) -> tuple[FloatArray, FloatArray]:
+    """:func:`check_time`, also returning the steps ``diff(t)`` it computed."""
     t_arr = as_signal("t", t)
     if n is not None and t_arr.size != n:
         raise InvalidDataError(f"t must have one time per sample ({n}), got {t_arr.size}")
@@ -70,7 +75,7 @@ def check_time(t: npt.ArrayLike, n: int | None = None) -> FloatArray:
             f"t must be strictly increasing: t[{i + 1}] = {float(t_arr[i + 1])!r} follows "
             f"t[{i}] = {float(t_arr[i])!r}"
         )
-    return t_arr
+    return t_arr, steps
 
 
 def check_dt(dt: object) -> float:

@@ -33,30 +33,45 @@ __all__ = ["LeastSquaresResult", "least_squares"]
 FloatArray = npt.NDArray[np.float64]
 
 
+def _spread(y: FloatArray) -> float:
+    """``||y - mean(y)||``: the denominator of the NRMSE fit."""
+    with np.errstate(all="ignore"):
+        return float(np.linalg.norm(y - y.mean()))
+
+
+def _fit_percent(spread: float, err: float) -> float:
+    """NRMSE fit in percent from ``||y - mean(y)||`` and ``||y - ŷ||``."""
+    if spread == 0.0:
+        return math.nan
+    if not math.isfinite(err):
+        return -math.inf
+    return 100.0 * (1.0 - err / spread)
+
+
 def _nrmse_fit(y: FloatArray, yhat: FloatArray) -> float:
     with np.errstate(all="ignore"):
-        spread = float(np.linalg.norm(y - y.mean()))
-        if spread == 0.0:
-            return math.nan
-        err = float(np.linalg.norm(y - yhat))
-        if not math.isfinite(err):
-            return -math.inf
-        return 100.0 * (1.0 - err / spread)
+        return _fit_percent(_spread(y), float(np.linalg.norm(y - yhat)))
 
 
-def _simulate(reg: _reg.Regression, W: FloatArray, y_shifted0: FloatArray) -> FloatArray:
-    """Free-run simulation of the identified model over the targets, in the offset frame."""
+def _simulate(
+    u: FloatArray, y: FloatArray, order: ArxOrder, y_shift: float, W: FloatArray
+) -> FloatArray:
+    """Free-run simulation of the identified model over the targets, in the offset frame.
+
+    Started from the record's first ``lag + 1`` outputs and driven by ``u``.
+    """
     from scipy.signal import lfilter, lfiltic
 
-    na = reg.order.na
-    lag = reg.order.lag
-    drive = reg.D[:, na:] @ W[na:]
+    na = order.na
+    lag = order.lag
+    drive = _reg.input_drive(u, order, W, y.size - 1 - lag)
     den = np.concatenate([[1.0], -W[:na]])
+    head = y[: lag + 1] - y_shift
     if na == 1:
         # The filter's one state is what the past output adds to the first target.
-        zi = np.array([W[0] * y_shifted0[lag]])
+        zi = np.array([W[0] * head[lag]])
     else:
-        zi = lfiltic([1.0], den, y_shifted0[lag - na + 1 : lag + 1][::-1])
+        zi = lfiltic([1.0], den, head[lag - na + 1 : lag + 1][::-1])
     with np.errstate(all="ignore"):
         out: FloatArray = lfilter([1.0], den, drive, zi=zi)[0]
     return out
@@ -197,7 +212,7 @@ def least_squares(
     held = _v.real("holdout", holdout)
     if not 0.0 <= held <= 0.5:
         raise InvalidParameterError(f"holdout must be a fraction from 0 to 0.5, got {held!r}")
-    t_arr = None if t is None else _v.check_time(t, y_arr.size)
+    timing = None if t is None else _v.check_time_steps(t, y_arr.size)
     search: DelaySearch | None = None
     longest = 0
     if order is None:
@@ -233,15 +248,21 @@ def least_squares(
     _v.check_min_samples(
         y_arr.size, ord_.lag + 1 + p, f"least squares of {p} parameters with order {ord_}"
     )
-    reg = _reg.build(u_arr, y_arr, ord_, off)
-    sol = _reg.solve(reg.D, reg.Y)
+    sol = _reg.solve_record(u_arr, y_arr, ord_, off)
     if not sol.ok:
-        raise _reg.excitation_error(reg, u_arr, sol.s)
+        raise _reg.excitation_error(sol, u_arr, y_arr, ord_)
     W = sol.W
-    m = reg.Y.size
-    one_step = reg.D @ W
-    residuals = reg.Y - one_step
-    dof = m - p
+    first_target = ord_.lag + 1
+    # The arrays the result keeps are computed once each, and shifted back to
+    # absolute volts in place when their offset-frame values have been used:
+    # on 10⁷ samples every extra full-length array costs 80 MB and a pass.
+    targets = y_arr[first_target:] - sol.y_shift  # Y, in the offset frame
+    one_step = _reg.predict(u_arr, y_arr, ord_, sol.y_shift, W)
+    residuals = targets - one_step
+    spread = _spread(targets)
+    with np.errstate(all="ignore"):
+        fit_one = _fit_percent(spread, float(np.linalg.norm(residuals)))
+    dof = sol.rows - p
     sigma2 = float(residuals @ residuals) / dof if dof > 0 else math.nan
     # (DᵀD)⁻¹ = N⁻¹ V Σ⁻² Vᵀ N⁻¹ with N the column norms of the equilibration.
     Vs = sol.Vt.T / sol.s
@@ -249,7 +270,7 @@ def least_squares(
     cov = sigma2 * inv_gram
     stderr = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     na, nb = ord_.na, ord_.nb
-    c = float(W[-1]) if reg.constant else 0.0
+    c = float(W[-1]) if sol.constant else 0.0
     arx = ArxModel(
         a=tuple(float(x) for x in W[:na]),
         b=tuple(float(x) for x in W[na : na + nb]),
@@ -259,15 +280,19 @@ def least_squares(
     )
     model = arx.first_order()
     K_se, tau_se = _propagated_stderr(W, cov, ord_, step, model)
-    sim = _simulate(reg, W, y_arr - reg.y_shift)
-    s_raw = np.linalg.svd(reg.D, compute_uv=False)
-    ambient = arx.ambient if reg.constant else reg.y_shift
-    scale = max(float(np.max(np.abs(y_arr))), 1e-300)
+    sim = _simulate(u_arr, y_arr, ord_, sol.y_shift, W)
+    ambient = arx.ambient if sol.constant else sol.y_shift
+    scale = max(float(y_arr.max()), -float(y_arr.min()), 1e-300)  # max |y|, no copy
     rtest = (
-        _diag.residual_test(residuals, u_arr[reg.first_target :], scale=scale) if m >= 36 else None
+        _diag.residual_test(residuals, u_arr[first_target:], scale=scale)
+        if sol.rows >= 36
+        else None
     )
-    fit_sim = _nrmse_fit(reg.Y, sim)
-    fit_held = _holdout_fit(u_arr, y_arr, ord_, off, reg.y_shift, held) if held else math.nan
+    with np.errstate(all="ignore"):
+        error = np.subtract(targets, sim)
+        fit_sim = _fit_percent(spread, float(np.linalg.norm(error)))
+    del error
+    fit_held = _holdout_fit(u_arr, y_arr, ord_, off, sol.y_shift, held) if held else math.nan
     notes = list(op.warnings) if op is not None else []
     notes += _diag.plausibility_warnings(
         model.K, model.tau, step, y_arr.size * step, expected_sign=expected_sign
@@ -276,13 +301,13 @@ def least_squares(
         advice = _diag.residual_advice(rtest, search is not None or ord_.delay > 0)
         if advice:
             notes.append(advice)
-    if t_arr is not None:
-        notes += _diag.timing_warnings(t_arr)
+    if timing is not None:
+        notes += _diag.timing_warnings_from_steps(*timing)
     for note in notes:
         warnings.warn(note, IdentificationWarning, stacklevel=2)
     return LeastSquaresResult(
         W=W,
-        param_names=ord_.param_names(constant=reg.constant),
+        param_names=ord_.param_names(constant=sol.constant),
         order=ord_,
         offset=off,
         dt=step,
@@ -291,24 +316,30 @@ def least_squares(
         stderr=stderr,
         K_stderr=K_se,
         tau_stderr=tau_se,
-        cond=float(s_raw[0] / s_raw[-1]),
+        cond=float(sol.s_raw[0] / sol.s_raw[-1]),
         cond_scaled=float(sol.s[0] / sol.s[-1]),
-        k=np.arange(reg.first_target, y_arr.size),
-        y_measured=reg.Y + reg.y_shift,
-        y_one_step=one_step + reg.y_shift,
-        y_simulated=sim + reg.y_shift,
+        k=np.arange(first_target, y_arr.size),
+        y_measured=_absolute(targets, sol.y_shift),
+        y_one_step=_absolute(one_step, sol.y_shift),
+        y_simulated=_absolute(sim, sol.y_shift),
         residuals=residuals,
-        fit_one_step=_nrmse_fit(reg.Y, one_step),
+        fit_one_step=fit_one,
         fit_simulation=fit_sim,
         n_samples=int(y_arr.size),
         ambient=float(ambient),
-        y_shift=reg.y_shift,
+        y_shift=sol.y_shift,
         operating_point=op,
         delay_search=search,
         residual_test=rtest,
         fit_holdout=fit_held,
         warnings=tuple(notes),
     )
+
+
+def _absolute(values: FloatArray, y_shift: float) -> FloatArray:
+    """``values + y_shift`` in place (the same numbers as a new sum), returned."""
+    values += y_shift
+    return values
 
 
 def _holdout_fit(
@@ -329,11 +360,11 @@ def _holdout_fit(
         return math.nan  # nothing excites the held-out part: its fit % means nothing
     # The shift of the whole record, so the two parts share one frame.
     frame: str | float = y_shift if offset == "initial" else offset
-    first = _reg.build(u[:split], y[:split], order, frame)
-    sol = _reg.solve(first.D, first.Y)
-    if not sol.ok:
+    first = _reg.solve_record(u[:split], y[:split], order, frame)
+    if not first.ok:
         return math.nan
     start = split - order.lag - 1
-    tail = _reg.build(u[start:], y[start:], order, frame)
-    sim = _simulate(tail, sol.W, y[start:] - tail.y_shift)
-    return _nrmse_fit(tail.Y, sim)
+    tail_u, tail_y = u[start:], y[start:]
+    shift, _ = _reg.offset_shift(frame, float(tail_y[0]))
+    sim = _simulate(tail_u, tail_y, order, shift, first.W)
+    return _nrmse_fit(tail_y[order.lag + 1 :] - shift, sim)

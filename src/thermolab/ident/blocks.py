@@ -16,6 +16,9 @@ from .trajectory import Trajectory
 
 __all__ = ["block_least_squares", "block_rows"]
 
+#: Samples solved in one batched call (a group of whole blocks).
+_GROUP_ROWS = 1 << 16
+
 
 def block_rows(order: ArxOrder, block: int, n_params: int, n_samples: int) -> tuple[int, int]:
     """``(rows per block, number of full blocks)``, checking the block is big enough."""
@@ -99,21 +102,31 @@ def block_least_squares(
     size = _v.integer("block", block, 1, "samples per block")
     p = ord_.na + ord_.nb + int(off == "fit")
     rows, n_blocks = block_rows(ord_, size, p, y_arr.size)
-    reg = _reg.build(u_arr, y_arr, ord_, off)
-    idx = np.arange(n_blocks)[:, None] * size + np.arange(rows)[None, :]
-    sol = _reg.solve(reg.D[idx], reg.Y[idx])
+    # Every block in the frame of the whole record: "initial" subtracts the
+    # record's y[0] from each block, which a group's own first sample is not.
+    y_shift, constant = _reg.offset_shift(off, float(y_arr[0]))
+    frame: str | float = "fit" if constant else y_shift
     W = np.full((y_arr.size, p), np.nan)
     at = np.arange(1, n_blocks + 1) * size - 1
-    W[at] = sol.W
     status = np.zeros(y_arr.size, dtype=np.int8)
-    status[at[~sol.ok]] = NOT_EXCITED
+    idx = np.arange(n_blocks)[:, None] * size + np.arange(rows)[None, :]
+    # A group of blocks at a time: the batched SVD's work arrays (several copies
+    # of D) stay small on a 10⁷-sample record; each block's solve is the same.
+    group = max(1, _GROUP_ROWS // size)
+    for first in range(0, n_blocks, group):
+        last = min(first + group, n_blocks)
+        lo, hi = first * size, last * size
+        reg = _reg.build(u_arr[lo:hi], y_arr[lo:hi], ord_, frame)
+        sol = _reg.solve(reg.D[idx[: last - first]], reg.Y[idx[: last - first]])
+        W[at[first:last]] = sol.W
+        status[at[first:last][~sol.ok]] = NOT_EXCITED
     tr = Trajectory(
         method="blockls",
         dt=step,
         W=W,
         order=ord_,
         offset=off,
-        param_names=ord_.param_names(constant=reg.constant),
+        param_names=ord_.param_names(constant=constant),
         status=status,
         params={"block": size},
         operating_point=op,

@@ -28,6 +28,7 @@ from thermolab.errors import InvalidParameterError
 from thermolab.jsonsafe import finite_or_none
 
 from . import _regression as _reg
+from ._lagged import shifted_dots
 
 __all__ = [
     "DEFAULT_MAX_DELAY",
@@ -188,8 +189,10 @@ def search_delay(
     cs2 = np.concatenate([[0.0], np.cumsum(held * held)])
     u1 = cs[start + m] - cs[start]
     uu = cs2[start + m] - cs2[start]
-    pu = np.correlate(held, prev, "valid")[start]
-    uY = np.correlate(held, Y, "valid")[start]
+    # pu[d] = held[start[d] : start[d] + m] @ prev (np.correlate's direct loop
+    # took 0.25 s per call here).
+    pu = shifted_dots(prev, held, start.tolist())
+    uY = shifted_dots(Y, held, start.tolist())
     pp, pY = float(prev @ prev), float(prev @ Y)
     G = np.empty((nd, 4 if constant else 2, 4 if constant else 2))
     G[:, 0, 0], G[:, 0, 1], G[:, 1, 1] = pp, pu, uu
@@ -226,7 +229,7 @@ def search_delay(
             if constant:
                 res -= W[k, 2]
                 res[: d[k]] -= W[k, 3]
-            err = float(res @ res)
+            err = float(shifted_dots(res, res, [0])[0])
         return err if math.isfinite(err) else math.inf
 
     YY = float(Y @ Y)

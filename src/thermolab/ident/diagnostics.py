@@ -34,6 +34,7 @@ from thermolab.errors import InvalidParameterError
 from thermolab.jsonsafe import finite_or_none
 
 from . import _validation as _v
+from ._lagged import shifted_dots
 
 __all__ = [
     "CONFIDENCE_Z99",
@@ -42,6 +43,7 @@ __all__ = [
     "plausibility_warnings",
     "residual_test",
     "timing_warnings",
+    "timing_warnings_from_steps",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -186,9 +188,10 @@ def residual_test(
     if math.sqrt(ee / n) <= _EXACT * max(scale, 1e-300):
         zeros = np.zeros(lag)
         return ResidualTest(zeros, np.zeros(lag + 1), bound, True, True, exact=True)
-    auto = np.array([float(ec[j:] @ ec[: n - j]) for j in range(1, lag + 1)]) / ee
+    # auto[j - 1] = ec[j:] @ ec[:n - j], cross[j] = ec[j:] @ uc[:n - j], in one pass each.
+    auto = shifted_dots(ec, ec, list(range(1, lag + 1))) / ee
     if uu > 0.0:
-        cross = np.array([float(ec[j:] @ uc[: n - j]) for j in range(lag + 1)]) / math.sqrt(ee * uu)
+        cross = shifted_dots(uc, ec, list(range(lag + 1))) / math.sqrt(ee * uu)
     else:
         cross = np.zeros(lag + 1)
     return ResidualTest(auto, cross, bound, not _outside(auto, bound), not _outside(cross, bound))
@@ -309,14 +312,18 @@ def timing_warnings(t: npt.ArrayLike) -> list[str]:
     >>> [w.split(":")[0] for w in timing_warnings(t)]
     ['gap in time']
     """
-    ta = _v.check_time(t)
+    ta, steps = _v.check_time_steps(t)
+    return timing_warnings_from_steps(ta, steps)
+
+
+def timing_warnings_from_steps(ta: FloatArray, steps: FloatArray) -> list[str]:
+    """:func:`timing_warnings` of a checked time axis and its steps (``diff(ta)``)."""
     if ta.size < 3:
         return []
-    steps = np.diff(ta)
     med = float(np.median(steps))
     out: list[str] = []
     gaps = np.flatnonzero(steps > _GAP_FACTOR * med)
-    regular = np.delete(steps, gaps)
+    regular = np.delete(steps, gaps) if gaps.size else steps
     spread = float(np.std(regular) / med) if regular.size else 0.0
     if spread > _JITTER_LIMIT:
         out.append(

@@ -134,22 +134,21 @@ def noise_level(y: FloatArray) -> float:
 
 def _first_change(u: FloatArray) -> int:
     """Samples before the input first changes (``u.size`` if it never does)."""
-    moved = np.flatnonzero(u != u[0])
-    return int(moved[0]) if moved.size else int(u.size)
+    moved = u != u[0]
+    first = int(np.argmax(moved))  # the first True, without an index of every change
+    return first if moved[first] else int(u.size)
 
 
 def _ambient_with_stderr(
     u: FloatArray, y: FloatArray, order: ArxOrder
 ) -> tuple[float, float, float, float]:
     """The constant-term model's ambient ``c / (1 - sum(a))``, its stderr, gain and noise."""
-    reg = _reg.build(u, y, order, "fit")
-    sol = _reg.solve(reg.D, reg.Y)
+    sol = _reg.solve_record(u, y, order, "fit")
     if not sol.ok:
         return math.nan, math.nan, math.nan, math.nan
     W = sol.W
-    res = reg.Y - reg.D @ W
-    dof = reg.Y.size - W.size
-    sigma2 = float(res @ res) / dof if dof > 0 else 0.0
+    dof = sol.rows - W.size
+    sigma2 = sol.rss / dof if dof > 0 else 0.0
     Vs = sol.Vt.T / sol.s
     cov = sigma2 * (Vs @ Vs.T) / np.outer(sol.norms, sol.norms)
     na = order.na
@@ -167,12 +166,7 @@ def _ambient_with_stderr(
 
 def _one_step_sse(u: FloatArray, y: FloatArray, order: ArxOrder, offset: str) -> float:
     """Sum of squared one-step prediction errors of the least-squares model of ``order``."""
-    reg = _reg.build(u, y, order, offset)
-    sol = _reg.solve(reg.D, reg.Y)
-    if not sol.ok:
-        return math.inf
-    res = reg.Y - reg.D @ sol.W
-    return float(res @ res)
+    return _reg.solve_record(u, y, order, offset).rss
 
 
 def decide_operating_point(
@@ -272,7 +266,7 @@ def decide_operating_point(
             delay_search=search,
         )
     m = y_arr.size - 1 - lag
-    scale = max(float(np.max(np.abs(y_arr))), 1e-300)
+    scale = max(float(y_arr.max()), -float(y_arr.min()), 1e-300)  # max |y|, no copy
     floor = m * (1e-9 * scale) ** 2
     crit: dict[str, float] = {}
     searches: dict[str, DelaySearch] = {}
