@@ -71,7 +71,7 @@ class LockedRig:
 class Controlled:
     """The controller's turn inside the rig's locked transaction.
 
-    What :meth:`AccessService.controlled` yields.
+    What :meth:`RigTransactions.controlled` yields.
     """
 
     session: Session
