@@ -122,12 +122,20 @@ def test_hello_then_a_run_in_order(make_lab: LabFactory) -> None:
                 later.append(receive(ws))
         started = next(m for m in seen if m["type"] == "run")
         assert (started["event"], started["run"]["id"]) == ("started", run_id)
+        # The run-start message describes every channel a sample carries, with its unit.
+        described = {c["name"]: (c["unit"], c["role"]) for c in started["run"]["channels"]}
+        assert (described["u"], described["y"], described["t"]) == (
+            ("V", "input"),
+            ("V", "output"),
+            ("s", "time"),
+        )
         samples = [m for m in seen if m["type"] == "sample"]
         assert [m["k"] for m in samples] == list(range(60))
         assert {m["run"] for m in samples} == {run_id}
         assert samples[10]["u"] == 10.0
         # Every channel of the sample by name (additive to t, u, y, k).
         channels = samples[10]["channels"]
+        assert list(channels) == list(described)
         assert list(channels) == ["t", "u", "y", "k", "t_read", "jitter", "lateness"]
         assert (channels["u"], channels["k"]) == (10.0, 10)
         estimates = [m for m in seen if m["type"] == "estimate"]

@@ -23,7 +23,7 @@ from alembic.config import Config as AlembicConfig
 from fastapi.testclient import TestClient
 from sqlalchemy import func, select, text
 
-from thermolab.errors import InvalidParameterError, ThermoLabError
+from thermolab.errors import InvalidParameterError
 from thermolab.ident import (
     block_least_squares,
     least_squares,
@@ -35,7 +35,7 @@ from thermolab.lab.config import RigConfig
 from thermolab.lab.db import MIGRATIONS_DIR
 from thermolab.lab.db.models import Command, MethodResultRow, Sample
 from thermolab.lab.http.app import create_app
-from thermolab.lab.runs import RunRequest
+from thermolab.lab.runs import RunRequest, choose_operating_point
 from thermolab.lab.service import Lab
 from thermolab.lab.users import Principal
 from thermolab.records import read_record
@@ -494,18 +494,18 @@ def test_back_to_back_runs_on_a_warm_twin_give_valid_models_by_default(
     assert not (wrong["valid"] and abs(wrong["K"] / TRUE_K - 1) < 0.5)
 
 
-def test_the_operating_point_is_left_to_the_data(lab: Lab) -> None:
-    auto = lab.runs.operating_point("auto", ("lsm", "srm"))
+def test_the_operating_point_is_left_to_the_data() -> None:
+    auto = choose_operating_point("auto", ("lsm", "srm"))
     assert auto.used == "auto"
-    assert lab.runs.operating_point("none", ("wlsm",)).used == "none"
-    assert lab.runs.operating_point(0.0, ("malsm",)).to_dict() == {
+    assert choose_operating_point("none", ("wlsm",)).used == "none"
+    assert choose_operating_point(0.0, ("malsm",)).to_dict() == {
         "asked": 0.0,
         "used": 0.0,
         "reason": "0.0, as asked",
     }
-    assert lab.runs.operating_point("auto", ("srm",)).used is None
+    assert choose_operating_point("auto", ("srm",)).used is None
     with pytest.raises(InvalidParameterError, match="offset is a setting of lsm"):
-        lab.runs.operating_point("fit", ("srm",))
+        choose_operating_point("fit", ("srm",))
 
 
 def test_each_methods_statistics_are_stored_as_thermolab_ident_computes_them(
@@ -661,36 +661,3 @@ def test_an_invalid_estimate_handed_to_the_live_stream_carries_its_reason(
     invalid = [e for e in heard if not e.estimate.valid]
     assert invalid
     assert all(e.estimate.extras["reason"].startswith("not excited") for e in invalid)
-
-
-def test_extra_channels_are_stored_and_exported_by_name(make_lab: LabFactory) -> None:
-    """A rig's extra channels (a set point, a second sensor) reach the store and both exports."""
-    from sqlalchemy import delete
-
-    from thermolab.lab.runs.store import DatabaseRecorder
-    from thermolab.records import RUN_CHANNELS, ChannelSpec
-
-    lab = twin_lab(make_lab)
-    lab.users.add("ana", PASSWORD, "student")
-    with TestClient(create_app(lab.config, lab=lab, sweep_interval=None)) as client:
-        client.post("/api/session", json={"username": "ana", "password": PASSWORD})
-        client.post("/api/rigs/twin/control")
-        run = finish(client, lab, {"dt": 1, "samples": 5, "setpoint": 2.0, "methods": ["lsm"]})
-        with lab.db.write() as session:
-            session.execute(delete(Sample).where(Sample.run_id == run["id"]))
-        extra = (ChannelSpec("r", "V", "setpoint"), ChannelSpec("y2", "degC", "output"))
-        recorder = DatabaseRecorder(lab.db, run["id"], channels=(*RUN_CHANNELS, *extra))
-        recorder.open()
-        for k in range(3):
-            recorder.write(k, float(k), 2.0, 0.1 * k, k + 0.01, 0.01, 0.0, 5.0, math.nan)
-        recorder.close()
-        text = client.get(f"/api/runs/{run['id']}/samples.csv").text
-        exported = client.get(f"/api/runs/{run['id']}/export.json").json()
-    header, first = text.splitlines()[:2]
-    assert header == "t,u,y,k,t_read,jitter,lateness,r,y2"
-    assert first == "0,2.0,0.0,0,0.01,0.01,0.0,5.0,nan"
-    assert [c["name"] for c in exported["channels"]][-2:] == ["r", "y2"]
-    assert exported["samples"]["r"] == [5.0, 5.0, 5.0]
-    assert exported["samples"]["y2"] == [None, None, None]  # JSON has no NaN
-    with pytest.raises(ThermoLabError, match="RUN_CHANNELS"):
-        DatabaseRecorder(lab.db, run["id"], channels=extra)

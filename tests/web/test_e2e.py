@@ -342,7 +342,7 @@ def test_a_phone_screen_needs_no_sideways_scrolling(
     assert abs(ks / TRUE_K - 1) < 0.25
     assert phone.evaluate(overflow) <= 0
     note = phone.inner_text("[data-testid=operating-point-wlsm]")
-    # Left to the data (never judged by the clock): see thermolab.lab.runs.operating_point.
+    # Left to the data (never judged by the clock): see thermolab.lab.runs.request.
     assert note.startswith(f"Operating point: {AUTO_USED}: ")
     phone.locator(".convergence").screenshot(path=str(artifacts / "phone-convergence.png"))
     phone.locator(".panels").screenshot(path=str(artifacts / "phone-panel-3.png"))

@@ -8,9 +8,12 @@ estimates, windows or blocks that span a gap in time, timing jitter.
 from __future__ import annotations
 
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
+
+from thermolab.errors import InvalidParameterError
 
 from . import _validation as _v
 from . import diagnostics as _diag
@@ -20,6 +23,39 @@ from .step import IdentificationWarning
 from .trajectory import Trajectory
 
 FloatArray = npt.NDArray[np.float64]
+
+
+class CheckedRecord(NamedTuple):
+    """A block or recursive method's record and common arguments, checked once."""
+
+    u: FloatArray
+    y: FloatArray
+    dt: float
+    order: ArxOrder
+    offset: str | float
+    operating_point: OperatingPoint | None
+
+
+def check_record(
+    u: npt.ArrayLike, y: npt.ArrayLike, dt: object, order: object, offset: object
+) -> CheckedRecord:
+    """Check the record, ``dt`` and ``order``; resolve ``offset`` (``"auto"``: from the data)."""
+    u_arr, y_arr = _v.as_record(u, y)
+    step = _v.check_dt(dt)
+    ord_ = _v.check_order(order)
+    off, op = resolve_offset(u_arr, y_arr, step, ord_, offset)
+    return CheckedRecord(u_arr, y_arr, step, ord_, off, op)
+
+
+def rows_inside(name: str, order: ArxOrder, size: int, n_params: int) -> int:
+    """Regression rows inside ``size`` consecutive samples (a window, a block), checking enough."""
+    rows = size - 1 - order.lag
+    if rows < n_params:
+        raise InvalidParameterError(
+            f"{name} must be >= {order.lag + 1 + n_params} samples to give {n_params} regression "
+            f"rows for {n_params} parameters with order {order}, got {size}"
+        )
+    return rows
 
 
 def resolve_offset(

@@ -5,11 +5,9 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from thermolab.errors import InvalidParameterError
-
 from . import _regression as _reg
 from . import _validation as _v
-from ._trust import resolve_offset, with_warnings
+from ._trust import check_record, rows_inside, with_warnings
 from .models import NOT_EXCITED, ArxOrder
 from .registry import SETTINGS
 from .trajectory import Trajectory
@@ -22,12 +20,7 @@ _GROUP_ROWS = 1 << 16
 
 def block_rows(order: ArxOrder, block: int, n_params: int, n_samples: int) -> tuple[int, int]:
     """``(rows per block, number of full blocks)``, checking the block is big enough."""
-    rows = block - 1 - order.lag
-    if rows < n_params:
-        raise InvalidParameterError(
-            f"block must be >= {order.lag + 1 + n_params} samples to give {n_params} regression "
-            f"rows for {n_params} parameters with order {order}, got {block}"
-        )
+    rows = rows_inside("block", order, block, n_params)
     _v.check_min_samples(n_samples, block, f"one block of {block} samples")
     return rows, n_samples // block
 
@@ -95,10 +88,7 @@ def block_least_squares(
     >>> np.flatnonzero(tr.valid)[:3], round(tr.stats()["tau"]["min"], 6)
     (array([ 99, 199, 299]), 250.126233)
     """
-    u_arr, y_arr = _v.as_record(u, y)
-    step = _v.check_dt(dt)
-    ord_ = _v.check_order(order)
-    off, op = resolve_offset(u_arr, y_arr, step, ord_, offset)
+    u_arr, y_arr, step, ord_, off, op = check_record(u, y, dt, order, offset)
     size = _v.integer("block", block, 1, "samples per block")
     p = ord_.na + ord_.nb + int(off == "fit")
     rows, n_blocks = block_rows(ord_, size, p, y_arr.size)

@@ -12,7 +12,7 @@ from thermolab.errors import InvalidParameterError
 
 from . import _regression as _reg
 from . import _validation as _v
-from ._trust import resolve_offset, with_warnings
+from ._trust import check_record, rows_inside, with_warnings
 from .models import ArxOrder
 from .registry import SETTINGS, default_w0
 from .trajectory import Trajectory
@@ -27,13 +27,7 @@ WLSM_FORMS: tuple[str, ...] = SETTINGS["form"].choices
 
 def window_rows(order: ArxOrder, window: int, n_params: int) -> int:
     """Regression rows inside a window of ``window`` samples, checking there are enough."""
-    rows = window - 1 - order.lag
-    if rows < n_params:
-        raise InvalidParameterError(
-            f"window must be >= {order.lag + 1 + n_params} samples to give {n_params} regression "
-            f"rows for {n_params} parameters with order {order}, got {window}"
-        )
-    return rows
+    return rows_inside("window", order, window, n_params)
 
 
 def check_recompute(recompute_every: object, rows: int) -> int:
@@ -189,10 +183,7 @@ def moving_window_least_squares(
     >>> round(s["K"]["min"], 6), round(s["K"]["max"], 6), round(s["tau"]["min"], 6)
     (0.14009, 0.14009, 250.126233)
     """
-    u_arr, y_arr = _v.as_record(u, y)
-    step = _v.check_dt(dt)
-    ord_ = _v.check_order(order)
-    off, op = resolve_offset(u_arr, y_arr, step, ord_, offset)
+    u_arr, y_arr, step, ord_, off, op = check_record(u, y, dt, order, offset)
     size = _v.integer("window", window, 1, "samples in the moving window")
     constant = off == "fit"
     p = ord_.na + ord_.nb + int(constant)
@@ -396,10 +387,7 @@ def weighted_least_squares(
     >>> tr.converged_at()["K"] < 100
     True
     """
-    u_arr, y_arr = _v.as_record(u, y)
-    step = _v.check_dt(dt)
-    ord_ = _v.check_order(order)
-    off, op = resolve_offset(u_arr, y_arr, step, ord_, offset)
+    u_arr, y_arr, step, ord_, off, op = check_record(u, y, dt, order, offset)
     constant = off == "fit"
     n_dyn = ord_.na + ord_.nb
     p = n_dyn + int(constant)

@@ -41,41 +41,18 @@ standard channels), :mod:`~thermolab.records.writing`,
 ``_exact`` (the exact reader) and :mod:`~thermolab.records.dialect`.
 """
 
-from thermolab.records.channels import (
-    INDEX,
-    INPUT,
-    JITTER,
-    KNOWN_CHANNELS,
-    LATENESS,
-    OUTPUT,
-    REQUIRED,
-    RUN_CHANNELS,
-    T_READ,
-    TIME,
-    ChannelRole,
-    ChannelSpec,
-    channel_names,
-)
+from thermolab.records import channels as _channels
+
+# Every public name of channels, as its __all__ lists them (not a second list here).
+from thermolab.records.channels import *  # noqa: F403
 from thermolab.records.reading import Dialect, Record, read_record
 from thermolab.records.writing import RecordWriter, write_record
 
 __all__ = [
-    "INDEX",
-    "INPUT",
-    "JITTER",
-    "KNOWN_CHANNELS",
-    "LATENESS",
-    "OUTPUT",
-    "REQUIRED",
-    "RUN_CHANNELS",
-    "TIME",
-    "T_READ",
-    "ChannelRole",
-    "ChannelSpec",
+    *_channels.__all__,
     "Dialect",
     "Record",
     "RecordWriter",
-    "channel_names",
     "read_record",
     "write_record",
 ]

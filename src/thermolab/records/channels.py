@@ -142,8 +142,7 @@ def channel_names(channels: Iterable[ChannelSpec]) -> tuple[str, ...]:
 
 
 def checked_channels(channels: Sequence[ChannelSpec]) -> tuple[ChannelSpec, ...]:
-    from thermolab.errors import InvalidParameterError
-
+    """``channels`` as a tuple, checked: ``t, u, y`` first, no name twice."""
     channels = tuple(channels)
     names = channel_names(channels)
     if names[:3] != channel_names(REQUIRED):

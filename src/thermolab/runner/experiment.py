@@ -211,8 +211,8 @@ class MethodResult:
         if trajectory:
             out["trajectory"] = {
                 "k": self.k.tolist(),
-                "K": [x if math.isfinite(x) else None for x in self.K.tolist()],
-                "tau": [x if math.isfinite(x) else None for x in self.tau.tolist()],
+                "K": json_safe(self.K),
+                "tau": json_safe(self.tau),
                 "valid": self.valid.tolist(),
             }
         return out

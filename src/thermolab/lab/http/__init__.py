@@ -7,5 +7,7 @@
   :mod:`.bodies`, a run's in :mod:`.run_schemas`, built from the method registry);
 * :mod:`.errors` — each error class's HTTP status and stable code;
 * :mod:`.limits` — the request size limit;
-* :mod:`.live_socket` — the WebSocket endpoint ``/api/rigs/{rig}/live``.
+* :mod:`.live_socket` — the WebSocket endpoint ``/api/rigs/{rig}/live``;
+* :mod:`.live_messages` — its messages, typed, and what a client may send
+  (:func:`~.live_messages.client_message_type`).
 """

@@ -23,7 +23,6 @@ from __future__ import annotations
 import asyncio
 import collections
 import contextlib
-import json
 import logging
 from collections.abc import Callable, Collection
 from datetime import datetime, timedelta
@@ -40,8 +39,6 @@ from thermolab.lab.fanout import (
     CLOSE_TOO_MANY,
     CLOSE_UNAUTHORIZED,
     CLOSE_UNKNOWN_RIG,
-    MAX_CLIENT_MESSAGE,
-    MAX_CLIENT_NESTING,
     MAX_SOCKETS_PER_LOGIN,
     LiveChannel,
     LiveClient,
@@ -58,6 +55,7 @@ from thermolab.lab.http.live_messages import (
     RunMessage,
     SampleMessage,
     StateMessage,
+    client_message_type,
 )
 from thermolab.lab.http.schemas import RigOut, RunOut
 from thermolab.lab.runs import RunRecord
@@ -442,7 +440,7 @@ async def _serve(
                 text = (message.get("bytes") or b"").decode("utf-8", errors="replace")
             # An oversized or over-deep message is answered like any bad message: the
             # socket stays open (a client's mistake is not a reason to cut its stream).
-            kind = _message_type(text)
+            kind = client_message_type(text)
             if kind == "ping":
                 await anyio.to_thread.run_sync(on_ping)
                 client.offer('{"type":"pong"}')
@@ -502,61 +500,6 @@ def _viewpoint(snap: RigSnapshot, who: Principal) -> Any:
     if snap.slot_of(who.user_id) is not None:
         return ("queued", who.user_id)
     return "watcher"
-
-
-def _message_type(text: str) -> str:
-    """``"ping"`` for a ping, else the problem with the message, in words.
-
-    Examples
-    --------
-    >>> _message_type('{"type": "ping"}')
-    'ping'
-    >>> _message_type("[" * 100)
-    'messages nest at most 8 levels of brackets'
-    """
-    if len(text) > MAX_CLIENT_MESSAGE:
-        return f"messages are at most {MAX_CLIENT_MESSAGE} bytes"
-    if _nesting(text) > MAX_CLIENT_NESTING:
-        # json.loads recurses once per level: a few kB of brackets would overflow the stack.
-        return f"messages nest at most {MAX_CLIENT_NESTING} levels of brackets"
-    try:
-        data = json.loads(text)
-    except ValueError:
-        return 'messages must be JSON objects such as {"type": "ping"}'
-    if not isinstance(data, dict):
-        return 'messages must be JSON objects such as {"type": "ping"}'
-    kind = data.get("type")
-    if kind == "ping":
-        return "ping"
-    return (
-        f"unknown message type {kind!r}; the only one is 'ping' (commands go through the HTTP API)"
-    )
-
-
-def _nesting(text: str) -> int:
-    """The deepest nesting of ``[``/``{`` in ``text`` outside JSON strings (linear, no recursion).
-
-    >>> _nesting('{"a": [1, {"b": "[[["}]}')
-    3
-    """
-    depth = deepest = 0
-    in_string = escaped = False
-    for char in text:
-        if in_string:
-            if escaped:
-                escaped = False
-            elif char == "\\":
-                escaped = True
-            elif char == '"':
-                in_string = False
-        elif char == '"':
-            in_string = True
-        elif char in "[{":
-            depth += 1
-            deepest = max(deepest, depth)
-        elif char in "]}":
-            depth -= 1
-    return deepest
 
 
 def _log_failure(task: asyncio.Future[None]) -> None:

@@ -19,8 +19,9 @@ from thermolab.ident.registry import METHOD_NAMES
 from thermolab.lab.http.bodies import In, Out
 from thermolab.lab.runs import MAX_DT, MAX_SAMPLES, MIN_DT, OFFSET_MODES, RunRecord, RunRequest
 from thermolab.lab.runs.request import RUN_SETTINGS
+from thermolab.records import ChannelRole
 
-__all__ = ["MethodName", "OperatingPointOut", "RunIn", "RunOut"]
+__all__ = ["ChannelOut", "MethodName", "OperatingPointOut", "RunIn", "RunOut"]
 
 
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
@@ -158,6 +159,15 @@ class OperatingPointOut(Out):
     reason: str
 
 
+class ChannelOut(Out):
+    """One channel of a run's samples (:class:`thermolab.records.ChannelSpec`)."""
+
+    name: str = Field(description="the column's name in the CSV and the sample's channels")
+    unit: str = Field(description="its unit ('' for a count or a flag)")
+    role: ChannelRole
+    description: str
+
+
 class RunOut(Out):
     """A run: what was asked, how far it got, how it ended, each method's latest estimate."""
 
@@ -195,6 +205,12 @@ class RunOut(Out):
         description="once the run is over: rig ('real' or 'twin'), maxLateness and "
         "p95Lateness (wall-clock, s; null for a twin, whose data are exact), periodSpread (std "
         "of the periods between the readings' times over their median) and warnings",
+    )
+    channels: list[ChannelOut] = Field(
+        default_factory=list,
+        description="every channel of the run's samples in record order (t, u, y, k, t_read, "
+        "jitter, lateness, then what the rig or controller publishes), with its unit and role; "
+        "empty for runs from before they were kept",
     )
 
     @classmethod

@@ -1,26 +1,30 @@
 """Experiment runs on the lab's rigs.
 
-* :mod:`.request` — :class:`RunRequest` and its one validation;
-* :mod:`.operating_point` — the identifiers' ``offset`` (``auto``: the data decide);
+* :mod:`.request` — :class:`RunRequest`, its one validation and the identifiers'
+  ``offset`` (``auto``: the data decide), together as :func:`plan_run`;
 * :mod:`.timing` — how well a run kept its sampling times (lateness, period spread);
 * :mod:`.statistics` — the paper's figures, computed once at the end of a run;
-* :mod:`.store` — samples, results and reading them back (and the CSV export);
+* :mod:`.store` — a run's row and channel specs, its samples as they come
+  (:class:`DatabaseRecorder`), its results, reading the run back;
+* :mod:`.export` — the samples read back by channel, the CSV and JSON exports;
 * :mod:`.service` — :class:`RunService`: START, input, END, threads.
 """
 
 from thermolab.jsonsafe import json_safe
-from thermolab.lab.runs.operating_point import OperatingPoint, choose_operating_point
+from thermolab.lab.runs.export import RunExport, samples_csv
 from thermolab.lab.runs.request import (
     MAX_DT,
     MAX_SAMPLES,
     MIN_DT,
     OFFSET_MODES,
+    OperatingPoint,
     RunRequest,
     check_request,
+    choose_operating_point,
 )
 from thermolab.lab.runs.service import RunService
 from thermolab.lab.runs.statistics import CONVERGENCE_TOL, STATS_LAST, method_statistics
-from thermolab.lab.runs.store import DatabaseRecorder, RunRecord, RunStore, samples_csv
+from thermolab.lab.runs.store import DatabaseRecorder, RunRecord, RunStore
 
 __all__ = [
     "CONVERGENCE_TOL",
@@ -31,6 +35,7 @@ __all__ = [
     "STATS_LAST",
     "DatabaseRecorder",
     "OperatingPoint",
+    "RunExport",
     "RunRecord",
     "RunRequest",
     "RunService",

@@ -1,4 +1,4 @@
-"""A run request: what a controller asks for at START, and its one validation.
+"""A run request: what a controller asks for at START, its one validation, its operating point.
 
 The run's own bounds (:data:`MIN_DT`, :data:`MAX_DT`, :data:`MAX_SAMPLES`) are
 declared here. The identification methods, their settings, defaults and
@@ -8,6 +8,15 @@ place the lab narrows a registry range (:data:`LAB_NARROWING`, each with its
 reason). The HTTP schema (:class:`thermolab.lab.http.schemas.RunIn`) is built
 from :data:`RUN_SETTINGS` and :func:`check_request` enforces it, once;
 ``tests/ident/test_registry.py`` checks both against the registry.
+
+The operating point: the lab does not judge the rig (no clock, no "time since
+the last run"); it is a property of the record, decided from the data by the
+library's one procedure (:func:`thermolab.ident.operating_point.decide_operating_point`,
+``offset="auto"``). The lab passes the request's ``offset`` to the
+identifiers; each method's result then reports the handling used and the
+operating point found (its ``extras``). What the lab stores with the run is
+what was asked, what the identifiers were given and why
+(:class:`OperatingPoint`, :func:`choose_operating_point`).
 """
 
 from __future__ import annotations
@@ -26,6 +35,7 @@ from thermolab.runner.methods import build_identifiers, parse_methods
 from thermolab.signals import parse_signal
 
 __all__ = [
+    "AUTO",
     "LAB_NARROWING",
     "MAX_DT",
     "MAX_SAMPLES",
@@ -33,9 +43,13 @@ __all__ = [
     "OFFSET_METHODS",
     "OFFSET_MODES",
     "RUN_SETTINGS",
+    "OperatingPoint",
+    "RunPlan",
     "RunRequest",
     "build_run_identifiers",
     "check_request",
+    "choose_operating_point",
+    "plan_run",
 ]
 
 #: Most samples a run may ask for.
@@ -44,7 +58,7 @@ MAX_SAMPLES = 200_000
 MIN_DT = 0.01
 MAX_DT = 3600.0
 #: How a run's identifiers may treat the operating point: ``"auto"`` (decided from the
-#: data, see :func:`thermolab.lab.runs.operating_point.choose_operating_point`) or one of
+#: data, see :func:`choose_operating_point`) or one of
 #: the registry's ``offset`` choices; a number is also accepted (a known ambient output).
 OFFSET_MODES: tuple[str, ...] = SETTINGS["offset"].choices
 
@@ -101,7 +115,7 @@ class RunRequest:
         the registry's default (the paper's W0).
     offset : str or float
         How the identifiers treat the operating point: ``"auto"`` (decided
-        from the data, see :func:`.operating_point.choose_operating_point`),
+        from the data, see :func:`choose_operating_point`),
         ``"initial"``, ``"fit"``,
         ``"none"``, or a number (the known ambient output).
     """
@@ -133,6 +147,86 @@ class RunRequest:
             "w0": None if self.w0 is None else list(self.w0),
             "offset": self.offset,
         }
+
+
+#: The request's offset that leaves the decision to the data.
+AUTO = "auto"
+
+
+@dataclass(frozen=True, slots=True)
+class OperatingPoint:
+    """How a run's identifiers handle the operating point, and why (stored with the run).
+
+    Attributes
+    ----------
+    asked : str or float
+        The request's ``offset`` (``"auto"`` unless the user chose).
+    used : str, float or None
+        The offset the identifiers were built with (``"auto"``: each decides
+        from the record and reports it in its result); ``None`` when no chosen
+        method regresses on the output (the step response finds its own
+        baseline).
+    reason : str
+        The choice, in words (shown to the user).
+
+    Examples
+    --------
+    >>> OperatingPoint("fit", "fit", "fit, as asked").to_dict()["used"]
+    'fit'
+    """
+
+    asked: str | float
+    used: str | float | None
+    reason: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready dict (``asked``, ``used``, ``reason``)."""
+        return {"asked": self.asked, "used": self.used, "reason": self.reason}
+
+
+def choose_operating_point(asked: str | float, methods: Sequence[str]) -> OperatingPoint:
+    """Decide what the run's identifiers are given as ``offset``.
+
+    Parameters
+    ----------
+    asked : str or float
+        The request's ``offset``.
+    methods : sequence of str
+        The run's methods (only LSM, block LSM, MALSM and WLSM use an offset).
+
+    Returns
+    -------
+    OperatingPoint
+
+    Raises
+    ------
+    InvalidParameterError
+        For an explicit offset when no chosen method uses one.
+
+    Examples
+    --------
+    >>> choose_operating_point("initial", ["lsm"]).reason
+    'initial, as asked'
+    >>> choose_operating_point("auto", ["srm"]).used is None
+    True
+    """
+    if not any(m in OFFSET_METHODS for m in methods):
+        if asked != AUTO:
+            raise InvalidParameterError(
+                f"offset is a setting of {', '.join(OFFSET_METHODS)}, none of which is among "
+                f"the methods ({', '.join(methods)}); the step response finds its own baseline"
+            )
+        return OperatingPoint(
+            asked, None, "no chosen method uses it (the step response finds its baseline)"
+        )
+    if asked != AUTO:
+        return OperatingPoint(asked, asked, f"{asked}, as asked")
+    return OperatingPoint(
+        asked,
+        AUTO,
+        "auto: each method decides from the record (at ambient, settled under an input, "
+        "or moving) and reports the handling used and the operating point found",
+    )
 
 
 def check_request(request: RunRequest, limits: tuple[float, float]) -> dict[str, Any]:
@@ -243,3 +337,42 @@ def _check_w0(w0: Sequence[float], offset: str | float, methods: Sequence[str]) 
             else "2 entries [a0, b0] (3, with the constant term c0, only with offset 'fit')"
         )
         raise InvalidParameterError(f"w0 must have {allowed}, got {len(w0)}")
+
+
+@dataclass(frozen=True, slots=True)
+class RunPlan:
+    """A checked request, ready to run: what START needs from this module, in one value.
+
+    Attributes
+    ----------
+    inputs : dict
+        The experiment's input (:func:`check_request`'s result).
+    identifiers : dict
+        The online identifiers by method.
+    settings : dict
+        The settings stored with the run (``w0`` filled in).
+    operating_point : OperatingPoint
+        What the identifiers were given as ``offset``, and why.
+    """
+
+    inputs: dict[str, Any]
+    identifiers: dict[str, OnlineIdentifier]
+    settings: dict[str, Any]
+    operating_point: OperatingPoint
+
+
+def plan_run(request: RunRequest, limits: tuple[float, float]) -> RunPlan:
+    """Check ``request`` against the rig's input range ``limits`` and build its identifiers.
+
+    :func:`check_request`, :func:`choose_operating_point` and
+    :func:`build_run_identifiers`, in that order.
+
+    Raises
+    ------
+    InvalidParameterError
+        Naming the setting, what was given and what is allowed.
+    """
+    inputs = check_request(request, limits)
+    point = choose_operating_point(request.offset, parse_methods(request.methods))
+    identifiers, settings = build_run_identifiers(request, point.used)
+    return RunPlan(inputs, identifiers, settings, point)

@@ -12,21 +12,18 @@ instead START refuses a run longer than the rig's ``max_run_seconds``
 (:meth:`RunService.run_seconds`). When the turn ends otherwise (client gone,
 kicked, released...) the run is ended as by END, so that its data and
 estimates are kept. While a run holds a rig, the lab's device hub leaves the
-device to the runner. Storage is :mod:`.store`; the request's checks are
-:mod:`.request`; the operating point is :mod:`.operating_point`.
+device to the runner. Storage is :mod:`.store` (reading back by channel: :mod:`.export`); the
+request's checks and its operating point are :mod:`.request`.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from datetime import datetime, timedelta
+from datetime import timedelta
 from typing import Any
-
-from sqlalchemy import select
-from sqlalchemy.orm import Session
 
 from thermolab.errors import (
     AccessDeniedError,
@@ -41,24 +38,24 @@ from thermolab.lab.access import AccessService
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
-from thermolab.lab.db.models import ControlSession, RigRow, Run, RunStatus
+from thermolab.lab.db.models import Run, RunStatus
 from thermolab.lab.devices import DeviceHub
-from thermolab.lab.runs.operating_point import OperatingPoint, choose_operating_point
-from thermolab.lab.runs.request import RunRequest, build_run_identifiers, check_request
+from thermolab.lab.runs.export import RunExport, StoredSample
+from thermolab.lab.runs.request import RunRequest, plan_run
 from thermolab.lab.runs.statistics import method_statistics
 from thermolab.lab.runs.store import (
     DatabaseRecorder,
     RunRecord,
     RunStore,
-    StoredSample,
-    run_command,
+    add_run,
+    record_of,
+    run_channels,
     status_of,
 )
 from thermolab.lab.runs.timing import timing_summary
 from thermolab.lab.users import Principal
 from thermolab.records import ChannelSpec
 from thermolab.runner import EndReason, Event, EventBus, Experiment, RunResult
-from thermolab.runner.methods import parse_methods
 
 __all__ = ["RunService"]
 
@@ -129,6 +126,7 @@ class RunService:
         self._lock = threading.Lock()
 
         self._store = RunStore(db)
+        self._export = RunExport(db)
 
     def start(self, rig_id: str, who: Principal, request: RunRequest) -> RunRecord:
         """START a run on the rig ``who`` controls.
@@ -147,46 +145,13 @@ class RunService:
             If a run is already going on the rig, or the rig has no device.
         """
         published = self._hub.published(rig_id)
-        experiment_args = check_request(request, (published.input_min, published.input_max))
-        methods = parse_methods(request.methods)
+        plan = plan_run(request, (published.input_min, published.input_max))
         length = self._check_length(rig_id, request)
         driver = self._hub.driver(rig_id)
         if driver is None:
             raise ConflictError(f"rig {rig_id!r} has no device attached; a run needs one")
         self._await_previous_turn(rig_id)
-        point = choose_operating_point(request.offset, methods)
-        identifiers, settings = build_run_identifiers(request, point.used)
-
-        def begin(session: Session, rig: RigRow, control: ControlSession, now: datetime) -> int:
-            running = session.scalar(
-                select(Run.id).where(Run.rig_id == rig.id, Run.status == RunStatus.RUNNING.value)
-            )
-            if running is not None:
-                raise ConflictError(f"run {running} is already going on rig {rig.id!r}")
-            run = Run(
-                rig_id=rig.id,
-                user_id=who.user_id,
-                control_session_id=control.id,
-                status=RunStatus.RUNNING.value,
-                dt=request.dt,
-                n_samples=request.samples,
-                signal=request.signal,
-                setpoint=request.setpoint,
-                methods=list(identifiers),
-                meta={
-                    "settings": settings,
-                    "username": who.username,
-                    "operating_point": point.to_dict(),
-                    # The run's planned end: the queue's estimated wait counts it.
-                    "ends_at": (now + timedelta(seconds=length)).isoformat(),
-                },
-                started_at=now,
-                samples_stored=0,
-            )
-            session.add(run)
-            session.flush()
-            session.add(run_command(rig.id, control, who, now, "run_start", None, run.id, settings))
-            return run.id
+        channels = run_channels(published.input_unit, published.output_unit)
 
         # START and the end of a turn are one decision: the lab reconciles a rig (and
         # ends its run when the turn is over) under the hub's lock for that rig, so
@@ -197,7 +162,22 @@ class RunService:
             with self._lock:
                 if rig_id in self._active:
                     raise ConflictError(f"a run is already going on rig {rig_id!r}; END it first")
-            run_id, control_id = self._access.within_control(rig_id, who, "start a run", begin)
+            with self._access.controlled(rig_id, who, "start a run") as turn:
+                meta = {
+                    "operating_point": plan.operating_point.to_dict(),
+                    # The run's planned end: the queue's estimated wait counts it.
+                    "ends_at": (turn.now + timedelta(seconds=length)).isoformat(),
+                }
+                run_id = add_run(
+                    turn.session,
+                    turn.control,
+                    who,
+                    turn.now,
+                    settings=plan.settings,
+                    meta=meta,
+                    channels=channels,
+                )
+                control_id = turn.control.id
             recorder = DatabaseRecorder(
                 self._db, run_id, on_sample=lambda u, y: self._hub.note_sample(rig_id, u, y)
             )
@@ -205,12 +185,12 @@ class RunService:
                 driver,
                 request.dt,
                 request.samples,
-                identifiers=identifiers,
+                identifiers=plan.identifiers,
                 recorder=recorder,
                 events=EventBus(),
-                **experiment_args,
+                **plan.inputs,
             )
-            active = _Active(run_id, rig_id, control_id, experiment, identifiers)
+            active = _Active(run_id, rig_id, control_id, experiment, plan.identifiers)
             if self._access.desired(rig_id)[1] != control_id:
                 # The turn ended between our commit and now: the run never starts.
                 active.stopped_by = "the end of the turn at the controls"
@@ -220,7 +200,7 @@ class RunService:
                     f"the turn at the controls of rig {rig_id!r} ended while run {run_id} "
                     "was starting; the run was aborted before its first sample"
                 )
-            record = self.get(run_id, who)
+            record = self.record(run_id)
             if self._on_run is not None:
                 # Announced before the first sample, so that watchers see the run begin.
                 self._on_run(rig_id, "started", record)
@@ -350,7 +330,7 @@ class RunService:
             if thread.is_alive():
                 log.warning("%s: still storing after %.0f s", thread.name, timeout)
 
-    # -- run length and operating point ------------------------------------------------------
+    # -- run length ------------------------------------------------------
 
     def run_seconds(self, rig_id: str, samples: int, dt: float) -> float:
         """The real time a run of ``samples`` × ``dt`` takes on the rig.
@@ -372,10 +352,6 @@ class RunService:
                 f"at most {int(longest / per_sample + 1e-9)} samples"
             )
         return length
-
-    def operating_point(self, asked: str | float, methods: Sequence[str]) -> OperatingPoint:
-        """What a run's identifiers are given as ``offset`` (see :mod:`.operating_point`)."""
-        return choose_operating_point(asked, methods)
 
     # -- reading -------------------------------------------------------------------------
 
@@ -430,15 +406,15 @@ class RunService:
     def samples(self, run_id: int, who: Principal) -> Iterator[StoredSample]:
         """Yield ``(k, t, u, y)`` of every stored sample of a run, in order (checked as get)."""
         self._store.owned_run(run_id, who)
-        return self._store.samples(run_id)
+        return self._export.samples(run_id)
 
     def record_rows(
         self, run_id: int, who: Principal
     ) -> tuple[tuple[ChannelSpec, ...], Iterator[tuple[float, ...]]]:
         """Return a run's channels and its samples' values of them (checked as get)."""
         self._store.owned_run(run_id, who)
-        channels = self._store.channels(run_id)
-        return channels, self._store.channel_rows(run_id, channels)
+        channels = self._export.channels(run_id)
+        return channels, self._export.channel_rows(run_id, channels)
 
     def export(self, run_id: int, who: Principal) -> dict[str, Any]:
         """Return a run with its samples and every method's stored result (JSON-ready)."""
@@ -446,7 +422,7 @@ class RunService:
         _, methods = self._store.read(run_id)
         # The samples by channel name, with the channels' units (thermolab.records).
         exported: dict[str, Any] = json_safe(
-            {"run": record, **self._store.record(run_id), "methods": methods}
+            {"run": record, **self._export.record(run_id), "methods": methods}
         )
         return exported
 
@@ -498,13 +474,9 @@ class RunService:
             except ThermoLabError as exc:  # the figures are a summary: never lose the run
                 log.warning("run %s: statistics of %s failed: %s", active.run_id, name, exc)
             results[name] = (_params(identifier), data)
-        self._store.save_end(active.run_id, status, reason, now, results)
         simulated = self._config.rig(active.rig_id).kind == "sim"
         timing = timing_summary(result.t_read, result.lateness, result.dt, simulated=simulated)
-        with self._db.write() as session:
-            run = session.get(Run, active.run_id)
-            if run is not None:  # a new dict: the JSON column sees the change
-                run.meta = {**run.meta, "timing": timing}
+        self._store.save_end(active.run_id, status, reason, now, results, timing)
 
     def _record(self, run: Run, stored: dict[str, Any] | None) -> RunRecord:
         with self._lock:
@@ -520,34 +492,7 @@ class RunService:
         elif stored is not None:
             for name, result in stored.items():
                 results[name] = {k: v for k, v in result.items() if k != "trajectory"}
-        return RunRecord(
-            id=run.id,
-            rig_id=run.rig_id,
-            username=str(run.meta.get("username", "")),
-            user_id=run.user_id,
-            status=run.status,
-            dt=run.dt,
-            samples=run.n_samples,
-            samples_stored=run.samples_stored,
-            samples_taken=taken,
-            signal=run.signal,
-            setpoint=run.setpoint,
-            methods=list(run.methods),
-            settings=dict(run.meta.get("settings", {})),
-            started_at=run.started_at,
-            ended_at=run.ended_at,
-            end_reason=run.end_reason,
-            results=results,
-            operating_point=run.meta.get("operating_point"),
-            ends_at=_planned_end(run),
-            timing=run.meta.get("timing"),
-        )
-
-
-def _planned_end(run: Run) -> datetime | None:
-    """The run's planned end, stored at START (``None`` for runs from before it was)."""
-    ends_at = run.meta.get("ends_at")
-    return None if ends_at is None else datetime.fromisoformat(ends_at)
+        return record_of(run, results, taken)
 
 
 def _params(identifier: OnlineIdentifier | None) -> dict[str, Any]:

@@ -2,35 +2,33 @@
 
 Every sample goes to the ``samples`` table through :class:`DatabaseRecorder`,
 which the runner calls once per sample; it only appends to a buffer, and a
-writer thread inserts the buffer at least once a second, so a crash of the
-server loses at most about a second of samples. At the end the methods'
+writer thread inserts the buffer every half second, so a crash of the server
+loses at most about half a second of samples. At the end the methods'
 results (final estimate, trajectories and statistics) go to
 ``method_results`` and the run row records how it ended
-(:meth:`RunStore.save_end`).
+(:meth:`RunStore.save_end`). A run's row is made in the controller's locked
+transaction (:func:`add_run`) and keeps the run's channels as specs (name,
+unit, role, description: :func:`run_channels`, ``meta["channels"]``).
 
 A sample keeps every channel of the run (:data:`thermolab.records.RUN_CHANNELS`
-and the extra channels a rig or controller adds, see
-:class:`~thermolab.lab.db.models.Sample`); :meth:`RunStore.channels` and
-:meth:`RunStore.channel_rows` read them back by name, and the CSV export
-(:func:`samples_csv`) writes them with :mod:`thermolab.records`, the one
-record format.
+and the extra channels a rig or controller publishes, see
+:class:`~thermolab.lab.db.models.Sample`); reading them back by channel and
+the exports are :mod:`thermolab.lab.runs.export`.
 """
 
 from __future__ import annotations
 
-import io
 import logging
-import math
 import threading
-from collections.abc import Callable, Iterable, Iterator, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
 from datetime import datetime
 from typing import Any
 
 from sqlalchemy import func, insert, select, update
 from sqlalchemy.orm import Session
 
-from thermolab.errors import AccessDeniedError, NotFoundError, ThermoLabError
+from thermolab.errors import AccessDeniedError, ConflictError, NotFoundError, ThermoLabError
 from thermolab.jsonsafe import finite_or_none, json_safe
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import (
@@ -44,28 +42,22 @@ from thermolab.lab.db.models import (
 )
 from thermolab.lab.security import normalize_username
 from thermolab.lab.users import Principal
-from thermolab.records import RUN_CHANNELS, ChannelSpec, RecordWriter
+from thermolab.records import INPUT, OUTPUT, RUN_CHANNELS, ChannelSpec
 from thermolab.runner import EndReason
 
 __all__ = [
     "DatabaseRecorder",
     "RunRecord",
     "RunStore",
-    "StoredSample",
+    "add_run",
+    "channel_specs",
+    "record_of",
+    "run_channels",
     "run_command",
-    "samples_csv",
     "status_of",
 ]
 
 log = logging.getLogger(__name__)
-
-StoredSample = tuple[int, float, float, float]
-"""``(k, t, u, y)`` of a stored sample."""
-
-#: The channels of a sample stored before revision 0004 (no timing, no extras).
-_EARLY_CHANNELS: tuple[ChannelSpec, ...] = RUN_CHANNELS[:4]
-#: The standard channels, each a column of ``samples``.
-_COLUMNS = {c.name: getattr(Sample, c.name) for c in RUN_CHANNELS}
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,6 +72,8 @@ class RunRecord:
     end (START time plus its length in real time; ``None`` for older runs).
     ``timing`` is how well the run kept its sampling times, from its end
     (:func:`thermolab.lab.runs.timing.timing_summary`; ``None`` before).
+    ``channels`` describes every channel of its samples
+    (:meth:`~thermolab.records.ChannelSpec.to_dict`, record order).
     """
 
     id: int
@@ -102,6 +96,7 @@ class RunRecord:
     operating_point: dict[str, Any] | None = None
     ends_at: datetime | None = None
     timing: dict[str, Any] | None = None
+    channels: list[dict[str, str]] = field(default_factory=list)
 
 
 class DatabaseRecorder:
@@ -226,32 +221,6 @@ class DatabaseRecorder:
                 return
 
 
-def samples_csv(channels: Sequence[ChannelSpec], rows: Iterable[Sequence[float]]) -> Iterator[str]:
-    r"""The CSV text of a run's record, in chunks, in the one record format.
-
-    Written by :class:`thermolab.records.RecordWriter`.
-
-    Columns ``t,u,y`` first, then the other channels: the file feeds straight
-    into ``thermolab identify`` and :func:`thermolab.records.read_record`.
-
-    Examples
-    --------
-    >>> from thermolab.records import RUN_CHANNELS
-    >>> "".join(samples_csv(RUN_CHANNELS[:4], [(0.0, 1.0, 0.5, 0), (1.0, 1.0, 0.625, 1)]))
-    't,u,y,k\n0,1.0,0.5,0\n1,1.0,0.625,1\n'
-    """
-    buffer = io.StringIO()
-    writer = RecordWriter(buffer, channels)
-    writer.write_header()
-    for row in rows:
-        writer.write_row(row)
-        if writer.rows % 1000 == 0:
-            yield buffer.getvalue()
-            buffer.seek(0)
-            buffer.truncate()
-    yield buffer.getvalue()
-
-
 class RunStore:
     """Reads and writes the runs of the lab's database."""
 
@@ -309,79 +278,6 @@ class RunStore:
                 query = query.where(Run.user_id == who.user_id)
             return list(session.scalars(query))
 
-    def samples(self, run_id: int) -> Iterator[StoredSample]:
-        """Yield ``(k, t, u, y)`` of every stored sample of a run, in order."""
-        with self._db.read() as session:
-            rows = session.execute(
-                select(Sample.k, Sample.t, Sample.u, Sample.y)
-                .where(Sample.run_id == run_id)
-                .order_by(Sample.k)
-                .execution_options(yield_per=2000)
-            )
-            for row in rows:
-                yield (row[0], row[1], row[2], row[3])
-
-    def channels(self, run_id: int) -> tuple[ChannelSpec, ...]:
-        """The channels of a run's stored samples, in record order.
-
-        :data:`~thermolab.records.RUN_CHANNELS` and the extra channels of the
-        first sample (by name; ``t,u,y,k`` for samples stored before revision
-        0004, which have no timing).
-        """
-        with self._db.read() as session:
-            first = session.execute(
-                select(Sample.t_read, Sample.extra)
-                .where(Sample.run_id == run_id)
-                .order_by(Sample.k)
-                .limit(1)
-            ).first()
-        if first is None or first[0] is None:
-            return _EARLY_CHANNELS
-        return (*RUN_CHANNELS, *(ChannelSpec(name) for name in first[1] or {}))
-
-    def channel_rows(
-        self, run_id: int, channels: Sequence[ChannelSpec]
-    ) -> Iterator[tuple[float, ...]]:
-        """Yield each stored sample's values of ``channels`` (from :meth:`channels`), in order.
-
-        A value missing from a sample (an extra channel it lacks, a null) is NaN.
-        """
-        standard = [c.name for c in channels if c.name in _COLUMNS]
-        extra = [c.name for c in channels if c.name not in _COLUMNS]
-        order = [c.name for c in channels]
-        with self._db.read() as session:
-            rows = session.execute(
-                select(*(_COLUMNS[name] for name in standard), Sample.extra)
-                .where(Sample.run_id == run_id)
-                .order_by(Sample.k)
-                .execution_options(yield_per=2000)
-            )
-            for row in rows:
-                values = dict(zip(standard, row, strict=False))
-                stored = row[-1] or {}
-                values.update({name: stored.get(name) for name in extra})
-                yield tuple(math.nan if values[n] is None else values[n] for n in order)
-
-    def record(self, run_id: int) -> dict[str, Any]:
-        """A run's samples by channel, for ``export.json``.
-
-        Returns
-        -------
-        dict
-            ``{"channels": [ChannelSpec.to_dict(), ...], "samples": {name: [value, ...]}}``
-            (non-finite values as ``None``), in record order.
-        """
-        channels = self.channels(run_id)
-        columns: list[list[float]] = [[] for _ in channels]
-        for row in self.channel_rows(run_id, channels):
-            for column, value in zip(columns, row, strict=True):
-                column.append(value)
-        samples = {c.name: column for c, column in zip(channels, columns, strict=True)}
-        for c in channels:
-            if c.integer:
-                samples[c.name] = [int(v) for v in samples[c.name]]
-        return {"channels": [c.to_dict() for c in channels], "samples": json_safe(samples)}
-
     def save_end(
         self,
         run_id: int,
@@ -389,8 +285,9 @@ class RunStore:
         reason: str,
         now: datetime,
         results: dict[str, tuple[dict[str, Any], dict[str, Any]]],
+        timing: dict[str, Any] | None = None,
     ) -> None:
-        """Store how a run ended and each method's ``(params, result)``."""
+        """Store how a run ended, each method's ``(params, result)`` and the run's timing."""
         with self._db.write() as session:
             for name, (params, data) in results.items():
                 session.add(
@@ -406,6 +303,7 @@ class RunStore:
             stored = session.scalar(
                 select(func.count()).select_from(Sample).where(Sample.run_id == run_id)
             )
+            meta = session.scalar(select(Run.meta).where(Run.id == run_id)) or {}
             session.execute(
                 update(Run)
                 .where(Run.id == run_id)
@@ -414,6 +312,7 @@ class RunStore:
                     ended_at=now,
                     end_reason=reason,
                     samples_stored=stored or 0,
+                    meta=meta if timing is None else {**meta, "timing": timing},
                 )
             )
 
@@ -466,3 +365,113 @@ def run_command(
         payload=None if payload is None else json_safe(payload),
         applied=True,
     )
+
+
+def run_channels(
+    input_unit: str, output_unit: str, extra: Sequence[ChannelSpec] = ()
+) -> tuple[ChannelSpec, ...]:
+    """A run's channels: :data:`~thermolab.records.RUN_CHANNELS` in the rig's units, then ``extra``.
+
+    ``extra`` are what a rig or controller publishes (``Experiment.channels``
+    after the standard ones: a PID's ``r, u_pid, e, auto``...).
+
+    Examples
+    --------
+    >>> [(c.name, c.unit) for c in run_channels("%", "degC")[1:3]]
+    [('u', '%'), ('y', 'degC')]
+    """
+    units = {INPUT.name: input_unit, OUTPUT.name: output_unit}
+    standard = tuple(replace(c, unit=units.get(c.name, c.unit)) for c in RUN_CHANNELS)
+    return (*standard, *extra)
+
+
+def add_run(
+    session: Session,
+    control: ControlSession,
+    who: Principal,
+    now: datetime,
+    *,
+    settings: dict[str, Any],
+    meta: dict[str, Any],
+    channels: Sequence[ChannelSpec],
+) -> int:
+    """Make a run's row and its ``run_start`` command in the controller's transaction.
+
+    ``settings`` is what was asked (``dt``, ``samples``, ``signal``,
+    ``setpoint``, ``methods``...), as stored; ``meta`` what the run keeps
+    besides (operating point, planned end); the channels are kept as specs.
+
+    Raises
+    ------
+    ConflictError
+        If a run is already going on the rig.
+    """
+    rig_id = control.rig_id
+    running = session.scalar(
+        select(Run.id).where(Run.rig_id == rig_id, Run.status == RunStatus.RUNNING.value)
+    )
+    if running is not None:
+        raise ConflictError(f"run {running} is already going on rig {rig_id!r}")
+    run = Run(
+        rig_id=rig_id,
+        user_id=who.user_id,
+        control_session_id=control.id,
+        status=RunStatus.RUNNING.value,
+        dt=settings["dt"],
+        n_samples=settings["samples"],
+        signal=settings["signal"],
+        setpoint=settings["setpoint"],
+        methods=list(settings["methods"]),
+        meta={
+            "settings": settings,
+            "username": who.username,
+            **meta,
+            "channels": [_spec_json(c) for c in channels],
+        },
+        started_at=now,
+        samples_stored=0,
+    )
+    session.add(run)
+    session.flush()
+    session.add(run_command(rig_id, control, who, now, "run_start", None, run.id, settings))
+    return run.id
+
+
+def record_of(run: Run, results: dict[str, Any], samples_taken: int) -> RunRecord:
+    """A run's row as a :class:`RunRecord` (``results`` and progress given by the caller)."""
+    meta = run.meta
+    ends_at = meta.get("ends_at")  # None for runs stored before it was kept
+    stored = meta.get("channels")
+    return RunRecord(
+        id=run.id,
+        rig_id=run.rig_id,
+        username=str(meta.get("username", "")),
+        user_id=run.user_id,
+        status=run.status,
+        dt=run.dt,
+        samples=run.n_samples,
+        samples_stored=run.samples_stored,
+        samples_taken=samples_taken,
+        signal=run.signal,
+        setpoint=run.setpoint,
+        methods=list(run.methods),
+        settings=dict(meta.get("settings", {})),
+        started_at=run.started_at,
+        ended_at=run.ended_at,
+        end_reason=run.end_reason,
+        results=results,
+        operating_point=meta.get("operating_point"),
+        ends_at=None if ends_at is None else datetime.fromisoformat(ends_at),
+        timing=meta.get("timing"),
+        channels=[] if stored is None else [c.to_dict() for c in channel_specs(stored)],
+    )
+
+
+def _spec_json(spec: ChannelSpec) -> dict[str, Any]:
+    # to_dict() is what clients see; the store keeps how the CSV writes it too.
+    return {**spec.to_dict(), "integer": spec.integer, "digits": spec.digits}
+
+
+def channel_specs(stored: Sequence[dict[str, Any]]) -> tuple[ChannelSpec, ...]:
+    """The channel specs stored with a run (``meta["channels"]``, see :func:`add_run`)."""
+    return tuple(ChannelSpec(**item) for item in stored)

@@ -1,0 +1,142 @@
+"""A stored run read back by channel: the CSV and JSON exports.
+
+:meth:`RunExport.channels` gives a run's channel specs (those stored with it,
+or for older runs what its samples hold), :meth:`RunExport.channel_rows`
+each sample's values of them, and :func:`samples_csv` writes them with
+:mod:`thermolab.records`, the one record format.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from collections.abc import Iterable, Iterator, Sequence
+from typing import Any
+
+from sqlalchemy import select
+
+from thermolab.jsonsafe import json_safe
+from thermolab.lab.db import Database
+from thermolab.lab.db.models import Run, Sample
+from thermolab.lab.runs.store import channel_specs
+from thermolab.records import RUN_CHANNELS, ChannelSpec, RecordWriter
+
+__all__ = ["RunExport", "StoredSample", "samples_csv"]
+
+StoredSample = tuple[int, float, float, float]
+"""``(k, t, u, y)`` of a stored sample."""
+
+#: The channels of a sample stored before revision 0004 (no timing, no extras).
+_EARLY_CHANNELS: tuple[ChannelSpec, ...] = RUN_CHANNELS[:4]
+#: The standard channels, each a column of ``samples``.
+_COLUMNS = {c.name: getattr(Sample, c.name) for c in RUN_CHANNELS}
+
+
+def samples_csv(channels: Sequence[ChannelSpec], rows: Iterable[Sequence[float]]) -> Iterator[str]:
+    r"""The CSV text of a run's record, in chunks, in the one record format.
+
+    Written by :class:`thermolab.records.RecordWriter`.
+
+    Columns ``t,u,y`` first, then the other channels: the file feeds straight
+    into ``thermolab identify`` and :func:`thermolab.records.read_record`.
+
+    Examples
+    --------
+    >>> from thermolab.records import RUN_CHANNELS
+    >>> "".join(samples_csv(RUN_CHANNELS[:4], [(0.0, 1.0, 0.5, 0), (1.0, 1.0, 0.625, 1)]))
+    't,u,y,k\n0,1.0,0.5,0\n1,1.0,0.625,1\n'
+    """
+    buffer = io.StringIO()
+    writer = RecordWriter(buffer, channels)
+    writer.write_header()
+    for row in rows:
+        writer.write_row(row)
+        if writer.rows % 1000 == 0:
+            yield buffer.getvalue()
+            buffer.seek(0)
+            buffer.truncate()
+    yield buffer.getvalue()
+
+
+class RunExport:
+    """Reads a run's samples back by channel (ownership is checked by the caller)."""
+
+    def __init__(self, db: Database) -> None:
+        self._db = db
+
+    def samples(self, run_id: int) -> Iterator[StoredSample]:
+        """Yield ``(k, t, u, y)`` of every stored sample of a run, in order."""
+        with self._db.read() as session:
+            rows = session.execute(
+                select(Sample.k, Sample.t, Sample.u, Sample.y)
+                .where(Sample.run_id == run_id)
+                .order_by(Sample.k)
+                .execution_options(yield_per=2000)
+            )
+            for row in rows:
+                yield (row[0], row[1], row[2], row[3])
+
+    def channels(self, run_id: int) -> tuple[ChannelSpec, ...]:
+        """The channels of a run's stored samples, in record order.
+
+        The specs stored with the run (:func:`add_run`). A run stored before
+        the lab kept them: :data:`~thermolab.records.RUN_CHANNELS` and the
+        extra channels of the first sample, by name (``t,u,y,k`` for samples
+        stored before revision 0004, which have no timing).
+        """
+        with self._db.read() as session:
+            meta = session.scalar(select(Run.meta).where(Run.id == run_id))
+            if meta and "channels" in meta:
+                return channel_specs(meta["channels"])
+            first = session.execute(
+                select(Sample.t_read, Sample.extra)
+                .where(Sample.run_id == run_id)
+                .order_by(Sample.k)
+                .limit(1)
+            ).first()
+        if first is None or first[0] is None:
+            return _EARLY_CHANNELS
+        return (*RUN_CHANNELS, *(ChannelSpec(name) for name in first[1] or {}))
+
+    def channel_rows(
+        self, run_id: int, channels: Sequence[ChannelSpec]
+    ) -> Iterator[tuple[float, ...]]:
+        """Yield each stored sample's values of ``channels`` (from :meth:`channels`), in order.
+
+        A value missing from a sample (an extra channel it lacks, a null) is NaN.
+        """
+        standard = [c.name for c in channels if c.name in _COLUMNS]
+        extra = [c.name for c in channels if c.name not in _COLUMNS]
+        order = [c.name for c in channels]
+        with self._db.read() as session:
+            rows = session.execute(
+                select(*(_COLUMNS[name] for name in standard), Sample.extra)
+                .where(Sample.run_id == run_id)
+                .order_by(Sample.k)
+                .execution_options(yield_per=2000)
+            )
+            for row in rows:
+                values = dict(zip(standard, row, strict=False))
+                stored = row[-1] or {}
+                values.update({name: stored.get(name) for name in extra})
+                yield tuple(math.nan if values[n] is None else values[n] for n in order)
+
+    def record(self, run_id: int) -> dict[str, Any]:
+        """A run's samples by channel, for ``export.json``.
+
+        Returns
+        -------
+        dict
+            ``{"channels": [ChannelSpec.to_dict(), ...], "samples": {name: [value, ...]}}``
+            (non-finite values as ``None``), in record order.
+        """
+        channels = self.channels(run_id)
+        columns: list[list[float]] = [[] for _ in channels]
+        for row in self.channel_rows(run_id, channels):
+            for column, value in zip(columns, row, strict=True):
+                column.append(value)
+        samples = {c.name: column for c, column in zip(channels, columns, strict=True)}
+        for c in channels:
+            if c.integer:
+                samples[c.name] = [int(v) for v in samples[c.name]]
+        return {"channels": [c.to_dict() for c in channels], "samples": json_safe(samples)}
