@@ -100,3 +100,20 @@ export function fmt(v, digits = 6) {
   if (mag >= 1e6 || mag < 1e-4) return v.toExponential(Math.max(0, digits - 1)).replace(".", decimalMark());
   return formatNumber(Number(v.toPrecision(digits)), { useGrouping: false, maximumFractionDigits: 20 });
 }
+
+/** Decimals the paper's Tables I/II print Ks and Ts with (0.140090, 250.126233). */
+export const FIGURE_DECIMALS = 6;
+
+/**
+ * A model parameter (Ks, Ts, θ, their statistics) as the paper's tables print
+ * it: six decimals, so the page reads digit by digit against Table I and
+ * `thermolab reproduce table1` (fmt's six significant digits would cut
+ * 250.126233 to 250.126). Very large or small values fall back to fmt.
+ * @param {number | null | undefined} v
+ */
+export function fmtFigure(v) {
+  if (v === null || v === undefined || !Number.isFinite(v)) return "–";
+  const mag = Math.abs(v);
+  if (mag !== 0 && (mag >= 1e6 || mag < 1e-4)) return fmt(v);
+  return formatNumber(v, { useGrouping: false, minimumFractionDigits: FIGURE_DECIMALS, maximumFractionDigits: FIGURE_DECIMALS });
+}

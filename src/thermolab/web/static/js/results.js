@@ -14,7 +14,8 @@ import { t } from "./i18n.js";
  * @typedef {{mean: number, max: number, min: number}} Stat
  * @typedef {object} MethodFigures
  * @property {string} method
- * @property {{K: number | null, tau: number | null, W: number[] | null}} final  the latest/final estimate
+ * @property {{K: number | null, tau: number | null, theta: number | null, Klast: number | null,
+ *   W: number[] | null}} final  the latest/final estimate (θ: dead time, s; Klast: SRM's last-sample gain)
  * @property {Stat | null} K       statistics (one value: mean = max = min)
  * @property {Stat | null} tau
  * @property {{K: number | null, tau: number | null}} convergedAt  samples to converge
@@ -61,6 +62,8 @@ export function readResult(stored, method) {
     final: {
       K: finite(latest.K) ? latest.K : null,
       tau: finite(latest.tau) ? latest.tau : null,
+      theta: finite(extras.theta) ? extras.theta : null,
+      Klast: finite(extras.K_last_sample) ? extras.K_last_sample : null,
       W: Array.isArray(latest.W) ? latest.W : null,
     },
     valid,
