@@ -38,11 +38,12 @@ TABLE1_SPEEDUP = 1000.0
 ROWS = ("SRM", "LSM(1)", "MALSM", "WLSM(1)", "WLSM(2)", "WLSM(3)")
 # Rig per row that takes one (SRM and LSM(1) are one run of panel 1).
 RIGS = {"SRM": "t1-step", "MALSM": "t1-malsm", "WLSM(1)": "t1-w1", "WLSM(2)": "t1-w2",
-        "WLSM(3)": "t1-w3", "practical": "t1-practical"}  # fmt: skip
+        "WLSM(3)": "t1-w3", "practical": "t1-practical",
+        "practical-2": "t1-practical-2"}  # fmt: skip
 
 CONFIG = 'title = "Table I through the browser"\n' + "".join(
     f'\n[[rigs]]\nid = "{rig}"\ntitle = "Twin {rig}"\n'
-    f'spec = "{"sim:paper-practical" if name == "practical" else "sim"}"\n'
+    f'spec = "{"sim:paper-practical" if name.startswith("practical") else "sim"}"\n'
     for name, rig in RIGS.items()
 )
 
@@ -263,3 +264,74 @@ def _one(rows: list[dict[str, Any]], method: str) -> dict[str, Any]:
     found = [r for r in rows if r["method"] == method]
     assert len(found) == 1, (method, rows)
     return found[0]
+
+
+def test_the_paper_practical_twin_scatters_and_the_page_says_why(
+    student: Any, fast_lab: Any, table1: dict[str, RowResult], artifacts: Path
+) -> None:
+    """Table II's lesson: with noise, quantisation and jitter, short windows scatter and
+    the equation-error fit is biased; the page says why and never shows them as final."""
+    page = student
+    # Panel 2: MALSM's 100-sample windows scatter (the paper's Ts 224-597 s).
+    malsm = table1["MALSM"]
+    lo, hi, _ = malsm.row.signal.split(":")[1:]
+    take_control(page, fast_lab, RIGS["practical"])
+    run_panel(
+        page,
+        "malsm",
+        {
+            "dt": "1",
+            "n": str(malsm.samples),
+            "window": str(malsm.row.window),
+            "low": lo,
+            "high": hi,
+        },
+        automatic=True,
+    )
+    row = "[data-testid=results-malsm] [data-method=malsm]"
+    page.wait_for_selector(f"{row}[data-trusted=false]")
+    assert cell(page, row, "status") == "not trusted: see the warnings"
+    warning = "[data-testid=results-malsm] [data-testid=estimate-warnings] li[data-method=malsm]"
+    assert "did not converge" in page.inner_text(warning)
+    assert "Table II" in page.inner_text(warning)
+    page.locator(".panels").screenshot(path=str(artifacts / "practical-panel-2.png"))
+    release(page)
+
+    # Panel 1 on a cold practical twin: LSM's residuals are not white (noise biases
+    # the equation-error fit): not trusted, and the page says to compare with OE.
+    srm = table1["SRM"]
+    low, high, at = re.fullmatch(r"step:([-\d.]+):([-\d.]+)@([\d.]+)", srm.row.signal).groups()
+    take_control(page, fast_lab, RIGS["practical-2"])
+    run_panel(
+        page,
+        "srm-lsm",
+        {"dt": "1", "n": str(srm.samples), "setpoint": low, "stepTo": high, "stepAt": at},
+        automatic=False,
+        planned=True,
+    )
+    lsm_row = "[data-testid=results-srm-lsm] [data-method=lsm]"
+    page.wait_for_selector(f"{lsm_row}[data-trusted=false]")
+    assert cell(page, lsm_row, "status") == "not trusted: see the warnings"
+    warnings = page.inner_text(
+        "[data-testid=results-srm-lsm] [data-testid=estimate-warnings] li[data-method=lsm]"
+    )
+    assert "residual test failed" in warnings
+    assert "measurement noise" in warnings
+    page.locator(".panels").screenshot(path=str(artifacts / "practical-panel-1.png"))
+    release(page)
+
+    # The run's page shows the scatter (mean / max / min) and why none of it is final.
+    page.goto(f"{fast_lab.url}/#/runs")
+    page.wait_for_selector("table.runs tbody tr")
+    malsm_run = page.get_attribute(
+        f"table.runs tbody tr:has(td:text-is('{RIGS['practical']}'))", "data-run"
+    )
+    page.goto(f"{fast_lab.url}/#/runs/{malsm_run}")
+    result = "tr[data-method=malsm]"
+    page.wait_for_selector(f"{result}[data-trusted=false]")
+    _, high_k, low_k = (float(v) for v in cell(page, result, "Kstats").split(" / "))
+    assert high_k > 1.1 * low_k  # Table II's scatter, shown as it is
+    assert "did not converge" in page.inner_text(result)
+    assert "never" in cell(page, result, "conv")
+    page.screenshot(path=str(artifacts / "practical-run.png"), full_page=True)
+    assert page.errors == []

@@ -24,7 +24,9 @@ import { t } from "./i18n.js";
  * @property {boolean} valid
  * @property {string | null} reason  why there is no first-order model
  * @property {string[]} warnings
- * @property {boolean} trusted  false when the library flags the model (it never looks final then)
+ * @property {boolean} trusted  false when the library flags the model or it never converged
+ *   (it never looks final then)
+ * @property {boolean} converged  false when the server's count found no convergence
  * @property {{k: number[], K: number[], tau: number[]} | null} trajectory  for the charts
  */
 
@@ -69,7 +71,9 @@ export function readResult(stored, method) {
     valid,
     reason: valid ? null : (extras.reason ?? s.error ?? (s.latest ? t("estimate.noModel") : t("estimate.none"))),
     warnings,
-    trusted: valid && (typeof extras.trusted === "boolean" ? extras.trusted : warnings.length === 0),
+    // Estimates that never converged scatter (the paper's Table II): never a final model.
+    converged: figures?.converged !== false,
+    trusted: valid && figures?.converged !== false && (typeof extras.trusted === "boolean" ? extras.trusted : warnings.length === 0),
     // From the server once the run is over; while it runs, the latest estimate alone.
     K: figures ? stat(figures.K) : valid ? one(latest.K) : null,
     tau: figures ? stat(figures.tau) : valid ? one(latest.tau) : null,

@@ -122,7 +122,7 @@ export function readRun(r) {
   const results = r.results && typeof r.results === "object" ? r.results : {};
   for (const [method, res] of Object.entries(results)) {
     const latest = res?.latest;
-    if (latest && typeof latest === "object") estimates.set(method, readEstimate(latest));
+    if (latest && typeof latest === "object") estimates.set(method, withConvergence(readEstimate(latest), res));
   }
   return {
     raw: r,
@@ -174,6 +174,28 @@ export function readEstimate(e) {
     operatingPoint: e.extras?.operating_point && typeof e.extras.operating_point === "object" ? e.extras.operating_point : null,
     trusted: e.extras?.trusted ?? e.trusted ?? estimateWarnings(e).length === 0,
   };
+}
+
+/**
+ * Whether a result's estimates converged, as the server judged them at END
+ * (`stats.converged`: the paper's count, over the samples after convergence):
+ * false only when the server says so; true for methods with a single
+ * estimate and for runs stored before the server judged it.
+ * @param {any} res  a run's result ({latest, stats, ...})
+ */
+export function converged(res) {
+  return res?.stats?.converged !== false;
+}
+
+/**
+ * An estimate whose run never converged is one point of a scatter (the
+ * paper's Table II), never a final model: it is marked untrusted and says so.
+ * @param {ReturnType<typeof readEstimate>} est
+ * @param {any} res
+ */
+function withConvergence(est, res) {
+  if (converged(res)) return { ...est, notConverged: false };
+  return { ...est, notConverged: true, trusted: false };
 }
 
 /** The warnings an estimate carries (its extras', from the online identifiers). */

@@ -13,12 +13,12 @@ import { t } from "../i18n.js";
 
 /**
  * Why a method has no model, and its warnings: the server's sentences, "–" when none.
- * @param {{valid: boolean, trusted?: boolean, reason?: string | null, warnings: string[]}} f
+ * @param {{valid: boolean, trusted?: boolean, converged: boolean, reason?: string | null, warnings: string[]}} f
  * @returns {Array<Node | string>}
  */
 function reasonCell(f) {
   const status = f.valid ? (f.trusted === false ? t("estimate.notTrusted") : null) : f.reason ? serverText(f.reason) : t("estimate.noModel");
-  const notes = [status, ...f.warnings.map(serverText)];
+  const notes = [status, f.converged ? null : t("run.notConverged"), ...f.warnings.map(serverText)];
   const shown = /** @type {Array<Node | string>} */ (notes.filter((n) => n !== null && n !== ""));
   return shown.length ? shown.flatMap((n, i) => (i ? ["; ", n] : [n])) : ["–"];
 }

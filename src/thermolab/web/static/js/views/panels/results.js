@@ -70,6 +70,7 @@ export function warningsList(methods, estimates, timing = null) {
   const items = [];
   for (const w of timing?.warnings ?? []) items.push(h("li", { "data-method": "timing" }, serverText(w)));
   for (const m of methods) {
+    if (estimates?.get(m)?.notConverged) items.push(h("li", { "data-method": m, "data-kind": "not-converged" }, t("panel.notConverged", { method: methodTitle(m) })));
     for (const w of estimates?.get(m)?.warnings ?? []) items.push(h("li", { "data-method": m }, tParts("panel.warning", { method: methodTitle(m), warning: serverText(w) })));
   }
   if (!items.length) return null;
