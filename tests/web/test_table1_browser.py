@@ -19,6 +19,8 @@ scatter instead, and the page must say why and never show it as final.
 
 from __future__ import annotations
 
+import json
+import os
 import re
 import time
 from collections.abc import Iterator
@@ -48,6 +50,8 @@ CONFIG = 'title = "Table I through the browser"\n' + "".join(
 )
 
 ROLE = "[data-testid=access-role]"
+# Where the Table I test writes the figures it read off the page (for the benchmark).
+FIGURES_FILE = "THERMOLAB_TABLE1_FIGURES"
 
 
 @pytest.fixture(scope="module")
@@ -255,8 +259,21 @@ def test_the_three_panels_on_the_twin_give_table_one(
             if page_row[key] != want:
                 mismatches.append(f"{name} {key}: page {page_row[key]!r}, library {want!r}")
     assert mismatches == [], "\n".join(mismatches)
+    # The JSON export carries θ beside Ks and Ts for every method (the CSV holds samples).
+    thetas = page.evaluate(
+        """async (ids) => Promise.all(ids.map(async (id) => {
+             const r = await (await fetch(`/api/runs/${id}/export.json`)).json();
+             return Object.values(r.run.results).map((m) => m.latest.extras.theta); }))""",
+        sorted({r["run"] for r in shown}),
+    )
+    assert [theta for run in thetas for theta in run] == [0.0] * 6
     print("\nTable I through the browser at speed-up", TABLE1_SPEEDUP, "wall s:",
           {k: round(v, 2) for k, v in walls.items()})  # fmt: skip
+    if out := os.environ.get(FIGURES_FILE):
+        # benchmarks/bench_table1_browser.py prints these beside the command line's.
+        figures = {"speedup": TABLE1_SPEEDUP, "walls": walls, "page": by_run,
+                   "samples": {name: table1[name].samples for name in ROWS}}  # fmt: skip
+        Path(out).write_text(json.dumps(figures), encoding="utf-8")
     assert page.errors == []
 
 
