@@ -101,3 +101,23 @@ def test_a_run_that_never_converged_is_not_trusted_and_says_why(module_page: Any
     assert r["warning"].startswith("Moving-window LS (MALSM): did not converge.")
     # The server's verdict decides; runs stored before it judged keep their trust.
     assert r["results"] == [[False, False, 0], [True, True, 0], [True, True, 0]]
+
+
+def test_the_model_drawn_over_the_data_has_its_dead_time(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        """
+        const { predict } = await import('/js/model.js');
+        const u = [10, 10, 10, 10, 10];
+        const b = 1 - Math.exp(-1);
+        return { b, none: Array.from(predict(u, 0, { K: 1, tau: 1 }, 1)),
+                 late: Array.from(predict(u, 0, { K: 1, tau: 1, theta: 2 }, 1)),
+                 warm: Array.from(predict(u, 0, { K: 1, tau: 1, theta: 2 }, 1, undefined, 10)) };
+        """,
+    )
+    b = r["b"]
+    assert r["none"][:2] == [0, pytest.approx(10 * b)]
+    # θ = 2 s at dt = 1 s: the input reaches the output two samples later (off before START).
+    assert r["late"][:4] == [0, 0, 0, pytest.approx(10 * b)]
+    # A record that starts settled at 10 (K = 1): the input before it was on, so it stays.
+    assert r["warm"] == pytest.approx([10] * 5)

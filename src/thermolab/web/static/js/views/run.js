@@ -129,7 +129,7 @@ function render(main, exported, charts) {
     if (!f || y.length === 0) yhat.fill(Number.NaN);
     else {
       const base = predictionBase(run.operatingPoint?.used, f.final.W, y[0]);
-      predict(u, base, { K: f.final.K ?? Number.NaN, tau: f.final.tau ?? Number.NaN }, run.dt, yhat, y[0] - base);
+      predict(u, base, { K: f.final.K ?? Number.NaN, tau: f.final.tau ?? Number.NaN, theta: f.final.theta ?? 0 }, run.dt, yhat, y[0] - base);
     }
   };
   computeModel();
