@@ -153,6 +153,17 @@ def test_the_three_panels_on_the_twin_give_table_one(
     # Panel 1: the step planned at the row's time (at a speed-up of 1000 a change
     # of set point made by hand lands on a sample nobody can choose).
     take_control(page, fast_lab, RIGS["SRM"])
+    # A step planned after the run's end is refused before anything is sent.
+    sent: list[str] = []
+    page.on("request", lambda r: sent.append(r.url) if r.url.endswith("/runs") else None)
+    page.set_checked("[data-panel-form=srm-lsm] input[name=planned]", True)
+    page.fill("#srm-lsm-n", str(srm.samples))
+    page.fill("#srm-lsm-stepAt", str(srm.samples))
+    page.click("[data-panel-form=srm-lsm] button[data-action=start]")
+    error = f"The step must come before the run ends ({srm.samples} s)."
+    assert page.inner_text("#srm-lsm-stepAt-err") == error
+    assert page.evaluate("() => document.activeElement.id") == "srm-lsm-stepAt"
+    assert sent == []
     walls["SRM, LSM(1)"] = run_panel(
         page, "srm-lsm",
         {"dt": "1", "n": str(srm.samples), "setpoint": low, "stepTo": high, "stepAt": at},
