@@ -285,6 +285,12 @@ def test_unknown_things_are_json_errors(app_client: Client) -> None:
         404,
         "no rig called 'nope'; the lab has: twin, other",
     )
+    # START on a rig that does not exist (it was a KeyError and a 500).
+    response = ana.post("/api/rigs/nope/runs", json={"dt": 1, "samples": 10, "setpoint": 0})
+    assert (response.status_code, response.json()["detail"]) == (
+        404,
+        "no rig called 'nope'; the lab has: twin, other",
+    )
     response = ana.get("/api/nothing")
     assert (response.status_code, response.json()["detail"]) == (
         404,

@@ -548,7 +548,10 @@ def test_each_methods_statistics_are_stored_as_thermolab_ident_computes_them(
                 rtol=1e-9,
             )
         assert stats["converged_at"] == trajectory.converged_at(tol=0.01, last=2000)
+        # The paper's verdict, which the page uses to never show a scatter as final.
+        assert stats["converged"] is trajectory.after_convergence(0.01)["converged"]
     assert done.results["malsm"]["stats"]["converged_at"] == {"K": 99, "tau": 99}
+    assert done.results["malsm"]["stats"]["converged"] is True
     assert done.results["wlsm"]["stats"]["converged_at"]["K"] is not None
     # LSM's one estimate is its own mean, max and min; it does not converge.
     stats, latest = done.results["lsm"]["stats"], done.results["lsm"]["latest"]

@@ -183,9 +183,12 @@ def password(user: str) -> str:
 class LabServer:
     """A running ``thermolab serve``: its URL and data folder; it can be restarted."""
 
-    def __init__(self, data_dir: Path, port: int, env: dict[str, str]) -> None:
+    def __init__(
+        self, data_dir: Path, port: int, env: dict[str, str], speedup: float = SPEEDUP
+    ) -> None:
         self.data_dir = data_dir
         self.port = port
+        self.speedup = speedup
         self.url = f"http://127.0.0.1:{port}"
         self.log = data_dir / "server.log"
         self._env = env
@@ -207,7 +210,7 @@ class LabServer:
                     "--port",
                     str(self.port),
                     "--speedup",
-                    str(SPEEDUP),
+                    str(self.speedup),
                 ),
                 stdout=out,
                 stderr=subprocess.STDOUT,
@@ -244,15 +247,24 @@ def _thermolab(data_dir: Path, *args: str) -> list[str]:
 
 
 @contextlib.contextmanager
-def running_lab(data_dir: Path, users: dict[str, str] = USERS) -> Iterator[LabServer]:
-    """Create the users, start ``thermolab serve``, wait until it answers; stop it after."""
-    (data_dir / "lab.toml").write_text(CONFIG, encoding="utf-8")
+def running_lab(
+    data_dir: Path,
+    users: dict[str, str] = USERS,
+    *,
+    config: str = CONFIG,
+    speedup: float = SPEEDUP,
+) -> Iterator[LabServer]:
+    """Create the users, start ``thermolab serve``, wait until it answers; stop it after.
+
+    ``config`` is the lab's TOML file and ``speedup`` its ``--speedup`` (twins only).
+    """
+    (data_dir / "lab.toml").write_text(config, encoding="utf-8")
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     # The first account creates the database; the others are then added while
     # the server starts (its start-up finds the schema already there).
     accounts = list(users.items())
     _wait_users(_add_users(data_dir, accounts[:1], env))
-    server = LabServer(data_dir, _free_port(), env)
+    server = LabServer(data_dir, _free_port(), env, speedup)
     server.start()
     try:
         _wait_users(_add_users(data_dir, accounts[1:], env))
@@ -355,3 +367,19 @@ def own_lab(tmp_path: Path, browser: Any) -> Iterator[LabServer]:
     """A lab of its own (one student), for a test that stops and restarts it."""
     with running_lab(tmp_path, {"sam": "student"}) as server:
         yield server
+
+
+@pytest.fixture(scope="session")
+def start_lab() -> Any:
+    """``start_lab(data_dir, users, config=..., speedup=...)``: a lab of a test's own making.
+
+    The context manager of :func:`running_lab`, for a module that needs another
+    configuration (its own rigs, another speed-up).
+    """
+    return running_lab
+
+
+@pytest.fixture(scope="session")
+def context_for(browser: Any) -> Any:
+    """``context_for(lab, user, **context_options)`` -> a new context logged in to ``lab``."""
+    return functools.partial(logged_in_context, browser)

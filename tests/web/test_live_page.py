@@ -249,7 +249,9 @@ def test_joining_half_way_replays_the_runs_history_and_nothing_else(page: Any) -
     )
     assert drawn(page, "Output y and model prediction against time") == 6
     assert page.inner_text("[data-testid=run-status-wlsm]").startswith(f"Run #{RUN} running")
-    assert page.inner_text("[data-panel-view=wlsm] [data-method=wlsm] [data-field=K]") == "0.2"
+    assert (
+        page.inner_text("[data-panel-view=wlsm] [data-method=wlsm] [data-field=K]") == "0.200000"
+    )  # six decimals, as the paper prints
     assert "Run 5" not in page.inner_text("[data-testid=chart-note]")
 
 

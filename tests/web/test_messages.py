@@ -232,7 +232,7 @@ def test_a_translation_keeps_the_placeholders_and_plural_forms(language: str) ->
 #: the paper's method acronyms and the languages' own names (autonyms).
 SAME_IN_EVERY_LANGUAGE = {
     "ThermoLab", "Ks", "Ts", "CSV", "JSON", "PID", "FIFO", "LSM", "MALSM", "WLSM", "SRM",
-    "pmax", "W0", "a0", "b0", "Hz", "V", "s", "u", "y", "t", "k", "P", "I",
+    "pmax", "W0", "a0", "b0", "Hz", "V", "s", "u", "y", "t", "k", "P", "I", "θ",
     "English", "Español", "Português", "Brasil",
 }  # fmt: skip
 #: Messages whose words happen to be the same in a language (checked one by one).

@@ -49,7 +49,9 @@ def method_statistics(
         :meth:`~thermolab.ident.Trajectory.converged_at` (within ±
         :data:`CONVERGENCE_TOL`) for block and recursive methods and ``None``
         for SRM and LSM, whose one estimate does not converge. SRM and LSM give
-        their estimate as mean, max and min.
+        their estimate as mean, max and min. Block and recursive methods add
+        ``converged``: whether the estimates converge as the paper counts it
+        (:meth:`~thermolab.ident.Trajectory.after_convergence`).
 
     Examples
     --------
@@ -72,6 +74,10 @@ def method_statistics(
             if math.isfinite(stats[name]["mean"]):
                 out[name] = stats[name]
         out["converged_at"] = trajectory.converged_at(tol=CONVERGENCE_TOL, last=STATS_LAST)
+        # The paper's verdict (issue #8): judged over the samples after convergence,
+        # so a short run's start-up transient does not count against it; the page
+        # never shows the estimate of a run that did not converge as final.
+        out["converged"] = bool(trajectory.after_convergence(CONVERGENCE_TOL)["converged"])
         return out
     if latest is not None and latest.get("valid"):
         for name in ("K", "tau"):

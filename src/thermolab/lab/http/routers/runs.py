@@ -28,6 +28,7 @@ def start_run(rig_id: RigId, body: RunIn, who: UserDep, lab: LabDep) -> RunOut:
     """Start sampling the rig you control, with a signal or a manual set point and the
     identification methods to run live (change the set point with PUT .../input).
     """
+    lab.config.rig(rig_id)  # an unknown rig is a 404 that names the lab's rigs
     return RunOut.of(lab.runs.start(rig_id, who, body.request()))
 
 

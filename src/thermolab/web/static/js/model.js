@@ -34,12 +34,14 @@ export function fromDiscrete(a, b, dt) {
  * The model's free-run response to the recorded input about the level y0 (the
  * equilibrium at 0 V: the run's first output for the identification's default
  * "initial" offset, else see predictionBase), so yhat[k] = y0 + x[k] with
- * x[k+1] = a x[k] + b u[k]. `x0` is the state at the first sample given: 0
+ * x[k+1] = a x[k] + b u[k − d], d the model's dead time θ in samples (to the
+ * nearest; 0 without θ). `x0` is the state at the first sample given: 0
  * when `u` starts at the run's first sample of a run from rest, else the
- * measured y minus y0 there.
+ * measured y minus y0 there. Before the record the input is taken as off for
+ * a start at rest and as the first input otherwise.
  * @param {ArrayLike<number>} u
  * @param {number} y0
- * @param {{K: number, tau: number}} model
+ * @param {{K: number, tau: number, theta?: number}} model
  * @param {number} dt
  * @param {Float64Array} [out] reused when long enough
  * @param {number} [x0]
@@ -50,9 +52,12 @@ export function predict(u, y0, model, dt, out, x0 = 0) {
   if (n === 0) return y;
   const { a, b } = toDiscrete(model.K, model.tau, dt);
   let x = Number.isFinite(x0) ? x0 : 0;
+  const theta = model.theta ?? 0;
+  const d = Number.isFinite(theta) && theta > 0 ? Math.round(theta / dt) : 0;
+  const before = x === 0 ? 0 : u[0];
   for (let k = 0; k < n; k += 1) {
     y[k] = y0 + x;
-    const uk = u[k];
+    const uk = k >= d ? u[k - d] : before;
     x = a * x + b * (Number.isFinite(uk) ? uk : 0);
   }
   return y;
@@ -99,4 +104,21 @@ export function fmt(v, digits = 6) {
   // table cells are read digit by digit against the paper's values.
   if (mag >= 1e6 || mag < 1e-4) return v.toExponential(Math.max(0, digits - 1)).replace(".", decimalMark());
   return formatNumber(Number(v.toPrecision(digits)), { useGrouping: false, maximumFractionDigits: 20 });
+}
+
+/** Decimals the paper's Tables I/II print Ks and Ts with (0.140090, 250.126233). */
+export const FIGURE_DECIMALS = 6;
+
+/**
+ * A model parameter (Ks, Ts, θ, their statistics) as the paper's tables print
+ * it: six decimals, so the page reads digit by digit against Table I and
+ * `thermolab reproduce table1` (fmt's six significant digits would cut
+ * 250.126233 to 250.126). Very large or small values fall back to fmt.
+ * @param {number | null | undefined} v
+ */
+export function fmtFigure(v) {
+  if (v === null || v === undefined || !Number.isFinite(v)) return "–";
+  const mag = Math.abs(v);
+  if (mag !== 0 && (mag >= 1e6 || mag < 1e-4)) return fmt(v);
+  return formatNumber(v, { useGrouping: false, minimumFractionDigits: FIGURE_DECIMALS, maximumFractionDigits: FIGURE_DECIMALS });
 }

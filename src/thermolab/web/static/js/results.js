@@ -14,7 +14,8 @@ import { t } from "./i18n.js";
  * @typedef {{mean: number, max: number, min: number}} Stat
  * @typedef {object} MethodFigures
  * @property {string} method
- * @property {{K: number | null, tau: number | null, W: number[] | null}} final  the latest/final estimate
+ * @property {{K: number | null, tau: number | null, theta: number | null, Klast: number | null,
+ *   W: number[] | null}} final  the latest/final estimate (θ: dead time, s; Klast: SRM's last-sample gain)
  * @property {Stat | null} K       statistics (one value: mean = max = min)
  * @property {Stat | null} tau
  * @property {{K: number | null, tau: number | null}} convergedAt  samples to converge
@@ -23,7 +24,9 @@ import { t } from "./i18n.js";
  * @property {boolean} valid
  * @property {string | null} reason  why there is no first-order model
  * @property {string[]} warnings
- * @property {boolean} trusted  false when the library flags the model (it never looks final then)
+ * @property {boolean} trusted  false when the library flags the model or it never converged
+ *   (it never looks final then)
+ * @property {boolean} converged  false when the server's count found no convergence
  * @property {{k: number[], K: number[], tau: number[]} | null} trajectory  for the charts
  */
 
@@ -61,12 +64,16 @@ export function readResult(stored, method) {
     final: {
       K: finite(latest.K) ? latest.K : null,
       tau: finite(latest.tau) ? latest.tau : null,
+      theta: finite(extras.theta) ? extras.theta : null,
+      Klast: finite(extras.K_last_sample) ? extras.K_last_sample : null,
       W: Array.isArray(latest.W) ? latest.W : null,
     },
     valid,
     reason: valid ? null : (extras.reason ?? s.error ?? (s.latest ? t("estimate.noModel") : t("estimate.none"))),
     warnings,
-    trusted: valid && (typeof extras.trusted === "boolean" ? extras.trusted : warnings.length === 0),
+    // Estimates that never converged scatter (the paper's Table II): never a final model.
+    converged: figures?.converged !== false,
+    trusted: valid && figures?.converged !== false && (typeof extras.trusted === "boolean" ? extras.trusted : warnings.length === 0),
     // From the server once the run is over; while it runs, the latest estimate alone.
     K: figures ? stat(figures.K) : valid ? one(latest.K) : null,
     tau: figures ? stat(figures.tau) : valid ? one(latest.tau) : null,

@@ -46,11 +46,21 @@ export function automaticSignal(low, high, dt) {
   return `square:${low}:${high}:${Number(freq.toPrecision(12))}`;
 }
 
+/** A planned step of the set point: from `from` to `to` at `at` seconds after START. */
+export function plannedStepSignal(from, to, at) {
+  return `step:${from}:${to}@${at}`;
+}
+
+/** Whether a run's input is a panel's planned step (a step signal) rather than the Automatic wave. */
+export function isPlannedStep(run) {
+  return typeof run?.signal === "string" && run.signal.startsWith("step:");
+}
+
 /**
  * The body of POST /api/rigs/{rig}/runs (RunIn of /openapi.json) for a panel's
  * checked values.
  * @param {{id: string}} panel
- * @param {Record<string, any>} v  checked values (dt, n, setpoint | low/high,
+ * @param {Record<string, any>} v  checked values (dt, n, setpoint [stepTo, stepAt] | low/high,
  *   block, window, gamma, pmax, a0, b0; offset: the operating-point mode)
  * @param {boolean} automatic
  * @param {{w0?: boolean, offset?: boolean}} [server]  what the server accepts beyond the basics
@@ -58,6 +68,8 @@ export function automaticSignal(low, high, dt) {
 export function buildRunSpec(panel, v, automatic, server = {}) {
   const spec = { dt: v.dt, samples: v.n };
   if (automatic) spec.signal = automaticSignal(v.low, v.high, v.dt);
+  // Checked values hold stepTo/stepAt only when the panel's planned step is on.
+  else if (v.stepTo !== undefined && v.stepAt !== undefined) spec.signal = plannedStepSignal(v.setpoint, v.stepTo, v.stepAt);
   else spec.setpoint = v.setpoint;
   if (panel.id === "srm-lsm") {
     spec.methods = ["srm", "lsm"];
@@ -110,7 +122,7 @@ export function readRun(r) {
   const results = r.results && typeof r.results === "object" ? r.results : {};
   for (const [method, res] of Object.entries(results)) {
     const latest = res?.latest;
-    if (latest && typeof latest === "object") estimates.set(method, readEstimate(latest));
+    if (latest && typeof latest === "object") estimates.set(method, withConvergence(readEstimate(latest), res));
   }
   return {
     raw: r,
@@ -146,6 +158,10 @@ export function readEstimate(e) {
     K: num(e.K),
     tau: num(e.tau),
     k: e.k,
+    // The dead time θ (s) of the first order plus dead time model (0 for eq. 4's ARX).
+    theta: num(e.extras?.theta ?? e.theta),
+    // SRM: the gain read from the last sample, the figure the paper's Table I prints.
+    Klast: num(e.extras?.K_last_sample),
     valid: e.valid !== false && Number.isFinite(num(e.K)),
     final: Boolean(e.final),
     W: e.W,
@@ -158,6 +174,28 @@ export function readEstimate(e) {
     operatingPoint: e.extras?.operating_point && typeof e.extras.operating_point === "object" ? e.extras.operating_point : null,
     trusted: e.extras?.trusted ?? e.trusted ?? estimateWarnings(e).length === 0,
   };
+}
+
+/**
+ * Whether a result's estimates converged, as the server judged them at END
+ * (`stats.converged`: the paper's count, over the samples after convergence):
+ * false only when the server says so; true for methods with a single
+ * estimate and for runs stored before the server judged it.
+ * @param {any} res  a run's result ({latest, stats, ...})
+ */
+export function converged(res) {
+  return res?.stats?.converged !== false;
+}
+
+/**
+ * An estimate whose run never converged is one point of a scatter (the
+ * paper's Table II), never a final model: it is marked untrusted and says so.
+ * @param {ReturnType<typeof readEstimate>} est
+ * @param {any} res
+ */
+function withConvergence(est, res) {
+  if (converged(res)) return { ...est, notConverged: false };
+  return { ...est, notConverged: true, trusted: false };
 }
 
 /** The warnings an estimate carries (its extras', from the online identifiers). */

@@ -5,9 +5,10 @@
 
 import { api } from "../api.js";
 import { h, setText } from "../dom.js";
-import { deviation, fmt, REFERENCE_MODEL } from "../model.js";
+import { deviation, fmt, fmtFigure, REFERENCE_MODEL } from "../model.js";
 import { inputText, methodTitle } from "../runspec.js";
 import { runFigures } from "./run.js";
+import { lastSampleGain } from "./panels/results.js";
 import { checkNumber, rangeText } from "../validate.js";
 import { formatDecimal, t } from "../i18n.js";
 
@@ -90,7 +91,7 @@ export function comparisonTable(runs, ref) {
     for (const f of figures) rows.push({ run, label: f.method, f });
   }
   if (rows.length === 0) return h("p", { class: "muted" }, t("compare.noResults"));
-  const mmm = (s) => (s ? (s.max === s.min ? fmt(s.mean) : `${fmt(s.mean)} / ${fmt(s.max)} / ${fmt(s.min)}`) : "–");
+  const mmm = (s) => (s ? (s.max === s.min ? fmtFigure(s.mean) : `${fmtFigure(s.mean)} / ${fmtFigure(s.max)} / ${fmtFigure(s.min)}`) : "–");
   const dev = (s, refValue) => {
     const d = s ? deviation(s.mean, refValue) : null;
     if (!d) return "–";
@@ -102,17 +103,18 @@ export function comparisonTable(runs, ref) {
       { "data-run": run.id, "data-method": f.method },
       h("th", { scope: "row" }, h("a", { href: `#/runs/${encodeURIComponent(run.id)}` }, t("runs.label", { run: run.id })), t("compare.method", { method: methodTitle(label) })),
       h("td", null, inputText(run)),
-      h("td", { class: "num", "data-field": "K" }, mmm(f.K)),
+      h("td", { class: "num", "data-field": "K" }, mmm(f.K), lastSampleGain(f.final)),
       h("td", { class: "num", "data-field": "dK" }, dev(f.K, ref.K)),
       h("td", { class: "num", "data-field": "tau" }, mmm(f.tau)),
       h("td", { class: "num", "data-field": "dtau" }, dev(f.tau, ref.tau)),
+      h("td", { class: "num", "data-field": "theta" }, f.valid ? fmtFigure(f.final.theta) : "–"),
       h("td", { class: "num", "data-field": "conv" }, f.converges ? t("run.convergedAt", { K: f.convergedAt.K ?? t("run.never"), tau: f.convergedAt.tau ?? t("run.never") }) : "–"),
     ),
   );
   return h(
     "table",
     { class: "compare" },
-    h("caption", null, t("compare.caption", { K: fmt(ref.K), tau: fmt(ref.tau) })),
+    h("caption", null, t("compare.caption", { K: fmtFigure(ref.K), tau: fmtFigure(ref.tau) })),
     h(
       "thead",
       null,
@@ -125,6 +127,7 @@ export function comparisonTable(runs, ref) {
         h("th", { scope: "col", class: "num" }, t("compare.Kdeviation")),
         h("th", { scope: "col", class: "num" }, t("compare.tauStats")),
         h("th", { scope: "col", class: "num" }, t("compare.tauDeviation")),
+        h("th", { scope: "col", class: "num" }, t("table.theta")),
         h("th", { scope: "col", class: "num" }, t("run.convergeColumn")),
       ),
     ),

@@ -5,20 +5,20 @@
 import { api } from "../api.js";
 import { Chart } from "../charts.js";
 import { h, serverText, setText, tParts, when } from "../dom.js";
-import { fmt, predict, predictionBase } from "../model.js";
+import { fmt, fmtFigure, predict, predictionBase } from "../model.js";
 import { readResult } from "../results.js";
 import { inputText, methodTitle, readRun, runStatusText } from "../runspec.js";
-import { operatingPointHow, timingText } from "./panels/results.js";
+import { lastSampleGain, operatingPointHow, timingText } from "./panels/results.js";
 import { t } from "../i18n.js";
 
 /**
  * Why a method has no model, and its warnings: the server's sentences, "–" when none.
- * @param {{valid: boolean, trusted?: boolean, reason?: string | null, warnings: string[]}} f
+ * @param {{valid: boolean, trusted?: boolean, converged: boolean, reason?: string | null, warnings: string[]}} f
  * @returns {Array<Node | string>}
  */
 function reasonCell(f) {
   const status = f.valid ? (f.trusted === false ? t("estimate.notTrusted") : null) : f.reason ? serverText(f.reason) : t("estimate.noModel");
-  const notes = [status, ...f.warnings.map(serverText)];
+  const notes = [status, f.converged ? null : t("run.notConverged"), ...f.warnings.map(serverText)];
   const shown = /** @type {Array<Node | string>} */ (notes.filter((n) => n !== null && n !== ""));
   return shown.length ? shown.flatMap((n, i) => (i ? ["; ", n] : [n])) : ["–"];
 }
@@ -129,7 +129,7 @@ function render(main, exported, charts) {
     if (!f || y.length === 0) yhat.fill(Number.NaN);
     else {
       const base = predictionBase(run.operatingPoint?.used, f.final.W, y[0]);
-      predict(u, base, { K: f.final.K ?? Number.NaN, tau: f.final.tau ?? Number.NaN }, run.dt, yhat, y[0] - base);
+      predict(u, base, { K: f.final.K ?? Number.NaN, tau: f.final.tau ?? Number.NaN, theta: f.final.theta ?? 0 }, run.dt, yhat, y[0] - base);
     }
   };
   computeModel();
@@ -186,14 +186,15 @@ function resultsSection(figures) {
     sec.append(h("p", { class: "muted" }, t("run.noResults")));
     return sec;
   }
-  const spread = (s) => (s && s.max !== s.min ? `${fmt(s.mean)} / ${fmt(s.max)} / ${fmt(s.min)}` : "–");
+  const spread = (s) => (s && s.max !== s.min ? `${fmtFigure(s.mean)} / ${fmtFigure(s.max)} / ${fmtFigure(s.min)}` : "–");
   const rows = figures.map((f) =>
     h(
       "tr",
       { "data-method": f.method, class: f.valid && !f.trusted ? "not-trusted" : null, "data-trusted": String(f.trusted) },
       h("th", { scope: "row" }, methodTitle(f.method)),
-      h("td", { class: "num", "data-field": "K" }, f.valid ? fmt(f.final.K) : "–"),
-      h("td", { class: "num", "data-field": "tau" }, f.valid ? fmt(f.final.tau) : "–"),
+      h("td", { class: "num", "data-field": "K" }, f.valid ? fmtFigure(f.final.K) : "–", f.valid ? lastSampleGain(f.final) : null),
+      h("td", { class: "num", "data-field": "tau" }, f.valid ? fmtFigure(f.final.tau) : "–"),
+      h("td", { class: "num", "data-field": "theta" }, f.valid ? fmtFigure(f.final.theta) : "–"),
       h("td", { class: "num", "data-field": "Kstats" }, spread(f.K)),
       h("td", { class: "num", "data-field": "taustats" }, spread(f.tau)),
       h("td", { class: "num", "data-field": "conv" }, f.converges ? t("run.convergedAt", { K: f.convergedAt.K ?? t("run.never"), tau: f.convergedAt.tau ?? t("run.never") }) : "–"),
@@ -217,6 +218,7 @@ function resultsSection(figures) {
             h("th", { scope: "col" }, t("table.method")),
             h("th", { scope: "col", class: "num" }, t("table.K")),
             h("th", { scope: "col", class: "num" }, t("table.tau")),
+            h("th", { scope: "col", class: "num" }, t("table.theta")),
             h("th", { scope: "col", class: "num" }, t("run.Kstats")),
             h("th", { scope: "col", class: "num" }, t("run.tauStats")),
             h("th", { scope: "col", class: "num" }, t("run.convergeColumn")),

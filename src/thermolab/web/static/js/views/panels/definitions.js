@@ -11,7 +11,8 @@ import { t } from "../../i18n.js";
 
 /**
  * @typedef {import("../../validate.js").FieldSpec & {name: string, value: number | string,
- *   hint?: string, step?: string, automaticOnly?: boolean, manualOnly?: boolean}} FieldDef
+ *   hint?: string, step?: string, automaticOnly?: boolean, manualOnly?: boolean,
+ *   plannedOnly?: boolean}} FieldDef
  */
 
 /**
@@ -124,6 +125,10 @@ export function panelDefinitions(limits) {
         // 0 is "off"; otherwise the server's block range (checked in checkPanel).
         { name: "block", label: t("field.block"), min: 0, max: r.block.max, integer: true, unit: t("unit.samples"), value: 0, blockMin: r.block.min },
         setpoint(0),
+        // The planned step (the set point changed at a chosen time): at a twin's
+        // speed-up a change made by hand lands on no sample one can choose.
+        { name: "stepTo", label: t("field.stepTo"), ...u, value: 10, manualOnly: true, plannedOnly: true },
+        { name: "stepAt", label: t("field.stepAt"), min: 0, max: r.dt.max * r.samples.max, unit: "s", value: 1, manualOnly: true, plannedOnly: true },
         ...auto(4, 6),
       ],
       methods: panelMethods("srm-lsm"),

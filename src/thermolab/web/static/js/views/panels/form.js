@@ -16,6 +16,8 @@ import { formatDecimal, t } from "../../i18n.js";
  * @property {Record<string, HTMLElement>} errors  each field's error text
  * @property {HTMLElement} [autoRow]
  * @property {HTMLInputElement} automatic  the Automatic (square wave) box
+ * @property {HTMLInputElement} [planned]  the planned-step box (panels with plannedOnly fields)
+ * @property {HTMLElement} [plannedRow]
  * @property {HTMLSelectElement} [offset]  the operating-point mode, when the server takes one
  * @property {HTMLFieldSetElement} fieldset
  * @property {HTMLButtonElement} startButton
@@ -54,6 +56,18 @@ export function buildPanelView(def, limits, panelId, tabId, on) {
       autoBox.setAttribute("aria-describedby", autoHint.id);
       fieldset.append(view.autoRow);
     }
+    if (f.plannedOnly && !view.plannedRow) {
+      const plannedId = nextId("planned");
+      view.planned = h("input", { type: "checkbox", id: plannedId, name: "planned", "aria-describedby": `${plannedId}-hint` });
+      view.plannedRow = h(
+        "div",
+        { class: "field check" },
+        view.planned,
+        h("label", { for: plannedId }, t("panel.plannedStep")),
+        h("span", { class: "hint", id: `${plannedId}-hint` }, t("panel.plannedStepHint")),
+      );
+      fieldset.append(view.plannedRow);
+    }
     fieldset.append(fieldRow(view, f));
   }
   if (limits.offsets?.length) {
@@ -70,16 +84,19 @@ export function buildPanelView(def, limits, panelId, tabId, on) {
   view.automatic = autoBox;
   const updateAuto = () => {
     const automatic = autoBox.checked;
+    const planned = Boolean(view.planned?.checked);
     for (const f of def.fields) {
       const row = /** @type {HTMLElement} */ (view.inputs[f.name].closest(".field"));
       if (f.automaticOnly) row.hidden = !automatic;
-      if (f.manualOnly) row.hidden = automatic;
+      if (f.manualOnly) row.hidden = automatic || (Boolean(f.plannedOnly) && !planned);
     }
+    if (view.plannedRow) view.plannedRow.hidden = automatic;
     const dt = parseDecimal(view.inputs.dt.value) ?? Number.NaN;
     const freq = dt > 0 ? 1 / (10 * dt) : Number.NaN;
     setText(autoHint, t("panel.automaticHint", { frequency: fmt(freq, 3) }));
   };
   autoBox.addEventListener("change", updateAuto);
+  view.planned?.addEventListener("change", updateAuto);
   view.inputs.dt.addEventListener("input", updateAuto);
   view.startButton = h("button", { type: "submit", class: "primary", "data-action": "start" }, t("panel.start"));
   view.formError = h("p", { class: "error", role: "alert", "data-testid": "form-error" });
@@ -196,12 +213,13 @@ export function showFieldError(view, name, message) {
 /** Check the panel's fields; returns the values or null (errors shown, focus on the first). */
 export function checkPanel(view) {
   const automatic = view.automatic.checked;
+  const planned = !automatic && Boolean(view.planned?.checked);
   /** @type {Record<string, any>} */
   const specs = {};
   /** @type {Record<string, string>} */
   const texts = {};
   for (const f of view.def.fields) {
-    if ((f.automaticOnly && !automatic) || (f.manualOnly && automatic) || f.unavailable) {
+    if ((f.automaticOnly && !automatic) || (f.manualOnly && automatic) || (f.plannedOnly && !planned) || f.unavailable) {
       showFieldError(view, f.name, null);
       continue;
     }
@@ -214,6 +232,9 @@ export function checkPanel(view) {
   }
   if (automatic && !errors.low && !errors.high && !(values.low < values.high)) {
     errors.high = t("panel.automaticOrder");
+  }
+  if (planned && !errors.stepAt && !errors.dt && !errors.n && !(values.stepAt < values.n * values.dt)) {
+    errors.stepAt = t("panel.stepAfterEnd", { seconds: formatDecimal(values.n * values.dt) });
   }
   if (!errors.block && values.block > 0) {
     const min = view.def.fields.find((f) => f.name === "block").blockMin;

@@ -3,8 +3,8 @@
 // the table of the current estimates of each of its methods.
 
 import { duration, durationWords, h, serverText, setText, tParts } from "../../dom.js";
-import { fmt } from "../../model.js";
-import { methodName, methodTitle, panelOfRun, runStatusText } from "../../runspec.js";
+import { fmt, fmtFigure } from "../../model.js";
+import { isPlannedStep, methodName, methodTitle, panelOfRun, runStatusText } from "../../runspec.js";
 import { DEFAULT_LANGUAGE, formatDecimal, formatTime, language, t } from "../../i18n.js";
 import { OFFSET_LABELS } from "./definitions.js";
 
@@ -70,6 +70,7 @@ export function warningsList(methods, estimates, timing = null) {
   const items = [];
   for (const w of timing?.warnings ?? []) items.push(h("li", { "data-method": "timing" }, serverText(w)));
   for (const m of methods) {
+    if (estimates?.get(m)?.notConverged) items.push(h("li", { "data-method": m, "data-kind": "not-converged" }, t("panel.notConverged", { method: methodTitle(m) })));
     for (const w of estimates?.get(m)?.warnings ?? []) items.push(h("li", { "data-method": m }, tParts("panel.warning", { method: methodTitle(m), warning: serverText(w) })));
   }
   if (!items.length) return null;
@@ -84,6 +85,7 @@ export function warningsList(methods, estimates, timing = null) {
 /** The status line of the panel running `run`: its progress. */
 export function runningText(run, k) {
   const n = run.nSamples;
+  if (n && isPlannedStep(run)) return t("panel.runningOfStep", { run: run.id, sample: k, samples: n });
   const key = n ? (run.signal ? "panel.runningOfAutomatic" : "panel.runningOf") : run.signal ? "panel.runningAutomatic" : "panel.running";
   return t(key, { run: run.id, sample: k, samples: n });
 }
@@ -159,6 +161,16 @@ export function otherRunText(runPanel, number) {
 }
 
 /**
+ * SRM's gain read from the last sample (the figure the paper's Table I prints
+ * beside the settled gain), as a line under the gain; null for other methods.
+ * @param {any} est
+ */
+export function lastSampleGain(est) {
+  if (!est || !Number.isFinite(est.Klast)) return null;
+  return h("span", { class: "hint figure-note", "data-field": "Klast" }, t("estimate.lastSample", { K: fmtFigure(est.Klast) }));
+}
+
+/**
  * Fill a panel's results with the estimates of `run` (null: the panel's methods, empty).
  * @param {{def: any, results: HTMLElement, operatingPoint: HTMLElement}} view
  * @param {any} run
@@ -175,8 +187,9 @@ export function renderResults(view, run) {
       "tr",
       { "data-method": m, class: est && est.trusted === false ? "not-trusted" : null, "data-trusted": est ? String(est.trusted !== false) : null },
       h("th", { scope: "row" }, methodTitle(m)),
-      h("td", { "data-field": "K" }, est ? fmt(est.K) : "–"),
-      h("td", { "data-field": "tau" }, est ? fmt(est.tau) : "–"),
+      h("td", { "data-field": "K" }, est ? fmtFigure(est.K) : "–", lastSampleGain(est)),
+      h("td", { "data-field": "tau" }, est ? fmtFigure(est.tau) : "–"),
+      h("td", { "data-field": "theta" }, est ? fmtFigure(est.theta) : "–"),
       h("td", { "data-field": "k" }, est && Number.isFinite(est.k) ? String(est.k) : "–"),
       h("td", { "data-field": "status" }, estimateStatus(est)),
     );
@@ -190,7 +203,7 @@ export function renderResults(view, run) {
         "table",
         { class: "estimates" },
         h("caption", { class: "visually-hidden" }, t("panel.estimatesCaption", { title: view.def.title })),
-        h("thead", null, h("tr", null, col(t("table.method")), col(t("table.K")), col(t("table.tau")), col(t("table.atSample")), col(t("table.status")))),
+        h("thead", null, h("tr", null, col(t("table.method")), col(t("table.K")), col(t("table.tau")), col(t("table.theta")), col(t("table.atSample")), col(t("table.status")))),
         h("tbody", null, rows),
       ),
     ),
