@@ -1,15 +1,18 @@
-"""The live protocol's server messages, typed (the contract is ``docs/live-protocol.md``).
+"""The live protocol's messages (contract: ``docs/live-protocol.md``).
 
 Each message the live endpoint sends is one of these ``TypedDict`` shapes: the
 type checker holds every builder to its fields, and the JSON is the dict as
 is (no per-message model object on the hot path: one sample is encoded once
 for every watcher). ``seq`` is added by the fan-out when a message is
-published.
+published. A client's message is checked by :func:`client_message_type`.
 """
 
 from __future__ import annotations
 
+import json
 from typing import Any, Literal, TypedDict
+
+from thermolab.lab.fanout import MAX_CLIENT_MESSAGE, MAX_CLIENT_NESTING
 
 __all__ = [
     "AccessMessage",
@@ -21,6 +24,8 @@ __all__ = [
     "SampleMessage",
     "SamplesMessage",
     "StateMessage",
+    "TruncatedMessage",
+    "client_message_type",
 ]
 
 
@@ -52,6 +57,18 @@ class SamplesMessage(TypedDict, total=False):
     type: Literal["samples"]
     seq: int
     items: list[dict[str, Any]]
+
+
+TruncatedMessage = TypedDict(
+    "TruncatedMessage",
+    {"type": Literal["truncated"], "run": int, "from": int, "limit": int},
+)
+"""``truncated``: a replay from the store skipped samples of run ``run``.
+
+Sent after the run's first sample and before its newest ones, which start at
+sample ``from``; ``limit`` is the most stored samples one socket is sent.
+(Functional form: ``from`` is a Python keyword.)
+"""
 
 
 class EstimateMessage(TypedDict):
@@ -107,3 +124,61 @@ class ErrorMessage(TypedDict):
 
     type: Literal["error"]
     detail: str
+
+
+# -- client -> server ---------------------------------------------------------------------
+
+
+def client_message_type(text: str) -> str:
+    """``"ping"`` for a ping, else the problem with the message, in words.
+
+    Examples
+    --------
+    >>> client_message_type('{"type": "ping"}')
+    'ping'
+    >>> client_message_type("[" * 100)
+    'messages nest at most 8 levels of brackets'
+    """
+    if len(text) > MAX_CLIENT_MESSAGE:
+        return f"messages are at most {MAX_CLIENT_MESSAGE} bytes"
+    if _nesting(text) > MAX_CLIENT_NESTING:
+        # json.loads recurses once per level: a few kB of brackets would overflow the stack.
+        return f"messages nest at most {MAX_CLIENT_NESTING} levels of brackets"
+    try:
+        data = json.loads(text)
+    except ValueError:
+        return 'messages must be JSON objects such as {"type": "ping"}'
+    if not isinstance(data, dict):
+        return 'messages must be JSON objects such as {"type": "ping"}'
+    kind = data.get("type")
+    if kind == "ping":
+        return "ping"
+    return (
+        f"unknown message type {kind!r}; the only one is 'ping' (commands go through the HTTP API)"
+    )
+
+
+def _nesting(text: str) -> int:
+    """The deepest nesting of ``[``/``{`` in ``text`` outside JSON strings (linear, no recursion).
+
+    >>> _nesting('{"a": [1, {"b": "[[["}]}')
+    3
+    """
+    depth = deepest = 0
+    in_string = escaped = False
+    for char in text:
+        if in_string:
+            if escaped:
+                escaped = False
+            elif char == "\\":
+                escaped = True
+            elif char == '"':
+                in_string = False
+        elif char == '"':
+            in_string = True
+        elif char in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif char in "]}":
+            depth -= 1
+    return deepest

@@ -130,6 +130,11 @@ class RunService:
 
         self._store = RunStore(db)
 
+    @property
+    def store(self) -> RunStore:
+        """The runs' store (the live replay pages through it)."""
+        return self._store
+
     def start(self, rig_id: str, who: Principal, request: RunRequest) -> RunRecord:
         """START a run on the rig ``who`` controls.
 
