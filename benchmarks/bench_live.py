@@ -626,9 +626,12 @@ def summarise(
     return out
 
 
+# Every watcher uses the teacher's one login (one socket per tab would be 4 at most).
 LAB_TOML = """
 [access]
 login_attempts_per_address = 1000
+live_sockets_per_login = 1000
+live_sockets_per_rig = 1000
 
 [rig_defaults]
 control_time_limit = 3600

@@ -172,3 +172,20 @@ def test_one_replay_at_a_time_per_user_and_others_in_parallel() -> None:
 
     order = asyncio.run(scenario())
     assert order.index("mallory 2 starts") > order.index("mallory 1 ends")
+
+
+def test_replays_of_every_user_together_keep_to_the_servers_rate() -> None:
+    async def scenario() -> float:
+        budget = ReplayBudget(rate=1e9, server_rate=10_000)
+        loop = asyncio.get_running_loop()
+        start = loop.time()
+
+        async def one_user() -> None:  # two pages of 1000 samples, each user unpaced alone
+            for sent in (1000, 2000):
+                await budget.pace(start, sent, 1000)
+
+        await asyncio.gather(*(one_user() for _ in range(3)))
+        return loop.time() - start
+
+    # 6000 samples at 10 000 a second: never sooner than 0.6 s (whatever the users).
+    assert asyncio.run(scenario()) >= 0.6 - 1e-3

@@ -16,7 +16,8 @@ nobody else:
   the event loop only hands finished frames to the socket.
 * **A budget per user.** One replay at a time per user (however many sockets
   or logins they hold: the others wait their turn), paced to ``rate`` samples
-  a second, yielding to the event loop between pages.
+  a second, and all replays together to ``server_rate``, yielding to the
+  event loop between pages.
 * **No hostage.** A frame the client does not take within
   :data:`SEND_TIMEOUT` seconds cuts it (4408, as a slow client), so a socket
   that stops reading cannot hold its user's turn.
@@ -61,15 +62,22 @@ class ReplayBudget:
         Replays reading the store (in the thread pool) at once, server-wide.
     rate : float
         Samples a second one user's replay is sent at most.
+    server_rate : float
+        Samples a second all replays together are sent at most (so that many
+        users, or accounts, replaying at once cost no more than two would).
     """
 
-    def __init__(self, *, concurrent: int = 2, rate: float = 20_000.0) -> None:
+    def __init__(
+        self, *, concurrent: int = 2, rate: float = 20_000.0, server_rate: float = 40_000.0
+    ) -> None:
         self.concurrent = concurrent
         self.rate = rate
+        self.server_rate = server_rate
         self.bind()
 
     def bind(self) -> None:
         """Start afresh (the server's event loop starts: its locks are new)."""
+        self._server_free = 0.0  # when the server's replay rate has room again (loop time)
         self._reading = asyncio.Semaphore(self.concurrent)
         self._turns: dict[int, asyncio.Lock] = {}
         self._waiting: collections.Counter[int] = collections.Counter()
@@ -93,10 +101,14 @@ class ReplayBudget:
         async with self._reading:
             return await anyio.to_thread.run_sync(action, *args)
 
-    async def pace(self, started: float, sent: int) -> None:
-        """Wait until ``sent`` samples since ``started`` are within the rate (and yield)."""
-        loop = asyncio.get_running_loop()
-        await asyncio.sleep(max(0.0, started + sent / self.rate - loop.time()))
+    async def pace(self, started: float, sent: int, count: int) -> None:
+        """Wait until the replay's ``sent`` samples since ``started`` (``count`` of them
+        just now) are within the user's rate and the server's (and yield to the loop)."""
+        now = asyncio.get_running_loop().time()
+        # Every replay's pages take turns on one server-wide timeline.
+        self._server_free = max(now, self._server_free) + count / self.server_rate
+        until = max(started + sent / self.rate, self._server_free)
+        await asyncio.sleep(max(0.0, until - now))
 
 
 async def replay(
@@ -136,7 +148,7 @@ async def replay(
         for frame, count in await anyio.to_thread.run_sync(_kept_frames, kept):
             await _send(websocket, frame)
             sent += count
-            await budget.pace(started, sent)
+            await budget.pace(started, sent, count)
 
 
 async def _send_stored(
@@ -175,7 +187,7 @@ async def _send_stored(
         frame, after, count = page
         await _send(websocket, frame)
         sent += count
-        await budget.pace(started, sent)
+        await budget.pace(started, sent, count)
 
 
 def _stored_span(store: RunStore, run_id: int, limit: int) -> tuple[int, int, int] | None:
