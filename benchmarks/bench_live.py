@@ -688,6 +688,15 @@ async def bench_thermolab(watchers: int, seconds: float, procs: int) -> dict[str
                 cookie = f"thermolab_session={login.cookies['thermolab_session']}"
                 headers = {"Cookie": cookie}
                 (await http.post("/api/rigs/twin/control", headers=headers)).raise_for_status()
+
+                async def keep_control() -> None:  # the controller's page keeps its turn
+                    while True:
+                        await asyncio.sleep(5.0)
+                        await http.post("/api/rigs/twin/heartbeat", headers=headers)
+
+                # From the start: connecting hundreds of watchers may outlast the 15 s a
+                # silent controller keeps the turn (and a run ends with its turn).
+                heartbeat = asyncio.create_task(keep_control())
                 url = f"ws://127.0.0.1:{port}/api/rigs/twin/live"
                 clients = await start_clients(url, cookie, watchers, procs)
                 cpu = CpuWindow({"server": [server.pid], "clients": [c.pid for c in clients]})
@@ -702,13 +711,6 @@ async def bench_thermolab(watchers: int, seconds: float, procs: int) -> dict[str
                     },
                 )
                 started.raise_for_status()
-
-                async def keep_control() -> None:  # the controller's page keeps its turn
-                    while True:
-                        await asyncio.sleep(5.0)
-                        await http.post("/api/rigs/twin/heartbeat", headers=headers)
-
-                heartbeat = asyncio.create_task(keep_control())
                 try:
                     results, figures = await measure(clients, cpu, seconds)
                 finally:
