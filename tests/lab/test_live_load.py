@@ -277,3 +277,51 @@ def test_a_student_replaying_a_long_run_on_every_socket_leaves_others_latency(
         assert during < 3 * before + 50, (
             f"{name}: p95 {during:.1f} ms under the replays, {before:.1f} ms without"
         )
+
+
+def test_a_socket_that_stops_reading_its_replay_is_cut_and_frees_its_users_turn(
+    server: tuple[Lab, LiveEndpoint, str, StepClock], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A replay frame not taken within SEND_TIMEOUT cuts the client (4408), so a socket
+    that stops reading cannot hold its user's one replay at a time."""
+    from websockets.client import ClientProtocol
+    from websockets.frames import Frame, Opcode
+    from websockets.uri import parse_uri
+
+    from thermolab.lab.http import live_replay
+
+    lab, live, base, _ = server
+    monkeypatch.setattr(live_replay, "SEND_TIMEOUT", 1.0)
+    live._replay_limit = STORED  # some 13 MB: far more than the kernel's buffers hold
+    mallory = login(lab, "mallory")["cookie"]
+    long_run(lab, base, mallory)
+    url = base.replace("http", "ws", 1) + "/api/rigs/twin/live?since=0"
+    channel = live.hub.channels["twin"]
+    with socket.socket() as stalled:
+        stalled.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        stalled.connect(("127.0.0.1", int(base.rsplit(":", 1)[1])))
+        protocol = ClientProtocol(parse_uri(url), max_size=None)
+        request = protocol.connect()
+        request.headers["Cookie"] = mallory
+        protocol.send_request(request)
+        stalled.sendall(b"".join(protocol.data_to_send()))
+        until(lambda: len(channel.clients()) == 1)  # ...and it never reads
+        (client,) = channel.clients()
+        until(lambda: client.cut, timeout=60)
+        assert client.closing == (4408, "too slow: reconnect with since")
+        # Her turn is free: another socket of hers gets its replay.
+        with connect(url, additional_headers={"Cookie": mallory}, max_size=None) as ws:
+            assert json.loads(ws.recv(timeout=30))["type"] == "hello"
+            frame = json.loads(ws.recv(timeout=30))
+            assert frame["type"] == "samples"
+            assert frame["items"][0]["k"] == 0
+        # Reading again, the stalled socket finds its frames, then the close frame: 4408.
+        stalled.settimeout(30)
+        close_code = None
+        while close_code is None and (data := stalled.recv(1 << 20)):
+            protocol.receive_data(data)
+            for event in protocol.events_received():
+                if isinstance(event, Frame) and event.opcode is Opcode.CLOSE:
+                    assert protocol.close_rcvd is not None
+                    close_code = protocol.close_rcvd.code
+        assert close_code == 4408
