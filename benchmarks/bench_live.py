@@ -39,6 +39,11 @@ Usage::
     .venv/bin/python benchmarks/bench_live.py                    # 50, 200, 500 watchers, 20 s
     .venv/bin/python benchmarks/bench_live.py --watchers 500 --seconds 30 --client-procs 2
     .venv/bin/python benchmarks/bench_live.py --watchers 500 --compete 6   # a busy machine
+    .venv/bin/python benchmarks/bench_live.py --replay 4 --seconds 8   # a student replaying
+
+``--replay N`` measures instead another user's request latency and reading
+delays without, then with, a student replaying a 200 000-sample run on N
+sockets (see "the replay scenario" below).
 """
 
 from __future__ import annotations
