@@ -39,6 +39,11 @@ Usage::
     .venv/bin/python benchmarks/bench_live.py                    # 50, 200, 500 watchers, 20 s
     .venv/bin/python benchmarks/bench_live.py --watchers 500 --seconds 30 --client-procs 2
     .venv/bin/python benchmarks/bench_live.py --watchers 500 --compete 6   # a busy machine
+    .venv/bin/python benchmarks/bench_live.py --replay 4 --seconds 8   # a student replaying
+
+``--replay N`` measures instead another user's request latency and reading
+delays without, then with, a student replaying a 200 000-sample run on N
+sockets (see "the replay scenario" below).
 """
 
 from __future__ import annotations
@@ -48,6 +53,7 @@ import array
 import asyncio
 import contextlib
 import json
+import math
 import os
 import socket
 import subprocess
@@ -293,6 +299,226 @@ async def peer_main(port: int, samples: int) -> None:
     del websockets
 
 
+# -- the replay scenario --------------------------------------------------------------------------
+#
+# One student keeps every live socket she may open replaying a 200 000-sample run from its
+# start (since=0), reconnecting as soon as each replay ends; another user's HTTP requests
+# and live readings are timed without her, then with her, against the same server.
+
+REPLAY_STORED = 200_000
+READING_DT = 0.1
+
+
+def replay_server_main(port: int, data_dir: str) -> None:
+    """The lab as ``thermolab serve`` runs it, ``twin``'s run held after its first sample."""
+    import threading
+    from datetime import UTC, datetime
+
+    from thermolab.cli.serve import _run_server
+    from thermolab.lab.config import LabConfig, RigConfig
+    from thermolab.lab.http.app import create_app
+    from thermolab.lab.service import Lab
+    from thermolab.rigs import Rig, TwinRig, VirtualClock
+
+    class Held:
+        """A twin's clock that stops after time 0: the run stays running, sampling nothing."""
+
+        def now(self) -> float:
+            return 0.0
+
+        def sleep_until(self, t: float) -> None:
+            if t > 0:
+                threading.Event().wait()
+
+    def opener(rig: RigConfig) -> Rig:
+        return TwinRig("paper", clock=Held() if rig.id == "twin" else VirtualClock())
+
+    rigs = (RigConfig("twin", "Twin", "sim"), RigConfig("other", "Other", "sim"))
+    lab = Lab(LabConfig(data_dir=Path(data_dir), rigs=rigs), opener=opener)
+    app = create_app(lab.config, lab=lab, close_lab=True)
+    lab.db.upgrade()  # the accounts first (the app's start-up finds the schema there)
+    for name, role in (("mallory", "student"), ("olga", "student")):
+        lab.users.add(name, "bench-password-0123", role)
+
+    def readings() -> None:  # the sweep's idle readings of a powered rig, at 10 Hz
+        while True:
+            time.sleep(READING_DT)
+            app.state.live.reading("other", 0.0, 1.0, datetime.now(UTC))
+
+    threading.Thread(target=readings, daemon=True).start()
+    _run_server(app, "127.0.0.1", port)
+
+
+def replayer_main(url: str, cookie: str, sockets: int, seconds: float) -> None:
+    """Mallory: ``sockets`` sockets replaying from ``since=0`` again and again."""
+    import threading
+
+    from websockets.sync.client import connect
+
+    stop = time.monotonic() + seconds
+    counts: Counter[str] = Counter()
+    lock = threading.Lock()
+
+    def one_socket() -> None:
+        while time.monotonic() < stop:
+            try:
+                with connect(url, additional_headers={"Cookie": cookie}, max_size=None) as ws:
+                    ws.recv(timeout=60)  # hello
+                    wait = 60.0  # for the replay to begin (it may wait its turn)
+                    while time.monotonic() < stop:
+                        try:
+                            frame = json.loads(ws.recv(timeout=wait))
+                        except TimeoutError:
+                            break  # over: ask again
+                        wait = 0.5
+                        for message in frame if isinstance(frame, list) else [frame]:
+                            if message.get("type") == "samples":
+                                with lock:
+                                    counts["samples"] += len(message["items"])
+                    with lock:
+                        counts["replays"] += 1
+            except Exception:
+                with lock:
+                    counts["refused"] += 1
+                time.sleep(0.1)
+
+    threads = [threading.Thread(target=one_socket) for _ in range(sockets)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    print(json.dumps(dict(counts)), flush=True)
+
+
+def time_others(base: str, cookie: str, seconds: float) -> tuple[list[float], list[float]]:
+    """Olga's request latencies and reading delays (ms) over ``seconds``."""
+    import threading
+    from datetime import UTC, datetime
+
+    from websockets.sync.client import connect
+
+    requests: list[float] = []
+    readings: list[float] = []
+    stop = time.monotonic() + seconds
+
+    def watch() -> None:
+        url = base.replace("http", "ws", 1) + "/api/rigs/other/live"
+        with connect(url, additional_headers={"Cookie": cookie}, max_size=None) as ws:
+            while time.monotonic() < stop:
+                with contextlib.suppress(TimeoutError):
+                    frame = json.loads(ws.recv(timeout=0.5))
+                    now = datetime.now(UTC).timestamp()
+                    for message in frame if isinstance(frame, list) else [frame]:
+                        if message.get("type") == "sample":
+                            readings.append(1000 * (now - message["t"]))
+
+    watcher = threading.Thread(target=watch)
+    watcher.start()
+    with httpx.Client(base_url=base, headers={"Cookie": cookie}, timeout=60) as http:
+        while time.monotonic() < stop:
+            start = time.perf_counter()
+            http.get("/api/rigs/other").raise_for_status()
+            requests.append(1000 * (time.perf_counter() - start))
+            time.sleep(max(0.0, 0.05 - (time.perf_counter() - start)))
+    watcher.join()
+    return requests, readings
+
+
+def bench_replay(seconds: float, sockets: int) -> None:
+    """Others' latency without, then with, a student replaying on ``sockets`` sockets."""
+    import sqlite3
+
+    port = free_port()
+    base = f"http://127.0.0.1:{port}"
+    with tempfile.TemporaryDirectory() as tmp:
+        server = subprocess.Popen(
+            [PYTHON, SCRIPT, "--role", "replay-server", "--port", str(port), "--data-dir", tmp],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        replayer = None
+        try:
+            wait_for(base + "/openapi.json")
+            cookies = {}
+            for name in ("mallory", "olga"):
+                login = httpx.post(
+                    base + "/api/session",
+                    json={"username": name, "password": "bench-password-0123"},
+                )
+                login.raise_for_status()
+                cookies[name] = f"thermolab_session={login.cookies['thermolab_session']}"
+            mallory = {"Cookie": cookies["mallory"]}
+            httpx.post(base + "/api/rigs/twin/control", headers=mallory).raise_for_status()
+            run = httpx.post(
+                base + "/api/rigs/twin/runs",
+                headers=mallory,
+                json={"dt": 0.01, "samples": REPLAY_STORED, "methods": ["lsm"]},
+            )
+            run.raise_for_status()
+            run_id = run.json()["id"]
+            time.sleep(1.5)  # the first sample reaches the store
+            with contextlib.closing(sqlite3.connect(Path(tmp, "thermolab.sqlite3"))) as db:
+                db.executemany(
+                    "INSERT INTO samples (run_id, k, t, u, y) VALUES (?, ?, ?, 5.0, ?)",
+                    ((run_id, k, 0.01 * k, 0.7 * (1 - 0.9999**k)) for k in range(1, REPLAY_STORED)),
+                )
+                db.commit()
+            rows = {}
+            rows["alone"] = time_others(base, cookies["olga"], seconds)
+            replayer = subprocess.Popen(
+                [
+                    PYTHON,
+                    SCRIPT,
+                    "--role",
+                    "replayer",
+                    "--url",
+                    base.replace("http", "ws", 1) + "/api/rigs/twin/live?since=0",
+                    "--cookie",
+                    cookies["mallory"],
+                    "--count",
+                    str(sockets),
+                    "--seconds",
+                    str(seconds + 2),
+                ],
+                stdout=subprocess.PIPE,
+                text=True,
+            )
+            time.sleep(1.0)  # the replays under way
+            rows[f"replaying x{sockets}"] = time_others(base, cookies["olga"], seconds)
+            replayed = json.loads(replayer.communicate(timeout=120)[0])
+        finally:
+            if replayer is not None and replayer.poll() is None:
+                replayer.kill()
+                replayer.communicate()
+            server.terminate()
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                server.wait(timeout=20)
+    print(
+        f"another user's latency (ms) while a student replays a {REPLAY_STORED}-sample run "
+        f"on {sockets} sockets; {seconds:g} s each; load {os.getloadavg()[0]:.1f}"
+    )
+    print("                      requests p50   p95   max | readings p50   p95   max")
+    for name, (requests, readings) in rows.items():
+        q = [statistics_of(requests), statistics_of(readings)]
+        print(
+            f"  {name:>18}  {q[0][0]:12.1f} {q[0][1]:5.1f} {q[0][2]:5.0f} |"
+            f" {q[1][0]:12.1f} {q[1][1]:5.1f} {q[1][2]:5.0f}   ({len(requests)} requests)"
+        )
+    print(f"  the student's replays: {replayed}")
+
+
+def statistics_of(values: list[float]) -> tuple[float, float, float]:
+    """p50, p95 and max of ``values`` (NaN when empty)."""
+    if not values:
+        return (math.nan, math.nan, math.nan)
+    ordered = sorted(values)
+    return (
+        ordered[len(ordered) // 2],
+        ordered[min(len(ordered) - 1, int(0.95 * len(ordered)))],
+        ordered[-1],
+    )
+
+
 # -- the orchestration ---------------------------------------------------------------------------
 
 
@@ -405,9 +631,12 @@ def summarise(
     return out
 
 
+# Every watcher uses the teacher's one login (one socket per tab would be 4 at most).
 LAB_TOML = """
 [access]
 login_attempts_per_address = 1000
+live_sockets_per_login = 1000
+live_sockets_per_rig = 1000
 
 [rig_defaults]
 control_time_limit = 3600
@@ -464,6 +693,15 @@ async def bench_thermolab(watchers: int, seconds: float, procs: int) -> dict[str
                 cookie = f"thermolab_session={login.cookies['thermolab_session']}"
                 headers = {"Cookie": cookie}
                 (await http.post("/api/rigs/twin/control", headers=headers)).raise_for_status()
+
+                async def keep_control() -> None:  # the controller's page keeps its turn
+                    while True:
+                        await asyncio.sleep(5.0)
+                        await http.post("/api/rigs/twin/heartbeat", headers=headers)
+
+                # From the start: connecting hundreds of watchers may outlast the 15 s a
+                # silent controller keeps the turn (and a run ends with its turn).
+                heartbeat = asyncio.create_task(keep_control())
                 url = f"ws://127.0.0.1:{port}/api/rigs/twin/live"
                 clients = await start_clients(url, cookie, watchers, procs)
                 cpu = CpuWindow({"server": [server.pid], "clients": [c.pid for c in clients]})
@@ -478,13 +716,6 @@ async def bench_thermolab(watchers: int, seconds: float, procs: int) -> dict[str
                     },
                 )
                 started.raise_for_status()
-
-                async def keep_control() -> None:  # the controller's page keeps its turn
-                    while True:
-                        await asyncio.sleep(5.0)
-                        await http.post("/api/rigs/twin/heartbeat", headers=headers)
-
-                heartbeat = asyncio.create_task(keep_control())
                 try:
                     results, figures = await measure(clients, cpu, seconds)
                 finally:
@@ -580,12 +811,24 @@ def main() -> int:
         metavar="N",
         help="run N busy-loop processes meanwhile, competing for the cores (0)",
     )
-    parser.add_argument("--role", choices=["clients", "peer"], help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--replay",
+        type=int,
+        default=0,
+        metavar="SOCKETS",
+        help="instead: others' latency while a student replays a long run on SOCKETS sockets",
+    )
+    parser.add_argument(
+        "--role",
+        choices=["clients", "peer", "replay-server", "replayer"],
+        help=argparse.SUPPRESS,
+    )
     parser.add_argument("--url", help=argparse.SUPPRESS)
     parser.add_argument("--cookie", help=argparse.SUPPRESS)
     parser.add_argument("--count", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--stall", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--port", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--data-dir", help=argparse.SUPPRESS)
     parser.add_argument("--samples", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.role == "clients":
@@ -593,6 +836,15 @@ def main() -> int:
         return 0
     if args.role == "peer":
         new_loop().run_until_complete(peer_main(args.port, args.samples))
+        return 0
+    if args.role == "replay-server":
+        replay_server_main(args.port, args.data_dir)
+        return 0
+    if args.role == "replayer":
+        replayer_main(args.url, args.cookie, args.count, args.seconds)
+        return 0
+    if args.replay:
+        bench_replay(args.seconds, args.replay)
         return 0
 
     counts = [int(n) for n in args.watchers.split(",")]

@@ -224,6 +224,14 @@ def test_max_run_seconds_is_a_rig_limit(tmp_path: Path) -> None:
             "[access]\nmax_body_bytes=100\n",
             r"access\.max_body_bytes: expected a finite number >= 1024",
         ),
+        (
+            "[access]\nlive_sockets_per_rig=0\n",
+            r"access\.live_sockets_per_rig: expected a finite number >= 1",
+        ),
+        (
+            "[access]\nlive_replay_samples=1\n",
+            r"access\.live_replay_samples: expected a finite number >= 2",
+        ),
         ("speedup='fast'\n", "speedup: expected a number, got str 'fast'"),
         ("speedup=true\n", "speedup: expected a number, got bool True"),
         ("title=''\n", "title: expected a non-empty string"),
@@ -251,3 +259,14 @@ def test_a_key_left_out_inherits_the_one_declared_default(tmp_path: Path) -> Non
         load_config(write(tmp_path, "title='x'\n"), tmp_path).access
         == default_config(tmp_path).access
     )
+
+
+def test_the_live_socket_limits_are_access_keys(tmp_path: Path) -> None:
+    text = "[access]\nlive_sockets_per_login = 2\nlive_sockets_per_rig = 30\n"
+    text += "live_replay_samples = 5000\n"
+    access = load_config(write(tmp_path, text), tmp_path).access
+    assert (access.live_sockets_per_login, access.live_sockets_per_rig) == (2, 30)
+    assert access.live_replay_samples == 5000
+    default = default_config(tmp_path).access
+    assert (default.live_sockets_per_login, default.live_sockets_per_rig) == (4, 500)
+    assert default.live_replay_samples == 20_000

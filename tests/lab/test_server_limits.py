@@ -157,3 +157,32 @@ def test_thermolab_user_makes_a_database_private(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     assert stat.S_IMODE(data_dir.stat().st_mode) == 0o700
     assert stat.S_IMODE((data_dir / "thermolab.sqlite3").stat().st_mode) == 0o600
+
+
+def test_a_live_socket_outlives_the_request_timeout(server: tuple[int, Path]) -> None:
+    """The request timer stops at the WebSocket upgrade (it used to cut every live socket)."""
+    import httpx
+    from websockets.sync.client import connect
+
+    port, data_dir = server
+    password = "socket-password-0123"
+    subprocess.run(
+        [
+            *(sys.executable, "-m", "thermolab", "--data-dir", str(data_dir)),
+            *("user", "add", "sol", "--role", "student", "--password-stdin"),
+        ],
+        input=password + "\n",
+        text=True,
+        check=True,
+        capture_output=True,
+    )
+    base = f"http://127.0.0.1:{port}"
+    login = httpx.post(f"{base}/api/session", json={"username": "sol", "password": password})
+    cookie = f"thermolab_session={login.cookies['thermolab_session']}"
+    url = f"ws://127.0.0.1:{port}/api/rigs/twin/live"
+    with connect(url, additional_headers={"Cookie": cookie}) as ws:
+        assert '"hello"' in str(ws.recv(timeout=10))
+        time.sleep(2.5)  # real time: beyond the server's 1 s request timeout
+        ws.send('{"type": "ping"}')
+        while '"pong"' not in str(ws.recv(timeout=10)):
+            pass

@@ -308,3 +308,35 @@ def test_an_estimate_without_a_model_says_why(page: Any) -> None:
     )
     assert page.inner_text(status) == f"live: {reason}"
     assert page.inner_text("[data-panel-view=wlsm] [data-method=wlsm] [data-field=K]") == "–"
+
+
+def test_a_truncated_replay_of_a_long_run_still_fills_the_window(page: Any) -> None:
+    """Joining a long run, the server sends its first sample, a `truncated` notice and the
+    newest samples (docs/live-protocol.md, "Replay"): the window shows the newest."""
+    page.evaluate("() => window.__live.open()")
+    rig = rig_json(page)
+    hello(page, 10, rig, run_json(RUN))
+    page.evaluate(
+        """() => {
+          window.__live.send({ type: 'samples', items: [{ run: RUN, k: 0, t: 0, u: 4, y: -5 }] });
+          window.__live.send({ type: 'truncated', run: RUN, from: 15001, limit: 5000 });
+          for (let k0 = 15001; k0 < 20000; k0 += 1000) {
+            const items = [];
+            for (let k = k0; k < Math.min(20000, k0 + 1000); k++) {
+              items.push({ run: RUN, k, t: k, u: 4, y: 0.5 + 1e-5 * k });
+            }
+            window.__live.send({ type: 'samples', items });
+          }
+          window.__live.send({ type: 'sample', seq: 11, run: RUN, k: 20000, t: 20000, u: 4,
+                               y: 0.7 });
+        }"""
+    )
+    label = "Output y and model prediction against time"
+    assert drawn(page, label) == 2000
+    low, high = (
+        float(v)
+        for v in page.get_attribute(f"figure[aria-label='{label}']", "data-y-range").split(",")
+    )
+    # The newest samples, not the first one's -5.
+    assert low > 0.5
+    assert high < 1

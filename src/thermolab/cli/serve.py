@@ -252,6 +252,7 @@ def _bounded_h11(request_timeout: float) -> type[asyncio.Protocol]:
 
     class BoundedH11Protocol(H11Protocol):
         _request_timer: asyncio.TimerHandle | None = None
+        _upgraded = False
 
         def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
             super().connection_made(transport)
@@ -259,6 +260,11 @@ def _bounded_h11(request_timeout: float) -> type[asyncio.Protocol]:
 
         def data_received(self, data: bytes) -> None:
             super().data_received(data)
+            if self._upgraded:
+                # The WebSocket protocol owns the connection now; h11 still reads the
+                # upgrade request as SEND_BODY, and a timer armed here cut every live
+                # socket after request_timeout seconds.
+                return
             if self.conn.their_state in (h11.IDLE, h11.SEND_BODY):
                 self._arm(only_if_unarmed=True)  # a request has begun: it must end in time
             else:
@@ -269,6 +275,7 @@ def _bounded_h11(request_timeout: float) -> type[asyncio.Protocol]:
             super().connection_lost(exc)
 
         def handle_websocket_upgrade(self, event: h11.Request) -> None:
+            self._upgraded = True
             self._disarm()
             super().handle_websocket_upgrade(event)
 

@@ -60,8 +60,9 @@ CLOSE_UNKNOWN_RIG = 4404
 CLOSE_TOO_SLOW = 4408
 CLOSE_TOO_BIG = 1009
 CLOSE_TOO_MANY = 4429
-MAX_SOCKETS_PER_LOGIN = 4
-"""A login holds at most this many live sockets at once (one per tab, a few tabs)."""
+"""The login holds its most live sockets (``access.live_sockets_per_login``)."""
+CLOSE_RIG_FULL = 4503
+"""The rig has its most live sockets (``access.live_sockets_per_rig``)."""
 MAX_CLIENT_MESSAGE = 4096
 MAX_CLIENT_NESTING = 8
 """Client messages nest at most this deep (a ping nests 1); deeper ones get an ``error``."""

@@ -297,8 +297,11 @@ class Lab:
         limit = self.config.rig(rig_id).idle_limit
         if fresh and idle_left is not None and limit is not None and idle_left < limit / 2:
             # Written at most twice per idle limit, so that reads stay cheap.
-            with contextlib.suppress(ThermoLabError):  # the turn just ended: a plain read
-                self.access.within_control(rig_id, who, "read it", lambda *_: None)
+            with (
+                contextlib.suppress(ThermoLabError),
+                self.access.controlled(rig_id, who, "read it"),
+            ):
+                pass  # the turn just ended: a plain read
         reading = self.hub.read_now(rig_id) if fresh else None
         if reading is None:
             fresh = False

@@ -19,6 +19,9 @@ database in the data folder). A TOML file declares more::
     max_body_bytes = 65536
     trusted_proxies = []         # addresses whose X-Forwarded-For is believed (default: none)
     frame_ancestors = ["'self'"] # CSP frame-ancestors: who may embed the lab (e.g. an LMS)
+    live_sockets_per_login = 4   # live WebSockets one login may hold at once (4429 beyond)
+    live_sockets_per_rig = 500   # live WebSockets one rig may have at once (4503 beyond)
+    live_replay_samples = 20000  # stored samples one socket may replay (the newest; see docs)
 
     [rig_defaults]           # limits every rig inherits unless it sets its own
     control_time_limit = 300 # s of control per turn
@@ -143,6 +146,15 @@ class AccessPolicy:
         is the client.
     frame_ancestors : tuple of str
         CSP ``frame-ancestors`` sources: who may show the lab in a frame.
+    live_sockets_per_login : int
+        Live WebSockets one login may hold at once (a few tabs); refused with 4429 beyond.
+    live_sockets_per_rig : int
+        Live WebSockets one rig may have at once, so that one rig's watchers
+        cannot take every connection the server accepts; refused with 4503 beyond.
+    live_replay_samples : int
+        Stored samples of the current run one socket may be sent when it
+        resumes from before what memory holds: the run's first sample and its
+        newest ones (``docs/live-protocol.md``, "Replay").
 
     Examples
     --------
@@ -161,6 +173,9 @@ class AccessPolicy:
     max_body_bytes: int = 64 * 1024
     trusted_proxies: tuple[str, ...] = ()
     frame_ancestors: tuple[str, ...] = ("'self'",)
+    live_sockets_per_login: int = 4
+    live_sockets_per_rig: int = 500
+    live_replay_samples: int = 20_000
 
 
 @dataclass(frozen=True, slots=True)

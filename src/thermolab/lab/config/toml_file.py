@@ -204,6 +204,9 @@ class _Access(_Table):
     max_body_bytes: Annotated[int, Field(strict=True, ge=1024)] | None = None
     trusted_proxies: tuple[_Token, ...] | None = None
     frame_ancestors: tuple[_Token, ...] | None = None
+    live_sockets_per_login: _Count | None = None
+    live_sockets_per_rig: _Count | None = None
+    live_replay_samples: Annotated[int, Field(strict=True, ge=2)] | None = None
 
 
 class _File(_Table):

@@ -1,4 +1,4 @@
-"""The live protocol's server messages, typed (the contract is ``docs/live-protocol.md``).
+"""The live protocol's messages (contract: ``docs/live-protocol.md``).
 
 Each message the live endpoint sends is one of these ``TypedDict`` shapes: the
 type checker holds every builder to its fields, and the JSON is the dict as
@@ -25,6 +25,7 @@ __all__ = [
     "SampleMessage",
     "SamplesMessage",
     "StateMessage",
+    "TruncatedMessage",
     "client_message_type",
 ]
 
@@ -57,6 +58,18 @@ class SamplesMessage(TypedDict, total=False):
     type: Literal["samples"]
     seq: int
     items: list[dict[str, Any]]
+
+
+TruncatedMessage = TypedDict(
+    "TruncatedMessage",
+    {"type": Literal["truncated"], "run": int, "from": int, "limit": int},
+)
+"""``truncated``: a replay from the store skipped samples of run ``run``.
+
+Sent after the run's first sample and before its newest ones, which start at
+sample ``from``; ``limit`` is the most stored samples one socket is sent.
+(Functional form: ``from`` is a Python keyword.)
+"""
 
 
 class EstimateMessage(TypedDict):
@@ -114,8 +127,11 @@ class ErrorMessage(TypedDict):
     detail: str
 
 
+# -- client -> server ---------------------------------------------------------------------
+
+
 def client_message_type(text: str) -> str:
-    """What a client sent: ``"ping"`` for a ping, else the problem with the message, in words.
+    """``"ping"`` for a ping, else the problem with the message, in words.
 
     Examples
     --------

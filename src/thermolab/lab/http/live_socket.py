@@ -4,9 +4,11 @@
 events, idle readings), turns what it hears into the protocol's messages on
 each rig's :class:`~thermolab.lab.fanout.LiveChannel`, and serves the clients:
 ``hello``, the replay of what a reconnecting client missed (from memory, or
-the current run's samples from the store when memory no longer has them),
-then the live messages. A client's ``ping`` keeps its control or queue place
-alive and is answered with ``pong``.
+the current run's samples from the store when memory no longer has them;
+:mod:`~thermolab.lab.http.live_replay`, paged and budgeted), then the live
+messages. Sockets are limited per login and per rig (the lab's access
+policy). A client's ``ping`` keeps its control or queue place alive and is
+answered with ``pong``.
 
 A connection lives as long as the login it was opened with: the lab
 announces every login it ends (logout, expiry, a password change, an account
@@ -36,10 +38,11 @@ from thermolab.jsonsafe import finite_or_none
 from thermolab.lab.access import RigSnapshot
 from thermolab.lab.db.models import LoginSession, Role
 from thermolab.lab.fanout import (
+    CLOSE_RIG_FULL,
     CLOSE_TOO_MANY,
+    CLOSE_TOO_SLOW,
     CLOSE_UNAUTHORIZED,
     CLOSE_UNKNOWN_RIG,
-    MAX_SOCKETS_PER_LOGIN,
     LiveChannel,
     LiveClient,
     LiveFanout,
@@ -57,6 +60,7 @@ from thermolab.lab.http.live_messages import (
     StateMessage,
     client_message_type,
 )
+from thermolab.lab.http.live_replay import ReplayBudget, ReplayTooSlowError, replay
 from thermolab.lab.http.schemas import RigOut, RunOut
 from thermolab.lab.runs import RunRecord
 from thermolab.lab.service import Lab
@@ -67,7 +71,6 @@ __all__ = ["LiveEndpoint"]
 
 log = logging.getLogger(__name__)
 
-_REPLAY_BATCH = 1000
 _PING_INTERVAL = timedelta(seconds=1)  # pings look at the rig at most this often
 _CLOSE_TIMEOUT = 10.0  # seconds a close frame may wait for a stalled socket to drain
 
@@ -91,6 +94,11 @@ class LiveEndpoint:
         Seconds between checks that every client's login still exists, for
         logins ended by another process (``thermolab user remove``); logins
         this lab ends arrive at once as :attr:`Lab.logins_ended` events.
+    budget : ReplayBudget, optional
+        How replays share the server (default: :class:`ReplayBudget`'s).
+
+    The socket limits (per login, per rig) and the most stored samples one
+    socket is replayed come from the lab's :class:`~thermolab.lab.config.AccessPolicy`.
     """
 
     def __init__(
@@ -100,11 +108,16 @@ class LiveEndpoint:
         access_delay: float = 0.2,
         client_queue: int = 2000,
         session_check: float | None = 5.0,
-        sockets_per_login: int = MAX_SOCKETS_PER_LOGIN,
+        budget: ReplayBudget | None = None,
     ) -> None:
         self.lab = lab
-        self._sockets_per_login = sockets_per_login
+        policy = lab.config.access
+        self._sockets_per_login = policy.live_sockets_per_login
+        self._sockets_per_rig = policy.live_sockets_per_rig
+        self._replay_limit = policy.live_replay_samples
+        self.budget = budget if budget is not None else ReplayBudget()
         self._sockets: collections.Counter[tuple[str, int | None]] = collections.Counter()
+        self._rig_sockets: collections.Counter[str] = collections.Counter()
         self.hub = LiveFanout([rig.id for rig in lab.config.rigs])
         self._access_delay = access_delay
         self._client_queue = client_queue
@@ -199,6 +212,7 @@ class LiveEndpoint:
     def bind(self, loop: asyncio.AbstractEventLoop | None) -> None:
         """Serve clients on ``loop`` (``None`` when the server stops; call in the loop)."""
         self.hub.bind(loop)
+        self.budget.bind()
         if self._watchdog is not None:
             self._watchdog.cancel()
             self._watchdog = None
@@ -303,7 +317,8 @@ class LiveEndpoint:
         if channel is None:
             await websocket.close(CLOSE_UNKNOWN_RIG, f"no rig called {rig_id!r}")
             return
-        # One login cannot hold the server's sockets (and replays) for everyone.
+        # One login cannot hold the server's sockets (and replays) for everyone, nor one
+        # rig's watchers every connection the server accepts.
         login = who.login_key
         if self._sockets[login] >= self._sockets_per_login:
             await websocket.close(
@@ -311,13 +326,19 @@ class LiveEndpoint:
                 f"at most {self._sockets_per_login} live sockets per login; close one first",
             )
             return
+        if self._rig_sockets[rig_id] >= self._sockets_per_rig:
+            await websocket.close(
+                CLOSE_RIG_FULL,
+                f"rig {rig_id!r} has its {self._sockets_per_rig} live sockets; try again later",
+            )
+            return
         self._sockets[login] += 1
+        self._rig_sockets[rig_id] += 1
         try:
             await self._attached(websocket, channel, rig_id, who, since)
         finally:
-            self._sockets[login] -= 1
-            if self._sockets[login] <= 0:
-                del self._sockets[login]
+            _release(self._sockets, login)
+            _release(self._rig_sockets, rig_id)
 
     async def _attached(
         self,
@@ -343,7 +364,20 @@ class LiveEndpoint:
         try:
             await self._hello(websocket, rig_id, who, start)
             if since is not None and since != start:
-                await self._replay(websocket, rig_id, since, start)
+                try:
+                    await replay(
+                        websocket,
+                        channel,
+                        self.lab.runs.stored_samples,
+                        self.lab.runs.running(rig_id),
+                        since,
+                        start,
+                        user_id=who.user_id,
+                        budget=self.budget,
+                        limit=self._replay_limit,
+                    )
+                except ReplayTooSlowError:
+                    client.close(CLOSE_TOO_SLOW, "too slow: reconnect with since")
             self.access_changed(rig_id)  # one more watcher
             await _serve(websocket, client, lambda: self._ping(rig_id, who, client), leave)
         except WebSocketDisconnect:
@@ -367,42 +401,6 @@ class LiveEndpoint:
             "seq": seq,
         }
         await websocket.send_text(encode(hello))
-
-    async def _replay(self, websocket: WebSocket, rig_id: str, since: int, upto: int) -> None:
-        channel = self.hub.channels[rig_id]
-        kept: list[dict[str, Any]] = []
-        if since > upto:
-            # A number this server never gave (the clock was set back across a restart):
-            # what the client has is unknown, so it gets the current run from the store.
-            gap = True
-        else:
-            kept, gap = channel.replay_since(since, upto)
-        run_id = self.lab.runs.running(rig_id)
-        if gap and run_id is not None:
-            # Memory no longer has everything missed: the current run's samples from the store.
-            rows = await anyio.to_thread.run_sync(self._stored_samples, run_id)
-            for i in range(0, len(rows), _REPLAY_BATCH):
-                stored = [
-                    {"run": run_id, "k": k, "t": t, "u": u, "y": y}
-                    for k, t, u, y in rows[i : i + _REPLAY_BATCH]
-                ]
-                await websocket.send_text(encode({"type": "samples", "items": stored}))
-        # In the order they happened; runs of consecutive samples go as one batch.
-        batch: list[dict[str, Any]] = []
-        for message in [*kept, None]:
-            if message is not None and message["type"] == "sample":
-                batch.append({k: v for k, v in message.items() if k != "type"})
-                if len(batch) < _REPLAY_BATCH:
-                    continue
-            if batch:
-                last = batch[-1]["seq"]
-                await websocket.send_text(encode({"type": "samples", "seq": last, "items": batch}))
-                batch = []
-            if message is not None and message["type"] != "sample":
-                await websocket.send_text(encode(message))
-
-    def _stored_samples(self, run_id: int) -> list[tuple[int, float, float, float]]:
-        return list(self.lab.runs.samples(run_id, _NOBODY))
 
     def _ping(self, rig_id: str, who: Principal, client: LiveClient) -> None:
         # A ping is the client being here: it keeps a control or queue place alive. Looking
@@ -477,6 +475,12 @@ async def _serve(
             # reads again is left to the server, which closes the connection.
             with contextlib.suppress(Exception):
                 await asyncio.wait_for(websocket.close(code, reason), _CLOSE_TIMEOUT)
+
+
+def _release(counts: collections.Counter[Any], key: Any) -> None:
+    counts[key] -= 1
+    if counts[key] <= 0:
+        del counts[key]
 
 
 def _signature(snap: RigSnapshot, watchers: int) -> tuple[Any, ...]:

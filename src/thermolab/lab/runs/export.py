@@ -76,6 +76,39 @@ class RunExport:
             for row in rows:
                 yield (row[0], row[1], row[2], row[3])
 
+    def sample_page(
+        self, run_id: int, after: int | None, limit: int, upto: int | None = None
+    ) -> list[StoredSample]:
+        """One page of a run's stored samples: up to ``limit`` with ``after < k <= upto``, in order.
+
+        Keyset paging on the primary key ``(run_id, k)``: each page is one
+        bounded index range, however long the run (``after=None``: from the first).
+        """
+        query = select(Sample.k, Sample.t, Sample.u, Sample.y).where(Sample.run_id == run_id)
+        if after is not None:
+            query = query.where(Sample.k > after)
+        if upto is not None:
+            query = query.where(Sample.k <= upto)
+        with self._db.read() as session:
+            rows = session.execute(query.order_by(Sample.k).limit(limit))
+            return [(row[0], row[1], row[2], row[3]) for row in rows]
+
+    def newest_samples(self, run_id: int, count: int) -> tuple[int, int] | None:
+        """``(first k, last k)`` of a run's ``count`` newest stored samples (fewer if it has fewer).
+
+        ``None`` when the run has no stored sample. Two index-only lookups.
+        """
+        newest = select(Sample.k).where(Sample.run_id == run_id).order_by(Sample.k.desc())
+        with self._db.read() as session:
+            last = session.scalar(newest.limit(1))
+            if last is None:
+                return None
+            first = session.scalar(newest.offset(count - 1).limit(1))
+            if first is None:  # fewer than count: all of them
+                first = session.scalar(newest.order_by(None).order_by(Sample.k).limit(1))
+        assert first is not None
+        return first, last
+
     def channels(self, run_id: int) -> tuple[ChannelSpec, ...]:
         """The channels of a run's stored samples, in record order.
 

@@ -128,6 +128,11 @@ class RunService:
         self._store = RunStore(db)
         self._export = RunExport(db)
 
+    @property
+    def stored_samples(self) -> RunExport:
+        """The runs' samples read back (the live replay pages through them)."""
+        return self._export
+
     def start(self, rig_id: str, who: Principal, request: RunRequest) -> RunRecord:
         """START a run on the rig ``who`` controls.
 
