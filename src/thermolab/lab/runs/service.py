@@ -146,6 +146,7 @@ class RunService:
         ConflictError
             If a run is already going on the rig, or the rig has no device.
         """
+        self._config.rig(rig_id)  # an unknown rig is a 404, before anything reads its device
         published = self._hub.published(rig_id)
         experiment_args = check_request(request, (published.input_min, published.input_max))
         methods = parse_methods(request.methods)
