@@ -43,6 +43,7 @@ from typing import Any
 from thermolab.jsonsafe import json_safe
 
 __all__ = [
+    "CLOSE_BAD_REQUEST",
     "CLOSE_TOO_SLOW",
     "CLOSE_UNAUTHORIZED",
     "MAX_FRAME_MESSAGES",
@@ -55,11 +56,14 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
+CLOSE_BAD_REQUEST = 4400
 CLOSE_UNAUTHORIZED = 4401
 CLOSE_UNKNOWN_RIG = 4404
 CLOSE_TOO_SLOW = 4408
 CLOSE_TOO_BIG = 1009
 CLOSE_TOO_MANY = 4429
+MAX_SEQ = 2**53
+"""The largest ``seq`` (and ``since``) there is: numbers stay exact in a browser."""
 MAX_SOCKETS_PER_LOGIN = 4
 """A login holds at most this many live sockets at once (one per tab, a few tabs)."""
 MAX_CLIENT_MESSAGE = 4096

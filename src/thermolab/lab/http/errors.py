@@ -21,9 +21,10 @@ from typing import Any
 
 import anyio.to_thread
 from fastapi import FastAPI, Request
-from fastapi.exceptions import RequestValidationError
+from fastapi.exceptions import RequestValidationError, WebSocketRequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.websockets import WebSocket
 
 from thermolab.errors import (
     AccessDeniedError,
@@ -34,6 +35,7 @@ from thermolab.errors import (
     TurnEndedError,
 )
 from thermolab.lab.camera import CameraError
+from thermolab.lab.fanout import CLOSE_BAD_REQUEST, CLOSE_UNAUTHORIZED, MAX_SEQ
 from thermolab.lab.http.deps import COOKIE_NAME
 from thermolab.lab.http.schemas import ValidationErrorOut
 from thermolab.lab.security import AuthenticationError, RateLimitedError
@@ -151,7 +153,21 @@ def install_error_handlers(app: FastAPI) -> None:
         code = _HTTP_CODES.get(status, "http_error")
         return error_response(status, detail, code, headers)
 
+    async def handshake_refused(websocket: WebSocket, exc: Exception) -> None:
+        # FastAPI's default closes before accepting: an HTTP 403 that says nothing. The
+        # live protocol's refusal is a close code (docs/live-protocol.md), and a
+        # stranger learns nothing before logging in.
+        lab: Lab = websocket.app.state.lab
+        token = websocket.cookies.get(COOKIE_NAME)
+        who = await anyio.to_thread.run_sync(lab.sessions.resolve, token)
+        await websocket.accept()
+        if who is None:
+            await websocket.close(CLOSE_UNAUTHORIZED, "not logged in")
+        else:
+            await websocket.close(CLOSE_BAD_REQUEST, _HANDSHAKE_REFUSAL)
+
     app.add_exception_handler(ThermoLabError, lab_error)
+    app.add_exception_handler(WebSocketRequestValidationError, handshake_refused)
     app.add_exception_handler(RequestValidationError, validation_error)
     app.add_exception_handler(StarletteHTTPException, http_error)
     _publish_one_validation_error(app)
@@ -211,6 +227,8 @@ def _publish_one_validation_error(app: FastAPI) -> None:
 
 
 _REF = "#/components/schemas/{model}"
+# The only query parameter of the live socket; a close reason holds at most 123 bytes.
+_HANDSHAKE_REFUSAL = f"since must be a whole number from 0 to {MAX_SEQ} (a seq this server sent)"
 
 
 # Fields whose submitted value is never repeated in an answer (ASVS V7.1.1, V8.3.x).

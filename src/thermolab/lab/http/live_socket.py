@@ -24,9 +24,10 @@ import json
 import logging
 from collections.abc import Callable, Collection
 from datetime import datetime, timedelta
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import anyio.to_thread
+from fastapi import Query
 from sqlalchemy import select
 from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
 
@@ -39,6 +40,7 @@ from thermolab.lab.fanout import (
     CLOSE_UNKNOWN_RIG,
     MAX_CLIENT_MESSAGE,
     MAX_CLIENT_NESTING,
+    MAX_SEQ,
     MAX_SOCKETS_PER_LOGIN,
     LiveChannel,
     LiveClient,
@@ -267,7 +269,12 @@ class LiveEndpoint:
         for client in clients:
             client.offer(texts[_viewpoint(snap, client.key)])
 
-    async def endpoint(self, websocket: WebSocket, rig_id: str, since: int | None = None) -> None:
+    async def endpoint(
+        self,
+        websocket: WebSocket,
+        rig_id: str,
+        since: Annotated[int | None, Query(ge=0, le=MAX_SEQ)] = None,
+    ) -> None:
         """Serve one client (the WebSocket route)."""
         await websocket.accept()
         token = websocket.cookies.get(COOKIE_NAME)
