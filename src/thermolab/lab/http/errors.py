@@ -30,7 +30,9 @@ from thermolab.errors import (
     AccessDeniedError,
     ConflictError,
     NotFoundError,
+    PreviousRunEndingError,
     RigError,
+    RunInProgressError,
     ThermoLabError,
     TurnEndedError,
 )
@@ -66,6 +68,8 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     NotFoundError: HttpFault(404, "not_found"),
     ConflictError: HttpFault(409, "conflict"),
     TurnEndedError: HttpFault(409, "turn_ended"),
+    RunInProgressError: HttpFault(409, "run_in_progress"),
+    PreviousRunEndingError: HttpFault(409, "previous_run_ending"),
     RigError: HttpFault(409, "rig_unavailable"),
     CameraError: HttpFault(503, "camera_unavailable"),
     RateLimitedError: HttpFault(429, "rate_limited"),

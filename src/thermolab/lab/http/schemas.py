@@ -59,9 +59,10 @@ class ErrorOut(_Out):
 
     detail: str
     code: str = Field(
-        description="stable name of the error: not_authenticated, access_denied, cross_origin, "
-        "not_found, method_not_allowed, conflict, turn_ended, previous_run_ending, "
-        "rig_unavailable, body_too_large, rate_limited, camera_unavailable..."
+        description="stable name of the error: not_authenticated, access_denied, "
+        "cross_origin, not_found, method_not_allowed, conflict, turn_ended, run_in_progress, "
+        "previous_run_ending, rig_unavailable, body_too_large, rate_limited, "
+        "camera_unavailable..."
     )
 
 
