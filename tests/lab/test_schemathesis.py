@@ -16,7 +16,9 @@ Schemathesis adapts what it draws to the answers it saw, which Hypothesis may
 report as ``Flaky`` when it replays a prefix; such a run ends there (as in
 schemathesis's own engine) and the next seed goes on.
 
-Run with ``-s`` to see the counts (operations, calls, failures by check).
+Operations no chain reaches (the login, "who am I", the method registry) then
+get cases of their own, valid and invalid. Run with ``-s`` to see the counts
+(operations, calls, failures by check).
 """
 
 from __future__ import annotations
@@ -31,10 +33,11 @@ from typing import Any
 
 import pytest
 import schemathesis
-from hypothesis import HealthCheck, Phase, settings
+from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import seed as hypothesis_seed
 from hypothesis import strategies as st
 from hypothesis.errors import Flaky
+from schemathesis import GenerationMode
 from schemathesis.checks import not_a_server_error
 from schemathesis.core.failures import Failure, FailureGroup
 from schemathesis.specs.openapi.checks import response_schema_conformance
@@ -58,9 +61,10 @@ ASGIApp = Callable[
 ]
 
 # Bounded so both databases and both roles take about two minutes together.
-SEEDS = range(3)
-SCENARIOS_PER_SEED = 10
+SEEDS = range(4)
+SCENARIOS_PER_SEED = 12
 STEPS_PER_SCENARIO = 8
+ALONE_EXAMPLES = 25  # for each operation no chain reached
 CHECKS = (not_a_server_error, response_schema_conformance)
 
 # (check, operation) -> why it still fails. Empty: schemathesis finds nothing else.
@@ -111,6 +115,19 @@ class Tally:
     failures: collections.Counter[tuple[str, str]] = field(default_factory=collections.Counter)
     examples: dict[tuple[str, str], str] = field(default_factory=dict)
     flaky_runs: int = 0
+    missed: set[str] = field(default_factory=set)
+
+    def checked(self, response: Any, case: Any) -> None:
+        """Count a call and run the checks on its answer (failures are tallied, not raised)."""
+        operation = f"{case.method} {case.operation.path}"
+        self.calls[operation] += 1
+        try:
+            case.validate_response(response, checks=list(CHECKS))
+        except FailureGroup as group:
+            for failure in group.exceptions:
+                self.failed(failure, operation, response.status_code, response.text)
+        except Failure as failure:
+            self.failed(failure, operation, response.status_code, response.text)
 
     def failed(self, failure: Failure, operation: str, status: int, body: str) -> None:
         check = next(iter(type(failure).checks), type(failure).__name__)
@@ -123,7 +140,8 @@ class Tally:
         for (check, _), count in self.failures.items():
             by_check[check] += count
         lines = [
-            f"schemathesis stateful, {label}: {len(self.calls)} operations, "
+            f"schemathesis stateful, {label}: {len(self.calls)} operations called "
+            f"(not: {', '.join(sorted(self.missed)) or 'none'}), "
             f"{sum(self.calls.values())} calls, {self.flaky_runs} runs ended as Flaky, "
             f"failures by check: {dict(by_check) or 'none'}"
         ]
@@ -205,17 +223,9 @@ def run_stateful(labs: FreshLabs) -> Tally:
         def validate_response(
             self, response: Any, case: Any, additional_checks: Any = None, **kwargs: Any
         ) -> None:
-            operation = f"{case.method} {case.operation.path}"
-            tally.calls[operation] += 1
-            try:
-                case.validate_response(response, checks=list(CHECKS))
-            except FailureGroup as group:
-                for failure in group.exceptions:
-                    tally.failed(failure, operation, response.status_code, response.text)
-            except Failure as failure:
-                tally.failed(failure, operation, response.status_code, response.text)
+            tally.checked(response, case)
 
-    for number in SEEDS:
+    for number in SEEDS:  # a run that ends as Flaky ends early; the next seed goes on
         try:
             hypothesis_seed(number)(Machine).run(
                 settings=settings(
@@ -229,7 +239,43 @@ def run_stateful(labs: FreshLabs) -> Tally:
             )
         except Flaky:
             tally.flaky_runs += 1
+    # The stateful phase calls only what links reach (GET /api/methods, the login and
+    # "who am I" are no step of any chain): each operation it left out gets cases of its own.
+    operations = {f"{op.method.upper()} {op.path}": op for op in _operations(schema)}
+    labs.open()
+    try:
+        for label in sorted(set(operations) - set(tally.calls)):
+            _call_alone(operations[label], labs, tally)
+    finally:
+        labs.close()
+    tally.missed = set(operations) - set(tally.calls)
     return tally
+
+
+def _call_alone(operation: Any, labs: FreshLabs, tally: Tally) -> None:
+    strategy = st.one_of(
+        operation.as_strategy(GenerationMode.POSITIVE),
+        operation.as_strategy(GenerationMode.NEGATIVE),
+    )
+
+    @settings(
+        max_examples=ALONE_EXAMPLES,
+        deadline=None,
+        database=None,
+        phases=[Phase.generate],
+        suppress_health_check=list(HealthCheck),
+    )
+    @given(case=strategy)
+    def call(case: Any) -> None:
+        response = case.call(headers={"cookie": f"thermolab_session={labs.token}"})
+        tally.checked(response, case)
+
+    call()
+
+
+def _operations(schema: Any) -> Iterator[Any]:
+    for result in schema.get_all_operations():
+        yield result.ok()
 
 
 @pytest.fixture(params=["sqlite", pytest.param("postgres", marks=pytest.mark.postgres)])
