@@ -19,11 +19,13 @@ __all__ = [
     "InvalidDataError",
     "InvalidParameterError",
     "NotFoundError",
+    "PreviousRunEndingError",
     "RecordFormatError",
     "RigError",
     "RigFaultError",
     "RigStateError",
     "RigTimeoutError",
+    "RunInProgressError",
     "RunStateError",
     "SignalSpecError",
     "SubscriberCutError",
@@ -101,6 +103,14 @@ class ConflictError(ThermoLabError, RuntimeError):
 
 class TurnEndedError(ConflictError):
     """The turn at the controls ended while the request was being decided (it lost the race)."""
+
+
+class RunInProgressError(ConflictError):
+    """A run of the caller's own turn is already going on the rig (END it first)."""
+
+
+class PreviousRunEndingError(ConflictError):
+    """Right after a hand-over, the previous turn's run is still ENDing and storing its data."""
 
 
 class AccessDeniedError(ThermoLabError, PermissionError):

@@ -22,7 +22,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from sqlalchemy import func, select
 
-from thermolab.errors import AccessDeniedError, ConflictError, NotFoundError
+from thermolab.errors import (
+    AccessDeniedError,
+    NotFoundError,
+    PreviousRunEndingError,
+    TurnEndedError,
+)
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import RigConfig
 from thermolab.lab.db.models import ControlSession, Run, RunStatus
@@ -31,7 +36,7 @@ from thermolab.lab.users import Principal
 from thermolab.rigs import Rig, TwinRig
 
 from .conftest import PASSWORD, LabFactory
-from .test_runs import StepClock, lab_request
+from .test_runs import StepClock, lab_request, until
 
 RIG = "twin"
 RACERS = ("input", "release", "kick", "out_of_service", "expiry")
@@ -177,10 +182,11 @@ def test_a_run_never_outlives_its_turn(
                 assert scene.lab.access.snapshot(RIG).controller is None
                 continue
             outcome = scene.race(step)
-            # The turn-ending request always succeeds; START may lose with a 409/403.
+            # The turn-ending request always succeeds; START may lose: 409 turn_ended when
+            # it arrived during the turn, 403 when the turn had ended before it arrived.
             assert outcome[step] is None, outcome[step]
             start = outcome["start"]
-            assert start is None or isinstance(start, ConflictError | AccessDeniedError), start
+            assert start is None or isinstance(start, TurnEndedError | AccessDeniedError), start
             scene.lab.sweep()
             scene.settle()
             scene.check()
@@ -211,6 +217,156 @@ def test_the_next_controller_starts_right_after_a_hand_over(make_lab: LabFactory
     with lab.db.read() as session:
         ended = session.scalar(select(func.count()).where(Run.status != RunStatus.RUNNING.value))
     assert ended == 2
+
+
+class Pause:
+    """A checkpoint of START that holds it at one point until the test lets it go on."""
+
+    def __init__(self, at: str) -> None:
+        self.at = at
+        self.reached = threading.Event()
+        self.resume = threading.Event()
+
+    def __call__(self, name: str) -> None:
+        if name == self.at:
+            self.reached.set()
+            assert self.resume.wait(30), "the test never let START go on"
+
+
+def _turn_over(lab: Lab) -> bool:
+    with lab.db.read() as session:
+        live = session.scalar(
+            select(func.count()).where(
+                ControlSession.rig_id == RIG, ControlSession.ended_at.is_(None)
+            )
+        )
+    return live == 0
+
+
+def _forced(scene: Scene, pause_at: str, racer: str) -> dict[str, BaseException | None]:
+    """START held at ``pause_at`` while ``racer`` ends the turn, then let go on."""
+    lab = scene.lab
+    pause = Pause(pause_at)
+    lab.runs.checkpoint = pause
+    outcome: dict[str, BaseException | None] = {}
+    actions: dict[str, Callable[[], Any]] = {
+        "start": lambda: lab.runs.start(RIG, scene.ana, lab_request(samples=100_000)),
+        "release": lambda: lab.access.release(RIG, scene.ana),
+        "kick": lambda: lab.access.kick(RIG, scene.tina),
+        "out_of_service": lambda: lab.set_service(RIG, scene.tina, False),
+        "expiry": scene._expire,
+    }
+
+    def run(name: str) -> None:
+        try:
+            actions[name]()
+            outcome[name] = None
+        except Exception as exc:  # judged by the caller
+            outcome[name] = exc
+
+    starting = threading.Thread(target=run, args=("start",))
+    starting.start()
+    assert pause.reached.wait(30)
+    ending = threading.Thread(target=run, args=(racer,))
+    ending.start()
+    if (pause_at, racer) == ("start:committed", "out_of_service"):
+        # Taking a rig out of service clears its fault under the hub lock before it
+        # commits: it cannot come between START's commit and its run, it waits.
+        until(lambda: ending.is_alive(), timeout=30)
+    elif (pause_at, racer) == ("start:committed", "expiry"):
+        # The committed run covers the turn: the time limit ends nothing (the sweep may
+        # wait for the hub lock START holds to take its readings; it goes on after).
+        ending.join(1.0)
+    else:
+        # The turn's end is committed while START is held (the racer may then wait for
+        # the rig's hub lock, which a START past its transaction holds).
+        until(lambda: _turn_over(lab), timeout=30)
+    pause.resume.set()
+    for thread in (starting, ending):
+        thread.join(60)
+    lab.runs.checkpoint = lambda name: None
+    return outcome
+
+
+# Where the forced order cannot make START lose, and why.
+START_WINS = {
+    ("start:committed", "out_of_service"): "waits for the hub lock START holds, then ENDs the run",
+    ("start:committed", "expiry"): "a committed run covers its turn: the time limit waits",
+}
+
+
+@pytest.mark.parametrize("racer", ["release", "kick", "out_of_service", "expiry"])
+@pytest.mark.parametrize("pause_at", ["start:arrived", "start:committed"])
+def test_a_start_that_loses_the_race_gets_turn_ended_every_time(
+    make_lab: LabFactory, clock: ManualClock, pause_at: str, racer: str
+) -> None:
+    # The race forced, not hoped for: the turn ends before START's transaction
+    # (start:arrived) or between its commit and the run's first sample (start:committed).
+    scene = Scene(make_lab, clock)
+    try:
+        scene.ready()
+        outcome = _forced(scene, pause_at, racer)
+        assert outcome[racer] is None, outcome[racer]
+        lost = outcome["start"]
+        if (pause_at, racer) in START_WINS:
+            assert lost is None, lost
+        else:
+            assert isinstance(lost, TurnEndedError), lost  # 409 turn_ended, not 403
+            assert "ended" in str(lost)
+        scene.lab.sweep()
+        scene.settle()
+        scene.check()
+        assert scene.lab.runs.running(RIG) is None
+    finally:
+        scene.rig_clock.allow(math.inf)
+        scene.lab.runs.wait(RIG, timeout=30)
+
+
+def test_a_start_after_the_turn_ended_is_refused_not_a_lost_race(
+    make_lab: LabFactory, clock: ManualClock
+) -> None:
+    scene = Scene(make_lab, clock)
+    scene.ready()
+    scene.lab.access.release(RIG, scene.ana)
+    with pytest.raises(AccessDeniedError):  # 403: she had no turn when it arrived
+        scene.lab.runs.start(RIG, scene.ana, lab_request())
+
+
+def test_the_next_controllers_start_waits_for_the_previous_run_or_says_why(
+    make_lab: LabFactory,
+) -> None:
+    rig_clock = StepClock()
+
+    def opener(rig: RigConfig) -> Rig:
+        return TwinRig("paper", clock=rig_clock)
+
+    lab = make_lab(opener=opener)
+    try:
+        _hand_over_while_the_run_ends(lab, rig_clock)
+    finally:
+        rig_clock.allow(math.inf)
+
+
+def _hand_over_while_the_run_ends(lab: Lab, rig_clock: StepClock) -> None:
+    ana = Principal(*_add(lab, "ana"))
+    ben = Principal(*_add(lab, "ben"))
+    lab.access.request_control(RIG, ana)
+    lab.access.request_control(RIG, ben)
+    first = lab.runs.start(RIG, ana, lab_request(samples=1000))
+    lab.access.release(RIG, ana)  # ben controls; ana's run cannot take its last sample yet
+    lab.runs.handover_wait = 0.2
+    with pytest.raises(PreviousRunEndingError) as still_ending:  # 409 previous_run_ending
+        lab.runs.start(RIG, ben, lab_request(samples=1000))
+    assert f"run {first.id}" in str(still_ending.value)
+    with pytest.raises(AccessDeniedError):  # ana's turn is over: 403, not a 409
+        lab.runs.start(RIG, ana, lab_request(samples=1000))
+    rig_clock.allow(5.0)  # the previous run stores its end...
+    run = lab.runs.start(RIG, ben, lab_request(samples=1000))  # ...and ben's START waits for it
+    assert run.status == "running"
+    assert run.id != first.id
+    rig_clock.allow(math.inf)
+    lab.runs.stop(RIG, ben)
+    lab.runs.wait(RIG, timeout=30)
 
 
 def _add(lab: Lab, name: str) -> tuple[int, str, Any]:

@@ -37,9 +37,9 @@ START_PATH = (
     "runs.service",  # RunService.start
     "devices",  # the rig's published range and driver, the hub's lock
     "runs.request",  # plan_run: the one check, the operating point, the identifiers
-    "runs.store",  # run_channels, add_run, DatabaseRecorder, read
-    "access.transactions",  # controlled(): the controller's locked transaction
+    "access.transactions",  # caller_turn (a lost race is told apart), controlled()
     "db.engine",  # the transactions
+    "runs.store",  # run_channels, add_run, DatabaseRecorder, read
     "access.queries",  # their SQL
     "access.rules",  # next_state: the limits applied
 )

@@ -43,6 +43,7 @@ from typing import Any
 from thermolab.jsonsafe import json_safe
 
 __all__ = [
+    "CLOSE_BAD_REQUEST",
     "CLOSE_TOO_SLOW",
     "CLOSE_UNAUTHORIZED",
     "MAX_FRAME_MESSAGES",
@@ -55,6 +56,7 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
+CLOSE_BAD_REQUEST = 4400
 CLOSE_UNAUTHORIZED = 4401
 CLOSE_UNKNOWN_RIG = 4404
 CLOSE_TOO_SLOW = 4408
@@ -63,6 +65,8 @@ CLOSE_TOO_MANY = 4429
 """The login holds its most live sockets (``access.live_sockets_per_login``)."""
 CLOSE_RIG_FULL = 4503
 """The rig has its most live sockets (``access.live_sockets_per_rig``)."""
+MAX_SEQ = 2**53
+"""The largest ``seq`` (and ``since``) there is: numbers stay exact in a browser."""
 MAX_CLIENT_MESSAGE = 4096
 MAX_CLIENT_NESTING = 8
 """Client messages nest at most this deep (a ping nests 1); deeper ones get an ``error``."""

@@ -265,6 +265,7 @@ class Lab:
         During a run the input goes to the run, which applies it from its next
         sample on (``applied`` is then the value it will apply).
         """
+        self.config.rig(rig_id)  # an unknown rig is a 404, before anything reads its device
         run_id = self.runs.running(rig_id)
         record = self.access.record_input(rig_id, who, u, run_id=run_id)
         applied: float | None

@@ -36,7 +36,12 @@ from datetime import datetime, timedelta
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from thermolab.errors import AccessDeniedError, ConflictError, InvalidParameterError
+from thermolab.errors import (
+    AccessDeniedError,
+    ConflictError,
+    InvalidParameterError,
+    TurnEndedError,
+)
 from thermolab.lab.access import queries as q
 from thermolab.lab.access.rules import TurnRules, end_turn, is_due, next_state
 from thermolab.lab.access.views import RigMonitor, RigSnapshot, RigView, render_view
@@ -151,6 +156,36 @@ class RigTransactions:
                 )
             )
         return PowerState(power or PowerState.OFF.value), control
+
+    def caller_turn(self, rig_id: str, user_id: int) -> int | None:
+        """The id of ``user_id``'s live turn at the rig, if they have the controls now."""
+        with self._db.read() as session:
+            turn: int | None = session.scalar(
+                select(ControlSession.id).where(
+                    ControlSession.rig_id == rig_id,
+                    ControlSession.user_id == user_id,
+                    ControlSession.ended_at.is_(None),
+                )
+            )
+        return turn
+
+    def turn_ended_error(self, rig_id: str, turn: int) -> TurnEndedError:
+        """The 409 of an action whose turn ``turn`` ended while it was being decided.
+
+        An action that arrived during the caller's turn and finds, in its
+        transaction, that the turn has ended lost a race: it gets 409
+        ``turn_ended`` naming how the turn ended, not the 403 of someone who
+        never had the controls.
+        """
+        with self._db.read() as session:
+            reason = session.scalar(
+                select(ControlSession.end_reason).where(ControlSession.id == turn)
+            )
+        how = f" ({reason})" if reason else ""
+        return TurnEndedError(
+            f"your turn at the controls of rig {rig_id!r} ended{how} while this START was "
+            "being decided; no run was started"
+        )
 
     def view(self, rig_id: str, who: Principal, *, heartbeat: bool = True) -> RigView:
         """Return a rig as ``who`` sees it.

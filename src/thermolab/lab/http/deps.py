@@ -8,10 +8,11 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import Depends, Path, Request, Security
+from fastapi import Depends, Path, Query, Request, Security
 from fastapi.security import APIKeyCookie, HTTPAuthorizationCredentials, HTTPBearer
 
 from thermolab.errors import AccessDeniedError
+from thermolab.lab.config.model import RIG_ID
 from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.schemas import ErrorOut, ValidationErrorOut
 from thermolab.lab.security import AuthenticationError
@@ -21,10 +22,14 @@ from thermolab.lab.users import Principal
 __all__ = [
     "AUTHENTICATED",
     "COOKIE_NAME",
+    "USERNAME_PATTERN",
     "LabDep",
     "RigId",
+    "RigQuery",
     "RunId",
     "UserDep",
+    "UserQuery",
+    "Username",
     "current_user",
     "documented_errors",
     "get_lab",
@@ -100,7 +105,30 @@ def current_user(
 
 
 UserDep = Annotated[Principal, Depends(current_user)]
-RigId = Annotated[str, Path(min_length=1, max_length=64, description="the rig's id")]
+# Every path and query parameter is bounded in the schema (tests/lab/test_contract.py
+# walks /openapi.json): a rig id as the configuration allows it, a user name as
+# normalize_username accepts it (in any case: names are case-insensitive).
+USERNAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._@-]{0,63}$"
+RigId = Annotated[
+    str, Path(min_length=1, max_length=64, pattern=RIG_ID.pattern, description="the rig's id")
+]
+Username = Annotated[
+    str,
+    Path(min_length=1, max_length=64, pattern=USERNAME_PATTERN, description="a user name"),
+]
+RigQuery = Annotated[
+    str | None,
+    Query(min_length=1, max_length=64, pattern=RIG_ID.pattern, description="only this rig"),
+]
+UserQuery = Annotated[
+    str | None,
+    Query(
+        min_length=1,
+        max_length=64,
+        pattern=USERNAME_PATTERN,
+        description="only this user's runs (teachers: anyone; students: themselves only)",
+    ),
+]
 # The largest row id the databases store (a signed 32-bit INTEGER on PostgreSQL): a
 # larger id in a path is refused by the schema (422) instead of failing in the driver.
 MAX_ROW_ID = 2**31 - 1

@@ -2,39 +2,56 @@
 
 Every 4xx body is ``{"detail": "...", "code": "..."}``: ``detail`` says what
 was wrong and what is allowed (the library's own message), ``code`` is a
-stable machine-readable name (``not_found``, ``conflict``...). Request
-validation failures are 422 with ``code = "invalid_request"`` and the
-pydantic ``errors`` list. Unknown paths under ``/api`` answer 401 before
-404/405, so they reveal nothing to a stranger.
+stable machine-readable name (``not_found``, ``conflict``...). Every 422 adds
+``errors``, one per problem: request validation failures (body, path, query,
+and a body that is not UTF-8) with ``code = "invalid_request"``, the lab's own
+refusals with ``"invalid_parameter"``; the OpenAPI publishes that one shape
+(``ValidationErrorOut``) for every 422 instead of FastAPI's own. Unknown paths
+under ``/api`` answer 401 before 404/405, so they reveal nothing to a
+stranger; a wrong method gets 405 with ``Allow`` listing the methods the path
+really has.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from typing import Any
 
 import anyio.to_thread
 from fastapi import FastAPI, Request
-from fastapi.exceptions import RequestValidationError
+from fastapi.exceptions import RequestValidationError, WebSocketRequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.websockets import WebSocket
 
 from thermolab.errors import (
     AccessDeniedError,
     ConflictError,
     NotFoundError,
+    PreviousRunEndingError,
     RigError,
+    RunInProgressError,
     ThermoLabError,
     TurnEndedError,
 )
 from thermolab.lab.camera import CameraError
+from thermolab.lab.fanout import CLOSE_BAD_REQUEST, CLOSE_UNAUTHORIZED, MAX_SEQ
 from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.deps import COOKIE_NAME
+from thermolab.lab.http.schemas import ValidationErrorOut
 from thermolab.lab.security import AuthenticationError, RateLimitedError
 from thermolab.lab.service import Lab
 
-__all__ = ["HttpFault", "error_response", "fault_of", "install_error_handlers"]
+__all__ = [
+    "HttpFault",
+    "api_methods",
+    "error_response",
+    "fault_of",
+    "install_error_handlers",
+    "invalid_response",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -52,6 +69,8 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     NotFoundError: HttpFault(404, "not_found"),
     ConflictError: HttpFault(409, "conflict"),
     TurnEndedError: HttpFault(409, "turn_ended"),
+    RunInProgressError: HttpFault(409, "run_in_progress"),
+    PreviousRunEndingError: HttpFault(409, "previous_run_ending"),
     RigError: HttpFault(409, "rig_unavailable"),
     CameraError: HttpFault(503, "camera_unavailable"),
     RateLimitedError: HttpFault(429, "rate_limited"),
@@ -97,20 +116,28 @@ def install_error_handlers(app: FastAPI) -> None:
             headers["WWW-Authenticate"] = f'{"Bearer" if bearer else "Cookie"} realm="ThermoLab"'
         if isinstance(exc, RateLimitedError):
             headers["Retry-After"] = str(max(1, math.ceil(exc.retry_after)))
+        if fault.status == 422:
+            problem = {"loc": [], "type": fault.code, "msg": str(exc)}
+            return invalid_response(str(exc), fault.code, [problem])
         return error_response(fault.status, str(exc), fault.code, headers)
 
     async def validation_error(request: Request, exc: Exception) -> JSONResponse:
         assert isinstance(exc, RequestValidationError)
         errors = [_plain_error(e) for e in exc.errors()]
         detail = "; ".join(_describe_error(e) for e in exc.errors()) or "invalid request"
-        return JSONResponse(
-            {"detail": detail, "code": "invalid_request", "errors": errors}, status_code=422
-        )
+        return invalid_response(detail, "invalid_request", errors)
 
     async def http_error(request: Request, exc: Exception) -> JSONResponse:
         assert isinstance(exc, StarletteHTTPException)
         path = request.url.path
-        if exc.status_code in (404, 405) and path.startswith("/api/"):
+        status, headers = exc.status_code, dict(exc.headers or {})
+        if status == 400 and isinstance(exc.__cause__, ValueError):
+            # FastAPI answers 400 for a JSON body it cannot decode as text (not UTF-8);
+            # the API documents every unreadable body as a 422.
+            detail = f"the request body is not valid JSON ({exc.__cause__})"
+            problem = {"loc": ["body"], "type": "json_invalid", "msg": "not UTF-8 JSON"}
+            return invalid_response(detail, "invalid_request", [problem])
+        if status in (404, 405) and path.startswith("/api/"):
             # Unknown paths under /api are private too: 401 first, then 404/405.
             lab: Lab = request.app.state.lab
             cookie = request.cookies.get(COOKIE_NAME)
@@ -120,18 +147,97 @@ def install_error_handlers(app: FastAPI) -> None:
             )
             if who is None:
                 return await lab_error(request, AuthenticationError("not logged in"))
-        detail = exc.detail
-        if exc.status_code == 404 and detail == "Not Found":
+            # Starlette names the methods of the first route that matched the path (or
+            # the static files' GET, HEAD); the truth is every API route of the path.
+            allowed = api_methods(request.app, path)
+            status = 405 if allowed else 404
+            headers.pop("Allow", None)
+            if allowed:
+                headers["Allow"] = ", ".join(allowed)
+        detail = str(exc.detail)
+        if status == 404 and exc.status_code in (404, 405):
             detail = f"nothing at {request.method} {path}; see /openapi.json"
-        elif exc.status_code == 405 and detail == "Method Not Allowed":
-            allowed = (exc.headers or {}).get("Allow", "")
-            detail = f"{request.method} is not allowed on {path}; use {allowed}"
-        code = _HTTP_CODES.get(exc.status_code, "http_error")
-        return error_response(exc.status_code, str(detail), code, dict(exc.headers or {}))
+        elif status == 405:
+            detail = f"{request.method} is not allowed on {path}; use {headers.get('Allow', '')}"
+        code = _HTTP_CODES.get(status, "http_error")
+        return error_response(status, detail, code, headers)
+
+    async def handshake_refused(websocket: WebSocket, exc: Exception) -> None:
+        # FastAPI's default closes before accepting: an HTTP 403 that says nothing. The
+        # live protocol's refusal is a close code (docs/live-protocol.md), and a
+        # stranger learns nothing before logging in.
+        lab: Lab = websocket.app.state.lab
+        token = websocket.cookies.get(COOKIE_NAME)
+        who = await anyio.to_thread.run_sync(lab.sessions.resolve, token)
+        await websocket.accept()
+        if who is None:
+            await websocket.close(CLOSE_UNAUTHORIZED, "not logged in")
+        else:
+            await websocket.close(CLOSE_BAD_REQUEST, _HANDSHAKE_REFUSAL)
 
     app.add_exception_handler(ThermoLabError, lab_error)
+    app.add_exception_handler(WebSocketRequestValidationError, handshake_refused)
     app.add_exception_handler(RequestValidationError, validation_error)
     app.add_exception_handler(StarletteHTTPException, http_error)
+    _publish_one_validation_error(app)
+
+
+def invalid_response(detail: str, code: str, errors: list[dict[str, Any]]) -> JSONResponse:
+    """The JSON answer of a 422 (``ValidationErrorOut``)."""
+    return JSONResponse({"detail": detail, "code": code, "errors": errors}, status_code=422)
+
+
+def api_methods(app: FastAPI, path: str) -> list[str]:
+    """The HTTP methods the API answers on ``path``, sorted (empty: no such path).
+
+    Read from the published OpenAPI, which lists every API route: the ``Allow``
+    header and ``/openapi.json`` cannot disagree.
+    """
+    table: list[tuple[re.Pattern[str], list[str]]] | None = getattr(app.state, "api_methods", None)
+    if table is None:
+        table = [
+            (re.compile(re.sub(r"\\\{[^}]+\\\}", "[^/]+", re.escape(template))), sorted(ops))
+            for template, ops in app.openapi().get("paths", {}).items()
+        ]
+        app.state.api_methods = table
+    methods = {m.upper() for pattern, ops in table if pattern.fullmatch(path) for m in ops}
+    return sorted(methods)
+
+
+def _publish_one_validation_error(app: FastAPI) -> None:
+    """Make ``/openapi.json`` document every 422 as ``ValidationErrorOut``, the body sent.
+
+    FastAPI adds its own ``HTTPValidationError`` (``detail`` a list) to every route
+    with parameters that does not document a 422 itself; the lab never sends it.
+    """
+    build = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is not None:
+            return app.openapi_schema
+        schema = build()
+        components = schema.setdefault("components", {}).setdefault("schemas", {})
+        if "ValidationErrorOut" not in components:  # no route documents a 422 itself
+            own = ValidationErrorOut.model_json_schema(ref_template=_REF, mode="serialization")
+            components.update(own.pop("$defs", {}))
+            components["ValidationErrorOut"] = own
+        for operations in schema.get("paths", {}).values():
+            for operation in operations.values():
+                invalid = operation.get("responses", {}).get("422")
+                if invalid is not None:
+                    published = {"$ref": _REF.format(model="ValidationErrorOut")}
+                    invalid["content"] = {"application/json": {"schema": published}}
+        for unused in ("HTTPValidationError", "ValidationError"):
+            components.pop(unused, None)
+        app.openapi_schema = schema
+        return schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
+
+
+_REF = "#/components/schemas/{model}"
+# The only query parameter of the live socket; a close reason holds at most 123 bytes.
+_HANDSHAKE_REFUSAL = f"since must be a whole number from 0 to {MAX_SEQ} (a seq this server sent)"
 
 
 # Fields whose submitted value is never repeated in an answer (ASVS V7.1.1, V8.3.x).

@@ -28,9 +28,10 @@ import contextlib
 import logging
 from collections.abc import Callable, Collection
 from datetime import datetime, timedelta
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import anyio.to_thread
+from fastapi import Query
 from sqlalchemy import select
 from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
 
@@ -43,6 +44,7 @@ from thermolab.lab.fanout import (
     CLOSE_TOO_SLOW,
     CLOSE_UNAUTHORIZED,
     CLOSE_UNKNOWN_RIG,
+    MAX_SEQ,
     LiveChannel,
     LiveClient,
     LiveFanout,
@@ -302,7 +304,12 @@ class LiveEndpoint:
         for client in clients:
             client.offer(texts[_viewpoint(snap, client.key)])
 
-    async def endpoint(self, websocket: WebSocket, rig_id: str, since: int | None = None) -> None:
+    async def endpoint(
+        self,
+        websocket: WebSocket,
+        rig_id: str,
+        since: Annotated[int | None, Query(ge=0, le=MAX_SEQ)] = None,
+    ) -> None:
         """Serve one client (the WebSocket route)."""
         await websocket.accept()
         cookie = websocket.cookies.get(COOKIE_NAME)

@@ -9,7 +9,7 @@ re-exported here.
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 from pydantic import Field
 
@@ -38,6 +38,7 @@ __all__ = [
     "NewUserIn",
     "OperatingPointOut",
     "PasswordIn",
+    "ProblemOut",
     "QueueSlotOut",
     "RigOut",
     "RunIn",
@@ -57,14 +58,36 @@ class ErrorOut(_Out):
     """Every 4xx answer: ``detail`` says what was wrong and what is allowed; ``code`` is stable."""
 
     detail: str
-    code: str
+    code: str = Field(
+        description="stable name of the error: not_authenticated, access_denied, "
+        "cross_origin, not_found, method_not_allowed, conflict, turn_ended, run_in_progress, "
+        "previous_run_ending, rig_unavailable, body_too_large, rate_limited, "
+        "camera_unavailable..."
+    )
+
+
+class ProblemOut(_Out):
+    """One problem of a request that was refused with 422."""
+
+    loc: list[str] = Field(
+        description="where: ['body', field...], ['path', name], ['query', name]; "
+        "empty when the problem is the settings together"
+    )
+    type: str = Field(description="pydantic's error type, or the error's code")
+    msg: str
 
 
 class ValidationErrorOut(_Out):
-    """A 422 for a malformed body: ``detail`` in words, ``errors`` one per problem."""
+    """Every 422 (a body, path or query value the API refuses): ``detail`` in words,
+    ``errors`` one per problem."""
 
     detail: str
-    errors: list[dict[str, Any]]
+    code: Literal["invalid_request", "invalid_parameter"] = Field(
+        description="invalid_request: the request does not match the schema (a body that is "
+        "not UTF-8 JSON included); invalid_parameter: the values match the schema but the lab "
+        "refuses them (a signal outside the rig's range, a run too long...)"
+    )
+    errors: list[ProblemOut]
 
 
 # -- sessions and users ----------------------------------------------------------------------

@@ -29,6 +29,8 @@ from thermolab.errors import (
     AccessDeniedError,
     ConflictError,
     InvalidParameterError,
+    PreviousRunEndingError,
+    RunInProgressError,
     ThermoLabError,
     TurnEndedError,
 )
@@ -61,8 +63,13 @@ __all__ = ["RunService"]
 
 log = logging.getLogger(__name__)
 
-# How long a START waits for the previous turn's run to finish storing (seconds).
-_HANDOVER_WAIT = 10.0
+# How long a START waits for the previous turn's run to store its end (seconds), beyond
+# the quarter of that run's period the runner may take to notice its END.
+HANDOVER_WAIT = 30.0
+
+
+def _no_checkpoint(name: str) -> None:
+    """The default :attr:`RunService.checkpoint`: START goes straight through."""
 
 
 @dataclass
@@ -127,6 +134,11 @@ class RunService:
 
         self._store = RunStore(db)
         self._export = RunExport(db)
+        self.handover_wait = HANDOVER_WAIT
+        #: Called by START at its decision points (``"start:arrived"``, before the rig's
+        #: transaction; ``"start:committed"``, after it, under the rig's hub lock) so that a
+        #: test can force any interleaving with the end of a turn (tests/lab/test_fail_closed.py).
+        self.checkpoint: Callable[[str], None] = _no_checkpoint
 
     @property
     def stored_samples(self) -> RunExport:
@@ -146,16 +158,28 @@ class RunService:
             For a bad dt, sample count, signal, set point, method or setting.
             Also for a run longer than the rig's ``max_run_seconds`` (the message
             gives the longest run allowed).
+        TurnEndedError
+            If the caller's turn ended while the START was being decided (409
+            ``turn_ended``: before its transaction, or after it and before the
+            first sample, when the run is aborted).
+        RunInProgressError
+            If a run of the caller's turn is already going.
+        PreviousRunEndingError
+            If the previous turn's run is still ending after the hand-over wait.
         ConflictError
-            If a run is already going on the rig, or the rig has no device.
+            If the rig has no device.
         """
+        self._config.rig(rig_id)  # an unknown rig is a 404, before anything reads its device
         published = self._hub.published(rig_id)
         plan = plan_run(request, (published.input_min, published.input_max))
         length = self._check_length(rig_id, request)
         driver = self._hub.driver(rig_id)
         if driver is None:
             raise ConflictError(f"rig {rig_id!r} has no device attached; a run needs one")
-        self._await_previous_turn(rig_id)
+        arrived_in = self._access.caller_turn(rig_id, who.user_id)  # the turn the START came in
+        self.checkpoint("start:arrived")
+        if arrived_in is not None:  # without a turn START is refused (403) below
+            self._await_previous_turn(rig_id, arrived_in)
         channels = run_channels(published.input_unit, published.output_unit)
 
         # START and the end of a turn are one decision: the lab reconciles a rig (and
@@ -165,24 +189,36 @@ class RunService:
         # starts) or by that reconcile, after the run is registered (it is ENDed).
         with self._hub.locked(rig_id):
             with self._lock:
-                if rig_id in self._active:
-                    raise ConflictError(f"a run is already going on rig {rig_id!r}; END it first")
-            with self._access.controlled(rig_id, who, "start a run") as turn:
-                meta = {
-                    "operating_point": plan.operating_point.to_dict(),
-                    # The run's planned end: the queue's estimated wait counts it.
-                    "ends_at": (turn.now + timedelta(seconds=length)).isoformat(),
-                }
-                run_id = add_run(
-                    turn.session,
-                    turn.control,
-                    who,
-                    turn.now,
-                    settings=plan.settings,
-                    meta=meta,
-                    channels=channels,
-                )
-                control_id = turn.control.id
+                going = self._active.get(rig_id)
+            if going is not None and arrived_in is not None:  # else: 403 just below
+                if going.control_session == arrived_in:
+                    raise RunInProgressError(
+                        f"run {going.run_id} of your turn is already going on rig {rig_id!r}; "
+                        "END it first"
+                    )
+                raise self._still_ending(rig_id, going)
+            try:
+                with self._access.controlled(rig_id, who, "start a run") as turn:
+                    meta = {
+                        "operating_point": plan.operating_point.to_dict(),
+                        # The run's planned end: the queue's estimated wait counts it.
+                        "ends_at": (turn.now + timedelta(seconds=length)).isoformat(),
+                    }
+                    run_id = add_run(
+                        turn.session,
+                        turn.control,
+                        who,
+                        turn.now,
+                        settings=plan.settings,
+                        meta=meta,
+                        channels=channels,
+                    )
+                    control_id = turn.control.id
+            except AccessDeniedError:
+                if arrived_in is None:
+                    raise  # the caller had no turn: not allowed, not a lost race
+                raise self._access.turn_ended_error(rig_id, arrived_in) from None
+            self.checkpoint("start:committed")
             recorder = DatabaseRecorder(
                 self._db, run_id, on_sample=lambda u, y: self._hub.note_sample(rig_id, u, y)
             )
@@ -298,15 +334,25 @@ class RunService:
             active = self._active.get(rig_id)
         return active.run_id if active is not None else None
 
-    def _await_previous_turn(self, rig_id: str) -> None:
-        # Right after a hand-over the previous turn's run may still be storing its
-        # end: the new controller's START waits for it instead of getting a 409.
+    def _await_previous_turn(self, rig_id: str, turn: int) -> None:
+        # Right after a hand-over the previous turn's run is ENDing (the runner notices
+        # within a quarter of its period) and storing its end: the new controller's
+        # START waits for it instead of getting a 409.
         with self._lock:
             active = self._active.get(rig_id)
         if active is None or active.thread is None:
             return
-        if self._access.desired(rig_id)[1] != active.control_session:
-            active.thread.join(_HANDOVER_WAIT)
+        if turn != active.control_session:
+            active.thread.join(self.handover_wait + active.experiment.dt / 4)
+            if active.thread.is_alive():
+                raise self._still_ending(rig_id, active)
+
+    def _still_ending(self, rig_id: str, active: _Active) -> PreviousRunEndingError:
+        return PreviousRunEndingError(
+            f"run {active.run_id} of the previous turn at rig {rig_id!r} is still ending "
+            f"(waited {self.handover_wait + active.experiment.dt / 4:g} s for it to store its "
+            "data); START again in a few seconds"
+        )
 
     def wait(self, rig_id: str, timeout: float | None = None) -> None:
         """Wait until the rig's run (if any) has ended and been stored."""

@@ -28,7 +28,13 @@ from typing import Any
 from sqlalchemy import func, insert, select, update
 from sqlalchemy.orm import Session
 
-from thermolab.errors import AccessDeniedError, ConflictError, NotFoundError, ThermoLabError
+from thermolab.errors import (
+    AccessDeniedError,
+    NotFoundError,
+    PreviousRunEndingError,
+    RunInProgressError,
+    ThermoLabError,
+)
 from thermolab.jsonsafe import finite_or_none, json_safe
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import (
@@ -403,15 +409,24 @@ def add_run(
 
     Raises
     ------
-    ConflictError
-        If a run is already going on the rig.
+    RunInProgressError
+        If a run of this turn is already going on the rig.
+    PreviousRunEndingError
+        If the previous turn's run is still going (storing its end).
     """
     rig_id = control.rig_id
-    running = session.scalar(
-        select(Run.id).where(Run.rig_id == rig_id, Run.status == RunStatus.RUNNING.value)
-    )
+    running = session.execute(
+        select(Run.id, Run.control_session_id).where(
+            Run.rig_id == rig_id, Run.status == RunStatus.RUNNING.value
+        )
+    ).first()
+    if running is not None and running.control_session_id == control.id:
+        raise RunInProgressError(f"run {running.id} is already going on rig {rig_id!r}")
     if running is not None:
-        raise ConflictError(f"run {running} is already going on rig {rig_id!r}")
+        raise PreviousRunEndingError(
+            f"run {running.id} of the previous turn at rig {rig_id!r} is still ending; "
+            "START again in a few seconds"
+        )
     run = Run(
         rig_id=rig_id,
         user_id=who.user_id,

@@ -2,12 +2,19 @@
 
 from __future__ import annotations
 
-from typing import Annotated
-
-from fastapi import APIRouter, Query, status
+from fastapi import APIRouter, status
 from fastapi.responses import JSONResponse, StreamingResponse
 
-from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, RunId, UserDep, documented_errors
+from thermolab.lab.http.deps import (
+    AUTHENTICATED,
+    LabDep,
+    RigId,
+    RigQuery,
+    RunId,
+    UserDep,
+    UserQuery,
+    documented_errors,
+)
 from thermolab.lab.http.schemas import RunIn, RunOut
 from thermolab.lab.runs import samples_csv
 
@@ -57,14 +64,8 @@ def stop_run(rig_id: RigId, who: UserDep, lab: LabDep) -> RunOut:
 def list_runs(
     who: UserDep,
     lab: LabDep,
-    rig: Annotated[str | None, Query(max_length=64, description="only this rig")] = None,
-    user: Annotated[
-        str | None,
-        Query(
-            max_length=64,
-            description="only this user's runs (teachers: anyone; students: themselves only)",
-        ),
-    ] = None,
+    rig: RigQuery = None,
+    user: UserQuery = None,
 ) -> list[RunOut]:
     """Runs, newest first: your own, or everyone's for a teacher (``user`` narrows it to one
     user; a student naming someone else gets 403, a teacher naming nobody known 404).

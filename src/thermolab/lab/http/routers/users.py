@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-from typing import Annotated
-
-from fastapi import APIRouter, Path, Request, Response, status
+from fastapi import APIRouter, Request, Response, status
 
 from thermolab.errors import AccessDeniedError, InvalidParameterError
-from thermolab.lab.http.deps import AUTHENTICATED, LabDep, UserDep, documented_errors
+from thermolab.lab.http.deps import AUTHENTICATED, LabDep, UserDep, Username, documented_errors
 from thermolab.lab.http.schemas import NewUserIn, PasswordIn, UserOut
 from thermolab.lab.security import AuthenticationError, normalize_username
 from thermolab.lab.users import Principal
@@ -56,9 +54,7 @@ def add_user(body: NewUserIn, who: UserDep, lab: LabDep) -> UserOut:
     summary="Remove an account",
     responses=documented_errors(403, 404, 409),
 )
-def remove_user(
-    username: Annotated[str, Path(max_length=64)], who: UserDep, lab: LabDep
-) -> Response:
+def remove_user(username: Username, who: UserDep, lab: LabDep) -> Response:
     """Remove an account with its sessions, queue places and runs (teachers only)."""
     _teacher(who, "remove accounts")
     if _same_user(username, who):
@@ -75,7 +71,7 @@ def remove_user(
     responses=documented_errors(403, 404, 422, 429),
 )
 def change_password(
-    username: Annotated[str, Path(max_length=64)],
+    username: Username,
     body: PasswordIn,
     who: UserDep,
     lab: LabDep,
