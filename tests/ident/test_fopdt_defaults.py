@@ -13,7 +13,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from thermolab.cli import main as thermolab
-from thermolab.ident import IdentificationWarning, least_squares
+from thermolab.ident import (
+    ArxOrder,
+    IdentificationWarning,
+    block_least_squares,
+    least_squares,
+    moving_window_least_squares,
+    weighted_least_squares,
+)
 from thermolab.ident.deadtime import input_repeat, search_delay
 from thermolab.simulation import simulate_first_order
 
@@ -93,3 +100,36 @@ def test_a_periodic_input_never_gets_a_delay_aliased_with_its_repeat(
     assert r.delay_search.repeat is not None
     assert r.order.delay < r.delay_search.repeat // 2 + 1
     assert r.K > 0.0
+
+
+def test_block_and_recursive_methods_search_the_dead_time_and_flag_a_settled_end(
+    tmp_path: Path,
+) -> None:
+    """On the twin's step, blockls, malsm and wlsm take the record's dead time (the same
+    criterion as LSM) and say their final estimate, on the settled tail, is not excited
+    (it was τ ≈ 0.5 s, shown valid) instead of showing it as trusted."""
+    u, y = twin_step_record(tmp_path, 1)
+    for method in (block_least_squares, moving_window_least_squares, weighted_least_squares):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", IdentificationWarning)
+            tr = method(u, y, 1.0)
+        assert any("final estimate not excited" in str(w.message) for w in caught)
+        assert any(w.startswith("final estimate not excited") for w in tr.warnings)
+        assert tr.params["dead_time"] == "searched"
+        assert abs(tr.params["delay"] - KIT_THETA) <= 0.05 * KIT_THETA + 1.0
+        assert not tr.trusted
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", IdentificationWarning)
+            given = method(u, y, 1.0, order=ArxOrder(1, 1, 4), offset="initial")
+        assert (given.params["dead_time"], given.params["delay"]) == ("given", 4)
+
+
+def test_a_step_on_an_fopdt_plant_keeps_every_estimate_exact_and_unflagged() -> None:
+    """Noise-free FOPDT, a square wave through the record: the searched delay is exact,
+    every window's estimate is the plant, and nothing is flagged."""
+    u = np.where((np.arange(1500) // 100) % 2 == 0, 50.0, 20.0)
+    y = simulate_first_order(u, 0.6, 140.0, 1.0, ambient=21.0, theta=12.0)
+    tr = moving_window_least_squares(u, y, 1.0, window=150)
+    assert tr.params["delay"] == 12
+    assert tr.trusted
+    np.testing.assert_allclose([tr.final.K, tr.final.tau], [0.6, 140.0], rtol=1e-6)

@@ -9,7 +9,7 @@ from thermolab.errors import InvalidParameterError
 
 from . import _regression as _reg
 from . import _validation as _v
-from ._trust import resolve_offset, with_warnings
+from ._trust import dead_time_params, resolve_model, with_warnings
 from .models import NOT_EXCITED, ArxOrder
 from .registry import SETTINGS
 from .trajectory import Trajectory
@@ -42,6 +42,7 @@ def block_least_squares(
     offset: str | float = SETTINGS["offset"].default,
     t: npt.ArrayLike | None = None,
     expected_sign: int | None = SETTINGS["expected_sign"].default,
+    max_delay: int | None = SETTINGS["max_delay"].default,
 ) -> Trajectory:
     """Least squares over consecutive non-overlapping blocks: the paper's LSM(2) and LSM(3).
 
@@ -60,7 +61,10 @@ def block_least_squares(
     block : int, optional
         Samples per block, default 100; at least ``order.lag + 1 + n_params``.
     order : ArxOrder, optional
-        Model structure; default first order.
+        Model structure. Default: first order with the dead time searched in
+        the whole record as :func:`~thermolab.ident.least_squares` does
+        (``params["dead_time"]`` says ``"searched"`` or ``"given"``,
+        ``params["delay"]`` the delay used).
     offset : {"auto", "initial", "fit", "none"} or float, optional
         As in :func:`least_squares`; ``"initial"`` takes the ambient from the
         record's first sample, for every block. Default ``"auto"``, decided from
@@ -69,6 +73,8 @@ def block_least_squares(
         Sample times: blocks that span a gap in time, and jitter, are flagged.
     expected_sign : {1, -1}, optional
         The sign the gain must have; a final gain of the other sign is flagged.
+    max_delay : int, optional
+        Longest dead time searched when ``order`` is None (as in ``least_squares``).
 
     Returns
     -------
@@ -97,8 +103,7 @@ def block_least_squares(
     """
     u_arr, y_arr = _v.as_record(u, y)
     step = _v.check_dt(dt)
-    ord_ = _v.check_order(order)
-    off, op = resolve_offset(u_arr, y_arr, step, ord_, offset)
+    ord_, off, op, search = resolve_model(u_arr, y_arr, step, order, offset, max_delay)
     size = _v.integer("block", block, 1, "samples per block")
     p = ord_.na + ord_.nb + int(off == "fit")
     rows, n_blocks = block_rows(ord_, size, p, y_arr.size)
@@ -128,7 +133,9 @@ def block_least_squares(
         offset=off,
         param_names=ord_.param_names(constant=constant),
         status=status,
-        params={"block": size},
+        params={"block": size, **dead_time_params(search, ord_)},
         operating_point=op,
     )
-    return with_warnings(tr, op, t, expected_sign, window=size)
+    return with_warnings(
+        tr, op, t, expected_sign, window=size, search=search, record=(u_arr, y_arr), memory=size
+    )

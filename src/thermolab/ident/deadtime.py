@@ -306,7 +306,12 @@ def search_delay(
     diag = np.sqrt(np.einsum("kii->ki", G))
     scale_cols = np.where(diag > 0.0, 1.0 / np.where(diag > 0.0, diag, 1.0), 0.0)
     Gs = G * scale_cols[:, :, None] * scale_cols[:, None, :]
+    # A record whose squares overflow leaves inf/NaN sums: those candidates
+    # cannot be fitted (error inf), and the SVD must not see them.
+    unfit = ~(np.isfinite(Gs).all(axis=(1, 2)) & np.isfinite(rhs).all(axis=1))
+    Gs[unfit] = 0.0
     W = (np.linalg.pinv(Gs, rcond=1e-13) @ (rhs * scale_cols)[..., None])[..., 0] * scale_cols
+    W[unfit] = np.nan
 
     def exact(k: int, simulated: bool) -> float:
         ud = held[start[k] : start[k] + m]
@@ -330,12 +335,13 @@ def search_delay(
     # cancels to about 1e-13 YᵀY, so the few candidates near the least are
     # recomputed from their residuals.
     quick = np.maximum(YY - np.einsum("ki,ki->k", W, rhs), 0.0)
+    quick[unfit | ~np.isfinite(quick)] = math.inf
     sse = quick.tolist()
     near = np.flatnonzero(quick <= 10.0 * float(quick.min()) + 1e-10 * YY)
     for k in near[:16].tolist() + np.argsort(quick)[:3].tolist():
         sse[k] = exact(int(k), simulated=False)
     scale = max(float(np.max(np.abs(ys))), 1e-300)
-    rounding = Y.size * (1e-9 * scale) ** 2
+    rounding = Y.size * float(np.square(np.float64(1e-9 * scale)))  # inf, not an error
     best, margin = _smallest_near_best(np.asarray(sse), Y.size, rounding)
     warning = None
     if criterion == "simulation":
