@@ -133,3 +133,14 @@ def test_a_step_on_an_fopdt_plant_keeps_every_estimate_exact_and_unflagged() -> 
     assert tr.params["delay"] == 12
     assert tr.trusted
     np.testing.assert_allclose([tr.final.K, tr.final.tau], [0.6, 140.0], rtol=1e-6)
+
+
+def test_only_a_separate_delay_within_the_margin_is_a_tie() -> None:
+    """Neighbours of the best delay within the margin are one answer (a flat minimum);
+    a delay within it past a worse one is a second answer, which the search warns of."""
+    from thermolab.ident.deadtime import _separate_ties
+
+    sse = np.array([5.0, 1.0, 1.001, 3.0, 1.002, 4.0])
+    assert _separate_ties(sse, 1, 1.005) == [4]
+    assert _separate_ties(sse, 1, 1.0015) == []
+    assert _separate_ties(np.array([np.inf, 1.0, np.inf]), 1, 1.0) == []
