@@ -14,12 +14,15 @@ a lag of its own, it is the first visible response (12 s on the TCLab twin,
 whose first order plus dead time equivalent has θ 15.9 s). The free-run
 simulation error finds the delay of the first-order model that best
 reproduces the record, which is that FOPDT-equivalent θ (15–16 s on the twin):
-it is the default of the least-squares methods (``"simulation"``). With
-measurement noise it once chose a delay one input half-period long on square
-waves (the input's repeat passed off as the response, with a negative gain);
-the candidates are therefore bounded below the input's period
-(:func:`input_repeat`), and when two separate delays still fit equally well
-the search says so (:attr:`DelaySearch.warning`). The operating-point decision
+it is the default of the least-squares methods (``"simulation"``). Compared
+over every delay, with measurement noise it let a wrong delay simulate a
+square wave better (the ARX estimates' noise bias), so it is compared only
+from the one-step delay ``d1`` (the first visible response) to ``2·d1`` (a
+sensor lag shorter than the transport delay, as on the kits it is for). A
+delay one input half-period long once fitted a square wave with a negative
+gain (the input's repeat passed off as the response): every search stops
+short of the input's repeat (:func:`input_repeat`), and when two separate
+delays still fit equally well it says so (:attr:`DelaySearch.warning`). The operating-point decision
 keeps the one-step error, whose BIC it compares.
 """
 
