@@ -1065,13 +1065,13 @@ def _run_method_quietly(row: Table1Row, options: Table1Options) -> RowResult:
         if options.solver == "explicit-inverse":
             tr = _explicit_inverse_blocks(u, y, dt, row.block)
         else:
-            tr = block_least_squares(u, y, dt, row.block, offset="none")
+            tr = block_least_squares(u, y, dt, row.block, order=FIRST_ORDER, offset="none")
     else:
         assert row.window is not None
         if options.solver == "explicit-inverse":
             tr = _explicit_inverse_windows(u, y, dt, row.window)
         else:
-            tr = moving_window_least_squares(u, y, dt, row.window, offset="none")
+            tr = moving_window_least_squares(u, y, dt, row.window, order=FIRST_ORDER, offset="none")
     stats = tr.stats(last=tr.n_samples)
     figures = Figures(Stats.from_dict(stats["K"]), Stats.from_dict(stats["tau"]))
     return RowResult(row, figures, t.size, _trajectory_notes(tr), trajectory=tr)
@@ -1128,7 +1128,7 @@ def _wlsm(row: Table1Row, options: Table1Options, u: FloatArray, y: FloatArray) 
     if options.covariance == "frozen":
         return _frozen_covariance_wlsm(u, y, dt, row.gamma, row.pmax, row.w0)
     return weighted_least_squares(
-        u, y, dt, row.gamma, row.pmax, row.w0, form="paper", offset="none"
+        u, y, dt, row.gamma, row.pmax, row.w0, form="paper", order=FIRST_ORDER, offset="none"
     )
 
 

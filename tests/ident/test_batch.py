@@ -297,6 +297,9 @@ def test_a_block_without_excitation_is_flagged_not_raised() -> None:
     assert tr.invalid_reason[299].startswith("not excited")
 
 
+# A last block of a few samples on a settled stretch is flagged as not excited
+# (the noise-free estimate is still exact, which is what this law checks).
+@pytest.mark.filterwarnings("ignore:final estimate not excited")
 @settings(max_examples=15, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), block=st.integers(4, 60), ambient=st.floats(-4, 4))
 def test_every_block_recovers_noise_free_parameters(seed: int, block: int, ambient: float) -> None:

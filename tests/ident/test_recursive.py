@@ -84,7 +84,9 @@ def test_every_malsm_estimate_equals_a_fresh_solve_of_its_window(
     y = y + rng.uniform(-5, 5) + noise * rng.standard_normal(n)
     if window > n or (offset == "fit" and window < 5):
         return
-    tr = moving_window_least_squares(u, y, 1.0, window, offset=offset, recompute_every=every)
+    tr = moving_window_least_squares(
+        u, y, 1.0, window, order=ArxOrder(), offset=offset, recompute_every=every
+    )
     reg = _regression.build(u, y, ArxOrder(), offset)
     Z = np.column_stack([reg.D, reg.Y])
     rows = window - 1

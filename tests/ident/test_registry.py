@@ -362,8 +362,9 @@ def test_the_batch_and_online_wlsm_start_from_the_same_default() -> None:
 def test_check_settings_fills_defaults_and_names_what_is_wrong() -> None:
     assert check_settings("blockls", {}) == {
         "block": 100,
-        "order": None,  # the method's own default (eq. 4; LSM searches the dead time)
+        "order": None,  # the method's own default: the dead time searched in the record
         "offset": "auto",
+        "max_delay": None,
         "expected_sign": None,
     }
     assert check_settings("wlsm", {"tol": 0.1}, role="statistics") == {"tol": 0.1, "last": 2000}

@@ -105,7 +105,7 @@ def test_to_dict_round_trips_through_json() -> None:
     d = tr.to_dict()
     assert json.loads(json.dumps(d, allow_nan=False)) == d
     assert d["method"] == "blockls"
-    assert d["params"] == {"block": 100}
+    assert d["params"] == {"block": 100, "dead_time": "searched", "delay": 0}
     assert d["K"][:99] == [None] * 99
     assert d["converged_at"] == {"K": 99, "tau": 99}
     assert d["final"]["valid"] is True

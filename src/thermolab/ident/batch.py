@@ -18,7 +18,7 @@ from thermolab.errors import InvalidParameterError
 from . import _regression as _reg
 from . import _validation as _v
 from . import diagnostics as _diag
-from .deadtime import DelaySearch, default_max_delay, search_delay
+from .deadtime import DEFAULT_CRITERION, DelaySearch, default_max_delay, search_delay
 from .lsm_result import LeastSquaresResult
 from .models import ArxModel, ArxOrder, FirstOrderModel
 from .operating_point import OperatingPoint, decide_operating_point
@@ -127,8 +127,9 @@ def least_squares(
         Sample period in seconds, > 0.
     order : ArxOrder, optional
         Model structure. Default: first order with the dead time chosen from
-        the data (:func:`thermolab.ident.deadtime.search_delay` over
-        ``0 .. max_delay`` samples); give ``ArxOrder(1, 1, 0)`` for eq. 4 exactly.
+        the data (:func:`thermolab.ident.deadtime.search_delay`: the least
+        free-run simulation error over ``0 .. max_delay`` samples, below the
+        input's repeat); give ``ArxOrder(1, 1, 0)`` for eq. 4 exactly.
     offset : {"auto", "initial", "fit", "none"} or float, optional
         How the operating point is handled:
 
@@ -235,11 +236,13 @@ def least_squares(
             max_delay=longest,
         )
         off: str | float = op.handling
-        search = op.delay_search
     else:
         off = off_in
-        if order is None and longest > 0:
-            search = search_delay(u_arr, y_arr, off, longest)
+    if order is None and longest > 0:
+        # The delay of the first order that best reproduces the record (its
+        # FOPDT-equivalent dead time), not the ARX one-step delay, which stops
+        # at the first visible response when the sensor adds a lag.
+        search = search_delay(u_arr, y_arr, off, longest, DEFAULT_CRITERION)
     if order is None:
         ord_ = ArxOrder(1, 1, 0 if search is None else search.delay)
     else:
@@ -294,6 +297,8 @@ def least_squares(
     del error
     fit_held = _holdout_fit(u_arr, y_arr, ord_, off, sol.y_shift, held) if held else math.nan
     notes = list(op.warnings) if op is not None else []
+    if search is not None and search.warning:
+        notes.append(search.warning)
     notes += _diag.plausibility_warnings(
         model.K, model.tau, step, y_arr.size * step, expected_sign=expected_sign
     )

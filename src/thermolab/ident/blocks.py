@@ -7,7 +7,7 @@ import numpy.typing as npt
 
 from . import _regression as _reg
 from . import _validation as _v
-from ._trust import check_record, rows_inside, with_warnings
+from ._trust import check_record, dead_time_params, rows_inside, with_warnings
 from .models import NOT_EXCITED, ArxOrder
 from .registry import SETTINGS
 from .trajectory import Trajectory
@@ -35,6 +35,7 @@ def block_least_squares(
     offset: str | float = SETTINGS["offset"].default,
     t: npt.ArrayLike | None = None,
     expected_sign: int | None = SETTINGS["expected_sign"].default,
+    max_delay: int | None = SETTINGS["max_delay"].default,
 ) -> Trajectory:
     """Least squares over consecutive non-overlapping blocks: the paper's LSM(2) and LSM(3).
 
@@ -53,7 +54,10 @@ def block_least_squares(
     block : int, optional
         Samples per block, default 100; at least ``order.lag + 1 + n_params``.
     order : ArxOrder, optional
-        Model structure; default first order.
+        Model structure. Default: first order with the dead time searched in
+        the whole record as :func:`~thermolab.ident.least_squares` does
+        (``params["dead_time"]`` says ``"searched"`` or ``"given"``,
+        ``params["delay"]`` the delay used).
     offset : {"auto", "initial", "fit", "none"} or float, optional
         As in :func:`least_squares`; ``"initial"`` takes the ambient from the
         record's first sample, for every block. Default ``"auto"``, decided from
@@ -62,6 +66,8 @@ def block_least_squares(
         Sample times: blocks that span a gap in time, and jitter, are flagged.
     expected_sign : {1, -1}, optional
         The sign the gain must have; a final gain of the other sign is flagged.
+    max_delay : int, optional
+        Longest dead time searched when ``order`` is None (as in ``least_squares``).
 
     Returns
     -------
@@ -88,7 +94,7 @@ def block_least_squares(
     >>> np.flatnonzero(tr.valid)[:3], round(tr.stats()["tau"]["min"], 6)
     (array([ 99, 199, 299]), 250.126233)
     """
-    u_arr, y_arr, step, ord_, off, op = check_record(u, y, dt, order, offset)
+    u_arr, y_arr, step, ord_, off, op, search = check_record(u, y, dt, order, offset, max_delay)
     size = _v.integer("block", block, 1, "samples per block")
     p = ord_.na + ord_.nb + int(off == "fit")
     rows, n_blocks = block_rows(ord_, size, p, y_arr.size)
@@ -118,7 +124,9 @@ def block_least_squares(
         offset=off,
         param_names=ord_.param_names(constant=constant),
         status=status,
-        params={"block": size},
+        params={"block": size, **dead_time_params(search, ord_)},
         operating_point=op,
     )
-    return with_warnings(tr, op, t, expected_sign, window=size)
+    return with_warnings(
+        tr, op, t, expected_sign, window=size, search=search, record=(u_arr, y_arr), memory=size
+    )

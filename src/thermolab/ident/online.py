@@ -370,6 +370,9 @@ def _model(
     common = {"order": shown, "offset": offset}
     if "expected_sign" in settings:
         common["expected_sign"] = settings["expected_sign"]
+    if "max_delay" in settings:
+        # Live, the block and recursive methods take the order given (no search).
+        common["max_delay"] = settings["max_delay"]
     return order, offset, common
 
 

@@ -12,7 +12,7 @@ from thermolab.errors import InvalidParameterError
 
 from . import _regression as _reg
 from . import _validation as _v
-from ._trust import check_record, rows_inside, with_warnings
+from ._trust import check_record, dead_time_params, rows_inside, with_warnings
 from .models import ArxOrder
 from .registry import SETTINGS, default_w0
 from .trajectory import Trajectory
@@ -111,6 +111,7 @@ def moving_window_least_squares(
     recompute_every: int | None = SETTINGS["recompute_every"].default,
     t: npt.ArrayLike | None = None,
     expected_sign: int | None = SETTINGS["expected_sign"].default,
+    max_delay: int | None = SETTINGS["max_delay"].default,
 ) -> Trajectory:
     """Moving-window least squares: the paper's MALSM, one estimate per sample.
 
@@ -129,7 +130,9 @@ def moving_window_least_squares(
     window : int, optional
         Samples in the window, default 100; at least ``order.lag + 1 + n_params``.
     order : ArxOrder, optional
-        Model structure; default first order.
+        Model structure. Default: first order with the dead time searched in
+        the whole record as :func:`~thermolab.ident.least_squares` does
+        (``params["dead_time"]``: ``"searched"`` or ``"given"``; ``params["delay"]``).
     offset : {"auto", "initial", "fit", "none"} or float, optional
         As in :func:`~thermolab.ident.least_squares` (``"initial"``: the record's
         first sample is the ambient, for every window). Default ``"auto"``,
@@ -141,6 +144,8 @@ def moving_window_least_squares(
         Sample times: windows that span a gap in time, and jitter, are flagged.
     expected_sign : {1, -1}, optional
         The sign the gain must have; a final gain of the other sign is flagged.
+    max_delay : int, optional
+        Longest dead time searched when ``order`` is None (as in ``least_squares``).
 
     Returns
     -------
@@ -183,7 +188,7 @@ def moving_window_least_squares(
     >>> round(s["K"]["min"], 6), round(s["K"]["max"], 6), round(s["tau"]["min"], 6)
     (0.14009, 0.14009, 250.126233)
     """
-    u_arr, y_arr, step, ord_, off, op = check_record(u, y, dt, order, offset)
+    u_arr, y_arr, step, ord_, off, op, search = check_record(u, y, dt, order, offset, max_delay)
     size = _v.integer("window", window, 1, "samples in the moving window")
     constant = off == "fit"
     p = ord_.na + ord_.nb + int(constant)
@@ -200,10 +205,12 @@ def moving_window_least_squares(
         offset=off,
         param_names=ord_.param_names(constant=constant),
         status=np.where(code == 2, code, 0).astype(np.int8),
-        params={"window": size, "recompute_every": every},
+        params={"window": size, "recompute_every": every, **dead_time_params(search, ord_)},
         operating_point=op,
     )
-    return with_warnings(tr, op, t, expected_sign, window=size)
+    return with_warnings(
+        tr, op, t, expected_sign, window=size, search=search, record=(u_arr, y_arr), memory=size
+    )
 
 
 def check_wlsm_params(
@@ -308,6 +315,7 @@ def weighted_least_squares(
     offset: str | float = SETTINGS["offset"].default,
     t: npt.ArrayLike | None = None,
     expected_sign: int | None = SETTINGS["expected_sign"].default,
+    max_delay: int | None = SETTINGS["max_delay"].default,
 ) -> Trajectory:
     """Weighted (recursive) least squares with a forgetting factor: the paper's WLSM.
 
@@ -349,7 +357,9 @@ def weighted_least_squares(
         Standard form only: the initial covariance, a scalar (times I) or a
         symmetric positive-definite matrix.
     order : ArxOrder, optional
-        Model structure; default first order.
+        Model structure. Default: first order with the dead time searched in
+        the whole record as :func:`~thermolab.ident.least_squares` does
+        (``params["dead_time"]``: ``"searched"`` or ``"given"``; ``params["delay"]``).
     offset : {"auto", "initial", "fit", "none"} or float, optional
         As in :func:`~thermolab.ident.least_squares`; default ``"auto"``,
         decided from the whole record (until this release ``"initial"``).
@@ -357,6 +367,8 @@ def weighted_least_squares(
         Sample times: gaps and jitter are flagged.
     expected_sign : {1, -1}, optional
         The sign the gain must have; a final gain of the other sign is flagged.
+    max_delay : int, optional
+        Longest dead time searched when ``order`` is None (as in ``least_squares``).
 
     Returns
     -------
@@ -387,7 +399,7 @@ def weighted_least_squares(
     >>> tr.converged_at()["K"] < 100
     True
     """
-    u_arr, y_arr, step, ord_, off, op = check_record(u, y, dt, order, offset)
+    u_arr, y_arr, step, ord_, off, op, search = check_record(u, y, dt, order, offset, max_delay)
     constant = off == "fit"
     n_dyn = ord_.na + ord_.nb
     p = n_dyn + int(constant)
@@ -399,6 +411,7 @@ def weighted_least_squares(
     params["w0"] = W0.tolist()
     if p0 is not None:
         params["p0"] = P0.tolist()
+    params.update(dead_time_params(search, ord_))
     tr = Trajectory(
         method="wlsm",
         dt=step,
@@ -410,4 +423,9 @@ def weighted_least_squares(
         params=params,
         operating_point=op,
     )
-    return with_warnings(tr, op, t, expected_sign)
+    # Forgetting by gamma per sample: the final estimate rests on about
+    # 1/(1 - gamma) samples (at least the model's own few).
+    memory = max(round(1.0 / (1.0 - g)) if g < 1.0 else y_arr.size, p + ord_.lag + 1)
+    return with_warnings(
+        tr, op, t, expected_sign, search=search, record=(u_arr, y_arr), memory=memory
+    )

@@ -267,7 +267,8 @@ PAPER_W0: tuple[float, float] = (0.96329, 9.9082e-4)
 _ORDER = Setting(
     "order", "arx_order", (1, 1, 0),
     "ARX order: output lags, input lags, dead time in samples beyond one; 1,1,0 is eq. 4 "
-    "(default: 1,1,0, and for lsm 1,1 with the dead time searched over 0..max_delay)",
+    "(default: 1,1 with the dead time searched over 0..max_delay in the whole record; "
+    "live, 1,1,0 unless given)",
     metavar="NA,NB,DELAY", structural_default=lambda n_dynamic, n_params: None,
 )  # fmt: skip
 _OFFSET = Setting(
@@ -475,20 +476,21 @@ METHODS: tuple[Method, ...] = (
         "blockls", "Block least squares (LSM(2), LSM(3))",
         "least squares over consecutive blocks: one estimate per block",
         1, ("final", "trajectory"), ".blocks:block_least_squares",
-        "._online_final:_BlockLeastSquares", (_BLOCK, *_MODEL, *_TRUST, _LAST),
+        "._online_final:_BlockLeastSquares", (_BLOCK, *_MODEL, _MAX_DELAY, *_TRUST, _LAST),
     ),
     Method(
         "malsm", "Moving-window least squares (MALSM)",
         "least squares over a window of the latest samples: one estimate per sample",
         2, ("final", "trajectory"), ".recursive:moving_window_least_squares",
-        "._online_recursive:_MovingWindow", (_WINDOW, _RECOMPUTE, *_MODEL, *_TRUST, *_SUMMARY),
+        "._online_recursive:_MovingWindow",
+        (_WINDOW, _RECOMPUTE, *_MODEL, _MAX_DELAY, *_TRUST, *_SUMMARY),
     ),
     Method(
         "wlsm", "Weighted least squares (WLSM)",
         "recursive least squares with a forgetting factor: one estimate per sample",
         3, ("final", "trajectory"), ".recursive:weighted_least_squares",
         "._online_recursive:_Weighted",
-        (_GAMMA, _PMAX, _W0, _FORM, _P0, *_MODEL, *_TRUST, *_SUMMARY),
+        (_GAMMA, _PMAX, _W0, _FORM, _P0, *_MODEL, _MAX_DELAY, *_TRUST, *_SUMMARY),
     ),
     Method(
         "oe", "Output error (OE)",
@@ -557,7 +559,7 @@ def check_settings(
     --------
     >>> check_settings("malsm", {"window": 50})  # doctest: +NORMALIZE_WHITESPACE
     {'window': 50, 'recompute_every': None, 'order': None, 'offset': 'auto',
-     'expected_sign': None}
+     'max_delay': None, 'expected_sign': None}
     >>> check_settings("lsm", {"window": 50})
     Traceback (most recent call last):
     ...
@@ -588,7 +590,7 @@ def owners(setting: str) -> tuple[str, ...]:
     >>> owners("offset")
     ('lsm', 'blockls', 'malsm', 'wlsm')
     >>> owners("max_delay")
-    ('lsm', 'oe')
+    ('lsm', 'blockls', 'malsm', 'wlsm', 'oe')
     """
     return tuple(m.name for m in METHODS if setting in m.setting_names())
 

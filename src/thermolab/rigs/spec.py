@@ -57,6 +57,10 @@ class RigKind:
     options : tuple of str
         The keyword options :meth:`RigSpec.open` accepts (their defaults, which
         for a twin depend on the preset, come from :meth:`RigSpec.defaults`).
+    typical_dead_time : callable
+        The argument's typical dead time in seconds (through
+        :attr:`RigSpec.typical_dead_time`): what a live block or recursive
+        identification takes when the record is not yet there to search it.
 
     Examples
     --------
@@ -73,6 +77,7 @@ class RigKind:
     default_argument: str | None
     choices: tuple[str, ...] | None
     options: tuple[str, ...]
+    typical_dead_time: Callable[[str | None], float] = field(repr=False)
     _defaults: Callable[[str | None], Mapping[str, Any]] = field(repr=False)
     _describe: Callable[[str | None, Mapping[str, Any]], RigInfo] = field(repr=False)
     _open: Callable[[str | None, Clock | None, int | None, Mapping[str, Any]], Rig] = field(
@@ -135,6 +140,20 @@ def _twin_defaults(preset: str | None) -> Mapping[str, Any]:
     return {"realism": True, **fields}
 
 
+def _twin_dead_time(preset: str | None) -> float:
+    """The first order plus dead time θ of a twin: its transport delay and sensor lag.
+
+    The sensor's lag rounds the start of a step and a first-order fit counts
+    it as delay (the ``tclab`` twin: 13 s + 3 s, the kit model's 15.9 s).
+    """
+    params = PRESETS[preset or "paper"]
+    return float(params.dead_time + (params.sensor_lag or 0.0))
+
+
+#: A TCLab kit's dead time, seconds: the 15-17 s the kit is taught with
+#: (NOTES.md §6), its lower end (a longer delay than the plant's costs more).
+TCLAB_DEAD_TIME = 15.0
+
 _TCLAB_DEFAULTS = MappingProxyType(_keyword_defaults(TCLabRig, skip=("clock",)))
 
 #: Every kind of rig, by the word that starts its spec.
@@ -148,6 +167,7 @@ RIG_KINDS: Mapping[str, RigKind] = MappingProxyType(
             default_argument="paper",
             choices=tuple(PRESETS),
             options=("realism", *(f.name for f in dataclasses.fields(TwinParams))),
+            typical_dead_time=_twin_dead_time,
             _defaults=_twin_defaults,
             _describe=lambda preset, options: twin_info(twin_params(preset or "paper", **options)),
             _open=_open_twin,
@@ -160,6 +180,7 @@ RIG_KINDS: Mapping[str, RigKind] = MappingProxyType(
             default_argument=None,
             choices=None,
             options=tuple(_TCLAB_DEFAULTS),
+            typical_dead_time=lambda port: TCLAB_DEAD_TIME,
             _defaults=lambda port: _TCLAB_DEFAULTS,
             _describe=_describe_tclab,
             _open=_open_tclab,
@@ -269,6 +290,20 @@ class RigSpec:
     def simulated(self) -> bool:
         """``True`` for a digital twin (it follows a speed-up)."""
         return self.rig_kind.simulated
+
+    @property
+    def typical_dead_time(self) -> float:
+        """The rig's typical dead time in seconds (0 for the paper's twins).
+
+        Live, before the record exists to search it, the block and recursive
+        methods take this delay (``order`` ``1,1,round(theta/dt)``).
+
+        Examples
+        --------
+        >>> [RigSpec.parse(s).typical_dead_time for s in ("sim", "sim:tclab", "tclab")]
+        [0.0, 16.0, 15.0]
+        """
+        return float(self.rig_kind.typical_dead_time(self.argument))
 
     def defaults(self) -> dict[str, Any]:
         """Return every option :meth:`open` takes with its default for this spec.
