@@ -226,7 +226,7 @@ def test_adaptive_mode_retunes_within_its_bounds(clock: VirtualClock) -> None:
             rig.hooks[k] = lambda r=r: exp.set_setpoint(r)
         result = exp.run()
     kp, ti = result.extra["kp"], result.extra["ti"]
-    assert tuner.retunes > 10
+    assert tuner.retunes >= 8  # only from settled, excited intervals (the rest hold)
     changes = np.flatnonzero(np.diff(kp) != 0)
     assert len(changes) > 5
     ratio = kp[1:] / kp[:-1]
@@ -286,3 +286,27 @@ def test_manual_before_any_sample_holds_the_safe_input(twin: HookedTwin) -> None
     result = exp.run()
     np.testing.assert_allclose(result.u, 0.0)
     assert set(result.extra["auto"]) == {0.0}
+
+
+def test_adaptive_mode_on_the_kit_twin_holds_gains_from_untrusted_estimates(
+    clock: VirtualClock,
+) -> None:
+    # The bug: live WLSM in closed loop at a steady set point loses the time constant
+    # (tau 4-8 s for the kit's 140 s) while the gain stays right, and retuning from it
+    # drove Ti to 4 s. The runner's tuner trusts what thermolab.ident trusts, and holds.
+    from thermolab.runner import adaptive_tuner
+    from thermolab.signals import parse_signal
+
+    start = tune(KIT, "simc").gains
+    with TwinRig("tclab", clock=clock, seed=1) as rig:
+        tuner = adaptive_tuner(1.0, start, rule="simc", theta=KIT[2])
+        profile = parse_signal("step:21:50@60", limits=(-1e9, 1e9))
+        result = Experiment(
+            rig, 1.0, 1200, controller=ControlLoop(start, profile, tuner=tuner)
+        ).run()
+    ti = result.extra["ti"]
+    assert ti.min() >= start.Ti / 1.2**2  # at most a retune or two from a settled estimate
+    assert tuner.skipped >= 20
+    assert tuner.last_reason.startswith(("estimate not settled", "too little excitation"))
+    assert result.control is not None
+    assert result.control["adaptive"]["last_reason"] == tuner.last_reason

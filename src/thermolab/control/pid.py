@@ -27,7 +27,7 @@ from typing import Any
 
 from thermolab.errors import InvalidParameterError
 
-__all__ = ["GAIN_LIMITS", "PID", "PIDGains"]
+__all__ = ["GAIN_LIMITS", "PID", "GainRangeError", "PIDGains"]
 
 #: The published ranges of the gains (inclusive): ``|Kp|`` in
 #: ``[1e-6, 1e4]`` (input unit per output unit, sign = the plant's), ``Ti`` in
@@ -40,18 +40,22 @@ GAIN_LIMITS: dict[str, tuple[float, float]] = {
 }
 
 
+class GainRangeError(InvalidParameterError):
+    """A gain or a closed-loop parameter not finite or outside its published range."""
+
+
 def _checked(name: str, value: object, *, magnitude: bool = False) -> float:
     low, high = GAIN_LIMITS[name]
     try:
         x = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
-        raise InvalidParameterError(f"{name} must be a number, got {value!r}") from None
+        raise GainRangeError(f"{name} must be a number, got {value!r}") from None
     size = abs(x) if magnitude else x
     if not (math.isfinite(x) and low <= size <= high):
         allowed = (
             f"|{name}| in [{low:g}, {high:g}]" if magnitude else f"{name} in [{low:g}, {high:g}]"
         )
-        raise InvalidParameterError(f"{name} must be finite with {allowed}, got {value!r}")
+        raise GainRangeError(f"{name} must be finite with {allowed}, got {value!r}")
     return x
 
 
@@ -81,7 +85,7 @@ class PIDGains:
     >>> PIDGains(float("nan"), 1.0)  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    thermolab.errors.InvalidParameterError: kp must be finite with |kp| in [1e-06, 10000], ...
+    thermolab.control.pid.GainRangeError: kp must be finite with |kp| in [1e-06, 10000], ...
     """
 
     Kp: float

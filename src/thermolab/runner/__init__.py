@@ -9,7 +9,7 @@ publishes and how subscribers receive it without delaying sampling),
 settings; imported on its own because it loads the compiled kernels).
 """
 
-from thermolab.runner.closed_loop import ControlLoop
+from thermolab.runner.closed_loop import ControlLoop, adaptive_tuner, estimate_trust
 from thermolab.runner.events import (
     EstimateEvent,
     Event,
@@ -34,6 +34,8 @@ from thermolab.runner.termination import Terminated, interrupt_signal, terminati
 __all__ = [
     "CSV_COLUMNS",
     "ControlLoop",
+    "adaptive_tuner",
+    "estimate_trust",
     "CsvRecorder",
     "EndReason",
     "EstimateEvent",
