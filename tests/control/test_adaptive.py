@@ -132,7 +132,8 @@ def test_untrusted_unsettled_or_unexcited_estimates_hold_the_gains() -> None:
     tuner.update(20.0, 0.0, g)
     assert tuner.update(24.0, 0.0, g) is None
     assert tuner.last_reason.startswith("too little excitation: the input moved 4")
-    assert tuner.skipped == 1 and tuner.retunes == 0
+    assert tuner.skipped == 1
+    assert tuner.retunes == 0
     # The same, settled and excited, retunes; the next interval starts from the input in
     # force, so a step right after a retune counts.
     tuner = AdaptiveTuner(Scripted(*[Est(1.0, 10.0)] * 4), every=2, theta=1.0)

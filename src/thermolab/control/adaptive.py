@@ -26,10 +26,9 @@ retuning from it drove the integral time to a few seconds. Each hold says why
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
-
-from collections.abc import Callable
 
 from thermolab.control.parameters import PARAMETERS
 from thermolab.control.pid import GAIN_LIMITS, PIDGains
@@ -271,7 +270,9 @@ class AdaptiveTuner:
         K, tau = float(est.K), float(est.tau)
         tol = self.settle_tol
         if self._unsettled:
-            return f"estimate not settled: some estimates of the last {self.every} samples are invalid"
+            return (
+                f"estimate not settled: some estimates of the last {self.every} samples are invalid"
+            )
         for name, value, (low, high) in (("K", K, self._k_range), ("tau", tau, self._tau_range)):
             if low <= high and (high - value > tol * abs(value) or value - low > tol * abs(value)):
                 return (

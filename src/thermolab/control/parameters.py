@@ -151,9 +151,7 @@ class ControlParameter:
 
 def _gain(name: str, help: str, unit: str, *, magnitude: bool = False) -> ControlParameter:
     low, high = GAIN_LIMITS[name]
-    return ControlParameter(
-        name, "number", None, help, low, high, magnitude=magnitude, unit=unit
-    )
+    return ControlParameter(name, "number", None, help, low, high, magnitude=magnitude, unit=unit)
 
 
 #: Every parameter of the closed loop, by name.

@@ -34,8 +34,6 @@ from thermolab.runner.termination import Terminated, interrupt_signal, terminati
 __all__ = [
     "CSV_COLUMNS",
     "ControlLoop",
-    "adaptive_tuner",
-    "estimate_trust",
     "CsvRecorder",
     "EndReason",
     "EstimateEvent",
@@ -56,6 +54,8 @@ __all__ = [
     "Subscription",
     "Terminated",
     "Watchdog",
+    "adaptive_tuner",
+    "estimate_trust",
     "interrupt_signal",
     "termination_signals",
 ]
