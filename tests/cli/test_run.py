@@ -315,7 +315,7 @@ def test_pid_tuned_from_a_model_prints_measured_and_predicted_figures(
     assert abs(measured["overshoot"] - predicted["overshoot"]) < 3.0
     assert abs(measured["settling_time"] - predicted["settling_time"]) < 30.0
     rows = _rows(out)
-    assert list(rows[0])[-4:] == ["r", "u_pid", "e", "auto"]
+    assert list(rows[0])[-5:] == ["r", "u_pid", "e", "auto", "fan"]
     assert float(rows[100]["r"]) == 50.0
     assert abs(float(rows[-1]["y"]) - 50.0) < 0.5
 

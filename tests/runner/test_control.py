@@ -79,7 +79,9 @@ def test_pid_holds_the_twin_at_its_set_point_and_records_the_channels(
     roles = {c.name: c.role for c in result.channels}
     assert (roles["r"], roles["e"]) == ("setpoint", "error")
     assert seen
-    assert set(seen[-1].extra) == {"r", "u_pid", "e", "auto"}
+    # A twin has a disturbance fan: a closed-loop run records it too (off here).
+    assert set(seen[-1].extra) == {"r", "u_pid", "e", "auto", "fan"}
+    np.testing.assert_allclose(result.extra["fan"], 0.0)
     record = read_record(out)
     np.testing.assert_allclose(record["e"], e, atol=1e-9)
     assert result.to_dict()["control"]["mode"] == "auto"
@@ -310,3 +312,27 @@ def test_adaptive_mode_on_the_kit_twin_holds_gains_from_untrusted_estimates(
     assert tuner.last_reason.startswith(("estimate not settled", "too little excitation"))
     assert result.control is not None
     assert result.control["adaptive"]["last_reason"] == tuner.last_reason
+
+
+def test_the_disturbance_fan_is_rejected_by_the_pid(kit_twin: HookedTwin) -> None:
+    loop = ControlLoop(tune(KIT, "simc").gains, setpoint=45.0)
+    exp = Experiment(kit_twin, 1.0, 1600, controller=loop)
+    kit_twin.hooks[800] = lambda: exp.set_fan(100.0)
+    result = exp.run()
+    fan, y, u = result.extra["fan"], result.y, result.u
+    on = int(np.flatnonzero(fan)[0])
+    assert on in (800, 801)  # set at a sample's instant, from then on
+    assert set(fan[on:]) == {100.0}
+    assert y[on : on + 100].min() < 44.5  # the fan cools the box...
+    assert abs(y[-1] - 45.0) < 0.1  # ...and the PID brings it back
+    assert u[-1] > u[799] + 5.0  # with more heat
+    with pytest.raises(InvalidParameterError, match="0-100"):
+        exp.set_fan(150.0)
+
+
+def test_a_rig_without_a_fan_refuses_it(kit: TCLabRig) -> None:
+    exp = Experiment(kit, 1.0, 5, controller=ControlLoop(tune(KIT, "simc").gains, 30.0))
+    assert not exp.has_fan
+    assert "fan" not in [c.name for c in exp.channels]
+    with pytest.raises(InvalidParameterError, match="no disturbance fan"):
+        exp.set_fan(50.0)

@@ -500,6 +500,7 @@ def _run(args: argparse.Namespace) -> int:
         Experiment,
         Interlocks,
         RunResult,
+        closed_loop_channels,
         interrupt_signal,
         termination_signals,
     )
@@ -526,7 +527,7 @@ def _run(args: argparse.Namespace) -> int:
         channels = RUN_CHANNELS
         if loop is not None:
             loop.bind(info, interlocks)
-            channels = (*RUN_CHANNELS, *loop.channels())
+            channels = (*RUN_CHANNELS, *closed_loop_channels(rig, loop))
         recorder = (
             CsvRecorder(args.out, fsync=not simulated, channels=channels) if args.out else None
         )

@@ -10,6 +10,7 @@ settings; imported on its own because it loads the compiled kernels).
 """
 
 from thermolab.runner.closed_loop import ControlLoop, adaptive_tuner, estimate_trust
+from thermolab.runner.control_requests import closed_loop_channels
 from thermolab.runner.events import (
     EstimateEvent,
     Event,
@@ -55,6 +56,7 @@ __all__ = [
     "Terminated",
     "Watchdog",
     "adaptive_tuner",
+    "closed_loop_channels",
     "estimate_trust",
     "interrupt_signal",
     "termination_signals",
