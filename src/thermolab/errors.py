@@ -13,10 +13,14 @@ __all__ = [
     "AccessDeniedError",
     "ConfigError",
     "ConflictError",
+    "GainRangeError",
     "IdentifierStateError",
     "InsufficientExcitationError",
     "InvalidDataError",
     "InvalidParameterError",
+    "NoOutputUnitError",
+    "NoRunError",
+    "NotClosedLoopError",
     "NotFoundError",
     "RecordFormatError",
     "RigError",
@@ -24,6 +28,7 @@ __all__ = [
     "RigStateError",
     "RigTimeoutError",
     "RunStateError",
+    "SetpointRangeError",
     "SignalSpecError",
     "SubscriberCutError",
     "ThermoLabError",
@@ -104,3 +109,26 @@ class TurnEndedError(ConflictError):
 
 class AccessDeniedError(ThermoLabError, PermissionError):
     """The caller is known but not allowed to do this (a student acting on another's control)."""
+
+
+# -- the closed loop (issue #11) ----------------------------------------------------------
+
+
+class GainRangeError(InvalidParameterError):
+    """A PID gain or loop parameter not finite or outside its published range."""
+
+
+class SetpointRangeError(InvalidParameterError):
+    """A set point outside the rig's output range (its output limit and interlocks)."""
+
+
+class NoOutputUnitError(InvalidParameterError):
+    """PID control asked of a rig that has no measured output (no output unit)."""
+
+
+class NoRunError(ConflictError):
+    """A run command (switch, set point, gains, fan) with no run going on the rig."""
+
+
+class NotClosedLoopError(ConflictError):
+    """A control command to a run started without a controller (an open-loop run)."""

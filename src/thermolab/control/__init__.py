@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 from thermolab.control.adaptive import AdaptiveTuner, GainBounds
 from thermolab.control.convert import to_control
 from thermolab.control.parameters import PARAMETERS, ControlParameter, control_json
-from thermolab.control.pid import GAIN_LIMITS, PID, GainRangeError, PIDGains
+from thermolab.control.pid import GAIN_LIMITS, PID, PIDGains
 from thermolab.control.tuning import (
     FOPDT,
     RULE_FORMS,
@@ -70,7 +70,6 @@ __all__ = [
     "ClosedLoopResponse",
     "ControlParameter",
     "GainBounds",
-    "GainRangeError",
     "PIDGains",
     "StepMetrics",
     "Tuning",

@@ -23,10 +23,11 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any, Literal
 
-from thermolab.control.pid import GAIN_LIMITS, GainRangeError
+from thermolab.control.pid import GAIN_LIMITS
 from thermolab.control.tuning import RULE_FORMS, RULES, SPEED_RULES
+from thermolab.errors import GainRangeError
 
-__all__ = ["PARAMETERS", "ControlParameter", "GainRangeError", "control_json"]
+__all__ = ["PARAMETERS", "ControlParameter", "control_json"]
 
 ParameterType = Literal["number", "integer", "choice", "range"]
 
@@ -110,7 +111,7 @@ class ControlParameter:
         >>> PARAMETERS["kp"].check(float("inf"))
         Traceback (most recent call last):
         ...
-        thermolab.control.pid.GainRangeError: kp = inf is out of range; ...
+        thermolab.errors.GainRangeError: kp = inf is out of range; ...
         """
         if value is None:
             return None

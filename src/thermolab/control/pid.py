@@ -25,7 +25,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from thermolab.errors import InvalidParameterError
+from thermolab.errors import GainRangeError, InvalidParameterError
 
 __all__ = ["GAIN_LIMITS", "PID", "GainRangeError", "PIDGains"]
 
@@ -38,10 +38,6 @@ GAIN_LIMITS: dict[str, tuple[float, float]] = {
     "ti": (1e-3, 1e6),
     "td": (0.0, 1e5),
 }
-
-
-class GainRangeError(InvalidParameterError):
-    """A gain or a closed-loop parameter not finite or outside its published range."""
 
 
 def _checked(name: str, value: object, *, magnitude: bool = False) -> float:
@@ -85,7 +81,7 @@ class PIDGains:
     >>> PIDGains(float("nan"), 1.0)  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    thermolab.control.pid.GainRangeError: kp must be finite with |kp| in [1e-06, 10000], ...
+    thermolab.errors.GainRangeError: kp must be finite with |kp| in [1e-06, 10000], ...
     """
 
     Kp: float

@@ -25,7 +25,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from thermolab.control import PID, AdaptiveTuner, GainBounds, PIDGains
-from thermolab.errors import InvalidParameterError
+from thermolab.errors import InvalidParameterError, NoOutputUnitError, SetpointRangeError
 from thermolab.records import ChannelSpec
 from thermolab.rigs import RigInfo
 from thermolab.runner.interlocks import Interlocks
@@ -202,7 +202,7 @@ class ControlLoop:
             rig's output range (its output limit and the interlocks).
         """
         if not info.output_unit:
-            raise InvalidParameterError(
+            raise NoOutputUnitError(
                 f"rig {info.name!r} has no output unit: PID control needs a measured output"
             )
         self._info = info
@@ -297,7 +297,7 @@ class ControlLoop:
             allowed = (
                 f"({'-inf' if low is None else f'{low:g}'}, {min(high) if high else math.inf:g})"
             )
-            raise InvalidParameterError(
+            raise SetpointRangeError(
                 f"set point {r:g} {unit} is outside the rig's output range {allowed} {unit}"
             )
         return r

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any
 
+import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
@@ -32,6 +33,8 @@ from thermolab.errors import (
     AccessDeniedError,
     ConflictError,
     InvalidParameterError,
+    NoRunError,
+    NotClosedLoopError,
     ThermoLabError,
     TurnEndedError,
 )
@@ -43,6 +46,7 @@ from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import ControlSession, RigRow, Run, RunStatus
 from thermolab.lab.devices import DeviceHub
+from thermolab.lab.runs.control import build_control_loop
 from thermolab.lab.runs.operating_point import OperatingPoint, choose_operating_point
 from thermolab.lab.runs.request import RunRequest, build_run_identifiers, check_request
 from thermolab.lab.runs.statistics import method_statistics
@@ -56,8 +60,15 @@ from thermolab.lab.runs.store import (
 )
 from thermolab.lab.runs.timing import timing_summary
 from thermolab.lab.users import Principal
-from thermolab.records import ChannelSpec
-from thermolab.runner import EndReason, Event, EventBus, Experiment, RunResult
+from thermolab.records import RUN_CHANNELS, ChannelSpec
+from thermolab.runner import (
+    EndReason,
+    Event,
+    EventBus,
+    Experiment,
+    RunResult,
+    closed_loop_channels,
+)
 from thermolab.runner.methods import parse_methods
 
 __all__ = ["RunService"]
@@ -153,6 +164,13 @@ class RunService:
         driver = self._hub.driver(rig_id)
         if driver is None:
             raise ConflictError(f"rig {rig_id!r} has no device attached; a run needs one")
+        loop = None
+        channels: tuple[ChannelSpec, ...] = RUN_CHANNELS
+        if request.control is not None:
+            # Checked before anything is stored: ranges, set point, output unit.
+            times = (np.arange(request.samples, dtype=np.float64) * request.dt).tolist()
+            loop = build_control_loop(request.control, request.dt, times, driver.describe())
+            channels = (*RUN_CHANNELS, *closed_loop_channels(driver, loop))
         self._await_previous_turn(rig_id)
         point = choose_operating_point(request.offset, methods)
         identifiers, settings = build_run_identifiers(request, point.used)
@@ -199,7 +217,10 @@ class RunService:
                     raise ConflictError(f"a run is already going on rig {rig_id!r}; END it first")
             run_id, control_id = self._access.within_control(rig_id, who, "start a run", begin)
             recorder = DatabaseRecorder(
-                self._db, run_id, on_sample=lambda u, y: self._hub.note_sample(rig_id, u, y)
+                self._db,
+                run_id,
+                on_sample=lambda u, y: self._hub.note_sample(rig_id, u, y),
+                channels=channels,
             )
             experiment = Experiment(
                 driver,
@@ -208,6 +229,7 @@ class RunService:
                 identifiers=identifiers,
                 recorder=recorder,
                 events=EventBus(),
+                controller=loop,
                 **experiment_args,
             )
             active = _Active(run_id, rig_id, control_id, experiment, identifiers)
@@ -289,6 +311,63 @@ class RunService:
             return None
         active.experiment.set_input(u)
         return active.run_id
+
+    def command(
+        self,
+        rig_id: str,
+        who: Principal,
+        kind: str,
+        payload: dict[str, Any],
+        act: Callable[[Experiment], None],
+    ) -> RunRecord:
+        """Hand a closed-loop command to the rig's run: mode, set point, gains, fan.
+
+        Only the controller, in the turn the run belongs to, may; ``act`` is
+        applied to the run's :class:`~thermolab.runner.Experiment` (which
+        checks the values and raises before changing anything), then the
+        command is recorded (``commands``, kind ``kind``). The run applies it
+        from its next sample on, after the interlocks, as any input.
+
+        Raises
+        ------
+        NoRunError
+            No run is going on the rig.
+        NotClosedLoopError
+            The run has no controller (and the command is not the fan).
+        AccessDeniedError
+            ``who`` does not control the rig, or the run belongs to an earlier turn.
+        """
+        with self._lock:
+            active = self._active.get(rig_id)
+        if active is None:
+            raise NoRunError(f"no run is going on rig {rig_id!r}: start a closed-loop run first")
+        if active.experiment.controller is None and kind != "fan":
+            raise NotClosedLoopError(
+                f"run {active.run_id} was started without a controller; start a run with "
+                "control (manual or auto) to switch, change the set point or the gains"
+            )
+
+        def act_and_record(
+            session: Session, rig: RigRow, control: ControlSession, now: datetime
+        ) -> None:
+            if control.id != active.control_session:
+                raise AccessDeniedError(
+                    f"run {active.run_id} belongs to an earlier turn at rig {rig_id!r}"
+                )
+            act(active.experiment)
+            session.add(run_command(rig.id, control, who, now, kind, None, active.run_id, payload))
+
+        self._access.within_control(rig_id, who, f"send {kind} to its run", act_and_record)
+        return self.get(active.run_id, who)
+
+    def loop_state(self, rig_id: str) -> dict[str, Any] | None:
+        """The control loop of the rig's run now (``ControlLoop.to_dict``), or ``None``."""
+        with self._lock:
+            active = self._active.get(rig_id)
+        if active is None or active.experiment.controller is None:
+            return None
+        state: dict[str, Any] = json_safe(active.experiment.controller.to_dict())
+        return {**state, "run": active.run_id}
 
     def control_changed(self, rig_id: str, controller_session: int | None) -> None:
         """END the rig's run if the turn it belongs to has ended.
@@ -501,10 +580,11 @@ class RunService:
         self._store.save_end(active.run_id, status, reason, now, results)
         simulated = self._config.rig(active.rig_id).kind == "sim"
         timing = timing_summary(result.t_read, result.lateness, result.dt, simulated=simulated)
+        control = None if result.control is None else json_safe(result.control)
         with self._db.write() as session:
             run = session.get(Run, active.run_id)
             if run is not None:  # a new dict: the JSON column sees the change
-                run.meta = {**run.meta, "timing": timing}
+                run.meta = {**run.meta, "timing": timing, "control_end": control}
 
     def _record(self, run: Run, stored: dict[str, Any] | None) -> RunRecord:
         with self._lock:
@@ -512,7 +592,10 @@ class RunService:
         live = active is not None and active.run_id == run.id
         results: dict[str, Any] = {}
         taken = run.samples_stored
+        control = run.meta.get("control_end")
         if live and active is not None:
+            loop = active.experiment.controller
+            control = None if loop is None else json_safe(loop.to_dict())
             snapshot = active.experiment.snapshot()
             taken = snapshot.samples
             for name, method in snapshot.methods.items():
@@ -541,6 +624,7 @@ class RunService:
             operating_point=run.meta.get("operating_point"),
             ends_at=_planned_end(run),
             timing=run.meta.get("timing"),
+            control=control,
         )
 
 

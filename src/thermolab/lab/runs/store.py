@@ -102,6 +102,9 @@ class RunRecord:
     operating_point: dict[str, Any] | None = None
     ends_at: datetime | None = None
     timing: dict[str, Any] | None = None
+    # A closed-loop run's controller: the loop's state (mode, set point, gains,
+    # adaptive), live while it runs, as it ended afterwards; None for an open loop.
+    control: dict[str, Any] | None = None
 
 
 class DatabaseRecorder:

@@ -5,10 +5,10 @@ Every route but ``POST /api/session`` needs a logged-in user (401 otherwise).
 
 from fastapi import APIRouter
 
-from thermolab.lab.http.routers import methods, rigs, runs, session, users
+from thermolab.lab.http.routers import control, methods, rigs, runs, session, users
 
 __all__ = ["api_router"]
 
 api_router = APIRouter(prefix="/api")
-for _resource in (session, rigs, runs, methods, users):
+for _resource in (session, rigs, runs, methods, users, control):
     api_router.include_router(_resource.router)
