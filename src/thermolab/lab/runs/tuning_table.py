@@ -138,13 +138,16 @@ def closed_loop_figures(
     dt: float,
     control: Mapping[str, Any],
     u_limits: tuple[float, float],
+    u_rest: float,
 ) -> dict[str, Any]:
     """A closed-loop run's measured step figures beside its model's prediction.
 
     ``samples`` are the run's channels by name (``t``, ``y``, ``u``, ``r``);
     ``control`` the run's control request (its starting gains and ``model``).
     The prediction starts from the record's operating point just before the
-    step, with the gains the run started with, as ``thermolab run`` does.
+    step, with the gains the run started with, as ``thermolab run`` does; a
+    run that starts in AUTO steps at its first sample, from rest at
+    ``u_rest`` (the rig's safe input) and its first output.
     """
     t = np.asarray(samples.get("t") or [], dtype=np.float64)
     y = np.asarray(samples.get("y") or [], dtype=np.float64)
@@ -169,6 +172,7 @@ def closed_loop_figures(
     out["model"] = fopdt.to_dict()
     i0 = int(np.searchsorted(t, measured.step_time))
     before = max(i0 - 1, 0)
+    u_before = float(u[before]) if i0 else u_rest
     predicted = predict_closed_loop(
         fopdt,
         PIDGains(control["kp"], control["ti"], control.get("td") or 0.0),
@@ -177,7 +181,7 @@ def closed_loop_figures(
         setpoint=float(r[-1]),
         step_at=measured.step_time,
         y0=float(y[before]),
-        u0=float(u[before]),
+        u0=u_before,
         u_limits=u_limits,
     )
     out["predicted"] = predicted.metrics.to_dict()

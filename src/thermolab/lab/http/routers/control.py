@@ -199,5 +199,7 @@ def run_tuning(
         out["table"] = {**table, "method": name, "trusted": trusted}
     control = (record.settings or {}).get("control")
     if control is not None and us:
-        out["closedLoop"] = closed_loop_figures(samples, record.dt, control, limits)
+        out["closedLoop"] = closed_loop_figures(
+            samples, record.dt, control, limits, published.safe_input
+        )
     return out

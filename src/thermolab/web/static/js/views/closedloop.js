@@ -146,6 +146,7 @@ export class ClosedLoopPanel {
     // The controller.
     const modeSelect = h("select", { id: "loop-mode", name: "mode" },
       ...this.declared.modes.map((m) => h("option", { value: m }, t(MODE_KEYS[m]))));
+    modeSelect.value = "auto"; // a set-point step from rest; manual starts open-loop
     this.modeSelect = modeSelect;
     this.adaptive = h("input", { id: "loop-adaptive", type: "checkbox", name: "adaptive" });
     this.startButton = h("button", { type: "button", "data-action": "loop-start" }, t("loop.start"));
