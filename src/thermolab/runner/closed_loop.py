@@ -145,7 +145,7 @@ class ControlLoop:
     >>> with TwinRig("paper", clock=VirtualClock()) as rig:
     ...     result = Experiment(rig, dt=1.0, samples=1500, controller=loop).run()
     >>> round(float(result.y[-1]), 3), [c.name for c in result.channels][-4:]
-    (1.0, ['r', 'u_pid', 'e', 'auto'])
+    (1.0, ['u_pid', 'e', 'auto', 'fan'])
     """
 
     def __init__(
