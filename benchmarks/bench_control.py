@@ -93,7 +93,7 @@ def runner_cost(samples: int, repeat: int) -> None:
     print(
         f"\nrunner, {samples} samples on the paper twin (best of {repeat}): "
         f"open loop {open_us:.2f} µs/sample, PID {pid_us:.2f} µs/sample "
-        f"(the PID and its 4 channels: +{pid_us - open_us:.2f} µs/sample)"
+        f"(the PID and its channels, fan included: +{pid_us - open_us:.2f} µs/sample)"
     )
 
 

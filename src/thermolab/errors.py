@@ -13,11 +13,15 @@ __all__ = [
     "AccessDeniedError",
     "ConfigError",
     "ConflictError",
+    "GainRangeError",
     "IdentifierStateError",
     "IncompatibleLabError",
     "InsufficientExcitationError",
     "InvalidDataError",
     "InvalidParameterError",
+    "NoOutputUnitError",
+    "NoRunError",
+    "NotClosedLoopError",
     "NotFoundError",
     "PreviousRunEndingError",
     "RecordFormatError",
@@ -27,6 +31,7 @@ __all__ = [
     "RigTimeoutError",
     "RunInProgressError",
     "RunStateError",
+    "SetpointRangeError",
     "SignalSpecError",
     "SubscriberCutError",
     "ThermoLabError",
@@ -119,3 +124,26 @@ class AccessDeniedError(ThermoLabError, PermissionError):
 
 class IncompatibleLabError(ThermoLabError, RuntimeError):
     """A client and a lab speak different versions of the API (see ``thermolab.api_version``)."""
+
+
+# -- the closed loop (issue #11) ----------------------------------------------------------
+
+
+class GainRangeError(InvalidParameterError):
+    """A PID gain or loop parameter not finite or outside its published range."""
+
+
+class SetpointRangeError(InvalidParameterError):
+    """A set point outside the rig's output range (its output limit and interlocks)."""
+
+
+class NoOutputUnitError(InvalidParameterError):
+    """PID control asked of a rig that has no measured output (no output unit)."""
+
+
+class NoRunError(ConflictError):
+    """A run command (switch, set point, gains, fan) with no run going on the rig."""
+
+
+class NotClosedLoopError(ConflictError):
+    """A control command to a run started without a controller (an open-loop run)."""

@@ -315,7 +315,7 @@ def test_pid_tuned_from_a_model_prints_measured_and_predicted_figures(
     assert abs(measured["overshoot"] - predicted["overshoot"]) < 3.0
     assert abs(measured["settling_time"] - predicted["settling_time"]) < 30.0
     rows = _rows(out)
-    assert list(rows[0])[-4:] == ["r", "u_pid", "e", "auto"]
+    assert list(rows[0])[-5:] == ["r", "u_pid", "e", "auto", "fan"]
     assert float(rows[100]["r"]) == 50.0
     assert abs(float(rows[-1]["y"]) - 50.0) < 0.5
 
@@ -331,14 +331,18 @@ def test_pid_with_given_gains_prints_a_control_table(capsys: pytest.CaptureFixtu
 
 def test_adaptive_pid_from_the_command_line(capsys: pytest.CaptureFixture[str]) -> None:
     status = main(
-        ["run", "--rig", "sim", "--dt", "1", "--samples", "1000", "--fast", "--method", "srm",
-         "--control", "pid", "--setpoint", "1", "--kp", "20", "--ti", "100", "--adaptive",
+        # Set-point steps every 200 s: the tuner retunes only from excited, settled intervals.
+        ["run", "--rig", "sim", "--dt", "1", "--samples", "2000", "--fast", "--method", "srm",
+         "--control", "pid", "--setpoint", "square:0.5:1:0.0025", "--kp", "20", "--ti", "100",
+         "--adaptive",
          "--tune", "imc", "--tau-c", "100", "--pid-form", "pi", "--max-change", "0.1",
          "--kp-range", "5,60", "--json"]
     )  # fmt: skip
     assert status == 0
     adaptive = json.loads(capsys.readouterr().out)["control"]["adaptive"]
     assert adaptive["retunes"] > 5
+    assert adaptive["skipped"] > 0
+    assert adaptive["last_reason"]  # why it holds at the end
     assert adaptive["bounds"]["kp"] == [5.0, 60.0]
 
 

@@ -109,3 +109,37 @@ def test_bad_settings(kwargs: dict[str, object], match: str) -> None:
         AdaptiveTuner(Scripted(), **kwargs)  # type: ignore[arg-type]
     with pytest.raises(InvalidParameterError, match="bounds of kp"):
         GainBounds(kp=(10.0, 1.0))
+
+
+def test_untrusted_unsettled_or_unexcited_estimates_hold_the_gains() -> None:
+    g = PIDGains(1.0, 10.0)
+    # The caller's trust check (the runner's: plausibility and the estimate's warnings).
+    tuner = AdaptiveTuner(
+        Scripted(Est(1.0, 10.0)), every=1, theta=1.0, excitation=0,
+        trust=lambda est: "implausible time constant",
+    )  # fmt: skip
+    assert tuner.update(0.0, 0.0, g) is None
+    assert tuner.last_reason == "estimate not trusted: implausible time constant"
+    # Not settled: tau jumped by half within the interval.
+    tuner = AdaptiveTuner(Scripted(Est(1.0, 10.0), Est(1.0, 15.0)), every=2, theta=1.0,
+                          excitation=0)  # fmt: skip
+    assert tuner.update(0.0, 0.0, g) is None
+    assert tuner.update(0.0, 0.0, g) is None
+    assert tuner.last_reason.startswith("estimate not settled: tau moved from 10 to 15")
+    # Not excited: the input stayed within 5 % of its range.
+    tuner = AdaptiveTuner(Scripted(Est(1.0, 10.0), Est(1.0, 10.0)), every=2, theta=1.0)
+    tuner.set_input_range(0.0, 100.0)
+    tuner.update(20.0, 0.0, g)
+    assert tuner.update(24.0, 0.0, g) is None
+    assert tuner.last_reason.startswith("too little excitation: the input moved 4")
+    assert tuner.skipped == 1
+    assert tuner.retunes == 0
+    # The same, settled and excited, retunes; the next interval starts from the input in
+    # force, so a step right after a retune counts.
+    tuner = AdaptiveTuner(Scripted(*[Est(1.0, 10.0)] * 4), every=2, theta=1.0)
+    tuner.set_input_range(0.0, 100.0)
+    tuner.update(20.0, 0.0, g)
+    assert tuner.update(30.0, 0.0, g) is not None
+    tuner.update(50.0, 0.0, g)
+    assert tuner.update(50.0, 0.0, g) is not None, tuner.last_reason
+    assert tuner.to_dict()["last_reason"] == ""

@@ -114,7 +114,8 @@ def test_a_pids_channels_are_stored_with_their_units_and_roles(make_lab: LabFact
     assert exported["samples"]["auto"] == [1] * 40  # an integer channel stays one
     assert exported["samples"]["r"] == [30.0] * 40
     stored, rows = lab.runs.record_rows(run_id, ana)
-    assert [c.name for c in stored][-4:] == ["r", "u_pid", "e", "auto"]
+    names = [c.name for c in stored]
+    assert names[len(RUN_CHANNELS) : len(RUN_CHANNELS) + 4] == ["r", "u_pid", "e", "auto"]
     values = list(rows)
     e = [row[len(RUN_CHANNELS) + 2] for row in values]
     assert all(

@@ -146,6 +146,7 @@ USERS = {
     "dave": "student",
     "erin": "student",
     "lucia": "student",
+    "pia": "student",
     "tess": "teacher",
 }
 
@@ -172,6 +173,11 @@ spec = "sim"
 id = "twin-lang"
 title = "Twin for the language tests"
 spec = "sim"
+
+[[rigs]]
+id = "twin-loop"
+title = "Kit twin for the closed-loop test"
+spec = "sim:tclab"
 """
 
 

@@ -234,6 +234,7 @@ SAME_IN_EVERY_LANGUAGE = {
     "ThermoLab", "Ks", "Ts", "CSV", "JSON", "PID", "FIFO", "LSM", "MALSM", "WLSM", "SRM",
     "pmax", "W0", "a0", "b0", "Hz", "V", "s", "u", "y", "t", "k", "P", "I", "θ",
     "English", "Español", "Português", "Brasil",
+    "Kp", "Ti", "Td", "IAE",  # the PID's gains and the integral of the absolute error
 }  # fmt: skip
 #: Messages whose words happen to be the same in a language (checked one by one).
 SAME_BY_CHANCE = {

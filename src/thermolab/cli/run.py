@@ -203,7 +203,7 @@ def _numbers(option: str, text: str, counts: tuple[int, ...]) -> tuple[float, ..
 def _control_loop(args: argparse.Namespace) -> tuple[Any, Any, Any]:
     """(ControlLoop or None, Tuning or None, FOPDT or None) from the options."""
     from thermolab.cli import CliError
-    from thermolab.control import FOPDT, AdaptiveTuner, GainBounds, PIDGains, tune
+    from thermolab.control import FOPDT, GainBounds, PIDGains, tune
     from thermolab.runner import ControlLoop
     from thermolab.signals import parse_signal
 
@@ -241,7 +241,7 @@ def _control_loop(args: argparse.Namespace) -> tuple[Any, Any, Any]:
         gains = tuning.gains
     tuner = None
     if args.adaptive:
-        from thermolab.ident import make_identifier
+        from thermolab.runner import adaptive_tuner
 
         ranges: dict[str, tuple[float, float]] = {}
         for option, key in (("--kp-range", "kp_range"), ("--ti-range", "ti_range")):
@@ -249,9 +249,10 @@ def _control_loop(args: argparse.Namespace) -> tuple[Any, Any, Any]:
             if text is not None:
                 low, high = _numbers(option, text, (2,))
                 ranges[key[:2]] = (low, high)
-        tuner = AdaptiveTuner(
-            make_identifier("wlsm", args.dt),
-            args.tune or "simc",
+        tuner = adaptive_tuner(
+            args.dt,
+            gains,
+            rule=args.tune,
             every=args.retune_every,
             form=args.pid_form,
             tau_c=args.tau_c,
@@ -317,6 +318,7 @@ def _control_table(result: Any, loop: Any, tuning: Any, figures: dict[str, Any])
         lines.append(
             f"adaptive: {loop.tuner.retunes} retunes, {loop.tuner.skipped} skipped "
             f"(rule {loop.tuner.rule}, every {loop.tuner.every} samples)"
+            + (f"; holding the gains: {loop.tuner.last_reason}" if loop.tuner.last_reason else "")
         )
     if figures["note"]:
         lines.append(f"closed loop: {figures['note']}")
@@ -498,6 +500,7 @@ def _run(args: argparse.Namespace) -> int:
         Experiment,
         Interlocks,
         RunResult,
+        closed_loop_channels,
         interrupt_signal,
         termination_signals,
     )
@@ -524,7 +527,7 @@ def _run(args: argparse.Namespace) -> int:
         channels = RUN_CHANNELS
         if loop is not None:
             loop.bind(info, interlocks)
-            channels = (*RUN_CHANNELS, *loop.channels())
+            channels = (*RUN_CHANNELS, *closed_loop_channels(rig, loop))
         recorder = (
             CsvRecorder(args.out, fsync=not simulated, channels=channels) if args.out else None
         )

@@ -11,6 +11,8 @@ Numerics only (no threads, clocks, rigs or I/O); the runner drives them
 * :mod:`~thermolab.control.response` — :func:`predict_closed_loop` and
   :func:`step_metrics` (overshoot, 2 % settling time, IAE);
 * :mod:`~thermolab.control.adaptive` — :class:`AdaptiveTuner`;
+* :mod:`~thermolab.control.parameters` — every parameter of the loop declared
+  once (:data:`PARAMETERS`, :func:`control_json` for the lab and the page);
 * :mod:`~thermolab.control.convert` — :func:`to_control` (python-control,
   imported lazily).
 """
@@ -19,8 +21,17 @@ from typing import TYPE_CHECKING, Any
 
 from thermolab.control.adaptive import AdaptiveTuner, GainBounds
 from thermolab.control.convert import to_control
+from thermolab.control.parameters import PARAMETERS, ControlParameter, control_json
 from thermolab.control.pid import GAIN_LIMITS, PID, PIDGains
-from thermolab.control.tuning import FOPDT, RULE_FORMS, RULES, Tuning, as_fopdt, tune
+from thermolab.control.tuning import (
+    FOPDT,
+    RULE_FORMS,
+    RULES,
+    SPEED_RULES,
+    Tuning,
+    as_fopdt,
+    tune,
+)
 
 if TYPE_CHECKING:
     from thermolab.control.response import (
@@ -50,16 +61,20 @@ def __dir__() -> list[str]:
 __all__ = [
     "FOPDT",
     "GAIN_LIMITS",
+    "PARAMETERS",
     "PID",
     "RULES",
     "RULE_FORMS",
+    "SPEED_RULES",
     "AdaptiveTuner",
     "ClosedLoopResponse",
+    "ControlParameter",
     "GainBounds",
     "PIDGains",
     "StepMetrics",
     "Tuning",
     "as_fopdt",
+    "control_json",
     "predict_closed_loop",
     "step_metrics",
     "to_control",

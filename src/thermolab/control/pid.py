@@ -25,9 +25,9 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from thermolab.errors import InvalidParameterError
+from thermolab.errors import GainRangeError, InvalidParameterError
 
-__all__ = ["GAIN_LIMITS", "PID", "PIDGains"]
+__all__ = ["GAIN_LIMITS", "PID", "GainRangeError", "PIDGains"]
 
 #: The published ranges of the gains (inclusive): ``|Kp|`` in
 #: ``[1e-6, 1e4]`` (input unit per output unit, sign = the plant's), ``Ti`` in
@@ -45,13 +45,13 @@ def _checked(name: str, value: object, *, magnitude: bool = False) -> float:
     try:
         x = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
-        raise InvalidParameterError(f"{name} must be a number, got {value!r}") from None
+        raise GainRangeError(f"{name} must be a number, got {value!r}") from None
     size = abs(x) if magnitude else x
     if not (math.isfinite(x) and low <= size <= high):
         allowed = (
             f"|{name}| in [{low:g}, {high:g}]" if magnitude else f"{name} in [{low:g}, {high:g}]"
         )
-        raise InvalidParameterError(f"{name} must be finite with {allowed}, got {value!r}")
+        raise GainRangeError(f"{name} must be finite with {allowed}, got {value!r}")
     return x
 
 
@@ -81,7 +81,7 @@ class PIDGains:
     >>> PIDGains(float("nan"), 1.0)  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    thermolab.errors.InvalidParameterError: kp must be finite with |kp| in [1e-06, 10000], ...
+    thermolab.errors.GainRangeError: kp must be finite with |kp| in [1e-06, 10000], ...
     """
 
     Kp: float

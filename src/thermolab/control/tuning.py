@@ -43,7 +43,7 @@ from typing import Any, Literal
 from thermolab.control.pid import PIDGains
 from thermolab.errors import InvalidParameterError
 
-__all__ = ["FOPDT", "RULES", "RULE_FORMS", "Tuning", "as_fopdt", "tune"]
+__all__ = ["FOPDT", "RULES", "RULE_FORMS", "SPEED_RULES", "Tuning", "as_fopdt", "tune"]
 
 Rule = Literal["imc", "simc", "zn", "cc"]
 Form = Literal["pi", "pid"]
@@ -62,7 +62,8 @@ RULE_FORMS: dict[str, tuple[str, ...]] = {
     "zn": ("pid", "pi"),
     "cc": ("pid", "pi"),
 }
-_SPEED_RULES = ("imc", "simc")
+#: The rules that take a closed-loop speed (``tau_c``, λ for IMC).
+SPEED_RULES: tuple[str, ...] = ("imc", "simc")
 
 
 @dataclass(frozen=True, slots=True)
@@ -250,7 +251,7 @@ def tune(
     m = as_fopdt(model)
     K, tau, theta = m.K, m.tau, m.theta
     speed: float | None = None
-    if rule in _SPEED_RULES:
+    if rule in SPEED_RULES:
         speed = (theta if theta > 0 else tau / 10.0) if tau_c is None else float(tau_c)
         if not (math.isfinite(speed) and speed > 0):
             raise InvalidParameterError(

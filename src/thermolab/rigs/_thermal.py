@@ -40,14 +40,16 @@ class ThermalModel:
         self._anchor_t = 0.0
         self._anchor_state: tuple[float, ...] = (start - params.ambient,) * self._n
         self._input = params.safe_input
+        self._fan = 0.0  # the disturbance fan's level, 0..1
         self._set_segment()
 
     def _modes(self, fan: float) -> _Modes:
+        # ``fan`` is the whole extra heat-loss factor: the input's fan and the disturbance's.
         cached = self._modes_cache.get(fan)
         if cached is not None:
             return cached
         p = self._p
-        loss = (1.0 + p.fan_gain * fan) / p.time_constant
+        loss = (1.0 + fan) / p.time_constant
         if self._n == 1:
             M = np.array([[-loss]])
             b = np.array([p.gain / p.time_constant])
@@ -83,7 +85,7 @@ class ThermalModel:
         """Precompute the scalar coefficients of the output for the current input."""
         u = self._input
         lamp, fan = max(u, 0.0), max(-u, 0.0)
-        modes = self._modes(fan)
+        modes = self._modes(self._p.fan_gain * fan + self._p.disturbance_fan_gain * self._fan)
         self._seg_modes = modes
         self._seg_steady = tuple(s * lamp for s in modes.steady_per_lamp)
         drift = self._drift_state(modes, self._anchor_t)
@@ -137,6 +139,20 @@ class ThermalModel:
         self._anchor_t = t
         self._input = u
         self._set_segment()
+
+    def set_fan(self, t: float, level: float) -> None:
+        """Run the disturbance fan at ``level`` (0..1 of full speed) from instant ``t`` on."""
+        if level == self._fan:
+            return
+        t = max(t, self._anchor_t)
+        self._anchor_state = self.state_at(t)
+        self._anchor_t = t
+        self._fan = level
+        self._set_segment()
+
+    @property
+    def fan(self) -> float:
+        return self._fan
 
     @property
     def input(self) -> float:

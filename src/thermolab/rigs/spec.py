@@ -31,7 +31,31 @@ from thermolab.rigs.clock import Clock
 from thermolab.rigs.tclab import TCLabRig, tclab_info
 from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_info, twin_params
 
-__all__ = ["RIG_KINDS", "RIG_SPECS", "RigKind", "RigSpec"]
+__all__ = ["RIG_KINDS", "RIG_SPECS", "FanSpec", "RigKind", "RigSpec"]
+
+
+@dataclass(frozen=True, slots=True)
+class FanSpec:
+    """A rig's disturbance fan: a second actuator, apart from the controlled input.
+
+    A rig kind that has one opens rigs with ``set_fan(percent, *, at=None)``
+    and a ``fan`` property (the twin: :meth:`thermolab.rigs.twin.TwinRig.set_fan`).
+    """
+
+    unit: str = "%"
+    minimum: float = 0.0
+    maximum: float = 100.0
+    description: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return ``{"unit", "minimum", "maximum", "description"}``."""
+        return dataclasses.asdict(self)
+
+
+_TWIN_FAN = FanSpec(
+    description="a fan blowing room air over the box: it raises the heat-loss rate "
+    "(by half at 100 %), a disturbance for a closed loop to reject"
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,6 +86,10 @@ class RigKind:
         :attr:`RigSpec.typical_dead_time`): what a live block or recursive
         identification takes when the record is not yet there to search it.
 
+    fan : FanSpec or None
+        The disturbance fan the kind's rigs have (every twin), or ``None``
+        (a TCLab kit has none).
+
     Examples
     --------
     >>> RIG_KINDS["sim"].choices
@@ -83,6 +111,7 @@ class RigKind:
     _open: Callable[[str | None, Clock | None, int | None, Mapping[str, Any]], Rig] = field(
         repr=False
     )
+    fan: FanSpec | None = None
 
     @property
     def forms(self) -> tuple[str, ...]:
@@ -171,6 +200,7 @@ RIG_KINDS: Mapping[str, RigKind] = MappingProxyType(
             _defaults=_twin_defaults,
             _describe=lambda preset, options: twin_info(twin_params(preset or "paper", **options)),
             _open=_open_twin,
+            fan=_TWIN_FAN,
         ),
         "tclab": RigKind(
             name="tclab",
@@ -316,6 +346,11 @@ class RigSpec:
         10.0
         """
         return dict(self.rig_kind._defaults(self.argument))
+
+    @property
+    def fan(self) -> FanSpec | None:
+        """The disturbance fan of this kind of rig, or ``None``."""
+        return self.rig_kind.fan
 
     def describe(self, **options: Any) -> RigInfo:
         """Return what the rig will report once open, without opening it.

@@ -48,9 +48,14 @@ from typing import Any
 
 import numpy as np
 
-from thermolab.errors import RigFaultError, RigTimeoutError
+from thermolab.errors import (
+    InvalidParameterError,
+    RigFaultError,
+    RigStateError,
+    RigTimeoutError,
+)
 from thermolab.rigs._thermal import ThermalModel
-from thermolab.rigs.base import BaseRig, Reading
+from thermolab.rigs.base import BaseRig, Reading, RigState
 from thermolab.rigs.clock import Clock, RealClock
 from thermolab.rigs.twin_params import (
     DAQ16_STEP,
@@ -289,6 +294,40 @@ class TwinRig(BaseRig):
         # The injected cause is gone once raised; an over-limit output must have fallen.
         now = self.clock.now()
         self._check_limit(Reading(self._output_at(now), now))
+
+    # -- the disturbance fan --------------------------------------------------------
+
+    def set_fan(self, percent: float, *, at: float | None = None) -> float:
+        """Run the disturbance fan at ``percent`` (0-100) of full speed from ``at`` on.
+
+        The fan blows room air over the box: the heat-loss rate is multiplied
+        by ``1 + disturbance_fan_gain · percent / 100`` (see
+        :class:`TwinParams`); it acts at once (no transport delay). Returns
+        the level set. Allowed in any state; a closed rig refuses it.
+
+        Raises
+        ------
+        InvalidParameterError
+            If ``percent`` is not a number in [0, 100].
+        """
+        try:
+            level = float(percent)
+        except (TypeError, ValueError):
+            raise InvalidParameterError(f"the fan takes 0-100 %, got {percent!r}") from None
+        if not (math.isfinite(level) and 0.0 <= level <= 100.0):
+            raise InvalidParameterError(f"the fan takes 0-100 %, got {percent!r}")
+        with self._lock:
+            if self.state is RigState.CLOSED:
+                raise RigStateError("the rig is closed")
+            t = self.clock.now() if at is None else at
+            self._output_at(t)  # inputs in transit up to t act first
+            self._model.set_fan(t, level / 100.0)
+        return level
+
+    @property
+    def fan(self) -> float:
+        """The disturbance fan's level, % of full speed."""
+        return 100.0 * self._model.fan
 
     # -- twin-only inspection ------------------------------------------------------
 

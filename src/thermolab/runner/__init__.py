@@ -9,7 +9,8 @@ publishes and how subscribers receive it without delaying sampling),
 settings; imported on its own because it loads the compiled kernels).
 """
 
-from thermolab.runner.closed_loop import ControlLoop
+from thermolab.runner.closed_loop import ControlLoop, adaptive_tuner, estimate_trust
+from thermolab.runner.control_requests import closed_loop_channels
 from thermolab.runner.events import (
     EstimateEvent,
     Event,
@@ -54,6 +55,9 @@ __all__ = [
     "Subscription",
     "Terminated",
     "Watchdog",
+    "adaptive_tuner",
+    "closed_loop_channels",
+    "estimate_trust",
     "interrupt_signal",
     "termination_signals",
 ]

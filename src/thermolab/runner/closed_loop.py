@@ -24,13 +24,75 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from thermolab.control import PID, AdaptiveTuner, PIDGains
-from thermolab.errors import InvalidParameterError
+from thermolab.control import PID, AdaptiveTuner, GainBounds, PIDGains
+from thermolab.errors import InvalidParameterError, NoOutputUnitError, SetpointRangeError
 from thermolab.records import ChannelSpec
 from thermolab.rigs import RigInfo
 from thermolab.runner.interlocks import Interlocks
 
-__all__ = ["ControlLoop", "SetpointProfile"]
+__all__ = ["ControlLoop", "SetpointProfile", "adaptive_tuner", "estimate_trust"]
+
+
+def estimate_trust(dt: float, expected_sign: int) -> Any:
+    """The adaptive tuner's check of an online estimate, from :mod:`thermolab.ident`.
+
+    Returns ``trust(estimate) -> reason or None``: the estimate's own warnings
+    (``extras["warnings"]``) and :func:`thermolab.ident.diagnostics.plausibility_warnings`
+    over the record so far (a time constant under two periods, a gain of the
+    wrong sign: the plant's is the sign of the gains in force).
+    """
+    from thermolab.ident.diagnostics import plausibility_warnings
+
+    def trust(estimate: Any) -> str | None:
+        extras = getattr(estimate, "extras", None) or {}
+        warnings = list(extras.get("warnings") or ())
+        duration = (int(getattr(estimate, "k", 0)) + 1) * dt
+        warnings += plausibility_warnings(
+            float(estimate.K), float(estimate.tau), dt, duration, expected_sign=expected_sign
+        )
+        return warnings[0] if warnings else None
+
+    return trust
+
+
+def adaptive_tuner(
+    dt: float,
+    gains: PIDGains,
+    *,
+    rule: str | None = None,
+    form: str | None = None,
+    tau_c: float | None = None,
+    theta: float = 0.0,
+    every: int | None = None,
+    max_change: float | None = None,
+    settle_tol: float | None = None,
+    excitation: float | None = None,
+    bounds: GainBounds | None = None,
+) -> AdaptiveTuner:
+    """An :class:`~thermolab.control.AdaptiveTuner` on live WLSM, trusting what ident trusts.
+
+    ``None`` takes the declared default (:data:`thermolab.control.PARAMETERS`).
+    The plant's sign is that of ``gains.Kp``.
+    """
+    from thermolab.control import PARAMETERS
+    from thermolab.ident import make_identifier
+
+    def given(name: str, value: Any) -> Any:
+        return PARAMETERS[name].default if value is None else value
+
+    return AdaptiveTuner(
+        make_identifier("wlsm", dt),
+        given("rule", rule),
+        every=given("every", every),
+        form=form,
+        tau_c=tau_c,
+        theta=theta,
+        max_change=given("max_change", max_change),
+        bounds=bounds,
+        settle_tol=given("settle_tol", settle_tol),
+        excitation=given("excitation", excitation),
+        trust=estimate_trust(dt, 1 if gains.Kp > 0 else -1),
+    )
 
 
 @runtime_checkable
@@ -83,7 +145,7 @@ class ControlLoop:
     >>> with TwinRig("paper", clock=VirtualClock()) as rig:
     ...     result = Experiment(rig, dt=1.0, samples=1500, controller=loop).run()
     >>> round(float(result.y[-1]), 3), [c.name for c in result.channels][-4:]
-    (1.0, ['r', 'u_pid', 'e', 'auto'])
+    (1.0, ['u_pid', 'e', 'auto', 'fan'])
     """
 
     def __init__(
@@ -140,7 +202,7 @@ class ControlLoop:
             rig's output range (its output limit and the interlocks).
         """
         if not info.output_unit:
-            raise InvalidParameterError(
+            raise NoOutputUnitError(
                 f"rig {info.name!r} has no output unit: PID control needs a measured output"
             )
         self._info = info
@@ -162,6 +224,8 @@ class ControlLoop:
         self._started = False
         self._last_r = None
         self._want_auto = self._want_gains = None
+        if self.tuner is not None:
+            self.tuner.set_input_range(info.input_min, info.input_max)
         self._pid = PID(
             self._initial_gains,
             info.input_min,
@@ -233,7 +297,7 @@ class ControlLoop:
             allowed = (
                 f"({'-inf' if low is None else f'{low:g}'}, {min(high) if high else math.inf:g})"
             )
-            raise InvalidParameterError(
+            raise SetpointRangeError(
                 f"set point {r:g} {unit} is outside the rig's output range {allowed} {unit}"
             )
         return r

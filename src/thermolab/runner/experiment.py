@@ -30,19 +30,15 @@ import contextlib
 import math
 import threading
 import time
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
-from typing import Any, Protocol, runtime_checkable
+from collections.abc import Mapping, Sequence
 
 import numpy as np
-import numpy.typing as npt
 
-from thermolab.control import PIDGains
 from thermolab.errors import InvalidParameterError, RigError, RunStateError, ThermoLabError
-from thermolab.jsonsafe import json_safe
 from thermolab.records import RUN_CHANNELS, ChannelSpec, channel_names
-from thermolab.rigs import Rig, RigInfo, VirtualClock
+from thermolab.rigs import Rig, VirtualClock
 from thermolab.runner.closed_loop import ControlLoop
+from thermolab.runner.control_requests import FAN_CHANNEL, ControlRequests
 from thermolab.runner.events import (
     NO_EXTRA,
     EstimateEvent,
@@ -52,81 +48,21 @@ from thermolab.runner.events import (
     StateEvent,
     SupportsToDict,
 )
+from thermolab.runner.inputs import ChannelSource, IdentifierLike, InputSignal, signal_table
 from thermolab.runner.interlocks import Interlocks, Watchdog
 from thermolab.runner.recorder import Recorder
+from thermolab.runner.results import MethodResult, MethodTrack, RunResult
 from thermolab.runner.state import EndReason, RunState, RunStateMachine
 from thermolab.runner.termination import interrupt_signal
 
-ChannelSource = tuple[ChannelSpec, Callable[[float, float, float], float]]
-"""An extra channel of a run: its spec and ``f(t, u, y) -> value``, called once
-per sample after the input is applied (TCLab's ``Historian`` sources are the model)."""
-
 __all__ = [
+    "ChannelSource",
     "Experiment",
     "IdentifierLike",
     "InputSignal",
     "MethodResult",
     "RunResult",
 ]
-
-_FloatArray = npt.NDArray[np.float64]
-
-
-@runtime_checkable
-class InputSignal(Protocol):
-    """An input defined in time: anything with ``value(t) -> float``.
-
-    :class:`thermolab.signals.Signal` (``parse_signal("square:4:6:0.1")``) is one.
-    """
-
-    def value(self, t: float) -> float:
-        """Return the input at ``t`` seconds after START."""
-        ...
-
-
-@runtime_checkable
-class IdentifierLike(Protocol):
-    """What the runner needs of an online identifier.
-
-    :class:`thermolab.ident.online.OnlineIdentifier` (from
-    :func:`~thermolab.ident.online.make_identifier`, or
-    :func:`thermolab.runner.methods.build_identifiers`) is the implementation;
-    anything with the same three methods works. ``update`` is called once per
-    sample, in order; ``finish`` once at END.
-    """
-
-    def update(self, u: float, y: float) -> SupportsToDict | None:
-        """Take one sample; return a new estimate or ``None``."""
-        ...
-
-    def finish(self) -> SupportsToDict | None:
-        """Return the estimate at END (or ``None``)."""
-        ...
-
-    def to_dict(self) -> dict[str, Any]:
-        """Return the identifier's configuration and state as a dictionary."""
-        ...
-
-
-_SIGNAL_BLOCK = 4096
-
-
-def _signal_table(signal: InputSignal, k: int, n: int, dt: float) -> list[float]:
-    """The signal at samples ``k ..`` (a block), or ``[]`` if it cannot be vectorised.
-
-    A :class:`thermolab.signals.Signal` evaluates one time as a one-element
-    array (tens of microseconds); its ``sample`` over a block costs about the
-    same for 4096 times. ``np.arange(k, ...) * dt`` is ``k * dt`` exactly as the
-    loop computes it (integers below 2**53 are exact doubles), so the values
-    are those ``value(k * dt)`` would give.
-    """
-    sample = getattr(signal, "sample", None)
-    if not callable(sample):
-        return []
-    times = np.arange(k, min(k + _SIGNAL_BLOCK, n), dtype=np.float64) * dt
-    values: list[float] = np.asarray(sample(times), dtype=np.float64).tolist()
-    return values if len(values) == len(times) else []
-
 
 _REQUEST_RANK = {EndReason.ENDED: 0, EndReason.ABORTED: 1, EndReason.WATCHDOG: 2}
 
@@ -141,244 +77,7 @@ class _TripError(Exception):
         self.message = message
 
 
-@dataclass(frozen=True, eq=False)
-class MethodResult:
-    """What one identifier produced during a run.
-
-    The estimates ``update`` returned are kept as arrays (``k``, ``K``, ``tau``,
-    ``valid``), not as objects: a 20,000-sample run of a recursive method makes
-    20,000 estimates, and keeping them alive would cost the sampling loop
-    garbage-collector time. The identifier itself keeps its full parameter
-    trajectory (``OnlineIdentifier.trajectory()``, with ``W``).
-
-    Attributes
-    ----------
-    name : str
-        The identifier's name in the run.
-    k : numpy.ndarray
-        Sample index of each estimate ``update`` returned (int64; empty for
-        SRM and LSM, whose result appears only at END).
-    K, tau : numpy.ndarray
-        Gain and time constant of each of those estimates (NaN where an
-        estimate has none, or has no ``K`` / ``tau`` attribute).
-    valid : numpy.ndarray
-        Whether each of those estimates has a first-order meaning (bool).
-    last : object or None
-        The last estimate ``update`` returned, or ``None``.
-    final : object or None
-        The estimate ``finish`` returned at END (for SRM and LSM the result;
-        for the others the last estimate, marked final), or ``None`` (the run
-        was aborted or failed, or the method had no estimate).
-    error : str or None
-        Why the method stopped early (not enough excitation...), or ``None``.
-    """
-
-    name: str
-    k: npt.NDArray[np.int64]
-    K: _FloatArray
-    tau: _FloatArray
-    valid: npt.NDArray[np.bool_]
-    last: SupportsToDict | None
-    final: SupportsToDict | None
-    error: str | None = None
-
-    @property
-    def latest(self) -> SupportsToDict | None:
-        """The final estimate, else the last one produced, else ``None``."""
-        return self.final if self.final is not None else self.last
-
-    def to_dict(self, *, trajectory: bool = False) -> dict[str, Any]:
-        """Return a JSON-ready dictionary.
-
-        Parameters
-        ----------
-        trajectory : bool, optional
-            Include the arrays ``k``, ``K``, ``tau``, ``valid`` as lists (NaN as
-            ``None``); default: only the count and the latest estimate.
-
-        Returns
-        -------
-        dict
-        """
-        latest = self.latest
-        out: dict[str, Any] = {
-            "name": self.name,
-            "estimates": len(self.k),
-            "latest": None if latest is None else latest.to_dict(),
-            "final": self.final is not None,
-            "error": self.error,
-        }
-        if trajectory:
-            out["trajectory"] = {
-                "k": self.k.tolist(),
-                "K": json_safe(self.K),
-                "tau": json_safe(self.tau),
-                "valid": self.valid.tolist(),
-            }
-        return out
-
-
-class _Track:
-    """The estimates of one method during a run, as plain lists (see MethodResult)."""
-
-    __slots__ = ("K", "k", "last", "tau", "valid")
-
-    def __init__(self) -> None:
-        self.k: list[int] = []
-        self.K: list[float] = []
-        self.tau: list[float] = []
-        self.valid: list[bool] = []
-        self.last: SupportsToDict | None = None
-
-    def add(self, k: int, estimate: SupportsToDict) -> None:
-        self.k.append(k)
-        self.K.append(getattr(estimate, "K", math.nan))
-        self.tau.append(getattr(estimate, "tau", math.nan))
-        self.valid.append(bool(getattr(estimate, "valid", False)))
-        self.last = estimate
-
-    def result(self, name: str, final: SupportsToDict | None, error: str | None) -> MethodResult:
-        # A snapshot from another thread may catch add() halfway: cut to the shortest list.
-        n = min(len(self.k), len(self.K), len(self.tau), len(self.valid))
-        return MethodResult(
-            name=name,
-            k=np.array(self.k[:n], dtype=np.int64),
-            K=np.array(self.K[:n], dtype=np.float64),
-            tau=np.array(self.tau[:n], dtype=np.float64),
-            valid=np.array(self.valid[:n], dtype=np.bool_),
-            last=self.last,
-            final=final,
-            error=error,
-        )
-
-
-@dataclass(frozen=True, eq=False)
-class RunResult:
-    """Everything a run recorded.
-
-    Attributes
-    ----------
-    rig : RigInfo
-        The rig that was sampled.
-    dt : float
-        Sample period in seconds.
-    samples_requested : int
-        The number of samples asked for.
-    t, u, y : numpy.ndarray
-        Scheduled time ``k·dt``, applied input and read output of each sample taken.
-    t_read : numpy.ndarray
-        When each reading was taken, seconds after START.
-    jitter : numpy.ndarray
-        ``t_read - t``.
-    lateness : numpy.ndarray
-        How long after its deadline the loop woke for each sample (>= 0).
-    busy : numpy.ndarray
-        Wall-clock seconds the loop spent on each sample (rig I/O, checks,
-        recording, events, identifiers): the runner's real-time budget.
-    state : RunState
-        FINISHED, FAULTED or ABORTED.
-    end_reason : EndReason
-        Why the run ended.
-    message : str
-        One line about the end (empty for a normal completion).
-    late : int
-        Samples whose lateness exceeded the tolerance.
-    missed : int
-        Deadlines that passed while a sample was overdue (``sum(lateness // dt)``).
-    late_tolerance : float
-        The lateness (seconds) above which a sample counts as late.
-    methods : dict of str to MethodResult
-        Each identifier's results, by name.
-    signum : int or None
-        The number of the signal that interrupted the run (SIGINT, SIGTERM),
-        else ``None``.
-    error : BaseException or None
-        The exception that ended the run (rig fault, error), else ``None``.
-    extra : dict of str to numpy.ndarray
-        The run's extra channels (``Experiment(sources=...)``), by name.
-    channels : tuple of ChannelSpec
-        Every channel of the record, in column order (``t, u, y, k, t_read,
-        jitter, lateness``, then the extra ones).
-    control : dict or None
-        The control loop at the end (:meth:`ControlLoop.to_dict`: mode, set
-        point, gains), or ``None`` for an open-loop run.
-    """
-
-    rig: RigInfo
-    dt: float
-    samples_requested: int
-    t: _FloatArray
-    u: _FloatArray
-    y: _FloatArray
-    t_read: _FloatArray
-    jitter: _FloatArray
-    lateness: _FloatArray
-    busy: _FloatArray
-    state: RunState
-    end_reason: EndReason
-    message: str
-    late: int
-    missed: int
-    late_tolerance: float
-    methods: dict[str, MethodResult] = field(default_factory=dict)
-    signum: int | None = None
-    error: BaseException | None = None
-    extra: dict[str, _FloatArray] = field(default_factory=dict)
-    channels: tuple[ChannelSpec, ...] = RUN_CHANNELS
-    control: dict[str, Any] | None = None
-
-    @property
-    def samples(self) -> int:
-        """The number of samples taken."""
-        return len(self.t)
-
-    @property
-    def ok(self) -> bool:
-        """``True`` if the run FINISHED (completed or ended by END)."""
-        return self.state is RunState.FINISHED
-
-    def to_dict(self, *, samples: bool = False, trajectories: bool = False) -> dict[str, Any]:
-        """Return a JSON-ready dictionary.
-
-        Parameters
-        ----------
-        samples : bool, optional
-            Include the sample arrays as lists (default ``False``).
-        trajectories : bool, optional
-            Include every estimate of every method (default ``False``).
-
-        Returns
-        -------
-        dict
-        """
-        out: dict[str, Any] = {
-            "rig": self.rig.to_dict(),
-            "dt": self.dt,
-            "samples_requested": self.samples_requested,
-            "samples": self.samples,
-            "state": self.state.value,
-            "end_reason": self.end_reason.value,
-            "message": self.message,
-            "late": self.late,
-            "missed": self.missed,
-            "late_tolerance": self.late_tolerance,
-            "max_lateness": float(self.lateness.max()) if self.samples else 0.0,
-            "signum": self.signum,
-            "methods": {
-                name: m.to_dict(trajectory=trajectories) for name, m in self.methods.items()
-            },
-        }
-        if samples:
-            for key in ("t", "u", "y", "t_read", "jitter", "lateness"):
-                out[key] = getattr(self, key).tolist()
-            out["extra"] = {name: json_safe(v) for name, v in self.extra.items()}
-        out["channels"] = [c.to_dict() for c in self.channels]
-        if self.control is not None:
-            out["control"] = self.control
-        return out
-
-
-class Experiment:
+class Experiment(ControlRequests):
     """One run of an experiment on a rig.
 
     Parameters
@@ -471,6 +170,16 @@ class Experiment:
                 f"late_tolerance must be a number of seconds >= 0, got {late_tolerance!r}"
             )
         self._sources = tuple((spec, fn) for spec, fn in sources)
+        # A closed-loop run on a rig with a disturbance fan records it (after the loop's
+        # channels), and set_fan() applies it at a sample's instant.
+        self._set_fan = getattr(rig, "set_fan", None)
+        self._fan_request: float | None = None
+        if controller is not None and callable(self._set_fan):
+            fan_of = rig
+            self._sources = (
+                (FAN_CHANNEL, lambda t, u, y: float(getattr(fan_of, "fan", math.nan))),
+                *self._sources,
+            )
         self._interlocks = interlocks if interlocks is not None else Interlocks()
         self._info = rig.describe()
         if controller is not None and not isinstance(controller, ControlLoop):
@@ -496,7 +205,7 @@ class Experiment:
                     f"{', '.join(names)}"
                 )
         recorded = getattr(recorder, "channels", RUN_CHANNELS)
-        if recorder is not None and tuple(recorded) != self._channels:
+        if recorder is not None and channel_names(recorded) != channel_names(self._channels):
             raise InvalidParameterError(
                 f"the recorder writes the channels {','.join(channel_names(recorded))} but "
                 f"the run has {','.join(names)}; give the recorder channels=Experiment.channels"
@@ -539,7 +248,7 @@ class Experiment:
         self._extra = {spec.name: np.empty(n) for spec in self._channels[len(RUN_CHANNELS) :]}
         self._late = 0
         self._missed = 0
-        self._tracks = {name: _Track() for name in self._identifiers}
+        self._tracks = {name: MethodTrack() for name in self._identifiers}
         self._final: dict[str, SupportsToDict | None] = dict.fromkeys(self._identifiers)
         self._method_errors: dict[str, str] = {}
 
@@ -636,82 +345,6 @@ class Experiment:
         self._manual = None
         if self._control is not None:
             self._control.request_manual()
-
-    @property
-    def controller(self) -> ControlLoop | None:
-        """The control loop, or ``None`` for an open-loop run."""
-        return self._control
-
-    def _require_control(self, action: str) -> ControlLoop:
-        if self._control is None:
-            raise InvalidParameterError(
-                f"cannot {action}: this run has no controller (Experiment(controller=...))"
-            )
-        self._refuse_when_over(action)
-        return self._control
-
-    def set_auto(self, setpoint: float | None = None) -> None:
-        """Switch the controller to AUTO from the next sample on, without a bump.
-
-        Parameters
-        ----------
-        setpoint : float, optional
-            A new set point (output unit); default: the one in force.
-
-        Raises
-        ------
-        InvalidParameterError
-            If the run has no controller or the set point is not valid.
-        RunStateError
-            If the run is already over.
-        """
-        control = self._require_control("switch to automatic")
-        if setpoint is not None:
-            control.request_setpoint(setpoint)
-        control.request_auto()
-
-    def set_manual(self, u: float | None = None) -> None:
-        """Switch the controller to MANUAL; hold its last output unless ``u`` is given.
-
-        Holding the last output is the bumpless transfer from AUTO to MANUAL.
-
-        Raises
-        ------
-        InvalidParameterError
-            If the run has no controller or ``u`` is not a valid input.
-        RunStateError
-            If the run is already over.
-        """
-        control = self._require_control("switch to manual")
-        held = control.output if u is None else u
-        if u is None and not math.isfinite(held):
-            held = self._info.safe_input  # nothing applied yet
-        self.set_input(held)
-
-    def set_setpoint(self, setpoint: float) -> None:
-        """Change the controller's set point (output unit) from the next sample on.
-
-        Raises
-        ------
-        InvalidParameterError
-            If the run has no controller or the set point is outside the rig's
-            output range.
-        RunStateError
-            If the run is already over.
-        """
-        self._require_control("change the set point").request_setpoint(setpoint)
-
-    def set_gains(self, gains: PIDGains) -> None:
-        """Change the PID's gains from the next sample on, without a bump.
-
-        Raises
-        ------
-        InvalidParameterError
-            If the run has no controller or ``gains`` is not :class:`PIDGains`.
-        RunStateError
-            If the run is already over.
-        """
-        self._require_control("change the gains").request_gains(gains)
 
     def end(self) -> None:
         """END: stop sampling after the current sample and compute the final estimates.
@@ -1108,7 +741,7 @@ class Experiment:
                 signal = self._signal
                 assert signal is not None  # manual is None only while a signal drives
                 if signal is not table_signal or k >= table_end:
-                    table, table_signal, table_start = _signal_table(signal, k, n, dt), signal, k
+                    table, table_signal, table_start = signal_table(signal, k, n, dt), signal, k
                     table_end = k + len(table) if table else k
                 u = table[k - table_start] if table else float(signal.value(t_k))
             if control is not None:
@@ -1118,6 +751,10 @@ class Experiment:
             if not in_min <= u <= in_max:
                 problem = Interlocks.check_input(u, info)
                 raise _TripError(EndReason.INTERLOCK, "interlock", f"interlock: {problem}")
+            fan = self._fan_request
+            if fan is not None:
+                self._fan_request = None
+                self._set_fan(fan, at=deadline)  # type: ignore[misc]
             u = float(rig.apply(u, at=deadline))
 
             t_read = reading.t - t0

@@ -29,10 +29,15 @@ from starlette.websockets import WebSocket
 from thermolab.errors import (
     AccessDeniedError,
     ConflictError,
+    GainRangeError,
+    NoOutputUnitError,
+    NoRunError,
+    NotClosedLoopError,
     NotFoundError,
     PreviousRunEndingError,
     RigError,
     RunInProgressError,
+    SetpointRangeError,
     ThermoLabError,
     TurnEndedError,
 )
@@ -75,6 +80,12 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     CameraError: HttpFault(503, "camera_unavailable"),
     RateLimitedError: HttpFault(429, "rate_limited"),
     ValueError: HttpFault(422, "invalid_parameter"),
+    # The closed loop's (issue #11).
+    GainRangeError: HttpFault(422, "gain_out_of_range"),
+    SetpointRangeError: HttpFault(422, "setpoint_out_of_range"),
+    NoOutputUnitError: HttpFault(422, "no_output_unit"),
+    NoRunError: HttpFault(409, "no_run"),
+    NotClosedLoopError: HttpFault(409, "not_closed_loop"),
 }
 _OTHER = HttpFault(400, "bad_request")
 _HTTP_CODES = {404: "not_found", 405: "method_not_allowed", 413: "body_too_large"}

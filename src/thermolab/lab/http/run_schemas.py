@@ -17,6 +17,7 @@ from pydantic_core import PydanticCustomError
 
 from thermolab.ident.registry import METHOD_NAMES
 from thermolab.lab.http.bodies import In, Out
+from thermolab.lab.http.control_schemas import ControlIn
 from thermolab.lab.runs import MAX_DT, MAX_SAMPLES, MIN_DT, OFFSET_MODES, RunRecord, RunRequest
 from thermolab.lab.runs.request import RUN_SETTINGS
 from thermolab.records import ChannelRole
@@ -132,6 +133,11 @@ class RunIn(In):
             "(the run's operatingPoint and each result say what was used and found)"
         ),
     ] = "auto"
+    control: ControlIn | None = Field(
+        default=None,
+        description="a PID on the output (a closed-loop run): mode, set point, gains, "
+        "adaptive; null: open loop (GET /api/control publishes every range)",
+    )
 
     def request(self) -> RunRequest:
         """The run service's request."""
@@ -145,6 +151,7 @@ class RunIn(In):
             setpoint=self.setpoint,
             methods=tuple(self.methods),
             offset=self.offset,
+            control=None if self.control is None else self.control.request(),
             **settings,
         )
 
@@ -211,6 +218,12 @@ class RunOut(Out):
         description="every channel of the run's samples in record order (t, u, y, k, t_read, "
         "jitter, lateness, then what the rig or controller publishes), with its unit and role; "
         "empty for runs from before they were kept",
+    )
+
+    control: dict[str, Any] | None = Field(
+        default=None,
+        description="a closed-loop run's controller (mode, setpoint, gains, pid, adaptive with "
+        "retunes and last_reason), live while it runs; null for an open loop",
     )
 
     @classmethod

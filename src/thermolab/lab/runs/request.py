@@ -31,6 +31,7 @@ from typing import Any
 from thermolab.errors import InvalidParameterError
 from thermolab.ident.online import OnlineIdentifier
 from thermolab.ident.registry import SETTINGS, Setting, owners
+from thermolab.lab.runs.control import ControlRequest
 from thermolab.runner.methods import build_identifiers, parse_methods
 from thermolab.signals import parse_signal
 
@@ -113,6 +114,8 @@ class RunRequest:
         WLSM initial parameters ``[a0, b0]`` of the first-order model (``[a0,
         b0, c0]`` with ``offset="fit"``, ``c0`` the constant term); ``None`` is
         the registry's default (the paper's W0).
+    control : ControlRequest or None
+        A PID on the output (a closed-loop run, :mod:`.control`); ``None``: open loop.
     offset : str or float
         How the identifiers treat the operating point: ``"auto"`` (decided
         from the data, see :func:`choose_operating_point`),
@@ -131,6 +134,7 @@ class RunRequest:
     pmax: float | None = None
     w0: tuple[float, ...] | None = None
     offset: str | float = "auto"
+    control: ControlRequest | None = None
 
     def settings(self) -> dict[str, Any]:
         """The request as stored with the run."""
@@ -146,6 +150,7 @@ class RunRequest:
             "pmax": self.pmax,
             "w0": None if self.w0 is None else list(self.w0),
             "offset": self.offset,
+            "control": None if self.control is None else self.control.settings(),
         }
 
 

@@ -25,10 +25,14 @@ from dataclasses import dataclass
 from datetime import timedelta
 from typing import Any
 
+import numpy as np
+
 from thermolab.errors import (
     AccessDeniedError,
     ConflictError,
     InvalidParameterError,
+    NoRunError,
+    NotClosedLoopError,
     PreviousRunEndingError,
     RunInProgressError,
     ThermoLabError,
@@ -42,6 +46,7 @@ from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Run, RunStatus
 from thermolab.lab.devices import DeviceHub
+from thermolab.lab.runs.control import build_control_loop
 from thermolab.lab.runs.export import RunExport, StoredSample
 from thermolab.lab.runs.request import RunRequest, plan_run
 from thermolab.lab.runs.statistics import method_statistics
@@ -52,12 +57,20 @@ from thermolab.lab.runs.store import (
     add_run,
     record_of,
     run_channels,
+    run_command,
     status_of,
 )
 from thermolab.lab.runs.timing import timing_summary
 from thermolab.lab.users import Principal
 from thermolab.records import ChannelSpec
-from thermolab.runner import EndReason, Event, EventBus, Experiment, RunResult
+from thermolab.runner import (
+    EndReason,
+    Event,
+    EventBus,
+    Experiment,
+    RunResult,
+    closed_loop_channels,
+)
 
 __all__ = ["RunService"]
 
@@ -176,11 +189,18 @@ class RunService:
         driver = self._hub.driver(rig_id)
         if driver is None:
             raise ConflictError(f"rig {rig_id!r} has no device attached; a run needs one")
+        loop = None
+        if request.control is not None:
+            # Checked before anything is stored: ranges, set point, output unit.
+            times = (np.arange(request.samples, dtype=np.float64) * request.dt).tolist()
+            loop = build_control_loop(request.control, request.dt, times, driver.describe())
         arrived_in = self._access.caller_turn(rig_id, who.user_id)  # the turn the START came in
         self.checkpoint("start:arrived")
         if arrived_in is not None:  # without a turn START is refused (403) below
             self._await_previous_turn(rig_id, arrived_in)
         channels = run_channels(published.input_unit, published.output_unit)
+        if loop is not None:
+            channels = (*channels, *closed_loop_channels(driver, loop))
 
         # START and the end of a turn are one decision: the lab reconciles a rig (and
         # ends its run when the turn is over) under the hub's lock for that rig, so
@@ -220,7 +240,10 @@ class RunService:
                 raise self._access.turn_ended_error(rig_id, arrived_in) from None
             self.checkpoint("start:committed")
             recorder = DatabaseRecorder(
-                self._db, run_id, on_sample=lambda u, y: self._hub.note_sample(rig_id, u, y)
+                self._db,
+                run_id,
+                on_sample=lambda u, y: self._hub.note_sample(rig_id, u, y),
+                channels=channels,
             )
             experiment = Experiment(
                 driver,
@@ -229,6 +252,7 @@ class RunService:
                 identifiers=plan.identifiers,
                 recorder=recorder,
                 events=EventBus(),
+                controller=loop,
                 **plan.inputs,
             )
             active = _Active(run_id, rig_id, control_id, experiment, plan.identifiers)
@@ -310,6 +334,61 @@ class RunService:
             return None
         active.experiment.set_input(u)
         return active.run_id
+
+    def command(
+        self,
+        rig_id: str,
+        who: Principal,
+        kind: str,
+        payload: dict[str, Any],
+        act: Callable[[Experiment], None],
+    ) -> RunRecord:
+        """Hand a closed-loop command to the rig's run: mode, set point, gains, fan.
+
+        Only the controller, in the turn the run belongs to, may; ``act`` is
+        applied to the run's :class:`~thermolab.runner.Experiment` (which
+        checks the values and raises before changing anything), then the
+        command is recorded (``commands``, kind ``kind``). The run applies it
+        from its next sample on, after the interlocks, as any input.
+
+        Raises
+        ------
+        NoRunError
+            No run is going on the rig.
+        NotClosedLoopError
+            The run has no controller (and the command is not the fan).
+        AccessDeniedError
+            ``who`` does not control the rig, or the run belongs to an earlier turn.
+        """
+        with self._lock:
+            active = self._active.get(rig_id)
+        if active is None:
+            raise NoRunError(f"no run is going on rig {rig_id!r}: start a closed-loop run first")
+        if active.experiment.controller is None and kind != "fan":
+            raise NotClosedLoopError(
+                f"run {active.run_id} was started without a controller; start a run with "
+                "control (manual or auto) to switch, change the set point or the gains"
+            )
+
+        with self._access.controlled(rig_id, who, f"send {kind} to its run") as turn:
+            if turn.control.id != active.control_session:
+                raise AccessDeniedError(
+                    f"run {active.run_id} belongs to an earlier turn at rig {rig_id!r}"
+                )
+            act(active.experiment)
+            turn.session.add(
+                run_command(rig_id, turn.control, who, turn.now, kind, None, active.run_id, payload)
+            )
+        return self.get(active.run_id, who)
+
+    def loop_state(self, rig_id: str) -> dict[str, Any] | None:
+        """The control loop of the rig's run now (``ControlLoop.to_dict``), or ``None``."""
+        with self._lock:
+            active = self._active.get(rig_id)
+        if active is None or active.experiment.controller is None:
+            return None
+        state: dict[str, Any] = json_safe(active.experiment.controller.to_dict())
+        return {**state, "run": active.run_id}
 
     def control_changed(self, rig_id: str, controller_session: int | None) -> None:
         """END the rig's run if the turn it belongs to has ended.
@@ -527,7 +606,8 @@ class RunService:
             results[name] = (_params(identifier), data)
         simulated = self._config.rig(active.rig_id).kind == "sim"
         timing = timing_summary(result.t_read, result.lateness, result.dt, simulated=simulated)
-        self._store.save_end(active.run_id, status, reason, now, results, timing)
+        control = None if result.control is None else json_safe(result.control)
+        self._store.save_end(active.run_id, status, reason, now, results, timing, control)
 
     def _record(self, run: Run, stored: dict[str, Any] | None) -> RunRecord:
         with self._lock:
@@ -535,7 +615,10 @@ class RunService:
         live = active is not None and active.run_id == run.id
         results: dict[str, Any] = {}
         taken = run.samples_stored
+        control = run.meta.get("control_end")
         if live and active is not None:
+            loop = active.experiment.controller
+            control = None if loop is None else json_safe(loop.to_dict())
             snapshot = active.experiment.snapshot()
             taken = snapshot.samples
             for name, method in snapshot.methods.items():
@@ -543,7 +626,7 @@ class RunService:
         elif stored is not None:
             for name, result in stored.items():
                 results[name] = {k: v for k, v in result.items() if k != "trajectory"}
-        return record_of(run, results, taken)
+        return record_of(run, results, taken, control)
 
 
 def _params(identifier: OnlineIdentifier | None) -> dict[str, Any]:

@@ -104,6 +104,10 @@ class RunRecord:
     timing: dict[str, Any] | None = None
     channels: list[dict[str, str]] = field(default_factory=list)
 
+    # A closed-loop run's controller: the loop's state (mode, set point, gains,
+    # adaptive), live while it runs, as it ended afterwards; None for an open loop.
+    control: dict[str, Any] | None = None
+
 
 class DatabaseRecorder:
     """A runner :class:`~thermolab.runner.Recorder` that stores samples in the database.
@@ -135,7 +139,8 @@ class DatabaseRecorder:
         on_sample: Callable[[float, float], None] | None = None,
         channels: Sequence[ChannelSpec] = RUN_CHANNELS,
     ) -> None:
-        if tuple(channels[: len(RUN_CHANNELS)]) != RUN_CHANNELS:
+        # The standard channels by name: their units are the rig's (see run_channels).
+        if [c.name for c in channels[: len(RUN_CHANNELS)]] != [c.name for c in RUN_CHANNELS]:
             raise ThermoLabError("a run's channels start with thermolab.records.RUN_CHANNELS")
         self.channels = tuple(channels)
         self._extra = tuple(c.name for c in channels[len(RUN_CHANNELS) :])
@@ -292,8 +297,10 @@ class RunStore:
         now: datetime,
         results: dict[str, tuple[dict[str, Any], dict[str, Any]]],
         timing: dict[str, Any] | None = None,
+        control_end: dict[str, Any] | None = None,
     ) -> None:
-        """Store how a run ended, each method's ``(params, result)`` and the run's timing."""
+        """Store how a run ended, each method's ``(params, result)``, the run's timing and,
+        for a closed loop, its controller as it ended."""
         with self._db.write() as session:
             for name, (params, data) in results.items():
                 session.add(
@@ -318,7 +325,8 @@ class RunStore:
                     ended_at=now,
                     end_reason=reason,
                     samples_stored=stored or 0,
-                    meta=meta if timing is None else {**meta, "timing": timing},
+                    # A new dict: the JSON column sees the change.
+                    meta={**meta, "timing": timing, "control_end": control_end},
                 )
             )
 
@@ -452,8 +460,11 @@ def add_run(
     return run.id
 
 
-def record_of(run: Run, results: dict[str, Any], samples_taken: int) -> RunRecord:
-    """A run's row as a :class:`RunRecord` (``results`` and progress given by the caller)."""
+def record_of(
+    run: Run, results: dict[str, Any], samples_taken: int, control: dict[str, Any] | None = None
+) -> RunRecord:
+    """A run's row as a :class:`RunRecord` (``results``, progress and the live controller
+    given by the caller; an ended run's controller is the one stored at its end)."""
     meta = run.meta
     ends_at = meta.get("ends_at")  # None for runs stored before it was kept
     stored = meta.get("channels")
@@ -479,6 +490,7 @@ def record_of(run: Run, results: dict[str, Any], samples_taken: int) -> RunRecor
         ends_at=None if ends_at is None else datetime.fromisoformat(ends_at),
         timing=meta.get("timing"),
         channels=[] if stored is None else [c.to_dict() for c in channel_specs(stored)],
+        control=control if control is not None else meta.get("control_end"),
     )
 
 

@@ -7,6 +7,7 @@ user or an API token (401 otherwise).
 from fastapi import APIRouter
 
 from thermolab.lab.http.routers import (
+    control,
     methods,
     readings,
     rigs,
@@ -20,5 +21,5 @@ from thermolab.lab.http.routers import (
 __all__ = ["api_router"]
 
 api_router = APIRouter(prefix="/api")
-for _resource in (session, version, rigs, readings, runs, methods, users, tokens):
+for _resource in (session, version, rigs, readings, runs, methods, users, tokens, control):
     api_router.include_router(_resource.router)

@@ -1,7 +1,7 @@
 // @ts-check
 // The rig page: live image, live charts (with the identified model laid over
 // the data), the current estimates, the convergence of the recursive methods,
-// the access panel and the paper's three panels. Everything live comes over
+// the access panel, the paper's three panels and the closed loop (closedloop.js). Everything live comes over
 // one WebSocket (LiveClient); commands go over HTTP.
 //
 // This module follows the rig (state, access, limits) and hands each part what
@@ -16,6 +16,7 @@ import { buildRunSpec, readRun } from "../runspec.js";
 import { hasProperty, openapi } from "../schema.js";
 import { readAccess, readRig } from "../shapes.js";
 import { AccessPanel } from "./access.js";
+import { ClosedLoopPanel } from "./closedloop.js";
 import { Panels } from "./panels.js";
 import { panelLimits } from "./panels/definitions.js";
 import { Camera } from "./rig/camera.js";
@@ -77,6 +78,8 @@ class RigPage {
     };
     this.panels = new Panels(this.panelsHost, panelLimits(null, null), this.panelActions);
     this.show = new RunShow(grid, main, () => this.panels);
+    // The fourth panel: a PID on the output (closedloop.js).
+    this.loop = new ClosedLoopPanel(main, rigId);
     this.client = new LiveClient(rigId, {
       onMessage: (msg) => this._onMessage(msg),
       onStatus: (s) => this._onStatus(s),
@@ -156,12 +159,15 @@ class RigPage {
       case "sample":
         this.readout.update(msg);
         this.show.sample(msg);
+        this.loop.sample(msg);
         break;
       case "estimate":
         this.show.estimate(msg);
         break;
       case "run":
         this.show.event(msg);
+        if (msg.event === "started") this.loop.started(msg.run);
+        else void this.loop.ended(msg.run);
         break;
       case "access":
         this.access.update(readAccess(msg.access));
@@ -214,6 +220,7 @@ class RigPage {
   _updateLock() {
     const reason = lockReason(this.access.access, this.rig?.state);
     this.panels.setLocked(Boolean(reason), reason);
+    this.loop.setLocked(Boolean(reason));
   }
 
   // -- commands -------------------------------------------------------------------------
@@ -243,6 +250,7 @@ class RigPage {
     this.camera.destroy();
     this.access.destroy();
     this.show.destroy();
+    this.loop.destroy();
     clearConnection();
   }
 }

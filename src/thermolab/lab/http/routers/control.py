@@ -1,0 +1,205 @@
+"""Routes of the closed loop: the declared parameters, a rig's loop, live commands, the table.
+
+Live commands act on the rig's current run (started with ``control`` in its
+START body) from its next sample on; only the controller, in the turn the run
+belongs to, may send them (the access checks of ``PUT .../input``), and the
+interlocks and the safe state still come first in the sampling loop.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Query
+
+from thermolab.control import control_json
+from thermolab.lab.http.control_schemas import FanIn, GainsIn, LoopOut, ModeIn, SetpointIn
+from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, RunId, UserDep, documented_errors
+from thermolab.lab.http.run_schemas import RunOut
+from thermolab.lab.runs.tuning_table import closed_loop_figures, run_model, tuning_table
+from thermolab.lab.service import Lab
+from thermolab.rigs import RigSpec
+from thermolab.runner import Experiment
+
+__all__ = ["router"]
+
+router = APIRouter(**AUTHENTICATED)
+
+
+@router.get("/control", tags=["control"], summary="The closed loop's parameters and rules")
+def control_parameters() -> dict[str, Any]:
+    """Every PID and tuning parameter as :data:`thermolab.control.PARAMETERS` declares it
+    (type, default, range, unit, help), the tuning rules with their forms and whether they
+    take a closed-loop speed, and the modes. The browser's "Closed loop" panel is built
+    from it.
+    """
+    return control_json()
+
+
+@router.get(
+    "/rigs/{rig_id}/loop",
+    response_model=LoopOut,
+    tags=["control"],
+    summary="A rig's closed-loop facts and its run's loop",
+    responses=documented_errors(404),
+)
+def rig_loop(rig_id: RigId, who: UserDep, lab: LabDep) -> LoopOut:
+    """Units, ranges, the output limit (a set point must stay below it), the disturbance
+    fan if the rig has one, and the current run's control loop (mode, set point, gains,
+    adaptive state and why it holds the gains).
+    """
+    cfg = lab.config.rig(rig_id)
+    published = lab.hub.published(rig_id)
+    spec = RigSpec.parse(cfg.spec)
+    info = spec.describe()
+    lab.presence.touch(rig_id, who.username)
+    return LoopOut(
+        rig=rig_id,
+        output_unit=published.output_unit,
+        input_unit=published.input_unit,
+        input_range=[published.input_min, published.input_max],
+        output_limit=info.output_limit,
+        closed_loop=bool(published.output_unit),
+        fan=None if spec.fan is None else spec.fan.to_dict(),
+        loop=lab.runs.loop_state(rig_id),
+    )
+
+
+def _command(
+    lab: Lab, rig_id: str, who: Any, kind: str, payload: dict[str, Any], act: Any
+) -> RunOut:
+    lab.config.rig(rig_id)
+    return RunOut.of(lab.runs.command(rig_id, who, kind, payload, act))
+
+
+_COMMAND_ERRORS = documented_errors(403, 404, 409, 422)
+
+
+@router.put(
+    "/rigs/{rig_id}/runs/current/mode",
+    response_model=RunOut,
+    tags=["control"],
+    summary="Switch the run's controller between manual and auto",
+    responses=_COMMAND_ERRORS,
+)
+def set_mode(rig_id: RigId, body: ModeIn, who: UserDep, lab: LabDep) -> RunOut:
+    """``auto``: the PID takes over bumplessly from the input in force (a ``setpoint`` given
+    with it is then a step); ``manual``: the PID's last output is held (or ``u``) and the
+    PID tracks it. 409 ``no_run`` without a run, ``not_closed_loop`` for an open-loop run.
+    """
+
+    def act(experiment: Experiment) -> None:
+        if body.mode == "auto":
+            experiment.set_auto(body.setpoint)
+        else:
+            experiment.set_manual(body.u)
+
+    payload = body.model_dump(exclude_none=True)
+    return _command(lab, rig_id, who, "mode", payload, act)
+
+
+@router.put(
+    "/rigs/{rig_id}/runs/current/setpoint",
+    response_model=RunOut,
+    tags=["control"],
+    summary="Change the set point",
+    responses=_COMMAND_ERRORS,
+)
+def set_setpoint(rig_id: RigId, body: SetpointIn, who: UserDep, lab: LabDep) -> RunOut:
+    """A new set point in the output unit, below the rig's output limit (422
+    ``setpoint_out_of_range`` otherwise)."""
+    return _command(
+        lab, rig_id, who, "setpoint", {"setpoint": body.setpoint},
+        lambda experiment: experiment.set_setpoint(body.setpoint),
+    )  # fmt: skip
+
+
+@router.put(
+    "/rigs/{rig_id}/runs/current/gains",
+    response_model=RunOut,
+    tags=["control"],
+    summary="Change the PID's gains (bumpless)",
+    responses=_COMMAND_ERRORS,
+)
+def set_gains(rig_id: RigId, body: GainsIn, who: UserDep, lab: LabDep) -> RunOut:
+    """New gains, each finite and inside its published range (422 ``gain_out_of_range``)."""
+    from thermolab.control import PIDGains
+
+    gains = PIDGains(body.kp, body.ti, body.td)  # checked before anything is recorded
+    return _command(
+        lab, rig_id, who, "gains", gains.to_dict(), lambda experiment: experiment.set_gains(gains)
+    )
+
+
+@router.put(
+    "/rigs/{rig_id}/runs/current/fan",
+    response_model=RunOut,
+    tags=["control"],
+    summary="Run the disturbance fan",
+    responses=_COMMAND_ERRORS,
+)
+def set_fan(rig_id: RigId, body: FanIn, who: UserDep, lab: LabDep) -> RunOut:
+    """The disturbance fan at ``percent`` of full speed, from the run's next sample on
+    (422 for a rig without a fan, or outside 0-100 %)."""
+    return _command(
+        lab, rig_id, who, "fan", {"percent": body.percent},
+        lambda experiment: experiment.set_fan(body.percent),
+    )  # fmt: skip
+
+
+@router.get(
+    "/runs/{run_id}/tuning",
+    tags=["control"],
+    summary="The tuning table of a run's identified model",
+    responses=documented_errors(403, 404, 422),
+)
+def run_tuning(
+    run_id: RunId,
+    who: UserDep,
+    lab: LabDep,
+    setpoint: Annotated[
+        float | None, Query(description="the step's set point (default: halfway up the range)")
+    ] = None,
+    tau_c: Annotated[
+        float | None,
+        Query(alias="tauC", description="closed-loop speed of imc and simc, s (default: theta)"),
+    ] = None,
+    method: Annotated[str | None, Query(max_length=16, description="the model's method")] = None,
+) -> dict[str, Any]:
+    """From the run's identified FOPDT model (Ks, Ts, θ): each rule's Kp, Ti, Td, the
+    predicted closed-loop step from the run's starting point and its overshoot, 2 %
+    settling time and IAE. For a closed-loop run, ``closedLoop`` has its measured figures
+    beside the prediction of the model its gains came from.
+    """
+    from thermolab.control import PARAMETERS
+
+    PARAMETERS["tau_c"].check(tau_c)
+    record = lab.runs.get(run_id, who)
+    exported = lab.runs.export(run_id, who)
+    samples = exported.get("samples") or {}
+    published = lab.hub.published(record.rig_id)
+    limits = (published.input_min, published.input_max)
+    out: dict[str, Any] = {"run": run_id, "table": None, "closedLoop": None, "note": None}
+    ys, us = samples.get("y") or [], samples.get("u") or []
+    y0 = float(ys[0]) if ys else 0.0
+    u0 = published.safe_input
+    try:
+        name, model, trusted = run_model(record.results, method)
+    except ValueError as exc:
+        if method is not None or record.control is None:
+            raise
+        out["note"] = str(exc)
+    else:
+        target = setpoint
+        if target is None:
+            target = y0 + model.K * (limits[0] + 0.5 * (limits[1] - limits[0]) - u0)
+        table = tuning_table(
+            model, dt=record.dt, y0=y0, u0=u0, setpoint=target, u_limits=limits, tau_c=tau_c
+        )
+        out["table"] = {**table, "method": name, "trusted": trusted}
+    control = (record.settings or {}).get("control")
+    if control is not None and us:
+        out["closedLoop"] = closed_loop_figures(
+            samples, record.dt, control, limits, published.safe_input
+        )
+    return out

@@ -1,0 +1,189 @@
+"""The tuning table of a run: each rule's gains from its identified model, predicted and measured.
+
+From a run's identified first-order-plus-dead-time model (the best of its
+methods' final estimates: trusted before valid, ``oe`` and ``lsm`` — which
+find the dead time — before the others), :func:`tuning_table` gives every
+rule and form of :mod:`thermolab.control.tuning` with its ``Kp``, ``Ti``,
+``Td``, the predicted closed-loop step (:func:`thermolab.control.predict_closed_loop`)
+and its overshoot, settling time and IAE. :func:`closed_loop_figures` gives a
+closed-loop run's measured figures beside the prediction of the model its
+gains came from, with one function (:func:`thermolab.control.step_metrics`)
+for both.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from thermolab.control import (
+    FOPDT,
+    RULE_FORMS,
+    RULES,
+    SPEED_RULES,
+    PIDGains,
+    predict_closed_loop,
+    step_metrics,
+    tune,
+)
+from thermolab.errors import InvalidDataError, InvalidParameterError
+
+__all__ = ["MODEL_PREFERENCE", "closed_loop_figures", "run_model", "tuning_table"]
+
+#: Which method's model a table starts from, first found first (trusted ones first).
+MODEL_PREFERENCE: tuple[str, ...] = ("oe", "lsm", "srm", "wlsm", "malsm", "blockls")
+#: Points of a predicted response sent to a page (the figures use every sample).
+_POINTS = 400
+
+
+def run_model(results: Mapping[str, Any], method: str | None = None) -> tuple[str, FOPDT, bool]:
+    """The FOPDT model of a run's results: ``(method, model, trusted)``.
+
+    Raises
+    ------
+    InvalidParameterError
+        If the run has no valid first-order model (or not from ``method``).
+    """
+    candidates: list[tuple[int, int, str, FOPDT, bool]] = []
+    for rank, name in enumerate(MODEL_PREFERENCE):
+        if method is not None and name != method:
+            continue
+        latest = (results.get(name) or {}).get("latest") or {}
+        K, tau = latest.get("K"), latest.get("tau")
+        if not latest.get("valid") or K is None or tau is None:
+            continue
+        extras = latest.get("extras") or {}
+        theta = extras.get("theta", latest.get("theta")) or 0.0
+        try:
+            model = FOPDT(float(K), float(tau), float(theta))
+        except InvalidParameterError:
+            continue
+        trusted = bool(extras.get("trusted", True))
+        candidates.append((0 if trusted else 1, rank, name, model, trusted))
+    if not candidates:
+        which = f"method {method!r}" if method else "any method"
+        raise InvalidParameterError(
+            f"the run has no valid first-order model from {which}; identify the rig first "
+            "(a step with SRM, LSM or OE)"
+        )
+    _, _, name, model, trusted = min(candidates, key=lambda c: (c[0], c[1]))
+    return name, model, trusted
+
+
+def _thin(values: np.ndarray) -> list[float | None]:
+    step = max(1, math.ceil(len(values) / _POINTS))
+    return [float(v) if math.isfinite(v) else None for v in values[::step]]
+
+
+def tuning_table(
+    model: FOPDT,
+    *,
+    dt: float,
+    y0: float,
+    u0: float,
+    setpoint: float,
+    u_limits: tuple[float, float],
+    tau_c: float | None = None,
+) -> dict[str, Any]:
+    """Every rule and form tuned from ``model``, with its predicted step from ``(u0, y0)``.
+
+    ``tau_c`` is the closed-loop speed of ``imc`` and ``simc`` (default: each
+    rule's own). A rule that cannot tune the model (``zn``/``cc`` without dead
+    time, gains out of range) gives its row an ``error`` instead.
+    """
+    horizon = 6.0 * (model.tau + model.theta) + 10.0 * dt
+    samples = int(min(20_000, max(50, math.ceil(horizon / dt))))
+    rows: list[dict[str, Any]] = []
+    for rule in RULES:
+        for form in RULE_FORMS[rule]:
+            row: dict[str, Any] = {"rule": rule, "form": form}
+            try:
+                tuned = tune(model, rule, form=form, tau_c=tau_c if rule in SPEED_RULES else None)
+                response = predict_closed_loop(
+                    model, tuned.gains, dt=dt, samples=samples, setpoint=setpoint,
+                    y0=y0, u0=u0, u_limits=u_limits,
+                )  # fmt: skip
+            except InvalidParameterError as exc:
+                rows.append({**row, "error": str(exc)})
+                continue
+            rows.append(
+                {
+                    **row,
+                    "tauC": tuned.tau_c,
+                    **tuned.gains.to_dict(),
+                    "predicted": response.metrics.to_dict(),
+                    "response": {
+                        "t": _thin(response.t),
+                        "y": _thin(response.y),
+                        "u": _thin(response.u),
+                    },
+                }
+            )
+    return {
+        "model": model.to_dict(),
+        "dt": dt,
+        "y0": y0,
+        "u0": u0,
+        "setpoint": setpoint,
+        "samples": samples,
+        "rows": rows,
+    }
+
+
+def closed_loop_figures(
+    samples: Mapping[str, Any],
+    dt: float,
+    control: Mapping[str, Any],
+    u_limits: tuple[float, float],
+    u_rest: float,
+) -> dict[str, Any]:
+    """A closed-loop run's measured step figures beside its model's prediction.
+
+    ``samples`` are the run's channels by name (``t``, ``y``, ``u``, ``r``);
+    ``control`` the run's control request (its starting gains and ``model``).
+    The prediction starts from the record's operating point just before the
+    step, with the gains the run started with, as ``thermolab run`` does; a
+    run that starts in AUTO steps at its first sample, from rest at
+    ``u_rest`` (the rig's safe input) and its first output.
+    """
+    t = np.asarray(samples.get("t") or [], dtype=np.float64)
+    y = np.asarray(samples.get("y") or [], dtype=np.float64)
+    u = np.asarray(samples.get("u") or [], dtype=np.float64)
+    r_values = samples.get("r")
+    out: dict[str, Any] = {"measured": None, "predicted": None, "note": None, "model": None}
+    if r_values is None or t.size < 3:
+        out["note"] = "not a closed-loop run (no set point recorded), or too few samples"
+        return out
+    r = np.asarray([math.nan if v is None else v for v in r_values], dtype=np.float64)
+    try:
+        measured = step_metrics(t, r, y)
+    except InvalidDataError as exc:
+        out["note"] = str(exc)
+        return out
+    out["measured"] = measured.to_dict()
+    model = control.get("model")
+    if model is None:
+        out["note"] = "the run was started without the model its gains came from"
+        return out
+    fopdt = FOPDT(*(float(x) for x in model))
+    out["model"] = fopdt.to_dict()
+    i0 = int(np.searchsorted(t, measured.step_time))
+    before = max(i0 - 1, 0)
+    u_before = float(u[before]) if i0 else u_rest
+    predicted = predict_closed_loop(
+        fopdt,
+        PIDGains(control["kp"], control["ti"], control.get("td") or 0.0),
+        dt=dt,
+        samples=int(t.size),
+        setpoint=float(r[-1]),
+        step_at=measured.step_time,
+        y0=float(y[before]),
+        u0=u_before,
+        u_limits=u_limits,
+    )
+    out["predicted"] = predicted.metrics.to_dict()
+    out["response"] = {"t": _thin(predicted.t), "y": _thin(predicted.y)}
+    return out

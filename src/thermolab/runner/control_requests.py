@@ -1,0 +1,153 @@
+"""The closed-loop requests of a run: AUTO/MANUAL, set point, gains, the disturbance fan.
+
+:class:`ControlRequests` is the part of :class:`~thermolab.runner.Experiment`
+that talks to its :class:`~thermolab.runner.closed_loop.ControlLoop` (kept
+apart so that the sampling loop's module stays readable). Every request is
+thread-safe and takes effect at the next sample; the interlocks and the safe
+state are the sampling loop's and still win.
+"""
+
+from __future__ import annotations
+
+import math
+
+from thermolab.control import PIDGains
+from thermolab.errors import InvalidParameterError
+from thermolab.records import ChannelSpec
+from thermolab.rigs import RigInfo
+from thermolab.runner.closed_loop import ControlLoop
+
+__all__ = ["FAN_CHANNEL", "ControlRequests", "closed_loop_channels"]
+
+#: The disturbance fan's channel (recorded by a closed-loop run on a rig with a fan).
+FAN_CHANNEL = ChannelSpec("fan", "%", "other", "disturbance fan, % of full speed")
+
+
+def closed_loop_channels(rig: object, loop: ControlLoop) -> tuple[ChannelSpec, ...]:
+    """The channels a closed-loop run adds after ``RUN_CHANNELS`` (``loop`` bound first).
+
+    The loop's (``r, u_pid, e, auto``...), then ``fan`` when the rig has a
+    disturbance fan: what a recorder of the run must declare.
+    """
+    fan = (FAN_CHANNEL,) if callable(getattr(rig, "set_fan", None)) else ()
+    return (*loop.channels(), *fan)
+
+
+class ControlRequests:
+    """Mixed into :class:`~thermolab.runner.Experiment`: requests to its control loop."""
+
+    _control: ControlLoop | None
+    _info: RigInfo
+    _fan_request: float | None
+
+    def set_input(self, u: float) -> None:  # the experiment's
+        raise NotImplementedError
+
+    def _refuse_when_over(self, action: str) -> None:  # the experiment's
+        raise NotImplementedError
+
+    @property
+    def controller(self) -> ControlLoop | None:
+        """The control loop, or ``None`` for an open-loop run."""
+        return self._control
+
+    def _require_control(self, action: str) -> ControlLoop:
+        if self._control is None:
+            raise InvalidParameterError(
+                f"cannot {action}: this run has no controller (Experiment(controller=...))"
+            )
+        self._refuse_when_over(action)
+        return self._control
+
+    def set_auto(self, setpoint: float | None = None) -> None:
+        """Switch the controller to AUTO from the next sample on, without a bump.
+
+        Parameters
+        ----------
+        setpoint : float, optional
+            A new set point (output unit); default: the one in force.
+
+        Raises
+        ------
+        InvalidParameterError
+            If the run has no controller or the set point is not valid.
+        RunStateError
+            If the run is already over.
+        """
+        control = self._require_control("switch to automatic")
+        if setpoint is not None:
+            control.request_setpoint(setpoint)
+        control.request_auto()
+
+    def set_manual(self, u: float | None = None) -> None:
+        """Switch the controller to MANUAL; hold its last output unless ``u`` is given.
+
+        Holding the last output is the bumpless transfer from AUTO to MANUAL.
+
+        Raises
+        ------
+        InvalidParameterError
+            If the run has no controller or ``u`` is not a valid input.
+        RunStateError
+            If the run is already over.
+        """
+        control = self._require_control("switch to manual")
+        held = control.output if u is None else u
+        if u is None and not math.isfinite(held):
+            held = self._info.safe_input  # nothing applied yet
+        self.set_input(held)
+
+    def set_setpoint(self, setpoint: float) -> None:
+        """Change the controller's set point (output unit) from the next sample on.
+
+        Raises
+        ------
+        InvalidParameterError
+            If the run has no controller or the set point is outside the rig's
+            output range.
+        RunStateError
+            If the run is already over.
+        """
+        self._require_control("change the set point").request_setpoint(setpoint)
+
+    def set_gains(self, gains: PIDGains) -> None:
+        """Change the PID's gains from the next sample on, without a bump.
+
+        Raises
+        ------
+        InvalidParameterError
+            If the run has no controller or ``gains`` is not :class:`PIDGains`.
+        RunStateError
+            If the run is already over.
+        """
+        self._require_control("change the gains").request_gains(gains)
+
+    def set_fan(self, percent: float) -> None:
+        """Run the rig's disturbance fan at ``percent`` from the next sample on.
+
+        The fan is a disturbance, not the controlled input: it is set at the
+        sample's instant (``rig.set_fan(percent, at=...)``), and the run
+        records it as the ``fan`` channel when the rig has one.
+
+        Raises
+        ------
+        InvalidParameterError
+            If the rig has no disturbance fan or ``percent`` is not in [0, 100].
+        RunStateError
+            If the run is already over.
+        """
+        if not self.has_fan:
+            raise InvalidParameterError(f"rig {self._info.name!r} has no disturbance fan")
+        try:
+            level = float(percent)
+        except (TypeError, ValueError):
+            raise InvalidParameterError(f"the fan takes 0-100 %, got {percent!r}") from None
+        if not (math.isfinite(level) and 0.0 <= level <= 100.0):
+            raise InvalidParameterError(f"the fan takes 0-100 %, got {percent!r}")
+        self._refuse_when_over("set the fan")
+        self._fan_request = level
+
+    @property
+    def has_fan(self) -> bool:
+        """Whether the rig has a disturbance fan (``set_fan``)."""
+        return callable(getattr(getattr(self, "_rig", None), "set_fan", None))

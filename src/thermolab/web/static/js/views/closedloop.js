@@ -1,0 +1,373 @@
+// @ts-check
+// The fourth panel, "Closed loop": a PID on the rig's output (issue #11).
+//
+// Built from what the server declares: GET /api/control (every PID and tuning
+// parameter with its range, the rules and their forms) and GET
+// /api/rigs/{rig}/loop (units, output limit, the disturbance fan, the run's
+// loop now). From a run's identified model, the tuning table (GET
+// /api/runs/{id}/tuning) gives each rule's gains with the predicted step;
+// picking a row fills the gains. START posts a run with `control`; while it
+// runs: set-point steps, manual/auto, the fan, END. The chart draws r, y, u and
+// the prediction; in adaptive mode the gains' trajectories and why the tuner
+// holds them. At the end the measured figures are shown beside the predicted.
+
+import { api, request } from "../api.js";
+import { Chart, COLORS } from "../charts.js";
+import { h, replaceChildren, setText } from "../dom.js";
+import { formatNumber, t } from "../i18n.js";
+import { checkNumber, rangeText } from "../validate.js";
+
+const enc = encodeURIComponent;
+/** Points kept for the chart (a closed-loop lesson is a few thousand samples). */
+const KEEP = 4000;
+/** How often the loop's state (mode, gains, why adaptive holds) is read while a run goes. */
+const POLL_MS = 2000;
+
+const loopApi = {
+  control: () => request("GET", "/api/control"),
+  loop: (rig) => request("GET", `/api/rigs/${enc(rig)}/loop`),
+  tuning: (run, query) => request("GET", `/api/runs/${enc(run)}/tuning${query}`),
+  mode: (rig, body) => request("PUT", `/api/rigs/${enc(rig)}/runs/current/mode`, body),
+  setpoint: (rig, setpoint) => request("PUT", `/api/rigs/${enc(rig)}/runs/current/setpoint`, { setpoint }),
+  gains: (rig, body) => request("PUT", `/api/rigs/${enc(rig)}/runs/current/gains`, body),
+  fan: (rig, percent) => request("PUT", `/api/rigs/${enc(rig)}/runs/current/fan`, { percent }),
+};
+
+/** The modes' labels (the server's words are "manual" and "auto"). */
+const MODE_KEYS = { manual: "loop.modeManual", auto: "loop.modeAuto" };
+
+/** @param {number | null | undefined} v @param {number} [digits] */
+function num(v, digits = 4) {
+  return v === null || v === undefined || !Number.isFinite(v) ? "–" : formatNumber(v, { maximumSignificantDigits: digits });
+}
+
+export class ClosedLoopPanel {
+  /** @param {HTMLElement} parent @param {string} rigId */
+  constructor(parent, rigId) {
+    this.rigId = rigId;
+    this.locked = true;
+    this.runId = null;
+    this.running = false;
+    /** @type {any} */
+    this.model = null;
+    /** @type {Record<string, number[]>} */
+    this.series = { t: [], r: [], y: [], u: [], p: [], kp: [], ti: [] };
+    /** @type {Record<string, any>} */
+    this.fields = {};
+    // Built once the server's declarations are read (_build).
+    /** @type {any} */ this.form = null;
+    /** @type {any} */ this.startButton = null;
+    /** @type {any} */ this.liveSet = null;
+    /** @type {any} */ this.status = null;
+    /** @type {any} */ this.hold = null;
+    /** @type {any} */ this.figures = null;
+    /** @type {any} */ this.error = null;
+    /** @type {any} */ this.chart = null;
+    /** @type {any} */ this.uChart = null;
+    /** @type {any} */ this.gainChart = null;
+    /** @type {any} */ this.gainHost = null;
+    /** @type {any} */ this.predicted = null;
+    /** @type {any} */ this.declared = null;
+    /** @type {any} */ this.rig = null;
+    /** @type {any} */ this.modeSelect = null;
+    /** @type {any} */ this.adaptive = null;
+    this.el = h("section", { class: "card closed-loop", "aria-labelledby": "loop-heading", "data-testid": "closed-loop" },
+      h("h2", { id: "loop-heading" }, t("loop.heading")),
+      h("p", {}, t("loop.lede")));
+    this.body = h("div", {});
+    this.el.append(this.body);
+    parent.append(this.el);
+    this._timer = 0;
+    void this._load();
+  }
+
+  async _load() {
+    try {
+      const [declared, rig] = await Promise.all([loopApi.control(), loopApi.loop(this.rigId)]);
+      this.declared = declared;
+      this.rig = rig;
+      this._build();
+    } catch (err) {
+      setText(this.body, err.message);
+    }
+  }
+
+  /** The check of a declared parameter, as a field spec (its range and unit). */
+  _spec(name, label, unit = "") {
+    const p = this.declared.parameters.find((q) => q.name === name);
+    const max = p.maximum ?? Infinity;
+    return { label, min: p.magnitude ? -max : p.minimum ?? -Infinity, max, unit: unit || p.unit, exclusiveMin: p.exclusiveMinimum };
+  }
+
+  _field(name, label, spec, value) {
+    const id = `loop-${name}`;
+    const input = h("input", { id, name, type: "text", inputmode: "decimal", value: value === undefined ? "" : String(value), "aria-describedby": `${id}-range` });
+    const error = h("span", { class: "field-error", role: "alert" });
+    this.fields[name] = { input, error, spec };
+    return h("div", { class: "field" }, h("label", { for: id }, label), input,
+      h("small", { id: `${id}-range` }, rangeText(spec)), error);
+  }
+
+  _read(names) {
+    /** @type {Record<string, number>} */
+    const values = {};
+    let ok = true;
+    for (const name of names) {
+      const f = this.fields[name];
+      const r = checkNumber(f.input.value, f.spec);
+      setText(f.error, r.ok ? "" : r.error);
+      if (r.ok) {
+        f.input.removeAttribute("aria-invalid");
+        values[name] = r.value;
+      } else {
+        f.input.setAttribute("aria-invalid", "true");
+        if (ok) f.input.focus();
+        ok = false;
+      }
+    }
+    return ok ? values : null;
+  }
+
+  _build() {
+    const rig = this.rig;
+    const out = rig.outputUnit;
+    const [uMin, uMax] = rig.inputRange;
+    const setpointSpec = { label: t("loop.setpoint"), min: -Infinity, max: rig.outputLimit ?? Infinity, exclusiveMax: true, unit: out };
+    this.error = h("p", { class: "form-error", role: "alert", "data-testid": "loop-error" });
+    if (!rig.closedLoop) {
+      replaceChildren(this.body, h("p", {}, t("loop.noOutput")));
+      return;
+    }
+    // Tuning table from a run's identified model.
+    this.modelRun = this._field("modelRun", t("loop.modelRun"), { label: t("loop.modelRun"), min: 1, max: 2 ** 53, integer: true });
+    this.tableButton = h("button", { type: "button", "data-action": "tuning" }, t("loop.tuningTable"));
+    this.tableButton.addEventListener("click", () => void this._tuningTable());
+    this.table = h("div", { class: "table-wrap", "data-testid": "tuning-table" });
+    // The controller.
+    const modeSelect = h("select", { id: "loop-mode", name: "mode" },
+      ...this.declared.modes.map((m) => h("option", { value: m }, t(MODE_KEYS[m]))));
+    modeSelect.value = "auto"; // a set-point step from rest; manual starts open-loop
+    this.modeSelect = modeSelect;
+    this.adaptive = h("input", { id: "loop-adaptive", type: "checkbox", name: "adaptive" });
+    this.startButton = h("button", { type: "button", "data-action": "loop-start" }, t("loop.start"));
+    this.startButton.addEventListener("click", () => void this._start());
+    this.form = h("fieldset", {},
+      h("legend", {}, t("loop.controller")),
+      h("div", { class: "fields" }, this.modelRun, this.tableButton), this.table,
+      h("div", { class: "fields" },
+        this._field("kp", t("loop.kp"), this._spec("kp", t("loop.kp"), `${rig.inputUnit}/${out}`)),
+        this._field("ti", t("loop.ti"), this._spec("ti", t("loop.ti"))),
+        this._field("td", t("loop.td"), this._spec("td", t("loop.td")), 0),
+        this._field("setpoint", t("loop.setpoint"), setpointSpec),
+        this._field("u", t("loop.manualInput"), { label: t("loop.manualInput"), min: uMin, max: uMax, unit: rig.inputUnit }, uMin),
+        this._field("dt", t("loop.dt"), { label: t("loop.dt"), min: 0.01, max: 3600, unit: "s" }, 1),
+        this._field("samples", t("loop.samples"), { label: t("loop.samples"), min: 1, max: 200000, integer: true }, 1200)),
+      h("div", { class: "field" }, h("label", { for: "loop-mode" }, t("loop.mode")), modeSelect),
+      h("div", { class: "field" }, h("label", { for: "loop-adaptive" }, t("loop.adaptive")), this.adaptive),
+      this.startButton);
+    // Live commands.
+    this.stepField = this._field("step", t("loop.newSetpoint"), { ...setpointSpec, label: t("loop.newSetpoint") });
+    const button = (action, key, fn) => {
+      const b = h("button", { type: "button", "data-action": action }, t(key));
+      b.addEventListener("click", () => void this._send(fn));
+      return b;
+    };
+    const live = [this.stepField,
+      button("loop-step", "loop.step", () => {
+        const v = this._read(["step"]);
+        return v && loopApi.setpoint(this.rigId, v.step);
+      }),
+      button("loop-auto", "loop.toAuto", () => loopApi.mode(this.rigId, { mode: "auto" })),
+      button("loop-manual", "loop.toManual", () => loopApi.mode(this.rigId, { mode: "manual" })),
+      button("loop-end", "loop.end", () => api.stopRun(this.rigId))];
+    if (rig.fan) {
+      live.push(this._field("fan", t("loop.fan"), { label: t("loop.fan"), min: rig.fan.minimum, max: rig.fan.maximum, unit: rig.fan.unit }, 50),
+        button("loop-fan", "loop.fanSet", () => {
+          const v = this._read(["fan"]);
+          return v && loopApi.fan(this.rigId, v.fan);
+        }));
+    }
+    this.liveSet = h("fieldset", {}, h("legend", {}, t("loop.live")), h("div", { class: "fields" }, ...live));
+    this.status = h("p", { role: "status", "data-testid": "loop-status" });
+    this.hold = h("p", { "data-testid": "loop-hold" });
+    this.figures = h("div", { class: "table-wrap", "data-testid": "loop-figures" });
+    this.chartHost = h("div", {});
+    this.chart = new Chart(this.chartHost, {
+      label: t("loop.chart"), xLabel: t("loop.time"), yLabel: out,
+      series: [{ label: "r", color: COLORS[6], dash: [6, 4] }, { label: "y", color: COLORS[0] },
+        { label: t("loop.predicted"), color: COLORS[1], dash: [2, 3], auto: false }],
+      source: () => [this.series.t, this.series.r, this.series.y, this.series.p],
+    });
+    this.uChart = new Chart(this.chartHost, {
+      label: t("loop.inputChart"), xLabel: t("loop.time"), yLabel: rig.inputUnit,
+      series: [{ label: "u", color: COLORS[2] }], source: () => [this.series.t, this.series.u], height: 140,
+    });
+    this.gainHost = h("div", { hidden: true });
+    this.gainChart = new Chart(this.gainHost, {
+      label: t("loop.gainsChart"), xLabel: t("loop.time"), yLabel: t("loop.gainsAxis"),
+      series: [{ label: t("loop.kp"), color: COLORS[3] }, { label: t("loop.ti"), color: COLORS[4] }],
+      source: () => [this.series.t, this.series.kp, this.series.ti], height: 140,
+    });
+    replaceChildren(this.body, this.form, this.liveSet, this.error, this.status, this.hold, this.chartHost, this.gainHost, this.figures);
+    this._render();
+  }
+
+  async _send(fn) {
+    setText(this.error, "");
+    try {
+      await fn();
+    } catch (err) {
+      setText(this.error, err.message);
+    }
+  }
+
+  async _tuningTable(runId) {
+    const v = runId ? { modelRun: runId } : this._read(["modelRun"]);
+    if (!v) return;
+    setText(this.error, "");
+    try {
+      const answer = await loopApi.tuning(v.modelRun, "");
+      this._showTable(answer.table);
+    } catch (err) {
+      setText(this.error, err.message);
+    }
+  }
+
+  _showTable(table) {
+    if (!table) return;
+    this.model = table.model;
+    const rows = table.rows.filter((r) => !r.error).map((row) => {
+      const use = h("button", { type: "button", "data-action": "use", "data-rule": `${row.rule}-${row.form}` }, t("loop.use"));
+      use.addEventListener("click", () => this._use(row, table));
+      const p = row.predicted;
+      return h("tr", {}, h("th", { scope: "row" }, `${row.rule.toUpperCase()} ${row.form.toUpperCase()}`),
+        h("td", {}, num(row.Kp)), h("td", {}, num(row.Ti)), h("td", {}, num(row.Td)),
+        h("td", {}, num(p.overshoot, 3)), h("td", {}, num(p.settling_time, 4)), h("td", {}, num(p.iae)), h("td", {}, use));
+    });
+    const m = table.model;
+    const heads = ["loop.rule", "loop.kp", "loop.ti", "loop.td", "loop.overshoot", "loop.settling", "loop.iae"];
+    replaceChildren(this.table,
+      h("p", {}, t("loop.model", { K: num(m.K), tau: num(m.tau), theta: num(m.theta), method: table.method.toUpperCase() })),
+      h("table", {}, h("thead", {}, h("tr", {}, ...heads.map((k) => h("th", { scope: "col" }, t(k))), h("th", {}))),
+        h("tbody", {}, ...rows)));
+  }
+
+  _use(row, table) {
+    const gains = { kp: row.Kp, ti: row.Ti, td: row.Td };
+    for (const [name, value] of Object.entries(gains)) {
+      this.fields[name].input.value = formatNumber(value, { maximumSignificantDigits: 6, useGrouping: false });
+    }
+    this.fields.setpoint.input.value = formatNumber(table.setpoint, { maximumSignificantDigits: 6, useGrouping: false });
+    this.predicted = row.response;
+  }
+
+  async _start() {
+    if (this.locked) return;
+    const v = this._read(["kp", "ti", "td", "setpoint", "u", "dt", "samples"]);
+    if (!v) return;
+    setText(this.error, "");
+    /** @type {Record<string, unknown>} */
+    const control = { mode: this.modeSelect.value, setpoint: v.setpoint, kp: v.kp, ti: v.ti, td: v.td, adaptive: this.adaptive.checked };
+    if (this.model) control.model = [this.model.K, this.model.tau, this.model.theta];
+    this.startButton.disabled = true;
+    try {
+      const run = await api.startRun(this.rigId, { dt: v.dt, samples: v.samples, setpoint: v.u, methods: ["wlsm"], control });
+      this.started(run);
+    } catch (err) {
+      setText(this.error, err.message);
+    } finally {
+      this._render();
+    }
+  }
+
+  /** A run began (this page's, or anyone's: the live stream says so). */
+  started(run) {
+    if (!run || !run.settings?.control) return;
+    this.runId = run.id;
+    this.running = true;
+    this.dt = run.dt;
+    for (const key of Object.keys(this.series)) this.series[key] = [];
+    replaceChildren(this.figures);
+    this._poll();
+    this._render();
+  }
+
+  /** The run ended: show its measured figures beside the predicted ones. */
+  async ended(run) {
+    if (!run || run.id !== this.runId) return;
+    this.running = false;
+    this._render();
+    await this._poll();
+    try {
+      const answer = await loopApi.tuning(run.id, "");
+      const cl = answer.closedLoop;
+      if (!cl) return;
+      const row = (key, m) => h("tr", {}, h("th", { scope: "row" }, t(key)),
+        h("td", { "data-figure": `${key}-overshoot` }, num(m?.overshoot, 3)),
+        h("td", { "data-figure": `${key}-settling` }, num(m?.settling_time, 4)), h("td", {}, num(m?.iae)));
+      replaceChildren(this.figures, h("table", {}, h("thead", {}, h("tr", {}, h("th", {}, ""),
+        h("th", { scope: "col" }, t("loop.overshoot")), h("th", { scope: "col" }, t("loop.settling")), h("th", { scope: "col" }, t("loop.iae")))),
+      h("tbody", {}, row("loop.measured", cl.measured), row("loop.predicted", cl.predicted))));
+    } catch (err) {
+      setText(this.error, err.message);
+    }
+  }
+
+  /** A live sample: r, y, u (and the gains in adaptive mode) of the closed-loop run. */
+  sample(msg) {
+    const c = msg.channels;
+    if (!this.running || msg.run !== this.runId || !c || c.r === undefined) return;
+    const s = this.series;
+    if (s.t.length >= KEEP) for (const key of Object.keys(s)) s[key].splice(0, KEEP / 4);
+    s.t.push(msg.t); s.r.push(c.r); s.y.push(msg.y); s.u.push(msg.u);
+    s.kp.push(c.kp ?? NaN); s.ti.push(c.ti ?? NaN);
+    s.p.push(this._predictedAt(msg.t));
+    if (c.kp !== undefined) this.gainHost.hidden = false;
+    this.chart.invalidate(); this.uChart.invalidate(); this.gainChart.invalidate();
+  }
+
+  _predictedAt(time) {
+    const p = this.predicted;
+    if (!p || !p.t.length) return NaN;
+    const step = p.t.length > 1 ? p.t[1] - p.t[0] : 1;
+    const i = Math.round(time / step);
+    return i < p.y.length ? p.y[i] ?? NaN : NaN;
+  }
+
+  async _poll() {
+    clearTimeout(this._timer);
+    try {
+      const rig = await loopApi.loop(this.rigId);
+      const loop = rig.loop;
+      if (loop) {
+        const g = loop.gains;
+        setText(this.status, t("loop.state", { mode: t(MODE_KEYS[loop.mode]), setpoint: num(loop.setpoint), Kp: num(g.Kp), Ti: num(g.Ti), Td: num(g.Td) }));
+        const reason = loop.adaptive?.last_reason;
+        setText(this.hold, reason ? t("loop.holding", { reason }) : "");
+        if (reason) this.hold.setAttribute("lang", "en");
+      }
+    } catch {
+      // the next poll tries again
+    }
+    if (this.running) this._timer = setTimeout(() => void this._poll(), POLL_MS);
+  }
+
+  setLocked(locked) {
+    this.locked = locked;
+    this._render();
+  }
+
+  _render() {
+    if (!this.form) return;
+    this.form.disabled = this.locked || this.running;
+    this.startButton.disabled = this.locked || this.running;
+    this.liveSet.disabled = this.locked || !this.running;
+  }
+
+  destroy() {
+    clearTimeout(this._timer);
+    this.chart?.destroy();
+    this.uChart?.destroy();
+    this.gainChart?.destroy();
+  }
+}

@@ -1,0 +1,91 @@
+"""End to end: the "Closed loop" panel tunes a PID from an identified model and steps it.
+
+A student identifies the kit's twin (a heater step, LSM finds the dead time),
+opens the tuning table of that run in the fourth panel, picks SIMC (the gains
+fill in), starts a closed-loop set-point step on the twin at the lab's
+speed-up, and sees the measured overshoot and settling time beside the
+predicted ones when the run ends.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+pytestmark = pytest.mark.browser
+
+RIG = "twin-loop"
+ROLE = "[data-testid=access-role]"
+PANEL = "[data-testid=closed-loop]"
+
+
+def test_tune_from_an_identified_model_and_step_the_set_point(
+    logged_in: Any, lab: Any, artifacts: Path
+) -> None:
+    context = logged_in("pia", viewport={"width": 1280, "height": 900})
+    try:
+        page = context.new_page()
+        errors: list[str] = []
+        page.on("pageerror", lambda exc: errors.append(str(exc)))
+        page.goto(f"{lab.url}/#/rig/{RIG}")
+        page.wait_for_function("sel => document.querySelector(sel)?.dataset.role", arg=ROLE)
+        page.click("button[data-action=ask]")
+        page.wait_for_function(
+            "sel => document.querySelector(sel)?.dataset.role === 'controller'", arg=ROLE
+        )
+        # Identify: a 50 % heater step, LSM (which searches the dead time).
+        answer = page.evaluate(
+            """async () => {
+              const r = await fetch('/api/rigs/twin-loop/runs', {method: 'POST',
+                headers: {'Content-Type': 'application/json'},
+                body: JSON.stringify({dt: 1, samples: 1200, signal: 'step:0:50@0',
+                                      methods: ['lsm']})});
+              return {status: r.status, body: await r.json()};
+            }"""
+        )
+        assert answer["status"] == 201, answer
+        ident_run = answer["body"]["id"]
+        # The identification run ends by itself (1200 samples at the lab's speed-up).
+        finished = """async (id) => {
+            const run = await (await fetch(`/api/runs/${id}`)).json();
+            return run.status === 'finished';
+        }"""
+        deadline = time.monotonic() + 90
+        while not page.evaluate(finished, ident_run):
+            assert time.monotonic() < deadline, "the identification run did not end"
+            page.wait_for_timeout(250)
+        # The tuning table of that run; SIMC fills in the gains.
+        panel = page.locator(PANEL)
+        panel.scroll_into_view_if_needed()
+        page.fill("#loop-modelRun", str(ident_run))
+        page.click("button[data-action=tuning]")
+        page.wait_for_selector("[data-testid=tuning-table] table")
+        rows = page.locator("[data-testid=tuning-table] tbody tr")
+        assert rows.count() == 7
+        page.click("button[data-action=use][data-rule=simc-pi]")
+        assert page.input_value("#loop-kp") != ""
+        assert page.input_value("#loop-ti") != ""
+        page.fill("#loop-setpoint", "45")
+        page.fill("#loop-samples", "900")
+        page.click("button[data-action=loop-start]")
+        page.wait_for_selector("[data-testid=loop-status]:has-text('45')", timeout=30_000)
+        # The run ends by itself; the measured figures appear beside the predicted ones.
+        page.wait_for_selector("[data-figure='loop.measured-overshoot']", timeout=90_000)
+        measured = page.inner_text("[data-figure='loop.measured-settling']")
+        predicted = page.inner_text("[data-figure='loop.predicted-settling']")
+        assert measured not in ("", "–")
+        assert predicted not in ("", "–")
+        m, p = (float(x.replace(",", ".").replace("\u202f", "")) for x in (measured, predicted))
+        # Both are real settling times; how close they are depends on where the box was
+        # when the step began (the identification run left it warm, and cooling), which the
+        # prediction from rest cannot know: the API tests compare them on a box at rest.
+        assert m > 0
+        assert p > 0
+        panel.screenshot(path=str(artifacts / "closed-loop.png"))
+        page.click("button[data-action=release]")
+        assert errors == []
+    finally:
+        context.close()
