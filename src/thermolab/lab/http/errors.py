@@ -1,8 +1,11 @@
 """HTTP answers of errors: each error class carries its status and a stable code.
 
-Every 4xx body is ``{"detail": "...", "code": "..."}``: ``detail`` says what
-was wrong and what is allowed (the library's own message), ``code`` is a
-stable machine-readable name (``not_found``, ``conflict``...). Request
+Every 4xx body is ``{"detail": "...", "code": "...", "message": "..."}``:
+``detail`` says what was wrong and what is allowed (the library's own message,
+in English), ``code`` is a stable machine-readable name (``not_found``,
+``conflict``...), ``message`` the code's sentence in the reader's language
+(``thermolab.lab.error_messages``: the ``thermolab_lang`` cookie, else
+``Accept-Language``; the answer's ``Content-Language`` names it). Request
 validation failures are 422 with ``code = "invalid_request"`` and the
 pydantic ``errors`` list. Unknown paths under ``/api`` answer 401 before
 404/405, so they reveal nothing to a stranger.
@@ -29,11 +32,19 @@ from thermolab.errors import (
     TurnEndedError,
 )
 from thermolab.lab.camera import CameraError
+from thermolab.lab.error_messages import LANGUAGE_COOKIE, error_message, negotiate_language
 from thermolab.lab.http.deps import COOKIE_NAME
 from thermolab.lab.security import AuthenticationError, RateLimitedError
 from thermolab.lab.service import Lab
 
-__all__ = ["HttpFault", "error_response", "fault_of", "install_error_handlers"]
+__all__ = [
+    "HttpFault",
+    "all_error_codes",
+    "error_response",
+    "fault_of",
+    "install_error_handlers",
+    "request_language",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -79,10 +90,34 @@ def fault_of(exc: BaseException) -> HttpFault:
 
 
 def error_response(
-    status: int, detail: str, code: str, headers: dict[str, str] | None = None
+    status: int,
+    detail: str,
+    code: str,
+    headers: dict[str, str] | None = None,
+    *,
+    language: str = "en",
+    extra: dict[str, Any] | None = None,
 ) -> JSONResponse:
-    """The JSON answer of an error."""
-    return JSONResponse({"detail": detail, "code": code}, status_code=status, headers=headers)
+    """The JSON answer of an error, with the code's sentence in ``language``."""
+    message = error_message(code, language)
+    body = {"detail": detail, "code": code, "message": message, **(extra or {})}
+    return JSONResponse(
+        body, status_code=status, headers={**(headers or {}), "Content-Language": language}
+    )
+
+
+def request_language(headers: Any, cookies: Any) -> str:
+    """The language an answer to this request speaks (cookie first, then Accept-Language)."""
+    return negotiate_language(headers.get("accept-language"), cookies.get(LANGUAGE_COOKIE))
+
+
+def all_error_codes() -> frozenset[str]:
+    """Every stable ``code`` an error answer can carry (each has a sentence in every language)."""
+    return frozenset(
+        {fault.code for fault in _FAULTS.values()}
+        | {_OTHER.code, "http_error", "invalid_request", "cross_origin"}
+        | set(_HTTP_CODES.values())
+    )
 
 
 def install_error_handlers(app: FastAPI) -> None:
@@ -95,14 +130,16 @@ def install_error_handlers(app: FastAPI) -> None:
             headers["WWW-Authenticate"] = 'Cookie realm="ThermoLab"'
         if isinstance(exc, RateLimitedError):
             headers["Retry-After"] = str(max(1, math.ceil(exc.retry_after)))
-        return error_response(fault.status, str(exc), fault.code, headers)
+        language = request_language(request.headers, request.cookies)
+        return error_response(fault.status, str(exc), fault.code, headers, language=language)
 
     async def validation_error(request: Request, exc: Exception) -> JSONResponse:
         assert isinstance(exc, RequestValidationError)
         errors = [_plain_error(e) for e in exc.errors()]
         detail = "; ".join(_describe_error(e) for e in exc.errors()) or "invalid request"
-        return JSONResponse(
-            {"detail": detail, "code": "invalid_request", "errors": errors}, status_code=422
+        language = request_language(request.headers, request.cookies)
+        return error_response(
+            422, detail, "invalid_request", language=language, extra={"errors": errors}
         )
 
     async def http_error(request: Request, exc: Exception) -> JSONResponse:
@@ -122,7 +159,10 @@ def install_error_handlers(app: FastAPI) -> None:
             allowed = (exc.headers or {}).get("Allow", "")
             detail = f"{request.method} is not allowed on {path}; use {allowed}"
         code = _HTTP_CODES.get(exc.status_code, "http_error")
-        return error_response(exc.status_code, str(detail), code, dict(exc.headers or {}))
+        language = request_language(request.headers, request.cookies)
+        return error_response(
+            exc.status_code, str(detail), code, dict(exc.headers or {}), language=language
+        )
 
     app.add_exception_handler(ThermoLabError, lab_error)
     app.add_exception_handler(RequestValidationError, validation_error)
