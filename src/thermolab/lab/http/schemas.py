@@ -91,22 +91,29 @@ class SessionOut(_Out):
 
 
 class UserOut(_Out):
-    """An account."""
+    """An account: its login name (normal form) and the name it is shown by."""
 
     username: str
+    display_name: str | None
     role: Literal["student", "teacher"]
     created_at: datetime
 
     @classmethod
     def of(cls, user: UserInfo) -> UserOut:
         """Build from a user record."""
-        return cls(username=user.username, role=user.role.value, created_at=user.created_at)
+        return cls(
+            username=user.username,
+            display_name=user.display_name,
+            role=user.role.value,
+            created_at=user.created_at,
+        )
 
 
 class NewUserIn(_In):
-    """A new account (teachers only)."""
+    """A new account (teachers only): the login name is normalised, the display name kept."""
 
     username: Annotated[str, Field(min_length=1, max_length=64)]
+    display_name: Annotated[str | None, Field(max_length=256)] = None
     password: Annotated[str, Field(min_length=MIN_PASSWORD_LENGTH, max_length=MAX_PASSWORD_LENGTH)]
     role: Literal["student", "teacher"]
 
