@@ -28,6 +28,7 @@ __all__ = [
     "SubscriberCutError",
     "ThermoLabError",
     "TurnEndedError",
+    "TurnExtensionRefusedError",
 ]
 
 
@@ -100,6 +101,10 @@ class ConflictError(ThermoLabError, RuntimeError):
 
 class TurnEndedError(ConflictError):
     """The turn at the controls ended while the request was being decided (it lost the race)."""
+
+
+class TurnExtensionRefusedError(ConflictError):
+    """A controller may not extend the turn now (someone waits, too early, or no room left)."""
 
 
 class AccessDeniedError(ThermoLabError, PermissionError):

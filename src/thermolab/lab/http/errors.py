@@ -30,6 +30,7 @@ from thermolab.errors import (
     RigError,
     ThermoLabError,
     TurnEndedError,
+    TurnExtensionRefusedError,
 )
 from thermolab.lab.camera import CameraError
 from thermolab.lab.error_messages import LANGUAGE_COOKIE, error_message, negotiate_language
@@ -62,6 +63,7 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     NotFoundError: HttpFault(404, "not_found"),
     ConflictError: HttpFault(409, "conflict"),
     TurnEndedError: HttpFault(409, "turn_ended"),
+    TurnExtensionRefusedError: HttpFault(409, "extend_refused"),
     RigError: HttpFault(409, "rig_unavailable"),
     CameraError: HttpFault(503, "camera_unavailable"),
     RateLimitedError: HttpFault(429, "rate_limited"),

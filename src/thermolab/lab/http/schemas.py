@@ -184,6 +184,11 @@ class AccessOut(_Out):
         description="users watching: live connections, and requests for this rig within "
         "the client timeout (listing the rigs does not count)"
     )
+    can_extend: bool = Field(
+        default=False,
+        description="the controller may extend the turn now (POST .../control/more-time): "
+        "nobody waits, its last minute, room left",
+    )
 
 
 class QueueSlotOut(_Out):
@@ -278,6 +283,7 @@ class RigOut(_Out):
                 idle_time_left=acc.idle_time_left,
                 controller=acc.controller,
                 watchers=acc.watchers,
+                can_extend=acc.can_extend,
             ),
             queue=None if view.queue is None else [QueueSlotOut.of(q) for q in view.queue],
             watcher_list=None
