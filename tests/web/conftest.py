@@ -219,6 +219,14 @@ class LabServer:
         assert self._proc is not None
         _wait_until_up(self.url, self._proc, self.log)
 
+    def kill(self) -> None:
+        """Kill the server at once (SIGKILL), as a crash or a power cut would."""
+        if self._proc is None:
+            return
+        self._proc.kill()
+        self._proc.wait(5)
+        self._proc = None
+
     def stop(self) -> None:
         """Stop the server as a supervisor would (SIGTERM, then SIGKILL)."""
         if self._proc is None:
@@ -244,9 +252,11 @@ def _thermolab(data_dir: Path, *args: str) -> list[str]:
 
 
 @contextlib.contextmanager
-def running_lab(data_dir: Path, users: dict[str, str] = USERS) -> Iterator[LabServer]:
+def running_lab(
+    data_dir: Path, users: dict[str, str] = USERS, config: str = CONFIG
+) -> Iterator[LabServer]:
     """Create the users, start ``thermolab serve``, wait until it answers; stop it after."""
-    (data_dir / "lab.toml").write_text(CONFIG, encoding="utf-8")
+    (data_dir / "lab.toml").write_text(config, encoding="utf-8")
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     # The first account creates the database; the others are then added while
     # the server starts (its start-up finds the schema already there).

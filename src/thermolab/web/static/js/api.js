@@ -115,6 +115,7 @@ export const api = {
   startRun: (rig, spec) => request("POST", `/api/rigs/${enc(rig)}/runs`, spec),
   stopRun: (rig) => request("POST", `/api/rigs/${enc(rig)}/runs/current/stop`),
   extendControl: (rig, seconds) => request("POST", `/api/rigs/${enc(rig)}/control/extend`, { seconds }),
+  moreTime: (rig) => request("POST", `/api/rigs/${enc(rig)}/control/more-time`),
   kick: (rig, username) =>
     request("POST", `/api/rigs/${enc(rig)}/control/kick`, username ? { username } : {}),
   controlSessions: (rig, opts) => request("GET", `/api/rigs/${enc(rig)}/control-sessions`, undefined, opts),

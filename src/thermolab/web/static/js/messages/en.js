@@ -351,5 +351,19 @@ export const messages = {
     "other": "{user} ({count} windows)"
   },
   "teacher.watchers": "Watchers",
+  "turn.connLost": "The lab server cannot be reached. The controls are locked until it answers again; this page keeps trying.",
+  "turn.endedFault": "Your turn ended: the rig reported a fault.",
+  "turn.endedGone": "Your turn ended: the lab did not hear from this page for a while.",
+  "turn.endedIdle": "Your turn ended: no command was sent for too long.",
+  "turn.endedKicked": "A teacher ({by}) ended your turn.",
+  "turn.endedRestart": "The lab server restarted, which ended your turn. Ask for control again to go on.",
+  "turn.endedTime": "Your turn ended: your time was up.",
+  "turn.endsSoon": "Your turn ends in {time}.",
+  "turn.endsSoonExtend": "Your turn ends in {time}. Nobody is waiting: you may extend it.",
+  "turn.extend": "Extend my turn",
+  "turn.extended": "Your turn was extended: {time} left.",
+  "turn.locked": "The lab server cannot be reached: the controls are locked.",
+  "turn.runInterrupted": "Run {run} was interrupted when the lab server stopped; the samples recorded until then are kept.",
+  "turn.unreachable": "Not connected to the lab",
   "unit.samples": "samples"
 };

@@ -351,5 +351,19 @@ export const messages = {
     "other": "{user} ({count} ventanas)"
   },
   "teacher.watchers": "Observadores",
+  "turn.connLost": "No se puede contactar con el servidor del laboratorio. Los controles quedan bloqueados hasta que vuelva a responder; esta página sigue intentándolo.",
+  "turn.endedFault": "Su turno terminó: la planta informó una falla.",
+  "turn.endedGone": "Su turno terminó: el laboratorio dejó de recibir noticias de esta página durante un tiempo.",
+  "turn.endedIdle": "Su turno terminó: no se envió ninguna orden durante demasiado tiempo.",
+  "turn.endedKicked": "Un profesor ({by}) terminó su turno.",
+  "turn.endedRestart": "El servidor del laboratorio se reinició, lo que terminó su turno. Vuelva a pedir el control para continuar.",
+  "turn.endedTime": "Su turno terminó: se acabó su tiempo.",
+  "turn.endsSoon": "Su turno termina en {time}.",
+  "turn.endsSoonExtend": "Su turno termina en {time}. Nadie está esperando: puede prolongarlo.",
+  "turn.extend": "Prolongar mi turno",
+  "turn.extended": "Su turno fue prolongado: quedan {time}.",
+  "turn.locked": "No se puede contactar con el servidor del laboratorio: los controles están bloqueados.",
+  "turn.runInterrupted": "El ensayo {run} se interrumpió cuando el servidor del laboratorio se detuvo; se conservan las muestras registradas hasta entonces.",
+  "turn.unreachable": "Sin conexión con el laboratorio",
   "unit.samples": "muestras"
 };

@@ -351,5 +351,19 @@ export const messages = {
     "other": "{user} ({count} janelas)"
   },
   "teacher.watchers": "Quem assiste",
+  "turn.connLost": "Não é possível contatar o servidor do laboratório. Os controles ficam bloqueados até ele responder de novo; esta página continua tentando.",
+  "turn.endedFault": "Sua vez terminou: a bancada relatou uma falha.",
+  "turn.endedGone": "Sua vez terminou: o laboratório ficou um tempo sem notícias desta página.",
+  "turn.endedIdle": "Sua vez terminou: nenhum comando foi enviado por tempo demais.",
+  "turn.endedKicked": "Um professor ({by}) encerrou sua vez.",
+  "turn.endedRestart": "O servidor do laboratório reiniciou, o que encerrou sua vez. Peça o controle de novo para continuar.",
+  "turn.endedTime": "Sua vez terminou: seu tempo acabou.",
+  "turn.endsSoon": "Sua vez termina em {time}.",
+  "turn.endsSoonExtend": "Sua vez termina em {time}. Ninguém está esperando: você pode prolongá-la.",
+  "turn.extend": "Prolongar minha vez",
+  "turn.extended": "Sua vez foi prolongada: restam {time}.",
+  "turn.locked": "Não é possível contatar o servidor do laboratório: os controles estão bloqueados.",
+  "turn.runInterrupted": "O ensaio {run} foi interrompido quando o servidor do laboratório parou; as amostras registradas até então foram mantidas.",
+  "turn.unreachable": "Sem conexão com o laboratório",
   "unit.samples": "amostras"
 };

@@ -7,10 +7,17 @@
 // This module follows the rig (state, access, limits) and hands each part what
 // it shows: rig/header.js, rig/connection.js, rig/camera.js, rig/readout.js,
 // rig/runshow.js (the run on show: rig/livecharts.js, rig/convergence.js),
-// access.js and panels.js; rig/lock.js says why the panels are locked.
+// access.js and panels.js; rig/lock.js says why the panels are locked;
+// rig/notice.js says what happened to my turn and run.
+//
+// Reachability: when the socket drops the page asks over HTTP at once; if the
+// server does not answer either, the page says so, shows no role or countdown
+// and locks the controls until an answer comes back. After an outage it says
+// what became of the run that was going (interrupted by a restart) and of the
+// turn (the server's stored end reason).
 
 import { api } from "../api.js";
-import { h } from "../dom.js";
+import { announce, h } from "../dom.js";
 import { LiveClient } from "../live.js";
 import { buildRunSpec, readRun } from "../runspec.js";
 import { hasProperty, openapi } from "../schema.js";
@@ -23,6 +30,7 @@ import { clearConnection, showConnection } from "./rig/connection.js";
 import { RigHeader } from "./rig/header.js";
 import { lockReason } from "./rig/lock.js";
 import { Readout } from "./rig/readout.js";
+import { TurnNotice } from "./rig/notice.js";
 import { RunShow } from "./rig/runshow.js";
 import { t } from "../i18n.js";
 
@@ -47,7 +55,12 @@ class RigPage {
     this.schemaDoc = null;
     this._askedHistory = false;
     this._pollTimer = 0;
+    /** Whether the lab answers (HTTP or socket); false locks everything. */
+    this.reachable = true;
+    /** The run that was going when the lab stopped answering (its fate is told after). */
+    this._runAtOutage = null;
     this.header = new RigHeader(main, this.rigId);
+    this.notice = new TurnNotice(main, this.rigId);
     const grid = h("div", { class: "rig-grid" });
     main.append(grid);
     const side = h("div", { class: "rig-side" });
@@ -56,6 +69,9 @@ class RigPage {
     this.access = new AccessPanel(side, this.rigId, {
       onError: (m) => this._error(m),
       onChange: () => this._updateLock(),
+      onRefresh: () => void this._refresh(),
+      onTurnEnded: () => void this.notice.turnEnded(),
+      onTurnStarted: () => this.notice.clear(),
       // The control routes answer with the rig as the caller now sees it.
       onAnswer: (answer) => {
         if (answer && typeof answer === "object" && "access" in answer && answer.access) {
@@ -99,6 +115,7 @@ class RigPage {
       try {
         const rig = readRig(await api.rig(this.rigId));
         if (this._destroyed) return;
+        this._setReachable(true);
         if (this.client.state !== "open" || !this.rig) {
           this._setRig(rig);
           this.access.update(rig.access);
@@ -109,9 +126,42 @@ class RigPage {
           this._error(err.message);
           return;
         }
+        if (err.status === 0 && this.client.state !== "open") this._setReachable(false);
       }
     }
+    clearTimeout(this._pollTimer);
     this._pollTimer = setTimeout(() => void this._poll(), POLL_MS);
+  }
+
+  /** Read the rig now (the access panel asks near the end of a turn: may it be extended?). */
+  async _refresh() {
+    try {
+      const rig = readRig(await api.rig(this.rigId));
+      if (!this._destroyed) this.access.update(rig.access);
+    } catch {
+      // the next poll or socket message brings it
+    }
+  }
+
+  /** The lab answers again, or stopped answering: say so, lock or unlock. */
+  _setReachable(reachable) {
+    if (reachable === this.reachable) return;
+    this.reachable = reachable;
+    if (!reachable) {
+      const conn = document.getElementById("conn");
+      this._runAtOutage = this.show.run?.status === "running" ? this.show.run.id : null;
+      this.access.setUnreachable(true);
+      if (conn) conn.textContent = t("turn.connLost");
+      announce(t("turn.connLost"), "alert");
+    } else {
+      // The line keeps saying so until the socket is back ("Connected again.").
+      this.access.setUnreachable(false);
+      this.client.reconnectNow();
+      const run = this._runAtOutage;
+      this._runAtOutage = null;
+      if (run !== null) void this.notice.runAfterOutage(run);
+    }
+    this._updateLock();
   }
 
   /** Without the socket, follow one's own run over HTTP (progress, estimates, its end). */
@@ -128,6 +178,13 @@ class RigPage {
   // -- live messages --------------------------------------------------------------------
 
   _onStatus(s) {
+    if (s.state === "open") this._setReachable(true);
+    else if (s.state === "waiting" && this.reachable) {
+      // Is it the socket or the whole lab? Ask over HTTP at once.
+      clearTimeout(this._pollTimer);
+      void this._poll();
+    }
+    if (!this.reachable && s.state === "waiting") return; // the line says the lab is unreachable
     showConnection(
       s,
       () => this.client.state === "open",
@@ -212,7 +269,7 @@ class RigPage {
   }
 
   _updateLock() {
-    const reason = lockReason(this.access.access, this.rig?.state);
+    const reason = this.reachable ? lockReason(this.access.access, this.rig?.state) : t("turn.locked");
     this.panels.setLocked(Boolean(reason), reason);
   }
 
