@@ -47,8 +47,11 @@ export function mount(main, { params }, ctx) {
 }
 
 class RigPage {
-  constructor(main, rigId) {
+  constructor(parent, rigId) {
     this.rigId = rigId;
+    // One box for the page, so that the phone layout can order its parts (css: .rig-page).
+    const main = h("div", { class: "rig-page" });
+    parent.append(main);
     this.rig = null;
     this._destroyed = false;
     /** The server's OpenAPI document, once read (what the run request may carry). */
