@@ -99,8 +99,10 @@ def test_a_phone_shows_the_chart_the_set_point_and_start_end_together(
         for name in ("chart", "setpoint", "start", "end"):
             box = found[name]
             assert box is not None, name
-            assert 0 <= box["top"] and box["bottom"] <= height, (name, box, height)
-            assert 0 <= box["left"] and box["right"] <= 375, (name, box)
+            assert box["top"] >= 0, (name, box)
+            assert box["bottom"] <= height, (name, box, height)
+            assert box["left"] >= 0, (name, box)
+            assert box["right"] <= 375, (name, box)
         # The results come next: right below the set point and START/END.
         assert found["results"]["top"] >= max(found[n]["bottom"] for n in ("setpoint", "end"))
         assert page.evaluate("() => document.documentElement.scrollWidth - window.innerWidth") <= 0

@@ -22,6 +22,7 @@ pytestmark = [pytest.mark.browser, pytest.mark.slow]
 ROLE = "[data-testid=access-role]"
 WARNING = "[data-testid=time-warning]"
 NOTICE = "[data-testid=turn-notice]"
+NOTICE_SAYS = "(m) => document.querySelector('[data-testid=turn-notice]').textContent.includes(m)"
 LOCK = "[data-testid=lock-notice]"
 EXTEND = "button[data-action=extend]"
 MESSAGES = Path(__file__).parents[2] / "src/thermolab/web/static/js/messages"
@@ -214,12 +215,12 @@ def test_a_server_down_locks_the_page_and_the_restart_is_explained(
             server.wait_until_up()
             notice = page.locator(NOTICE)
             page.wait_for_function(
-                "(m) => document.querySelector('[data-testid=turn-notice]').textContent.includes(m)",
+                NOTICE_SAYS,
                 arg=fill(en["turn.runInterrupted"], run=str(run)),
                 timeout=30_000,
             )
             page.wait_for_function(
-                "(m) => document.querySelector('[data-testid=turn-notice]').textContent.includes(m)",
+                NOTICE_SAYS,
                 arg=en["turn.endedRestart"],
             )
             assert notice.is_visible()
