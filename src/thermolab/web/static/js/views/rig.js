@@ -8,16 +8,11 @@
 // it shows: rig/header.js, rig/connection.js, rig/camera.js, rig/readout.js,
 // rig/runshow.js (the run on show: rig/livecharts.js, rig/convergence.js),
 // access.js and panels.js; rig/lock.js says why the panels are locked;
-// rig/notice.js says what happened to my turn and run.
-//
-// Reachability: when the socket drops the page asks over HTTP at once; if the
-// server does not answer either, the page says so, shows no role or countdown
-// and locks the controls until an answer comes back. After an outage it says
-// what became of the run that was going (interrupted by a restart) and of the
-// turn (the server's stored end reason).
+// rig/notice.js says what happened to my turn and run; rig/reach.js follows
+// whether the lab answers at all (and locks everything while it does not).
 
 import { api } from "../api.js";
-import { announce, h } from "../dom.js";
+import { h } from "../dom.js";
 import { LiveClient } from "../live.js";
 import { buildRunSpec, readRun } from "../runspec.js";
 import { hasProperty, openapi } from "../schema.js";
@@ -31,6 +26,7 @@ import { RigHeader } from "./rig/header.js";
 import { lockReason } from "./rig/lock.js";
 import { Readout } from "./rig/readout.js";
 import { TurnNotice } from "./rig/notice.js";
+import { Reachability } from "./rig/reach.js";
 import { RunShow } from "./rig/runshow.js";
 import { t } from "../i18n.js";
 
@@ -58,10 +54,7 @@ class RigPage {
     this.schemaDoc = null;
     this._askedHistory = false;
     this._pollTimer = 0;
-    /** Whether the lab answers (HTTP or socket); false locks everything. */
-    this.reachable = true;
-    /** The run that was going when the lab stopped answering (its fate is told after). */
-    this._runAtOutage = null;
+    this.reach = null;
     this.header = new RigHeader(main, this.rigId);
     this.notice = new TurnNotice(main, this.rigId);
     const grid = h("div", { class: "rig-grid" });
@@ -100,6 +93,17 @@ class RigPage {
       onMessage: (msg) => this._onMessage(msg),
       onStatus: (s) => this._onStatus(s),
     });
+    this.reach = new Reachability({
+      access: this.access,
+      client: this.client,
+      notice: this.notice,
+      currentRun: () => this.show.run,
+      poll: () => {
+        clearTimeout(this._pollTimer);
+        void this._poll();
+      },
+      updateLock: () => this._updateLock(),
+    });
     this._online = () => this.client.reconnectNow();
     window.addEventListener("online", this._online);
     this.client.start();
@@ -118,7 +122,7 @@ class RigPage {
       try {
         const rig = readRig(await api.rig(this.rigId));
         if (this._destroyed) return;
-        this._setReachable(true);
+        this.reach?.set(true);
         if (this.client.state !== "open" || !this.rig) {
           this._setRig(rig);
           this.access.update(rig.access);
@@ -129,7 +133,7 @@ class RigPage {
           this._error(err.message);
           return;
         }
-        if (err.status === 0 && this.client.state !== "open") this._setReachable(false);
+        if (err.status === 0 && this.client.state !== "open") this.reach?.set(false);
       }
     }
     clearTimeout(this._pollTimer);
@@ -146,27 +150,6 @@ class RigPage {
     }
   }
 
-  /** The lab answers again, or stopped answering: say so, lock or unlock. */
-  _setReachable(reachable) {
-    if (reachable === this.reachable) return;
-    this.reachable = reachable;
-    if (!reachable) {
-      const conn = document.getElementById("conn");
-      this._runAtOutage = this.show.run?.status === "running" ? this.show.run.id : null;
-      this.access.setUnreachable(true);
-      if (conn) conn.textContent = t("turn.connLost");
-      announce(t("turn.connLost"), "alert");
-    } else {
-      // The line keeps saying so until the socket is back ("Connected again.").
-      this.access.setUnreachable(false);
-      this.client.reconnectNow();
-      const run = this._runAtOutage;
-      this._runAtOutage = null;
-      if (run !== null) void this.notice.runAfterOutage(run);
-    }
-    this._updateLock();
-  }
-
   /** Without the socket, follow one's own run over HTTP (progress, estimates, its end). */
   async _pollRun() {
     let run;
@@ -181,13 +164,7 @@ class RigPage {
   // -- live messages --------------------------------------------------------------------
 
   _onStatus(s) {
-    if (s.state === "open") this._setReachable(true);
-    else if (s.state === "waiting" && this.reachable) {
-      // Is it the socket or the whole lab? Ask over HTTP at once.
-      clearTimeout(this._pollTimer);
-      void this._poll();
-    }
-    if (!this.reachable && s.state === "waiting") return; // the line says the lab is unreachable
+    if (this.reach && !this.reach.status(s)) return; // the line says the lab cannot be reached
     showConnection(
       s,
       () => this.client.state === "open",
@@ -272,7 +249,7 @@ class RigPage {
   }
 
   _updateLock() {
-    const reason = this.reachable ? lockReason(this.access.access, this.rig?.state) : t("turn.locked");
+    const reason = this.reach?.reachable === false ? t("turn.locked") : lockReason(this.access.access, this.rig?.state);
     this.panels.setLocked(Boolean(reason), reason);
   }
 
