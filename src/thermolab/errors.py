@@ -36,6 +36,7 @@ __all__ = [
     "SubscriberCutError",
     "ThermoLabError",
     "TurnEndedError",
+    "TurnExtensionRefusedError",
 ]
 
 
@@ -116,6 +117,10 @@ class RunInProgressError(ConflictError):
 
 class PreviousRunEndingError(ConflictError):
     """Right after a hand-over, the previous turn's run is still ENDing and storing its data."""
+
+
+class TurnExtensionRefusedError(ConflictError):
+    """A controller may not extend the turn now (someone waits, too early, or no room left)."""
 
 
 class AccessDeniedError(ThermoLabError, PermissionError):

@@ -93,7 +93,11 @@ def test_wrong_passwords_are_refused_and_throttled(
             response = client.post("/api/session", json={"username": "ana", "password": "guess!!!"})
             assert (response.status_code, response.json()) == (
                 401,
-                {"detail": "wrong user name or password", "code": "not_authenticated"},
+                {
+                    "detail": "wrong user name or password",
+                    "code": "not_authenticated",
+                    "message": "You are not logged in, or the user name or password is wrong.",
+                },
             )
     # ASVS V7.2.1: each failure is logged with the name and the address, never the password.
     failures = [r.getMessage() for r in caplog.records if "login failed" in r.getMessage()]

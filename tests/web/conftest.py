@@ -228,6 +228,14 @@ class LabServer:
         assert self._proc is not None
         _wait_until_up(self.url, self._proc, self.log)
 
+    def kill(self) -> None:
+        """Kill the server at once (SIGKILL), as a crash or a power cut would."""
+        if self._proc is None:
+            return
+        self._proc.kill()
+        self._proc.wait(5)
+        self._proc = None
+
     def stop(self) -> None:
         """Stop the server as a supervisor would (SIGTERM, then SIGKILL)."""
         if self._proc is None:

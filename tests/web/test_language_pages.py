@@ -161,7 +161,7 @@ def test_the_key_pages_speak_the_browsers_language(
         page.fill("#srm-lsm-n", "40")
         page.fill("#srm-lsm-setpoint", "2,5")
         with page.expect_request(lambda r: r.url.endswith(f"/api/rigs/{RIG}/runs")) as sent:
-            page.click("[data-panel-form=srm-lsm] button[data-action=start]")
+            page.click("[data-panel-view=srm-lsm] button[data-action=start]")
         body = json.loads(sent.value.post_data or "{}")
         assert body["dt"] == 0.5
         assert isinstance(body["dt"], float)

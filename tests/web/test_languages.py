@@ -245,6 +245,25 @@ def test_a_server_error_is_translated_by_its_code_else_shown_as_sent(module_page
     ]
 
 
+def test_the_servers_translated_sentence_is_shown_on_a_page_not_in_english(
+    module_page: Any,
+) -> None:
+    r = run_js(
+        module_page,
+        """
+        const i18n = await import('/js/i18n.js');
+        const { errorMessage } = await import('/js/api.js');
+        const body = { detail: 'no rig called x', code: 'not_found',
+                       message: 'Nada foi encontrado ali.' };
+        await i18n.useLanguage('en');
+        const english = errorMessage(body, '?');
+        await i18n.useLanguage('pt-BR');
+        return [english, errorMessage(body, '?'), errorMessage({ detail: 'd', code: 'x' }, '?')];
+        """,
+    )
+    assert r == ["no rig called x", "Nada foi encontrado ali.", "d"]
+
+
 def test_the_servers_own_sentences_are_marked_as_english_on_other_pages(module_page: Any) -> None:
     r = run_js(
         module_page,

@@ -205,13 +205,13 @@ def test_access_messages_unlock_and_lock_the_controls_live(page: Any) -> None:
     page.evaluate("() => window.__live.open()")
     rig = rig_json(page)
     hello(page, 1, rig, None)
-    assert page.is_disabled("[data-panel-form=srm-lsm] button[data-action=start]")
+    assert page.is_disabled("[data-panel-view=srm-lsm] button[data-action=start]")
     controller = {**rig["access"], "role": "controller", "controller": "carol", "timeLeft": 300}
     page.evaluate(
         "(access) => window.__live.send({ type: 'access', access })",
         controller,
     )
-    assert page.is_enabled("[data-panel-form=srm-lsm] button[data-action=start]")
+    assert page.is_enabled("[data-panel-view=srm-lsm] button[data-action=start]")
     assert "You have control" in page.evaluate(
         "() => new Promise((r) => setTimeout(() => r(document.getElementById('announce-polite')"
         ".textContent), 100))"
@@ -219,7 +219,7 @@ def test_access_messages_unlock_and_lock_the_controls_live(page: Any) -> None:
     page.evaluate(
         "() => window.__live.send({ type: 'state', state: 'fault', detail: 'output over 5 V' })"
     )
-    assert page.is_disabled("[data-panel-form=srm-lsm] button[data-action=start]")
+    assert page.is_disabled("[data-panel-view=srm-lsm] button[data-action=start]")
     assert "fault" in page.inner_text("[data-testid=lock-notice]")
     assert page.inner_text("[data-testid=rig-state]") == "Fault"
 
@@ -271,7 +271,7 @@ def test_a_watcher_sees_the_controllers_countdown(page: Any) -> None:
         timeout=3_000,
     )
     assert page.inner_text("[data-field=timeLeft]") in ("2:04", "2:03")
-    assert page.is_disabled("[data-panel-form=srm-lsm] button[data-action=start]")
+    assert page.is_disabled("[data-panel-view=srm-lsm] button[data-action=start]")
     # Nobody at the controls: no countdown.
     page.evaluate(
         "(access) => window.__live.send({ type: 'access', access })",

@@ -10,6 +10,10 @@ exit status, never a traceback: :class:`~thermolab.errors.ThermoLabError` and
 :class:`CliError` give status 1 (2 for usage errors, as argparse does), an
 interrupted command 130, and anything unexpected status 70 with a one-line
 "internal error" message (``THERMOLAB_DEBUG=1`` shows the traceback).
+In Portuguese or Spanish (``LANG=pt_BR.UTF-8``, ``LANGUAGE=es``) the line of a
+:class:`~thermolab.errors.ThermoLabError` starts with the sentence of its stable
+code in that language (``thermolab.lab.error_messages``), the precise English
+reason following in parentheses.
 """
 
 from __future__ import annotations
@@ -87,7 +91,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return exc.status
     except ThermoLabError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(_error_line(exc), file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -103,6 +107,20 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 70
+
+
+def _error_line(exc: ThermoLabError) -> str:
+    from thermolab.lab.error_messages import language_from_environment, translate
+
+    language = language_from_environment(os.environ)
+    if language == "en":
+        return f"error: {exc}"
+    # Imported only here: the error table brings the server's modules.
+    from thermolab.lab.error_messages import error_message
+    from thermolab.lab.http.errors import fault_of
+
+    sentence = error_message(fault_of(exc).code, language)
+    return f"{translate('error', language)}: {sentence} ({exc})"
 
 
 if __name__ == "__main__":  # pragma: no cover

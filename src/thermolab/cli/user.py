@@ -53,8 +53,17 @@ def register(subparsers: Any) -> None:
     )
 
     add = actions.add_parser("add", help="create an account")
-    add.add_argument("name", metavar="NAME", help="user name (letters, digits, . _ @ -)")
+    add.add_argument(
+        "name",
+        metavar="NAME",
+        help="login name (letters, digits, . _ @ -; stored without case or accents: João -> joao)",
+    )
     add.add_argument("--role", required=True, help="student or teacher")
+    add.add_argument(
+        "--display-name",
+        metavar="TEXT",
+        help="the name shown on the pages, as written (e.g. 'João da Silva')",
+    )
     _password_option(add)
     add_database_options(add)
     add.set_defaults(handler=_add)
@@ -122,18 +131,22 @@ def _read_password(args: argparse.Namespace, name: str) -> str:
 
 
 def _add(args: argparse.Namespace) -> int:
+    from thermolab.lab.names import normalize_display_name
     from thermolab.lab.security import normalize_username
     from thermolab.lab.users import parse_role
 
     name = normalize_username(args.name)
+    if args.display_name is not None:
+        normalize_display_name(args.display_name)  # refused before the password is asked
     role = parse_role(args.role)
     db, users = _users(args)
     try:
         password = _read_password(args, name)
-        user = users.add(name, password, role)
+        user = users.add(name, password, role, args.display_name)
     finally:
         db.close()
-    print(f"added {user.role.value} {user.username!r}")
+    shown = f" ({user.display_name})" if user.display_name else ""
+    print(f"added {user.role.value} {user.username!r}{shown}")
     return 0
 
 

@@ -32,6 +32,7 @@ from argon2 import PasswordHasher
 
 from thermolab.errors import InvalidParameterError, ThermoLabError
 from thermolab.lab.clock import LabClock
+from thermolab.lab.names import normalize_username
 
 __all__ = [
     "AuthenticationError",
@@ -44,7 +45,6 @@ __all__ = [
     "validate_password",
 ]
 
-_USERNAME = re.compile(r"^[a-z0-9][a-z0-9._@-]{0,63}$")
 MIN_PASSWORD_LENGTH = 12
 MAX_PASSWORD_LENGTH = 1024
 # Characters people put around a name to make a "new" password of it.
@@ -95,29 +95,6 @@ def hash_token(token: str) -> str:
     'ba7816bf8f01cfea'
     """
     return hashlib.sha256(token.encode("utf-8")).hexdigest()
-
-
-def normalize_username(username: str) -> str:
-    """Return a user name in its stored form (trimmed, lower case), checking it.
-
-    Raises
-    ------
-    InvalidParameterError
-        If it is empty, too long or has characters other than letters, digits
-        and ``. _ @ -``.
-
-    Examples
-    --------
-    >>> normalize_username(" Alice ")
-    'alice'
-    """
-    name = username.strip().lower()
-    if not _USERNAME.match(name):
-        raise InvalidParameterError(
-            f"user name {username!r} is not valid: use 1 to 64 letters, digits, '.', '_', "
-            "'@' or '-', starting with a letter or digit"
-        )
-    return name
 
 
 def validate_password(password: str, username: str | None = None) -> str:

@@ -30,6 +30,7 @@ from thermolab.lab.db.models import (
     TurnEndReason,
     User,
 )
+from thermolab.lab.names import normalize_display_name
 from thermolab.lab.security import (
     MAX_PASSWORD_LENGTH,
     AuthenticationError,
@@ -83,17 +84,20 @@ class UserInfo:
     username : str
     role : Role
     created_at : datetime
+    display_name : str or None
+        The name as the person writes it (``João da Silva``), if given.
     """
 
     id: int
     username: str
     role: Role
     created_at: datetime
+    display_name: str | None = None
 
     @classmethod
     def of(cls, user: User) -> UserInfo:
         """Build from a :class:`~thermolab.lab.db.models.User` row."""
-        return cls(user.id, user.username, Role(user.role), user.created_at)
+        return cls(user.id, user.username, Role(user.role), user.created_at, user.display_name)
 
 
 @dataclass(frozen=True, slots=True)
@@ -163,17 +167,23 @@ class UserService:
         self._clock = clock
         self._hasher = hasher
 
-    def add(self, username: str, password: str, role: Role | str) -> UserInfo:
+    def add(
+        self, username: str, password: str, role: Role | str, display_name: str | None = None
+    ) -> UserInfo:
         """Create an account.
+
+        ``username`` is stored in its normal form (``joão`` and ``JOAO`` are
+        both ``joao``); ``display_name`` as written (``João da Silva``).
 
         Raises
         ------
         InvalidParameterError
-            For a bad user name, password or role.
+            For a bad user name, display name, password or role.
         ConflictError
-            If the user name is taken.
+            If the user name, in its normal form, is taken.
         """
         name = normalize_username(username)
+        shown = None if display_name is None else normalize_display_name(display_name)
         role = parse_role(role) if isinstance(role, str) else role
         password_hash = self._hasher.hash(validate_password(password, name))
         now = self._clock.now()
@@ -183,6 +193,7 @@ class UserService:
                     raise ConflictError(f"user {name!r} already exists")
                 user = User(
                     username=name,
+                    display_name=shown,
                     role=role.value,
                     password_hash=password_hash,
                     created_at=now,

@@ -23,8 +23,14 @@ from datetime import datetime, timedelta
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from thermolab.errors import AccessDeniedError, ConflictError, InvalidParameterError
+from thermolab.errors import (
+    AccessDeniedError,
+    ConflictError,
+    InvalidParameterError,
+    TurnExtensionRefusedError,
+)
 from thermolab.lab.access import queries as q
+from thermolab.lab.access.extension import TURN_EXTENSION, extension_refusal
 from thermolab.lab.access.transactions import RigTransactions
 from thermolab.lab.access.views import CommandRecord, RigView
 from thermolab.lab.db.models import (
@@ -157,6 +163,36 @@ class AccessService(RigTransactions):
             command = session.get(Command, command_id)
             if command is not None:
                 command.applied = True
+
+    def extend_own(self, rig_id: str, who: Principal) -> RigView:
+        """The controller's own extension of the turn (``access.extension``'s rules).
+
+        Raises
+        ------
+        ConflictError
+            If ``who`` does not control the rig.
+        TurnExtensionRefusedError
+            If someone waits, the turn is not in its last minute, or it was
+            extended as far as allowed (the message says which).
+        """
+
+        def act(session: Session, rig: RigRow, now: datetime) -> None:
+            control = q.active(session, rig.id)
+            if control is None or control.user_id != who.user_id:
+                raise ConflictError(f"you do not control rig {rig.id!r}")
+            snap = q.read_snapshot(session, rig.id)
+            refusal = extension_refusal(
+                queue_size=len(snap.queue),
+                started_at=control.started_at,
+                deadline=control.deadline,
+                time_limit=self._config.rig(rig.id).control_time_limit,
+                now=now,
+            )
+            if refusal is not None:
+                raise TurnExtensionRefusedError(refusal)
+            control.deadline += timedelta(seconds=TURN_EXTENSION)
+
+        return self._write(rig_id, who, act)
 
     # -- teachers ------------------------------------------------------------------------
 

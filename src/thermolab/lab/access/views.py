@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 from typing import Literal, Protocol
 
+from thermolab.lab.access.extension import extension_refusal
 from thermolab.lab.access.rules import Turn, TurnRules, TurnState, Waiting, queue_wait
 from thermolab.lab.config import RigConfig
 from thermolab.lab.db.models import PowerState
@@ -146,6 +147,9 @@ class AccessView:
         Who controls the rig.
     watchers : int
         How many users watch the rig.
+    can_extend : bool
+        Whether the controller may extend the turn now (``access.extension``);
+        ``False`` for everyone else.
     """
 
     role: AccessRole
@@ -156,6 +160,7 @@ class AccessView:
     idle_time_left: float | None
     controller: str | None
     watchers: int
+    can_extend: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -227,6 +232,14 @@ def render_access(
             idle_time_left=idle_left,
             controller=controller_name,
             watchers=watchers,
+            can_extend=extension_refusal(
+                queue_size=len(snap.queue),
+                started_at=c.started_at,
+                deadline=c.deadline,
+                time_limit=cfg.control_time_limit,
+                now=now,
+            )
+            is None,
         )
     slot = snap.slot_of(who.user_id)
     position = slot.position if slot is not None else len(snap.queue) + 1

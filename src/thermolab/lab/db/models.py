@@ -155,13 +155,19 @@ class Base(DeclarativeBase):
 
 
 class User(Base):
-    """A person who may log in. User names are stored in lower case."""
+    """A person who may log in.
+
+    ``username`` is the login name in its normal form (``thermolab.lab.names``:
+    NFKC, case folded, accents stripped), unique, so names never collide by case
+    or accent; ``display_name`` is the name as the person writes it.
+    """
 
     __tablename__ = "users"
     __table_args__ = (CheckConstraint(_in("role", Role), name="role"),)
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     username: Mapped[str] = mapped_column(String(64), unique=True)
+    display_name: Mapped[str | None] = mapped_column(String(128))
     role: Mapped[str] = mapped_column(String(16))
     password_hash: Mapped[str] = mapped_column(String(255))
     created_at: Mapped[datetime] = mapped_column(UTCDateTime)

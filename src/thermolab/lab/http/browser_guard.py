@@ -38,7 +38,10 @@ import json
 from collections.abc import Iterable
 from urllib.parse import urlsplit
 
+from starlette.requests import HTTPConnection
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from thermolab.lab.error_messages import LANGUAGE_COOKIE, error_message, negotiate_language
 
 __all__ = ["BrowserGuard", "content_security_policy", "is_same_origin"]
 
@@ -179,7 +182,7 @@ class BrowserGuard:
             return
         path: str = scope.get("path", "")
         if scope.get("method", "GET").upper() in _STATE_CHANGING and not is_same_origin(scope):
-            await self._refuse(send)
+            await self._refuse(scope, send)
             return
         csp = self._docs_csp if path.startswith(_DOCS_PATHS) else self._csp
         no_store = path.startswith(_NO_STORE_PREFIXES)
@@ -200,12 +203,17 @@ class BrowserGuard:
 
         await self.app(scope, receive, send_with_headers)
 
-    async def _refuse(self, send: Send) -> None:
+    async def _refuse(self, scope: Scope, send: Send) -> None:
+        connection = HTTPConnection(scope)
+        language = negotiate_language(
+            connection.headers.get("accept-language"), connection.cookies.get(LANGUAGE_COOKIE)
+        )
         body = json.dumps(
             {
                 "detail": "cross-origin request refused: state-changing requests must come "
                 "from the lab's own pages (Origin / Sec-Fetch-Site)",
                 "code": "cross_origin",
+                "message": error_message("cross_origin", language),
             }
         ).encode("utf-8")
         await send(
@@ -214,6 +222,7 @@ class BrowserGuard:
                 "status": 403,
                 "headers": [
                     (b"content-type", b"application/json"),
+                    (b"content-language", language.encode("ascii")),
                     (b"content-length", str(len(body)).encode("ascii")),
                     (b"cache-control", b"no-store"),
                     *self._headers,

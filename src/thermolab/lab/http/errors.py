@@ -1,15 +1,18 @@
 """HTTP answers of errors: each error class carries its status and a stable code.
 
-Every 4xx body is ``{"detail": "...", "code": "..."}``: ``detail`` says what
-was wrong and what is allowed (the library's own message), ``code`` is a
-stable machine-readable name (``not_found``, ``conflict``...). Every 422 adds
-``errors``, one per problem: request validation failures (body, path, query,
-and a body that is not UTF-8) with ``code = "invalid_request"``, the lab's own
-refusals with ``"invalid_parameter"``; the OpenAPI publishes that one shape
-(``ValidationErrorOut``) for every 422 instead of FastAPI's own. Unknown paths
-under ``/api`` answer 401 before 404/405, so they reveal nothing to a
-stranger; a wrong method gets 405 with ``Allow`` listing the methods the path
-really has.
+Every 4xx body is ``{"detail": "...", "code": "...", "message": "..."}``:
+``detail`` says what was wrong and what is allowed (the library's own message,
+in English), ``code`` is a stable machine-readable name (``not_found``,
+``conflict``...), ``message`` the code's sentence in the reader's language
+(``thermolab.lab.error_messages``: the ``thermolab_lang`` cookie, else
+``Accept-Language``; the answer's ``Content-Language`` names it). Every 422
+adds ``errors``, one per problem: request validation failures (body, path,
+query, and a body that is not UTF-8) with ``code = "invalid_request"``, the
+lab's own refusals with ``"invalid_parameter"``; the OpenAPI publishes that
+one shape (``ValidationErrorOut``) for every 422 instead of FastAPI's own.
+Unknown paths under ``/api`` answer 401 before 404/405, so they reveal nothing
+to a stranger; a wrong method gets 405 with ``Allow`` listing the methods the
+path really has.
 """
 
 from __future__ import annotations
@@ -40,8 +43,10 @@ from thermolab.errors import (
     SetpointRangeError,
     ThermoLabError,
     TurnEndedError,
+    TurnExtensionRefusedError,
 )
 from thermolab.lab.camera import CameraError
+from thermolab.lab.error_messages import LANGUAGE_COOKIE, error_message, negotiate_language
 from thermolab.lab.fanout import CLOSE_BAD_REQUEST, CLOSE_UNAUTHORIZED, MAX_SEQ
 from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.deps import COOKIE_NAME
@@ -51,11 +56,13 @@ from thermolab.lab.service import Lab
 
 __all__ = [
     "HttpFault",
+    "all_error_codes",
     "api_methods",
     "error_response",
     "fault_of",
     "install_error_handlers",
     "invalid_response",
+    "request_language",
 ]
 
 
@@ -76,6 +83,7 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     TurnEndedError: HttpFault(409, "turn_ended"),
     RunInProgressError: HttpFault(409, "run_in_progress"),
     PreviousRunEndingError: HttpFault(409, "previous_run_ending"),
+    TurnExtensionRefusedError: HttpFault(409, "extend_refused"),
     RigError: HttpFault(409, "rig_unavailable"),
     CameraError: HttpFault(503, "camera_unavailable"),
     RateLimitedError: HttpFault(429, "rate_limited"),
@@ -110,10 +118,34 @@ def fault_of(exc: BaseException) -> HttpFault:
 
 
 def error_response(
-    status: int, detail: str, code: str, headers: dict[str, str] | None = None
+    status: int,
+    detail: str,
+    code: str,
+    headers: dict[str, str] | None = None,
+    *,
+    language: str = "en",
+    extra: dict[str, Any] | None = None,
 ) -> JSONResponse:
-    """The JSON answer of an error."""
-    return JSONResponse({"detail": detail, "code": code}, status_code=status, headers=headers)
+    """The JSON answer of an error, with the code's sentence in ``language``."""
+    message = error_message(code, language)
+    body = {"detail": detail, "code": code, "message": message, **(extra or {})}
+    return JSONResponse(
+        body, status_code=status, headers={**(headers or {}), "Content-Language": language}
+    )
+
+
+def request_language(headers: Any, cookies: Any) -> str:
+    """The language an answer to this request speaks (cookie first, then Accept-Language)."""
+    return negotiate_language(headers.get("accept-language"), cookies.get(LANGUAGE_COOKIE))
+
+
+def all_error_codes() -> frozenset[str]:
+    """Every stable ``code`` an error answer can carry (each has a sentence in every language)."""
+    return frozenset(
+        {fault.code for fault in _FAULTS.values()}
+        | {_OTHER.code, "http_error", "invalid_request", "cross_origin"}
+        | set(_HTTP_CODES.values())
+    )
 
 
 def install_error_handlers(app: FastAPI) -> None:
@@ -127,16 +159,18 @@ def install_error_handlers(app: FastAPI) -> None:
             headers["WWW-Authenticate"] = f'{"Bearer" if bearer else "Cookie"} realm="ThermoLab"'
         if isinstance(exc, RateLimitedError):
             headers["Retry-After"] = str(max(1, math.ceil(exc.retry_after)))
+        language = request_language(request.headers, request.cookies)
         if fault.status == 422:
             problem = {"loc": [], "type": fault.code, "msg": str(exc)}
-            return invalid_response(str(exc), fault.code, [problem])
-        return error_response(fault.status, str(exc), fault.code, headers)
+            return invalid_response(str(exc), fault.code, [problem], language=language)
+        return error_response(fault.status, str(exc), fault.code, headers, language=language)
 
     async def validation_error(request: Request, exc: Exception) -> JSONResponse:
         assert isinstance(exc, RequestValidationError)
         errors = [_plain_error(e) for e in exc.errors()]
         detail = "; ".join(_describe_error(e) for e in exc.errors()) or "invalid request"
-        return invalid_response(detail, "invalid_request", errors)
+        language = request_language(request.headers, request.cookies)
+        return invalid_response(detail, "invalid_request", errors, language=language)
 
     async def http_error(request: Request, exc: Exception) -> JSONResponse:
         assert isinstance(exc, StarletteHTTPException)
@@ -171,7 +205,8 @@ def install_error_handlers(app: FastAPI) -> None:
         elif status == 405:
             detail = f"{request.method} is not allowed on {path}; use {headers.get('Allow', '')}"
         code = _HTTP_CODES.get(status, "http_error")
-        return error_response(status, detail, code, headers)
+        language = request_language(request.headers, request.cookies)
+        return error_response(status, detail, code, headers, language=language)
 
     async def handshake_refused(websocket: WebSocket, exc: Exception) -> None:
         # FastAPI's default closes before accepting: an HTTP 403 that says nothing. The
@@ -193,9 +228,11 @@ def install_error_handlers(app: FastAPI) -> None:
     _publish_one_validation_error(app)
 
 
-def invalid_response(detail: str, code: str, errors: list[dict[str, Any]]) -> JSONResponse:
+def invalid_response(
+    detail: str, code: str, errors: list[dict[str, Any]], *, language: str = "en"
+) -> JSONResponse:
     """The JSON answer of a 422 (``ValidationErrorOut``)."""
-    return JSONResponse({"detail": detail, "code": code, "errors": errors}, status_code=422)
+    return error_response(422, detail, code, language=language, extra={"errors": errors})
 
 
 def api_methods(app: FastAPI, path: str) -> list[str]:

@@ -6,8 +6,9 @@ from collections.abc import Awaitable, Callable, MutableMapping
 from typing import Any
 
 from fastapi import HTTPException
+from starlette.requests import HTTPConnection
 
-from thermolab.lab.http.errors import error_response
+from thermolab.lab.http.errors import error_response, request_language
 
 __all__ = ["ASGIApp", "BodyLimit", "Message", "Receive", "Scope", "Send"]
 
@@ -40,7 +41,7 @@ class BodyLimit:
             return
         declared = _content_length(scope)
         if declared is not None and declared > self.max_bytes:
-            await self._refuse(send, declared)
+            await self._refuse(scope, send, declared)
             return
         received = 0
         started = False
@@ -64,13 +65,15 @@ class BodyLimit:
             await self.app(scope, limited_receive, tracking_send)
         except _BodyTooLargeError:
             if not started:
-                await self._refuse(send, received)
+                await self._refuse(scope, send, received)
 
-    async def _refuse(self, send: Send, size: int) -> None:
+    async def _refuse(self, scope: Scope, send: Send, size: int) -> None:
+        connection = HTTPConnection(scope)
         response = error_response(
             413,
             f"request body too large: {size} bytes, at most {self.max_bytes} are accepted",
             "body_too_large",
+            language=request_language(connection.headers, connection.cookies),
         )
         await send(
             {

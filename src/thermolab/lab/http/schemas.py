@@ -64,6 +64,11 @@ class ErrorOut(_Out):
         "previous_run_ending, rig_unavailable, body_too_large, rate_limited, "
         "camera_unavailable..."
     )
+    message: str | None = Field(
+        default=None,
+        description="the code's sentence in the reader's language (the thermolab_lang cookie, "
+        "else Accept-Language; Content-Language names it)",
+    )
 
 
 class ProblemOut(_Out):
@@ -86,6 +91,9 @@ class ValidationErrorOut(_Out):
         description="invalid_request: the request does not match the schema (a body that is "
         "not UTF-8 JSON included); invalid_parameter: the values match the schema but the lab "
         "refuses them (a signal outside the rig's range, a run too long...)"
+    )
+    message: str | None = Field(
+        default=None, description="the code's sentence in the reader's language"
     )
     errors: list[ProblemOut]
 
@@ -114,22 +122,29 @@ class SessionOut(_Out):
 
 
 class UserOut(_Out):
-    """An account."""
+    """An account: its login name (normal form) and the name it is shown by."""
 
     username: str
+    display_name: str | None
     role: Literal["student", "teacher"]
     created_at: datetime
 
     @classmethod
     def of(cls, user: UserInfo) -> UserOut:
         """Build from a user record."""
-        return cls(username=user.username, role=user.role.value, created_at=user.created_at)
+        return cls(
+            username=user.username,
+            display_name=user.display_name,
+            role=user.role.value,
+            created_at=user.created_at,
+        )
 
 
 class NewUserIn(_In):
-    """A new account (teachers only)."""
+    """A new account (teachers only): the login name is normalised, the display name kept."""
 
     username: Annotated[str, Field(min_length=1, max_length=64)]
+    display_name: Annotated[str | None, Field(max_length=256)] = None
     password: Annotated[str, Field(min_length=MIN_PASSWORD_LENGTH, max_length=MAX_PASSWORD_LENGTH)]
     role: Literal["student", "teacher"]
 
@@ -199,6 +214,11 @@ class AccessOut(_Out):
     watchers: int = Field(
         description="users watching: live connections, and requests for this rig within "
         "the client timeout (listing the rigs does not count)"
+    )
+    can_extend: bool = Field(
+        default=False,
+        description="the controller may extend the turn now (POST .../control/more-time): "
+        "nobody waits, its last minute, room left",
     )
 
 
@@ -294,6 +314,7 @@ class RigOut(_Out):
                 idle_time_left=acc.idle_time_left,
                 controller=acc.controller,
                 watchers=acc.watchers,
+                can_extend=acc.can_extend,
             ),
             queue=None if view.queue is None else [QueueSlotOut.of(q) for q in view.queue],
             watcher_list=None

@@ -91,6 +91,19 @@ def extend_control(rig_id: RigId, body: ExtendIn, who: UserDep, lab: LabDep) -> 
 
 
 @router.post(
+    "/rigs/{rig_id}/control/more-time",
+    response_model=RigOut,
+    tags=["rigs"],
+    summary="Extend one's own turn while nobody waits",
+    responses=documented_errors(404, 409),
+)
+def more_time(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
+    """Add 120 s to the caller's own turn: only in its last minute, with the queue empty,
+    at most twice a turn (409 ``extend_refused`` says which rule stops it)."""
+    return RigOut.of(lab.access.extend_own(rig_id, who))
+
+
+@router.post(
     "/rigs/{rig_id}/control/kick",
     response_model=RigOut,
     tags=["teachers"],

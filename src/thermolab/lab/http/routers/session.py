@@ -14,6 +14,7 @@ from thermolab.lab.http.deps import (
     documented_errors,
 )
 from thermolab.lab.http.schemas import CredentialsIn, SessionOut
+from thermolab.lab.names import username_form
 from thermolab.lab.security import AuthenticationError, RateLimitedError
 
 __all__ = ["router"]
@@ -39,7 +40,7 @@ def login(body: CredentialsIn, request: Request, response: Response, lab: LabDep
     came from an address listed in ``access.trusted_proxies``.
     """
     address = request.client.host if request.client is not None else "unknown"
-    key = body.username.strip().lower()
+    key = username_form(body.username)
     try:
         lab.throttle.check(key, address)
     except RateLimitedError:

@@ -44,7 +44,7 @@ def list_users(who: UserDep, lab: LabDep) -> list[UserOut]:
 def add_user(body: NewUserIn, who: UserDep, lab: LabDep) -> UserOut:
     """Create an account (teachers only)."""
     _teacher(who, "create accounts")
-    return UserOut.of(lab.users.add(body.username, body.password, body.role))
+    return UserOut.of(lab.users.add(body.username, body.password, body.role, body.display_name))
 
 
 @router.delete(

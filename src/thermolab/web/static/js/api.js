@@ -2,9 +2,11 @@
 // The HTTP API (issue 4, /openapi.json): one place that knows how requests are
 // made and how the server's errors look, so every view shows the server's
 // message: the catalogue's translation of its stable `code` when there is one,
-// else its own text (`detail`) as it comes.
+// else, on a page not in English, the server's sentence for the code in the
+// page's language (`message`; every request names that language in
+// Accept-Language), else its own English text (`detail`) as it comes.
 
-import { serverMessage, t } from "./i18n.js";
+import { language, serverMessage, t } from "./i18n.js";
 
 /** An HTTP answer that was not 2xx, carrying the server's message. */
 export class ApiError extends Error {
@@ -34,7 +36,9 @@ export function errorMessage(body, fallback) {
     // A stable code beside the text ({"detail": "...", "code": "..."}) or with
     // it ({"detail": {"code": "...", "message": "...", "params": {...}}}).
     const coded = detail && typeof detail === "object" && !Array.isArray(detail) ? detail : body;
-    const text = typeof detail === "string" ? detail : typeof coded.message === "string" ? coded.message : "";
+    const own = /** @type {any} */ (body).message;
+    const translated = typeof detail === "string" && typeof own === "string" && own && language() !== "en";
+    const text = translated ? own : typeof detail === "string" ? detail : typeof coded.message === "string" ? coded.message : "";
     if (typeof coded.code === "string") return serverMessage(coded.code, text || fallback, coded.params ?? {});
     if (typeof detail === "string" && detail) return detail;
     if (Array.isArray(detail) && detail.length) {
@@ -70,11 +74,11 @@ export async function request(method, path, body, opts = {}) {
   const init = {
     method,
     credentials: "same-origin",
-    headers: { Accept: "application/json" },
+    headers: { Accept: "application/json", "Accept-Language": language() },
     signal: opts.signal,
   };
   if (body !== undefined) {
-    init.headers = { Accept: "application/json", "Content-Type": "application/json" };
+    init.headers = { Accept: "application/json", "Accept-Language": language(), "Content-Type": "application/json" };
     init.body = JSON.stringify(body);
   }
   let res;
@@ -111,6 +115,7 @@ export const api = {
   startRun: (rig, spec) => request("POST", `/api/rigs/${enc(rig)}/runs`, spec),
   stopRun: (rig) => request("POST", `/api/rigs/${enc(rig)}/runs/current/stop`),
   extendControl: (rig, seconds) => request("POST", `/api/rigs/${enc(rig)}/control/extend`, { seconds }),
+  moreTime: (rig) => request("POST", `/api/rigs/${enc(rig)}/control/more-time`),
   kick: (rig, username) =>
     request("POST", `/api/rigs/${enc(rig)}/control/kick`, username ? { username } : {}),
   controlSessions: (rig, opts) => request("GET", `/api/rigs/${enc(rig)}/control-sessions`, undefined, opts),

@@ -6,6 +6,10 @@
 // pulls the current data from the chart's `source` (zero-copy ring-buffer
 // views) and redraws once. A hidden tab gets no frames, so it does no drawing
 // at all, and catches up with one redraw when shown again.
+//
+// Every chart has a data-table alternative (WCAG 1.1.1 / 1.3.1): a toggle
+// shows the newest TABLE_ROWS samples it draws as a table with the axis and
+// series names as headers, kept current while it is open.
 
 import uPlot from "../vendor/uplot/uPlot.esm.js";
 import { h } from "./dom.js";
@@ -34,6 +38,9 @@ export function tickLabels(_plot, splits, _axis, _space, incr) {
   );
 }
 
+/** How many of the newest samples the table alternative of a chart shows. */
+export const TABLE_ROWS = 10;
+
 export class Chart {
   /**
    * @param {HTMLElement} parent
@@ -61,7 +68,27 @@ export class Chart {
     );
     this._plotHost = h("div", { class: "chart-plot", "aria-hidden": "true" });
     this._emptyNote = h("p", { class: "chart-empty" }, opts.emptyText ?? t("chart.waiting"));
-    this.el.append(this._plotHost, this._emptyNote);
+    this._columns = [opts.xLabel, ...opts.series.map((s) => s.label)];
+    const tableId = `chart-table-${Math.random().toString(36).slice(2)}`;
+    this._tableBody = h("tbody");
+    this._table = h(
+      "div",
+      { class: "table-wrap chart-table", id: tableId, hidden: true, tabindex: "0", role: "region", "aria-label": t("chart.tableOf", { chart: opts.label }) },
+      h(
+        "table",
+        null,
+        h("caption", null, t("chart.tableCaption", { chart: opts.label, count: TABLE_ROWS })),
+        h("thead", null, h("tr", null, this._columns.map((c) => h("th", { scope: "col", class: "num" }, c)))),
+        this._tableBody,
+      ),
+    );
+    this._tableToggle = h(
+      "button",
+      { type: "button", class: "link-button chart-toggle", "aria-expanded": "false", "aria-controls": tableId, "data-action": "chart-table" },
+      t("chart.showTable"),
+    );
+    this._tableToggle.addEventListener("click", () => this.showTable(this._table.hidden));
+    this.el.append(this._plotHost, this._emptyNote, this._tableToggle, this._table);
     parent.append(this.el);
     const width = Math.max(200, this._plotHost.clientWidth || parent.clientWidth || 320);
     const series = [
@@ -129,6 +156,34 @@ export class Chart {
     this.plot.setData(data, true);
     // How many points are drawn: lets a test see that the window stays bounded.
     this.el.dataset.points = String(data[0].length);
+    if (!this._table.hidden) this._fillTable(data);
+  }
+
+  /** Show (true) or hide the table of the newest samples. */
+  showTable(show) {
+    this._table.hidden = !show;
+    this._tableToggle.setAttribute("aria-expanded", String(show));
+    this._tableToggle.textContent = show ? t("chart.hideTable") : t("chart.showTable");
+    if (show) this._fillTable(this._source());
+  }
+
+  /** @param {ArrayLike<number>[]} data */
+  _fillTable(data) {
+    const n = data[0].length;
+    const rows = [];
+    for (let i = Math.max(0, n - TABLE_ROWS); i < n; i++) {
+      rows.push(
+        h(
+          "tr",
+          null,
+          this._columns.map((_, c) => {
+            const v = data[c]?.[i];
+            return h("td", { class: "num" }, typeof v === "number" && Number.isFinite(v) ? formatNumber(v, { maximumSignificantDigits: 6 }) : "–");
+          }),
+        ),
+      );
+    }
+    this._tableBody.replaceChildren(...rows);
   }
 
   destroy() {

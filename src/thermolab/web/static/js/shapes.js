@@ -27,7 +27,7 @@ export function stateLabel(state) {
  * @returns {{role: "controller" | "queued" | "watcher", queueSize: number,
  *   queuePosition: number | null, estimatedTimeUntilControl: number | null,
  *   timeLeft: number | null, idleTimeLeft: number | null, controller: string | null,
- *   watchers: number}}
+ *   watchers: number, canExtend: boolean}}
  */
 export function readAccess(a) {
   const src = a && typeof a === "object" ? a : {};
@@ -40,6 +40,7 @@ export function readAccess(a) {
     idleTimeLeft: numberOr(src.idleTimeLeft, null),
     controller: typeof src.controller === "string" ? src.controller : null,
     watchers: numberOr(src.watchers, 0),
+    canExtend: src.canExtend === true,
   };
 }
 

@@ -2,16 +2,24 @@
 // The access panel of a rig page: who controls, the queue, my place in it, the
 // controller's remaining time, and the buttons to ask for or give up control.
 // Changes that matter to me are announced to screen readers (live region).
+// The controller is warned 60 s and 20 s before the turn ends (said in the
+// polite region and shown beside the countdown, WCAG 2.2.1) and offered
+// "Extend my turn" when nobody waits (the server decides: canExtend). While
+// the lab cannot be reached the panel shows no role and no countdown.
 
 import { api } from "../api.js";
 import { announce, duration, durationWords, h, setText } from "../dom.js";
 import { t } from "../i18n.js";
 
+/** Seconds before the end of a turn at which the controller is warned (the first also offers "extend"). */
+export const WARNINGS = [60, 20];
+
 export class AccessPanel {
   /**
    * @param {HTMLElement} parent
    * @param {string} rigId
-   * @param {{onError: (msg: string) => void, onChange: () => void, onAnswer?: (answer: unknown) => void}} hooks
+   * @param {{onError: (msg: string) => void, onChange: () => void, onAnswer?: (answer: unknown) => void,
+   *          onRefresh?: () => void, onTurnEnded?: () => void, onTurnStarted?: () => void}} hooks
    */
   constructor(parent, rigId, hooks) {
     this.rigId = rigId;
@@ -22,6 +30,8 @@ export class AccessPanel {
     this._idleDeadline = null; // ms timestamp when control ends for want of a command
     this._warned = new Set();
     this._busy = false;
+    /** The lab cannot be reached: nothing shown as current. */
+    this.unreachable = false;
     this.role = h("p", { class: "access-role", "data-testid": "access-role" });
     this.facts = h("dl", { class: "facts" });
     this.fields = {};
@@ -44,13 +54,17 @@ export class AccessPanel {
     this.askButton.addEventListener("click", () => this._act("ask"));
     this.leaveButton.addEventListener("click", () => this._act("leave"));
     this.releaseButton.addEventListener("click", () => this._act("release"));
+    this.extendButton = h("button", { type: "button", class: "primary", "data-action": "extend", hidden: "" }, t("turn.extend"));
+    this.extendButton.addEventListener("click", () => this._act("extend"));
+    this.warning = h("p", { class: "time-warning", "data-testid": "time-warning", hidden: "" });
     this.el = h(
       "section",
       { class: "card access", "aria-labelledby": "access-heading" },
       h("h2", { id: "access-heading" }, t("access.heading")),
       this.role,
+      this.warning,
       this.facts,
-      h("div", { class: "buttons" }, this.askButton, this.leaveButton, this.releaseButton),
+      h("div", { class: "buttons" }, this.extendButton, this.askButton, this.leaveButton, this.releaseButton),
     );
     parent.append(this.el);
     this._tick = setInterval(() => this._renderTime(), 1000);
@@ -66,10 +80,24 @@ export class AccessPanel {
     this.access = access;
     this._deadline = access.timeLeft === null ? null : Date.now() + access.timeLeft * 1000;
     this._idleDeadline = access.idleTimeLeft === null ? null : Date.now() + access.idleTimeLeft * 1000;
+    this.unreachable = false;
     if (access.role !== "controller") this._warned.clear();
     this._announceChange(before, access);
+    if (before?.role === "controller" && access.role !== "controller") this.hooks.onTurnEnded?.();
+    if (before && before.role !== "controller" && access.role === "controller") this.hooks.onTurnStarted?.();
     this.render();
     this.hooks.onChange();
+  }
+
+  /** The lab stopped answering (true) or answers again (false, before fresh access arrives). */
+  setUnreachable(unreachable) {
+    if (unreachable === this.unreachable) return;
+    this.unreachable = unreachable;
+    if (unreachable) {
+      this._deadline = null;
+      this._idleDeadline = null;
+    }
+    this.render();
   }
 
   setRigState(state) {
@@ -117,20 +145,39 @@ export class AccessPanel {
     dd.setAttribute("aria-label", left === null ? t("access.noLimit") : durationWords(left));
     if (this.isController && left !== null) {
       // A few spoken warnings, not a ticking announcement every second.
-      for (const mark of [60, 10]) {
+      for (const mark of WARNINGS) {
         if (left <= mark && left > mark - 2 && !this._warned.has(mark)) {
           this._warned.add(mark);
           announce(t("access.timeWarning", { time: durationWords(mark) }));
+          // The server says whether the turn may be extended now (the queue may have changed).
+          if (mark === WARNINGS[0]) this.hooks.onRefresh?.();
         }
       }
     }
+    this._renderWarning(left);
+  }
+
+  /** The visible warning in the turn's last minute, with "extend" when the server allows it. */
+  _renderWarning(left) {
+    const soon = !this.unreachable && this.isController && left !== null && left <= WARNINGS[0];
+    const extendable = soon && Boolean(this.access?.canExtend);
+    this.warning.hidden = !soon;
+    if (soon) {
+      const time = durationWords(Math.ceil(left));
+      setText(this.warning, extendable ? t("turn.endsSoonExtend", { time }) : t("turn.endsSoon", { time }));
+    }
+    if (this.extendButton.hidden === extendable) this.extendButton.hidden = !extendable;
+    this.extendButton.disabled = this._busy;
   }
 
   render() {
     const a = this.access;
-    if (!a) {
-      setText(this.role, t("lock.connecting"));
-      for (const b of [this.askButton, this.leaveButton, this.releaseButton]) b.hidden = true;
+    if (!a || this.unreachable) {
+      setText(this.role, this.unreachable ? t("turn.unreachable") : t("lock.connecting"));
+      this.role.dataset.role = this.unreachable ? "unknown" : "";
+      for (const b of [this.askButton, this.leaveButton, this.releaseButton, this.extendButton]) b.hidden = true;
+      for (const dd of Object.values(this.fields)) setText(dd, "–");
+      this.warning.hidden = true;
       return;
     }
     const roleText = {
@@ -163,10 +210,15 @@ export class AccessPanel {
     if (this._busy) return;
     this._busy = true;
     this.render();
-    const focusAfter = what === "ask" ? null : this.askButton;
+    const focusAfter = what === "ask" ? null : what === "extend" ? this.releaseButton : this.askButton;
     try {
-      const answer = what === "ask" ? await api.askControl(this.rigId) : await api.releaseControl(this.rigId);
+      const call = { ask: api.askControl, extend: api.moreTime }[what] ?? api.releaseControl;
+      const answer = await call(this.rigId);
       this.hooks.onAnswer?.(answer);
+      if (what === "extend") {
+        this._warned.clear();
+        announce(t("turn.extended", { time: durationWords(this._secondsLeft() ?? 0) }));
+      }
     } catch (err) {
       this.hooks.onError(err.message);
     } finally {

@@ -186,7 +186,8 @@ export class Panels {
       const automaticRun = mine && Boolean(this.run.signal);
       view.spInput.disabled = view.spButton.disabled = this.locked || !mine || automaticRun;
       view.endButton.disabled = this.locked || !mine;
-      view.runFieldset.closest("form").hidden = !mine;
+      // The set point and END stay in place (disabled until this panel's run starts), so
+      // that the action bar does not jump when START is pressed.
       renderProgress(view, mine ? this.run : null, this.run?.samples ?? 0);
       if (mine) setText(view.status, runningText(this.run, this.run.samples ?? 0));
       else if (running) setText(view.status, otherRunText(runPanel, this.defs.find((d) => d.id === runPanel)?.number));

@@ -7,7 +7,9 @@
 // This module follows the rig (state, access, limits) and hands each part what
 // it shows: rig/header.js, rig/connection.js, rig/camera.js, rig/readout.js,
 // rig/runshow.js (the run on show: rig/livecharts.js, rig/convergence.js),
-// access.js and panels.js; rig/lock.js says why the panels are locked.
+// access.js and panels.js; rig/lock.js says why the panels are locked;
+// rig/notice.js says what happened to my turn and run; rig/reach.js follows
+// whether the lab answers at all (and locks everything while it does not).
 
 import { api } from "../api.js";
 import { h } from "../dom.js";
@@ -24,6 +26,8 @@ import { clearConnection, showConnection } from "./rig/connection.js";
 import { RigHeader } from "./rig/header.js";
 import { lockReason } from "./rig/lock.js";
 import { Readout } from "./rig/readout.js";
+import { TurnNotice } from "./rig/notice.js";
+import { Reachability } from "./rig/reach.js";
 import { RunShow } from "./rig/runshow.js";
 import { t } from "../i18n.js";
 
@@ -40,15 +44,20 @@ export function mount(main, { params }, ctx) {
 }
 
 class RigPage {
-  constructor(main, rigId) {
+  constructor(parent, rigId) {
     this.rigId = rigId;
+    // One box for the page, so that the phone layout can order its parts (css: .rig-page).
+    const main = h("div", { class: "rig-page" });
+    parent.append(main);
     this.rig = null;
     this._destroyed = false;
     /** The server's OpenAPI document, once read (what the run request may carry). */
     this.schemaDoc = null;
     this._askedHistory = false;
     this._pollTimer = 0;
+    this.reach = null;
     this.header = new RigHeader(main, this.rigId);
+    this.notice = new TurnNotice(main, this.rigId);
     const grid = h("div", { class: "rig-grid" });
     main.append(grid);
     const side = h("div", { class: "rig-side" });
@@ -57,6 +66,9 @@ class RigPage {
     this.access = new AccessPanel(side, this.rigId, {
       onError: (m) => this._error(m),
       onChange: () => this._updateLock(),
+      onRefresh: () => void this._refresh(),
+      onTurnEnded: () => void this.notice.turnEnded(),
+      onTurnStarted: () => this.notice.clear(),
       // The control routes answer with the rig as the caller now sees it.
       onAnswer: (answer) => {
         if (answer && typeof answer === "object" && "access" in answer && answer.access) {
@@ -84,6 +96,17 @@ class RigPage {
       onMessage: (msg) => this._onMessage(msg),
       onStatus: (s) => this._onStatus(s),
     });
+    this.reach = new Reachability({
+      access: this.access,
+      client: this.client,
+      notice: this.notice,
+      currentRun: () => this.show.run,
+      poll: () => {
+        clearTimeout(this._pollTimer);
+        void this._poll();
+      },
+      updateLock: () => this._updateLock(),
+    });
     this._online = () => this.client.reconnectNow();
     window.addEventListener("online", this._online);
     this.client.start();
@@ -102,6 +125,7 @@ class RigPage {
       try {
         const rig = readRig(await api.rig(this.rigId));
         if (this._destroyed) return;
+        this.reach?.set(true);
         if (this.client.state !== "open" || !this.rig) {
           this._setRig(rig);
           this.access.update(rig.access);
@@ -112,9 +136,21 @@ class RigPage {
           this._error(err.message);
           return;
         }
+        if (err.status === 0 && this.client.state !== "open") this.reach?.set(false);
       }
     }
+    clearTimeout(this._pollTimer);
     this._pollTimer = setTimeout(() => void this._poll(), POLL_MS);
+  }
+
+  /** Read the rig now (the access panel asks near the end of a turn: may it be extended?). */
+  async _refresh() {
+    try {
+      const rig = readRig(await api.rig(this.rigId));
+      if (!this._destroyed) this.access.update(rig.access);
+    } catch {
+      // the next poll or socket message brings it
+    }
   }
 
   /** Without the socket, follow one's own run over HTTP (progress, estimates, its end). */
@@ -131,6 +167,7 @@ class RigPage {
   // -- live messages --------------------------------------------------------------------
 
   _onStatus(s) {
+    if (this.reach && !this.reach.status(s)) return; // the line says the lab cannot be reached
     showConnection(
       s,
       () => this.client.state === "open",
@@ -218,7 +255,7 @@ class RigPage {
   }
 
   _updateLock() {
-    const reason = lockReason(this.access.access, this.rig?.state);
+    const reason = this.reach?.reachable === false ? t("turn.locked") : lockReason(this.access.access, this.rig?.state);
     this.panels.setLocked(Boolean(reason), reason);
     this.loop.setLocked(Boolean(reason));
   }

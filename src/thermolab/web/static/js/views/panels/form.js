@@ -45,7 +45,8 @@ import { formatDecimal, t } from "../../i18n.js";
 export function buildPanelView(def, limits, panelId, tabId, on) {
   /** @type {PanelView} */
   const view = /** @type {any} */ ({ def, inputs: {}, errors: {} });
-  const form = h("form", { novalidate: true, class: "panel-form", "data-panel-form": def.id });
+  const formId = nextId("panel-form");
+  const form = h("form", { novalidate: true, id: formId, class: "panel-form", "data-panel-form": def.id });
   const fieldset = h("fieldset", null, h("legend", null, t("panel.legend", { number: def.number, title: def.title })));
   const autoId = nextId("auto");
   const autoBox = h("input", { type: "checkbox", id: autoId, name: "automatic", checked: Boolean(def.automaticDefault) });
@@ -98,9 +99,10 @@ export function buildPanelView(def, limits, panelId, tabId, on) {
   autoBox.addEventListener("change", updateAuto);
   view.planned?.addEventListener("change", updateAuto);
   view.inputs.dt.addEventListener("input", updateAuto);
-  view.startButton = h("button", { type: "submit", class: "primary", "data-action": "start" }, t("panel.start"));
+  // START submits the settings form from the action bar, beside the set point and
+  // END: on a phone the bar sits right under the chart (css: the phone layout).
+  view.startButton = h("button", { type: "submit", form: formId, class: "primary", "data-action": "start" }, t("panel.start"));
   view.formError = h("p", { class: "error", role: "alert", "data-testid": "form-error" });
-  fieldset.append(h("div", { class: "buttons" }, view.startButton));
   form.append(fieldset, view.formError);
   form.addEventListener("submit", (ev) => {
     ev.preventDefault();
@@ -116,11 +118,8 @@ export function buildPanelView(def, limits, panelId, tabId, on) {
     { role: "tabpanel", id: panelId, "aria-labelledby": tabId, class: "panel", tabindex: "0", "data-panel-view": def.id },
     h("p", { class: "panel-intro" }, def.intro),
     form,
-    runForm,
-    h("h3", null, t("panel.model")),
-    view.status,
-    view.operatingPoint,
-    view.results,
+    h("div", { class: "action-bar", "data-testid": `action-bar-${def.id}` }, runForm, h("div", { class: "buttons start" }, view.startButton)),
+    h("div", { class: "panel-results" }, h("h3", null, t("panel.model")), view.status, view.operatingPoint, view.results),
   );
   updateAuto();
   return view;

@@ -1,0 +1,166 @@
+"""The lab's error sentences in the reader's language (gettext catalogues via Babel).
+
+Every error the lab answers carries a stable ``code`` (``http/errors.py``);
+``ERROR_SENTENCES`` gives each code one English sentence, the gettext
+``msgid``, and ``locale/<language>/LC_MESSAGES/thermolab.po`` its
+translations (pt-BR, es; the English catalogue is the template). The ``.po``
+sources are read with Babel when first needed — nothing is compiled at
+install, so ``pip install -e .`` keeps working with nothing else.
+
+The language of an answer is the reader's choice (the ``thermolab_lang``
+cookie or an explicit ``Accept-Language`` the page sends), negotiated against
+``LANGUAGES`` like the browser does: an exact tag, then the same primary
+language (``pt``, ``pt-PT`` -> pt-BR), else English. The command line takes it
+from ``LANGUAGE`` / ``LC_ALL`` / ``LC_MESSAGES`` / ``LANG``.
+"""
+
+from __future__ import annotations
+
+import gettext
+import io
+from collections.abc import Mapping
+from functools import cache
+from pathlib import Path
+
+from babel.messages.mofile import write_mo
+from babel.messages.pofile import read_po
+
+__all__ = [
+    "DEFAULT_LANGUAGE",
+    "ERROR_SENTENCES",
+    "LANGUAGES",
+    "LANGUAGE_COOKIE",
+    "error_message",
+    "language_from_environment",
+    "negotiate_language",
+    "translate",
+]
+
+LANGUAGES = ("pt-BR", "en", "es")
+DEFAULT_LANGUAGE = "en"
+LANGUAGE_COOKIE = "thermolab_lang"
+_LOCALE_DIR = Path(__file__).with_name("locale")
+_DOMAIN = "thermolab"
+
+# One sentence per stable error code: what happened, in words a student reads.
+# The answer's ``detail`` keeps the precise English reason beside it.
+ERROR_SENTENCES: Mapping[str, str] = {
+    "access_denied": "You are not allowed to do this.",
+    "bad_request": "The request could not be handled.",
+    "body_too_large": "The request is too large.",
+    "camera_unavailable": "The rig's image is not available now.",
+    "conflict": "This clashes with the lab's current state.",
+    "cross_origin": "Requests that change something must come from the lab's own pages.",
+    "extend_refused": "Your turn cannot be extended now.",
+    "http_error": "The request could not be handled.",
+    "invalid_parameter": "A value is not allowed.",
+    "invalid_request": "The request is not valid.",
+    "method_not_allowed": "This action is not allowed here.",
+    "name_taken": "This user name is already taken.",
+    "not_authenticated": "You are not logged in, or the user name or password is wrong.",
+    "not_found": "Nothing was found there.",
+    "rate_limited": "Too many attempts: wait a moment and try again.",
+    "rig_unavailable": "The rig is not available now.",
+    "turn_ended": "Your turn has ended.",
+}
+
+
+def _po_path(language: str) -> Path:
+    return _LOCALE_DIR / language.replace("-", "_") / "LC_MESSAGES" / f"{_DOMAIN}.po"
+
+
+@cache
+def _translations(language: str) -> gettext.NullTranslations:
+    path = _po_path(language)
+    if not path.is_file():
+        return gettext.NullTranslations()
+    with path.open("rb") as source:
+        catalog = read_po(source, locale=language.replace("-", "_"))
+    compiled = io.BytesIO()
+    write_mo(compiled, catalog)
+    compiled.seek(0)
+    return gettext.GNUTranslations(compiled)
+
+
+def translate(message: str, language: str) -> str:
+    """``message`` (an English msgid) in ``language``; English when it has no translation."""
+    return _translations(language).gettext(message)
+
+
+def error_message(code: str, language: str = DEFAULT_LANGUAGE) -> str:
+    """The sentence of an error ``code`` in ``language`` (a generic one for an unknown code).
+
+    Examples
+    --------
+    >>> error_message("turn_ended", "pt-BR")
+    'Sua vez terminou.'
+    >>> error_message("turn_ended", "en")
+    'Your turn has ended.'
+    """
+    sentence = ERROR_SENTENCES.get(code, ERROR_SENTENCES["bad_request"])
+    return translate(sentence, language)
+
+
+def _match(tag: str) -> str | None:
+    wanted = tag.strip().lower().replace("_", "-")
+    if not wanted or wanted == "*":
+        return None
+    for language in LANGUAGES:
+        if language.lower() == wanted:
+            return language
+    primary = wanted.split("-")[0]
+    for language in LANGUAGES:
+        if language.lower().split("-")[0] == primary:
+            return language
+    return None
+
+
+def negotiate_language(accept_language: str | None, chosen: str | None = None) -> str:
+    """The language to answer in: the reader's ``chosen`` one, else the best of ``Accept-Language``.
+
+    Examples
+    --------
+    >>> negotiate_language("es-MX,es;q=0.9,en;q=0.5")
+    'es'
+    >>> negotiate_language("fr, pt;q=0.8")
+    'pt-BR'
+    >>> negotiate_language("en", chosen="pt-BR")
+    'pt-BR'
+    >>> negotiate_language(None)
+    'en'
+    """
+    if chosen:
+        match = _match(chosen)
+        if match is not None:
+            return match
+    ranked: list[tuple[float, int, str]] = []
+    for position, part in enumerate((accept_language or "").split(",")):
+        tag, _, params = part.partition(";")
+        quality = 1.0
+        params = params.strip()
+        if params.startswith("q="):
+            try:
+                quality = float(params[2:])
+            except ValueError:
+                quality = 0.0
+        if quality > 0:
+            ranked.append((-quality, position, tag))
+    for _, _, tag in sorted(ranked):
+        match = _match(tag)
+        if match is not None:
+            return match
+    return DEFAULT_LANGUAGE
+
+
+def language_from_environment(environ: Mapping[str, str]) -> str:
+    """The command line's language, from the POSIX locale variables (``pt_BR.UTF-8`` -> pt-BR)."""
+    for name in ("LANGUAGE", "LC_ALL", "LC_MESSAGES", "LANG"):
+        value = environ.get(name, "")
+        for tag in value.split(":"):
+            tag = tag.split(".")[0].split("@")[0]
+            if tag in ("C", "POSIX"):
+                return DEFAULT_LANGUAGE
+            match = _match(tag)
+            if match is not None:
+                return match
+    return DEFAULT_LANGUAGE

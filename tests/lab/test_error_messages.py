@@ -1,0 +1,127 @@
+"""Server errors in the reader's language: every code has a sentence in every language."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+from babel.messages.pofile import read_po
+from fastapi.testclient import TestClient
+
+from thermolab.cli import main
+from thermolab.lab import error_messages
+from thermolab.lab.error_messages import (
+    ERROR_SENTENCES,
+    LANGUAGES,
+    error_message,
+    language_from_environment,
+    negotiate_language,
+)
+from thermolab.lab.http.errors import all_error_codes
+from thermolab.lab.service import Lab
+
+from .conftest import PASSWORD
+
+Client = Callable[..., TestClient]
+TRANSLATED = [language for language in LANGUAGES if language != "en"]
+
+
+@pytest.fixture
+def database_url(sqlite_url: str) -> str:
+    return sqlite_url
+
+
+def _catalogue(language: str) -> dict[str, str]:
+    path = Path(error_messages.__file__).with_name("locale")
+    path = path / language.replace("-", "_") / "LC_MESSAGES" / "thermolab.po"
+    with path.open("rb") as source:
+        catalog = read_po(source)
+    return {str(m.id): str(m.string) for m in catalog if m.id and not m.fuzzy}
+
+
+def test_every_error_code_has_a_sentence() -> None:
+    assert all_error_codes() <= set(ERROR_SENTENCES), all_error_codes() - set(ERROR_SENTENCES)
+
+
+@pytest.mark.parametrize("language", TRANSLATED)
+def test_every_sentence_is_translated_in_every_language(language: str) -> None:
+    catalogue = _catalogue(language)
+    for code, sentence in ERROR_SENTENCES.items():
+        assert catalogue.get(sentence), f"{language}: {code} ({sentence!r}) is not translated"
+        assert catalogue[sentence] != sentence, f"{language}: {code} is still English"
+        assert error_message(code, language) == catalogue[sentence]
+    assert set(catalogue) <= {*ERROR_SENTENCES.values(), "error"}, "stale entries"
+
+
+def test_the_english_catalogue_is_the_template() -> None:
+    assert set(_catalogue("en")) == {*ERROR_SENTENCES.values(), "error"}
+    assert error_message("not_found", "en") == ERROR_SENTENCES["not_found"]
+
+
+def test_languages_are_negotiated_like_the_browser() -> None:
+    assert negotiate_language("pt-PT,en;q=0.5") == "pt-BR"
+    assert negotiate_language("fr;q=0.9, es-AR;q=0.8") == "es"
+    assert negotiate_language("en;q=0.2, pt;q=0.9") == "pt-BR"
+    assert negotiate_language("de, fr") == "en"
+    assert negotiate_language("es;q=0") == "en"
+    assert negotiate_language("es", chosen="xx") == "es"
+    assert language_from_environment({"LANG": "pt_BR.UTF-8"}) == "pt-BR"
+    assert language_from_environment({"LANGUAGE": "es:en", "LANG": "pt_BR.UTF-8"}) == "es"
+    assert language_from_environment({"LC_ALL": "C", "LANG": "pt_BR.UTF-8"}) == "en"
+    assert language_from_environment({}) == "en"
+
+
+def test_api_errors_speak_the_readers_language(lab: Lab, app_client: Client) -> None:
+    lab.users.add("ana", PASSWORD, "student")
+    ana = app_client("ana")
+    answer = ana.get("/api/rigs/nope", headers={"Accept-Language": "pt-BR,pt;q=0.9"})
+    body = answer.json()
+    assert answer.status_code == 404
+    assert (body["code"], body["message"]) == ("not_found", "Nada foi encontrado ali.")
+    assert body["detail"] == "no rig called 'nope'; the lab has: twin, other"
+    assert answer.headers["content-language"] == "pt-BR"
+    # The reader's choice (cookie) wins over the browser's preference.
+    ana.cookies.set("thermolab_lang", "es")
+    answer = ana.put("/api/rigs/twin/input", json={"u": "x"}, headers={"Accept-Language": "en"})
+    assert answer.status_code == 422
+    assert answer.json()["message"] == "La solicitud no es válida."
+    assert answer.headers["content-language"] == "es"
+    ana.cookies.delete("thermolab_lang")
+    answer = ana.get("/api/rigs/twin/input", headers={"Accept-Language": "es"})
+    assert (answer.status_code, answer.json()["code"]) == (405, "method_not_allowed")
+    assert answer.json()["message"] == "Esta acción no está permitida aquí."
+    big = b'{"u": 1, "pad": "' + b"x" * 70_000 + b'"}'
+    answer = ana.put(
+        "/api/rigs/twin/input",
+        content=big,
+        headers={"content-type": "application/json", "Accept-Language": "pt-BR"},
+    )
+    assert (answer.status_code, answer.json()["message"]) == (413, "O pedido é grande demais.")
+    answer = ana.delete(
+        "/api/rigs/twin/control",
+        headers={"Origin": "https://evil.example", "Accept-Language": "pt-BR"},
+    )
+    assert answer.status_code == 403
+    assert answer.json()["message"] == error_message("cross_origin", "pt-BR")
+    stranger = app_client()
+    answer = stranger.get("/api/rigs", headers={"Accept-Language": "en"})
+    assert answer.json()["message"] == ERROR_SENTENCES["not_authenticated"]
+
+
+def test_the_command_line_says_errors_in_the_users_language(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    record = tmp_path / "bad.csv"
+    record.write_text("x\n")
+    for name in ("LANGUAGE", "LC_ALL", "LC_MESSAGES"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv("LANG", "pt_BR.UTF-8")
+    assert main(["identify", str(record), "--method", "lsm"]) == 1
+    line = capsys.readouterr().err.strip()
+    assert line.startswith("erro: Um valor não é permitido. (")
+    assert "lacks the columns t, u, y" in line
+    assert "\n" not in line
+    monkeypatch.setenv("LANG", "en_US.UTF-8")
+    assert main(["identify", str(record), "--method", "lsm"]) == 1
+    assert capsys.readouterr().err.startswith("error: ")
