@@ -150,6 +150,47 @@ def test_few_samples_before_the_step_under_an_input_says_it_cannot_tell() -> Non
     assert not r.trusted
 
 
+@pytest.mark.parametrize("theta", [0.0, 15.0])
+def test_a_noisy_square_wave_on_a_slow_plant_keeps_its_start(theta: float) -> None:
+    """benchmarks/bench_records.py's record: K 0.14, tau 250 s, 6<->4 V square wave of
+    100 s, noise 1 mV. Least squares' noise bias let a constant term win the criterion
+    from ambient (K three times low); the instrumental-variable ambient keeps "initial".
+    From a settled start the decision stays "fit"; the biased K is then not trusted."""
+    n = 100_000  # the delay search's rows: the benchmark's first 10^5 samples
+    u = np.where((np.arange(n) // 50) % 2 == 0, 6.0, 4.0)
+    noise = np.random.default_rng(2024).normal(0.0, 1e-3, n)
+    from_rest = simulate_first_order(u, 0.14, 250.0, 1.0, theta=theta) + noise
+    r = quiet(least_squares, u, from_rest, 1.0)
+    assert r.operating_point is not None
+    assert (r.operating_point.handling, r.operating_point.start) == ("initial", "ambient")
+    assert "instrumental variables" in r.operating_point.reason
+    assert_allclose([r.K, r.tau, r.theta], [0.14, 250.0, theta], rtol=0.03, atol=1.0)
+    old = quiet(least_squares, u, from_rest, 1.0, offset="fit")
+    assert old.K < 0.8 * 0.14  # the bias the decision no longer picks
+    settled = (
+        simulate_first_order(u, 0.14, 250.0, 1.0, y0=1.0 + 0.84, ambient=1.0, theta=theta) + noise
+    )
+    s = quiet(least_squares, u, settled, 1.0)
+    assert s.operating_point is not None
+    assert (s.operating_point.handling, s.operating_point.start) == ("fit", "settled")
+    assert abs(s.K / 0.14 - 1.0) < 0.05 or (not s.trusted and s.warnings)
+
+
+def test_an_undecidable_noisy_start_is_not_trusted() -> None:
+    """A 0.1<->0.05 V square wave: K u0 is within the ambient's uncertainty, so a start
+    at rest and one settled under u[0] fit alike; the result says so, not trusted."""
+    n = 4000
+    u = np.where((np.arange(n) // 50) % 2 == 0, 0.1, 0.05)
+    y = simulate_first_order(u, 0.14, 250.0, 1.0) + np.random.default_rng(3).normal(0, 1e-3, n)
+    op = decide_operating_point(u, y, 1.0, max_delay=10)
+    assert (op.handling, op.start) == ("fit", "unknown")
+    assert "offset='initial'" in op.warnings[0]
+    assert "offset='fit'" in op.warnings[0]
+    r = quiet(least_squares, u, y, 1.0, max_delay=10)
+    assert any(w.startswith("operating point undetermined") for w in r.warnings)
+    assert not r.trusted
+
+
 def test_block_malsm_and_wlsm_decide_the_operating_point_too() -> None:
     u = np.r_[np.full(100, 5.0), np.where((np.arange(2900) // 5) % 2 == 0, 6.0, 4.0)]
     y = REFERENCE_MODEL.simulate(u, y0=1.0 + 5 * K_REF, ambient=1.0)

@@ -35,6 +35,7 @@ from thermolab.jsonsafe import finite_or_none
 
 from . import _regression as _reg
 from . import _validation as _v
+from ._instrumental import instrumental_ambient
 from .deadtime import DelaySearch, search_delay
 from .models import ArxOrder
 
@@ -230,6 +231,14 @@ def decide_operating_point(
        than 5 % of the output's range is flagged as poorly determined (few
        samples before the step); if the input was off (0 V) before it changed,
        ``"initial"`` is used instead, with the same warning.
+    4. A clear win of ``"fit"`` for a first order is checked against
+       measurement noise, which biases least squares and lets a free constant
+       term win on a record that starts at rest (a slow plant under a square
+       wave: ``K`` three times low): the ambient is estimated again by
+       instrumental variables (:mod:`thermolab.ident._instrumental`). Equal to
+       ``y[0]`` within three standard errors, and not to the settled start's
+       ``y[0] - K u0``, it means a start at rest (``"initial"``); equal to
+       both, the data cannot tell and a warning says so.
 
     Examples
     --------
@@ -285,6 +294,32 @@ def decide_operating_point(
     span = float(np.ptp(y_arr))
     weak = abs(crit["initial"] - crit["fit"]) < math.log(m)
     notes: list[str] = []
+    at_rest_by_iv = ""
+    if chosen == "fit" and not weak and (fit_order.na, fit_order.nb) == (1, 1):
+        # With measurement noise the constant term wins by absorbing least
+        # squares' bias; an estimate free of it says where the record starts.
+        iv = instrumental_ambient(u_arr, y_arr, fit_order.delay)
+        if iv is not None:
+            tol = 3.0 * iv.stderr + 1e-9 * scale
+            at_rest = abs(iv.ambient - y0) <= tol
+            settled = u0 != 0.0 and abs(iv.ambient - (y0 - iv.gain * u0)) <= tol
+            if at_rest and not settled:
+                chosen = "initial"
+                at_rest_by_iv = (
+                    f"the record starts at rest at ambient: the constant term's ambient "
+                    f"estimated free of the noise bias ({iv.ambient:.4g} ± {iv.stderr:.2g} V, "
+                    f"instrumental variables) is y[0] = {y0:.4g} V, not y[0] - K u[0]; the "
+                    "fitted constant only predicted better by absorbing least squares' bias"
+                )
+            elif at_rest:
+                notes.append(
+                    f"operating point undetermined: the ambient estimated free of the noise "
+                    f"bias ({iv.ambient:.4g} ± {iv.stderr:.2g} V) fits both a start at rest "
+                    f"at y[0] and one settled under {u0:.4g} V; assumed offset='fit'. Give "
+                    "offset='initial' if the record starts at rest with the input off, "
+                    "offset='fit' if it starts settled under an input, or the known ambient "
+                    "in volts; better, record with the input off before the experiment"
+                )
     if weak and u0 != 0.0 and (not math.isfinite(se) or 3.0 * se > abs(gain * u0)):
         chosen = "fit"
         notes.append(
@@ -324,7 +359,8 @@ def decide_operating_point(
             y0,
             u0,
             s,
-            "the record starts at rest at ambient: subtracting y[0] predicts the record "
+            at_rest_by_iv
+            or "the record starts at rest at ambient: subtracting y[0] predicts the record "
             "as well as a fitted constant term does",
             tuple(notes),
             search,

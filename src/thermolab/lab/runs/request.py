@@ -30,7 +30,7 @@ from typing import Any
 
 from thermolab.errors import InvalidParameterError
 from thermolab.ident.online import OnlineIdentifier
-from thermolab.ident.registry import SETTINGS, Setting, owners
+from thermolab.ident.registry import METHODS, SETTINGS, Setting, owners
 from thermolab.lab.runs.control import ControlRequest
 from thermolab.runner.methods import build_identifiers, parse_methods
 from thermolab.signals import parse_signal
@@ -38,6 +38,7 @@ from thermolab.signals import parse_signal
 __all__ = [
     "AUTO",
     "LAB_NARROWING",
+    "LIVE_DEAD_TIME_METHODS",
     "MAX_DT",
     "MAX_SAMPLES",
     "MIN_DT",
@@ -50,6 +51,7 @@ __all__ = [
     "build_run_identifiers",
     "check_request",
     "choose_operating_point",
+    "live_dead_time",
     "plan_run",
 ]
 
@@ -65,6 +67,18 @@ OFFSET_MODES: tuple[str, ...] = SETTINGS["offset"].choices
 
 #: Methods that regress on the output and so have an operating point to handle.
 OFFSET_METHODS: tuple[str, ...] = owners("offset")
+
+#: Methods with live estimates whose dead time the registry leaves to the structure
+#: (``order`` not given: searched offline, none live): the lab gives them the rig's
+#: typical dead time (:func:`live_dead_time`). LSM searches it at END itself.
+LIVE_DEAD_TIME_METHODS: tuple[str, ...] = tuple(
+    m.name
+    for m in METHODS
+    if "trajectory" in m.returns
+    and SETTINGS["order"] in m.settings
+    and SETTINGS["order"].structural_default is not None
+    and SETTINGS["order"].structural_default(2, 2) is None
+)
 
 #: Where the lab deliberately accepts less than the registry allows, and why. Every
 #: other bound of a run setting is the registry's.
@@ -289,20 +303,56 @@ def check_request(request: RunRequest, limits: tuple[float, float]) -> dict[str,
     return {}
 
 
+def live_dead_time(request: RunRequest, method: str, typical_dead_time: float) -> int:
+    """The delay in samples ``method`` is given live: the rig's typical dead time.
+
+    Rounded to whole samples at the run's ``dt``, and shortened where a block or
+    window would otherwise hold no regression rows (``delay + 5`` samples at most
+    a window: the first order with a constant term).
+    """
+    if method not in LIVE_DEAD_TIME_METHODS:
+        return 0
+    delay = max(0, round(typical_dead_time / request.dt))
+    size = {"blockls": request.block, "malsm": request.window}.get(method)
+    if method in ("blockls", "malsm"):
+        size = (
+            size
+            if size is not None
+            else SETTINGS["block" if method == "blockls" else "window"].default
+        )
+        delay = min(delay, max(0, int(size) - 5))
+    return delay
+
+
 def build_run_identifiers(
-    request: RunRequest, offset: str | float | None
+    request: RunRequest, offset: str | float | None, typical_dead_time: float = 0.0
 ) -> tuple[dict[str, OnlineIdentifier], dict[str, Any]]:
     """Build a checked request's identifiers with the chosen ``offset``.
 
+    ``typical_dead_time`` (seconds): the rig's (:attr:`thermolab.rigs.RigSpec.typical_dead_time`),
+    given as the delay of the block and recursive methods
+    (:data:`LIVE_DEAD_TIME_METHODS`), which cannot search it live.
+
     Returns the identifiers by method and the settings stored with the run
     (``w0`` filled in with the start WLSM used: the registry's default when
-    none was given).
+    none was given; ``dead_time``: per such method, the handling and the delay
+    used, ``{"handling": "rig", "delay": samples, "theta": seconds}``).
     """
     methods = parse_methods(request.methods)
     options: dict[str, dict[str, Any]] = {
         m: {"offset": offset} for m in methods if m in OFFSET_METHODS
     }
     settings = request.settings()
+    dead_time: dict[str, dict[str, Any]] = {}
+    for m in methods:
+        if m not in LIVE_DEAD_TIME_METHODS:
+            continue
+        delay = live_dead_time(request, m, typical_dead_time)
+        dead_time[m] = {"handling": "rig", "delay": delay, "theta": delay * request.dt}
+        if delay:  # delay 0 is the registry's live order (1, 1, 0): left to it
+            options.setdefault(m, {})["order"] = (1, 1, delay)
+    if dead_time:
+        settings["dead_time"] = dead_time
     identifiers = build_identifiers(
         methods,
         request.dt,
@@ -366,8 +416,12 @@ class RunPlan:
     operating_point: OperatingPoint
 
 
-def plan_run(request: RunRequest, limits: tuple[float, float]) -> RunPlan:
+def plan_run(
+    request: RunRequest, limits: tuple[float, float], typical_dead_time: float = 0.0
+) -> RunPlan:
     """Check ``request`` against the rig's input range ``limits`` and build its identifiers.
+
+    ``typical_dead_time``: the rig's, in seconds (:func:`build_run_identifiers`).
 
     :func:`check_request`, :func:`choose_operating_point` and
     :func:`build_run_identifiers`, in that order.
@@ -379,5 +433,5 @@ def plan_run(request: RunRequest, limits: tuple[float, float]) -> RunPlan:
     """
     inputs = check_request(request, limits)
     point = choose_operating_point(request.offset, parse_methods(request.methods))
-    identifiers, settings = build_run_identifiers(request, point.used)
+    identifiers, settings = build_run_identifiers(request, point.used, typical_dead_time)
     return RunPlan(inputs, identifiers, settings, point)
