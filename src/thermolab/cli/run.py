@@ -271,7 +271,7 @@ def _control_loop(args: argparse.Namespace) -> tuple[Any, Any, Any]:
 
 def _closed_loop_figures(result: Any, loop: Any, model: Any) -> dict[str, Any]:
     """Measured (and, with a model, predicted) overshoot, settling time and IAE."""
-    from thermolab.control import predict_record_step, step_metrics
+    from thermolab.control import predict_record_step, rest_warning, step_metrics
     from thermolab.errors import InvalidDataError
 
     figures: dict[str, Any] = {"measured": None, "predicted": None, "note": None}
@@ -299,6 +299,7 @@ def _closed_loop_figures(result: Any, loop: Any, model: Any) -> dict[str, Any]:
         return figures
     figures["measured"] = measured.to_dict()
     figures["predicted"] = predicted.metrics.to_dict()
+    figures["note"] = rest_warning(model, measured, result.t, result.y)
     return figures
 
 
@@ -321,6 +322,7 @@ def _control_table(result: Any, loop: Any, tuning: Any, figures: dict[str, Any])
         )
     if figures["note"]:
         lines.append(f"closed loop: {figures['note']}")
+    if figures["measured"] is None:
         return "\n".join(lines)
     header = f"{'closed loop':<12} {'overshoot (%)':>14} {'settling (s)':>13} {'IAE':>12}"
     lines += ["", header, "-" * len(header)]

@@ -39,6 +39,7 @@ if TYPE_CHECKING:
         StepMetrics,
         predict_closed_loop,
         predict_record_step,
+        rest_warning,
         step_metrics,
     )
 
@@ -49,6 +50,7 @@ _LAZY = {
     "StepMetrics",
     "predict_closed_loop",
     "predict_record_step",
+    "rest_warning",
     "step_metrics",
 }
 
@@ -84,6 +86,7 @@ __all__ = [
     "control_json",
     "predict_closed_loop",
     "predict_record_step",
+    "rest_warning",
     "step_metrics",
     "to_control",
     "tune",

@@ -34,6 +34,7 @@ __all__ = [
     "StepMetrics",
     "predict_closed_loop",
     "predict_record_step",
+    "rest_warning",
     "step_metrics",
 ]
 
@@ -315,7 +316,8 @@ def predict_record_step(
     The model starts settled at that operating point. A box still warm from
     an earlier run and closed at its first sample is cooling, which the
     prediction cannot see (it would need the box's rest output): compare
-    such figures on a box at rest.
+    such figures on a box at rest; :func:`rest_warning` tells when a record
+    was not.
 
     Examples
     --------
@@ -344,3 +346,36 @@ def predict_record_step(
         derivative_filter=derivative_filter,
     )
     return measured, predicted
+
+
+def rest_warning(
+    model: Any, measured: StepMetrics, t: npt.ArrayLike, y: npt.ArrayLike, *, limit: float = 0.1
+) -> str | None:
+    """Why a record's prediction may not hold: its output was moving at the step.
+
+    During the model's dead time after the step the output cannot yet answer
+    the controller: what it does then comes from before the step. A settled
+    box stays put; a box away from its rest output by ``x`` drifts back at
+    ``-x / tau``. The least-squares slope over that window (robust to the
+    sensor's quantum) gives ``x``; beyond ``limit`` of the step (a tenth) the
+    box was not settled at the operating point :func:`predict_record_step`
+    starts from (still warm from an earlier run, cooling), and the prediction
+    does not describe this run. ``None`` when it was, or the model's dead time
+    spans fewer than 3 samples.
+    """
+    m = as_fopdt(model)
+    ta, ya = np.asarray(t, dtype=np.float64), np.asarray(y, dtype=np.float64)
+    i0 = int(np.searchsorted(ta, measured.step_time))
+    end = int(np.searchsorted(ta, measured.step_time + m.theta, side="right"))
+    if end - i0 < 3:
+        return None
+    slope = float(np.polyfit(ta[i0:end], ya[i0:end], 1)[0])
+    away = -slope * m.tau
+    if abs(away) <= limit * abs(measured.step):
+        return None
+    return (
+        f"the output drifted at {slope:+.3g}/s in the model's dead time ({m.theta:g} s) after "
+        f"the step, before the controller could act: the box was about {away:+.3g} from rest "
+        "(still warm from an earlier run?), so the prediction, which starts it settled, does "
+        "not describe this run; start from a box at rest"
+    )

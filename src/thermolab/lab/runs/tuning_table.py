@@ -28,6 +28,7 @@ from thermolab.control import (
     PIDGains,
     predict_closed_loop,
     predict_record_step,
+    rest_warning,
     step_metrics,
     tune,
 )
@@ -189,4 +190,5 @@ def closed_loop_figures(
     )
     out["predicted"] = predicted.metrics.to_dict()
     out["response"] = {"t": _thin(predicted.t), "y": _thin(predicted.y)}
+    out["note"] = rest_warning(fopdt, measured, t, y)
     return out
