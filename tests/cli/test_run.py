@@ -320,6 +320,26 @@ def test_pid_tuned_from_a_model_prints_measured_and_predicted_figures(
     assert abs(float(rows[-1]["y"]) - 50.0) < 0.5
 
 
+def test_a_loop_closed_at_the_first_sample_is_predicted_from_rest(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # The set point steps at START: the first applied input is already the PID's answer
+    # (the heater saturated), so the prediction must start from rest at the safe input.
+    status = main(
+        [*PID_RUN, "--setpoint", "45", "--tune", "simc", "--model", "0.6,140,15.9", "--json"]
+    )
+    assert status == 0
+    figures = json.loads(capsys.readouterr().out)["control"]["closed_loop"]
+    measured, predicted = figures["measured"], figures["predicted"]
+    assert measured["step_time"] == predicted["step_time"] == 0.0
+    assert_allclose(predicted["step"], measured["step"], rtol=1e-12)
+    # The twin is the kit model's two nodes and quantised sensor, the model its FOPDT fit:
+    # they agree within a few percent of overshoot and a tenth of the settling time.
+    assert abs(measured["overshoot"] - predicted["overshoot"]) < 3.0
+    assert_allclose(predicted["settling_time"], measured["settling_time"], rtol=0.1)
+    assert_allclose(predicted["iae"], measured["iae"], rtol=0.1)
+
+
 def test_pid_with_given_gains_prints_a_control_table(capsys: pytest.CaptureFixture[str]) -> None:
     status = main([*PID_RUN, "--setpoint", "40", "--kp", "7", "--ti", "130", "--td", "5"])
     assert status == 0

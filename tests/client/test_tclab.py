@@ -138,7 +138,9 @@ def test_the_twin_at_the_labs_speedup_one_heater_and_the_kits_other_names(
     _, token = served_lab.token("ben")
     TwinLab = setup(connected=False, speedup=10)
     with TwinLab(url=served_lab.url, token=token) as lab:
-        assert "runs its twin at 20x, not 10x" in capsys.readouterr().out
+        note = capsys.readouterr().out
+        assert "the lab's twin runs at 20x real time, not the 10x asked for" in note
+        assert "the lab's teacher sets one speed-up for every simulated rig" in note
         assert lab.rig_id == "kit"  # the simulated rig with a heater (%)
         assert labtime.rate == SPEEDUP
         with pytest.raises(SecondHeaterError, match="one heater and one sensor: Q2"):

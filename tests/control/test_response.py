@@ -10,7 +10,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from thermolab.control import PID, PIDGains, predict_closed_loop, step_metrics, to_control, tune
+from thermolab.control import (
+    PID,
+    PIDGains,
+    predict_closed_loop,
+    predict_record_step,
+    rest_warning,
+    step_metrics,
+    to_control,
+    tune,
+)
 from thermolab.errors import InvalidDataError, InvalidParameterError
 
 
@@ -110,3 +119,27 @@ def test_to_control_closed_loop_agrees_with_the_model() -> None:
     assert len(G.den[0][0]) == 5  # first-order lag times a third-order Padé
     with pytest.raises(InvalidParameterError, match="pade_order"):
         to_control((2.0, 10.0, 3.0), pade_order=0)
+
+
+def test_a_record_moving_at_its_step_is_flagged_not_at_rest() -> None:
+    model = (0.6, 140.0, 15.9)
+    gains = tune(model, "simc").gains
+    run = predict_closed_loop(
+        model, gains, dt=1.0, samples=900, setpoint=45.0, y0=21.0, u_limits=(0.0, 100.0)
+    )
+    measured, predicted = predict_record_step(
+        model, gains, run.t, run.r, run.y, run.u, dt=1.0, u_rest=0.0, u_limits=(0.0, 100.0)
+    )
+    # The record is the prediction itself: the same figures, and it started at rest.
+    assert measured == predicted.metrics
+    assert rest_warning(model, measured, run.t, run.y) is None
+    # A box 15 degC above its rest output, cooling with the model's time constant.
+    warm = run.y + 15.0 * np.exp(-run.t / 140.0)
+    r = np.full_like(run.t, 45.0)
+    moved = rest_warning(model, step_metrics(run.t, r, warm), run.t, warm)
+    assert moved is not None
+    away = float(moved.split("the box was about ")[1].split(" from rest")[0])
+    assert 13.0 < away < 16.0  # the slope's tangent over the dead time: 15 e^(-t/tau)
+    assert "does not describe this run" in moved
+    # No dead time: nothing to look through.
+    assert rest_warning((0.6, 140.0), step_metrics(run.t, r, warm), run.t, warm) is None

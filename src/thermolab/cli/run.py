@@ -271,35 +271,35 @@ def _control_loop(args: argparse.Namespace) -> tuple[Any, Any, Any]:
 
 def _closed_loop_figures(result: Any, loop: Any, model: Any) -> dict[str, Any]:
     """Measured (and, with a model, predicted) overshoot, settling time and IAE."""
-    import numpy as np
-
-    from thermolab.control import predict_closed_loop, step_metrics
+    from thermolab.control import predict_record_step, rest_warning, step_metrics
     from thermolab.errors import InvalidDataError
 
     figures: dict[str, Any] = {"measured": None, "predicted": None, "note": None}
+    r = result.extra["r"]
     try:
-        measured = step_metrics(result.t, result.extra["r"], result.y)
+        if model is None:
+            figures["measured"] = step_metrics(result.t, r, result.y).to_dict()
+            return figures
+        rig = result.rig
+        # The lab's figures come from the same function: one operating point rule.
+        measured, predicted = predict_record_step(
+            model,
+            loop.initial_gains,
+            result.t,
+            r,
+            result.y,
+            result.u,
+            dt=result.dt,
+            u_rest=rig.safe_input,
+            u_limits=(rig.input_min, rig.input_max),
+            derivative_filter=loop.derivative_filter,
+        )
     except InvalidDataError as exc:
         figures["note"] = str(exc)
         return figures
     figures["measured"] = measured.to_dict()
-    if model is not None:
-        i0 = int(np.searchsorted(result.t, measured.step_time))
-        rig = result.rig
-        # From rest at the record's operating point just before the step, with the
-        # gains the run started with.
-        predicted = predict_closed_loop(
-            model,
-            loop.initial_gains,
-            dt=result.dt,
-            samples=result.samples,
-            setpoint=float(result.extra["r"][-1]),
-            step_at=measured.step_time,
-            y0=float(result.y[i0 - 1] if i0 else result.y[0]),
-            u0=float(result.u[i0 - 1] if i0 else result.u[0]),
-            u_limits=(rig.input_min, rig.input_max),
-        )
-        figures["predicted"] = predicted.metrics.to_dict()
+    figures["predicted"] = predicted.metrics.to_dict()
+    figures["note"] = rest_warning(model, measured, result.t, result.y)
     return figures
 
 
@@ -322,6 +322,7 @@ def _control_table(result: Any, loop: Any, tuning: Any, figures: dict[str, Any])
         )
     if figures["note"]:
         lines.append(f"closed loop: {figures['note']}")
+    if figures["measured"] is None:
         return "\n".join(lines)
     header = f"{'closed loop':<12} {'overshoot (%)':>14} {'settling (s)':>13} {'IAE':>12}"
     lines += ["", header, "-" * len(header)]

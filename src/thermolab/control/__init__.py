@@ -8,8 +8,8 @@ Numerics only (no threads, clocks, rigs or I/O); the runner drives them
   :class:`PIDGains` with the published :data:`GAIN_LIMITS`;
 * :mod:`~thermolab.control.tuning` — :func:`tune` by IMC/lambda, SIMC,
   Ziegler–Nichols (open loop) and Cohen–Coon;
-* :mod:`~thermolab.control.response` — :func:`predict_closed_loop` and
-  :func:`step_metrics` (overshoot, 2 % settling time, IAE);
+* :mod:`~thermolab.control.response` — :func:`predict_closed_loop`,
+  :func:`step_metrics` and :func:`predict_record_step` (overshoot, 2 % settling time, IAE);
 * :mod:`~thermolab.control.adaptive` — :class:`AdaptiveTuner`;
 * :mod:`~thermolab.control.parameters` — every parameter of the loop declared
   once (:data:`PARAMETERS`, :func:`control_json` for the lab and the page);
@@ -38,12 +38,21 @@ if TYPE_CHECKING:
         ClosedLoopResponse,
         StepMetrics,
         predict_closed_loop,
+        predict_record_step,
+        rest_warning,
         step_metrics,
     )
 
 # The response module needs NumPy; the rest is plain Python, so that the command
 # line can list the rules without loading NumPy (tests/ident/test_registry.py).
-_LAZY = {"ClosedLoopResponse", "StepMetrics", "predict_closed_loop", "step_metrics"}
+_LAZY = {
+    "ClosedLoopResponse",
+    "StepMetrics",
+    "predict_closed_loop",
+    "predict_record_step",
+    "rest_warning",
+    "step_metrics",
+}
 
 
 def __getattr__(name: str) -> Any:
@@ -76,6 +85,8 @@ __all__ = [
     "as_fopdt",
     "control_json",
     "predict_closed_loop",
+    "predict_record_step",
+    "rest_warning",
     "step_metrics",
     "to_control",
     "tune",

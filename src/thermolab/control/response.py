@@ -9,7 +9,10 @@ period; the two parts are integrated in closed form).
 
 :func:`step_metrics` measures overshoot, 2 % settling time and IAE after a
 set-point step, the same way for the prediction and for a measured record,
-so the two can be shown side by side.
+so the two can be shown side by side. :func:`predict_record_step` does both
+for a measured closed-loop record (the command line's and the lab's figures):
+the record's step measured, and the model's prediction of it from the
+record's own operating point.
 """
 
 from __future__ import annotations
@@ -26,7 +29,14 @@ from thermolab.control.tuning import as_fopdt
 from thermolab.errors import InvalidDataError, InvalidParameterError
 from thermolab.jsonsafe import finite_or_none
 
-__all__ = ["ClosedLoopResponse", "StepMetrics", "predict_closed_loop", "step_metrics"]
+__all__ = [
+    "ClosedLoopResponse",
+    "StepMetrics",
+    "predict_closed_loop",
+    "predict_record_step",
+    "rest_warning",
+    "step_metrics",
+]
 
 _FloatArray = npt.NDArray[np.float64]
 
@@ -249,3 +259,123 @@ def predict_closed_loop(
         past[k + whole + 1] = u[k] - u0
         x = a * x + b_old * past[k] + b_new * past[k + 1]
     return ClosedLoopResponse(t, r, y, u, step_metrics(t, r, y))
+
+
+def predict_record_step(
+    model: Any,
+    gains: PIDGains,
+    t: npt.ArrayLike,
+    r: npt.ArrayLike,
+    y: npt.ArrayLike,
+    u: npt.ArrayLike,
+    *,
+    dt: float,
+    u_rest: float,
+    u_limits: tuple[float, float] = (-math.inf, math.inf),
+    derivative_filter: float = 10.0,
+) -> tuple[StepMetrics, ClosedLoopResponse]:
+    """A closed-loop record's set-point step, measured and predicted by ``model``.
+
+    The prediction runs the record's gains from the record's operating point
+    just before its step: the input and output of the sample before it. A
+    record whose loop closes at its first sample (AUTO from START) has no
+    sample before the step: its input until then was ``u_rest`` (the rig's
+    safe input, where every run starts), so the prediction starts at rest
+    there, from the first output — not from the first *applied* input, which
+    is already the controller's answer to the step (a saturated heater taken
+    for the operating point would predict a box already hot).
+
+    Parameters
+    ----------
+    model : FOPDT, tuple or object with K, tau (and theta)
+    gains : PIDGains
+        The gains the record started with.
+    t, r, y, u : array_like
+        The record's times, set point, output and input.
+    dt : float
+        Its sample period (s).
+    u_rest : float
+        The input before the record (the rig's safe input).
+    u_limits : (float, float), optional
+        The input range.
+    derivative_filter : float, optional
+        ``N`` of the record's derivative filter.
+
+    Returns
+    -------
+    (StepMetrics, ClosedLoopResponse)
+        The measured figures, and the prediction (its ``metrics`` beside them).
+
+    Raises
+    ------
+    InvalidDataError
+        If the record has no set-point step (:func:`step_metrics`).
+
+    Notes
+    -----
+    The model starts settled at that operating point. A box still warm from
+    an earlier run and closed at its first sample is cooling, which the
+    prediction cannot see (it would need the box's rest output): compare
+    such figures on a box at rest; :func:`rest_warning` tells when a record
+    was not.
+
+    Examples
+    --------
+    >>> from thermolab.control.tuning import tune
+    >>> g = tune((1.0, 10.0, 2.0), "simc", tau_c=2.0).gains
+    >>> run = predict_closed_loop((1.0, 10.0, 2.0), g, dt=0.1, samples=600, setpoint=1.0)
+    >>> measured, predicted = predict_record_step(
+    ...     (1.0, 10.0, 2.0), g, run.t, run.r, run.y, run.u, dt=0.1, u_rest=0.0)
+    >>> measured.settling_time == predicted.metrics.settling_time
+    True
+    """
+    ta, ra, ya, ua = (np.asarray(a, dtype=np.float64) for a in (t, r, y, u))
+    measured = step_metrics(ta, ra, ya)
+    i0 = int(np.searchsorted(ta, measured.step_time))
+    before = max(i0 - 1, 0)
+    predicted = predict_closed_loop(
+        model,
+        gains,
+        dt=dt,
+        samples=int(ta.size),
+        setpoint=float(ra[-1]),
+        step_at=measured.step_time - float(ta[0]),
+        y0=float(ya[before]),
+        u0=float(ua[before]) if i0 else float(u_rest),
+        u_limits=u_limits,
+        derivative_filter=derivative_filter,
+    )
+    return measured, predicted
+
+
+def rest_warning(
+    model: Any, measured: StepMetrics, t: npt.ArrayLike, y: npt.ArrayLike, *, limit: float = 0.1
+) -> str | None:
+    """Why a record's prediction may not hold: its output was moving at the step.
+
+    During the model's dead time after the step the output cannot yet answer
+    the controller: what it does then comes from before the step. A settled
+    box stays put; a box away from its rest output by ``x`` drifts back at
+    ``-x / tau``. The least-squares slope over that window (robust to the
+    sensor's quantum) gives ``x``; beyond ``limit`` of the step (a tenth) the
+    box was not settled at the operating point :func:`predict_record_step`
+    starts from (still warm from an earlier run, cooling), and the prediction
+    does not describe this run. ``None`` when it was, or the model's dead time
+    spans fewer than 3 samples.
+    """
+    m = as_fopdt(model)
+    ta, ya = np.asarray(t, dtype=np.float64), np.asarray(y, dtype=np.float64)
+    i0 = int(np.searchsorted(ta, measured.step_time))
+    end = int(np.searchsorted(ta, measured.step_time + m.theta, side="right"))
+    if end - i0 < 3:
+        return None
+    slope = float(np.polyfit(ta[i0:end], ya[i0:end], 1)[0])
+    away = -slope * m.tau
+    if abs(away) <= limit * abs(measured.step):
+        return None
+    return (
+        f"the output drifted at {slope:+.3g}/s in the model's dead time ({m.theta:g} s) after "
+        f"the step, before the controller could act: the box was about {away:+.3g} from rest "
+        "(still warm from an earlier run?), so the prediction, which starts it settled, does "
+        "not describe this run; start from a box at rest"
+    )

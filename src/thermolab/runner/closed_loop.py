@@ -269,6 +269,11 @@ class ControlLoop:
         return self._initial_gains
 
     @property
+    def derivative_filter(self) -> float:
+        """``N`` of the PID's derivative filter."""
+        return self._derivative_filter
+
+    @property
     def gains(self) -> PIDGains:
         """The gains in force."""
         return self._initial_gains if self._pid is None else self._pid.gains

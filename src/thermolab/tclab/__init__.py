@@ -26,7 +26,36 @@ __all__ = [
     "clock",
     "labtime",
     "setup",
+    "speedup_note",
 ]
+
+
+def speedup_note(asked: float, in_force: float) -> str | None:
+    """What ``setup(connected=False, speedup=asked)`` tells when the lab's twin runs otherwise.
+
+    The lab's teacher sets one speed-up for every simulated rig (``speedup``
+    in the lab's file, or ``thermolab serve --speedup``); a client cannot
+    change it, because the twin is shared — its clock is the lab's, the same
+    for every user and the lab's own runs. ``None`` when they agree.
+
+    Examples
+    --------
+    >>> speedup_note(20, 20) is None
+    True
+    >>> print(speedup_note(10, 50))  # doctest: +NORMALIZE_WHITESPACE
+    note: the lab's twin runs at 50x real time, not the 10x asked for: the lab's teacher sets
+    one speed-up for every simulated rig (`speedup` in the lab's file or `thermolab serve
+    --speedup`) and a client cannot change it; clock() and labtime follow 50x
+    """
+    if asked == in_force:
+        return None
+    wanted = "real time (1x)" if asked == 1 else f"{asked:g}x"
+    return (
+        f"note: the lab's twin runs at {in_force:g}x real time, not the {wanted} asked for: "
+        "the lab's teacher sets one speed-up for every simulated rig (`speedup` in the lab's "
+        "file or `thermolab serve --speedup`) and a client cannot change it; clock() and "
+        f"labtime follow {in_force:g}x"
+    )
 
 
 def setup(connected: bool = True, speedup: float = 1) -> type[TCLab]:
@@ -39,8 +68,12 @@ def setup(connected: bool = True, speedup: float = 1) -> type[TCLab]:
         simulated rig (its twin), in place of the kit's offline model.
     speedup : float
         Only with ``connected=False``. The twin runs at the lab's speed-up,
-        which the lab decides (``thermolab serve --speedup``); ``clock`` follows
-        it, and a different value asked for is reported, not applied.
+        which the lab's teacher decides for every simulated rig (``speedup``
+        in the lab's file, ``thermolab serve --speedup``); ``clock`` and
+        ``labtime`` follow it. A client cannot choose another: when the one in
+        force differs from ``speedup`` (the default 1 included), connecting
+        prints which is in force and why (:func:`speedup_note`); it is never
+        applied.
 
     Raises
     ------
@@ -58,11 +91,9 @@ def setup(connected: bool = True, speedup: float = 1) -> type[TCLab]:
 
         def __init__(self, *args: object, **kwargs: object) -> None:
             super().__init__(*args, **kwargs)  # type: ignore[arg-type]
-            if not connected and asked != 1 and asked != self.lab.speedup:
-                print(
-                    f"note: the lab runs its twin at {self.lab.speedup:g}x, not {asked:g}x; "
-                    "clock() follows the lab"
-                )
+            note = None if connected else speedup_note(asked, self.lab.speedup)
+            if note is not None:
+                print(note)
 
     RemoteTCLab.__name__ = RemoteTCLab.__qualname__ = "TCLab"
     return RemoteTCLab

@@ -21,11 +21,14 @@ import numpy as np
 
 from thermolab.control import (
     FOPDT,
+    PARAMETERS,
     RULE_FORMS,
     RULES,
     SPEED_RULES,
     PIDGains,
     predict_closed_loop,
+    predict_record_step,
+    rest_warning,
     step_metrics,
     tune,
 )
@@ -144,10 +147,11 @@ def closed_loop_figures(
 
     ``samples`` are the run's channels by name (``t``, ``y``, ``u``, ``r``);
     ``control`` the run's control request (its starting gains and ``model``).
-    The prediction starts from the record's operating point just before the
-    step, with the gains the run started with, as ``thermolab run`` does; a
-    run that starts in AUTO steps at its first sample, from rest at
-    ``u_rest`` (the rig's safe input) and its first output.
+    The prediction is :func:`thermolab.control.predict_record_step`'s, as
+    ``thermolab run``'s: from the record's operating point just before the
+    step, with the gains the run started with; a run that starts in AUTO
+    steps at its first sample, from rest at ``u_rest`` (the rig's safe input)
+    and its first output.
     """
     t = np.asarray(samples.get("t") or [], dtype=np.float64)
     y = np.asarray(samples.get("y") or [], dtype=np.float64)
@@ -170,20 +174,21 @@ def closed_loop_figures(
         return out
     fopdt = FOPDT(*(float(x) for x in model))
     out["model"] = fopdt.to_dict()
-    i0 = int(np.searchsorted(t, measured.step_time))
-    before = max(i0 - 1, 0)
-    u_before = float(u[before]) if i0 else u_rest
-    predicted = predict_closed_loop(
+    n_filter = control.get("derivative_filter") or PARAMETERS["derivative_filter"].default
+    # The command line's figures come from the same function: one operating point rule.
+    _, predicted = predict_record_step(
         fopdt,
         PIDGains(control["kp"], control["ti"], control.get("td") or 0.0),
+        t,
+        r,
+        y,
+        u,
         dt=dt,
-        samples=int(t.size),
-        setpoint=float(r[-1]),
-        step_at=measured.step_time,
-        y0=float(y[before]),
-        u0=u_before,
+        u_rest=u_rest,
         u_limits=u_limits,
+        derivative_filter=float(n_filter),
     )
     out["predicted"] = predicted.metrics.to_dict()
     out["response"] = {"t": _thin(predicted.t), "y": _thin(predicted.y)}
+    out["note"] = rest_warning(fopdt, measured, t, y)
     return out
