@@ -27,6 +27,8 @@ TABLES = {
     "runs",
     "samples",
     "commands",
+    "guide_pages",
+    "guide_revisions",
     "server_lease",
     "api_tokens",
     "method_results",

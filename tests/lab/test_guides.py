@@ -21,7 +21,9 @@ HOSTILE = """# Welcome
 <div onclick="alert(5)" style="color:red">div</div><iframe src="https://evil"></iframe>
 <svg onload="alert(6)"></svg> <math><mi href="javascript:alert(7)">x</mi></math>
 
-![box](https://lab.example/box.png) and $K_S = \\frac{b}{1-a}$
+<img src="data:image/svg+xml;base64,PHN2Zz4=">
+
+![dot](data:image/png;base64,iVBORw0KGgo=) ![box](https://lab.example/box.png) and $K_S = \\frac{b}{1-a}$
 """
 
 
@@ -31,7 +33,11 @@ def test_hostile_markdown_renders_no_script_no_handler_no_javascript_url() -> No
         assert forbidden not in html, forbidden
     assert not re.search(r"\son\w+\s*=", html)  # no event handler attribute at all
     urls = re.findall(r"(?:href|src)\s*=\s*\"([^\"]*)\"", html)
-    assert urls == ["x.png", "https://lab.example/box.png"]  # javascript:/data: lost their href
+    assert urls == [
+        "x.png",
+        "data:image/png;base64,ivborw0kggo=",
+        "https://lab.example/box.png",
+    ]  # javascript:/data: lost their href
     assert "alert(3)" in html  # a refused link stays as plain text, visible to the teacher
     assert "<h1>welcome</h1>" in html
     assert '<img src="https://lab.example/box.png" alt="box">' in html

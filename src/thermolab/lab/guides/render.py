@@ -5,8 +5,10 @@ images. :func:`render_markdown` parses it with markdown-it-py (CommonMark,
 tables, the dollarmath plugin), turns each formula into MathML with
 latex2mathml, and passes the whole page through nh3 (Ammonia) with an allow
 list: no ``<script>``, no ``on…=`` attribute, no ``style``, and only
-``http``, ``https`` and ``mailto`` links (relative ones too), so nothing a
-teacher writes runs in a student's browser.
+``http``, ``https`` and ``mailto`` links (relative ones too; ``data:`` only as
+a PNG/JPEG/GIF/WebP image's source), so nothing a teacher writes runs in a
+student's browser. The lab's Content-Security-Policy (``img-src 'self' data:``)
+shows images served by the lab or embedded as ``data:``; others are blocked.
 
 Why MathML on the server: every current browser draws MathML Core natively,
 so maths needs no JavaScript, no font and no CDN (the lab works offline), and
@@ -16,6 +18,7 @@ the sanitiser sees the final markup.
 from __future__ import annotations
 
 import html
+import re
 
 import nh3
 from latex2mathml.converter import convert as latex_to_mathml
@@ -55,7 +58,18 @@ _ATTRIBUTES: dict[str, set[str]] = {
     "span": {"class"},
     **{tag: set(_MATHML_ATTRIBUTES) for tag in _MATHML_TAGS},
 }
-_URL_SCHEMES = {"http", "https", "mailto"}
+_URL_SCHEMES = {"http", "https", "mailto", "data"}
+# The page's Content-Security-Policy lets images come from the lab itself or as
+# data: URLs, so a guide's pictures are relative links or small embedded images;
+# data: is kept only there, and only for raster images (never in a link).
+_DATA_IMAGE = re.compile(r"^data:image/(png|jpeg|gif|webp);base64,[A-Za-z0-9+/=\s]+$")
+
+
+def _keep_attribute(tag: str, attribute: str, value: str) -> str | None:
+    if attribute in ("href", "src") and value.strip().lower().startswith("data:"):
+        keep = tag == "img" and attribute == "src" and _DATA_IMAGE.match(value.strip())
+        return value if keep else None
+    return value
 
 
 def _formula(latex: str, options: dict[str, bool]) -> str:
@@ -98,7 +112,7 @@ def render_markdown(markdown: str) -> str:
     -------
     str
         HTML safe to insert in a page: no scripts, event handlers, styles,
-        frames or ``javascript:``/``data:`` URLs.
+        frames or ``javascript:`` URLs; ``data:`` only as a raster image's source.
 
     Examples
     --------
@@ -112,6 +126,7 @@ def render_markdown(markdown: str) -> str:
         attributes=_ATTRIBUTES,
         url_schemes=_URL_SCHEMES,
         link_rel="noopener noreferrer nofollow",
+        attribute_filter=_keep_attribute,
         strip_comments=True,
     )
     return cleaned
