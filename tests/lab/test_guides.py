@@ -23,7 +23,8 @@ HOSTILE = """# Welcome
 
 <img src="data:image/svg+xml;base64,PHN2Zz4=">
 
-![dot](data:image/png;base64,iVBORw0KGgo=) ![box](https://lab.example/box.png) and $K_S = \\frac{b}{1-a}$
+![dot](data:image/png;base64,iVBORw0KGgo=) ![box](https://lab.example/box.png)
+and $K_S = \\frac{b}{1-a}$
 """
 
 

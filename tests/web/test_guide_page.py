@@ -34,7 +34,8 @@ def test_a_teacher_edits_panel_1_guide_and_a_student_sees_it_beside_panel_1(
     default_heading: str,
     words: str,
 ) -> None:
-    markdown = f"## {words}\n\n**Ganho** $K_S = \\frac{{b}}{{1-a}}$ <img src=x onerror=\"document.title='pwned'\">"
+    hostile = "<img src=x onerror=\"document.title='pwned'\">"
+    markdown = f"## {words}\n\n**Ganho** $K_S = \\frac{{b}}{{1-a}}$ {hostile}"
     teacher = logged_in("tess", locale=locale, viewport={"width": 1280, "height": 900})
     student = logged_in("alice", locale=locale, viewport={"width": 1280, "height": 900})
     try:
