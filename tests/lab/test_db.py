@@ -27,6 +27,8 @@ TABLES = {
     "runs",
     "samples",
     "commands",
+    "guide_pages",
+    "guide_revisions",
     "server_lease",
     "api_tokens",
     "method_results",
@@ -50,7 +52,7 @@ def test_migrations_create_the_schema_of_the_models(fresh_url: str) -> None:
         assert db.current_revision() is None
         db.upgrade()
         db.upgrade()  # idempotent
-        assert db.current_revision() == "0007"
+        assert db.current_revision() == "0008"
         assert set(db.table_names()) == TABLES | {"alembic_version"}
         with db.engine.connect() as connection:
             context = MigrationContext.configure(connection, opts={"compare_type": True})

@@ -23,6 +23,7 @@ from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Role
 from thermolab.lab.devices import DesiredState, DeviceHub, RigOpener
+from thermolab.lab.guides import GuideService
 from thermolab.lab.lease import DatabaseLease
 from thermolab.lab.presence import Presence
 from thermolab.lab.runs import RunRecord, RunService
@@ -191,6 +192,8 @@ class Lab:
         )
         # Personal API tokens for scripts; revoked ones are announced like ended logins.
         self.tokens = TokenService(self.db, self.clock)
+        # Each rig's guide pages: shipped defaults, teachers' revisions.
+        self.guides = GuideService(self.db, self.clock, config)
         self.throttle = LoginThrottle(
             self.clock,
             failures_per_user=policy.login_failures_per_user,

@@ -19,6 +19,7 @@ import { hasProperty, openapi } from "../schema.js";
 import { readAccess, readRig } from "../shapes.js";
 import { AccessPanel } from "./access.js";
 import { ClosedLoopPanel } from "./closedloop.js";
+import { GuideDrawer, PANEL_SECTIONS } from "./guide.js";
 import { Panels } from "./panels.js";
 import { panelLimits } from "./panels/definitions.js";
 import { Camera } from "./rig/camera.js";
@@ -39,12 +40,12 @@ const POLL_MS = 3000;
 export function mount(main, { params }, ctx) {
   const rigId = params[0];
   ctx.setTitle(t("rig.title", { rig: rigId }));
-  const page = new RigPage(main, rigId);
+  const page = new RigPage(main, rigId, ctx.user);
   return () => page.destroy();
 }
 
 class RigPage {
-  constructor(parent, rigId) {
+  constructor(parent, rigId, user) {
     this.rigId = rigId;
     // One box for the page, so that the phone layout can order its parts (css: .rig-page).
     const main = h("div", { class: "rig-page" });
@@ -92,6 +93,10 @@ class RigPage {
     this.show = new RunShow(grid, main, () => this.panels);
     // The fourth panel: a PID on the output (closedloop.js).
     this.loop = new ClosedLoopPanel(main, rigId);
+    // The guide opens beside the panel in use, at that panel's steps (guide.js).
+    this.guide = new GuideDrawer(main, rigId, user);
+    this._addGuideButtons();
+    this.loop.el.querySelector("h2")?.after(this.guide.button("panel-4"));
     this.client = new LiveClient(rigId, {
       onMessage: (msg) => this._onMessage(msg),
       onStatus: (s) => this._onStatus(s),
@@ -243,8 +248,16 @@ class RigPage {
     const panels = new Panels(this.panelsHost, limits, this.panelActions);
     panels.select(selected, false);
     this.panels = panels;
+    this._addGuideButtons();
     this._updateLock();
     if (this.show.run) panels.setRun(this.show.run);
+  }
+
+  _addGuideButtons() {
+    for (const view of this.panels.views) {
+      const section = PANEL_SECTIONS[view.def.id];
+      if (section) view.el.prepend(this.guide.button(section));
+    }
   }
 
   _setState(state, detail) {

@@ -1,0 +1,78 @@
+"""Guide pages in the browser: a teacher edits panel 1's steps, a student reads them beside it.
+
+In Portuguese (Brazil) and English, against a real ``thermolab serve`` and
+Chromium: the teacher's Markdown (with maths and a hostile image) is saved as
+a revision, and the student's "Guide" button on panel 1 opens the drawer at
+that section, maths drawn as MathML, the handler gone, and no editor.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+pytestmark = pytest.mark.browser
+
+RIG = "twin-keys"
+
+
+@pytest.mark.parametrize(
+    ("locale", "lang", "default_heading", "words"),
+    [
+        ("pt-BR", "pt-BR", "Painel 1", "Passo um do professor"),
+        ("en-US", "en", "Panel 1", "The teacher's step one"),
+    ],
+)
+def test_a_teacher_edits_panel_1_guide_and_a_student_sees_it_beside_panel_1(
+    logged_in: Any,
+    lab: Any,
+    artifacts: Path,
+    locale: str,
+    lang: str,
+    default_heading: str,
+    words: str,
+) -> None:
+    hostile = "<img src=x onerror=\"document.title='pwned'\">"
+    markdown = f"## {words}\n\n**Ganho** $K_S = \\frac{{b}}{{1-a}}$ {hostile}"
+    teacher = logged_in("tess", locale=locale, viewport={"width": 1280, "height": 900})
+    student = logged_in("alice", locale=locale, viewport={"width": 1280, "height": 900})
+    try:
+        page = teacher.new_page()
+        page.goto(f"{lab.url}/#/rig/{RIG}")
+        opener = page.locator("#panel-srm-lsm button[data-guide=panel-1]")
+        opener.click()
+        drawer = page.locator("[data-testid=guide]")
+        drawer.wait_for()
+        text = page.locator("[data-testid=guide-text]")
+        assert default_heading in text.locator("h1").inner_text()
+        assert page.locator("html").get_attribute("lang") == lang
+        page.click("[data-testid=guide-edit]")
+        page.fill("[data-testid=guide-source]", markdown)
+        page.locator(".guide-editor button").first.click()  # preview, rendered by the server
+        page.locator("[data-testid=guide-preview] math").wait_for()
+        page.locator(".guide-editor button.primary").click()  # save
+        page.locator("[data-testid=guide-text] h2").wait_for()
+        assert words in text.inner_text()
+        assert "tess" in page.inner_text("[data-testid=guide-meta]")
+        page.screenshot(path=str(artifacts / f"guide-editor-{lang}.png"))
+
+        seen = student.new_page()
+        seen.goto(f"{lab.url}/#/rig/{RIG}")
+        seen.locator("#panel-srm-lsm button[data-guide=panel-1]").click()
+        shown = seen.locator("[data-testid=guide-text]")
+        shown.locator("h2").wait_for()
+        assert words in shown.inner_text()
+        assert shown.locator("math mfrac").count() == 1  # maths as MathML, no script needed
+        assert shown.locator("img").get_attribute("onerror") is None
+        assert seen.title() != "pwned"
+        assert seen.locator("[data-testid=guide-edit]").count() == 0  # students only read
+        assert seen.locator("#panel-srm-lsm").is_visible()  # panel 1 stays open beside it
+        # The other sections are one click away: the theory, in the same language.
+        seen.locator("[data-testid=guide] nav button[data-section=theory]").click()
+        assert shown.locator("math").count() >= 10
+        seen.screenshot(path=str(artifacts / f"guide-student-{lang}.png"))
+    finally:
+        teacher.close()
+        student.close()
