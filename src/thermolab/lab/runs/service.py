@@ -14,7 +14,8 @@ kicked, released...) the run is ended as by END, so that its data and
 estimates are kept. While a run holds a rig, the lab's device hub leaves the
 device to the runner. Storage is :mod:`.store` (reading back by channel: :mod:`.export`); the
 request's checks and its operating point are :mod:`.request`; what is stored when a run
-ends, :mod:`.ending`; a closed loop's commands while it runs, :mod:`.loop_commands`.
+ends, :mod:`.ending`; what is sent to it while it runs (END, an input, a closed loop's
+commands), :mod:`.commands`.
 """
 
 from __future__ import annotations
@@ -42,10 +43,10 @@ from thermolab.lab.db import Database
 from thermolab.lab.db.models import Run
 from thermolab.lab.devices import DeviceHub
 from thermolab.lab.runs.active import ActiveRun
+from thermolab.lab.runs.commands import end_run, hand_input, loop_state, send_command
 from thermolab.lab.runs.control import build_control_loop
 from thermolab.lab.runs.ending import SERVER_STOPPED, end_of_run
 from thermolab.lab.runs.export import RunExport, StoredSample
-from thermolab.lab.runs.loop_commands import loop_state, send_command
 from thermolab.lab.runs.request import RunRequest, check_run_length, plan_run
 from thermolab.lab.runs.store import (
     DatabaseRecorder,
@@ -191,8 +192,7 @@ class RunService:
         # that ends meanwhile is seen either here (the run is aborted before it
         # starts) or by that reconcile, after the run is registered (it is ENDed).
         with self._hub.locked(rig_id):
-            with self._lock:
-                going = self._active.get(rig_id)
+            going = self._going(rig_id)
             if going is not None and arrived_in is not None:  # else: 403 just below
                 if going.control_session == arrived_in:
                     raise RunInProgressError(
@@ -284,37 +284,16 @@ class RunService:
     def stop(self, rig_id: str, who: Principal) -> RunRecord:
         """END the rig's current run (its controller, or a teacher); returns at once.
 
-        Raises
-        ------
-        AccessDeniedError
-            If ``who`` neither controls the rig nor is a teacher.
-        ConflictError
-            If no run is going on the rig.
+        Errors: :func:`.commands.end_run` (``AccessDeniedError``, ``ConflictError``).
         """
-        active = self._going(rig_id)
-        if active is None:
-            raise ConflictError(f"no run is going on rig {rig_id!r}")
-        if not who.is_teacher:
-            snap = self._access.snapshot(rig_id)
-            if snap.controller is None or snap.controller.user_id != who.user_id:
-                raise AccessDeniedError(f"only the controller of rig {rig_id!r} may END its run")
-        active.stopped_by = who.username
-        active.experiment.end()
-        return self.get(active.run_id, who)
+        return self.get(end_run(self._access, self._going(rig_id), rig_id, who), who)
 
     def set_input(self, rig_id: str, u: float, *, control_session: int | None = None) -> int | None:
         """Hand a new input to the rig's run; return the run id (``None``: no run).
 
-        With ``control_session``, only a run of that turn takes the input (an
-        input of the next controller never lands in the previous one's run).
+        With ``control_session``, only a run of that turn takes it (:func:`.commands.hand_input`).
         """
-        active = self._going(rig_id)
-        if active is None:
-            return None
-        if control_session is not None and active.control_session != control_session:
-            return None
-        active.experiment.set_input(u)
-        return active.run_id
+        return hand_input(self._going(rig_id), u, control_session)
 
     def command(
         self,
@@ -326,7 +305,7 @@ class RunService:
     ) -> RunRecord:
         """Hand a closed-loop command to the rig's run (mode, set point, gains, fan).
 
-        Checked, applied and recorded by :func:`.loop_commands.send_command`
+        Checked, applied and recorded by :func:`.commands.send_command`
         (its errors: ``NoRunError``, ``NotClosedLoopError``, ``AccessDeniedError``).
         """
         run_id = send_command(self._access, self._going(rig_id), rig_id, who, kind, payload, act)
@@ -522,20 +501,11 @@ class RunService:
         )
 
     def _record(self, run: Run, stored: dict[str, Any] | None) -> RunRecord:
-        with self._lock:
-            active = self._active.get(run.rig_id)
-        live = active is not None and active.run_id == run.id
-        results: dict[str, Any] = {}
-        taken = run.samples_stored
-        control = run.meta.get("control_end")
-        if live and active is not None:
-            loop = active.experiment.controller
-            control = None if loop is None else json_safe(loop.to_dict())
-            snapshot = active.experiment.snapshot()
-            taken = snapshot.samples
-            for name, method in snapshot.methods.items():
-                results[name] = json_safe(method.to_dict())
-        elif stored is not None:
-            for name, result in stored.items():
-                results[name] = {k: v for k, v in result.items() if k != "trajectory"}
-        return record_of(run, results, taken, control)
+        active = self._going(run.rig_id)
+        if active is not None and active.run_id == run.id:
+            results, taken, control = active.now()
+            return record_of(run, results, taken, control)
+        results = {}
+        for name, result in (stored or {}).items():
+            results[name] = {k: v for k, v in result.items() if k != "trajectory"}
+        return record_of(run, results, run.samples_stored, run.meta.get("control_end"))

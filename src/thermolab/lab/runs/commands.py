@@ -1,11 +1,12 @@
-"""Commands to a closed-loop run while it goes: mode, set point, gains, fan.
+"""What is sent to a run while it goes: END, an input, a closed loop's commands.
 
-What START asks of the controller and its one check are :mod:`.control`;
-here are the commands the controller sends afterwards (``PUT
-.../runs/current/mode``, ``setpoint``, ``gains``, ``fan``) and the loop's
-state read back. Each command is checked by the run's
+What START asks of a closed loop's controller and its one check are
+:mod:`.control`; here are the commands the controller sends afterwards
+(``PUT .../runs/current/mode``, ``setpoint``, ``gains``, ``fan``) and the
+loop's state read back. Each closed-loop command is checked by the run's
 :class:`~thermolab.runner.Experiment` before anything changes, applied from
-the run's next sample on, and recorded in ``commands``.
+the run's next sample on, and recorded in ``commands``. Each function takes
+the rig's :class:`~.active.ActiveRun` (``None``: no run is going).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from thermolab.errors import AccessDeniedError, NoRunError, NotClosedLoopError
+from thermolab.errors import AccessDeniedError, ConflictError, NoRunError, NotClosedLoopError
 from thermolab.jsonsafe import json_safe
 from thermolab.lab.access import AccessService
 from thermolab.lab.runs.active import ActiveRun
@@ -21,7 +22,42 @@ from thermolab.lab.runs.store import run_command
 from thermolab.lab.users import Principal
 from thermolab.runner import Experiment
 
-__all__ = ["loop_state", "send_command"]
+__all__ = ["end_run", "hand_input", "loop_state", "send_command"]
+
+
+def end_run(access: AccessService, active: ActiveRun | None, rig_id: str, who: Principal) -> int:
+    """END the run ``active`` (its controller, or a teacher); return its id at once.
+
+    Raises
+    ------
+    AccessDeniedError
+        If ``who`` neither controls the rig nor is a teacher.
+    ConflictError
+        If no run is going on the rig.
+    """
+    if active is None:
+        raise ConflictError(f"no run is going on rig {rig_id!r}")
+    if not who.is_teacher:
+        snap = access.snapshot(rig_id)
+        if snap.controller is None or snap.controller.user_id != who.user_id:
+            raise AccessDeniedError(f"only the controller of rig {rig_id!r} may END its run")
+    active.stopped_by = who.username
+    active.experiment.end()
+    return active.run_id
+
+
+def hand_input(active: ActiveRun | None, u: float, control_session: int | None) -> int | None:
+    """Hand a new input to the run ``active``; return its id (``None``: no run took it).
+
+    With ``control_session``, only a run of that turn takes the input (an
+    input of the next controller never lands in the previous one's run).
+    """
+    if active is None:
+        return None
+    if control_session is not None and active.control_session != control_session:
+        return None
+    active.experiment.set_input(u)
+    return active.run_id
 
 
 def send_command(
