@@ -1,13 +1,20 @@
 """Experiment runs on the lab's rigs.
 
 * :mod:`.request` — :class:`RunRequest`, its one validation and the identifiers'
-  ``offset`` (``auto``: the data decide), together as :func:`plan_run`;
+  ``offset`` (``auto``: the data decide), together as :func:`plan_run`; the run's
+  length against the rig's limit;
 * :mod:`.timing` — how well a run kept its sampling times (lateness, period spread);
 * :mod:`.statistics` — the paper's figures, computed once at the end of a run;
 * :mod:`.store` — a run's row and channel specs, its samples as they come
   (:class:`DatabaseRecorder`), its results, reading the run back;
 * :mod:`.export` — the samples read back by channel, the CSV and JSON exports;
-* :mod:`.service` — :class:`RunService`: START, input, END, threads.
+* :mod:`.active` — :class:`~.active.ActiveRun`: a run going on a rig, read as it is now;
+* :mod:`.commands` — what is sent to a running run: END, an input, a closed loop's
+  commands (mode, set point, gains, fan) and its state;
+* :mod:`.ending` — what is stored when a run ends: status, results with their
+  statistics, timing, the controller as it ended;
+* :mod:`.service` — :class:`RunService`: START, the hand-over wait, the run's
+  thread and its end, reading runs back.
 """
 
 from thermolab.jsonsafe import json_safe

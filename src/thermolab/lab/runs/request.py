@@ -17,6 +17,9 @@ identifiers; each method's result then reports the handling used and the
 operating point found (its ``extras``). What the lab stores with the run is
 what was asked, what the identifiers were given and why
 (:class:`OperatingPoint`, :func:`choose_operating_point`).
+
+The run's length: the rig's ``max_run_seconds`` bounds it in real time (a
+twin's speed-up counted), :func:`check_run_length`.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from typing import Any
 from thermolab.errors import InvalidParameterError
 from thermolab.ident.online import OnlineIdentifier
 from thermolab.ident.registry import METHODS, SETTINGS, Setting, owners
+from thermolab.lab.config import LabConfig
 from thermolab.lab.runs.control import ControlRequest
 from thermolab.runner.methods import build_identifiers, parse_methods
 from thermolab.signals import parse_signal
@@ -50,9 +54,11 @@ __all__ = [
     "RunRequest",
     "build_run_identifiers",
     "check_request",
+    "check_run_length",
     "choose_operating_point",
     "live_dead_time",
     "plan_run",
+    "run_seconds",
 ]
 
 #: Most samples a run may ask for.
@@ -435,3 +441,32 @@ def plan_run(
     point = choose_operating_point(request.offset, parse_methods(request.methods))
     identifiers, settings = build_run_identifiers(request, point.used, typical_dead_time)
     return RunPlan(inputs, identifiers, settings, point)
+
+
+def run_seconds(config: LabConfig, rig_id: str, samples: int, dt: float) -> float:
+    """The real time a run of ``samples`` × ``dt`` takes on the rig ``rig_id``.
+
+    A twin runs the lab's ``speedup`` times faster than real time.
+    """
+    speedup = config.speedup if config.rig(rig_id).kind == "sim" else 1.0
+    return samples * dt / speedup
+
+
+def check_run_length(request: RunRequest, rig_id: str, config: LabConfig) -> float:
+    """Return how long the run lasts (real seconds), if the rig's ``max_run_seconds`` allows it.
+
+    Raises
+    ------
+    InvalidParameterError
+        For a longer run, giving the most samples allowed at its dt.
+    """
+    length = run_seconds(config, rig_id, request.samples, request.dt)
+    longest = config.rig(rig_id).max_run_seconds
+    if length > longest:
+        per_sample = length / request.samples
+        raise InvalidParameterError(
+            f"a run of {request.samples} samples at dt = {request.dt:g} s lasts "
+            f"{length:g} s, longer than rig {rig_id!r} allows ({longest:g} s): at this dt "
+            f"at most {int(longest / per_sample + 1e-9)} samples"
+        )
+    return length

@@ -9,11 +9,13 @@ it; otherwise it ends after its samples. The sampling itself is
 A run belongs to a turn at the controls, and the turn covers it: the turn's
 time limit does not cut a started run (see :func:`thermolab.lab.access.rules.limit_reached`);
 instead START refuses a run longer than the rig's ``max_run_seconds``
-(:meth:`RunService.run_seconds`). When the turn ends otherwise (client gone,
+(:func:`.request.check_run_length`). When the turn ends otherwise (client gone,
 kicked, released...) the run is ended as by END, so that its data and
 estimates are kept. While a run holds a rig, the lab's device hub leaves the
 device to the runner. Storage is :mod:`.store` (reading back by channel: :mod:`.export`); the
-request's checks and its operating point are :mod:`.request`.
+request's checks and its operating point are :mod:`.request`; what is stored when a run
+ends, :mod:`.ending`; what is sent to it while it runs (END, an input, a closed loop's
+commands), :mod:`.commands`.
 """
 
 from __future__ import annotations
@@ -21,7 +23,6 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from datetime import timedelta
 from typing import Any
 
@@ -30,26 +31,23 @@ import numpy as np
 from thermolab.errors import (
     AccessDeniedError,
     ConflictError,
-    InvalidParameterError,
-    NoRunError,
-    NotClosedLoopError,
     PreviousRunEndingError,
     RunInProgressError,
-    ThermoLabError,
     TurnEndedError,
 )
-from thermolab.ident.online import OnlineIdentifier
 from thermolab.jsonsafe import json_safe
 from thermolab.lab.access import AccessService
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
-from thermolab.lab.db.models import Run, RunStatus
+from thermolab.lab.db.models import Run
 from thermolab.lab.devices import DeviceHub
+from thermolab.lab.runs.active import ActiveRun
+from thermolab.lab.runs.commands import end_run, hand_input, loop_state, send_command
 from thermolab.lab.runs.control import build_control_loop
+from thermolab.lab.runs.ending import SERVER_STOPPED, end_of_run
 from thermolab.lab.runs.export import RunExport, StoredSample
-from thermolab.lab.runs.request import RunRequest, plan_run
-from thermolab.lab.runs.statistics import method_statistics
+from thermolab.lab.runs.request import RunRequest, check_run_length, plan_run
 from thermolab.lab.runs.store import (
     DatabaseRecorder,
     RunRecord,
@@ -57,12 +55,10 @@ from thermolab.lab.runs.store import (
     add_run,
     record_of,
     run_channels,
-    run_command,
-    status_of,
 )
-from thermolab.lab.runs.timing import timing_summary
 from thermolab.lab.users import Principal
 from thermolab.records import ChannelSpec
+from thermolab.rigs import RigSpec
 from thermolab.runner import (
     EndReason,
     Event,
@@ -83,17 +79,6 @@ HANDOVER_WAIT = 30.0
 
 def _no_checkpoint(name: str) -> None:
     """The default :attr:`RunService.checkpoint`: START goes straight through."""
-
-
-@dataclass
-class _Active:
-    run_id: int
-    rig_id: str
-    control_session: int
-    experiment: Experiment
-    identifiers: dict[str, OnlineIdentifier]
-    thread: threading.Thread | None = None
-    stopped_by: str | None = None
 
 
 class RunService:
@@ -138,7 +123,7 @@ class RunService:
         self._on_finished = on_finished
         self._on_run = on_run
         self._on_event = on_event
-        self._active: dict[str, _Active] = {}
+        self._active: dict[str, ActiveRun] = {}
         # Every run's ending thread until it has returned: after a run leaves
         # _active its thread still announces the end (database reads), and the
         # lab must not close the database under it.
@@ -184,8 +169,10 @@ class RunService:
         """
         self._config.rig(rig_id)  # an unknown rig is a 404, before anything reads its device
         published = self._hub.published(rig_id)
-        plan = plan_run(request, (published.input_min, published.input_max))
-        length = self._check_length(rig_id, request)
+        # Live block and recursive methods take the rig kind's typical dead time as their delay.
+        dead_time = RigSpec.parse(self._config.rig(rig_id).spec).typical_dead_time
+        plan = plan_run(request, (published.input_min, published.input_max), dead_time)
+        length = check_run_length(request, rig_id, self._config)
         driver = self._hub.driver(rig_id)
         if driver is None:
             raise ConflictError(f"rig {rig_id!r} has no device attached; a run needs one")
@@ -208,8 +195,7 @@ class RunService:
         # that ends meanwhile is seen either here (the run is aborted before it
         # starts) or by that reconcile, after the run is registered (it is ENDed).
         with self._hub.locked(rig_id):
-            with self._lock:
-                going = self._active.get(rig_id)
+            going = self._going(rig_id)
             if going is not None and arrived_in is not None:  # else: 403 just below
                 if going.control_session == arrived_in:
                     raise RunInProgressError(
@@ -255,7 +241,7 @@ class RunService:
                 controller=loop,
                 **plan.inputs,
             )
-            active = _Active(run_id, rig_id, control_id, experiment, plan.identifiers)
+            active = ActiveRun(run_id, rig_id, control_id, experiment, plan.identifiers)
             if self._access.desired(rig_id)[1] != control_id:
                 # The turn ended between our commit and now: the run never starts.
                 active.stopped_by = "the end of the turn at the controls"
@@ -301,39 +287,16 @@ class RunService:
     def stop(self, rig_id: str, who: Principal) -> RunRecord:
         """END the rig's current run (its controller, or a teacher); returns at once.
 
-        Raises
-        ------
-        AccessDeniedError
-            If ``who`` neither controls the rig nor is a teacher.
-        ConflictError
-            If no run is going on the rig.
+        Errors: :func:`.commands.end_run` (``AccessDeniedError``, ``ConflictError``).
         """
-        with self._lock:
-            active = self._active.get(rig_id)
-        if active is None:
-            raise ConflictError(f"no run is going on rig {rig_id!r}")
-        if not who.is_teacher:
-            snap = self._access.snapshot(rig_id)
-            if snap.controller is None or snap.controller.user_id != who.user_id:
-                raise AccessDeniedError(f"only the controller of rig {rig_id!r} may END its run")
-        active.stopped_by = who.username
-        active.experiment.end()
-        return self.get(active.run_id, who)
+        return self.get(end_run(self._access, self._going(rig_id), rig_id, who), who)
 
     def set_input(self, rig_id: str, u: float, *, control_session: int | None = None) -> int | None:
         """Hand a new input to the rig's run; return the run id (``None``: no run).
 
-        With ``control_session``, only a run of that turn takes the input (an
-        input of the next controller never lands in the previous one's run).
+        With ``control_session``, only a run of that turn takes it (:func:`.commands.hand_input`).
         """
-        with self._lock:
-            active = self._active.get(rig_id)
-        if active is None:
-            return None
-        if control_session is not None and active.control_session != control_session:
-            return None
-        active.experiment.set_input(u)
-        return active.run_id
+        return hand_input(self._going(rig_id), u, control_session)
 
     def command(
         self,
@@ -343,52 +306,17 @@ class RunService:
         payload: dict[str, Any],
         act: Callable[[Experiment], None],
     ) -> RunRecord:
-        """Hand a closed-loop command to the rig's run: mode, set point, gains, fan.
+        """Hand a closed-loop command to the rig's run (mode, set point, gains, fan).
 
-        Only the controller, in the turn the run belongs to, may; ``act`` is
-        applied to the run's :class:`~thermolab.runner.Experiment` (which
-        checks the values and raises before changing anything), then the
-        command is recorded (``commands``, kind ``kind``). The run applies it
-        from its next sample on, after the interlocks, as any input.
-
-        Raises
-        ------
-        NoRunError
-            No run is going on the rig.
-        NotClosedLoopError
-            The run has no controller (and the command is not the fan).
-        AccessDeniedError
-            ``who`` does not control the rig, or the run belongs to an earlier turn.
+        Checked, applied and recorded by :func:`.commands.send_command`
+        (its errors: ``NoRunError``, ``NotClosedLoopError``, ``AccessDeniedError``).
         """
-        with self._lock:
-            active = self._active.get(rig_id)
-        if active is None:
-            raise NoRunError(f"no run is going on rig {rig_id!r}: start a closed-loop run first")
-        if active.experiment.controller is None and kind != "fan":
-            raise NotClosedLoopError(
-                f"run {active.run_id} was started without a controller; start a run with "
-                "control (manual or auto) to switch, change the set point or the gains"
-            )
-
-        with self._access.controlled(rig_id, who, f"send {kind} to its run") as turn:
-            if turn.control.id != active.control_session:
-                raise AccessDeniedError(
-                    f"run {active.run_id} belongs to an earlier turn at rig {rig_id!r}"
-                )
-            act(active.experiment)
-            turn.session.add(
-                run_command(rig_id, turn.control, who, turn.now, kind, None, active.run_id, payload)
-            )
-        return self.get(active.run_id, who)
+        run_id = send_command(self._access, self._going(rig_id), rig_id, who, kind, payload, act)
+        return self.get(run_id, who)
 
     def loop_state(self, rig_id: str) -> dict[str, Any] | None:
         """The control loop of the rig's run now (``ControlLoop.to_dict``), or ``None``."""
-        with self._lock:
-            active = self._active.get(rig_id)
-        if active is None or active.experiment.controller is None:
-            return None
-        state: dict[str, Any] = json_safe(active.experiment.controller.to_dict())
-        return {**state, "run": active.run_id}
+        return loop_state(self._going(rig_id))
 
     def control_changed(self, rig_id: str, controller_session: int | None) -> None:
         """END the rig's run if the turn it belongs to has ended.
@@ -396,8 +324,7 @@ class RunService:
         Called under the hub's lock for the rig (see :meth:`start`). If ENDing
         fails the run is aborted, which puts the actuator at its safe value.
         """
-        with self._lock:
-            active = self._active.get(rig_id)
+        active = self._going(rig_id)
         if active is None or active.control_session == controller_session:
             return
         active.stopped_by = active.stopped_by or "end of the turn at the controls"
@@ -407,18 +334,20 @@ class RunService:
             log.exception("run %s: ENDing at the end of the turn failed; aborting", active.run_id)
             active.experiment.abort("the turn ended")
 
+    def _going(self, rig_id: str) -> ActiveRun | None:
+        with self._lock:
+            return self._active.get(rig_id)
+
     def running(self, rig_id: str) -> int | None:
         """Return the id of the run going on the rig, if any."""
-        with self._lock:
-            active = self._active.get(rig_id)
+        active = self._going(rig_id)
         return active.run_id if active is not None else None
 
     def _await_previous_turn(self, rig_id: str, turn: int) -> None:
         # Right after a hand-over the previous turn's run is ENDing (the runner notices
         # within a quarter of its period) and storing its end: the new controller's
         # START waits for it instead of getting a 409.
-        with self._lock:
-            active = self._active.get(rig_id)
+        active = self._going(rig_id)
         if active is None or active.thread is None:
             return
         if turn != active.control_session:
@@ -426,7 +355,7 @@ class RunService:
             if active.thread.is_alive():
                 raise self._still_ending(rig_id, active)
 
-    def _still_ending(self, rig_id: str, active: _Active) -> PreviousRunEndingError:
+    def _still_ending(self, rig_id: str, active: ActiveRun) -> PreviousRunEndingError:
         return PreviousRunEndingError(
             f"run {active.run_id} of the previous turn at rig {rig_id!r} is still ending "
             f"(waited {self.handover_wait + active.experiment.dt / 4:g} s for it to store its "
@@ -435,8 +364,7 @@ class RunService:
 
     def wait(self, rig_id: str, timeout: float | None = None) -> None:
         """Wait until the rig's run (if any) has ended and been stored."""
-        with self._lock:
-            active = self._active.get(rig_id)
+        active = self._going(rig_id)
         if active is not None and active.thread is not None:
             active.thread.join(timeout)
 
@@ -451,37 +379,14 @@ class RunService:
         with self._lock:
             actives = list(self._active.values())
         for active in actives:
-            active.stopped_by = "the server stopped"
-            active.experiment.abort("the server stopped")
+            active.stopped_by = SERVER_STOPPED
+            active.experiment.abort(SERVER_STOPPED)
         with self._lock:
             ending = list(self._ending)
         for thread in ending:
             thread.join(timeout)
             if thread.is_alive():
                 log.warning("%s: still storing after %.0f s", thread.name, timeout)
-
-    # -- run length ------------------------------------------------------
-
-    def run_seconds(self, rig_id: str, samples: int, dt: float) -> float:
-        """The real time a run of ``samples`` × ``dt`` takes on the rig.
-
-        A twin runs the lab's ``speedup`` times faster than real time.
-        """
-        cfg = self._config.rig(rig_id)
-        speedup = self._config.speedup if cfg.kind == "sim" else 1.0
-        return samples * dt / speedup
-
-    def _check_length(self, rig_id: str, request: RunRequest) -> float:
-        length = self.run_seconds(rig_id, request.samples, request.dt)
-        longest = self._config.rig(rig_id).max_run_seconds
-        if length > longest:
-            per_sample = length / request.samples
-            raise InvalidParameterError(
-                f"a run of {request.samples} samples at dt = {request.dt:g} s lasts "
-                f"{length:g} s, longer than rig {rig_id!r} allows ({longest:g} s): at this dt "
-                f"at most {int(longest / per_sample + 1e-9)} samples"
-            )
-        return length
 
     # -- reading -------------------------------------------------------------------------
 
@@ -558,14 +463,14 @@ class RunService:
 
     # -- internals -------------------------------------------------------------------------
 
-    def _finish(self, active: _Active) -> None:
+    def _finish(self, active: ActiveRun) -> None:
         try:
             self._end_run(active)
         finally:
             with self._lock:
                 self._ending.discard(threading.current_thread())
 
-    def _end_run(self, active: _Active) -> None:
+    def _end_run(self, active: ActiveRun) -> None:
         result = active.experiment.wait()
         try:
             if result is not None:
@@ -585,49 +490,25 @@ class RunService:
                 except Exception:
                     log.exception("run %s: announcing the end failed", active.run_id)
 
-    def _save_end(self, active: _Active, result: RunResult) -> None:
-        now = self._clock.now()
-        status = status_of(result.end_reason)
-        if active.stopped_by == "the server stopped":
-            status = RunStatus.INTERRUPTED
-        reason = result.end_reason.value
-        if result.message:
-            reason = f"{reason}: {result.message}"
-        if result.end_reason is EndReason.ENDED and active.stopped_by:
-            reason = f"ended by {active.stopped_by}"
-        results: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {}
-        for name, method in result.methods.items():
-            identifier = active.identifiers.get(name)
-            data = method.to_dict(trajectory=True)
-            try:  # computed once, here, and stored with the result
-                data["stats"] = method_statistics(name, identifier, data.get("latest"))
-            except ThermoLabError as exc:  # the figures are a summary: never lose the run
-                log.warning("run %s: statistics of %s failed: %s", active.run_id, name, exc)
-            results[name] = (_params(identifier), data)
+    def _save_end(self, active: ActiveRun, result: RunResult) -> None:
         simulated = self._config.rig(active.rig_id).kind == "sim"
-        timing = timing_summary(result.t_read, result.lateness, result.dt, simulated=simulated)
-        control = None if result.control is None else json_safe(result.control)
-        self._store.save_end(active.run_id, status, reason, now, results, timing, control)
+        end = end_of_run(active, result, simulated=simulated)
+        self._store.save_end(
+            active.run_id,
+            end.status,
+            end.reason,
+            self._clock.now(),
+            end.results,
+            end.timing,
+            end.control,
+        )
 
     def _record(self, run: Run, stored: dict[str, Any] | None) -> RunRecord:
-        with self._lock:
-            active = self._active.get(run.rig_id)
-        live = active is not None and active.run_id == run.id
-        results: dict[str, Any] = {}
-        taken = run.samples_stored
-        control = run.meta.get("control_end")
-        if live and active is not None:
-            loop = active.experiment.controller
-            control = None if loop is None else json_safe(loop.to_dict())
-            snapshot = active.experiment.snapshot()
-            taken = snapshot.samples
-            for name, method in snapshot.methods.items():
-                results[name] = json_safe(method.to_dict())
-        elif stored is not None:
-            for name, result in stored.items():
-                results[name] = {k: v for k, v in result.items() if k != "trajectory"}
-        return record_of(run, results, taken, control)
-
-
-def _params(identifier: OnlineIdentifier | None) -> dict[str, Any]:
-    return dict(identifier.params) if identifier is not None else {}
+        active = self._going(run.rig_id)
+        if active is not None and active.run_id == run.id:
+            results, taken, control = active.now()
+            return record_of(run, results, taken, control)
+        results = {}
+        for name, result in (stored or {}).items():
+            results[name] = {k: v for k, v in result.items() if k != "trajectory"}
+        return record_of(run, results, run.samples_stored, run.meta.get("control_end"))

@@ -1,0 +1,90 @@
+"""The end of a run: how it ended, each method's result with its statistics, the timing.
+
+When a run's :class:`~thermolab.runner.Experiment` returns its
+:class:`~thermolab.runner.RunResult`, :func:`end_of_run` turns it into what
+is stored with the run (:meth:`~thermolab.lab.runs.store.RunStore.save_end`):
+the run's status and the reason in words, every method's settings and result
+with the paper's figures (:mod:`.statistics`, computed once, here), how well
+it kept its sampling times (:mod:`.timing`) and, for a closed loop, the
+controller as it ended. Nothing here reads or writes the database.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any
+
+from thermolab.errors import ThermoLabError
+from thermolab.ident.online import OnlineIdentifier
+from thermolab.jsonsafe import json_safe
+from thermolab.lab.db.models import RunStatus
+from thermolab.lab.runs.active import ActiveRun
+from thermolab.lab.runs.statistics import method_statistics
+from thermolab.lab.runs.store import status_of
+from thermolab.lab.runs.timing import timing_summary
+from thermolab.runner import EndReason, RunResult
+
+__all__ = ["SERVER_STOPPED", "RunEnd", "end_of_run"]
+
+log = logging.getLogger(__name__)
+
+#: ``ActiveRun.stopped_by`` of the runs the server aborted as it stopped (stored interrupted).
+SERVER_STOPPED = "the server stopped"
+
+
+@dataclass(frozen=True, slots=True)
+class RunEnd:
+    """What is stored when a run ends (the arguments of ``RunStore.save_end``).
+
+    Attributes
+    ----------
+    status : RunStatus
+    reason : str
+        How it ended, in words ("ended by ana", "rig_fault: ...").
+    results : dict
+        Each method's ``(settings, result)``, the result with its ``stats``.
+    timing : dict
+        :func:`~thermolab.lab.runs.timing.timing_summary` of the run.
+    control : dict or None
+        The controller as it ended (a closed loop), else ``None``.
+    """
+
+    status: RunStatus
+    reason: str
+    results: dict[str, tuple[dict[str, Any], dict[str, Any]]]
+    timing: dict[str, Any]
+    control: dict[str, Any] | None
+
+
+def end_of_run(active: ActiveRun, result: RunResult, *, simulated: bool) -> RunEnd:
+    """Return what to store of the run ``active`` that ended with ``result``.
+
+    ``simulated``: the rig is a twin (its timing is judged against its own clock).
+    A method whose statistics fail keeps its result without them (logged): the
+    figures are a summary and never cost the run.
+    """
+    status = status_of(result.end_reason)
+    if active.stopped_by == SERVER_STOPPED:
+        status = RunStatus.INTERRUPTED
+    reason = result.end_reason.value
+    if result.message:
+        reason = f"{reason}: {result.message}"
+    if result.end_reason is EndReason.ENDED and active.stopped_by:
+        reason = f"ended by {active.stopped_by}"
+    results: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {}
+    for name, method in result.methods.items():
+        identifier = active.identifiers.get(name)
+        data = method.to_dict(trajectory=True)
+        try:  # computed once, here, and stored with the result
+            data["stats"] = method_statistics(name, identifier, data.get("latest"))
+        except ThermoLabError as exc:
+            log.warning("run %s: statistics of %s failed: %s", active.run_id, name, exc)
+        results[name] = (_params(identifier), data)
+    timing = timing_summary(result.t_read, result.lateness, result.dt, simulated=simulated)
+    control = None if result.control is None else json_safe(result.control)
+    return RunEnd(status, reason, results, timing, control)
+
+
+def _params(identifier: OnlineIdentifier | None) -> dict[str, Any]:
+    return dict(identifier.params) if identifier is not None else {}
