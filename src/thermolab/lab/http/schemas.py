@@ -114,11 +114,17 @@ class SessionOut(_Out):
     username: str
     role: Literal["student", "teacher"]
     expires_at: datetime | None
+    must_change_password: bool = False
 
     @classmethod
     def of(cls, who: Principal) -> SessionOut:
         """Build from a principal."""
-        return cls(username=who.username, role=who.role.value, expires_at=who.expires_at)
+        return cls(
+            username=who.username,
+            role=who.role.value,
+            expires_at=who.expires_at,
+            must_change_password=who.must_change_password,
+        )
 
 
 class UserOut(_Out):

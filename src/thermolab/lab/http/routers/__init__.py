@@ -8,6 +8,7 @@ from fastapi import APIRouter
 
 from thermolab.lab.http.routers import (
     control,
+    courses,
     methods,
     readings,
     rigs,
@@ -21,5 +22,5 @@ from thermolab.lab.http.routers import (
 __all__ = ["api_router"]
 
 api_router = APIRouter(prefix="/api")
-for _resource in (session, version, rigs, readings, runs, methods, users, tokens, control):
+for _resource in (session, version, rigs, readings, runs, methods, users, tokens, control, courses):
     api_router.include_router(_resource.router)
