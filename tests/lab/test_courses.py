@@ -88,6 +88,8 @@ def test_a_class_list_creates_students_and_a_reupload_updates_them(
         (b"username,display_name\na b,Ana\nbia,<script>\n", [2, 3], "not valid"),
         (b"username,display_name\n", [2], "no student"),
         (b"", [1], "empty"),
+        (b'username,display_name\nana,"Ana"x\n', [2], "not readable as CSV"),
+        (b'username,name\r\nana,"Ana\r\nB"\r\nbia,\r\n', [4], "display name '' is not valid"),
         (b"username,display_name\ntina,Tina\n", [2], "teacher's account"),
     ],
 )
@@ -207,3 +209,22 @@ def test_students_cannot_manage_courses_and_bad_names_are_4xx(
     assert bad.json()["code"] == "invalid_parameter"
     assert teacher.get("/api/courses/nope").status_code == 404
     assert [c["name"] for c in teacher.get("/api/courses").json()] == ["ctrl1"]
+
+
+def test_a_student_may_ask_only_for_the_rigs_of_their_courses(
+    lab: Lab, teacher: TestClient, app_client: Clients
+) -> None:
+    lab.users.add("ana", PASSWORD, "student")
+    lab.users.add("rui", PASSWORD, "student")  # in no course: every rig
+    teacher.put("/api/courses/ctrl1/roster", content=b"username,name\nana,Ana\n")
+    teacher.put("/api/courses/ctrl1/rigs", json={"rigs": ["other"]})
+    ana = app_client("ana")
+    refused = ana.post("/api/rigs/twin/control")
+    assert refused.status_code == 403
+    assert "do not use rig 'twin'" in refused.json()["detail"]
+    assert ana.post("/api/rigs/other/control").status_code == 200
+    assert app_client("rui").post("/api/rigs/twin/control").status_code == 200
+    # Back to every rig: the course lists none.
+    teacher.put("/api/courses/ctrl1/rigs", json={"rigs": []})
+    ana.delete("/api/rigs/other/control")
+    assert ana.post("/api/rigs/twin/control").status_code == 200

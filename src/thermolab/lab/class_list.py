@@ -64,8 +64,18 @@ def parse_class_list(data: bytes) -> list[ClassListEntry]:
         raise ClassListError([(1, "the file is empty; the first line must be the header")])
     header = lines[0]
     separator = max(_SEPARATORS, key=header.count)
-    rows = list(csv.reader(io.StringIO(text), delimiter=separator, strict=False))
-    columns = [cell.strip().lower().replace(" ", "_") for cell in rows[0]]
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=separator, strict=True)
+    # (physical line where the row starts, cells): a quoted cell may span lines.
+    rows: list[tuple[int, list[str]]] = []
+    try:
+        start = 1
+        for row in reader:
+            rows.append((start, row))
+            start = reader.line_num + 1
+    except csv.Error as exc:
+        raise ClassListError([(reader.line_num, f"not readable as CSV ({exc})")]) from None
+    header_cells = rows[0][1]
+    columns = [cell.strip().lower().replace(" ", "_") for cell in header_cells]
     unknown = [c for c in columns if c not in _COLUMNS]
     named = [_COLUMNS[c] for c in columns if c in _COLUMNS]
     if unknown or sorted(named) != ["display_name", "username"]:
@@ -73,7 +83,7 @@ def parse_class_list(data: bytes) -> list[ClassListEntry]:
             [
                 (
                     1,
-                    f"the header has columns {rows[0]!r}; it must have exactly 'username' and "
+                    f"the header has columns {header_cells!r}; it must have exactly 'username' and "
                     "'display_name' (or 'name')",
                 )
             ]
@@ -84,7 +94,7 @@ def parse_class_list(data: bytes) -> list[ClassListEntry]:
     problems: list[tuple[int, str]] = []
     entries: list[ClassListEntry] = []
     first_line: dict[str, int] = {}
-    for number, row in enumerate(rows[1:], start=2):
+    for number, row in rows[1:]:
         if not any(cell.strip() for cell in row):
             continue
         if len(row) != len(columns):

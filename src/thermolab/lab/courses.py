@@ -197,6 +197,38 @@ class CourseService:
             session.flush()
             return _info(session, course, roster=True)
 
+    def check_rig(self, user_id: int, rig: str) -> None:
+        """Refuse a student a rig none of their courses allows.
+
+        A student in no course, or in a course that lists no rigs, may use
+        every rig; otherwise only the rigs one of their courses lists.
+
+        Raises
+        ------
+        AccessDeniedError
+        """
+        with self._db.read() as session:
+            courses = list(
+                session.scalars(
+                    select(CourseMember.course_id).where(
+                        CourseMember.user_id == user_id, CourseMember.role == Role.STUDENT.value
+                    )
+                )
+            )
+            if not courses:
+                return
+            listed = session.execute(
+                select(CourseRig.course_id, CourseRig.rig_id).where(
+                    CourseRig.course_id.in_(courses)
+                )
+            ).all()
+        limited = {course for course, _ in listed}
+        if any(c not in limited for c in courses) or any(r == rig for _, r in listed):
+            return
+        raise AccessDeniedError(
+            f"your courses do not use rig {rig!r}; ask your teacher which rigs are yours"
+        )
+
     def import_class_list(self, name: str, data: bytes) -> ImportReport:
         """Add or update the students of a class list, all or nothing.
 

@@ -1,7 +1,7 @@
 """One router per resource of the HTTP API, all under ``/api``.
 
-Every route but ``POST /api/session`` and ``GET /api/version`` needs a logged-in
-user or an API token (401 otherwise).
+Every route but ``POST /api/session``, ``POST /api/enrol`` and ``GET /api/version``
+needs a logged-in user or an API token (401 otherwise).
 """
 
 from fastapi import APIRouter
