@@ -95,3 +95,10 @@ def test_a_bad_class_list_is_one_line_and_changes_nothing(
     )
     assert status == 1
     assert err.startswith("error: cannot read")
+    status, _, err = run(
+        [*base, "course", "create", "c2", "--title", "C", "--teacher", "nobody"],
+        capsys,
+        monkeypatch,
+    )
+    assert status == 1
+    assert err.strip() == "error: no user called 'nobody'"

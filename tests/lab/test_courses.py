@@ -8,7 +8,7 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import func, select
 
-from thermolab.errors import ClassListError
+from thermolab.errors import AccessDeniedError, ClassListError
 from thermolab.lab.db.models import CourseMember, User
 from thermolab.lab.service import Lab
 
@@ -115,6 +115,9 @@ def test_a_list_with_one_bad_line_adds_none_of_the_good_ones(lab: Lab) -> None:
     with pytest.raises(ClassListError, match="line 4"):
         lab.courses.import_class_list("ctrl1", b"username,name\nana,Ana\nbia,Bia\n-x,X\n")
     assert [u.username for u in lab.users.list()] == ["tina"]
+    lab.users.add("rui", PASSWORD, "student")
+    with pytest.raises(AccessDeniedError, match="'rui' is not a teacher's account"):
+        lab.courses.create("ctrl2", "Controle II", "rui")
 
 
 def test_a_student_enrols_with_the_code_and_a_rotated_code_stops_working(

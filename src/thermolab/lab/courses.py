@@ -133,6 +133,8 @@ class CourseService:
             A name other than 1–64 lower-case letters, digits, ``. _ -``, or an empty title.
         ConflictError
             If the name is taken.
+        AccessDeniedError
+            If ``teacher`` is a student's account.
         """
         name = _course_name(name)
         title = _title(title)
@@ -142,6 +144,8 @@ class CourseService:
                 if session.scalar(select(Course.id).where(Course.name == name)) is not None:
                     raise ConflictError(f"course {name!r} already exists")
                 user = _user(session, teacher)
+                if user.role != Role.TEACHER.value:
+                    raise AccessDeniedError(f"{user.username!r} is not a teacher's account")
                 course = Course(name=name, title=title, enrol_code=new_enrol_code(), created_at=now)
                 session.add(course)
                 session.flush()
