@@ -11,6 +11,7 @@ from __future__ import annotations
 
 __all__ = [
     "AccessDeniedError",
+    "ClassListError",
     "ConfigError",
     "ConflictError",
     "GainRangeError",
@@ -23,6 +24,7 @@ __all__ = [
     "NoRunError",
     "NotClosedLoopError",
     "NotFoundError",
+    "PasswordChangeRequiredError",
     "PreviousRunEndingError",
     "RecordFormatError",
     "RigError",
@@ -37,6 +39,7 @@ __all__ = [
     "ThermoLabError",
     "TurnEndedError",
     "TurnExtensionRefusedError",
+    "WrongEnrolCodeError",
 ]
 
 
@@ -152,3 +155,29 @@ class NoRunError(ConflictError):
 
 class NotClosedLoopError(ConflictError):
     """A control command to a run started without a controller (an open-loop run)."""
+
+
+# -- courses and people (issue #10) -------------------------------------------------------
+
+
+class ClassListError(InvalidParameterError):
+    """A class list (CSV) with bad lines; ``problems`` holds ``(line, reason)`` for each.
+
+    The message lists every bad line, so the CLI's one line and the API's
+    ``detail`` say the same; nothing was changed.
+    """
+
+    def __init__(self, problems: list[tuple[int, str]]) -> None:
+        self.problems = list(problems)
+        listed = "; ".join(f"line {line}: {reason}" for line, reason in self.problems[:20])
+        more = len(self.problems) - 20
+        tail = f"; and {more} more" if more > 0 else ""
+        super().__init__(f"the class list was not imported (nothing changed): {listed}{tail}")
+
+
+class WrongEnrolCodeError(AccessDeniedError):
+    """No course has this enrolment code (mistyped, or rotated by the teacher)."""
+
+
+class PasswordChangeRequiredError(AccessDeniedError):
+    """The account holds a temporary password: it must be changed before anything else."""

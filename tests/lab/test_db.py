@@ -20,6 +20,9 @@ from thermolab.lab.db.models import Base, ControlSession, QueueEntry, RigRow, Us
 
 TABLES = {
     "users",
+    "courses",
+    "course_members",
+    "course_rigs",
     "sessions",
     "rigs",
     "control_sessions",
@@ -52,7 +55,7 @@ def test_migrations_create_the_schema_of_the_models(fresh_url: str) -> None:
         assert db.current_revision() is None
         db.upgrade()
         db.upgrade()  # idempotent
-        assert db.current_revision() == "0008"
+        assert db.current_revision() == "0009"
         assert set(db.table_names()) == TABLES | {"alembic_version"}
         with db.engine.connect() as connection:
             context = MigrationContext.configure(connection, opts={"compare_type": True})

@@ -62,6 +62,10 @@ ERROR_SENTENCES: Mapping[str, str] = {
     "rate_limited": "Too many attempts: wait a moment and try again.",
     "rig_unavailable": "The rig is not available now.",
     "turn_ended": "Your turn has ended.",
+    # Courses and people (issue #10).
+    "class_list_invalid": "The class list has bad lines; nothing was changed.",
+    "enrol_code_wrong": "No course has this enrolment code.",
+    "password_change_required": "Choose a new password before going on.",
 }
 
 

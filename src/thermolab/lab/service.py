@@ -20,6 +20,7 @@ from thermolab.lab.access import AccessService, RigView
 from thermolab.lab.camera import Picture, PictureCache, draw_twin, fetch_camera
 from thermolab.lab.clock import LabClock, SystemClock
 from thermolab.lab.config import LabConfig
+from thermolab.lab.courses import CourseService
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Role
 from thermolab.lab.devices import DesiredState, DeviceHub, RigOpener
@@ -188,6 +189,12 @@ class Lab:
             self.clock,
             lifetime=policy.session_lifetime,
             idle_timeout=policy.session_idle_timeout,
+            logins_ended=self.logins_ended,
+        )
+        self.courses = CourseService(
+            self.db,
+            self.clock,
+            hasher or default_password_hasher(),
             logins_ended=self.logins_ended,
         )
         # Personal API tokens for scripts; revoked ones are announced like ended logins.

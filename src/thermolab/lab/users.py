@@ -86,6 +86,8 @@ class UserInfo:
     created_at : datetime
     display_name : str or None
         The name as the person writes it (``João da Silva``), if given.
+    must_change_password : bool
+        The password is a temporary one (a class list's or a teacher's reset).
     """
 
     id: int
@@ -93,11 +95,19 @@ class UserInfo:
     role: Role
     created_at: datetime
     display_name: str | None = None
+    must_change_password: bool = False
 
     @classmethod
     def of(cls, user: User) -> UserInfo:
         """Build from a :class:`~thermolab.lab.db.models.User` row."""
-        return cls(user.id, user.username, Role(user.role), user.created_at, user.display_name)
+        return cls(
+            user.id,
+            user.username,
+            Role(user.role),
+            user.created_at,
+            user.display_name,
+            bool(user.must_change_password),
+        )
 
 
 @dataclass(frozen=True, slots=True)
@@ -118,6 +128,8 @@ class Principal:
         ``None``): see :mod:`thermolab.lab.tokens`.
     read_only : bool
         A read-only token: it may only read (GET), never change anything.
+    must_change_password : bool
+        The login was made with a temporary password: only changing it is allowed.
     """
 
     user_id: int
@@ -127,6 +139,7 @@ class Principal:
     expires_at: datetime | None = None
     token_id: int | None = None
     read_only: bool = False
+    must_change_password: bool = False
 
     @property
     def login_key(self) -> tuple[str, int | None]:
@@ -248,6 +261,7 @@ class UserService:
             user = self._find(session, username)
             user.password_hash = password_hash
             user.password_changed_at = self._clock.now()
+            user.must_change_password = False
             which = (LoginSession.user_id == user.id) & (LoginSession.id != (keep_session or -1))
             ended = list(session.scalars(select(LoginSession.id).where(which)))
             session.execute(delete(LoginSession).where(which))
@@ -445,7 +459,14 @@ class SessionService:
             )
             session.add(row)
             session.flush()
-            return token, Principal(user.id, user.username, user.role, row.id, row.expires_at)
+            return token, Principal(
+                user.id,
+                user.username,
+                user.role,
+                row.id,
+                row.expires_at,
+                must_change_password=user.must_change_password,
+            )
 
     def resolve(self, token: str | None) -> Principal | None:
         """Return who a cookie token belongs to, or ``None`` if it is not a live session."""
@@ -465,7 +486,12 @@ class SessionService:
             expired = now >= login.expires_at or now - login.last_seen_at >= self._idle
             stale = now - login.last_seen_at >= _TOUCH_INTERVAL
             principal = Principal(
-                user.id, user.username, Role(user.role), login.id, login.expires_at
+                user.id,
+                user.username,
+                Role(user.role),
+                login.id,
+                login.expires_at,
+                must_change_password=bool(user.must_change_password),
             )
         if expired:
             self.end(token)

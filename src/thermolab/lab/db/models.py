@@ -46,6 +46,9 @@ __all__ = [
     "Base",
     "Command",
     "ControlSession",
+    "Course",
+    "CourseMember",
+    "CourseRig",
     "GuidePage",
     "GuideRevision",
     "LeaveReason",
@@ -174,6 +177,51 @@ class User(Base):
     password_hash: Mapped[str] = mapped_column(String(255))
     created_at: Mapped[datetime] = mapped_column(UTCDateTime)
     password_changed_at: Mapped[datetime] = mapped_column(UTCDateTime)
+    # A teacher's reset gives a temporary password: its holder must choose a new one first.
+    must_change_password: Mapped[bool] = mapped_column(Boolean, default=False)
+
+
+class Course(Base):
+    """A course: its teachers and students are :class:`CourseMember` rows.
+
+    ``enrol_code`` is what a student types to join (``thermolab.lab.courses``);
+    a teacher rotates it to close the door on an old one.
+    """
+
+    __tablename__ = "courses"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    name: Mapped[str] = mapped_column(String(64), unique=True)
+    title: Mapped[str] = mapped_column(String(200))
+    enrol_code: Mapped[str] = mapped_column(String(32), unique=True)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime)
+
+
+class CourseMember(Base):
+    """A user in a course, as a teacher or a student (once per course)."""
+
+    __tablename__ = "course_members"
+    __table_args__ = (
+        CheckConstraint(_in("role", Role), name="role"),
+        UniqueConstraint("course_id", "user_id"),
+    )
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    course_id: Mapped[int] = mapped_column(ForeignKey("courses.id", ondelete="CASCADE"), index=True)
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id", ondelete="CASCADE"), index=True)
+    role: Mapped[str] = mapped_column(String(16))
+    joined_at: Mapped[datetime] = mapped_column(UTCDateTime)
+
+
+class CourseRig(Base):
+    """A rig a course's students may use; a course with no rows may use every rig."""
+
+    __tablename__ = "course_rigs"
+    __table_args__ = (UniqueConstraint("course_id", "rig_id"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    course_id: Mapped[int] = mapped_column(ForeignKey("courses.id", ondelete="CASCADE"), index=True)
+    rig_id: Mapped[str] = mapped_column(String(64))
 
 
 class LoginSession(Base):

@@ -11,7 +11,7 @@ from typing import Annotated, Any
 from fastapi import Depends, Path, Query, Request, Security
 from fastapi.security import APIKeyCookie, HTTPAuthorizationCredentials, HTTPBearer
 
-from thermolab.errors import AccessDeniedError
+from thermolab.errors import AccessDeniedError, PasswordChangeRequiredError
 from thermolab.lab.config.model import RIG_ID
 from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.schemas import ErrorOut, ValidationErrorOut
@@ -101,7 +101,24 @@ def current_user(
         raise AuthenticationError("your session has ended; log in again")
     if principal.read_only and request.method.upper() not in _READS:
         raise AccessDeniedError("this API token is read-only: it may only read (GET)")
+    if principal.must_change_password and not _changes_password(request):
+        raise PasswordChangeRequiredError(
+            "your password is a temporary one: choose your own first "
+            f"(PUT /api/users/{principal.username}/password)"
+        )
     return principal
+
+
+def _changes_password(request: Request) -> bool:
+    """What a login with a temporary password may do: see who it is, log out, change it."""
+    path = request.url.path
+    if path == "/api/session":
+        return True
+    return (
+        request.method.upper() == "PUT"
+        and path.startswith("/api/users/")
+        and path.endswith("/password")
+    )
 
 
 UserDep = Annotated[Principal, Depends(current_user)]

@@ -31,12 +31,14 @@ from starlette.websockets import WebSocket
 
 from thermolab.errors import (
     AccessDeniedError,
+    ClassListError,
     ConflictError,
     GainRangeError,
     NoOutputUnitError,
     NoRunError,
     NotClosedLoopError,
     NotFoundError,
+    PasswordChangeRequiredError,
     PreviousRunEndingError,
     RigError,
     RunInProgressError,
@@ -44,6 +46,7 @@ from thermolab.errors import (
     ThermoLabError,
     TurnEndedError,
     TurnExtensionRefusedError,
+    WrongEnrolCodeError,
 )
 from thermolab.lab.camera import CameraError
 from thermolab.lab.error_messages import LANGUAGE_COOKIE, error_message, negotiate_language
@@ -94,6 +97,10 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     NoOutputUnitError: HttpFault(422, "no_output_unit"),
     NoRunError: HttpFault(409, "no_run"),
     NotClosedLoopError: HttpFault(409, "not_closed_loop"),
+    # Courses and people (issue #10).
+    ClassListError: HttpFault(422, "class_list_invalid"),
+    WrongEnrolCodeError: HttpFault(403, "enrol_code_wrong"),
+    PasswordChangeRequiredError: HttpFault(403, "password_change_required"),
 }
 _OTHER = HttpFault(400, "bad_request")
 _HTTP_CODES = {404: "not_found", 405: "method_not_allowed", 413: "body_too_large"}
@@ -160,6 +167,13 @@ def install_error_handlers(app: FastAPI) -> None:
         if isinstance(exc, RateLimitedError):
             headers["Retry-After"] = str(max(1, math.ceil(exc.retry_after)))
         language = request_language(request.headers, request.cookies)
+        if isinstance(exc, ClassListError):
+            # One problem per bad line of the file, so a page can list them.
+            problems = [
+                {"loc": ["file", str(line)], "type": fault.code, "msg": reason}
+                for line, reason in exc.problems
+            ]
+            return invalid_response(str(exc), fault.code, problems, language=language)
         if fault.status == 422:
             problem = {"loc": [], "type": fault.code, "msg": str(exc)}
             return invalid_response(str(exc), fault.code, [problem], language=language)

@@ -87,10 +87,11 @@ class ValidationErrorOut(_Out):
     ``errors`` one per problem."""
 
     detail: str
-    code: Literal["invalid_request", "invalid_parameter"] = Field(
+    code: Literal["invalid_request", "invalid_parameter", "class_list_invalid"] = Field(
         description="invalid_request: the request does not match the schema (a body that is "
         "not UTF-8 JSON included); invalid_parameter: the values match the schema but the lab "
-        "refuses them (a signal outside the rig's range, a run too long...)"
+        "refuses them (a signal outside the rig's range, a run too long...); "
+        "class_list_invalid: a class list with bad lines (one entry of errors per line)"
     )
     message: str | None = Field(
         default=None, description="the code's sentence in the reader's language"
@@ -114,11 +115,17 @@ class SessionOut(_Out):
     username: str
     role: Literal["student", "teacher"]
     expires_at: datetime | None
+    must_change_password: bool = False
 
     @classmethod
     def of(cls, who: Principal) -> SessionOut:
         """Build from a principal."""
-        return cls(username=who.username, role=who.role.value, expires_at=who.expires_at)
+        return cls(
+            username=who.username,
+            role=who.role.value,
+            expires_at=who.expires_at,
+            must_change_password=who.must_change_password,
+        )
 
 
 class UserOut(_Out):

@@ -47,10 +47,16 @@ def get_rig(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
     response_model=RigOut,
     tags=["access"],
     summary="Ask for control",
-    responses=documented_errors(404, 409),
+    responses=documented_errors(403, 404, 409),
 )
 def request_control(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
-    """Take control of a free rig or join its queue (asking again changes nothing)."""
+    """Take control of a free rig or join its queue (asking again changes nothing).
+
+    A student may ask only for a rig one of their courses uses (403 otherwise;
+    a course that lists no rigs uses them all, and so does a student in no course).
+    """
+    if not who.is_teacher and any(rig.id == rig_id for rig in lab.config.rigs):
+        lab.courses.check_rig(who.user_id, rig_id)
     return RigOut.of(lab.access.request_control(rig_id, who))
 
 

@@ -67,7 +67,8 @@ export function setUnauthorizedHandler(fn) {
  * @param {string} method
  * @param {string} path starting with /api/
  * @param {unknown} [body] sent as JSON
- * @param {{signal?: AbortSignal, quiet401?: boolean}} [opts]
+ * @param {{signal?: AbortSignal, quiet401?: boolean, raw?: ArrayBuffer, rawType?: string}} [opts]
+ *   raw: bytes sent as they are (a file), with Content-Type rawType
  */
 export async function request(method, path, body, opts = {}) {
   /** @type {RequestInit} */
@@ -80,6 +81,9 @@ export async function request(method, path, body, opts = {}) {
   if (body !== undefined) {
     init.headers = { Accept: "application/json", "Accept-Language": language(), "Content-Type": "application/json" };
     init.body = JSON.stringify(body);
+  } else if (opts.raw !== undefined) {
+    init.headers = { Accept: "application/json", "Accept-Language": language(), "Content-Type": opts.rawType ?? "application/octet-stream" };
+    init.body = opts.raw;
   }
   let res;
   try {
@@ -132,4 +136,16 @@ export const api = {
   /** A new API token: the answer's `token` is the secret, shown this once. */
   createToken: (spec) => request("POST", "/api/tokens", spec),
   revokeToken: (id) => request("DELETE", `/api/tokens/${enc(id)}`),
+  changePassword: (user, currentPassword, password) =>
+    request("PUT", `/api/users/${enc(user)}/password`, { password, currentPassword }),
+  courses: (opts) => request("GET", "/api/courses", undefined, opts),
+  course: (name, opts) => request("GET", `/api/courses/${enc(name)}`, undefined, opts),
+  createCourse: (spec) => request("POST", "/api/courses", spec),
+  /** A class list (the CSV file's bytes, as they are): {created: {user: one-time password}, updated, unchanged}. */
+  uploadRoster: (name, bytes) =>
+    request("PUT", `/api/courses/${enc(name)}/roster`, undefined, { raw: bytes, rawType: "text/csv" }),
+  rotateCode: (name) => request("POST", `/api/courses/${enc(name)}/enrol-code`),
+  resetPassword: (user, currentPassword) =>
+    request("POST", `/api/users/${enc(user)}/password-reset`, { currentPassword }),
+  enrol: (spec) => request("POST", "/api/enrol", spec, { quiet401: true }),
 };

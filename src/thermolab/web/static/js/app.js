@@ -21,11 +21,14 @@ const ROUTES = [
   { pattern: /^\/runs\/([^/]+)$/, view: () => import("./views/run.js"), title: "run.pageTitle", nav: "runs" },
   { pattern: /^\/teacher$/, view: () => import("./views/teacher.js"), title: "nav.teacher", nav: "teacher" },
   { pattern: /^\/account$/, view: () => import("./views/account.js"), title: "nav.account", nav: "account" },
+  { pattern: /^\/courses$/, view: () => import("./views/courses.js"), title: "nav.courses", nav: "courses" },
+  { pattern: /^\/enrol$/, view: () => import("./views/enrol.js"), title: "enrol.title", open: true },
+  { pattern: /^\/password$/, view: () => import("./views/password.js"), title: "password.heading", nav: "account" },
 ];
 
 /** Shared state handed to every view. */
 export const ctx = {
-  /** @type {{username: string, role: string} | null} */
+  /** @type {{username: string, role: string, mustChangePassword?: boolean} | null} */
   user: null,
   navigate,
   afterLogin,
@@ -89,6 +92,7 @@ function updateChrome() {
   shell("nav").hidden = user === null;
   shell("who").hidden = user === null;
   shell("nav-teacher").hidden = user?.role !== "teacher";
+  shell("nav-courses").hidden = user?.role !== "teacher";
   setText(shell("who-name"), user ? t("app.who", { user: user.username, role: ROLE_TEXT[user.role] ? t(ROLE_TEXT[user.role]) : user.role }) : "");
 }
 
@@ -126,6 +130,11 @@ async function render(opts = {}) {
   if (!route.open && ctx.user === null) {
     const back = path === "/" ? "" : `?next=${encodeURIComponent(path + (query.toString() ? `?${query}` : ""))}`;
     navigate(`/login${back}`);
+    return;
+  }
+  if (ctx.user?.mustChangePassword && path !== "/password") {
+    // A temporary password opens nothing else (the server refuses every other request).
+    navigate("/password");
     return;
   }
   markNav(route.nav ?? "");

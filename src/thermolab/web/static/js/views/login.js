@@ -66,6 +66,7 @@ export function mount(main, { query }, ctx) {
       t("login.lede"),
     ),
     form,
+    h("p", null, h("a", { href: "#/enrol", id: "login-enrol" }, t("login.enrol"))),
   );
   return null;
 }

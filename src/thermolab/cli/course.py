@@ -1,0 +1,133 @@
+"""``thermolab course``: courses and class lists from the shell.
+
+``create NAME --title TEXT --teacher NAME``, ``list``, ``import COURSE FILE``.
+An import adds or updates the students of a CSV class list (columns
+``username`` and ``display_name``) all or nothing; a bad file is one line
+naming each bad line, exit 1, and nothing changes. The new accounts' one-time
+passwords are printed once, as CSV on standard output (``username,password``),
+so they can be redirected to a file and handed out.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from thermolab.cli.serve import add_database_options, lab_config_from_args, make_private
+
+if TYPE_CHECKING:
+    from thermolab.lab.courses import CourseService
+    from thermolab.lab.db import Database
+
+__all__ = ["register"]
+
+_EXAMPLES = """\
+examples:
+  thermolab course create ctrl1 --title "Controle I" --teacher tina
+  thermolab course import ctrl1 turma.csv > passwords.csv
+  thermolab course list
+"""
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``course`` subcommand to the ``thermolab`` parser."""
+    parser = subparsers.add_parser(
+        "course",
+        help="manage courses and import class lists (create, list, import)",
+        description="Manage the lab's courses and their students.",
+        epilog=_EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    actions = parser.add_subparsers(
+        dest="action", metavar="ACTION", parser_class=type(parser), required=True
+    )
+    create = actions.add_parser("create", help="create a course")
+    create.add_argument("name", metavar="NAME", help="short name: letters, digits, . _ -")
+    create.add_argument("--title", required=True, help="the title shown on the pages")
+    create.add_argument("--teacher", required=True, help="the login name of its first teacher")
+    add_database_options(create)
+    create.set_defaults(handler=_create)
+
+    listing = actions.add_parser("list", help="list the courses with their enrolment codes")
+    add_database_options(listing)
+    listing.set_defaults(handler=_list)
+
+    load = actions.add_parser(
+        "import", help="add or update a course's students from a CSV class list"
+    )
+    load.add_argument("course", metavar="COURSE")
+    load.add_argument("file", metavar="FILE", type=Path, help="CSV: username,display_name")
+    add_database_options(load)
+    load.set_defaults(handler=_import)
+
+
+def _courses(args: argparse.Namespace) -> tuple[Database, CourseService]:
+    from thermolab.lab.clock import SystemClock
+    from thermolab.lab.courses import CourseService
+    from thermolab.lab.db import Database
+    from thermolab.lab.security import default_password_hasher
+
+    config = lab_config_from_args(args)
+    for path in make_private(config):
+        print(f"warning: tightened permissions of {path} to this user only", file=sys.stderr)
+    db = Database(config.database, pool_size=1, max_overflow=1)
+    db.upgrade()
+    return db, CourseService(db, SystemClock(), default_password_hasher())
+
+
+def _create(args: argparse.Namespace) -> int:
+    db, courses = _courses(args)
+    try:
+        course = courses.create(args.name, args.title, args.teacher)
+    finally:
+        db.close()
+    print(f"created course {course.name!r} ({course.title}); enrolment code {course.enrol_code}")
+    return 0
+
+
+def _list(args: argparse.Namespace) -> int:
+    db, courses = _courses(args)
+    try:
+        found = courses.list()
+    finally:
+        db.close()
+    if not found:
+        print("no courses yet; create one with: thermolab course create NAME --title T --teacher T")
+    for course in found:
+        rigs = ", ".join(course.rigs) or "all rigs"
+        print(f"{course.name}\t{course.enrol_code}\t{rigs}\t{course.title}")
+    return 0
+
+
+def _import(args: argparse.Namespace) -> int:
+    from thermolab.cli import CliError
+    from thermolab.lab.class_list import MAX_CLASS_LIST_BYTES
+
+    path: Path = args.file
+    try:
+        with path.open("rb") as source:
+            data = source.read(MAX_CLASS_LIST_BYTES + 1)
+    except OSError as exc:
+        raise CliError(f"cannot read {path}: {exc.strerror or exc}") from None
+    db, courses = _courses(args)
+    try:
+        report = courses.import_class_list(args.course, data)
+    finally:
+        db.close()
+    print(
+        f"{args.course}: {len(report.created)} created, {len(report.updated)} updated, "
+        f"{len(report.unchanged)} unchanged",
+        file=sys.stderr,
+    )
+    if report.created:
+        print(
+            "one-time passwords (shown once; each must be changed at first login):", file=sys.stderr
+        )
+        writer = csv.writer(sys.stdout, lineterminator="\n")
+        writer.writerow(["username", "password"])
+        for username, password in report.created.items():
+            writer.writerow([username, password])
+    return 0

@@ -1,0 +1,306 @@
+"""Routes of courses (teachers), self-enrolment with a code (anyone), password resets (teachers).
+
+A class list is uploaded as the raw CSV file (``PUT /api/courses/{course}/roster``,
+any content type): its bytes are judged as they are, so a file that is not
+UTF-8 is reported by line instead of being mangled on the way.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Annotated, Literal
+
+import anyio.to_thread
+from fastapi import APIRouter, Path, Request, status
+from pydantic import Field
+
+from thermolab.errors import AccessDeniedError, ClassListError, WrongEnrolCodeError
+from thermolab.lab.class_list import MAX_CLASS_LIST_BYTES
+from thermolab.lab.courses import CourseInfo, ImportReport
+from thermolab.lab.http.bodies import In, Out
+from thermolab.lab.http.deps import AUTHENTICATED, LabDep, UserDep, Username, documented_errors
+from thermolab.lab.names import MAX_DISPLAY_NAME
+from thermolab.lab.security import (
+    MAX_PASSWORD_LENGTH,
+    MIN_PASSWORD_LENGTH,
+    AuthenticationError,
+    normalize_username,
+)
+from thermolab.lab.users import Principal
+
+__all__ = ["router"]
+
+# Every route needs a login but self-enrolment, which is on ``router`` itself.
+router = APIRouter()
+_teachers = APIRouter(**AUTHENTICATED)
+
+CourseName = Annotated[
+    str,
+    Path(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$"),
+]
+
+
+class NewCourseIn(In):
+    """A new course: a short name (the URL's) and a title."""
+
+    name: Annotated[str, Field(min_length=1, max_length=64)]
+    title: Annotated[str, Field(min_length=1, max_length=200)]
+
+
+class CourseRigsIn(In):
+    """The rigs a course's students may use (empty: every rig)."""
+
+    rigs: Annotated[list[Annotated[str, Field(min_length=1, max_length=64)]], Field(max_length=100)]
+
+
+class MemberOut(Out):
+    """A person of a course."""
+
+    username: str
+    display_name: str | None
+    role: Literal["student", "teacher"]
+    must_change_password: bool
+
+
+class CourseOut(Out):
+    """A course; ``members`` is filled when one course is asked for."""
+
+    name: str
+    title: str
+    enrol_code: str
+    created_at: datetime
+    rigs: list[str]
+    members: list[MemberOut]
+
+    @classmethod
+    def of(cls, course: CourseInfo) -> CourseOut:
+        """Build from a :class:`~thermolab.lab.courses.CourseInfo`."""
+        return cls(
+            name=course.name,
+            title=course.title,
+            enrol_code=course.enrol_code,
+            created_at=course.created_at,
+            rigs=list(course.rigs),
+            members=[
+                MemberOut(
+                    username=m.username,
+                    display_name=m.display_name,
+                    role=m.role.value,
+                    must_change_password=m.must_change_password,
+                )
+                for m in course.members
+            ],
+        )
+
+
+class ImportOut(Out):
+    """What a class list changed; ``created`` maps each new login to its one-time password."""
+
+    created: dict[str, str]
+    updated: list[str]
+    unchanged: list[str]
+
+    @classmethod
+    def of(cls, report: ImportReport) -> ImportOut:
+        """Build from an :class:`~thermolab.lab.courses.ImportReport`."""
+        return cls(created=report.created, updated=report.updated, unchanged=report.unchanged)
+
+
+class EnrolCodeOut(Out):
+    """A course's new enrolment code."""
+
+    enrol_code: str
+
+
+class EnrolIn(In):
+    """Self-enrolment: the course's code and the new account."""
+
+    code: Annotated[str, Field(min_length=1, max_length=32)]
+    username: Annotated[str, Field(min_length=1, max_length=64)]
+    display_name: Annotated[str, Field(min_length=1, max_length=MAX_DISPLAY_NAME)]
+    password: Annotated[str, Field(min_length=MIN_PASSWORD_LENGTH, max_length=MAX_PASSWORD_LENGTH)]
+
+
+class EnrolledOut(Out):
+    """The account self-enrolment created."""
+
+    username: str
+    display_name: str | None
+
+
+class ResetIn(In):
+    """A teacher's own current password (re-authentication)."""
+
+    current_password: Annotated[str, Field(min_length=1, max_length=MAX_PASSWORD_LENGTH)]
+
+
+class ResetOut(Out):
+    """The student's one-time password, shown once."""
+
+    temporary_password: str
+
+
+def _teacher(who: Principal, action: str) -> None:
+    if not who.is_teacher:
+        raise AccessDeniedError(f"only a teacher may {action}")
+
+
+@_teachers.get(
+    "/courses",
+    response_model=list[CourseOut],
+    tags=["courses"],
+    summary="All courses",
+    responses=documented_errors(403),
+)
+def list_courses(who: UserDep, lab: LabDep) -> list[CourseOut]:
+    """Every course with its code and rigs, without rosters (teachers only)."""
+    _teacher(who, "list courses")
+    return [CourseOut.of(c) for c in lab.courses.list()]
+
+
+@_teachers.post(
+    "/courses",
+    response_model=CourseOut,
+    status_code=status.HTTP_201_CREATED,
+    tags=["courses"],
+    summary="Create a course",
+    responses=documented_errors(403, 409, 422),
+)
+def create_course(body: NewCourseIn, who: UserDep, lab: LabDep) -> CourseOut:
+    """Create a course; its creator is its first teacher (teachers only)."""
+    _teacher(who, "create courses")
+    return CourseOut.of(lab.courses.create(body.name, body.title, who.username))
+
+
+@_teachers.get(
+    "/courses/{course}",
+    response_model=CourseOut,
+    tags=["courses"],
+    summary="A course with its roster",
+    responses=documented_errors(403, 404, 422),
+)
+def get_course(course: CourseName, who: UserDep, lab: LabDep) -> CourseOut:
+    """A course with its teachers and students (teachers only)."""
+    _teacher(who, "see a course's roster")
+    return CourseOut.of(lab.courses.get(course))
+
+
+@_teachers.put(
+    "/courses/{course}/roster",
+    response_model=ImportOut,
+    tags=["courses"],
+    summary="Upload a class list (CSV)",
+    responses=documented_errors(403, 404, 409, 413, 422),
+    openapi_extra={
+        "requestBody": {
+            "required": True,
+            "content": {"text/csv": {"schema": {"type": "string", "format": "binary"}}},
+        }
+    },
+)
+async def upload_roster(
+    course: CourseName, request: Request, who: UserDep, lab: LabDep
+) -> ImportOut:
+    """Add or update a course's students from a CSV class list, all or nothing.
+
+    Columns ``username`` and ``display_name`` (or ``name``); a 422
+    ``class_list_invalid`` lists each bad line in ``errors`` (``loc`` =
+    ``["file", line]``) and nothing changes.
+    """
+    _teacher(who, "upload class lists")
+    data = b""
+    async for chunk in request.stream():
+        data += chunk
+        if len(data) > MAX_CLASS_LIST_BYTES:
+            raise ClassListError([(0, f"the file is larger than {MAX_CLASS_LIST_BYTES} bytes")])
+    report = await anyio.to_thread.run_sync(lab.courses.import_class_list, course, data)
+    return ImportOut.of(report)
+
+
+@_teachers.post(
+    "/courses/{course}/enrol-code",
+    response_model=EnrolCodeOut,
+    tags=["courses"],
+    summary="A new enrolment code",
+    responses=documented_errors(403, 404, 422),
+)
+def rotate_code(course: CourseName, who: UserDep, lab: LabDep) -> EnrolCodeOut:
+    """Replace the course's enrolment code; the old one stops working (teachers only)."""
+    _teacher(who, "change enrolment codes")
+    return EnrolCodeOut(enrol_code=lab.courses.rotate_code(course))
+
+
+@_teachers.put(
+    "/courses/{course}/rigs",
+    response_model=CourseOut,
+    tags=["courses"],
+    summary="The rigs a course may use",
+    responses=documented_errors(403, 404, 422),
+)
+def set_rigs(course: CourseName, body: CourseRigsIn, who: UserDep, lab: LabDep) -> CourseOut:
+    """Set the rigs the course's students may use; an empty list means every rig."""
+    _teacher(who, "choose a course's rigs")
+    known = {rig.id for rig in lab.config.rigs}
+    return CourseOut.of(lab.courses.set_rigs(course, body.rigs, known))
+
+
+@router.post(
+    "/enrol",
+    response_model=EnrolledOut,
+    status_code=status.HTTP_201_CREATED,
+    tags=["courses"],
+    summary="Enrol with a course code",
+    responses=documented_errors(403, 409, 422, 429),
+)
+def enrol(body: EnrolIn, request: Request, lab: LabDep) -> EnrolledOut:
+    """Create a student account in the course whose code this is (no login needed).
+
+    Attempts are throttled like logins, per (code, client address) and per
+    address, so codes cannot be guessed quickly; a wrong code is 403
+    ``enrol_code_wrong``.
+    """
+    address = request.client.host if request.client is not None else "unknown"
+    key = f"enrol:{body.code.strip().upper()}"
+    lab.throttle.check(key, address)
+    try:
+        user = lab.courses.enrol(body.code, body.username, body.display_name, body.password)
+    except WrongEnrolCodeError:
+        lab.throttle.record(key, address, success=False)
+        raise
+    lab.throttle.record(key, address, success=True)
+    return EnrolledOut(username=user.username, display_name=user.display_name)
+
+
+@_teachers.post(
+    "/users/{username}/password-reset",
+    response_model=ResetOut,
+    tags=["users"],
+    summary="Reset a student's password",
+    responses=documented_errors(403, 404, 422, 429),
+)
+def reset_password(
+    username: Username, body: ResetIn, who: UserDep, lab: LabDep, request: Request
+) -> ResetOut:
+    """Give a student a one-time password, shown once; they must change it at next login.
+
+    The teacher re-authenticates with their own current password (as for a
+    password change); a script's API token cannot reset. The student's
+    logins end.
+    """
+    _teacher(who, "reset passwords")
+    if who.token_id is not None:
+        raise AccessDeniedError("an API token cannot reset passwords; log in with your password")
+    address = request.client.host if request.client is not None else "unknown"
+    lab.throttle.check(who.username, address)
+    try:
+        lab.users.verify(who.username, body.current_password)
+    except AuthenticationError:
+        lab.throttle.record(who.username, address, success=False)
+        raise AccessDeniedError("your current password is wrong") from None
+    lab.throttle.record(who.username, address, success=True)
+    if normalize_username(username) == who.username:
+        raise AccessDeniedError("change your own password instead of resetting it")
+    return ResetOut(temporary_password=lab.courses.reset_password(username))
+
+
+router.include_router(_teachers)

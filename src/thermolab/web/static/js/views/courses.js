@@ -1,0 +1,227 @@
+// @ts-check
+// A teacher's courses: create one, upload its class list (CSV) and read the
+// report (each new student's one-time password, or every bad line), see the
+// roster, show or renew the enrolment code, reset a student's password.
+
+import { api } from "../api.js";
+import { announce, h, setText } from "../dom.js";
+import { t } from "../i18n.js";
+
+/**
+ * @param {HTMLElement} main
+ * @param {{query: URLSearchParams}} route
+ * @param {any} ctx
+ */
+export function mount(main, { query }, ctx) {
+  if (ctx.user?.role !== "teacher") {
+    main.append(h("h1", null, t("nav.courses")), h("p", { class: "error" }, t("courses.only")));
+    return null;
+  }
+  let alive = true;
+  const error = h("p", { class: "error", id: "course-error", role: "alert" });
+  const list = h("ul", { id: "course-list" });
+  const detail = h("section", { class: "card", id: "course-detail", hidden: true, "aria-live": "polite" });
+  const name = h("input", { id: "course-name", name: "name", maxlength: "64", required: true, autocomplete: "off", autocapitalize: "none" });
+  const title = h("input", { id: "course-title", name: "title", maxlength: "200", required: true, autocomplete: "off" });
+  const create = h("button", { type: "submit", class: "primary" }, t("courses.create"));
+  const form = h(
+    "form",
+    { class: "card", id: "course-form", novalidate: true, "aria-describedby": "course-error" },
+    h("h2", null, t("courses.newHeading")),
+    h("div", { class: "field" }, h("label", { for: "course-name" }, t("courses.name")), name),
+    h("div", { class: "field" }, h("label", { for: "course-title" }, t("courses.titleLabel")), title),
+    error,
+    create,
+  );
+
+  async function refresh() {
+    const courses = await api.courses();
+    if (!alive) return;
+    list.replaceChildren(
+      ...(courses.length === 0
+        ? [h("li", { class: "muted" }, t("courses.none"))]
+        : courses.map((c) => h("li", null, h("a", { href: `#/courses?course=${encodeURIComponent(c.name)}` }, `${c.title} (${c.name})`)))),
+    );
+  }
+
+  form.addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    setText(error, "");
+    if (!name.value.trim() || !title.value.trim()) {
+      setText(error, t("courses.missing"));
+      (name.value.trim() ? title : name).focus();
+      return;
+    }
+    create.disabled = true;
+    try {
+      const made = await api.createCourse({ name: name.value.trim(), title: title.value.trim() });
+      announce(t("courses.created", { course: made.title }));
+      form.reset();
+      ctx.navigate(`/courses?course=${encodeURIComponent(made.name)}`);
+    } catch (err) {
+      setText(error, err.message);
+    } finally {
+      create.disabled = false;
+    }
+  });
+
+  main.append(h("h1", null, t("nav.courses")), h("p", { class: "lede" }, t("courses.lede")), list, form, detail);
+  refresh().catch((err) => setText(error, err.message));
+  const chosen = query.get("course");
+  if (chosen) showCourse(detail, chosen, () => alive).catch((err) => setText(error, err.message));
+  return () => {
+    alive = false;
+  };
+}
+
+/**
+ * One course: its code, the class-list upload with its report, the roster.
+ * @param {HTMLElement} box
+ * @param {string} name
+ * @param {() => boolean} alive
+ */
+async function showCourse(box, name, alive) {
+  const course = await api.course(name);
+  if (!alive()) return;
+  const code = h("code", { id: "course-code" }, course.enrolCode);
+  const rotate = h("button", { type: "button", id: "course-rotate" }, t("courses.rotate"));
+  const file = h("input", { id: "roster-file", type: "file", accept: ".csv,text/csv" });
+  const upload = h("button", { type: "button", class: "primary", id: "roster-upload" }, t("courses.upload"));
+  const report = h("div", { id: "roster-report", role: "status" });
+  const roster = h("div", { class: "table-wrap", id: "roster", tabindex: "0", role: "region", "aria-label": t("courses.roster") });
+  const teacherPassword = h("input", { id: "reset-current", type: "password", autocomplete: "current-password" });
+  const resetOut = h("p", { id: "reset-result", role: "status" });
+
+  async function refreshRoster() {
+    const now = await api.course(name);
+    if (alive()) roster.replaceChildren(rosterTable(now.members, reset));
+  }
+
+  /** @param {string} username */
+  async function reset(username) {
+    setText(resetOut, "");
+    if (!teacherPassword.value) {
+      setText(resetOut, t("courses.resetNeedsPassword"));
+      teacherPassword.focus();
+      return;
+    }
+    try {
+      const made = await api.resetPassword(username, teacherPassword.value);
+      resetOut.replaceChildren(t("courses.resetDone", { user: username }), " ", h("code", { id: "reset-password" }, made.temporaryPassword));
+      await refreshRoster();
+    } catch (err) {
+      setText(resetOut, err.message);
+    }
+  }
+
+  rotate.addEventListener("click", async () => {
+    try {
+      setText(code, (await api.rotateCode(name)).enrolCode);
+      announce(t("courses.rotated"));
+    } catch (err) {
+      setText(report, err.message);
+    }
+  });
+  upload.addEventListener("click", async () => {
+    const chosen = file.files?.[0];
+    report.replaceChildren();
+    if (!chosen) {
+      setText(report, t("courses.noFile"));
+      file.focus();
+      return;
+    }
+    upload.disabled = true;
+    try {
+      const done = await api.uploadRoster(name, await chosen.arrayBuffer());
+      report.replaceChildren(importReport(done));
+      await refreshRoster();
+    } catch (err) {
+      report.replaceChildren(badLines(err));
+    } finally {
+      upload.disabled = false;
+    }
+  });
+
+  box.replaceChildren(
+    h("h2", null, course.title),
+    h("p", null, t("courses.code"), " ", code, " ", rotate),
+    h("p", { class: "muted" }, t("courses.codeHelp")),
+    h("h3", null, t("courses.uploadHeading")),
+    h("p", { class: "muted" }, t("courses.uploadHelp")),
+    h("div", { class: "field" }, h("label", { for: "roster-file" }, t("courses.file")), file),
+    upload,
+    report,
+    h("h3", null, t("courses.roster")),
+    h("div", { class: "field" }, h("label", { for: "reset-current" }, t("courses.resetCurrent")), teacherPassword),
+    resetOut,
+    roster,
+  );
+  box.hidden = false;
+  roster.replaceChildren(rosterTable(course.members, reset));
+}
+
+/** @param {{created: Record<string, string>, updated: string[], unchanged: string[]}} done */
+function importReport(done) {
+  const created = Object.entries(done.created);
+  const summary = h(
+    "p",
+    { id: "roster-summary" },
+    t("courses.imported", { created: created.length, updated: done.updated.length, unchanged: done.unchanged.length }),
+  );
+  if (created.length === 0) return summary;
+  const rows = created.map(([user, pw]) => h("tr", null, h("td", null, user), h("td", null, h("code", null, pw))));
+  return h(
+    "div",
+    null,
+    summary,
+    h("p", null, t("courses.passwordsOnce")),
+    h(
+      "table",
+      { class: "runs", id: "roster-passwords" },
+      h("thead", null, h("tr", null, h("th", { scope: "col" }, t("courses.colUser")), h("th", { scope: "col" }, t("courses.colPassword")))),
+      h("tbody", null, rows),
+    ),
+  );
+}
+
+/** The server's list of bad lines (422 class_list_invalid), or its message. @param {any} err */
+function badLines(err) {
+  const errors = err?.body?.errors;
+  if (!Array.isArray(errors) || err.body.code !== "class_list_invalid") return h("p", { class: "error" }, err.message);
+  return h(
+    "div",
+    { class: "error", role: "alert" },
+    h("p", null, err.message),
+    h(
+      "ul",
+      { id: "roster-errors" },
+      errors.map((e) => h("li", null, t("courses.badLine", { line: Number(e.loc?.[1] ?? 0), reason: String(e.msg) }))),
+    ),
+  );
+}
+
+/**
+ * @param {any[]} members
+ * @param {(username: string) => void} onReset
+ */
+function rosterTable(members, onReset) {
+  const rows = members.map((m) =>
+    h(
+      "tr",
+      { "data-member": m.username },
+      h("td", null, m.username),
+      h("td", null, m.displayName ?? ""),
+      h("td", null, t(m.role === "teacher" ? "role.teacher" : "role.student")),
+      h("td", null, m.mustChangePassword ? t("courses.temporary") : ""),
+      h(
+        "td",
+        null,
+        m.role === "student"
+          ? h("button", { type: "button", "aria-label": t("courses.resetOne", { user: m.username }), onclick: () => onReset(m.username) }, t("courses.reset"))
+          : "",
+      ),
+    ),
+  );
+  const head = ["courses.colUser", "courses.colName", "courses.colRole", "courses.colState", "courses.colActions"].map((key) => h("th", { scope: "col" }, t(key)));
+  return h("table", { class: "runs" }, h("caption", { class: "visually-hidden" }, t("courses.roster")), h("thead", null, h("tr", null, head)), h("tbody", null, rows));
+}

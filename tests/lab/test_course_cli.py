@@ -1,0 +1,104 @@
+"""``thermolab course``: create, import a class list, one-line errors on a bad file."""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import pytest
+
+from thermolab.lab.clock import SystemClock
+from thermolab.lab.db import Database
+from thermolab.lab.users import UserService
+
+from .conftest import FAST_HASHER, PASSWORD
+from .test_cli import run
+
+
+@pytest.fixture(autouse=True)
+def _cheap_hashes(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr("thermolab.lab.security.default_password_hasher", lambda: FAST_HASHER)
+
+
+def test_a_class_list_imported_twice_from_the_shell(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    data_dir = tmp_path / "data"
+    base = ["--data-dir", str(data_dir)]
+    status, _, err = run(
+        [*base, "user", "add", "tina", "--role", "teacher", "--password-stdin"],
+        capsys,
+        monkeypatch,
+        PASSWORD + "\n",
+    )
+    assert status == 0, err
+    status, out, err = run(
+        [*base, "course", "create", "ctrl1", "--title", "Controle I", "--teacher", "tina"],
+        capsys,
+        monkeypatch,
+    )
+    assert status == 0, err
+    assert out.startswith("created course 'ctrl1' (Controle I); enrolment code ")
+    roster = tmp_path / "turma.csv"
+    roster.write_text("username;name\nJoão;João Gonçalves\nbia;Bia\n", encoding="utf-8")
+    status, out, err = run([*base, "course", "import", "ctrl1", str(roster)], capsys, monkeypatch)
+    assert status == 0, err
+    assert "ctrl1: 2 created, 0 updated, 0 unchanged" in err
+    passwords = dict(list(csv.reader(io.StringIO(out)))[1:])
+    users = UserService(
+        Database(f"sqlite:///{data_dir / 'thermolab.sqlite3'}"), SystemClock(), FAST_HASHER
+    )
+    joao = users.verify("joao", passwords["joao"])
+    assert (joao.display_name, joao.must_change_password) == ("João Gonçalves", True)
+
+    roster.write_text("username;name\nJOAO;João G.\nbia;Bia\n", encoding="utf-8")
+    status, out, err = run([*base, "course", "import", "ctrl1", str(roster)], capsys, monkeypatch)
+    assert (status, out) == (0, "")
+    assert "ctrl1: 0 created, 1 updated, 1 unchanged" in err
+    assert [u.username for u in users.list()] == ["bia", "joao", "tina"]
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        (b"username,display_name\nana,Ana\nJo\xe3o,Jo\xe3o\n", "line 3: the file is not UTF-8"),
+        (b"user,display\nana,Ana\n", "line 1: the header has columns"),
+        (b"username,display_name\nana,Ana\nAna,Ana\n", "line 3: login name 'ana' is already"),
+    ],
+)
+def test_a_bad_class_list_is_one_line_and_changes_nothing(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    content: bytes,
+    message: str,
+) -> None:
+    base = ["--data-dir", str(tmp_path / "data")]
+    run(
+        [*base, "user", "add", "tina", "--role", "teacher", "--password-stdin"],
+        capsys,
+        monkeypatch,
+        PASSWORD + "\n",
+    )
+    run([*base, "course", "create", "c1", "--title", "C", "--teacher", "tina"], capsys, monkeypatch)
+    roster = tmp_path / "bad.csv"
+    roster.write_bytes(content)
+    status, out, err = run([*base, "course", "import", "c1", str(roster)], capsys, monkeypatch)
+    assert (status, out) == (1, "")
+    assert len(err.strip().splitlines()) == 1, err
+    assert message in err
+    assert "nothing changed" in err
+    assert "Traceback" not in err
+    status, _, err = run(
+        [*base, "course", "import", "c1", str(tmp_path / "missing.csv")], capsys, monkeypatch
+    )
+    assert status == 1
+    assert err.startswith("error: cannot read")
+    status, _, err = run(
+        [*base, "course", "create", "c2", "--title", "C", "--teacher", "nobody"],
+        capsys,
+        monkeypatch,
+    )
+    assert status == 1
+    assert err.strip() == "error: no user called 'nobody'"
