@@ -208,3 +208,13 @@ def test_a_valid_since_at_the_bounds_is_accepted(
     for since in (0, MAX_SEQ):
         with client.websocket_connect(f"/api/rigs/twin/live?since={since}") as ws:
             assert ws.receive_json()["type"] == "hello"
+
+
+def test_every_422_code_of_the_lab_is_published(spec: dict[str, Any]) -> None:
+    # A lab refusal answered with 422 must carry a code the published schema allows
+    # (schemathesis's response-conformance check fails otherwise).
+    from thermolab.lab.http.errors import _FAULTS
+
+    published = spec["components"]["schemas"]["ValidationErrorOut"]["properties"]["code"]["enum"]
+    codes = {fault.code for fault in _FAULTS.values() if fault.status == 422}
+    assert codes <= set(published), codes - set(published)

@@ -66,6 +66,14 @@ ERROR_SENTENCES: Mapping[str, str] = {
     "class_list_invalid": "The class list has bad lines; nothing was changed.",
     "enrol_code_wrong": "No course has this enrolment code.",
     "password_change_required": "Choose a new password before going on.",
+    # The closed loop and the runs' precise conflicts.
+    "gain_out_of_range": "A controller setting is not a finite number within its published range.",
+    "no_output_unit": "This rig has no measured output, so it cannot be controlled in closed loop.",
+    "no_run": "No run is going on this rig.",
+    "not_closed_loop": "The run was started without a controller.",
+    "previous_run_ending": "The previous turn's run is still ending: try again in a few seconds.",
+    "run_in_progress": "A run of your turn is already going: END it first.",
+    "setpoint_out_of_range": "The set point is outside the rig's output range.",
 }
 
 

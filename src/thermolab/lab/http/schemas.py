@@ -87,11 +87,19 @@ class ValidationErrorOut(_Out):
     ``errors`` one per problem."""
 
     detail: str
-    code: Literal["invalid_request", "invalid_parameter", "class_list_invalid"] = Field(
+    code: Literal[
+        "invalid_request",
+        "invalid_parameter",
+        "class_list_invalid",
+        "gain_out_of_range",
+        "setpoint_out_of_range",
+        "no_output_unit",
+    ] = Field(
         description="invalid_request: the request does not match the schema (a body that is "
         "not UTF-8 JSON included); invalid_parameter: the values match the schema but the lab "
         "refuses them (a signal outside the rig's range, a run too long...); "
-        "class_list_invalid: a class list with bad lines (one entry of errors per line)"
+        "class_list_invalid: a class list with bad lines (one entry of errors per line); "
+        "gain_out_of_range, setpoint_out_of_range, no_output_unit: the closed loop's refusals"
     )
     message: str | None = Field(
         default=None, description="the code's sentence in the reader's language"

@@ -23,5 +23,17 @@ from thermolab.lab.http.routers import (
 __all__ = ["api_router"]
 
 api_router = APIRouter(prefix="/api")
-for _resource in (session, version, rigs, readings, runs, methods, users, tokens, control, guides, courses):
+for _resource in (
+    session,
+    version,
+    rigs,
+    readings,
+    runs,
+    methods,
+    users,
+    tokens,
+    control,
+    guides,
+    courses,
+):
     api_router.include_router(_resource.router)
