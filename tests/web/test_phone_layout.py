@@ -47,7 +47,7 @@ def catalogue(language: str) -> dict[str, Any]:
 
 @pytest.fixture(scope="module")
 def phone_lab(tmp_path_factory: pytest.TempPathFactory, browser: Any) -> Iterator[LabServer]:
-    with running_lab(tmp_path_factory.mktemp("phones"), USERS, CONFIG) as server:
+    with running_lab(tmp_path_factory.mktemp("phones"), USERS, config=CONFIG) as server:
         yield server
 
 

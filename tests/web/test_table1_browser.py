@@ -127,7 +127,7 @@ def run_panel(page: Any, panel: str, fields: dict[str, str], *, automatic: bool,
     for name, value in fields.items():
         page.fill(f"#{panel}-{name}", value)
     started = time.monotonic()
-    page.click(f"{form} button[data-action=start]")
+    page.click(f"[data-panel-view={panel}] button[data-action=start]")
     status = f"[data-testid=run-status-{panel}]"
     page.wait_for_selector(f"{status}:text('finished')", timeout=120_000)
     return time.monotonic() - started
@@ -159,7 +159,7 @@ def test_the_three_panels_on_the_twin_give_table_one(
     page.set_checked("[data-panel-form=srm-lsm] input[name=planned]", True)
     page.fill("#srm-lsm-n", str(srm.samples))
     page.fill("#srm-lsm-stepAt", str(srm.samples))
-    page.click("[data-panel-form=srm-lsm] button[data-action=start]")
+    page.click("[data-panel-view=srm-lsm] button[data-action=start]")
     error = f"The step must come before the run ends ({srm.samples} s)."
     assert page.inner_text("#srm-lsm-stepAt-err") == error
     assert page.evaluate("() => document.activeElement.id") == "srm-lsm-stepAt"

@@ -67,7 +67,7 @@ def fill(message: str, **params: str) -> str:
 
 @pytest.fixture(scope="module")
 def turns_lab(tmp_path_factory: pytest.TempPathFactory, browser: Any) -> Iterator[LabServer]:
-    with running_lab(tmp_path_factory.mktemp("turns"), USERS, CONFIG) as server:
+    with running_lab(tmp_path_factory.mktemp("turns"), USERS, config=CONFIG) as server:
         yield server
 
 
@@ -187,7 +187,7 @@ def test_a_server_down_locks_the_page_and_the_restart_is_explained(
     browser: Any, tmp_path: Path
 ) -> None:
     en = catalogue("en")
-    with running_lab(tmp_path, {"sam": "student"}, CONFIG) as server:
+    with running_lab(tmp_path, {"sam": "student"}, config=CONFIG) as server:
         context, page = open_rig(browser, server, "sam", "kick", "en-US")
         try:
             page.click("button[data-action=ask]")

@@ -12,7 +12,7 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Query
 
-from thermolab.control import control_json
+from thermolab.control import PARAMETERS, control_json
 from thermolab.lab.http.control_schemas import FanIn, GainsIn, LoopOut, ModeIn, SetpointIn
 from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, RunId, UserDep, documented_errors
 from thermolab.lab.http.run_schemas import RunOut
@@ -22,6 +22,12 @@ from thermolab.rigs import RigSpec
 from thermolab.runner import Experiment
 
 __all__ = ["router"]
+
+#: The tuning table's closed-loop speed, as the control layer declares it.
+TAU_C = PARAMETERS["tau_c"]
+#: A bound on any set point the schema takes (the rig's own output range is checked
+#: by the lab); it keeps the query within numbers a model can simulate.
+SETPOINT_BOUND = 1e4
 
 router = APIRouter(**AUTHENTICATED)
 
@@ -158,22 +164,33 @@ def run_tuning(
     who: UserDep,
     lab: LabDep,
     setpoint: Annotated[
-        float | None, Query(description="the step's set point (default: halfway up the range)")
+        float | None,
+        Query(
+            ge=-SETPOINT_BOUND,
+            le=SETPOINT_BOUND,
+            description="the step's set point (default: halfway up the range)",
+        ),
     ] = None,
     tau_c: Annotated[
         float | None,
-        Query(alias="tauC", description="closed-loop speed of imc and simc, s (default: theta)"),
+        Query(
+            alias="tauC",
+            gt=TAU_C.minimum,
+            le=TAU_C.maximum,
+            description="closed-loop speed of imc and simc, s (default: theta)",
+        ),
     ] = None,
-    method: Annotated[str | None, Query(max_length=16, description="the model's method")] = None,
+    method: Annotated[
+        str | None,
+        Query(min_length=1, max_length=16, pattern="^[a-z]+$", description="the model's method"),
+    ] = None,
 ) -> dict[str, Any]:
     """From the run's identified FOPDT model (Ks, Ts, θ): each rule's Kp, Ti, Td, the
     predicted closed-loop step from the run's starting point and its overshoot, 2 %
     settling time and IAE. For a closed-loop run, ``closedLoop`` has its measured figures
     beside the prediction of the model its gains came from.
     """
-    from thermolab.control import PARAMETERS
-
-    PARAMETERS["tau_c"].check(tau_c)
+    TAU_C.check(tau_c)
     record = lab.runs.get(run_id, who)
     exported = lab.runs.export(run_id, who)
     samples = exported.get("samples") or {}
