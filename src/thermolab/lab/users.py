@@ -19,7 +19,7 @@ from sqlalchemy import delete, func, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from thermolab.errors import ConflictError, InvalidParameterError, NotFoundError
+from thermolab.errors import AccessDeniedError, ConflictError, InvalidParameterError, NotFoundError
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import (
@@ -152,6 +152,17 @@ class Principal:
     def is_teacher(self) -> bool:
         """``True`` for a teacher."""
         return self.role is Role.TEACHER
+
+    def require_teacher(self, action: str) -> None:
+        """Refuse ``action`` (words after "may") unless this is a teacher.
+
+        Raises
+        ------
+        AccessDeniedError
+            For a student.
+        """
+        if not self.is_teacher:
+            raise AccessDeniedError(f"only a teacher may {action}")
 
 
 class UserService:

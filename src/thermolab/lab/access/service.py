@@ -24,7 +24,6 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from thermolab.errors import (
-    AccessDeniedError,
     ConflictError,
     InvalidParameterError,
     TurnExtensionRefusedError,
@@ -210,7 +209,7 @@ class AccessService(RigTransactions):
         ConflictError
             If nobody controls the rig.
         """
-        _require_teacher(who, "change a controller's time limit")
+        who.require_teacher("change a controller's time limit")
         if not (math.isfinite(seconds) and abs(seconds) <= _MAX_EXTENSION):
             raise InvalidParameterError(
                 f"seconds must be a finite number between {-_MAX_EXTENSION:g} and "
@@ -237,7 +236,7 @@ class AccessService(RigTransactions):
         ConflictError
             If the named user neither controls the rig nor waits for it.
         """
-        _require_teacher(who, "kick a user off a rig")
+        who.require_teacher("kick a user off a rig")
 
         def act(session: Session, rig: RigRow, now: datetime) -> None:
             control = q.active(session, rig.id)
@@ -264,7 +263,7 @@ class AccessService(RigTransactions):
         AccessDeniedError
             If ``who`` is not a teacher.
         """
-        _require_teacher(who, "take rigs in or out of service")
+        who.require_teacher("take rigs in or out of service")
 
         def act(session: Session, rig: RigRow, now: datetime) -> None:
             rig.fault = None
@@ -312,11 +311,6 @@ class AccessService(RigTransactions):
                 self._end(session, rig, TurnEndReason.RIG_FAULT, now, now)
 
         self._write(rig_id, None, act, heartbeat=False)
-
-
-def _require_teacher(who: Principal, action: str) -> None:
-    if not who.is_teacher:
-        raise AccessDeniedError(f"only a teacher may {action}")
 
 
 def _check_input(u: object, published: PublishedRig, rig_id: str) -> float:

@@ -203,7 +203,7 @@ class GuideService:
         NotFoundError
             For an unknown rig.
         """
-        _require_teacher(who, "edit a guide")
+        who.require_teacher("edit a guide")
         self.config.rig(rig_id)
         _check_section(section, lang)
         if len(markdown) > MAX_MARKDOWN_CHARS:
@@ -242,7 +242,7 @@ class GuideService:
 
     def revisions(self, rig_id: str, lang: str, section: str, who: Principal) -> list[RevisionInfo]:
         """A section's saved revisions, newest first (teachers only; no text)."""
-        _require_teacher(who, "see a guide's revisions")
+        who.require_teacher("see a guide's revisions")
         self.config.rig(rig_id)
         _check_section(section, lang)
         with self.db.read() as session:
@@ -269,7 +269,7 @@ class GuideService:
         NotFoundError
             No such revision of this rig's guide.
         """
-        _require_teacher(who, "see a guide's revisions")
+        who.require_teacher("see a guide's revisions")
         self.config.rig(rig_id)
         with self.db.read() as session:
             found = session.execute(

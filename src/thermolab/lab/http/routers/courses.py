@@ -26,7 +26,6 @@ from thermolab.lab.security import (
     AuthenticationError,
     normalize_username,
 )
-from thermolab.lab.users import Principal
 
 __all__ = ["router"]
 
@@ -140,11 +139,6 @@ class ResetOut(Out):
     temporary_password: str
 
 
-def _teacher(who: Principal, action: str) -> None:
-    if not who.is_teacher:
-        raise AccessDeniedError(f"only a teacher may {action}")
-
-
 @_teachers.get(
     "/courses",
     response_model=list[CourseOut],
@@ -154,7 +148,7 @@ def _teacher(who: Principal, action: str) -> None:
 )
 def list_courses(who: UserDep, lab: LabDep) -> list[CourseOut]:
     """Every course with its code and rigs, without rosters (teachers only)."""
-    _teacher(who, "list courses")
+    who.require_teacher("list courses")
     return [CourseOut.of(c) for c in lab.courses.list()]
 
 
@@ -168,7 +162,7 @@ def list_courses(who: UserDep, lab: LabDep) -> list[CourseOut]:
 )
 def create_course(body: NewCourseIn, who: UserDep, lab: LabDep) -> CourseOut:
     """Create a course; its creator is its first teacher (teachers only)."""
-    _teacher(who, "create courses")
+    who.require_teacher("create courses")
     return CourseOut.of(lab.courses.create(body.name, body.title, who.username))
 
 
@@ -181,7 +175,7 @@ def create_course(body: NewCourseIn, who: UserDep, lab: LabDep) -> CourseOut:
 )
 def get_course(course: CourseName, who: UserDep, lab: LabDep) -> CourseOut:
     """A course with its teachers and students (teachers only)."""
-    _teacher(who, "see a course's roster")
+    who.require_teacher("see a course's roster")
     return CourseOut.of(lab.courses.get(course))
 
 
@@ -207,7 +201,7 @@ async def upload_roster(
     ``class_list_invalid`` lists each bad line in ``errors`` (``loc`` =
     ``["file", line]``) and nothing changes.
     """
-    _teacher(who, "upload class lists")
+    who.require_teacher("upload class lists")
     data = b""
     async for chunk in request.stream():
         data += chunk
@@ -226,7 +220,7 @@ async def upload_roster(
 )
 def rotate_code(course: CourseName, who: UserDep, lab: LabDep) -> EnrolCodeOut:
     """Replace the course's enrolment code; the old one stops working (teachers only)."""
-    _teacher(who, "change enrolment codes")
+    who.require_teacher("change enrolment codes")
     return EnrolCodeOut(enrol_code=lab.courses.rotate_code(course))
 
 
@@ -239,7 +233,7 @@ def rotate_code(course: CourseName, who: UserDep, lab: LabDep) -> EnrolCodeOut:
 )
 def set_rigs(course: CourseName, body: CourseRigsIn, who: UserDep, lab: LabDep) -> CourseOut:
     """Set the rigs the course's students may use; an empty list means every rig."""
-    _teacher(who, "choose a course's rigs")
+    who.require_teacher("choose a course's rigs")
     known = {rig.id for rig in lab.config.rigs}
     return CourseOut.of(lab.courses.set_rigs(course, body.rigs, known))
 
@@ -287,7 +281,7 @@ def reset_password(
     password change); a script's API token cannot reset. The student's
     logins end.
     """
-    _teacher(who, "reset passwords")
+    who.require_teacher("reset passwords")
     if who.token_id is not None:
         raise AccessDeniedError("an API token cannot reset passwords; log in with your password")
     address = request.client.host if request.client is not None else "unknown"

@@ -15,11 +15,6 @@ __all__ = ["router"]
 router = APIRouter(**AUTHENTICATED)
 
 
-def _teacher(who: Principal, action: str) -> None:
-    if not who.is_teacher:
-        raise AccessDeniedError(f"only a teacher may {action}")
-
-
 @router.get(
     "/users",
     response_model=list[UserOut],
@@ -29,7 +24,7 @@ def _teacher(who: Principal, action: str) -> None:
 )
 def list_users(who: UserDep, lab: LabDep) -> list[UserOut]:
     """Every account (teachers only)."""
-    _teacher(who, "list accounts")
+    who.require_teacher("list accounts")
     return [UserOut.of(u) for u in lab.users.list()]
 
 
@@ -43,7 +38,7 @@ def list_users(who: UserDep, lab: LabDep) -> list[UserOut]:
 )
 def add_user(body: NewUserIn, who: UserDep, lab: LabDep) -> UserOut:
     """Create an account (teachers only)."""
-    _teacher(who, "create accounts")
+    who.require_teacher("create accounts")
     return UserOut.of(lab.users.add(body.username, body.password, body.role, body.display_name))
 
 
@@ -56,7 +51,7 @@ def add_user(body: NewUserIn, who: UserDep, lab: LabDep) -> UserOut:
 )
 def remove_user(username: Username, who: UserDep, lab: LabDep) -> Response:
     """Remove an account with its sessions, queue places and runs (teachers only)."""
-    _teacher(who, "remove accounts")
+    who.require_teacher("remove accounts")
     if _same_user(username, who):
         raise AccessDeniedError("you cannot remove your own account; ask another teacher")
     lab.remove_user(username)
