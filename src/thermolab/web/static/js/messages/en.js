@@ -307,6 +307,7 @@ export const messages = {
   "loop.noOutput": "This rig has no measured output: it cannot be controlled in closed loop.",
   "loop.overshoot": "Overshoot (%)",
   "loop.predicted": "Predicted",
+  "loop.predictionNote": "Why the prediction may differ: {note}",
   "loop.rule": "Rule",
   "loop.samples": "Number of samples",
   "loop.setpoint": "Set point",

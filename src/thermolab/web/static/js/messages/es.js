@@ -307,6 +307,7 @@ export const messages = {
   "loop.noOutput": "Este equipo no tiene salida medida: no puede controlarse en lazo cerrado.",
   "loop.overshoot": "Sobreimpulso (%)",
   "loop.predicted": "Predicho",
+  "loop.predictionNote": "Por qué la predicción puede diferir: {note}",
   "loop.rule": "Regla",
   "loop.samples": "Número de muestras",
   "loop.setpoint": "Referencia",

@@ -307,6 +307,7 @@ export const messages = {
   "loop.noOutput": "Esta bancada não tem saída medida: não pode ser controlada em malha fechada.",
   "loop.overshoot": "Sobressinal (%)",
   "loop.predicted": "Previsto",
+  "loop.predictionNote": "Por que a previsão pode diferir: {note}",
   "loop.rule": "Regra",
   "loop.samples": "Número de amostras",
   "loop.setpoint": "Referência",

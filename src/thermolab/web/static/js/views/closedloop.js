@@ -13,7 +13,7 @@
 
 import { api, request } from "../api.js";
 import { Chart, COLORS } from "../charts.js";
-import { h, replaceChildren, setText } from "../dom.js";
+import { h, replaceChildren, serverText, setText, tParts } from "../dom.js";
 import { formatNumber, t } from "../i18n.js";
 import { checkNumber, rangeText } from "../validate.js";
 
@@ -308,6 +308,8 @@ export class ClosedLoopPanel {
       replaceChildren(this.figures, h("table", {}, h("thead", {}, h("tr", {}, h("th", {}, ""),
         h("th", { scope: "col" }, t("loop.overshoot")), h("th", { scope: "col" }, t("loop.settling")), h("th", { scope: "col" }, t("loop.iae")))),
       h("tbody", {}, row("loop.measured", cl.measured), row("loop.predicted", cl.predicted))));
+      // Why the prediction may not match (a warm box, no model stored...): said beside it.
+      if (cl.note) this.figures.append(h("p", { class: "hint", "data-testid": "loop-note" }, ...tParts("loop.predictionNote", { note: serverText(cl.note) })));
     } catch (err) {
       setText(this.error, err.message);
     }
