@@ -73,7 +73,8 @@ def assert_locked(page: Any) -> None:
     state = page.evaluate(
         """() => {
           const host = document.querySelector('.panels');
-          const controls = [...host.querySelectorAll('input, button:not([role=tab]), select')];
+          // The guide stays readable: it is no control of the rig.
+          const controls = [...host.querySelectorAll('input, button:not([role=tab]):not(.guide-open), select')];
           return { n: controls.length, enabled: controls.filter((c) => !c.matches(':disabled')).map(
             (c) => c.name || c.dataset.action || c.textContent) };
         }"""
