@@ -74,7 +74,8 @@ def assert_locked(page: Any) -> None:
         """() => {
           const host = document.querySelector('.panels');
           // The guide stays readable: it is no control of the rig.
-          const controls = [...host.querySelectorAll('input, button:not([role=tab]):not(.guide-open), select')];
+          const wanted = 'input, button:not([role=tab]):not(.guide-open), select';
+          const controls = [...host.querySelectorAll(wanted)];
           return { n: controls.length, enabled: controls.filter((c) => !c.matches(':disabled')).map(
             (c) => c.name || c.dataset.action || c.textContent) };
         }"""
