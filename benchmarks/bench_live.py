@@ -55,6 +55,8 @@ import contextlib
 import json
 import math
 import os
+import random
+import signal
 import socket
 import subprocess
 import sys
@@ -63,7 +65,7 @@ import textwrap
 import time
 from collections import Counter
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, cast
 
@@ -115,8 +117,11 @@ class Watcher(asyncio.Protocol):
     frames; the frame's text is decoded only when it may hold a sample.
     """
 
-    def __init__(self, url: str, cookie: str | None, stalled: bool = False) -> None:
+    def __init__(
+        self, url: str, cookie: str | None, stalled: bool = False, ping: float = 0.0
+    ) -> None:
         self.url = url
+        self.ping = ping
         self.cookie = cookie
         self.stalled = stalled
         self.ws = ClientProtocol(parse_uri(url), extensions=[ClientPerMessageDeflateFactory()])
@@ -124,6 +129,9 @@ class Watcher(asyncio.Protocol):
         self.opened: asyncio.Future[None] = asyncio.get_running_loop().create_future()
         self.ended: asyncio.Future[None] = asyncio.get_running_loop().create_future()
         self.first: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        # thermolab's watcher is attached to the stream once its hello came (the peer has none).
+        self.hello: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        self.hello.add_done_callback(lambda f: f.cancelled() or f.exception())  # read: no warning
         self.ks = array.array("i")
         self.arrivals = array.array("d")
         self.counts: Counter[str] = Counter()
@@ -149,16 +157,21 @@ class Watcher(asyncio.Protocol):
                     self._done(self.opened)
                     if self.stalled and self.transport is not None:
                         self.transport.pause_reading()
+                    elif self.ping > 0:  # as the browser does: a ping every few seconds
+                        loop = asyncio.get_running_loop()
+                        loop.call_later(self.ping * (0.1 + 0.9 * random.random()), self._ping)
             elif event.opcode is Opcode.TEXT:
                 self.frames += 1
                 self._text(event.data, now)
             elif event.opcode is Opcode.CLOSE:
                 self.close_code = self.ws.close_rcvd.code if self.ws.close_rcvd else None
+                self._done(self.hello, ConnectionError(f"closed with {self.close_code}"))
                 self._done(self.ended)
         self._flush()
 
     def connection_lost(self, exc: Exception | None) -> None:
         self._done(self.opened, exc or ConnectionError("closed before the handshake"))
+        self._done(self.hello, exc or ConnectionError("closed before the hello"))
         self._done(self.ended)
 
     def _text(self, data: bytes, now: float) -> None:
@@ -168,6 +181,8 @@ class Watcher(asyncio.Protocol):
         decoded = json.loads(data)
         for message in decoded if isinstance(decoded, list) else (decoded,):
             kind = message.get("type")
+            if kind == "hello":
+                self._done(self.hello)
             self.counts[kind] += 1
             if (kind == "sample" and message.get("run") is not None) or kind == "tick":
                 self.ks.append(message["k"])
@@ -175,6 +190,13 @@ class Watcher(asyncio.Protocol):
                 self._done(self.first)
             elif (kind == "run" and message.get("event") == "ended") or kind == "end":
                 self._done(self.ended)
+
+    def _ping(self) -> None:
+        if self.transport is None or self.transport.is_closing() or self.ended.done():
+            return
+        self.ws.send_text(b'{"type":"ping"}')
+        self._flush()
+        asyncio.get_running_loop().call_later(self.ping, self._ping)
 
     def _flush(self) -> None:
         data = self.ws.data_to_send()
@@ -190,7 +212,21 @@ class Watcher(asyncio.Protocol):
                 future.set_exception(exc)
 
 
-async def open_watcher(url: str, cookie: str | None, stalled: bool = False) -> Watcher:
+async def open_watcher(
+    url: str, cookie: str | None, stalled: bool = False, ping: float = 0.0
+) -> Watcher:
+    for attempt in range(3):  # a loaded server may refuse a connection now and then
+        try:
+            return await _open_watcher(url, cookie, stalled, ping)
+        except ConnectionError as exc:
+            print(f"watcher connection failed ({exc}); again", file=sys.stderr, flush=True)
+            if attempt == 2:
+                raise
+            await asyncio.sleep(0.5)
+    raise AssertionError("unreachable")
+
+
+async def _open_watcher(url: str, cookie: str | None, stalled: bool, ping: float) -> Watcher:
     loop = asyncio.get_running_loop()
     uri = parse_uri(url)
     sock = socket.socket()
@@ -198,17 +234,23 @@ async def open_watcher(url: str, cookie: str | None, stalled: bool = False) -> W
     if stalled:  # a small window: the server's writes back up within seconds
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
     await loop.sock_connect(sock, (uri.host, uri.port))
-    _, watcher = await loop.create_connection(lambda: Watcher(url, cookie, stalled), sock=sock)
+    _, watcher = await loop.create_connection(
+        lambda: Watcher(url, cookie, stalled, ping), sock=sock
+    )
     await watcher.opened
+    if cookie and not stalled:
+        await watcher.hello
     return watcher
 
 
-async def client_main(url: str, cookie: str | None, count: int, stall: bool) -> None:
+async def client_main(
+    url: str, cookie: str | None, count: int, stall: bool, ping: float = 0.0
+) -> None:
     """A client process: ``count`` watchers (and maybe the stalled one); talks on stdio."""
     watchers: list[Watcher] = []
     for i in range(0, count, 50):  # in waves, as a class arrives
         watchers += await asyncio.gather(
-            *(open_watcher(url, cookie) for _ in range(min(50, count - i)))
+            *(open_watcher(url, cookie, ping=ping) for _ in range(min(50, count - i)))
         )
     stalled = await open_watcher(url, cookie, stalled=True) if stall else None
     print("ready", flush=True)
@@ -233,6 +275,7 @@ async def client_main(url: str, cookie: str | None, count: int, stall: bool) -> 
         ],
         "counts": dict(watchers[0].counts) if watchers else {},
         "unfinished": len(pending),
+        "closed": dict(Counter(str(w.close_code) for w in watchers if w.close_code is not None)),
         "stalled": stall_report,
     }
     print(json.dumps(result), flush=True)
@@ -543,8 +586,15 @@ class CpuWindow:
     machine: tuple[float, float] | None = None
     wall: float = 0.0
 
+    last: dict[int, float] = field(default_factory=dict)
+
     def _read(self) -> dict[str, float]:
-        return {name: sum(cpu_seconds(p) for p in pids) for name, pids in self.pids.items()}
+        # A client process that has already reported and exited counts with its last reading.
+        for pids in self.pids.values():
+            for pid in pids:
+                with contextlib.suppress(FileNotFoundError, ProcessLookupError):
+                    self.last[pid] = cpu_seconds(pid)
+        return {name: sum(self.last.get(p, 0.0) for p in pids) for name, pids in self.pids.items()}
 
     def begin(self) -> None:
         self.start, self.machine, self.wall = self._read(), machine_busy(), time.monotonic()
@@ -561,7 +611,7 @@ class CpuWindow:
 
 
 async def start_clients(
-    url: str, cookie: str | None, watchers: int, procs: int
+    url: str, cookie: str | None, watchers: int, procs: int, ping: float = 0.0
 ) -> list[asyncio.subprocess.Process]:
     shares = [watchers // procs + (1 if i < watchers % procs else 0) for i in range(procs)]
     clients = []
@@ -569,6 +619,8 @@ async def start_clients(
         command = [SCRIPT, "--role", "clients", "--url", url, "--count", str(share)]
         if cookie:
             command += ["--cookie", cookie]
+        if ping > 0:
+            command += ["--ping", str(ping)]
         if i == 0:
             command.append("--stall")
         clients.append(
@@ -620,8 +672,30 @@ def summarise(
     out: dict[str, Any] = {"name": name, "watchers": watchers, **cpu}
     out["counts"] = results[0]["counts"]
     out["stalled"] = results[0]["stalled"]
+    closed: Counter[str] = Counter()
+    for result in results:
+        closed.update(result.get("closed", {}))
+    out["closed"] = dict(closed)
+    out["unfinished"] = sum(r["unfinished"] for r in results)
     out["frames_per_watcher"] = frames / max(1, watchers)
     out["delivered"] = len(flat_k) / (watchers * samples)
+    # Samples the run produced (as far as any watcher saw): below ``samples`` when the run
+    # itself ended early (its sampling fell behind on a starved machine), not the stream.
+    out["produced"] = len(set(flat_k))
+    # Watchers short of samples: those missing the run's start, its end, or some between.
+    short = Counter()
+    for result in results:
+        for watcher in result["watchers"]:
+            ks = watcher["k"]
+            if len(ks) == samples:
+                continue
+            if not ks or ks[0] > 0:
+                short["start"] += 1
+            if not ks or ks[-1] < samples - 1:
+                short["end"] += 1
+            if ks and len(ks) < ks[-1] - ks[0] + 1:
+                short["between"] += 1
+    out["short"] = dict(short)
     if flat_k:
         t0 = min(t - k * DT for k, t in zip(flat_k, flat_t, strict=True))
         values = sorted((t - (t0 + k * DT)) * 1000.0 for k, t in zip(flat_k, flat_t, strict=True))
@@ -635,8 +709,8 @@ def summarise(
 LAB_TOML = """
 [access]
 login_attempts_per_address = 1000
-live_sockets_per_login = 1000
-live_sockets_per_rig = 1000
+live_sockets_per_login = 10000
+live_sockets_per_rig = 10000
 
 [rig_defaults]
 control_time_limit = 3600
@@ -649,7 +723,9 @@ spec = "sim:paper-practical"
 """
 
 
-async def bench_thermolab(watchers: int, seconds: float, procs: int) -> dict[str, Any]:
+async def bench_thermolab(
+    watchers: int, seconds: float, procs: int, ping: float = 0.0, profile: str | None = None
+) -> dict[str, Any]:
     port = free_port()
     samples = round(seconds / DT)
     with tempfile.TemporaryDirectory() as tmp:
@@ -675,8 +751,13 @@ async def bench_thermolab(watchers: int, seconds: float, procs: int) -> dict[str
             check=True,
             capture_output=True,
         )
+        serve = [*thermolab, "serve", "--port", str(port), "--config", str(config)]
+        serve += ["--max-connections", "20000"]
+        if profile:  # py-spy samples the server (PyPI: py-spy), a flame graph per run
+            out = f"{profile}-{watchers}.txt"
+            serve = ["py-spy", "record", "--rate", "50", "--format", "raw", "-o", out, "--", *serve]
         server = subprocess.Popen(
-            [*thermolab, "serve", "--port", str(port), "--config", str(config)],
+            serve,
             env=env,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
@@ -694,16 +775,21 @@ async def bench_thermolab(watchers: int, seconds: float, procs: int) -> dict[str
                 headers = {"Cookie": cookie}
                 (await http.post("/api/rigs/twin/control", headers=headers)).raise_for_status()
 
+                beats: list[float] = []
+
                 async def keep_control() -> None:  # the controller's page keeps its turn
                     while True:
                         await asyncio.sleep(5.0)
+                        sent = time.monotonic()
                         await http.post("/api/rigs/twin/heartbeat", headers=headers)
+                        beats.append(1000.0 * (time.monotonic() - sent))
 
                 # From the start: connecting hundreds of watchers may outlast the 15 s a
                 # silent controller keeps the turn (and a run ends with its turn).
                 heartbeat = asyncio.create_task(keep_control())
                 url = f"ws://127.0.0.1:{port}/api/rigs/twin/live"
-                clients = await start_clients(url, cookie, watchers, procs)
+                clients = await start_clients(url, cookie, watchers, procs, ping)
+                beats.clear()  # the heartbeats while the run goes on
                 cpu = CpuWindow({"server": [server.pid], "clients": [c.pid for c in clients]})
                 started = await http.post(
                     "/api/rigs/twin/runs",
@@ -726,10 +812,14 @@ async def bench_thermolab(watchers: int, seconds: float, procs: int) -> dict[str
             for client in clients:
                 with contextlib.suppress(ProcessLookupError):
                     client.kill()
-            server.terminate()
+            server.send_signal(signal.SIGINT)  # py-spy writes its graph on the server's exit
             with contextlib.suppress(subprocess.TimeoutExpired):
-                server.wait(timeout=20)
-    return summarise("thermolab", results, figures, samples)
+                server.wait(timeout=30)
+            if server.poll() is None:
+                server.kill()
+    row = summarise("thermolab", results, figures, samples)
+    row["heartbeat_max"] = max(beats, default=math.nan)
+    return row
 
 
 async def bench_peer(watchers: int, seconds: float, procs: int) -> dict[str, Any]:
@@ -795,6 +885,15 @@ def print_row(row: dict[str, Any]) -> None:
         f"{100 * row['delivered']:6.2f}  {row['frames_per_watcher'] / row['expected_s']:6.1f}  "
         f"{row['server_cpu']:5.0f}  {row['clients_cpu']:5.0f}  {row['machine_busy']:5.0f}   "
         f"{stalled_text(row['stalled'])}"
+        + (f"; heartbeat max {row['heartbeat_max']:.0f} ms" if "heartbeat_max" in row else "")
+        + (f"; closed {row['closed']}" if row.get("closed") else "")
+        + (f"; watchers short of samples {row['short']}" if row.get("short") else "")
+        + (
+            f"; the run produced {row['produced']} samples of {round(row['expected_s'] / DT)}"
+            if row.get("produced", math.inf) < round(row["expected_s"] / DT)
+            else ""
+        )
+        + (f"; {row['unfinished']} unfinished" if row.get("unfinished") else "")
     )
 
 
@@ -804,6 +903,18 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=20.0, help="length of each run (20)")
     parser.add_argument("--client-procs", type=int, default=2, help="client processes (2)")
     parser.add_argument("--only", choices=["thermolab", "peer"], help="measure one server")
+    parser.add_argument(
+        "--ping",
+        type=float,
+        default=0.0,
+        metavar="S",
+        help="each watcher pings every S seconds, as the browser does every 5 (0: never)",
+    )
+    parser.add_argument(
+        "--profile",
+        metavar="PREFIX",
+        help="sample thermolab's server with py-spy into PREFIX-<watchers>.txt (collapsed stacks)",
+    )
     parser.add_argument(
         "--compete",
         type=int,
@@ -832,7 +943,9 @@ def main() -> int:
     parser.add_argument("--samples", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.role == "clients":
-        new_loop().run_until_complete(client_main(args.url, args.cookie, args.count, args.stall))
+        new_loop().run_until_complete(
+            client_main(args.url, args.cookie, args.count, args.stall, args.ping)
+        )
         return 0
     if args.role == "peer":
         new_loop().run_until_complete(peer_main(args.port, args.samples))
@@ -869,7 +982,14 @@ def main() -> int:
             if args.only is not None and args.only != name:
                 continue
             with competing(args.compete):
-                row = asyncio.run(bench(watchers, args.seconds, args.client_procs))
+                if name == "thermolab":
+                    row = asyncio.run(
+                        bench_thermolab(
+                            watchers, args.seconds, args.client_procs, args.ping, args.profile
+                        )
+                    )
+                else:
+                    row = asyncio.run(bench(watchers, args.seconds, args.client_procs))
             row["expected_s"] = args.seconds
             print_row(row)
             if name == "thermolab" and watchers == 500:

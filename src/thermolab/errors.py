@@ -11,6 +11,7 @@ from __future__ import annotations
 
 __all__ = [
     "AccessDeniedError",
+    "BookingClashError",
     "ClassListError",
     "ConfigError",
     "ConflictError",
@@ -27,6 +28,7 @@ __all__ = [
     "PasswordChangeRequiredError",
     "PreviousRunEndingError",
     "RecordFormatError",
+    "RigBookedError",
     "RigError",
     "RigFaultError",
     "RigStateError",
@@ -34,6 +36,8 @@ __all__ = [
     "RunInProgressError",
     "RunStateError",
     "SetpointRangeError",
+    "SettingRangeError",
+    "SettingsChangedError",
     "SignalSpecError",
     "SubscriberCutError",
     "ThermoLabError",
@@ -181,3 +185,46 @@ class WrongEnrolCodeError(AccessDeniedError):
 
 class PasswordChangeRequiredError(AccessDeniedError):
     """The account holds a temporary password: it must be changed before anything else."""
+
+
+# -- teacher settings (issue #10) --------------------------------------------------------
+
+
+class SettingRangeError(InvalidParameterError):
+    """A teacher setting outside its allowed range (the message names the range).
+
+    ``setting`` is its name, ``minimum``/``maximum`` the range in force for the rig.
+    """
+
+    def __init__(self, setting: str, message: str, minimum: float, maximum: float) -> None:
+        self.setting = setting
+        self.minimum = minimum
+        self.maximum = maximum
+        super().__init__(message)
+
+
+class SettingsChangedError(ConflictError):
+    """Someone saved a rig's settings since the version the change was based on."""
+
+
+# -- bookings (issue #10, item 5) ----------------------------------------------------------
+
+
+class BookingClashError(ConflictError):
+    """A booking overlaps another on a rig they share; ``slot`` names the other one.
+
+    ``slot`` holds ``id``, ``course``, ``startsAt``, ``endsAt`` (ISO 8601, UTC)
+    and the shared ``rigs``, so a page can say which slot is in the way.
+    """
+
+    def __init__(self, message: str, slot: dict[str, object]) -> None:
+        super().__init__(message)
+        self.slot = slot
+
+
+class RigBookedError(ConflictError):
+    """A rig is booked for another course's slot now; ``slot`` holds its start and end."""
+
+    def __init__(self, message: str, slot: dict[str, object]) -> None:
+        super().__init__(message)
+        self.slot = slot

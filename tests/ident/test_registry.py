@@ -173,7 +173,7 @@ def check_runner(method: Method, setting: Setting) -> None:
 
 def _run_in_property(name: str) -> tuple[dict[str, object], str]:
     """The non-null branch of a RunIn property's JSON schema, and its description."""
-    from thermolab.lab.http.schemas import RunIn
+    from thermolab.lab.http.routers.runs import RunIn
 
     prop = RunIn.model_json_schema(by_alias=True)["properties"][name]
     branch = next((b for b in prop.get("anyOf", [prop]) if b.get("type") != "null"), prop)
@@ -188,7 +188,7 @@ def check_server_schema(method: Method, setting: Setting) -> None:
     """
     from pydantic import ValidationError
 
-    from thermolab.lab.http.schemas import RunIn
+    from thermolab.lab.http.routers.runs import RunIn
     from thermolab.lab.runs.request import LAB_NARROWING, RUN_SETTINGS, RunRequest
     from thermolab.lab.runs.request import build_run_identifiers as build
 
@@ -299,7 +299,7 @@ def test_the_commands_offer_exactly_the_registered_settings() -> None:
 
 
 def test_method_names_agree_everywhere() -> None:
-    from thermolab.lab.http.schemas import RunIn
+    from thermolab.lab.http.routers.runs import RunIn
 
     assert runner_methods.METHOD_NAMES == METHOD_NAMES
     items = RunIn.model_json_schema()["properties"]["methods"]["items"]

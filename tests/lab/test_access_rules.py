@@ -6,8 +6,11 @@ from dataclasses import replace
 from datetime import UTC, datetime, timedelta
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from thermolab.lab.access.rules import (
+    Slot,
     Turn,
     TurnRules,
     TurnState,
@@ -158,3 +161,78 @@ def test_the_first_reading_of_a_cold_powered_rig_is_its_ambient() -> None:
     assert not is_due(cold, rules(), T0, None)
     assert is_due(cold, rules(), T0, (21.5, T0))
     assert next_state(cold, rules(), T0, (21.5, T0)).ambient_output == 21.5
+
+
+# -- booked slots (issue #10, item 5) -------------------------------------------------------
+
+
+def slot(start: float, end: float, members: frozenset[int] = frozenset({7})) -> Slot:
+    return Slot(1, 1, at(start), at(end), members)
+
+
+def test_at_a_slots_start_an_outsider_loses_the_turn_even_mid_run() -> None:
+    # User 1 controls with a run going; 8 (outsider) and 7 (of the course) wait.
+    state = free(
+        turn=turn(seen=100, active=100),
+        run_active=True,
+        queue=(Waiting(8, at(100)), Waiting(7, at(100))),
+        slots=(slot(100, 200),),
+    )
+    assert not is_due(replace(state, slots=(slot(101, 200),)), rules(), at(100), None)
+    assert is_due(state, rules(), at(100), None)  # what is due next, from the same table
+    after = next_state(state, rules(), at(100), None)
+    assert after.ended is not None
+    assert (after.ended.reason, after.ended.at) == (TurnEndReason.BOOKED, at(100))
+    assert after.booked_out == ((Waiting(8, at(100)), at(100)),)
+    assert after.turn is not None
+    assert after.turn.user_id == 7  # the course's student, queued behind, gets the rig
+    assert after.queue == ()
+
+
+def test_inside_a_slot_the_course_queues_as_usual_and_after_it_everyone_does() -> None:
+    state = free(turn=turn(7, seen=150, active=150), queue=(Waiting(9, at(150)),))
+    inside = replace(state, slots=(slot(100, 200, frozenset({7, 9})),))
+    assert not is_due(inside, rules(), at(150), None)
+    # After the slot (or with no slot) an outsider waits and is not dropped.
+    outsider = replace(state, queue=(Waiting(8, at(250)),), turn=turn(7, seen=250, active=250))
+    assert not is_due(replace(outsider, slots=(slot(100, 200),)), rules(), at(250), None)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    controller=st.one_of(st.none(), st.integers(1, 6)),
+    waiting=st.lists(st.integers(1, 6), unique=True, max_size=5),
+    members=st.frozensets(st.integers(1, 6)),
+    start=st.integers(0, 400),
+    length=st.integers(1, 400),
+    now=st.integers(0, 800),
+    run_active=st.booleans(),
+)
+def test_no_outsider_holds_or_waits_for_a_rig_during_a_slot(
+    controller: int | None,
+    waiting: list[int],
+    members: frozenset[int],
+    start: int,
+    length: int,
+    now: int,
+    run_active: bool,
+) -> None:
+    queue = tuple(Waiting(u, at(now)) for u in waiting if u != controller)
+    state = free(
+        turn=None if controller is None else turn(controller, seen=now, active=now),
+        queue=queue,
+        run_active=run_active and controller is not None,
+        slots=(Slot(1, 1, at(start), at(start + length), members),),
+    )
+    after = next_state(state, rules(), at(now), None)
+    during = start <= now < start + length
+    people = [w.user_id for w in after.queue] + ([after.turn.user_id] if after.turn else [])
+    assert len(people) == len(set(people))  # one turn each, nobody twice
+    if during:
+        assert all(p in members for p in people), "an outsider at the rig during its slot"
+        # And the table is settled: nothing more is due at the same instant.
+        assert not is_due(after, rules(), at(now), None)
+    else:
+        # Outside the slot the rules are those of a rig without bookings.
+        plain = next_state(replace(state, slots=()), rules(), at(now), None)
+        assert (after.turn, after.queue, after.ended) == (plain.turn, plain.queue, plain.ended)

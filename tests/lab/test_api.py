@@ -33,6 +33,10 @@ def people(lab: Lab) -> None:
     lab.users.add("tina", PASSWORD, "teacher")
 
 
+#: The LTI routes an LMS sends a browser to (no lab login; see docs/architecture.md).
+LMS_FACING = {"/api/lti/login", "/api/lti/launch", "/api/lti/continue"}
+
+
 def _concrete(path: str) -> str:
     return re.sub(r"\{rig_id\}", "twin", re.sub(r"\{username\}", "ana", path))
 
@@ -55,6 +59,14 @@ def test_every_route_but_login_version_and_enrol_needs_a_session(
                 continue
             if (method, path) == ("post", "/api/enrol"):
                 assert response.status_code == 422  # self-enrolment: a code, not a login
+                continue
+            if path == "/api/lti/jwks":
+                assert response.status_code == 200  # the tool's public keys, for any LMS
+                continue
+            if path in LMS_FACING:
+                # An LMS's browser arrives without a login: a signed token or a one-use
+                # state authenticates it; without them it is refused (400, or 422 for no ticket).
+                assert response.status_code in (400, 422), (method, path)
                 continue
             assert response.status_code == 401, (method, path)
             assert response.json()["detail"].startswith("not logged in")

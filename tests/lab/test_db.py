@@ -19,6 +19,7 @@ from thermolab.lab.db import Database, normalize_database_url
 from thermolab.lab.db.models import Base, ControlSession, QueueEntry, RigRow, User, UTCDateTime
 
 TABLES = {
+    "agent_hosts",  # issue #14: rig hosts (thermolab.lab.db.agent_models)
     "users",
     "courses",
     "course_members",
@@ -35,6 +36,22 @@ TABLES = {
     "server_lease",
     "api_tokens",
     "method_results",
+    "rig_settings",
+    "assignments",
+    "submissions",
+    "bookings",
+    "booking_rigs",
+    "rig_power_changes",
+    # LTI 1.3 (issue #12).
+    "lti_platforms",
+    "lti_keys",
+    "lti_login_states",
+    "lti_identities",
+    "lti_contexts",
+    "lti_resource_links",
+    "lti_grades",
+    # Limits per course (issue #10, item 3).
+    "course_settings",
 }
 
 
@@ -55,7 +72,7 @@ def test_migrations_create_the_schema_of_the_models(fresh_url: str) -> None:
         assert db.current_revision() is None
         db.upgrade()
         db.upgrade()  # idempotent
-        assert db.current_revision() == "0009"
+        assert db.current_revision() == "0016"
         assert set(db.table_names()) == TABLES | {"alembic_version"}
         with db.engine.connect() as connection:
             context = MigrationContext.configure(connection, opts={"compare_type": True})

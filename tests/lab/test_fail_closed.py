@@ -3,8 +3,10 @@
 Each example is a sequence of steps. A racing step sends the controller's
 START at the same instant (threads behind a barrier) as something else:
 an input, the controller's release, a teacher's kick, taking the rig out of
-service, or the turn's time limit running out (the clock moved, then the
-sweep). A restart step closes the lab and opens a new one on the database.
+service, the turn's time limit running out (the clock moved, then the
+sweep), or a slot booked for a course the controller is not in beginning
+(booked, the clock moved to its start, then the sweep). A restart step
+closes the lab and opens a new one on the database.
 After every step the invariant is checked: at most one controller, no run
 outside a turn, the device left to the hub (safe) when no run goes. The rig's
 clock is a :class:`StepClock`: time passes only as far as the test allows.
@@ -12,9 +14,11 @@ clock is a :class:`StepClock`: time passes only as far as the test allows.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
 from collections.abc import Callable
+from datetime import UTC, datetime, timedelta
 from typing import Any
 
 import pytest
@@ -24,13 +28,14 @@ from sqlalchemy import func, select
 
 from thermolab.errors import (
     AccessDeniedError,
+    ConflictError,
     NotFoundError,
     PreviousRunEndingError,
     TurnEndedError,
 )
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import RigConfig
-from thermolab.lab.db.models import ControlSession, Run, RunStatus
+from thermolab.lab.db.models import ControlSession, Course, CourseMember, Run, RunStatus
 from thermolab.lab.service import Lab
 from thermolab.lab.users import Principal
 from thermolab.rigs import Rig, TwinRig
@@ -39,7 +44,8 @@ from .conftest import PASSWORD, LabFactory
 from .test_runs import StepClock, lab_request, until
 
 RIG = "twin"
-RACERS = ("input", "release", "kick", "out_of_service", "expiry")
+RACERS = ("input", "release", "kick", "out_of_service", "expiry", "slot")
+_EPOCH = datetime(2025, 12, 1, tzinfo=UTC)  # before the manual clock's start
 STEPS = st.lists(st.sampled_from((*RACERS, "restart")), min_size=1, max_size=3)
 
 
@@ -53,6 +59,9 @@ class Scene:
         self.lab = self._open()
         self.ana = self._person("ana", "student")
         self.tina = self._person("tina", "teacher")
+        # A course ana is not in, whose slots take the rig from her.
+        with contextlib.suppress(ConflictError):
+            self.lab.courses.create("others", "Another class", "tina")
 
     def _open(self) -> Lab:
         rig_clock = self.rig_clock
@@ -76,8 +85,10 @@ class Scene:
         self.lab = self._open()
 
     def ready(self) -> None:
-        """Ana controls the rig in service, with no run going."""
+        """Ana controls the rig in service, with no run going (and no slot booked)."""
         lab = self.lab
+        for booking in lab.bookings.calendar(self.tina, _EPOCH, _EPOCH + timedelta(days=60)):
+            lab.bookings.cancel(self.tina, booking.id)
         if lab.runs.running(RIG) is not None:
             lab.runs.stop(RIG, self.tina)
             self.rig_clock.allow(self.rig_clock.now() + 5.0)
@@ -107,6 +118,7 @@ class Scene:
             "kick": lambda: lab.access.kick(RIG, self.tina),
             "out_of_service": lambda: lab.set_service(RIG, self.tina, False),
             "expiry": self._expire,
+            "slot": self._slot,
         }
         barrier = threading.Barrier(2)
         outcome: dict[str, BaseException | None] = {}
@@ -130,6 +142,13 @@ class Scene:
         self.clock.advance(61.0)
         self.lab.sweep()
 
+    def _slot(self) -> None:
+        now = self.clock.now()
+        second = timedelta(seconds=1)
+        self.lab.bookings.create(self.tina, "others", [RIG], now + second, now + 3600 * second)
+        self.clock.advance(1.0)
+        self.lab.sweep()
+
     def check(self) -> None:
         """The invariant: one controller at most; a run only inside the live turn."""
         lab = self.lab
@@ -148,6 +167,21 @@ class Scene:
             )
         assert len(controls) <= 1
         assert len(running) <= 1
+        # No outsider in control during a slot: the controller, if any, is in its course.
+        now = self.clock.now()
+        slots = lab.bookings.calendar(self.tina, now, now + timedelta(microseconds=1), RIG)
+        if slots and controls:
+            with lab.db.read() as session:
+                holder = session.scalar(
+                    select(ControlSession.user_id).where(ControlSession.id == controls[0])
+                )
+                course = session.scalar(select(Course.id).where(Course.name == slots[0].course))
+                member = session.scalar(
+                    select(CourseMember.id).where(
+                        CourseMember.course_id == course, CourseMember.user_id == holder
+                    )
+                )
+            assert member is not None, "an outsider in control during a slot"
         live = lab.runs.running(RIG)
         if running:
             assert controls == [running[0].control_session_id], "a run outside its turn"
@@ -255,6 +289,7 @@ def _forced(scene: Scene, pause_at: str, racer: str) -> dict[str, BaseException 
         "kick": lambda: lab.access.kick(RIG, scene.tina),
         "out_of_service": lambda: lab.set_service(RIG, scene.tina, False),
         "expiry": scene._expire,
+        "slot": scene._slot,
     }
 
     def run(name: str) -> None:
@@ -273,7 +308,7 @@ def _forced(scene: Scene, pause_at: str, racer: str) -> dict[str, BaseException 
         # Taking a rig out of service clears its fault under the hub lock before it
         # commits: it cannot come between START's commit and its run, it waits.
         until(lambda: ending.is_alive(), timeout=30)
-    elif (pause_at, racer) == ("start:committed", "expiry"):
+    elif pause_at == "start:committed" and racer in ("expiry", "slot"):
         # The committed run covers the turn: the time limit ends nothing (the sweep may
         # wait for the hub lock START holds to take its readings; it goes on after).
         ending.join(1.0)
@@ -292,10 +327,12 @@ def _forced(scene: Scene, pause_at: str, racer: str) -> dict[str, BaseException 
 START_WINS = {
     ("start:committed", "out_of_service"): "waits for the hub lock START holds, then ENDs the run",
     ("start:committed", "expiry"): "a committed run covers its turn: the time limit waits",
+    ("start:committed", "slot"): "the sweep waits for the hub lock START holds, then the slot "
+    "ends the turn and its run",
 }
 
 
-@pytest.mark.parametrize("racer", ["release", "kick", "out_of_service", "expiry"])
+@pytest.mark.parametrize("racer", ["release", "kick", "out_of_service", "expiry", "slot"])
 @pytest.mark.parametrize("pause_at", ["start:arrived", "start:committed"])
 def test_a_start_that_loses_the_race_gets_turn_ended_every_time(
     make_lab: LabFactory, clock: ManualClock, pause_at: str, racer: str
@@ -353,6 +390,11 @@ def _hand_over_while_the_run_ends(lab: Lab, rig_clock: StepClock) -> None:
     lab.access.request_control(RIG, ana)
     lab.access.request_control(RIG, ben)
     first = lab.runs.start(RIG, ana, lab_request(samples=1000))
+    # Her first sample (t = 0) taken: an END before it would end the run without the
+    # clock moving, and there would be nothing left for ben's START to wait for.
+    active = lab.runs._going(RIG)
+    assert active is not None
+    until(lambda: active.experiment.k >= 1)
     lab.access.release(RIG, ana)  # ben controls; ana's run cannot take its last sample yet
     lab.runs.handover_wait = 0.2
     with pytest.raises(PreviousRunEndingError) as still_ending:  # 409 previous_run_ending
@@ -361,6 +403,7 @@ def _hand_over_while_the_run_ends(lab: Lab, rig_clock: StepClock) -> None:
     with pytest.raises(AccessDeniedError):  # ana's turn is over: 403, not a 409
         lab.runs.start(RIG, ana, lab_request(samples=1000))
     rig_clock.allow(5.0)  # the previous run stores its end...
+    lab.runs.handover_wait = 30.0  # (however slow a loaded machine is at storing it)
     run = lab.runs.start(RIG, ben, lab_request(samples=1000))  # ...and ben's START waits for it
     assert run.status == "running"
     assert run.id != first.id

@@ -21,7 +21,7 @@ from thermolab.control import tune
 from thermolab.errors import ThermoLabError
 from thermolab.lab.config import RigConfig
 from thermolab.lab.http.app import create_app
-from thermolab.lab.http.schemas import RunOut
+from thermolab.lab.http.routers.runs import RunOut
 from thermolab.lab.runs import samples_csv
 from thermolab.lab.runs.store import DatabaseRecorder, add_run, run_channels
 from thermolab.lab.service import Lab

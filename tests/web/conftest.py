@@ -295,7 +295,18 @@ def _add_users(
     procs = []
     for user, role in users:
         proc = subprocess.Popen(
-            _thermolab(data_dir, "user", "add", user, "--role", role, "--password-stdin"),
+            _thermolab(
+                data_dir,
+                "user",
+                "add",
+                user,
+                "--role",
+                role,
+                "--password-stdin",
+                # The lab's own file: its database_url (PostgreSQL) holds the accounts too.
+                "--config",
+                str(data_dir / "lab.toml"),
+            ),
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,

@@ -40,13 +40,43 @@ def test_a_teacher_edits_panel_1_guide_and_a_student_sees_it_beside_panel_1(
     student = logged_in("alice", locale=locale, viewport={"width": 1280, "height": 900})
     try:
         page = teacher.new_page()
+        revisions: list[tuple[str, int]] = []
+        page.on(
+            "response",
+            lambda r: revisions.append((r.url, r.status)) if "/revisions" in r.url else None,
+        )
+        # The guide's read is held back: Edit is clicked before the guide has loaded.
+        held: list[Any] = []
+
+        def hold(route: Any) -> None:
+            held.append(route)
+
+        page.route(f"**/api/rigs/{RIG}/guide?*", hold)
         page.goto(f"{lab.url}/#/rig/{RIG}")
         opener = page.locator("#panel-srm-lsm button[data-guide=panel-1]")
         opener.click()
         drawer = page.locator("[data-testid=guide]")
         drawer.wait_for()
+        for _ in range(100):
+            if held:
+                break
+            page.wait_for_timeout(50)
+        (read,) = held
+        page.click("[data-testid=guide-edit]")
+        page.wait_for_timeout(300)
+        assert revisions == []  # no revisions asked for before the guide's language is known
+        read.continue_()
+        page.unroute(f"**/api/rigs/{RIG}/guide?*")
         text = page.locator("[data-testid=guide-text]")
+        text.locator("h1").wait_for()
         assert default_heading in text.locator("h1").inner_text()
+        source = page.locator("[data-testid=guide-source]")
+        source.wait_for()  # the load did not close the editor again
+        page.locator("[data-testid=guide-revisions] li").first.wait_for()
+        assert default_heading in source.input_value()  # the section's Markdown, once loaded
+        ((url, status),) = revisions
+        assert (status, f"lang={lang}") == (200, url.rsplit("?", 1)[1])
+        page.click(".guide-editor .buttons button:nth-child(3)")  # cancel
         assert page.locator("html").get_attribute("lang") == lang
         page.click("[data-testid=guide-edit]")
         page.fill("[data-testid=guide-source]", markdown)

@@ -340,3 +340,9 @@ def test_a_truncated_replay_of_a_long_run_still_fills_the_window(page: Any) -> N
     # The newest samples, not the first one's -5.
     assert low > 0.5
     assert high < 1
+    # ... and the page says so, offering the whole record.
+    notice = page.inner_text("[data-testid=chart-truncated]")
+    assert f"Run {RUN} is too long to replay here whole" in notice
+    assert "from sample 15001 on (at most 5000 samples" in notice
+    href = page.get_attribute("[data-testid=chart-truncated-csv]", "href")
+    assert href == f"/api/runs/{RUN}/samples.csv"

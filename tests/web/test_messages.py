@@ -241,6 +241,7 @@ SAME_BY_CHANCE = {
     ("pt-BR", "run.inputManual"),  # "manual" is Portuguese too
     ("es", "run.inputManual"),  # and Spanish
     ("es", "panel.legend"),  # "Panel" is Spanish too
+    ("es", "nav.lti"),  # "LMS" is the Spanish abbreviation too
 }
 
 

@@ -11,7 +11,7 @@ incomplete-event bound refuses request heads over 16 KiB (httptools, which
 uvicorn picks by default, has none), a client has ``--request-timeout``
 seconds to send a whole request (a slow or silent client is cut), an idle
 keep-alive connection is closed after 5 s, and beyond 1000 open connections
-new requests get 503. Files: the process's umask is 077, so the data folder,
+(``--max-connections``) new requests get 503. Files: the process's umask is 077, so the data folder,
 the SQLite database (and its journal) and the run records are the server
 user's only (0700/0600); looser modes found at start are tightened, with a
 warning.
@@ -105,6 +105,44 @@ def register(subparsers: Any) -> None:
         metavar="S",
         help="seconds a client has to send a whole request; slower ones are cut (10)",
     )
+    parser.add_argument(
+        "--ssl-certfile", metavar="FILE.pem", help="serve HTTPS/WSS with this certificate"
+    )
+    parser.add_argument("--ssl-keyfile", metavar="FILE.pem", help="the certificate's private key")
+    parser.add_argument(
+        "--agent-grace",
+        type=float,
+        default=10.0,
+        metavar="S",
+        help="seconds a remote rig's run outlives a lost link before its host ENDs it (10)",
+    )
+    parser.add_argument(
+        "--smtp", metavar="HOST:PORT", help="mail server for the rig-health alerts (none: no mail)"
+    )
+    parser.add_argument(
+        "--alert-to",
+        action="append",
+        default=[],
+        metavar="ADDRESS",
+        help="who gets the rig-health alerts (repeat for several)",
+    )
+    parser.add_argument(
+        "--broker",
+        metavar="URL",
+        help="join the other workers of this database over this broker (redis://HOST:PORT/DB)",
+    )
+    parser.add_argument(
+        "--advertise",
+        metavar="URL",
+        help="this worker's address for the other workers (http://HOST:PORT of --host/--port)",
+    )
+    parser.add_argument(
+        "--max-connections",
+        type=int,
+        default=CONNECTION_LIMIT,
+        metavar="N",
+        help=f"open connections beyond which new requests get 503 ({CONNECTION_LIMIT})",
+    )
     parser.set_defaults(handler=_serve)
 
 
@@ -194,25 +232,36 @@ def make_private(config: LabConfig) -> list[str]:
 def _serve(args: argparse.Namespace) -> int:
     from thermolab.cli import CliError
     from thermolab.lab.devices import device_opener
+    from thermolab.lab.fleet import start_worker
     from thermolab.lab.http.app import create_app
-    from thermolab.lab.service import Lab
     from thermolab.web import STATIC_DIR
 
     config = lab_config_from_args(args)
     if not 0 < args.request_timeout <= 3600:
         raise CliError(f"--request-timeout {args.request_timeout:g}: use 0 < S <= 3600", status=2)
+    if not 1 <= args.max_connections <= 100_000:
+        raise CliError(f"--max-connections {args.max_connections}: use 1 <= N <= 100000", status=2)
     _check_port_free(args.host, args.port)
     for path in make_private(config):
         print(
             f"warning: tightened permissions of {path} to the server's user only", file=sys.stderr
         )
-    lab = Lab(config, opener=device_opener(config.speedup), exclusive=True)
+    if not 0 < args.agent_grace <= 3600:
+        raise CliError(f"--agent-grace {args.agent_grace:g}: use 0 < S <= 3600", status=2)
+    url = args.advertise or f"http://{args.host}:{args.port}"
+    lab, fleet, report = start_worker(
+        config, opener=device_opener(config.speedup), broker=args.broker, url=url
+    )
+    lab.agents.grace = args.agent_grace
+    lab.agents.notify = _mailer(args, config.title)
     try:
-        report = lab.start()
         rigs = ", ".join(f"{rig.id} ({rig.spec})" for rig in config.rigs)
-        print(f"ThermoLab on http://{args.host}:{args.port}/", file=sys.stderr)
+        scheme = "https" if args.ssl_certfile else "http"
+        print(f"ThermoLab on {scheme}://{args.host}:{args.port}/", file=sys.stderr)
         print(f"  database: {lab.db.display_url}", file=sys.stderr)
         print(f"  rigs: {rigs}", file=sys.stderr)
+        if fleet is not None:
+            print(f"  broker: {args.broker} ({fleet.role})", file=sys.stderr)
         if config.speedup != 1.0:
             print(
                 f"  simulated rigs run {config.speedup:g}x faster than real time", file=sys.stderr
@@ -226,16 +275,35 @@ def _serve(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
         static = STATIC_DIR if (STATIC_DIR / "index.html").is_file() else None
-        app = create_app(config, static, lab=lab, close_lab=True)
+        app = create_app(config, static, lab=lab, close_lab=True, fleet=fleet)
         # What exists now (the imported libraries, the lab, the app) lives as long as the
         # server: keep it out of the collector's full passes, which otherwise stop every
         # thread, the live stream's included, for 0.1-0.2 s each (benchmarks/bench_live.py).
         gc.collect()
         gc.freeze()
-        _run_server(app, args.host, args.port, request_timeout=args.request_timeout)
+        _run_server(
+            app,
+            args.host,
+            args.port,
+            request_timeout=args.request_timeout,
+            tls=(args.ssl_certfile, args.ssl_keyfile),
+            max_connections=args.max_connections,
+        )
     finally:
         lab.close()
     return 0
+
+
+def _mailer(args: argparse.Namespace, title: str) -> Any:
+    from thermolab.cli import CliError
+    from thermolab.lab.agents.notify import Mailer
+
+    if args.smtp is None:
+        return None
+    host, _, port = args.smtp.rpartition(":")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536 or not args.alert_to:
+        raise CliError(f"--smtp {args.smtp!r}: use HOST:PORT with --alert-to ADDRESS", status=2)
+    return Mailer(host, int(port), tuple(args.alert_to), lab_title=title)
 
 
 def _bounded_h11(request_timeout: float) -> type[asyncio.Protocol]:
@@ -302,7 +370,57 @@ def _bounded_h11(request_timeout: float) -> type[asyncio.Protocol]:
     return BoundedH11Protocol
 
 
-def _run_server(app: Any, host: str, port: int, *, request_timeout: float = 10.0) -> None:
+def _framed_websockets() -> type[asyncio.Protocol]:
+    """uvicorn's WebSocket protocol, offering the live stream direct writes to its socket.
+
+    The ASGI scope gets :data:`~thermolab.lab.fanout.FRAMES_EXTENSION`: a
+    writer that puts a whole, ready-made frame on the connection's transport
+    (the frame the channel built once for every client). The protocol's own
+    frames (pings, close) go to the same transport from the same thread, so
+    frames never interleave; nothing is written once a close is sent.
+    """
+    from uvicorn.protocols.websockets.websockets_sansio_impl import WebSocketsSansIOProtocol
+    from websockets.http11 import Request
+
+    from thermolab.lab.fanout import FRAMES_EXTENSION
+
+    class Frames:
+        __slots__ = ("protocol",)
+
+        def __init__(self, protocol: WebSocketsSansIOProtocol) -> None:
+            self.protocol = protocol
+
+        def write(self, frame: bytes) -> bool:
+            protocol = self.protocol
+            transport = protocol.transport
+            if protocol.close_sent or transport.is_closing():
+                return False
+            transport.write(frame)
+            return True
+
+        def buffered(self) -> int:
+            size: int = self.protocol.transport.get_write_buffer_size()
+            return size
+
+    class FramedWebSockets(WebSocketsSansIOProtocol):
+        def handle_connect(self, event: Request) -> None:
+            super().handle_connect(event)
+            scope = getattr(self, "scope", None)  # none when the handshake was refused
+            if scope is not None:
+                scope["extensions"][FRAMES_EXTENSION] = Frames(self)
+
+    return FramedWebSockets
+
+
+def _run_server(
+    app: Any,
+    host: str,
+    port: int,
+    *,
+    request_timeout: float = 10.0,
+    tls: tuple[str | None, str | None] = (None, None),
+    max_connections: int = CONNECTION_LIMIT,
+) -> None:
     import uvicorn
 
     # Live messages are small and go to many clients: compressing each one for each
@@ -318,7 +436,11 @@ def _run_server(app: Any, host: str, port: int, *, request_timeout: float = 10.0
         proxy_headers=False,
         ws_per_message_deflate=False,
         http=_bounded_h11(request_timeout),
+        ws=_framed_websockets(),
         h11_max_incomplete_event_size=HEAD_LIMIT,
         timeout_keep_alive=KEEP_ALIVE_TIMEOUT,
-        limit_concurrency=CONNECTION_LIMIT,
+        limit_concurrency=max_connections,
+        # TLS (wss:// for rig hosts): uvicorn's own, with the certificate given.
+        ssl_certfile=tls[0],
+        ssl_keyfile=tls[1],
     )

@@ -35,6 +35,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from ._warning import IdentificationWarning
     from .batch import least_squares
     from .blocks import block_least_squares
     from .deadtime import DelaySearch
@@ -52,7 +53,8 @@ if TYPE_CHECKING:
     from .online import Estimate, OnlineIdentifier, make_identifier
     from .operating_point import OperatingPoint, decide_operating_point
     from .recursive import moving_window_least_squares, weighted_least_squares
-    from .step import IdentificationWarning, StepResponseResult, step_response
+    from .step import step_response
+    from .step_result import StepResponseResult
     from .trajectory import Trajectory
 
 __all__ = [
@@ -100,8 +102,8 @@ _HOME = {
     "make_identifier": "online",
     "moving_window_least_squares": "recursive",
     "weighted_least_squares": "recursive",
-    "IdentificationWarning": "step",
-    "StepResponseResult": "step",
+    "IdentificationWarning": "_warning",
+    "StepResponseResult": "step_result",
     "step_response": "step",
     "Trajectory": "trajectory",
     "DelaySearch": "deadtime",

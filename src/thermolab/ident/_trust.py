@@ -17,10 +17,10 @@ from thermolab.errors import InvalidParameterError
 
 from . import _validation as _v
 from . import diagnostics as _diag
+from ._warning import IdentificationWarning
 from .deadtime import DEFAULT_CRITERION, DelaySearch, default_max_delay, search_delay
 from .models import ArxOrder
 from .operating_point import OperatingPoint, decide_operating_point
-from .step import IdentificationWarning
 from .trajectory import Trajectory
 
 FloatArray = npt.NDArray[np.float64]

@@ -18,12 +18,12 @@ from thermolab.errors import InvalidParameterError
 from . import _regression as _reg
 from . import _validation as _v
 from . import diagnostics as _diag
+from ._warning import IdentificationWarning
 from .deadtime import DEFAULT_CRITERION, DelaySearch, default_max_delay, search_delay
 from .lsm_result import LeastSquaresResult
 from .models import ArxModel, ArxOrder, FirstOrderModel
 from .operating_point import OperatingPoint, decide_operating_point
 from .registry import SETTINGS
-from .step import IdentificationWarning
 
 if TYPE_CHECKING:
     pass

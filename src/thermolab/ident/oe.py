@@ -43,11 +43,11 @@ from thermolab.jsonsafe import finite_or_none
 
 from . import _validation as _v
 from . import diagnostics as _diag
+from ._warning import IdentificationWarning
 from .batch import least_squares
 from .deadtime import default_max_delay
 from .models import ArxOrder, FirstOrderModel
 from .registry import SETTINGS
-from .step import IdentificationWarning
 
 __all__ = ["OutputErrorResult", "output_error", "simulate_fopdt"]
 

@@ -145,8 +145,8 @@ class DeviceHub:
 
     def _open(self, slot: _Slot) -> str | None:
         with slot.lock:
-            if self._opener is None or slot.driver is not None:
-                return None
+            if self._opener is None or slot.driver is not None or slot.config.agent:
+                return None  # a remote rig's driver is on its host (thermolab.lab.agents)
             try:
                 driver = self._opener(slot.config)
                 driver.power_off()
@@ -187,6 +187,11 @@ class DeviceHub:
     def published(self, rig_id: str) -> PublishedRig:
         """Return what rig ``rig_id`` accepts (KeyError for an unknown rig)."""
         return self._slots[rig_id].published
+
+    def input_range(self, rig_id: str) -> tuple[float, float]:
+        """The rig's published input range (KeyError for an unknown rig)."""
+        published = self._slots[rig_id].published
+        return (published.input_min, published.input_max)
 
     def reading(self, rig_id: str) -> tuple[float, datetime] | None:
         """Return the latest reading of the rig's output and when it was taken, if any."""

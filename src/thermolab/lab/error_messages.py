@@ -66,6 +66,8 @@ ERROR_SENTENCES: Mapping[str, str] = {
     "class_list_invalid": "The class list has bad lines; nothing was changed.",
     "enrol_code_wrong": "No course has this enrolment code.",
     "password_change_required": "Choose a new password before going on.",
+    "setting_out_of_range": "A setting is outside the range this rig allows.",
+    "settings_changed": "Someone changed these settings meanwhile: load them again.",
     # The closed loop and the runs' precise conflicts.
     "gain_out_of_range": "A controller setting is not a finite number within its published range.",
     "no_output_unit": "This rig has no measured output, so it cannot be controlled in closed loop.",
@@ -74,6 +76,35 @@ ERROR_SENTENCES: Mapping[str, str] = {
     "previous_run_ending": "The previous turn's run is still ending: try again in a few seconds.",
     "run_in_progress": "A run of your turn is already going: END it first.",
     "setpoint_out_of_range": "The set point is outside the rig's output range.",
+    # Bookings (issue #10, item 5).
+    "booking_clash": "This slot overlaps another booking of the same rig.",
+    "rig_booked": "The rig is booked for another course's slot now.",
+    # The LTI 1.3 tool (issue #12).
+    "lti_invalid_token": (
+        "The LMS's sign-in could not be verified (forged, expired or meant for another tool)."
+    ),
+    "lti_replayed": (
+        "This launch from the LMS was used already: open the activity again in the LMS."
+    ),
+    "lti_state_invalid": (
+        "This launch was not started in this browser, or took too long: open the activity"
+        " again in the LMS."
+    ),
+    "lti_unknown_platform": (
+        "This LMS is not registered with the lab: ask a teacher to register it."
+    ),
+    "lti_unknown_deployment": (
+        "This installation of the lab in the LMS is not registered: ask a teacher to add "
+        "its deployment id."
+    ),
+    "lti_jwks_unreachable": (
+        "The LMS's keys could not be fetched, so its sign-in could not be verified."
+    ),
+    "lti_service_failed": "The LMS did not answer as expected; try again later.",
+    "lti_cookies_blocked": (
+        "Your browser blocks the lab's cookies inside the LMS: open the lab in a new window."
+    ),
+    "lti_returning": "Returning to the LMS with your choice.",
 }
 
 

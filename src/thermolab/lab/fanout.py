@@ -11,8 +11,17 @@ every client's bounded queue: no per-client encoding, and one WebSocket frame
 per client for the whole batch. A client that is behind gets its whole
 backlog in one frame too (a JSON array of the messages, in order).
 
+Where the server offers it (``thermolab serve``: the ASGI scope extension
+:data:`FRAMES_EXTENSION`, a :class:`FrameWriter`), a client that has caught
+up is written to directly: the batch's WebSocket frame is built once
+(:func:`text_frame`) and the same bytes go to every such client's socket —
+no per-client task, ASGI call or frame encoding. Anywhere else (tests'
+in-process clients, other ASGI servers) each client's send task takes its
+queue through the ASGI ``send``.
+
 Nothing a client does can delay a publisher or the other clients: a client
-whose queue is full is cut (closed with 4408) and may reconnect with
+whose queue is full (or, written to directly, whose socket holds more than
+its byte bound unsent) is cut (closed with 4408) and may reconnect with
 ``since``. Access messages differ per client (each sees its own queue
 place); they are rendered from one snapshot of the rig, at most a few times
 a second.
@@ -38,20 +47,25 @@ from collections import deque
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
+from functools import cached_property
 from typing import Any
 
 from thermolab.jsonsafe import json_safe
+from thermolab.lab.frames import FRAMES_EXTENSION, MAX_UNSENT_BYTES, FrameWriter, text_frame
 
 __all__ = [
     "CLOSE_BAD_REQUEST",
     "CLOSE_TOO_SLOW",
     "CLOSE_UNAUTHORIZED",
+    "FRAMES_EXTENSION",
     "MAX_FRAME_MESSAGES",
     "Batch",
+    "FrameWriter",
     "LiveChannel",
     "LiveClient",
     "LiveFanout",
     "encode",
+    "text_frame",
 ]
 
 log = logging.getLogger(__name__)
@@ -87,7 +101,7 @@ def encode(message: Mapping[str, Any]) -> str:
     return json.dumps(json_safe(message), separators=(",", ":"), allow_nan=False)
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True)
 class Batch:
     """Encoded messages that travel together, shared by every client they go to.
 
@@ -111,6 +125,11 @@ class Batch:
     body: str
     count: int
     frame: str
+
+    @cached_property
+    def wire(self) -> bytes:
+        """The frame as the socket carries it (built once, whatever the clients)."""
+        return text_frame(self.frame.encode())
 
     @classmethod
     def of(cls, texts: list[str]) -> Batch:
@@ -139,6 +158,9 @@ class LiveClient:
         Why the server ends the connection (close code, reason), once it does.
     sent : int
         Frames sent so far.
+    direct : FrameWriter or None
+        Set once the client has caught up, where the server offers direct
+        writes: batches then go straight to its socket.
 
     Examples
     --------
@@ -161,6 +183,8 @@ class LiveClient:
     closing: tuple[int, str] | None = None
     sent: int = 0
     last_ping: datetime | None = None
+    direct: FrameWriter | None = None
+    max_unsent: int = MAX_UNSENT_BYTES
 
     @property
     def cut(self) -> bool:
@@ -172,8 +196,15 @@ class LiveClient:
         self.offer_batch(Batch(text, 1, text))
 
     def offer_batch(self, batch: Batch) -> None:
-        """Queue a batch, or cut the client if its queue would overflow."""
+        """Queue (or write) a batch, or cut the client if it is too far behind."""
         if self.closing is not None:
+            return
+        direct = self.direct
+        if direct is not None:
+            if direct.buffered() > self.max_unsent:
+                self.close(CLOSE_TOO_SLOW, "too slow: reconnect with since")
+            elif direct.write(batch.wire):
+                self.sent += 1
             return
         if self.queued + batch.count > self.maxsize:
             self.close(CLOSE_TOO_SLOW, "too slow: reconnect with since")
@@ -186,10 +217,18 @@ class LiveClient:
         """End the connection (its sender closes it with ``code``); queued messages are dropped."""
         if self.closing is None:
             self.closing = (code, reason)
+            self.direct = None
             self.queue.clear()
             self.queued = 0
         self.wake.set()
         self.ended.set()
+
+    def go_direct(self, writer: FrameWriter) -> bool:
+        """Write to ``writer`` from now on, if nothing is queued (loop thread); ``True`` if so."""
+        if self.queue or self.closing is not None:
+            return False
+        self.direct = writer
+        return True
 
     def next_frame(self, limit: int = MAX_FRAME_MESSAGES) -> str | None:
         """Take the text of the next frame: everything queued (up to ``limit`` messages)."""
@@ -239,6 +278,9 @@ class LiveChannel:
         self._pending: list[str] = []
         self._lock = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._following = False
+        self.relay: Callable[[str, str], None] | None = None
+        """Also hands each replayable message, encoded, to the other workers (the owner's)."""
 
     def bind(self, loop: asyncio.AbstractEventLoop | None) -> None:
         """Deliver to clients on ``loop`` (``None``: no clients, messages only numbered)."""
@@ -250,9 +292,11 @@ class LiveChannel:
         """Send ``message`` to every client; return its ``seq`` if it is replayable.
 
         Thread-safe and never blocks on a client: the text joins the pending
-        batch, which the event loop hands to the clients' queues.
+        batch, which the event loop hands to the clients' queues. A replayable
+        message also goes to :attr:`relay` (the other workers), numbered.
         """
         replayable = message.get("type") in REPLAYED
+        relay = self.relay
         with self._lock:
             seq = None
             if replayable:
@@ -262,14 +306,42 @@ class LiveChannel:
                 self._ring.append((seq, numbered))
                 message = numbered
             loop = self._loop
-            if loop is None:
+            if loop is None and (relay is None or not replayable):
                 return seq
             # Encoded under the lock, so the pending texts stay in seq order.
-            self._pending.append(encode(message))
+            text = encode(message)
+            if relay is not None and replayable:
+                relay(self.rig_id, text)
+            if loop is None:
+                return seq
+            self._pending.append(text)
             first = len(self._pending) == 1
         if first:
             _call_soon(loop, self.flush)
         return seq
+
+    def publish_numbered(self, message: dict[str, Any], text: str) -> None:
+        """Deliver a message another worker numbered and encoded (``text``), keeping its ``seq``."""
+        seq = message.get("seq")
+        with self._lock:
+            if isinstance(seq, int):
+                self._following = True
+                self.seq = seq
+                self._ring.append((seq, message))
+            loop = self._loop
+            if loop is None:
+                return
+            self._pending.append(text)
+            first = len(self._pending) == 1
+        if first:
+            _call_soon(loop, self.flush)
+
+    def follow(self, seq: int) -> None:
+        """Take the owner's numbering (a worker that has not heard a message of this rig yet)."""
+        with self._lock:
+            if not self._following:
+                self._following = True
+                self.seq = seq
 
     def flush(self) -> None:
         """Hand the pending messages to every client, as one batch (loop thread)."""

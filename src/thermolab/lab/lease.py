@@ -20,6 +20,7 @@ import socket
 from datetime import timedelta
 
 from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
 
 from thermolab.errors import ConflictError
 from thermolab.lab.clock import LabClock
@@ -65,6 +66,18 @@ class DatabaseLease:
         LeaseHeldError
             If another process holds it and is not known to be gone.
         """
+        try:
+            self._take()
+        except IntegrityError:
+            # Another process inserted the first lease row at the same moment (no row to
+            # lock yet): it won the race (tests/lab/test_lease_race.py).
+            raise LeaseHeldError(
+                f"the database {self._db.display_url} was just taken by another server "
+                "process (one server per database)"
+            ) from None
+        self.held = True
+
+    def _take(self) -> None:
         with self._db.write() as session:
             now = self._clock.now()
             lease = session.scalars(
@@ -83,7 +96,6 @@ class DatabaseLease:
             lease.host, lease.pid, lease.token = self.host, self.pid, self.token
             lease.acquired_at = now
             lease.expires_at = now + self._ttl
-        self.held = True
 
     def renew(self) -> bool:
         """Extend the lease; ``False`` if another process has taken it meanwhile."""

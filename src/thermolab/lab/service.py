@@ -17,20 +17,29 @@ from argon2 import PasswordHasher
 
 from thermolab.errors import ThermoLabError
 from thermolab.lab.access import AccessService, RigView
+from thermolab.lab.agents import AgentHub, RemoteRuns
+from thermolab.lab.analytics import AnalyticsService, assignment_state
+from thermolab.lab.assignments import AssignmentService
+from thermolab.lab.bookings import BookingService
 from thermolab.lab.camera import Picture, PictureCache, draw_twin, fetch_camera
 from thermolab.lab.clock import LabClock, SystemClock
 from thermolab.lab.config import LabConfig
+from thermolab.lab.course_settings import CourseSettingsService
 from thermolab.lab.courses import CourseService
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Role
 from thermolab.lab.devices import DesiredState, DeviceHub, RigOpener
-from thermolab.lab.guides import GuideService
+from thermolab.lab.guides import SECTIONS, GuideService
 from thermolab.lab.lease import DatabaseLease
+from thermolab.lab.login_sessions import SessionService
+from thermolab.lab.lti import LtiService
+from thermolab.lab.name_book import NameBook
 from thermolab.lab.presence import Presence
+from thermolab.lab.rig_settings import RigSettingsService
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.security import LoginThrottle, default_password_hasher
 from thermolab.lab.tokens import TokenService
-from thermolab.lab.users import LoginsEnded, Principal, SessionService, UserInfo, UserService
+from thermolab.lab.users import LoginsEnded, Principal, UserInfo, UserService
 from thermolab.runner import Event
 
 __all__ = ["InputResult", "Lab", "LabListener", "StartupReport"]
@@ -175,6 +184,8 @@ class Lab:
         policy = config.access
         self.presence = Presence(self.clock, timeout=policy.client_timeout)
         self.hub = DeviceHub(config, opener, self.clock)
+        # Teacher settings: first values from the file, then the database's, in force at once.
+        self.settings = RigSettingsService(self.db, self.clock, config, self.hub.input_range)
         # Logins that end (logout, expiry, new password, removed account) are announced
         # here; the live stream closes their sockets.
         self.logins_ended = LoginsEnded()
@@ -197,10 +208,26 @@ class Lab:
             hasher or default_password_hasher(),
             logins_ended=self.logins_ended,
         )
+        # Display names of the people the answers name (kept briefly).
+        self.names = NameBook(self.db, self.clock)
         # Personal API tokens for scripts; revoked ones are announced like ended logins.
         self.tokens = TokenService(self.db, self.clock)
+        # Courses' limits, in force on their booked rigs during their slots.
+        self.course_settings = CourseSettingsService(self.db, self.clock)
+        # Courses' booked slots on rigs (the turn rules apply them).
+        self.bookings = BookingService(self.db, self.clock, config)
         # Each rig's guide pages: shipped defaults, teachers' revisions.
         self.guides = GuideService(self.db, self.clock, config)
+        # Assignments, hand-ins, automatic marks, grades (and the "submission marked" hook).
+        self.assignments = AssignmentService(self.db, self.clock, config)
+        # A course's figures, with each student's assignment state.
+        self.analytics = AnalyticsService(self.db, self.clock, config, assignments=assignment_state)
+        # The LTI 1.3 tool (issue #12): platforms, keys, launches, roster, the grade outbox.
+        rigs = [(rig.id, rig.title) for rig in config.rigs]
+        self.lti = LtiService(
+            self.db, self.clock, hasher or default_password_hasher(), rigs, SECTIONS
+        )
+        self.lti.follow_assignments(self.assignments)  # deep links and marks to the LMS
         self.throttle = LoginThrottle(
             self.clock,
             failures_per_user=policy.login_failures_per_user,
@@ -211,6 +238,10 @@ class Lab:
             self.db, config, self.clock, self.hub, self.presence, on_change=self._reconcile
         )
         self.listeners: list[LabListener] = []
+        # Remote rigs' hosts (thermolab agent); the run service sends their runs to them.
+        self.agents = AgentHub(
+            self.db, self.clock, config, self.access, self.hub, on_online=self._reconcile
+        )
         self.runs = RunService(
             self.db,
             self.clock,
@@ -218,6 +249,21 @@ class Lab:
             self.hub,
             config,
             self._reconcile,
+            on_run=self._run_changed,
+            on_event=self._run_event,
+        )
+        #: The remote rigs (``agent = true``): their runs go to their hosts (a set, so that
+        #: an in-process rig's START and reconcile cross no module of theirs).
+        self.remote_rigs = frozenset(rig.id for rig in config.rigs if rig.agent)
+        self.remote_runs = RemoteRuns(
+            self.runs,
+            self.agents,
+            db=self.db,
+            config=config,
+            clock=self.clock,
+            access=self.access,
+            devices=self.hub,
+            on_finished=self._reconcile,
             on_run=self._run_changed,
             on_event=self._run_event,
         )
@@ -238,7 +284,9 @@ class Lab:
             # Before start-up touches any run or turn: another live server's are not ours.
             self.lease.acquire()
         faults = self.hub.open_all()
+        self.settings.load()
         self.access.startup()
+        self.agents.check(self.clock.now())  # no host has dialled in yet: none is granted
         for rig in self.config.rigs:
             self._reconcile(rig.id)
         for rig_id, message in faults.items():
@@ -262,11 +310,15 @@ class Lab:
                 fault = self.hub.fault(rig.id)
                 if fault is not None:
                     self.access.report_fault(rig.id, fault)
+            if self.remote_rigs:
+                self.agents.check(now)
             changed = self.access.sweep()
             if self._last_purge is None or now - self._last_purge >= _PURGE_INTERVAL:
                 self._last_purge = now
                 self.sessions.purge_expired()
                 self.tokens.purge_expired()
+                self.lti.launches.purge_expired()
+            self.lti.kick()  # the grade outbox, in its own thread
             return changed
 
     def apply_input(self, rig_id: str, who: Principal, u: float) -> InputResult:
@@ -276,23 +328,33 @@ class Lab:
         sample on (``applied`` is then the value it will apply).
         """
         self.config.rig(rig_id)  # an unknown rig is a 404, before anything reads its device
-        run_id = self.runs.running(rig_id)
+        runs = self.remote_runs if rig_id in self.remote_rigs else self.runs
+        run_id = runs.running(rig_id)
         record = self.access.record_input(rig_id, who, u, run_id=run_id)
         applied: float | None
         if (
             run_id is not None
-            and self.runs.set_input(rig_id, record.u, control_session=record.control_session)
-            is not None
+            and runs.set_input(rig_id, record.u, control_session=record.control_session) is not None
         ):
             applied = record.u
         else:
             applied = self.hub.apply(rig_id, record.u, controller_session=record.control_session)
+            if (
+                applied is None
+                and rig_id in self.remote_rigs
+                and self.agents.apply(rig_id, record.u)
+            ):
+                applied = record.u
         if applied is not None:
             self.access.mark_applied(record.id)
         fault = self.hub.fault(rig_id)
         if fault is not None:
             self.access.report_fault(rig_id, fault)
         return InputResult(rig_id, record.u, applied, record.at, record.id, run_id)
+
+    def running(self, rig_id: str) -> int | None:
+        """The id of the run going on the rig, in-process or on its host, if any."""
+        return (self.remote_runs if rig_id in self.remote_rigs else self.runs).running(rig_id)
 
     def read_output(self, rig_id: str, who: Principal) -> OutputReading:
         """The rig's output: read now for its controller, the latest reading for others.
@@ -305,7 +367,7 @@ class Lab:
         view = self.access.view(rig_id, who)
         fresh = view.access.role == "controller"
         idle_left = view.access.idle_time_left
-        limit = self.config.rig(rig_id).idle_limit
+        limit = view.config.idle_limit  # in force now (a course's during its slot)
         if fresh and idle_left is not None and limit is not None and idle_left < limit / 2:
             # Written at most twice per idle limit, so that reads stay cheap.
             with (
@@ -384,6 +446,7 @@ class Lab:
         """End every run, leave every rig safe and close the database connections."""
         self.runs.shutdown()
         self.hub.close()
+        self.lti.close()
         if self.lease is not None:
             self.lease.release()
         self.db.close()
@@ -394,7 +457,7 @@ class Lab:
             reading = self.hub.reading(rig.id)
             if reading is None or reading[1] != now or not self.hub.powered(rig.id):
                 continue
-            if self.runs.running(rig.id) is not None:
+            if self.runs.running(rig.id) is not None or self.remote_runs.running(rig.id):
                 continue
             for listener in self.listeners:
                 listener.reading(rig.id, self.hub.applied(rig.id), reading[0], now)
@@ -416,9 +479,12 @@ class Lab:
         with self.hub.locked(rig_id):
             power, controller = self.access.desired(rig_id)
             # A run belongs to a turn: when the turn is over, so is the run.
-            self.runs.control_changed(rig_id, controller)
+            remote = rig_id in self.remote_rigs
+            (self.remote_runs if remote else self.runs).control_changed(rig_id, controller)
             desired = DesiredState(power=power, controller_session=controller)
             self.hub.reconcile(rig_id, desired, cfg.cooldown.input)
+            if remote:
+                self.agents.sync_power(rig_id)
         for listener in self.listeners:
             listener.access_changed(rig_id)
 

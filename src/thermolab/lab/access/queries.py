@@ -6,18 +6,22 @@ module constants with bound parameters.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from datetime import datetime
 
 from sqlalchemy import bindparam, select
 from sqlalchemy.orm import Session
 
 from thermolab.errors import ConflictError
-from thermolab.lab.access.rules import Turn, TurnState, Waiting
+from thermolab.lab.access.rules import Slot, Turn, TurnState, Waiting
 from thermolab.lab.access.views import ControlRecord, QueueSlot, RigSnapshot
 from thermolab.lab.config import LabConfig
+from thermolab.lab.db.booking_models import Booking, BookingRig
+from thermolab.lab.db.course_settings_models import CourseSettingsRow
 from thermolab.lab.db.models import (
     Command,
     ControlSession,
+    CourseMember,
     LeaveReason,
     PowerState,
     QueueEntry,
@@ -27,11 +31,13 @@ from thermolab.lab.db.models import (
     TurnEndReason,
     User,
 )
+from thermolab.lab.db.power_models import PowerChange
 
 __all__ = [
     "active",
     "head",
     "queue",
+    "read_slots",
     "read_snapshot",
     "read_turn_state",
     "reset_for_startup",
@@ -67,6 +73,13 @@ class _Q:
         .join(User, User.id == QueueEntry.user_id)
         .where(*_waiting)
         .order_by(QueueEntry.ticket)
+    )
+    slots = (
+        select(Booking.id, Booking.course_id, Booking.starts_at, Booking.ends_at)
+        .join(BookingRig, BookingRig.booking_id == Booking.id)
+        .where(BookingRig.rig_id == bindparam("rig"), Booking.ends_at > bindparam("now"))
+        .order_by(Booking.starts_at)
+        .limit(2)
     )
     last_input = (
         select(Command.value)
@@ -110,7 +123,40 @@ def run_ends_at(session: Session, rig_id: str) -> datetime | None:
     return None if ends_at is None else datetime.fromisoformat(ends_at)
 
 
-def read_snapshot(session: Session, rig_id: str) -> RigSnapshot:
+def read_slots(session: Session, rig_id: str, now: datetime, users: set[int]) -> tuple[Slot, ...]:
+    """The rig's slot going on at ``now`` and the next one, with which of ``users`` each admits
+    and the course's limits.
+
+    Slots of a rig never overlap, so the first two not yet ended hold the
+    current one (if any) and the one the rules meet next.
+    """
+    rows = session.execute(_Q.slots, {"rig": rig_id, "now": now}).all()
+    if not rows:
+        return ()
+    courses = {course for _, course, _, _ in rows}
+    members: dict[int, set[int]] = {course: set() for course in courses}
+    if users:
+        for course, user in session.execute(
+            select(CourseMember.course_id, CourseMember.user_id).where(
+                CourseMember.course_id.in_(courses), CourseMember.user_id.in_(users)
+            )
+        ):
+            members[course].add(user)
+    limits = {
+        course: tuple(sorted(values.items()))
+        for course, values in session.execute(
+            select(CourseSettingsRow.course_id, CourseSettingsRow.values).where(
+                CourseSettingsRow.course_id.in_(courses)
+            )
+        )
+    }
+    return tuple(
+        Slot(booking, course, start, end, frozenset(members[course]), limits.get(course, ()))
+        for booking, course, start, end in rows
+    )
+
+
+def read_snapshot(session: Session, rig_id: str, now: datetime) -> RigSnapshot:
     """Read a rig's access state.
 
     Raises
@@ -132,6 +178,9 @@ def read_snapshot(session: Session, rig_id: str) -> RigSnapshot:
     last_input = None
     if control is not None:
         last_input = session.scalar(_Q.last_input, {"control": control.id})
+    users = {place.user_id for place in slots}
+    if control is not None and control.user_id is not None:
+        users.add(control.user_id)
     return RigSnapshot(
         id=rig.id,
         title=rig.title,
@@ -157,11 +206,12 @@ def read_snapshot(session: Session, rig_id: str) -> RigSnapshot:
         run_active=run_active(session, rig_id),
         last_input=last_input,
         run_ends_at=run_ends_at(session, rig_id),
+        slots=read_slots(session, rig_id, now, users),
     )
 
 
 def read_turn_state(
-    session: Session, rig: RigRow
+    session: Session, rig: RigRow, now: datetime
 ) -> tuple[TurnState, ControlSession | None, list[QueueEntry]]:
     """The rig's turn state, with the rows it was read from (control, queue)."""
     session.flush()
@@ -188,6 +238,10 @@ def read_turn_state(
         queue=tuple(Waiting(e.user_id, e.last_heartbeat_at) for e in entries),
         run_active=run_active(session, rig.id),
     )
+    users = {e.user_id for e in entries}
+    if control is not None and control.user_id is not None:
+        users.add(control.user_id)
+    state = replace(state, slots=read_slots(session, rig.id, now, users))
     return state, control, entries
 
 
@@ -210,6 +264,9 @@ def write_transition(
     for waiting, at in after.left:
         place[waiting.user_id].left_at = at
         place[waiting.user_id].leave_reason = LeaveReason.CLIENT_GONE.value
+    for waiting, at in after.booked_out:
+        place[waiting.user_id].left_at = at
+        place[waiting.user_id].leave_reason = LeaveReason.BOOKED.value
     new_turn = after.turn is not None and (control is None or after.ended is not None)
     if after.turn is not None and new_turn and after.turn.user_id is not None:
         head = place[after.turn.user_id]
@@ -231,6 +288,7 @@ def write_transition(
     if rig.power_state != after.power.value:
         rig.power_state = after.power.value
         rig.power_changed_at = now
+        session.add(PowerChange(rig_id=rig.id, at=now, state=after.power.value))
     rig.needs_cooldown = after.needs_cooldown
     rig.cooling_since = after.cooling_since
     rig.vacant_since = after.vacant_since
@@ -240,8 +298,9 @@ def write_transition(
 
 def reset_for_startup(session: Session, config: LabConfig, now: datetime) -> None:
     """Bring the rigs table in line with ``config`` after a (re)start (see the service)."""
-    cooling = {cfg.id: cfg.cooldown.enabled for cfg in config.rigs}
+    cooling = {rig.id: config.rig(rig.id).cooldown.enabled for rig in config.rigs}
     existing = {rig.id: rig for rig in session.scalars(select(RigRow))}
+    was = {rig.id: rig.power_state for rig in existing.values()}
     for rig in existing.values():
         rig.configured = False
     for cfg in config.rigs:
@@ -269,6 +328,10 @@ def reset_for_startup(session: Session, config: LabConfig, now: datetime) -> Non
         if cfg.cooldown.ambient is not None:
             row.ambient_output = cfg.cooldown.ambient
     session.flush()
+    for cfg in config.rigs:
+        # A new rig, or one the previous server left powered: its history says off from now.
+        if was.get(cfg.id) != PowerState.OFF.value:
+            session.add(PowerChange(rig_id=cfg.id, at=now, state=PowerState.OFF.value))
     for control in session.scalars(select(ControlSession).where(ControlSession.ended_at.is_(None))):
         control.ended_at = now
         control.end_reason = TurnEndReason.SERVER_RESTART.value

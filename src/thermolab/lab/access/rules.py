@@ -13,6 +13,19 @@ off after its grace. Both questions the service asks derive from it:
 So each rule is written once. Acts that end a turn themselves (release, kick,
 fault) use :func:`end_turn`, the same rule ``next_state`` applies at a limit.
 
+Bookings are part of the table: during a :class:`Slot` (a course's booking of
+the rig) only the course's people may hold the turn or wait for it. At the
+slot's start an outsider's turn ends (reason ``booked``, even while a run
+samples: the run then ends with the turn) and outsiders' queue places are
+dropped (``booked_out``); the queue goes on inside the slot. Outside slots
+nothing changes.
+
+Limits per course: a course may override the rig's turn limit, idle limit and
+longest run (``COURSE_SETTINGS``). During the course's slot on a rig its values
+(lowered by the rig's caps) are in force there (:meth:`TurnRules.during`);
+outside slots the rig's. A turn's time limit is the one in force when it
+started (its deadline is set then); the idle limit is read at every check.
+
 Examples
 --------
 >>> from datetime import UTC, datetime, timedelta
@@ -36,14 +49,17 @@ from dataclasses import dataclass, replace
 from datetime import datetime, timedelta
 
 from thermolab.lab.config import CooldownPolicy, RigConfig
+from thermolab.lab.config.teacher_settings import SettingValue, course_override
 from thermolab.lab.db.models import PowerState, TurnEndReason
 
 __all__ = [
+    "Slot",
     "Turn",
     "TurnEnd",
     "TurnRules",
     "TurnState",
     "Waiting",
+    "current_slot",
     "end_turn",
     "is_due",
     "limit_reached",
@@ -83,6 +99,35 @@ class TurnEnd:
 
 
 @dataclass(frozen=True, slots=True)
+class Slot:
+    """A course's booking of the rig, ``[starts_at, ends_at)``.
+
+    ``members`` holds the users at the rig (controller, queue) who belong to
+    the course: the rules ask nothing of anyone else.
+    """
+
+    booking_id: int
+    course_id: int
+    starts_at: datetime
+    ends_at: datetime
+    members: frozenset[int] = frozenset()
+    limits: tuple[tuple[str, SettingValue], ...] = ()
+    """The course's overrides of the rig's limits (setting name, value), in force in the slot."""
+
+    def admits(self, user_id: int | None) -> bool:
+        """Whether ``user_id`` may hold or wait for a turn during the slot."""
+        return user_id is not None and user_id in self.members
+
+
+def current_slot(slots: tuple[Slot, ...], now: datetime) -> Slot | None:
+    """The slot going on at ``now``, if any (slots of one rig never overlap)."""
+    for slot in slots:
+        if slot.starts_at <= now < slot.ends_at:
+            return slot
+    return None
+
+
+@dataclass(frozen=True, slots=True)
 class TurnState:
     """What the turn rules read and write of a rig."""
 
@@ -99,6 +144,10 @@ class TurnState:
     ended: TurnEnd | None = None
     left: tuple[tuple[Waiting, datetime], ...] = ()
     """Queue places dropped by the transition (silent clients), with when."""
+    slots: tuple[Slot, ...] = ()
+    """The rig's bookings that have not ended (read with the state; never written)."""
+    booked_out: tuple[tuple[Waiting, datetime], ...] = ()
+    """Queue places dropped by the transition because a slot of another course goes on."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -110,6 +159,8 @@ class TurnRules:
     idle_limit: float | None
     power_off_grace: float
     cooldown: CooldownPolicy
+    caps: tuple[tuple[str, float], ...] = ()
+    """The technician's caps on the rig (a course's values are lowered to them)."""
 
     @classmethod
     def of(cls, cfg: RigConfig, client_timeout: timedelta) -> TurnRules:
@@ -120,6 +171,33 @@ class TurnRules:
             cfg.idle_limit,
             cfg.power_off_grace,
             cfg.cooldown,
+            cfg.caps,
+        )
+
+    def during(self, slot: Slot | None) -> TurnRules:
+        """The rules in force during ``slot`` (``None``: outside slots, the rig's own).
+
+        >>> from thermolab.lab.config import CooldownPolicy
+        >>> t = datetime(2026, 1, 1)
+        >>> rig = TurnRules(timedelta(seconds=30), 300.0, 60.0, 60.0, CooldownPolicy(),
+        ...                 (("control_time_limit", 600.0),))
+        >>> slot = Slot(1, 1, t, t, limits=(("control_time_limit", 900.0), ("idle_limit", None)))
+        >>> r = rig.during(slot)
+        >>> r.control_time_limit, r.idle_limit, rig.during(None) is rig
+        (600.0, None, True)
+        """
+        if slot is None or not slot.limits:
+            return self
+        caps = dict(self.caps)
+        given = {name: course_override(value, caps.get(name)) for name, value in slot.limits}
+        limit = given.get("control_time_limit", self.control_time_limit)
+        idle = given.get("idle_limit", self.idle_limit)
+        assert isinstance(limit, int | float)
+        assert idle is None or isinstance(idle, int | float)
+        return replace(
+            self,
+            control_time_limit=float(limit),
+            idle_limit=None if idle is None else float(idle),
         )
 
 
@@ -219,12 +297,24 @@ def next_state(
     ``ended`` and ``left`` of the result say which turn ended and which queue
     places were dropped by this transition.
     """
-    s = replace(state, ended=None, left=())
+    s = replace(state, ended=None, left=(), booked_out=())
+    # The limits in force now: a course's during its slot, else the rig's.
+    rules = rules.during(current_slot(s.slots, now))
     # Limits: the turn, then queue places whose client fell silent.
     if s.turn is not None:
         end = limit_reached(s.turn, rules, now, run_active=s.run_active)
         if end is not None:
             s = end_turn(s, end.reason, end.at, rules, now)
+    # A slot going on: outsiders lose the turn (even mid-run) and their queue places.
+    slot = current_slot(s.slots, now)
+    if slot is not None and s.turn is not None and not slot.admits(s.turn.user_id):
+        s = end_turn(s, TurnEndReason.BOOKED, slot.starts_at, rules, now)
+    if slot is not None and any(not slot.admits(w.user_id) for w in s.queue):
+        s = replace(
+            s,
+            queue=tuple(w for w in s.queue if slot.admits(w.user_id)),
+            booked_out=tuple((w, now) for w in s.queue if not slot.admits(w.user_id)),
+        )
     gone = tuple(w for w in s.queue if w.last_heartbeat_at + rules.client_timeout <= now)
     if gone:
         s = replace(
@@ -277,4 +367,6 @@ def next_state(
 
 def is_due(state: TurnState, rules: TurnRules, now: datetime, reading: Reading | None) -> bool:
     """Whether the turn rules would change ``state`` at ``now`` (a write is due)."""
-    return next_state(state, rules, now, reading) != replace(state, ended=None, left=())
+    return next_state(state, rules, now, reading) != replace(
+        state, ended=None, left=(), booked_out=()
+    )

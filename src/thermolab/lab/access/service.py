@@ -26,12 +26,14 @@ from sqlalchemy.orm import Session
 from thermolab.errors import (
     ConflictError,
     InvalidParameterError,
+    RigBookedError,
     TurnExtensionRefusedError,
 )
 from thermolab.lab.access import queries as q
 from thermolab.lab.access.extension import TURN_EXTENSION, extension_refusal
+from thermolab.lab.access.rules import Slot, current_slot
 from thermolab.lab.access.transactions import RigTransactions
-from thermolab.lab.access.views import CommandRecord, RigView
+from thermolab.lab.access.views import CommandRecord, RigView, turn_limit
 from thermolab.lab.db.models import (
     Command,
     ControlSession,
@@ -67,6 +69,8 @@ class AccessService(RigTransactions):
             If the lab has no such rig.
         ConflictError
             If the rig is out of service or faulted.
+        RigBookedError
+            If a slot of a course ``who`` is not in goes on.
         """
 
         def act(session: Session, rig: RigRow, now: datetime) -> None:
@@ -81,6 +85,7 @@ class AccessService(RigTransactions):
                 return
             if q.waiting(session, rig.id, who.user_id) is not None:
                 return
+            _refuse_outsider(q.read_slots(session, rig.id, now, {who.user_id}), rig.id, who, now)
             ticket = rig.next_ticket
             rig.next_ticket = ticket + 1
             session.add(
@@ -179,12 +184,12 @@ class AccessService(RigTransactions):
             control = q.active(session, rig.id)
             if control is None or control.user_id != who.user_id:
                 raise ConflictError(f"you do not control rig {rig.id!r}")
-            snap = q.read_snapshot(session, rig.id)
+            snap = q.read_snapshot(session, rig.id, now)
             refusal = extension_refusal(
                 queue_size=len(snap.queue),
                 started_at=control.started_at,
                 deadline=control.deadline,
-                time_limit=self._config.rig(rig.id).control_time_limit,
+                time_limit=turn_limit(snap, self._config.rig(rig.id), now),
                 now=now,
             )
             if refusal is not None:
@@ -311,6 +316,37 @@ class AccessService(RigTransactions):
                 self._end(session, rig, TurnEndReason.RIG_FAULT, now, now)
 
         self._write(rig_id, None, act, heartbeat=False)
+
+    def clear_healed_fault(self, rig_id: str, prefix: str) -> bool:
+        """Clear the rig's fault if it is one that heals by itself (it starts with ``prefix``).
+
+        The rig-host monitor's faults (offline, out of range) clear when the
+        condition has passed; any other fault stays for a teacher.
+        """
+
+        def act(session: Session, rig: RigRow, now: datetime) -> None:
+            if rig.fault is not None and rig.fault.startswith(prefix):
+                rig.fault = None
+                rig.fault_at = None
+
+        fault = self.snapshot(rig_id).fault
+        if fault is None or not fault.startswith(prefix):
+            return False
+        self._write(rig_id, None, act, heartbeat=False)
+        return True
+
+
+def _refuse_outsider(slots: tuple[Slot, ...], rig_id: str, who: Principal, now: datetime) -> None:
+    """Refuse a place to someone outside the course whose slot goes on (the rules' own test)."""
+    slot = current_slot(slots, now)
+    if slot is None or slot.admits(who.user_id):
+        return
+    start, end = (f"{t:%Y-%m-%d %H:%M} UTC" for t in (slot.starts_at, slot.ends_at))
+    raise RigBookedError(
+        f"rig {rig_id!r} is booked for another course's slot from {start} to {end}; "
+        "ask for control after it ends",
+        {"startsAt": slot.starts_at.isoformat(), "endsAt": slot.ends_at.isoformat()},
+    )
 
 
 def _check_input(u: object, published: PublishedRig, rig_id: str) -> float:

@@ -43,10 +43,11 @@ from thermolab.errors import (
     TurnEndedError,
 )
 from thermolab.lab.access import queries as q
-from thermolab.lab.access.rules import TurnRules, end_turn, is_due, next_state
+from thermolab.lab.access.rules import TurnRules, current_slot, end_turn, is_due, next_state
 from thermolab.lab.access.views import RigMonitor, RigSnapshot, RigView, render_view
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig, RigConfig
+from thermolab.lab.config.teacher_settings import SettingValue
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import ControlSession, PowerState, RigRow, Role, TurnEndReason
 from thermolab.lab.presence import Presence, Watcher
@@ -143,8 +144,9 @@ class RigTransactions:
             If the lab has no such rig.
         """
         self._config.rig(rig_id)
+        now = self._clock.now()
         with self._db.read() as session:
-            return q.read_snapshot(session, rig_id)
+            return q.read_snapshot(session, rig_id, now)
 
     def desired(self, rig_id: str) -> tuple[PowerState, int | None]:
         """Return the rig's power state and active control session id (for the hub)."""
@@ -168,6 +170,13 @@ class RigTransactions:
                 )
             )
         return turn
+
+    def course_limits(self, rig_id: str) -> tuple[tuple[str, SettingValue], ...]:
+        """The limits a course's slot going on now sets on the rig (empty: the rig's own)."""
+        with self._db.read() as session:
+            now = self._clock.now()
+            slot = current_slot(q.read_slots(session, rig_id, now, set()), now)
+        return () if slot is None else slot.limits
 
     def turn_ended_error(self, rig_id: str, turn: int) -> TurnEndedError:
         """The 409 of an action whose turn ``turn`` ended while it was being decided.
@@ -205,7 +214,7 @@ class RigTransactions:
         if heartbeat:
             self._presence.touch(rig_id, who.username)
         with self._db.read() as session:
-            snap = q.read_snapshot(session, rig_id)
+            snap = q.read_snapshot(session, rig_id, now)
         if self._due(snap, cfg, now) or (heartbeat and self._heartbeat_stale(snap, who, now)):
             return self._write(rig_id, who, lambda s, rig, t: None, heartbeat=heartbeat)
         return self._render(snap, cfg, who, now)
@@ -218,9 +227,10 @@ class RigTransactions:
         """Apply every limit that has run out, on every rig; return the rigs that changed."""
         now = self._clock.now()
         changed = []
-        for cfg in self._config.rigs:
+        for rig in self._config.rigs:
+            cfg = self._config.rig(rig.id)  # the teacher settings in force
             with self._db.read() as session:
-                snap = q.read_snapshot(session, cfg.id)
+                snap = q.read_snapshot(session, cfg.id, now)
             if self._due(snap, cfg, now):
                 with self._locked(cfg.id, None, heartbeat=False, read_back=False):
                     pass
@@ -258,7 +268,7 @@ class RigTransactions:
             rig.updated_at = locked.now
             session.flush()
             if read_back:
-                locked.snapshot = q.read_snapshot(session, rig_id)
+                locked.snapshot = q.read_snapshot(session, rig_id, locked.now)
         if self._on_change is not None:
             self._on_change(rig_id)
         if failure is not None:
@@ -310,7 +320,7 @@ class RigTransactions:
 
     def _settle(self, session: Session, rig: RigRow, cfg: RigConfig, now: datetime) -> None:
         """Apply what the turn rules say happens now (limits, hand-over, power)."""
-        before, control, entries = q.read_turn_state(session, rig)
+        before, control, entries = q.read_turn_state(session, rig, now)
         after = next_state(before, self._rules(cfg), now, self._monitor.reading(rig.id))
         q.write_transition(session, rig, control, entries, after, now)
 
@@ -324,7 +334,7 @@ class RigTransactions:
         *,
         by: str | None = None,
     ) -> None:
-        before, control, entries = q.read_turn_state(session, rig)
+        before, control, entries = q.read_turn_state(session, rig, now)
         after = end_turn(before, reason, at, self._rules(self._config.rig(rig.id)), now)
         q.write_transition(session, rig, control, entries, after, now, by=by)
 

@@ -11,8 +11,17 @@ from datetime import datetime, timedelta
 from typing import Literal, Protocol
 
 from thermolab.lab.access.extension import extension_refusal
-from thermolab.lab.access.rules import Turn, TurnRules, TurnState, Waiting, queue_wait
+from thermolab.lab.access.rules import (
+    Slot,
+    Turn,
+    TurnRules,
+    TurnState,
+    Waiting,
+    current_slot,
+    queue_wait,
+)
 from thermolab.lab.config import RigConfig
+from thermolab.lab.config.teacher_settings import course_override, with_values
 from thermolab.lab.db.models import PowerState
 from thermolab.lab.devices import PublishedRig
 from thermolab.lab.presence import Watcher
@@ -93,6 +102,8 @@ class RigSnapshot:
     last_input: float | None
     run_ends_at: datetime | None = None
     """The planned end of the run going, if any (the queue's estimate counts it)."""
+    slots: tuple[Slot, ...] = ()
+    """The rig's current and next booked slot (the turn rules read them)."""
 
     def turn_state(self) -> TurnState:
         """The part of the snapshot the turn rules read."""
@@ -110,6 +121,7 @@ class RigSnapshot:
             else Turn(c.user_id, c.started_at, c.deadline, c.last_heartbeat_at, c.last_activity_at),
             queue=tuple(Waiting(s.user_id, s.last_heartbeat_at) for s in self.queue),
             run_active=self.run_active,
+            slots=self.slots,
         )
 
     def slot_of(self, user_id: int) -> QueueSlot | None:
@@ -219,10 +231,13 @@ def render_access(
     c = snap.controller
     controllable = snap.in_service and snap.fault is None
     controller_name = c.username if c is not None else None
+    # The limits in force now (a course's during its slot); the client timeout plays no part.
+    rules = TurnRules.of(cfg, timedelta(0)).during(current_slot(snap.slots, now))
     if c is not None and c.user_id == who.user_id:
         idle_left = None
-        if cfg.idle_limit is not None and not snap.run_active:
-            idle_left = _seconds_until(c.last_activity_at + timedelta(seconds=cfg.idle_limit), now)
+        if rules.idle_limit is not None and not snap.run_active:
+            idle_at = c.last_activity_at + timedelta(seconds=rules.idle_limit)
+            idle_left = _seconds_until(idle_at, now)
         return AccessView(
             role="controller",
             queue_size=len(snap.queue),
@@ -236,14 +251,14 @@ def render_access(
                 queue_size=len(snap.queue),
                 started_at=c.started_at,
                 deadline=c.deadline,
-                time_limit=cfg.control_time_limit,
+                time_limit=rules.control_time_limit,
                 now=now,
             )
             is None,
         )
     slot = snap.slot_of(who.user_id)
     position = slot.position if slot is not None else len(snap.queue) + 1
-    eta = _eta(snap, cfg, position, now) if controllable else None
+    eta = _eta(snap, rules, position, now) if controllable else None
     return AccessView(
         role="queued" if slot is not None else "watcher",
         queue_size=len(snap.queue),
@@ -256,15 +271,29 @@ def render_access(
     )
 
 
-def _eta(snap: RigSnapshot, cfg: RigConfig, position: int, now: datetime) -> float:
+def in_force(cfg: RigConfig, snap: RigSnapshot, now: datetime) -> RigConfig:
+    """The rig with the limits in force at ``now``: a course's during its slot, else its own."""
+    slot = current_slot(snap.slots, now)
+    if slot is None or not slot.limits:
+        return cfg
+    caps = dict(cfg.caps)
+    return with_values(cfg, {n: course_override(v, caps.get(n)) for n, v in slot.limits})
+
+
+def turn_limit(snap: RigSnapshot, cfg: RigConfig, now: datetime) -> float:
+    """The turn limit in force at ``now`` (a course's during its slot), which bounds extensions."""
+    rules = TurnRules.of(cfg, timedelta(0))
+    return rules.during(current_slot(snap.slots, now)).control_time_limit
+
+
+def _eta(snap: RigSnapshot, rules: TurnRules, position: int, now: datetime) -> float:
     """Upper bound on the wait of queue place ``position`` (:func:`.rules.queue_wait`)."""
-    cooldown = cfg.cooldown.max_seconds if cfg.cooldown.enabled else 0.0
+    cooldown = rules.cooldown.max_seconds if rules.cooldown.enabled else 0.0
     turn_left = None if snap.controller is None else _seconds_until(snap.controller.deadline, now)
     run_left = None if snap.run_ends_at is None else _seconds_until(snap.run_ends_at, now)
     cooling_left = 0.0
     if snap.power is PowerState.COOLING and snap.cooling_since is not None:
         cooling_left = max(0.0, cooldown - (now - snap.cooling_since).total_seconds())
-    rules = TurnRules.of(cfg, timedelta(0))  # the client timeout plays no part in the wait
     return queue_wait(turn_left, run_left, cooling_left, position, rules)
 
 
@@ -291,7 +320,7 @@ def render_view(
         fault=snap.fault,
         published=published,
         last_input=snap.last_input,
-        config=cfg,
+        config=in_force(cfg, snap, now),
         client_timeout=client_timeout.total_seconds(),
         access=render_access(snap, cfg, who, now, len(watchers)),
         queue=snap.queue if who.is_teacher else None,

@@ -48,6 +48,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import threading
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal
@@ -64,6 +65,7 @@ __all__ = [
     "CooldownPolicy",
     "LabConfig",
     "RigConfig",
+    "RigSettingsBoard",
     "check_number",
     "check_speedup",
     "default_config",
@@ -209,6 +211,12 @@ class RigConfig:
         Cool-down between turns.
     camera : str or None
         Camera of a real rig (URL or device); ``None`` draws the twin's state.
+    caps : tuple of (str, float)
+        The technician's upper bounds on teacher settings (``caps`` in the file:
+        setting name -> largest value a teacher may set, e.g. ``max_run_seconds``).
+    agent : bool
+        The rig lives on a rig host that dials in (``thermolab agent``); the lab
+        opens no driver for it and ``spec`` says what that host drives.
 
     Examples
     --------
@@ -226,6 +234,8 @@ class RigConfig:
     cooldown: CooldownPolicy = field(default_factory=CooldownPolicy)
     camera: str | None = None
     max_run_seconds: float = 3600.0
+    caps: tuple[tuple[str, float], ...] = ()
+    agent: bool = False
 
     @property
     def kind(self) -> str:
@@ -234,6 +244,31 @@ class RigConfig:
         from thermolab.lab.config.rig_kinds import parse_rig_spec
 
         return parse_rig_spec(self.spec)[0]
+
+
+class RigSettingsBoard:
+    """The teacher settings in force, per rig: what :meth:`LabConfig.rig` returns.
+
+    The lab fills it from its database at start and after every change
+    (:mod:`thermolab.lab.rig_settings`); a rig it holds nothing for is the
+    file's. One server serves a database (its lease), so this copy is the
+    database's; every reader reads it at each check, so a change applies to
+    the next turn (whose deadline is set when it starts) and the next run.
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._rigs: dict[str, RigConfig] = {}
+
+    def put(self, rig: RigConfig) -> None:
+        """Put ``rig`` (with its teacher settings) in force."""
+        with self._lock:
+            self._rigs[rig.id] = rig
+
+    def get(self, rig_id: str) -> RigConfig | None:
+        """The rig in force, if the lab put one."""
+        with self._lock:
+            return self._rigs.get(rig_id)
 
 
 @dataclass(frozen=True, slots=True)
@@ -254,6 +289,9 @@ class LabConfig:
         Twin rigs run this many times faster than real time.
     title : str
         Name of the lab shown to users.
+    board : RigSettingsBoard
+        The teacher settings in force (filled by the lab from its database);
+        :meth:`rig` reads through it, ``rigs`` keeps the file's values.
 
     Examples
     --------
@@ -268,6 +306,7 @@ class LabConfig:
     database_url: str | None = None
     speedup: float = 1.0
     title: str = "ThermoLab"
+    board: RigSettingsBoard = field(default_factory=RigSettingsBoard, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         ids = [rig.id for rig in self.rigs]
@@ -283,7 +322,7 @@ class LabConfig:
         return self.database_url or default_database_url(self.data_dir)
 
     def rig(self, rig_id: str) -> RigConfig:
-        """Return the rig called ``rig_id``.
+        """Return the rig called ``rig_id``, with the teacher settings in force.
 
         Raises
         ------
@@ -292,7 +331,7 @@ class LabConfig:
         """
         for rig in self.rigs:
             if rig.id == rig_id:
-                return rig
+                return self.board.get(rig_id) or rig
         known = ", ".join(rig.id for rig in self.rigs)
         raise NotFoundError(f"no rig called {rig_id!r}; the lab has: {known}")
 

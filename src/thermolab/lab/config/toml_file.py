@@ -30,6 +30,7 @@ from thermolab.lab.config.model import (
     describe_value,
 )
 from thermolab.lab.config.rig_kinds import parse_rig_spec
+from thermolab.lab.config.teacher_settings import check_caps
 
 __all__ = ["load_config"]
 
@@ -133,6 +134,7 @@ class _Limits:
     power_off_grace: float = DEFAULT_RIG.power_off_grace
     max_run_seconds: float = DEFAULT_RIG.max_run_seconds
     cooldown: CooldownPolicy = DEFAULT_RIG.cooldown
+    caps: tuple[tuple[str, float], ...] = DEFAULT_RIG.caps
 
 
 class _LimitsTable(_Table):
@@ -141,6 +143,8 @@ class _LimitsTable(_Table):
     power_off_grace: _NonNegative | None = None
     max_run_seconds: _Positive | None = None
     cooldown: _Cooldown | None = None
+    # The technician's bounds on teacher settings: name -> largest value a teacher may set.
+    caps: dict[str, _Number] | None = None
 
     def over(self, base: _Limits) -> _Limits:
         given = {k: v for k, v in self.given().items() if k in _Limits.__dataclass_fields__}
@@ -148,6 +152,10 @@ class _LimitsTable(_Table):
             given["idle_limit"] = given["idle_limit"] or None
         if self.cooldown is not None:
             given["cooldown"] = self.cooldown.over(base.cooldown)
+        if self.caps is not None:
+            # A rig's caps add to (and override) the defaults' caps.
+            caps = {**dict(base.caps), **check_caps(self.caps, "caps")}
+            given["caps"] = tuple(sorted(caps.items()))
         return replace(base, **given)
 
 
@@ -157,6 +165,7 @@ class _Rig(_LimitsTable):
     spec: _Text
     input_range: tuple[_Number, _Number] | None = None
     camera: _Text | None = None
+    agent: Annotated[bool, Field(strict=True)] = False
 
     @field_validator("id")
     @classmethod
@@ -188,6 +197,7 @@ class _Rig(_LimitsTable):
             spec=self.spec,
             input_range=self.input_range,
             camera=self.camera,
+            agent=self.agent,
         )
         return _with_limits(rig, self.over(limits))
 
@@ -247,6 +257,7 @@ def _with_limits(rig: RigConfig, limits: _Limits) -> RigConfig:
         power_off_grace=limits.power_off_grace,
         max_run_seconds=limits.max_run_seconds,
         cooldown=limits.cooldown,
+        caps=limits.caps,
     )
 
 

@@ -102,6 +102,7 @@ class TurnEndReason(enum.StrEnum):
     KICKED = "kicked"
     RIG_FAULT = "rig_fault"
     SERVER_RESTART = "server_restart"
+    BOOKED = "booked"  # a slot booked for a course the controller is not in began
 
 
 class LeaveReason(enum.StrEnum):
@@ -112,6 +113,7 @@ class LeaveReason(enum.StrEnum):
     CLIENT_GONE = "client_gone"
     KICKED = "kicked"
     SERVER_RESTART = "server_restart"
+    BOOKED = "booked"  # a slot booked for a course the user is not in began
 
 
 class RunStatus(enum.StrEnum):

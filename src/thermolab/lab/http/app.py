@@ -29,14 +29,18 @@ from fastapi.staticfiles import StaticFiles
 from uvicorn.middleware.proxy_headers import ProxyHeadersMiddleware
 
 from thermolab import __version__
+from thermolab.agent.protocol import AGENT_LINK_PATH
 from thermolab.lab.config import LabConfig
 from thermolab.lab.devices import device_opener
+from thermolab.lab.fleet import Fleet
 from thermolab.lab.http.api_docs import install_api_docs
 from thermolab.lab.http.browser_guard import BrowserGuard
 from thermolab.lab.http.errors import install_error_handlers
+from thermolab.lab.http.forward import ForwardToOwner, refuse_agent_link
 from thermolab.lab.http.limits import BodyLimit
 from thermolab.lab.http.live_socket import LiveEndpoint
 from thermolab.lab.http.routers import api_router
+from thermolab.lab.http.routers.lti import LTI_CROSS_SITE_PATHS
 from thermolab.lab.service import Lab
 
 __all__ = ["create_app"]
@@ -51,6 +55,7 @@ def create_app(
     lab: Lab | None = None,
     close_lab: bool | None = None,
     sweep_interval: float | None = 1.0,
+    fleet: Fleet | None = None,
 ) -> FastAPI:
     """Build the lab's ASGI application.
 
@@ -70,6 +75,10 @@ def create_app(
         default: only a lab the app built itself. ``thermolab serve`` passes
         ``True``: uvicorn re-raises SIGTERM after its shutdown, so nothing
         after ``uvicorn.run`` would run.
+    fleet : Fleet, optional
+        This worker's part in a fleet of workers on one bus (``--broker``): the
+        owner relays its live stream; a follower also forwards rig and run
+        requests to the owner (:mod:`~thermolab.lab.fleet`).
     sweep_interval : float or None
         Seconds between sweeps of the access limits in the background;
         ``None`` for none (tests sweep by hand).
@@ -91,12 +100,16 @@ def create_app(
     the_lab = lab if lab is not None else Lab(config, opener=device_opener(config.speedup))
     live = LiveEndpoint(the_lab)
     the_lab.add_listener(live)
+    if fleet is not None and fleet.role == "owner":
+        the_lab.add_listener(fleet)  # other workers hear of access changes
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         report = await anyio.to_thread.run_sync(the_lab.start)
         app.state.startup = report
         live.bind(asyncio.get_running_loop())
+        if fleet is not None:
+            fleet.join(live.hub, live.access_changed, the_lab)
         sweeper = (
             asyncio.create_task(_sweep_forever(the_lab, sweep_interval))
             if sweep_interval is not None
@@ -110,6 +123,8 @@ def create_app(
                 sweeper.cancel()
                 with contextlib.suppress(asyncio.CancelledError):
                     await sweeper
+            if fleet is not None:
+                await anyio.to_thread.run_sync(fleet.close)
             if owned:
                 await anyio.to_thread.run_sync(the_lab.close)
 
@@ -129,12 +144,24 @@ def create_app(
     app.state.live = live
     app.include_router(api_router)
     app.add_api_websocket_route("/api/rigs/{rig_id}/live", live.endpoint, name="live")
+    # Rig hosts dial in here (thermolab agent; docs/architecture.md, "Remote rigs").
+    # A follower sends them on to the owner (docs/fleet.md, "Rig hosts").
+    follower = fleet is not None and fleet.role == "follower"
+    agent_link = refuse_agent_link if follower else the_lab.agents.endpoint
+    app.add_api_websocket_route(AGENT_LINK_PATH, agent_link, name="agent_link")
     install_error_handlers(app)
     install_api_docs(app)
     if static_dir is not None:
         app.mount("/", StaticFiles(directory=static_dir, html=True), name="web")
     app.add_middleware(BodyLimit, max_bytes=config.access.max_body_bytes)
-    app.add_middleware(BrowserGuard, frame_ancestors=config.access.frame_ancestors)
+    app.add_middleware(
+        BrowserGuard,
+        frame_ancestors=config.access.frame_ancestors,
+        more_ancestors=the_lab.lti.platforms.frame_origins,
+        cross_site_paths=LTI_CROSS_SITE_PATHS,
+    )
+    if fleet is not None and fleet.role == "follower":
+        app.add_middleware(ForwardToOwner, owner_url=lambda: fleet.owner_url)
     if config.access.trusted_proxies:
         # Outermost, so that the guard and the routes see the client's address and scheme.
         app.add_middleware(

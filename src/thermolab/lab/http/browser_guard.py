@@ -35,7 +35,7 @@ well-kept package does Fetch-Metadata + Origin for both HTTP and WebSocket.
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from urllib.parse import urlsplit
 
 from starlette.requests import HTTPConnection
@@ -154,11 +154,35 @@ class BrowserGuard:
         The application to guard.
     frame_ancestors : iterable of str
         CSP ``frame-ancestors`` sources.
+    more_ancestors : callable, optional
+        More sources, asked on each request (the registered LTI platforms,
+        which frame the lab in their course pages).
+    cross_site_paths : iterable of str
+        Paths a page of another site may POST to: the LTI login and launch,
+        authenticated by the platform's signed token, never by a cookie.
+
+    A response that brings its own Content-Security-Policy keeps it (the
+    LTI deep-linking answer posts a form to the platform).
     """
 
-    def __init__(self, app: ASGIApp, *, frame_ancestors: Iterable[str] = ("'self'",)) -> None:
+    def __init__(
+        self,
+        app: ASGIApp,
+        *,
+        frame_ancestors: Iterable[str] = ("'self'",),
+        more_ancestors: Callable[[], tuple[str, ...]] | None = None,
+        cross_site_paths: Iterable[str] = (),
+    ) -> None:
         self.app = app
-        ancestors = tuple(frame_ancestors)
+        self._base = tuple(frame_ancestors)
+        self._more = more_ancestors
+        self._cross_site = frozenset(cross_site_paths)
+        self._ancestors: tuple[str, ...] | None = None
+        self._policies(self._base)
+
+    def _policies(self, ancestors: tuple[str, ...]) -> None:
+        if ancestors == self._ancestors:
+            return
         self._headers = [
             (b"x-content-type-options", b"nosniff"),
             (b"referrer-policy", b"same-origin"),
@@ -168,6 +192,7 @@ class BrowserGuard:
             self._headers.append((b"x-frame-options", b"SAMEORIGIN"))  # browsers without CSP 2
         self._csp = content_security_policy(ancestors).encode("latin-1")
         self._docs_csp = content_security_policy(ancestors, docs=True).encode("latin-1")
+        self._ancestors = ancestors
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] == "websocket":
@@ -181,9 +206,16 @@ class BrowserGuard:
             await self.app(scope, receive, send)
             return
         path: str = scope.get("path", "")
-        if scope.get("method", "GET").upper() in _STATE_CHANGING and not is_same_origin(scope):
+        if (
+            scope.get("method", "GET").upper() in _STATE_CHANGING
+            and path not in self._cross_site
+            and not is_same_origin(scope)
+        ):
             await self._refuse(scope, send)
             return
+        if self._more is not None:
+            more = self._more()
+            self._policies(self._base + tuple(o for o in more if o not in self._base))
         csp = self._docs_csp if path.startswith(_DOCS_PATHS) else self._csp
         no_store = path.startswith(_NO_STORE_PREFIXES)
         extra = [*self._headers, (b"content-security-policy", csp)]
@@ -195,7 +227,8 @@ class BrowserGuard:
                     for k, v in message.get("headers", ())
                     if not (no_store and k.lower() == b"cache-control")
                 ]
-                headers += extra
+                own = any(k.lower() == b"content-security-policy" for k, _ in headers)
+                headers += [h for h in extra if not (own and h[0] == b"content-security-policy")]
                 if no_store:
                     headers.append((b"cache-control", b"no-store"))
                 message = {**message, "headers": headers}

@@ -31,6 +31,7 @@ from starlette.websockets import WebSocket
 
 from thermolab.errors import (
     AccessDeniedError,
+    BookingClashError,
     ClassListError,
     ConflictError,
     GainRangeError,
@@ -40,9 +41,12 @@ from thermolab.errors import (
     NotFoundError,
     PasswordChangeRequiredError,
     PreviousRunEndingError,
+    RigBookedError,
     RigError,
     RunInProgressError,
     SetpointRangeError,
+    SettingRangeError,
+    SettingsChangedError,
     ThermoLabError,
     TurnEndedError,
     TurnExtensionRefusedError,
@@ -54,6 +58,15 @@ from thermolab.lab.fanout import CLOSE_BAD_REQUEST, CLOSE_UNAUTHORIZED, MAX_SEQ
 from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.deps import COOKIE_NAME
 from thermolab.lab.http.schemas import ValidationErrorOut
+from thermolab.lab.lti.errors import (
+    LtiError,
+    LtiJwksUnreachableError,
+    LtiReplayError,
+    LtiServiceError,
+    LtiStateError,
+    LtiUnknownDeploymentError,
+    LtiUnknownPlatformError,
+)
 from thermolab.lab.security import AuthenticationError, RateLimitedError
 from thermolab.lab.service import Lab
 
@@ -101,6 +114,20 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     ClassListError: HttpFault(422, "class_list_invalid"),
     WrongEnrolCodeError: HttpFault(403, "enrol_code_wrong"),
     PasswordChangeRequiredError: HttpFault(403, "password_change_required"),
+    # Teacher settings (issue #10).
+    SettingRangeError: HttpFault(422, "setting_out_of_range"),
+    SettingsChangedError: HttpFault(409, "settings_changed"),
+    # Bookings (issue #10, item 5).
+    BookingClashError: HttpFault(409, "booking_clash"),
+    RigBookedError: HttpFault(409, "rig_booked"),
+    # The LTI 1.3 tool (issue #12): a refused launch, or a platform that failed us.
+    LtiError: HttpFault(400, "lti_invalid_token"),
+    LtiReplayError: HttpFault(400, "lti_replayed"),
+    LtiStateError: HttpFault(400, "lti_state_invalid"),
+    LtiUnknownPlatformError: HttpFault(400, "lti_unknown_platform"),
+    LtiUnknownDeploymentError: HttpFault(400, "lti_unknown_deployment"),
+    LtiJwksUnreachableError: HttpFault(502, "lti_jwks_unreachable"),
+    LtiServiceError: HttpFault(502, "lti_service_failed"),
 }
 _OTHER = HttpFault(400, "bad_request")
 _HTTP_CODES = {404: "not_found", 405: "method_not_allowed", 413: "body_too_large"}
@@ -151,6 +178,7 @@ def all_error_codes() -> frozenset[str]:
     return frozenset(
         {fault.code for fault in _FAULTS.values()}
         | {_OTHER.code, "http_error", "invalid_request", "cross_origin"}
+        | {"lti_cookies_blocked", "lti_returning"}  # the LTI pages' sentences
         | set(_HTTP_CODES.values())
     )
 
@@ -175,9 +203,15 @@ def install_error_handlers(app: FastAPI) -> None:
             ]
             return invalid_response(str(exc), fault.code, problems, language=language)
         if fault.status == 422:
-            problem = {"loc": [], "type": fault.code, "msg": str(exc)}
+            # A setting's refusal names the value it is about, as a schema error would.
+            where = ["body", "values", exc.setting] if isinstance(exc, SettingRangeError) else []
+            problem = {"loc": where, "type": fault.code, "msg": str(exc)}
             return invalid_response(str(exc), fault.code, [problem], language=language)
-        return error_response(fault.status, str(exc), fault.code, headers, language=language)
+        # A booking refusal names the slot in the way, for the page to show.
+        extra = {"slot": exc.slot} if isinstance(exc, BookingClashError | RigBookedError) else None
+        return error_response(
+            fault.status, str(exc), fault.code, headers, language=language, extra=extra
+        )
 
     async def validation_error(request: Request, exc: Exception) -> JSONResponse:
         assert isinstance(exc, RequestValidationError)

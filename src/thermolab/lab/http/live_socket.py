@@ -10,34 +10,29 @@ messages. Sockets are limited per login and per rig (the lab's access
 policy). A client's ``ping`` keeps its control or queue place alive and is
 answered with ``pong``.
 
-A connection lives as long as the login it was opened with: the lab
-announces every login it ends (logout, expiry, a password change, an account
-removed) as a :class:`~thermolab.lab.users.LoginsEnded` event, and those
-clients are closed with 4401 at once; a check every few seconds catches
-logins ended by another process (an account removed from the command line).
-A script connects with a personal API token (``Authorization: Bearer`` on
-the handshake, :mod:`~thermolab.lab.http.credentials`); revoking the token
-closes its connections the same way (:attr:`Lab.tokens` ``.revoked``).
+A connection lives as long as the login (or API token) it was opened with
+(:class:`~thermolab.lab.http.live_logins.LoginWatch`). A script connects with
+a personal API token (``Authorization: Bearer`` on the handshake,
+:mod:`~thermolab.lab.http.credentials`).
 """
 
 from __future__ import annotations
 
 import asyncio
 import collections
-import contextlib
 import logging
-from collections.abc import Callable, Collection
+from collections.abc import Callable
 from datetime import datetime, timedelta
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, TypeVar
 
+import anyio
 import anyio.to_thread
 from fastapi import Query
-from sqlalchemy import select
-from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
+from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from thermolab.jsonsafe import finite_or_none
 from thermolab.lab.access import RigSnapshot
-from thermolab.lab.db.models import LoginSession, Role
+from thermolab.lab.db.models import Role
 from thermolab.lab.fanout import (
     CLOSE_RIG_FULL,
     CLOSE_TOO_MANY,
@@ -45,6 +40,7 @@ from thermolab.lab.fanout import (
     CLOSE_UNAUTHORIZED,
     CLOSE_UNKNOWN_RIG,
     MAX_SEQ,
+    Batch,
     LiveChannel,
     LiveClient,
     LiveFanout,
@@ -52,18 +48,19 @@ from thermolab.lab.fanout import (
 )
 from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.deps import COOKIE_NAME
+from thermolab.lab.http.live_logins import LoginWatch
 from thermolab.lab.http.live_messages import (
     AccessMessage,
-    ErrorMessage,
     EstimateMessage,
     HelloMessage,
     RunMessage,
     SampleMessage,
     StateMessage,
-    client_message_type,
 )
 from thermolab.lab.http.live_replay import ReplayBudget, ReplayTooSlowError, replay
-from thermolab.lab.http.schemas import RigOut, RunOut
+from thermolab.lab.http.live_serve import serve_client
+from thermolab.lab.http.routers.runs import RunOut
+from thermolab.lab.http.schemas import RigOut, people_named
 from thermolab.lab.runs import RunRecord
 from thermolab.lab.service import Lab
 from thermolab.lab.users import Principal
@@ -72,9 +69,10 @@ from thermolab.runner import EstimateEvent, Event, SampleEvent
 __all__ = ["LiveEndpoint"]
 
 log = logging.getLogger(__name__)
+_T = TypeVar("_T")
 
 _PING_INTERVAL = timedelta(seconds=1)  # pings look at the rig at most this often
-_CLOSE_TIMEOUT = 10.0  # seconds a close frame may wait for a stalled socket to drain
+_LIVE_THREADS = 4  # worker threads live sockets may hold at once (requests keep the rest)
 
 
 def _dump(model: RigOut | RunOut) -> dict[str, Any]:
@@ -126,11 +124,9 @@ class LiveEndpoint:
         self._session_check = session_check
         self._states: dict[str, tuple[str, str | None]] = {}
         self._signatures: dict[str, tuple[Any, ...]] = {}
-        self._checking: asyncio.Task[None] | None = None
-        self._check_again = False
-        self._watchdog: asyncio.Task[None] | None = None
-        lab.logins_ended.subscribe(self.logins_ended)
-        lab.tokens.revoked.subscribe(self.tokens_revoked)
+        self._holders: dict[str, frozenset[int | None]] = {}  # who holds a control or queue place
+        self._limiter: anyio.CapacityLimiter | None = None
+        self.logins = LoginWatch(lab, self.hub)
 
     # -- the lab's side (worker threads) ---------------------------------------------------
 
@@ -189,83 +185,11 @@ class LiveEndpoint:
 
     # -- the event loop's side --------------------------------------------------------------
 
-    def logins_ended(self, session_ids: frozenset[int]) -> None:
-        """Close the connections of logins that ended (any thread)."""
-        loop = self.hub.loop
-        if loop is not None and not loop.is_closed():
-            loop.call_soon_threadsafe(self._close_logins, session_ids)
-
-    def _close_logins(self, session_ids: frozenset[int]) -> None:
-        for client in self.hub.clients():
-            if client.key.token_id is None and client.key.session_id in session_ids:
-                client.close(CLOSE_UNAUTHORIZED, "your session has ended; log in again")
-
-    def tokens_revoked(self, token_ids: frozenset[int]) -> None:
-        """Close the connections of API tokens that were revoked (any thread)."""
-        loop = self.hub.loop
-        if loop is not None and not loop.is_closed():
-            loop.call_soon_threadsafe(self._close_tokens, token_ids)
-
-    def _close_tokens(self, token_ids: frozenset[int]) -> None:
-        for client in self.hub.clients():
-            if client.key.token_id is not None and client.key.token_id in token_ids:
-                client.close(CLOSE_UNAUTHORIZED, "this API token was revoked")
-
     def bind(self, loop: asyncio.AbstractEventLoop | None) -> None:
         """Serve clients on ``loop`` (``None`` when the server stops; call in the loop)."""
         self.hub.bind(loop)
         self.budget.bind()
-        if self._watchdog is not None:
-            self._watchdog.cancel()
-            self._watchdog = None
-        if loop is not None and self._session_check is not None:
-            self._watchdog = loop.create_task(self._check_sessions_forever(self._session_check))
-
-    async def _check_sessions_forever(self, interval: float) -> None:
-        while True:
-            await asyncio.sleep(interval)
-            self._check_sessions()
-
-    def _check_sessions(self) -> None:
-        # One check at a time; a request for one while it runs makes it run again.
-        if self._checking is not None and not self._checking.done():
-            self._check_again = True
-            return
-        self._checking = asyncio.ensure_future(self._close_ended_sessions())
-        self._checking.add_done_callback(_log_failure)
-
-    async def _close_ended_sessions(self) -> None:
-        while True:
-            self._check_again = False
-            clients = self.hub.clients()
-            ids = {c.key.session_id for c in clients if c.key.token_id is None}
-            tokens = {c.key.token_id for c in clients if c.key.token_id is not None}
-            if ids:
-                alive = await anyio.to_thread.run_sync(self._alive_sessions, ids)
-                for client in clients:
-                    if client.key.token_id is None and client.key.session_id not in alive:
-                        client.close(CLOSE_UNAUTHORIZED, "your session has ended; log in again")
-            if tokens:
-                live = await anyio.to_thread.run_sync(self.lab.tokens.alive, tokens)
-                for client in clients:
-                    token = client.key.token_id
-                    if token is not None and token not in live:
-                        client.close(CLOSE_UNAUTHORIZED, "this API token was revoked or expired")
-            if not self._check_again:
-                return
-
-    def _alive_sessions(self, ids: Collection[int | None]) -> set[int | None]:
-        now = self.lab.clock.now()
-        wanted = [i for i in ids if i is not None]
-        with self.lab.db.read() as session:
-            alive: set[int | None] = set(
-                session.scalars(
-                    select(LoginSession.id).where(
-                        LoginSession.id.in_(wanted), LoginSession.expires_at > now
-                    )
-                )
-            )
-        return alive
+        self.logins.bind(loop, self._session_check)
 
     def _refresh(self, rig_id: str) -> None:
         task = asyncio.ensure_future(self._push_access(rig_id))
@@ -273,7 +197,8 @@ class LiveEndpoint:
 
     async def _push_access(self, rig_id: str) -> None:
         channel = self.hub.channels[rig_id]
-        snap = await anyio.to_thread.run_sync(self.lab.access.snapshot, rig_id)
+        snap = await self._in_thread(self.lab.access.snapshot, rig_id)
+        self._holders[rig_id] = _holders(snap)
         watchers = self.lab.presence.watchers(rig_id)
         # Heartbeats change nothing anyone sees: only a visible change is sent.
         signature = _signature(snap, len(watchers))
@@ -291,18 +216,20 @@ class LiveEndpoint:
                 key = _viewpoint(snap, client.key)
                 if key not in texts:
                     view = self.lab.access.render(snap, client.key, watchers)
-                    access = _dump(RigOut.of(view))["access"]
+                    named = self.lab.names.names(people_named(view))
+                    access = _dump(RigOut.of(view, named))["access"]
                     message: AccessMessage = {"type": "access", "access": access}
                     texts[key] = encode(message)
             return (system.state, system.fault), texts
 
-        state, texts = await anyio.to_thread.run_sync(render)
+        state, texts = await self._in_thread(render)
         if self._states.get(rig_id) != state:
             self._states[rig_id] = state
             changed: StateMessage = {"type": "state", "state": state[0], "detail": state[1]}
             channel.publish(changed)
+        batches = {key: Batch.of([text]) for key, text in texts.items()}  # one frame each
         for client in clients:
-            client.offer(texts[_viewpoint(snap, client.key)])
+            client.offer_batch(batches[_viewpoint(snap, client.key)])
 
     async def endpoint(
         self,
@@ -314,7 +241,7 @@ class LiveEndpoint:
         await websocket.accept()
         cookie = websocket.cookies.get(COOKIE_NAME)
         authorization = websocket.headers.get("authorization")
-        who = await anyio.to_thread.run_sync(
+        who = await self._in_thread(
             lambda: resolve_principal(self.lab, cookie=cookie, authorization=authorization)
         )
         if who is None:
@@ -376,7 +303,7 @@ class LiveEndpoint:
                         websocket,
                         channel,
                         self.lab.runs.stored_samples,
-                        self.lab.runs.running(rig_id),
+                        self.lab.running(rig_id),
                         since,
                         start,
                         user_id=who.user_id,
@@ -386,20 +313,20 @@ class LiveEndpoint:
                 except ReplayTooSlowError:
                     client.close(CLOSE_TOO_SLOW, "too slow: reconnect with since")
             self.access_changed(rig_id)  # one more watcher
-            await _serve(websocket, client, lambda: self._ping(rig_id, who, client), leave)
+            await serve_client(websocket, client, lambda: self._ping(rig_id, who, client), leave)
         except WebSocketDisconnect:
             pass
         finally:
             leave()
 
     async def _hello(self, websocket: WebSocket, rig_id: str, who: Principal, seq: int) -> None:
-        view = await anyio.to_thread.run_sync(self.lab.access.view, rig_id, who)
-        rig = _dump(RigOut.of(view))
-        run_id = self.lab.runs.running(rig_id)
+        view = await self._in_thread(self.lab.access.view, rig_id, who)
+        rig = _dump(RigOut.of(view, self.lab.names.names(people_named(view))))
+        run_id = self.lab.running(rig_id)
         run = None
         if run_id is not None:
-            record = await anyio.to_thread.run_sync(self.lab.runs.record, run_id)
-            run = _dump(RunOut.of(record))
+            record = await self._in_thread(self.lab.runs.record, run_id)
+            run = _dump(RunOut.of(record, self.lab.names.names([record.username])))
         hello: HelloMessage = {
             "type": "hello",
             "rig": rig,
@@ -409,79 +336,23 @@ class LiveEndpoint:
         }
         await websocket.send_text(encode(hello))
 
-    def _ping(self, rig_id: str, who: Principal, client: LiveClient) -> None:
-        # A ping is the client being here: it keeps a control or queue place alive. Looking
-        # at the rig writes the heartbeat (at most once a second, and only when needed).
+    async def _ping(self, rig_id: str, who: Principal, client: LiveClient) -> None:
+        # A ping is the client being here: presence (memory, in the loop) and, for whoever
+        # holds a control or queue place, the heartbeat that keeps it (at most once a second).
         now = self.lab.clock.now()
         if client.last_ping is not None and now - client.last_ping < _PING_INTERVAL:
             return
         client.last_ping = now
         self.lab.presence.touch(rig_id, who.username)
-        self.lab.access.view(rig_id, who)
+        holders = self._holders.get(rig_id)
+        if holders is None or who.user_id in holders:
+            await self._in_thread(self.lab.access.view, rig_id, who)
 
-
-async def _serve(
-    websocket: WebSocket, client: LiveClient, on_ping: Any, leave: Callable[[], None]
-) -> None:
-    """Send the client's queue and read its messages until either side stops (then ``leave``)."""
-
-    async def send() -> None:
-        while client.closing is None:
-            await client.wake.wait()
-            client.wake.clear()
-            # Everything queued goes in one frame: a client that fell behind catches up
-            # in one send instead of one per message.
-            while (frame := client.next_frame()) is not None:
-                await websocket.send_text(frame)
-                client.sent += 1
-
-    async def receive() -> None:
-        while True:
-            message = await websocket.receive()
-            if message["type"] == "websocket.disconnect":
-                return
-            text = message.get("text")
-            if text is None:
-                text = (message.get("bytes") or b"").decode("utf-8", errors="replace")
-            # An oversized or over-deep message is answered like any bad message: the
-            # socket stays open (a client's mistake is not a reason to cut its stream).
-            kind = client_message_type(text)
-            if kind == "ping":
-                await anyio.to_thread.run_sync(on_ping)
-                client.offer('{"type":"pong"}')
-            else:
-                error: ErrorMessage = {"type": "error", "detail": kind}
-                client.offer(encode(error))
-
-    # The client being cut ends the connection at once, even while a send waits for a
-    # stalled socket to drain (the send is abandoned; nothing of it was written).
-    tasks = [
-        asyncio.ensure_future(send()),
-        asyncio.ensure_future(receive()),
-        asyncio.ensure_future(client.ended.wait()),
-    ]
-    try:
-        done, _ = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
-        for task in done:
-            exc = task.exception()
-            if exc is not None and not isinstance(exc, WebSocketDisconnect):
-                raise exc
-    finally:
-        for task in tasks:
-            task.cancel()
-        for task in tasks:
-            with contextlib.suppress(BaseException):
-                await task
-        leave()
-        if (
-            websocket.client_state is WebSocketState.CONNECTED
-            and websocket.application_state is WebSocketState.CONNECTED
-        ):
-            code, reason = client.closing or (1000, "")
-            # The close frame waits behind what the socket still holds; a peer that never
-            # reads again is left to the server, which closes the connection.
-            with contextlib.suppress(Exception):
-                await asyncio.wait_for(websocket.close(code, reason), _CLOSE_TIMEOUT)
+    async def _in_thread(self, work: Callable[..., _T], *args: Any) -> _T:
+        # Live sockets' store work shares a few threads: watchers never queue requests.
+        if self._limiter is None:
+            self._limiter = anyio.CapacityLimiter(_LIVE_THREADS)
+        return await anyio.to_thread.run_sync(work, *args, limiter=self._limiter)
 
 
 def _release(counts: collections.Counter[Any], key: Any) -> None:
@@ -502,6 +373,14 @@ def _signature(snap: RigSnapshot, watchers: int) -> tuple[Any, ...]:
         snap.run_active,
         watchers,
     )
+
+
+def _holders(snap: RigSnapshot) -> frozenset[int | None]:
+    """The users whose pings keep a place (control, the queue) in the store."""
+    holders: set[int | None] = {slot.user_id for slot in snap.queue}
+    if snap.controller is not None:
+        holders.add(snap.controller.user_id)
+    return frozenset(holders)
 
 
 def _viewpoint(snap: RigSnapshot, who: Principal) -> Any:

@@ -2,12 +2,13 @@
 
 Request bodies refuse unknown fields and values of the wrong type, so a typo
 is a 422 naming the field rather than a silently ignored setting (the base
-models are :mod:`.bodies`). A run's bodies are in :mod:`.run_schemas`,
-re-exported here.
+models are :mod:`.bodies`). A run's bodies are beside its routes, in
+:mod:`.routers.runs`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from datetime import datetime
 from typing import Annotated, Literal
 
@@ -17,7 +18,6 @@ from thermolab.lab.access import QueueSlot, RigView
 from thermolab.lab.db.models import ControlSession
 from thermolab.lab.http.bodies import In as _In
 from thermolab.lab.http.bodies import Out as _Out
-from thermolab.lab.http.run_schemas import OperatingPointOut, RunIn, RunOut
 from thermolab.lab.presence import Watcher
 from thermolab.lab.security import MAX_PASSWORD_LENGTH, MIN_PASSWORD_LENGTH
 from thermolab.lab.service import InputResult
@@ -36,18 +36,16 @@ __all__ = [
     "KickIn",
     "LimitsOut",
     "NewUserIn",
-    "OperatingPointOut",
     "PasswordIn",
     "ProblemOut",
     "QueueSlotOut",
     "RigOut",
-    "RunIn",
-    "RunOut",
     "ServiceIn",
     "SessionOut",
     "UserOut",
     "ValidationErrorOut",
     "WatcherOut",
+    "people_named",
 ]
 
 
@@ -94,12 +92,15 @@ class ValidationErrorOut(_Out):
         "gain_out_of_range",
         "setpoint_out_of_range",
         "no_output_unit",
+        "setting_out_of_range",
     ] = Field(
         description="invalid_request: the request does not match the schema (a body that is "
         "not UTF-8 JSON included); invalid_parameter: the values match the schema but the lab "
         "refuses them (a signal outside the rig's range, a run too long...); "
         "class_list_invalid: a class list with bad lines (one entry of errors per line); "
-        "gain_out_of_range, setpoint_out_of_range, no_output_unit: the closed loop's refusals"
+        "gain_out_of_range, setpoint_out_of_range, no_output_unit: the closed loop's refusals; "
+        "setting_out_of_range: a teacher setting outside the rig's allowed range (the message "
+        "names the range)"
     )
     message: str | None = Field(
         default=None, description="the code's sentence in the reader's language"
@@ -121,15 +122,17 @@ class SessionOut(_Out):
     """Who is logged in."""
 
     username: str
+    display_name: str | None = Field(default=None, description="the name the user is shown by")
     role: Literal["student", "teacher"]
     expires_at: datetime | None
     must_change_password: bool = False
 
     @classmethod
-    def of(cls, who: Principal) -> SessionOut:
-        """Build from a principal."""
+    def of(cls, who: Principal, display_name: str | None = None) -> SessionOut:
+        """Build from a principal (and the display name, when known)."""
         return cls(
             username=who.username,
+            display_name=display_name,
             role=who.role.value,
             expires_at=who.expires_at,
             must_change_password=who.must_change_password,
@@ -226,6 +229,9 @@ class AccessOut(_Out):
         description="seconds until the idle limit ends the turn (the controller only)"
     )
     controller: str | None
+    controller_name: str | None = Field(
+        default=None, description="the controller's display name (null: none given)"
+    )
     watchers: int = Field(
         description="users watching: live connections, and requests for this rig within "
         "the client timeout (listing the rigs does not count)"
@@ -241,15 +247,17 @@ class QueueSlotOut(_Out):
     """A queued user (teachers see the queue)."""
 
     username: str
+    display_name: str | None = None
     position: int
     joined_at: datetime
     last_seen: datetime
 
     @classmethod
-    def of(cls, slot: QueueSlot) -> QueueSlotOut:
-        """Build from a queue slot."""
+    def of(cls, slot: QueueSlot, names: Mapping[str, str] | None = None) -> QueueSlotOut:
+        """Build from a queue slot (``names``: display names by login name)."""
         return cls(
             username=slot.username,
+            display_name=(names or {}).get(slot.username),
             position=slot.position,
             joined_at=slot.joined_at,
             last_seen=slot.last_heartbeat_at,
@@ -260,14 +268,16 @@ class WatcherOut(_Out):
     """A watching user (teachers see the list)."""
 
     username: str
+    display_name: str | None = None
     connections: int
     last_seen: datetime
 
     @classmethod
-    def of(cls, watcher: Watcher) -> WatcherOut:
-        """Build from a watcher."""
+    def of(cls, watcher: Watcher, names: Mapping[str, str] | None = None) -> WatcherOut:
+        """Build from a watcher (``names``: display names by login name)."""
         return cls(
             username=watcher.username,
+            display_name=(names or {}).get(watcher.username),
             connections=watcher.connections,
             last_seen=watcher.last_seen,
         )
@@ -290,9 +300,11 @@ class RigOut(_Out):
     watcher_list: list[WatcherOut] | None = Field(description="teachers only")
 
     @classmethod
-    def of(cls, view: RigView) -> RigOut:
-        """Build from a rig view."""
+    def of(cls, view: RigView, names: Mapping[str, str] | None = None) -> RigOut:
+        """Build from a rig view; ``names`` gives display names by login name (see
+        :func:`people_named`)."""
         cfg, pub, acc = view.config, view.published, view.access
+        names = names or {}
         return cls(
             id=view.id,
             title=view.title,
@@ -328,14 +340,23 @@ class RigOut(_Out):
                 time_left=acc.time_left,
                 idle_time_left=acc.idle_time_left,
                 controller=acc.controller,
+                controller_name=None if acc.controller is None else names.get(acc.controller),
                 watchers=acc.watchers,
                 can_extend=acc.can_extend,
             ),
-            queue=None if view.queue is None else [QueueSlotOut.of(q) for q in view.queue],
+            queue=None if view.queue is None else [QueueSlotOut.of(q, names) for q in view.queue],
             watcher_list=None
             if view.watcher_list is None
-            else [WatcherOut.of(w) for w in view.watcher_list],
+            else [WatcherOut.of(w, names) for w in view.watcher_list],
         )
+
+
+def people_named(view: RigView) -> list[str]:
+    """The login names a rig view names (controller, and for teachers the queue and watchers)."""
+    named = [view.access.controller] if view.access.controller else []
+    named += [q.username for q in view.queue or ()]
+    named += [w.username for w in view.watcher_list or ()]
+    return named
 
 
 class InputIn(_In):
@@ -397,6 +418,7 @@ class ControlSessionOut(_Out):
             "kicked",
             "rig_fault",
             "server_restart",
+            "booked",
         ]
         | None
     )

@@ -12,9 +12,10 @@
 * :mod:`.commands` — what is sent to a running run: END, an input, a closed loop's
   commands (mode, set point, gains, fan) and its state;
 * :mod:`.ending` — what is stored when a run ends: status, results with their
-  statistics, timing, the controller as it ended;
+  statistics, timing, the controller as it ended (and storing it);
+* :mod:`.reading` — reading runs back for the routes (:class:`RunService`'s base);
 * :mod:`.service` — :class:`RunService`: START, the hand-over wait, the run's
-  thread and its end, reading runs back.
+  thread and its end, a run as it is now.
 """
 
 from thermolab.jsonsafe import json_safe

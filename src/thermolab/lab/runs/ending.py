@@ -2,30 +2,33 @@
 
 When a run's :class:`~thermolab.runner.Experiment` returns its
 :class:`~thermolab.runner.RunResult`, :func:`end_of_run` turns it into what
-is stored with the run (:meth:`~thermolab.lab.runs.store.RunStore.save_end`):
-the run's status and the reason in words, every method's settings and result
-with the paper's figures (:mod:`.statistics`, computed once, here), how well
-it kept its sampling times (:mod:`.timing`) and, for a closed loop, the
-controller as it ended. Nothing here reads or writes the database.
+is stored with the run: the run's status and the reason in words, every
+method's settings and result with the paper's figures (:mod:`.statistics`,
+computed once, here), how well it kept its sampling times (:mod:`.timing`)
+and, for a closed loop, the controller as it ended. :func:`save_end` writes
+it, on the run's own thread (a run's row and samples are :mod:`.store`'s).
 """
 
 from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from datetime import datetime
 from typing import Any
+
+from sqlalchemy import func, select, update
 
 from thermolab.errors import ThermoLabError
 from thermolab.ident.online import OnlineIdentifier
 from thermolab.jsonsafe import json_safe
-from thermolab.lab.db.models import RunStatus
+from thermolab.lab.db import Database
+from thermolab.lab.db.models import MethodResultRow, Run, RunStatus, Sample
 from thermolab.lab.runs.active import ActiveRun
 from thermolab.lab.runs.statistics import method_statistics
-from thermolab.lab.runs.store import status_of
 from thermolab.lab.runs.timing import timing_summary
 from thermolab.runner import EndReason, RunResult
 
-__all__ = ["SERVER_STOPPED", "RunEnd", "end_of_run"]
+__all__ = ["SERVER_STOPPED", "RunEnd", "end_of_run", "save_end", "status_of"]
 
 log = logging.getLogger(__name__)
 
@@ -35,7 +38,7 @@ SERVER_STOPPED = "the server stopped"
 
 @dataclass(frozen=True, slots=True)
 class RunEnd:
-    """What is stored when a run ends (the arguments of ``RunStore.save_end``).
+    """What is stored when a run ends (what :func:`save_end` writes).
 
     Attributes
     ----------
@@ -44,8 +47,9 @@ class RunEnd:
         How it ended, in words ("ended by ana", "rig_fault: ...").
     results : dict
         Each method's ``(settings, result)``, the result with its ``stats``.
-    timing : dict
-        :func:`~thermolab.lab.runs.timing.timing_summary` of the run.
+    timing : dict or None
+        :func:`~thermolab.lab.runs.timing.timing_summary` of the run (``None``:
+        not judged here, e.g. a rig host's run, sampled on the host).
     control : dict or None
         The controller as it ended (a closed loop), else ``None``.
     """
@@ -53,7 +57,7 @@ class RunEnd:
     status: RunStatus
     reason: str
     results: dict[str, tuple[dict[str, Any], dict[str, Any]]]
-    timing: dict[str, Any]
+    timing: dict[str, Any] | None
     control: dict[str, Any] | None
 
 
@@ -88,3 +92,45 @@ def end_of_run(active: ActiveRun, result: RunResult, *, simulated: bool) -> RunE
 
 def _params(identifier: OnlineIdentifier | None) -> dict[str, Any]:
     return dict(identifier.params) if identifier is not None else {}
+
+
+def status_of(reason: EndReason) -> RunStatus:
+    """The stored status of a run that ended for ``reason``."""
+    if reason is EndReason.COMPLETED:
+        return RunStatus.FINISHED
+    if reason in (EndReason.ENDED, EndReason.ABORTED):
+        return RunStatus.STOPPED
+    return RunStatus.FAILED
+
+
+def save_end(db: Database, run_id: int, end: RunEnd, now: datetime) -> None:
+    """Store how a run ended, each method's ``(params, result)``, the run's timing and,
+    for a closed loop, its controller as it ended."""
+    with db.write() as session:
+        for name, (params, data) in end.results.items():
+            session.add(
+                MethodResultRow(
+                    run_id=run_id,
+                    label=name,
+                    method=name,
+                    params=json_safe(params),
+                    result=json_safe(data),
+                    created_at=now,
+                )
+            )
+        stored = session.scalar(
+            select(func.count()).select_from(Sample).where(Sample.run_id == run_id)
+        )
+        meta = session.scalar(select(Run.meta).where(Run.id == run_id)) or {}
+        session.execute(
+            update(Run)
+            .where(Run.id == run_id)
+            .values(
+                status=end.status.value,
+                ended_at=now,
+                end_reason=end.reason,
+                samples_stored=stored or 0,
+                # A new dict: the JSON column sees the change.
+                meta={**meta, "timing": end.timing, "control_end": end.control},
+            )
+        )

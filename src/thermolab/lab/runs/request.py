@@ -35,6 +35,7 @@ from thermolab.errors import InvalidParameterError
 from thermolab.ident.online import OnlineIdentifier
 from thermolab.ident.registry import METHODS, SETTINGS, Setting, owners
 from thermolab.lab.config import LabConfig
+from thermolab.lab.config.teacher_settings import SettingValue, course_override
 from thermolab.lab.runs.control import ControlRequest
 from thermolab.runner.methods import build_identifiers, parse_methods
 from thermolab.signals import parse_signal
@@ -452,8 +453,16 @@ def run_seconds(config: LabConfig, rig_id: str, samples: int, dt: float) -> floa
     return samples * dt / speedup
 
 
-def check_run_length(request: RunRequest, rig_id: str, config: LabConfig) -> float:
+def check_run_length(
+    request: RunRequest,
+    rig_id: str,
+    config: LabConfig,
+    limits: tuple[tuple[str, SettingValue], ...] = (),
+) -> float:
     """Return how long the run lasts (real seconds), if the rig's ``max_run_seconds`` allows it.
+
+    ``limits``: a course's, in force during its slot on the rig (its
+    ``max_run_seconds``, lowered to the rig's cap, replaces the rig's).
 
     Raises
     ------
@@ -461,7 +470,13 @@ def check_run_length(request: RunRequest, rig_id: str, config: LabConfig) -> flo
         For a longer run, giving the most samples allowed at its dt.
     """
     length = run_seconds(config, rig_id, request.samples, request.dt)
-    longest = config.rig(rig_id).max_run_seconds
+    rig = config.rig(rig_id)
+    longest = rig.max_run_seconds
+    course = dict(limits).get("max_run_seconds")
+    if isinstance(course, int | float):
+        capped = course_override(float(course), dict(rig.caps).get("max_run_seconds"))
+        assert isinstance(capped, float)
+        longest = capped
     if length > longest:
         per_sample = length / request.samples
         raise InvalidParameterError(

@@ -15,14 +15,14 @@ estimates are kept. While a run holds a rig, the lab's device hub leaves the
 device to the runner. Storage is :mod:`.store` (reading back by channel: :mod:`.export`); the
 request's checks and its operating point are :mod:`.request`; what is stored when a run
 ends, :mod:`.ending`; what is sent to it while it runs (END, an input, a closed loop's
-commands), :mod:`.commands`.
+commands), :mod:`.commands`; reading runs back for the routes, :mod:`.reading`.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from datetime import timedelta
 from typing import Any
 
@@ -35,7 +35,6 @@ from thermolab.errors import (
     RunInProgressError,
     TurnEndedError,
 )
-from thermolab.jsonsafe import json_safe
 from thermolab.lab.access import AccessService
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
@@ -45,8 +44,9 @@ from thermolab.lab.devices import DeviceHub
 from thermolab.lab.runs.active import ActiveRun
 from thermolab.lab.runs.commands import end_run, hand_input, loop_state, send_command
 from thermolab.lab.runs.control import build_control_loop
-from thermolab.lab.runs.ending import SERVER_STOPPED, end_of_run
-from thermolab.lab.runs.export import RunExport, StoredSample
+from thermolab.lab.runs.ending import SERVER_STOPPED, end_of_run, save_end
+from thermolab.lab.runs.export import RunExport
+from thermolab.lab.runs.reading import RunReading
 from thermolab.lab.runs.request import RunRequest, check_run_length, plan_run
 from thermolab.lab.runs.store import (
     DatabaseRecorder,
@@ -57,7 +57,6 @@ from thermolab.lab.runs.store import (
     run_channels,
 )
 from thermolab.lab.users import Principal
-from thermolab.records import ChannelSpec
 from thermolab.rigs import RigSpec
 from thermolab.runner import (
     EndReason,
@@ -81,8 +80,8 @@ def _no_checkpoint(name: str) -> None:
     """The default :attr:`RunService.checkpoint`: START goes straight through."""
 
 
-class RunService:
-    """Starts, stops, stores and lists runs.
+class RunService(RunReading):
+    """Starts, stops and stores runs; lists them (:class:`~.reading.RunReading`).
 
     Parameters
     ----------
@@ -172,7 +171,8 @@ class RunService:
         # Live block and recursive methods take the rig kind's typical dead time as their delay.
         dead_time = RigSpec.parse(self._config.rig(rig_id).spec).typical_dead_time
         plan = plan_run(request, (published.input_min, published.input_max), dead_time)
-        length = check_run_length(request, rig_id, self._config)
+        limits = self._access.course_limits(rig_id)  # a course's, during its slot
+        length = check_run_length(request, rig_id, self._config, limits)
         driver = self._hub.driver(rig_id)
         if driver is None:
             raise ConflictError(f"rig {rig_id!r} has no device attached; a run needs one")
@@ -390,19 +390,6 @@ class RunService:
 
     # -- reading -------------------------------------------------------------------------
 
-    def get(self, run_id: int, who: Principal) -> RunRecord:
-        """Return one run (a student's own or one that is running; any for a teacher).
-
-        Raises
-        ------
-        NotFoundError
-            If there is no such run.
-        AccessDeniedError
-            If it belongs to another user and ``who`` is a student.
-        """
-        self._store.owned_run(run_id, who)
-        return self.record(run_id)
-
     def record(self, run_id: int) -> RunRecord:
         """Return one run, whoever owns it (for the lab's own use: the live stream).
 
@@ -413,53 +400,6 @@ class RunService:
         """
         run, stored = self._store.read(run_id)
         return self._record(run, {data["method"]: data["result"] for data in stored.values()})
-
-    def list(
-        self,
-        who: Principal,
-        rig_id: str | None = None,
-        limit: int = 200,
-        *,
-        user: str | None = None,
-    ) -> list[RunRecord]:
-        """Return runs, newest first: a student's own, or everyone's for a teacher.
-
-        ``user`` narrows it to one user: anyone for a teacher, only themselves
-        for a student.
-
-        Raises
-        ------
-        AccessDeniedError
-            If a student asks for another user's runs.
-        NotFoundError
-            If a teacher names a user who does not exist.
-        InvalidParameterError
-            If ``user`` is not a valid user name.
-        """
-        return [self._record(run, None) for run in self._store.rows(who, rig_id, limit, user)]
-
-    def samples(self, run_id: int, who: Principal) -> Iterator[StoredSample]:
-        """Yield ``(k, t, u, y)`` of every stored sample of a run, in order (checked as get)."""
-        self._store.owned_run(run_id, who)
-        return self._export.samples(run_id)
-
-    def record_rows(
-        self, run_id: int, who: Principal
-    ) -> tuple[tuple[ChannelSpec, ...], Iterator[tuple[float, ...]]]:
-        """Return a run's channels and its samples' values of them (checked as get)."""
-        self._store.owned_run(run_id, who)
-        channels = self._export.channels(run_id)
-        return channels, self._export.channel_rows(run_id, channels)
-
-    def export(self, run_id: int, who: Principal) -> dict[str, Any]:
-        """Return a run with its samples and every method's stored result (JSON-ready)."""
-        record = self.get(run_id, who)
-        _, methods = self._store.read(run_id)
-        # The samples by channel name, with the channels' units (thermolab.records).
-        exported: dict[str, Any] = json_safe(
-            {"run": record, **self._export.record(run_id), "methods": methods}
-        )
-        return exported
 
     # -- internals -------------------------------------------------------------------------
 
@@ -493,15 +433,7 @@ class RunService:
     def _save_end(self, active: ActiveRun, result: RunResult) -> None:
         simulated = self._config.rig(active.rig_id).kind == "sim"
         end = end_of_run(active, result, simulated=simulated)
-        self._store.save_end(
-            active.run_id,
-            end.status,
-            end.reason,
-            self._clock.now(),
-            end.results,
-            end.timing,
-            end.control,
-        )
+        save_end(self._db, active.run_id, end, self._clock.now())
 
     def _record(self, run: Run, stored: dict[str, Any] | None) -> RunRecord:
         active = self._going(run.rig_id)

@@ -6,7 +6,7 @@ writer thread inserts the buffer every half second, so a crash of the server
 loses at most about half a second of samples. At the end the methods'
 results (final estimate, trajectories and statistics) go to
 ``method_results`` and the run row records how it ended
-(:meth:`RunStore.save_end`). A run's row is made in the controller's locked
+(:func:`thermolab.lab.runs.ending.save_end`). A run's row is made in the controller's locked
 transaction (:func:`add_run`) and keeps the run's channels as specs (name,
 unit, role, description: :func:`run_channels`, ``meta["channels"]``).
 
@@ -25,7 +25,7 @@ from dataclasses import dataclass, field, replace
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import func, insert, select, update
+from sqlalchemy import insert, select, update
 from sqlalchemy.orm import Session
 
 from thermolab.errors import (
@@ -49,7 +49,6 @@ from thermolab.lab.db.models import (
 from thermolab.lab.security import normalize_username
 from thermolab.lab.users import Principal
 from thermolab.records import INPUT, OUTPUT, RUN_CHANNELS, ChannelSpec
-from thermolab.runner import EndReason
 
 __all__ = [
     "DatabaseRecorder",
@@ -60,7 +59,6 @@ __all__ = [
     "record_of",
     "run_channels",
     "run_command",
-    "status_of",
 ]
 
 log = logging.getLogger(__name__)
@@ -289,47 +287,6 @@ class RunStore:
                 query = query.where(Run.user_id == who.user_id)
             return list(session.scalars(query))
 
-    def save_end(
-        self,
-        run_id: int,
-        status: RunStatus,
-        reason: str,
-        now: datetime,
-        results: dict[str, tuple[dict[str, Any], dict[str, Any]]],
-        timing: dict[str, Any] | None = None,
-        control_end: dict[str, Any] | None = None,
-    ) -> None:
-        """Store how a run ended, each method's ``(params, result)``, the run's timing and,
-        for a closed loop, its controller as it ended."""
-        with self._db.write() as session:
-            for name, (params, data) in results.items():
-                session.add(
-                    MethodResultRow(
-                        run_id=run_id,
-                        label=name,
-                        method=name,
-                        params=json_safe(params),
-                        result=json_safe(data),
-                        created_at=now,
-                    )
-                )
-            stored = session.scalar(
-                select(func.count()).select_from(Sample).where(Sample.run_id == run_id)
-            )
-            meta = session.scalar(select(Run.meta).where(Run.id == run_id)) or {}
-            session.execute(
-                update(Run)
-                .where(Run.id == run_id)
-                .values(
-                    status=status.value,
-                    ended_at=now,
-                    end_reason=reason,
-                    samples_stored=stored or 0,
-                    # A new dict: the JSON column sees the change.
-                    meta={**meta, "timing": timing, "control_end": control_end},
-                )
-            )
-
 
 def _stored_results(session: Session, run: Run) -> dict[str, dict[str, Any]]:
     rows = session.scalars(select(MethodResultRow).where(MethodResultRow.run_id == run.id))
@@ -337,15 +294,6 @@ def _stored_results(session: Session, run: Run) -> dict[str, dict[str, Any]]:
         row.label: {"method": row.method, "params": row.params, "result": row.result}
         for row in rows
     }
-
-
-def status_of(reason: EndReason) -> RunStatus:
-    """The stored status of a run that ended for ``reason``."""
-    if reason is EndReason.COMPLETED:
-        return RunStatus.FINISHED
-    if reason in (EndReason.ENDED, EndReason.ABORTED):
-        return RunStatus.STOPPED
-    return RunStatus.FAILED
 
 
 def _check_owner(run: Run, who: Principal) -> None:

@@ -1,17 +1,26 @@
 """One router per resource of the HTTP API, all under ``/api``.
 
-Every route but ``POST /api/session``, ``POST /api/enrol`` and ``GET /api/version``
+Every route but ``POST /api/session``, ``POST /api/enrol``, ``GET /api/version``
+and the LTI launch's (``/api/lti/login``, ``/launch``, ``/continue``, ``/jwks``)
 needs a logged-in user or an API token (401 otherwise).
 """
 
 from fastapi import APIRouter
 
 from thermolab.lab.http.routers import (
+    agents,
+    analytics,
+    assignments,
+    bookings,
     control,
+    course_settings,
     courses,
     guides,
+    lti,
+    lti_admin,
     methods,
     readings,
+    rig_settings,
     rigs,
     runs,
     session,
@@ -35,5 +44,13 @@ for _resource in (
     control,
     guides,
     courses,
+    rig_settings,
+    assignments,
+    bookings,
+    analytics,
+    lti,
+    lti_admin,
+    agents,
+    course_settings,
 ):
     api_router.include_router(_resource.router)

@@ -15,7 +15,7 @@ from fastapi import APIRouter, Query
 from thermolab.control import PARAMETERS, control_json
 from thermolab.lab.http.control_schemas import FanIn, GainsIn, LoopOut, ModeIn, SetpointIn
 from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, RunId, UserDep, documented_errors
-from thermolab.lab.http.run_schemas import RunOut
+from thermolab.lab.http.routers.runs import RunOut
 from thermolab.lab.runs.tuning_table import closed_loop_figures, run_model, tuning_table
 from thermolab.lab.service import Lab
 from thermolab.rigs import RigSpec

@@ -208,6 +208,7 @@ async def upload_roster(
         if len(data) > MAX_CLASS_LIST_BYTES:
             raise ClassListError([(0, f"the file is larger than {MAX_CLASS_LIST_BYTES} bytes")])
     report = await anyio.to_thread.run_sync(lab.courses.import_class_list, course, data)
+    lab.names.forget()  # a re-upload may have renamed people
     return ImportOut.of(report)
 
 
@@ -258,6 +259,7 @@ def enrol(body: EnrolIn, request: Request, lab: LabDep) -> EnrolledOut:
     lab.throttle.check(key, address)
     try:
         user = lab.courses.enrol(body.code, body.username, body.display_name, body.password)
+        lab.names.forget()
     except WrongEnrolCodeError:
         lab.throttle.record(key, address, success=False)
         raise

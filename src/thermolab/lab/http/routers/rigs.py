@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response
 
+from thermolab.lab.access import RigView
 from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, UserDep, documented_errors
 from thermolab.lab.http.schemas import (
     ControlSessionOut,
@@ -13,11 +14,18 @@ from thermolab.lab.http.schemas import (
     KickIn,
     RigOut,
     ServiceIn,
+    people_named,
 )
+from thermolab.lab.service import Lab
 
 __all__ = ["router"]
 
 router = APIRouter(**AUTHENTICATED)
+
+
+def _out(view: RigView, lab: Lab) -> RigOut:
+    """The rig as answered: the view, with the display names of the people it names."""
+    return RigOut.of(view, lab.names.names(people_named(view)))
 
 
 @router.get("/rigs", response_model=list[RigOut], tags=["rigs"], summary="All rigs")
@@ -25,7 +33,7 @@ def list_rigs(who: UserDep, lab: LabDep) -> list[RigOut]:
     """Every rig with its state, limits and access as the caller sees them (a glance at
     the list is neither a heartbeat nor watching: it changes no watcher count).
     """
-    return [RigOut.of(view) for view in lab.access.views(who)]
+    return [_out(view, lab) for view in lab.access.views(who)]
 
 
 @router.get(
@@ -39,7 +47,7 @@ def get_rig(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
     """A rig as the caller sees it; counts as the caller's heartbeat for the rig (and as
     watching it, like the live socket; listing every rig does not).
     """
-    return RigOut.of(lab.access.view(rig_id, who))
+    return _out(lab.access.view(rig_id, who), lab)
 
 
 @router.post(
@@ -57,7 +65,7 @@ def request_control(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
     """
     if not who.is_teacher and any(rig.id == rig_id for rig in lab.config.rigs):
         lab.courses.check_rig(who.user_id, rig_id)
-    return RigOut.of(lab.access.request_control(rig_id, who))
+    return _out(lab.access.request_control(rig_id, who), lab)
 
 
 @router.delete(
@@ -69,7 +77,7 @@ def request_control(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
 )
 def release_control(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
     """Give up control (the next in the queue gets it at once) or leave the queue."""
-    return RigOut.of(lab.access.release(rig_id, who))
+    return _out(lab.access.release(rig_id, who), lab)
 
 
 @router.post(
@@ -81,7 +89,7 @@ def release_control(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
 )
 def heartbeat(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
     """Keep the caller's control or queue place alive (any request for the rig does too)."""
-    return RigOut.of(lab.access.heartbeat(rig_id, who))
+    return _out(lab.access.heartbeat(rig_id, who), lab)
 
 
 @router.post(
@@ -93,7 +101,7 @@ def heartbeat(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
 )
 def extend_control(rig_id: RigId, body: ExtendIn, who: UserDep, lab: LabDep) -> RigOut:
     """Move the controller's time limit by ``seconds`` (negative cuts it; teachers only)."""
-    return RigOut.of(lab.access.extend(rig_id, who, body.seconds))
+    return _out(lab.access.extend(rig_id, who, body.seconds), lab)
 
 
 @router.post(
@@ -106,7 +114,7 @@ def extend_control(rig_id: RigId, body: ExtendIn, who: UserDep, lab: LabDep) -> 
 def more_time(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
     """Add 120 s to the caller's own turn: only in its last minute, with the queue empty,
     at most twice a turn (409 ``extend_refused`` says which rule stops it)."""
-    return RigOut.of(lab.access.extend_own(rig_id, who))
+    return _out(lab.access.extend_own(rig_id, who), lab)
 
 
 @router.post(
@@ -118,7 +126,7 @@ def more_time(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
 )
 def kick(rig_id: RigId, who: UserDep, lab: LabDep, body: KickIn | None = None) -> RigOut:
     """End the controller's turn, or remove ``username`` from the queue (teachers only)."""
-    return RigOut.of(lab.access.kick(rig_id, who, body.username if body is not None else None))
+    return _out(lab.access.kick(rig_id, who, body.username if body is not None else None), lab)
 
 
 @router.put(
@@ -130,7 +138,7 @@ def kick(rig_id: RigId, who: UserDep, lab: LabDep, body: KickIn | None = None) -
 )
 def set_service(rig_id: RigId, body: ServiceIn, who: UserDep, lab: LabDep) -> RigOut:
     """Out of service ends the turn and empties the queue; either way clears a fault."""
-    return RigOut.of(lab.set_service(rig_id, who, body.in_service))
+    return _out(lab.set_service(rig_id, who, body.in_service), lab)
 
 
 @router.put(

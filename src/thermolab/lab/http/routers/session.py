@@ -71,7 +71,7 @@ def login(body: CredentialsIn, request: Request, response: Response, lab: LabDep
         samesite=policy.cookie_samesite,
         secure=secure,
     )
-    return SessionOut.of(principal)
+    return SessionOut.of(principal, lab.names.names([principal.username]).get(principal.username))
 
 
 @router.get(
@@ -81,9 +81,9 @@ def login(body: CredentialsIn, request: Request, response: Response, lab: LabDep
     summary="Who am I",
     **_authed,
 )
-def whoami(who: UserDep) -> SessionOut:
+def whoami(who: UserDep, lab: LabDep) -> SessionOut:
     """Return the logged-in user."""
-    return SessionOut.of(who)
+    return SessionOut.of(who, lab.names.names([who.username]).get(who.username))
 
 
 @router.delete(

@@ -39,7 +39,9 @@ def list_users(who: UserDep, lab: LabDep) -> list[UserOut]:
 def add_user(body: NewUserIn, who: UserDep, lab: LabDep) -> UserOut:
     """Create an account (teachers only)."""
     who.require_teacher("create accounts")
-    return UserOut.of(lab.users.add(body.username, body.password, body.role, body.display_name))
+    user = lab.users.add(body.username, body.password, body.role, body.display_name)
+    lab.names.forget()
+    return UserOut.of(user)
 
 
 @router.delete(

@@ -6,7 +6,7 @@
 // page's language (`message`; every request names that language in
 // Accept-Language), else its own English text (`detail`) as it comes.
 
-import { language, serverMessage, t } from "./i18n.js";
+import { formatDateTime, language, serverMessage, t } from "./i18n.js";
 
 /** An HTTP answer that was not 2xx, carrying the server's message. */
 export class ApiError extends Error {
@@ -39,7 +39,7 @@ export function errorMessage(body, fallback) {
     const own = /** @type {any} */ (body).message;
     const translated = typeof detail === "string" && typeof own === "string" && own && language() !== "en";
     const text = translated ? own : typeof detail === "string" ? detail : typeof coded.message === "string" ? coded.message : "";
-    if (typeof coded.code === "string") return serverMessage(coded.code, text || fallback, coded.params ?? {});
+    if (typeof coded.code === "string") return serverMessage(coded.code, text || fallback, coded.params ?? slotParams(body));
     if (typeof detail === "string" && detail) return detail;
     if (Array.isArray(detail) && detail.length) {
       return detail
@@ -53,6 +53,21 @@ export function errorMessage(body, fallback) {
   }
   if (typeof body === "string" && body.trim()) return body.trim();
   return fallback;
+}
+
+/**
+ * The slot a booking refusal names (409 booking_clash, rig_booked: its `slot`),
+ * as message parameters in the reader's time zone and language.
+ * @param {unknown} body
+ * @returns {Record<string, string>}
+ */
+function slotParams(body) {
+  const slot = body && typeof body === "object" ? /** @type {any} */ (body).slot : null;
+  if (!slot || typeof slot !== "object") return {};
+  /** @param {unknown} iso */
+  const at = (iso) => (typeof iso === "string" ? formatDateTime(new Date(iso), { dateStyle: "medium", timeStyle: "short" }) : "");
+  const rigs = Array.isArray(slot.rigs) ? slot.rigs.join(", ") : "";
+  return { start: at(slot.startsAt), end: at(slot.endsAt), course: String(slot.course ?? ""), rigs };
 }
 
 /** Called on any 401, so that the app can go back to the login page. */
@@ -112,6 +127,7 @@ export const api = {
   login: (username, password) => request("POST", "/api/session", { username, password }, { quiet401: true }),
   logout: () => request("DELETE", "/api/session", undefined, { quiet401: true }),
   rigs: (opts) => request("GET", "/api/rigs", undefined, opts),
+  agents: (opts) => request("GET", "/api/agents", undefined, opts),
   rig: (rig, opts) => request("GET", `/api/rigs/${enc(rig)}`, undefined, opts),
   askControl: (rig) => request("POST", `/api/rigs/${enc(rig)}/control`),
   releaseControl: (rig) => request("DELETE", `/api/rigs/${enc(rig)}/control`),
@@ -148,4 +164,31 @@ export const api = {
   resetPassword: (user, currentPassword) =>
     request("POST", `/api/users/${enc(user)}/password-reset`, { currentPassword }),
   enrol: (spec) => request("POST", "/api/enrol", spec, { quiet401: true }),
+  setCourseRigs: (name, rigs) => request("PUT", `/api/courses/${enc(name)}/rigs`, { rigs }),
+  /** A course's limits during its slots: {version, rule, updatedBy, settings: [{name, minimum, maximum, nullable, overridden, value}]}. */
+  courseSettings: (name, opts) => request("GET", `/api/courses/${enc(name)}/settings`, undefined, opts),
+  saveCourseSettings: (name, change) => request("PUT", `/api/courses/${enc(name)}/settings`, change),
+  /** A rig's teacher settings: {version, inputUnit, outputUnit, settings: [{name, type, unit, minimum, maximum, choices, nullable, applies, value}]}. */
+  rigSettings: (rig, opts) => request("GET", `/api/rigs/${enc(rig)}/settings`, undefined, opts),
+  saveRigSettings: (rig, change) => request("PUT", `/api/rigs/${enc(rig)}/settings`, change),
+  assignments: (opts) => request("GET", "/api/assignments", undefined, opts),
+  assignment: (id, opts) => request("GET", `/api/assignments/${enc(id)}`, undefined, opts),
+  createAssignment: (course, spec) => request("POST", `/api/courses/${enc(course)}/assignments`, spec),
+  updateAssignment: (id, spec) => request("PUT", `/api/assignments/${enc(id)}`, spec),
+  /** A hand-in: {runId, K, tau, theta, conclusion}; the answer carries the mark and the feedback. */
+  handIn: (id, spec) => request("POST", `/api/assignments/${enc(id)}/submissions`, spec),
+  submissions: (id, opts) => request("GET", `/api/assignments/${enc(id)}/submissions`, undefined, opts),
+  gradesUrl: (course) => `/api/courses/${enc(course)}/grades.csv`,
+  /** Bookings overlapping [from, to) (ISO instants), as the reader may see them. */
+  bookings: (from, to, opts) =>
+    request("GET", `/api/bookings?from=${enc(from)}&to=${enc(to)}`, undefined, opts),
+  book: (spec) => request("POST", "/api/bookings", spec),
+  editBooking: (id, spec) => request("PUT", `/api/bookings/${enc(id)}`, spec),
+  cancelBooking: (id) => request("DELETE", `/api/bookings/${enc(id)}`),
+  /** {bookedNow, freeFrom, nextOwn}: when the reader may next take the rig's controls. */
+  nextChance: (rig, opts) => request("GET", `/api/rigs/${enc(rig)}/next-chance`, undefined, opts),
+  /** A course's analytics; query: "?from=ISO&to=ISO" or "" (the course's whole life). */
+  analytics: (name, query, opts) => request("GET", `/api/courses/${enc(name)}/analytics${query}`, undefined, opts),
+  /** Where a course's analytics table downloads as CSV (table: "students" or "rigs"). */
+  analyticsCsvUrl: (name, table, query) => `/api/courses/${enc(name)}/analytics/${enc(table)}.csv${query}`,
 };

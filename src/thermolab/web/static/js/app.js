@@ -10,6 +10,7 @@ import { api, ApiError, setUnauthorizedHandler } from "./api.js";
 import { announce, h, replaceChildren, setText } from "./dom.js";
 import { LANGUAGES, language, preferredLanguage, t, translatePage, useLanguage } from "./i18n.js";
 import { loadMethods } from "./methods.js";
+import { personName } from "./shapes.js";
 
 /** Routes: pattern → view module loader. The first match wins. */
 const ROUTES = [
@@ -20,15 +21,22 @@ const ROUTES = [
   { pattern: /^\/runs\/compare$/, view: () => import("./views/compare.js"), title: "compare.title", nav: "runs" },
   { pattern: /^\/runs\/([^/]+)$/, view: () => import("./views/run.js"), title: "run.pageTitle", nav: "runs" },
   { pattern: /^\/teacher$/, view: () => import("./views/teacher.js"), title: "nav.teacher", nav: "teacher" },
+  { pattern: /^\/hosts$/, view: () => import("./views/hosts.js"), title: "hosts.title", nav: "teacher" },
   { pattern: /^\/account$/, view: () => import("./views/account.js"), title: "nav.account", nav: "account" },
   { pattern: /^\/courses$/, view: () => import("./views/courses.js"), title: "nav.courses", nav: "courses" },
+  { pattern: /^\/assignments$/, view: () => import("./views/assignments.js"), title: "nav.assignments", nav: "assignments" },
+  { pattern: /^\/assignments\/(\d+)$/, view: () => import("./views/assignments.js"), title: "nav.assignments", nav: "assignments" },
+  { pattern: /^\/analytics$/, view: () => import("./views/analytics.js"), title: "analytics.title", nav: "courses" },
   { pattern: /^\/enrol$/, view: () => import("./views/enrol.js"), title: "enrol.title", open: true },
+  { pattern: /^\/bookings$/, view: () => import("./views/bookings.js"), title: "nav.bookings", nav: "bookings" },
+  { pattern: /^\/lti$/, view: () => import("./views/lti.js"), title: "lti.heading", nav: "lti" },
+  { pattern: /^\/lti\/deep-link\/([A-Za-z0-9_-]+)$/, view: () => import("./views/deeplink.js"), title: "deeplink.heading", nav: "lti" },
   { pattern: /^\/password$/, view: () => import("./views/password.js"), title: "password.heading", nav: "account" },
 ];
 
 /** Shared state handed to every view. */
 export const ctx = {
-  /** @type {{username: string, role: string, mustChangePassword?: boolean} | null} */
+  /** @type {{username: string, displayName?: string | null, role: string, mustChangePassword?: boolean} | null} */
   user: null,
   navigate,
   afterLogin,
@@ -93,7 +101,8 @@ function updateChrome() {
   shell("who").hidden = user === null;
   shell("nav-teacher").hidden = user?.role !== "teacher";
   shell("nav-courses").hidden = user?.role !== "teacher";
-  setText(shell("who-name"), user ? t("app.who", { user: user.username, role: ROLE_TEXT[user.role] ? t(ROLE_TEXT[user.role]) : user.role }) : "");
+  setText(shell("who-name"), user ? t("app.who", { user: personName(user.username, user.displayName, true), role: ROLE_TEXT[user.role] ? t(ROLE_TEXT[user.role]) : user.role }) : "");
+  shell("nav-lti").hidden = user?.role !== "teacher";
 }
 
 function markNav(name) {
@@ -143,7 +152,8 @@ async function render(opts = {}) {
   let mod;
   try {
     // The identification methods (GET /api/methods) before any view builds panels or results.
-    if (!route.open) await loadMethods();
+    // (Not with a temporary password: the server answers nothing but the password change.)
+    if (!route.open && !ctx.user?.mustChangePassword) await loadMethods();
     mod = await route.view();
   } catch (err) {
     replaceChildren(main, h("p", { class: "error" }, t("app.pageFailed", { error: String(err) })));

@@ -9,7 +9,8 @@
 //
 // Every chart has a data-table alternative (WCAG 1.1.1 / 1.3.1): a toggle
 // shows the newest TABLE_ROWS samples it draws as a table with the axis and
-// series names as headers, kept current while it is open.
+// series names as headers, kept current while it is open. A bar chart (one
+// bar per named category: a student, a rig) shows every row instead.
 
 import uPlot from "../vendor/uplot/uPlot.esm.js";
 import { h } from "./dom.js";
@@ -55,9 +56,12 @@ export class Chart {
    * @param {number} [opts.height]
    * @param {string} [opts.description] longer text for screen readers
    * @param {string} [opts.emptyText] what the chart says while it has no data
+   * @param {string[]} [opts.categories] a bar chart: x is the index of these names (at most two
+   *   series, side by side); its table shows every row, named
    */
   constructor(parent, opts) {
     this._source = opts.source;
+    this._categories = opts.categories ?? null;
     this._raf = 0;
     this._destroyed = false;
     const descId = `chart-desc-${Math.random().toString(36).slice(2)}`;
@@ -77,7 +81,7 @@ export class Chart {
       h(
         "table",
         null,
-        h("caption", null, t("chart.tableCaption", { chart: opts.label, count: TABLE_ROWS })),
+        h("caption", null, this._categories ? t("chart.tableCaptionAll", { chart: opts.label }) : t("chart.tableCaption", { chart: opts.label, count: TABLE_ROWS })),
         h("thead", null, h("tr", null, this._columns.map((c) => h("th", { scope: "col", class: "num" }, c)))),
         this._tableBody,
       ),
@@ -103,16 +107,22 @@ export class Chart {
         // uPlot ranges its scales over series marked auto, and a NaN there (a
         // model not identified yet) would spoil the range: such series say auto: false.
         auto: s.auto ?? true,
+        ...(this._categories ? barSeries(i, opts.series.length) : {}),
       })),
     ];
+    const names = this._categories;
     this.plot = new uPlot(
       {
         width,
         height: opts.height ?? 220,
         series,
-        scales: { x: { time: false } },
+        scales: names
+          ? { x: { time: false, range: () => [-0.5, Math.max(0.5, names.length - 0.5)] }, y: { range: (_u, _min, max) => [0, max > 0 ? max * 1.1 : 1] } }
+          : { x: { time: false } },
         axes: [
-          { label: opts.xLabel, size: 40, labelSize: 18, values: tickLabels },
+          names
+            ? { label: opts.xLabel, size: 50, labelSize: 18, splits: () => names.map((_, i) => i), values: (_u, splits) => splits.map((v) => names[v] ?? "") }
+            : { label: opts.xLabel, size: 40, labelSize: 18, values: tickLabels },
           { label: opts.yLabel, size: 60, labelSize: 18, values: tickLabels },
         ],
         legend: { show: true, live: false },
@@ -171,12 +181,14 @@ export class Chart {
   _fillTable(data) {
     const n = data[0].length;
     const rows = [];
-    for (let i = Math.max(0, n - TABLE_ROWS); i < n; i++) {
+    const names = this._categories;
+    for (let i = names ? 0 : Math.max(0, n - TABLE_ROWS); i < n; i++) {
       rows.push(
         h(
           "tr",
           null,
           this._columns.map((_, c) => {
+            if (names && c === 0) return h("th", { scope: "row" }, names[i] ?? "");
             const v = data[c]?.[i];
             return h("td", { class: "num" }, typeof v === "number" && Number.isFinite(v) ? formatNumber(v, { maximumSignificantDigits: 6 }) : "–");
           }),
@@ -193,4 +205,17 @@ export class Chart {
     this.plot.destroy();
     this.el.remove();
   }
+}
+
+/**
+ * uPlot's bar paths for series `i` of `n` (one bar centred, two side by side).
+ * @param {number} i
+ * @param {number} n
+ */
+function barSeries(i, n) {
+  return {
+    paths: uPlot.paths.bars?.({ size: [n > 1 ? 0.4 : 0.6, 80], align: n > 1 ? (i === 0 ? -1 : 1) : 0 }),
+    fill: COLORS[i % COLORS.length],
+    points: { show: false },
+  };
 }

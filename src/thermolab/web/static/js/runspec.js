@@ -129,6 +129,8 @@ export function readRun(r) {
     id: r.id,
     rig: r.rig ?? null,
     user: r.username ?? null,
+    /** The owner's display name, when they gave one. */
+    userName: typeof r.displayName === "string" ? r.displayName : null,
     status: String(r.status ?? "running"),
     dt: Number(r.dt ?? 1),
     nSamples: r.samples ?? null,

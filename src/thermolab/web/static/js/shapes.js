@@ -27,7 +27,7 @@ export function stateLabel(state) {
  * @returns {{role: "controller" | "queued" | "watcher", queueSize: number,
  *   queuePosition: number | null, estimatedTimeUntilControl: number | null,
  *   timeLeft: number | null, idleTimeLeft: number | null, controller: string | null,
- *   watchers: number, canExtend: boolean}}
+ *   controllerName: string | null, watchers: number, canExtend: boolean}}
  */
 export function readAccess(a) {
   const src = a && typeof a === "object" ? a : {};
@@ -39,9 +39,23 @@ export function readAccess(a) {
     timeLeft: numberOr(src.timeLeft, null),
     idleTimeLeft: numberOr(src.idleTimeLeft, null),
     controller: typeof src.controller === "string" ? src.controller : null,
+    /** The controller's display name, when they gave one. */
+    controllerName: typeof src.controllerName === "string" ? src.controllerName : null,
     watchers: numberOr(src.watchers, 0),
     canExtend: src.canExtend === true,
   };
+}
+
+/**
+ * How a person is named on a page: the display name, else the login name; with
+ * `withLogin` (a teacher's lists, where the login name is what actions take) both.
+ * @param {string} username
+ * @param {string | null | undefined} displayName
+ * @param {boolean} [withLogin]
+ */
+export function personName(username, displayName, withLogin = false) {
+  if (!displayName) return username;
+  return withLogin ? t("person.withLogin", { name: displayName, user: username }) : displayName;
 }
 
 function numberOr(v, fallback) {

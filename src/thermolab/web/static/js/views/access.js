@@ -10,6 +10,7 @@
 import { api } from "../api.js";
 import { announce, duration, durationWords, h, setText } from "../dom.js";
 import { t } from "../i18n.js";
+import { personName } from "../shapes.js";
 
 /** Seconds before the end of a turn at which the controller is warned (the first also offers "extend"). */
 export const WARNINGS = [60, 20];
@@ -29,6 +30,8 @@ export class AccessPanel {
     this._deadline = null; // ms timestamp when the controller's time runs out
     this._idleDeadline = null; // ms timestamp when control ends for want of a command
     this._warned = new Set();
+    /** @type {number | null} seconds a turn lasts on this rig */
+    this._turnLength = null;
     this._busy = false;
     /** The lab cannot be reached: nothing shown as current. */
     this.unreachable = false;
@@ -39,6 +42,7 @@ export class AccessPanel {
       ["controller", t("access.controller")],
       ["timeLeft", t("access.timeLeft")],
       ["idleLeft", t("access.idleLeft")],
+      ["turnLength", t("access.turnLength")],
       ["watchers", t("access.watchers")],
       ["queueSize", t("access.queueSize")],
       ["position", t("access.position")],
@@ -100,6 +104,12 @@ export class AccessPanel {
     this.render();
   }
 
+  /** A turn's length on this rig (the teacher's setting in force; a new turn gets it). */
+  setTurnLength(seconds) {
+    this._turnLength = typeof seconds === "number" ? seconds : null;
+    this.render();
+  }
+
   setRigState(state) {
     this.rigState = state;
     this.render();
@@ -120,7 +130,7 @@ export class AccessPanel {
       announce(t("access.moved", { position: now.queuePosition }));
     }
     if (now.controller !== before.controller && now.role !== "controller") {
-      announce(now.controller ? t("access.newController", { user: now.controller, rig }) : t("access.noController", { rig }));
+      announce(now.controller ? t("access.newController", { user: personName(now.controller, now.controllerName), rig }) : t("access.noController", { rig }));
     }
   }
 
@@ -188,7 +198,8 @@ export class AccessPanel {
     };
     setText(this.role, roleText[a.role] ?? (a.queuePosition ? roleText.queued : roleText.watcher));
     this.role.dataset.role = a.role;
-    setText(this.fields.controller, a.controller ?? t("access.nobody"));
+    setText(this.fields.controller, a.controller ? personName(a.controller, a.controllerName) : t("access.nobody"));
+    setText(this.fields.turnLength, this._turnLength === null ? "–" : durationWords(this._turnLength));
     setText(this.fields.watchers, String(a.watchers));
     setText(this.fields.queueSize, String(a.queueSize));
     const queued = a.role === "queued" || (a.queuePosition !== null && a.role !== "controller");

@@ -6,6 +6,7 @@
 import { api } from "../api.js";
 import { announce, h, setText } from "../dom.js";
 import { t } from "../i18n.js";
+import { courseLimitsSection } from "./courselimits.js";
 
 /**
  * @param {HTMLElement} main
@@ -144,8 +145,11 @@ async function showCourse(box, name, alive) {
 
   box.replaceChildren(
     h("h2", null, course.title),
+    h("p", null, h("a", { href: `#/analytics?course=${encodeURIComponent(course.name)}`, id: "course-analytics" }, t("courses.analytics"))),
     h("p", null, t("courses.code"), " ", code, " ", rotate),
     h("p", { class: "muted" }, t("courses.codeHelp")),
+    await courseRigs(name, course.rigs),
+    courseLimitsSection(course.name),
     h("h3", null, t("courses.uploadHeading")),
     h("p", { class: "muted" }, t("courses.uploadHelp")),
     h("div", { class: "field" }, h("label", { for: "roster-file" }, t("courses.file")), file),
@@ -158,6 +162,42 @@ async function showCourse(box, name, alive) {
   );
   box.hidden = false;
   roster.replaceChildren(rosterTable(course.members, reset));
+}
+
+/**
+ * The rigs a course's students may use: a box per rig of the lab (none ticked: every rig).
+ * @param {string} name
+ * @param {string[]} chosen
+ */
+async function courseRigs(name, chosen) {
+  const rigs = await api.rigs();
+  const out = h("p", { role: "status", id: "course-rigs-result" });
+  const boxes = rigs.map((/** @type {any} */ rig) => {
+    const id = `course-rig-${rig.id}`;
+    const box = h("input", { type: "checkbox", id, value: rig.id, checked: chosen.includes(rig.id) });
+    return { box, el: h("div", { class: "field inline" }, box, h("label", { for: id }, rig.title || rig.id)) };
+  });
+  const save = h("button", { type: "submit", id: "course-rigs-save" }, t("courses.rigsSave"));
+  const form = h(
+    "form",
+    { id: "course-rigs", novalidate: true },
+    h("fieldset", null, h("legend", null, t("courses.rigsHeading")), h("p", { class: "muted" }, t("courses.rigsHelp")), ...boxes.map((b) => b.el)),
+    save,
+    out,
+  );
+  form.addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    save.disabled = true;
+    try {
+      const made = await api.setCourseRigs(name, boxes.filter((b) => b.box.checked).map((b) => b.box.value));
+      setText(out, made.rigs.length ? t("courses.rigsSaved", { rigs: made.rigs.join(", ") }) : t("courses.rigsAll"));
+    } catch (err) {
+      setText(out, err.message);
+    } finally {
+      save.disabled = false;
+    }
+  });
+  return form;
 }
 
 /** @param {{created: Record<string, string>, updated: string[], unchanged: string[]}} done */

@@ -65,7 +65,11 @@ export class GuideDrawer {
     /** @type {Record<string, any>} the sections as last read, by name */
     this.sections = {};
     this.current = "introduction";
+    /** @type {string | null} the section the article shows */
+    this.shown = null;
     this.lang = "";
+    /** @type {Promise<void> | null} the read under way */
+    this.loading = null;
     this.nav = h("nav", { class: "guide-nav", "aria-label": t("guide.sections") });
     this.buttons = {};
     for (const [section, key] of Object.entries(SECTION_NAMES)) {
@@ -113,7 +117,15 @@ export class GuideDrawer {
     this.el.hidden = true;
   }
 
-  async load() {
+  /** Read the guide in the interface's language (one read at a time: callers share it). */
+  load() {
+    this.loading ??= this._read().finally(() => {
+      this.loading = null;
+    });
+    return this.loading;
+  }
+
+  async _read() {
     try {
       const guide = await guideApi.read(this.rigId, language());
       this.lang = guide.lang;
@@ -124,7 +136,9 @@ export class GuideDrawer {
     }
   }
 
+  /** Show a section; the editor closes when the section changes (not when the same one is redrawn). */
   show(section) {
+    const moved = section !== this.shown;
     this.current = section;
     for (const [name, button] of Object.entries(this.buttons)) {
       if (name === section) button.setAttribute("aria-current", "true");
@@ -132,13 +146,14 @@ export class GuideDrawer {
     }
     const found = this.sections[section];
     if (!found) return;
+    this.shown = section;
     showHtml(this.article, found.html);
     this.article.lang = found.lang;
     this.note.hidden = found.lang === this.lang;
     setText(this.note, t("guide.fallback"));
     setText(this.meta, found.revisionId === null ? t("guide.default")
       : t("guide.savedBy", { author: found.author, time: when(found.savedAt) }));
-    if (this.editor) this._closeEditor();
+    if (this.editor && moved) this._closeEditor();
   }
 
   _buildEditor() {
@@ -166,6 +181,11 @@ export class GuideDrawer {
   async _openEditor() {
     const ed = this.editor;
     if (!ed) return;
+    // Edit clicked while the guide is still being read: wait for it (its
+    // language names the revisions asked for; its text fills the editor).
+    if (this.loading) await this.loading;
+    else if (!this.lang) await this.load();
+    if (!this.lang) return; // the guide could not be read: the status says why
     const found = this.sections[this.current];
     ed.textarea.value = found ? found.markdown : "";
     ed.form.hidden = false;
@@ -198,6 +218,7 @@ export class GuideDrawer {
       setText(this.status, t("guide.saved"));
       await this.load();
       this.show(this.current);
+      this._closeEditor();
     } catch (err) {
       setText(this.status, err.message);
     }
@@ -235,6 +256,7 @@ export class GuideDrawer {
       setText(this.status, t("guide.restored"));
       await this.load();
       this.show(this.current);
+      this._closeEditor();
     } catch (err) {
       setText(this.status, err.message);
     }

@@ -4,7 +4,7 @@
 
 import { api } from "../api.js";
 import { h, setText } from "../dom.js";
-import { readRig, stateLabel } from "../shapes.js";
+import { personName, readRig, stateLabel } from "../shapes.js";
 import { t } from "../i18n.js";
 
 const POLL_MS = 3000;
@@ -86,7 +86,8 @@ function updateCard(li, rig, ctx) {
   badge.dataset.state = rig.state;
   const a = rig.access;
   const me = ctx.user?.username;
-  setText(f("controller"), a.controller ? (a.controller === me ? t("lobby.you", { user: a.controller }) : a.controller) : t("access.nobody"));
+  const named = a.controller ? personName(a.controller, a.controllerName) : null;
+  setText(f("controller"), a.controller ? (a.controller === me ? t("lobby.you", { user: named }) : named) : t("access.nobody"));
   setText(f("watchers"), String(a.watchers));
   let queue = t("lobby.waiting", { count: a.queueSize });
   if (a.queuePosition) queue = t("lobby.waitingYou", { queue, position: a.queuePosition });

@@ -28,6 +28,7 @@ import { RigHeader } from "./rig/header.js";
 import { lockReason } from "./rig/lock.js";
 import { Readout } from "./rig/readout.js";
 import { TurnNotice } from "./rig/notice.js";
+import { NextChance } from "./rig/chance.js";
 import { Reachability } from "./rig/reach.js";
 import { RunShow } from "./rig/runshow.js";
 import { t } from "../i18n.js";
@@ -37,10 +38,13 @@ export { WINDOW } from "./rig/livecharts.js";
 /** Reading the rig over HTTP while the live socket is down. */
 const POLL_MS = 3000;
 
-export function mount(main, { params }, ctx) {
+export function mount(main, { params, query }, ctx) {
   const rigId = params[0];
   ctx.setTitle(t("rig.title", { rig: rigId }));
   const page = new RigPage(main, rigId, ctx.user);
+  // A link placed in an LMS (LTI deep linking) may open the guide at a section.
+  const section = query?.get("guide");
+  if (section) void page.guide.open(section);
   return () => page.destroy();
 }
 
@@ -59,6 +63,7 @@ class RigPage {
     this.reach = null;
     this.header = new RigHeader(main, this.rigId);
     this.notice = new TurnNotice(main, this.rigId);
+    this.chance = new NextChance(main, this.rigId);
     const grid = h("div", { class: "rig-grid" });
     main.append(grid);
     const side = h("div", { class: "rig-side" });
@@ -68,7 +73,10 @@ class RigPage {
       onError: (m) => this._error(m),
       onChange: () => this._updateLock(),
       onRefresh: () => void this._refresh(),
-      onTurnEnded: () => void this.notice.turnEnded(),
+      onTurnEnded: () => {
+        void this.notice.turnEnded();
+        void this.chance.refresh();
+      },
       onTurnStarted: () => this.notice.clear(),
       // The control routes answer with the rig as the caller now sees it.
       onAnswer: (answer) => {
@@ -182,10 +190,12 @@ class RigPage {
 
   _onMessage(msg) {
     if (msg.history) {
-      // What the server held from before we came: only the current run's samples
-      // and estimates matter (the hello already said what the state is).
+      // What the server held from before we came: only the current run's samples,
+      // estimates and a notice that its replay skipped samples matter (the hello
+      // already said what the state is).
       const current = this.show.run?.status === "running" ? this.show.run.id : null;
-      if ((msg.type !== "sample" && msg.type !== "estimate") || current === null || msg.run !== current) return;
+      const kept = msg.type === "sample" || msg.type === "estimate" || msg.type === "truncated";
+      if (!kept || current === null || msg.run !== current) return;
     }
     switch (msg.type) {
       case "hello":
@@ -205,6 +215,9 @@ class RigPage {
         break;
       case "estimate":
         this.show.estimate(msg);
+        break;
+      case "truncated":
+        this.show.charts.truncated(msg);
         break;
       case "run":
         this.show.event(msg);
@@ -229,6 +242,7 @@ class RigPage {
     const first = this.rig === null;
     this.rig = rig;
     this.header.setTitle(rig.title || rig.id);
+    this.access.setTurnLength(rig.limits.controlTimeLimit ?? null);
     if (first) {
       this.readout.setUnits(rig.inputUnit, rig.outputUnit);
       // The panels' ranges come from the rig and the server's schema; both are
@@ -298,6 +312,7 @@ class RigPage {
     clearTimeout(this._pollTimer);
     this.header.destroy();
     this.camera.destroy();
+    this.chance.destroy();
     this.access.destroy();
     this.show.destroy();
     this.loop.destroy();

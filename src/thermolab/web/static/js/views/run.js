@@ -10,6 +10,7 @@ import { readResult } from "../results.js";
 import { inputText, methodTitle, readRun, runStatusText } from "../runspec.js";
 import { lastSampleGain, operatingPointHow, timingText } from "./panels/results.js";
 import { t } from "../i18n.js";
+import { personName } from "../shapes.js";
 
 /**
  * Why a method has no model, and its warnings: the server's sentences, "–" when none.
@@ -77,7 +78,7 @@ function render(main, exported, charts) {
   const facts = h("dl", { class: "facts" });
   const add = (k, v) => facts.append(h("dt", null, k), h("dd", null, v));
   add(t("runs.rig"), run.rig ?? "–");
-  if (run.user) add(t("runs.student"), run.user);
+  if (run.user) add(t("runs.student"), personName(run.user, run.userName, true));
   add(t("runs.status"), run.endReason ? tParts("runs.statusWhy", { status: runStatusText(run.status), reason: serverText(run.endReason) }) : runStatusText(run.status));
   add(t("runs.started"), when(run.startedAt));
   add(t("run.endedAt"), when(run.endedAt));

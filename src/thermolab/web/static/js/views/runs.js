@@ -5,6 +5,7 @@ import { api } from "../api.js";
 import { h, serverText, setText, tParts, when } from "../dom.js";
 import { inputText, methodName, methodTitle, panelOfRun, readRun, runStatusText } from "../runspec.js";
 import { t } from "../i18n.js";
+import { personName } from "../shapes.js";
 
 /**
  * A table of runs; with `selectable`, each row has a checkbox named "run".
@@ -34,7 +35,7 @@ export function runsTable(runs, opts = {}) {
         ? h("td", null, h("input", { type: "checkbox", name: "run", value: run.id, id: `pick-${run.id}`, "aria-label": t("runs.compareOne", { run: label }) }))
         : null,
       h("td", null, h("a", { href: `#/runs/${encodeURIComponent(run.id)}` }, label)),
-      opts.showUser ? h("td", null, run.user ?? "–") : null,
+      opts.showUser ? h("td", null, run.user ? personName(run.user, run.userName, true) : "–") : null,
       h("td", null, run.rig ?? "–"),
       h("td", null, when(run.startedAt)),
       h("td", null, run.methods.map((m) => methodTitle(methodName(m))).join(", ") || methodTitle(panelOfRun(run))),

@@ -5,9 +5,10 @@
 
 import { api } from "../api.js";
 import { announce, duration, h, setText, when } from "../dom.js";
-import { readRig, stateLabel } from "../shapes.js";
+import { personName, readRig, stateLabel } from "../shapes.js";
 import { checkNumber, rangeText } from "../validate.js";
 import { runsPicker } from "./runs.js";
+import { settingsSection } from "./settings.js";
 import { t } from "../i18n.js";
 
 const POLL_MS = 3000;
@@ -24,6 +25,7 @@ export function mount(main, _params, ctx) {
   main.append(
     h("h1", null, t("nav.teacher")),
     h("p", { class: "lede" }, t("teacher.lede")),
+    h("p", null, h("a", { href: "#/hosts" }, t("teacher.hostsLink"))),
     status,
     list,
     h("section", { class: "card", "aria-labelledby": "all-runs" }, h("h2", { id: "all-runs" }, t("teacher.allRuns")), runsBox),
@@ -143,6 +145,7 @@ class RigCard {
       h("h3", null, t("teacher.watchers")),
       this.watchers,
       h("div", { class: "buttons" }, this.serviceButton),
+      settingsSection(rigId),
     );
     this._queueKey = "";
     this._watchKey = "";
@@ -173,7 +176,7 @@ class RigCard {
     setText(this.badge, stateLabel(rig.state));
     this.badge.dataset.state = rig.state;
     const a = rig.access;
-    setText(this.f.controller, a.controller ?? t("access.nobody"));
+    setText(this.f.controller, a.controller ? personName(a.controller, a.controllerName, true) : t("access.nobody"));
     this.renderTime();
     setText(this.f.watchers, String(a.watchers));
     setText(this.f.fault, rig.detail ?? t("teacher.noFault"));
@@ -181,7 +184,7 @@ class RigCard {
     setText(this.serviceButton, rig.inService ? t("teacher.takeOut") : t("teacher.putBack"));
     this.serviceButton.className = rig.inService ? "danger" : "primary";
     const queue = rig.queue ?? [];
-    const qKey = JSON.stringify(queue.map((q) => [q.username, q.position]));
+    const qKey = JSON.stringify(queue.map((q) => [q.username, q.displayName, q.position]));
     if (qKey !== this._queueKey) {
       this._queueKey = qKey;
       const hadFocus = this.queue.contains(document.activeElement);
@@ -191,8 +194,8 @@ class RigCard {
               h(
                 "li",
                 null,
-                t("teacher.queued", { user: q.username, since: when(q.joinedAt) }) + " ",
-                h("button", { type: "button", class: "link-button", "aria-label": t("teacher.removeLabel", { user: q.username }), onclick: () => void this.act(() => api.kick(this.rigId, q.username), t("teacher.removed", { user: q.username })) }, t("teacher.remove")),
+                t("teacher.queued", { user: personName(q.username, q.displayName, true), since: when(q.joinedAt) }) + " ",
+                h("button", { type: "button", class: "link-button", "aria-label": t("teacher.removeLabel", { user: personName(q.username, q.displayName) }), onclick: () => void this.act(() => api.kick(this.rigId, q.username), t("teacher.removed", { user: q.username })) }, t("teacher.remove")),
               ),
             )
           : []),
@@ -201,12 +204,15 @@ class RigCard {
       if (hadFocus) this.queue.querySelector("button")?.focus();
     }
     const watchers = rig.watcherList ?? [];
-    const wKey = JSON.stringify(watchers.map((w) => [w.username, w.connections]));
+    const wKey = JSON.stringify(watchers.map((w) => [w.username, w.displayName, w.connections]));
     if (wKey !== this._watchKey) {
       this._watchKey = wKey;
       this.watchers.replaceChildren(
         ...(watchers.length
-          ? watchers.map((w) => h("li", null, w.connections > 1 ? t("teacher.watcherWindows", { user: w.username, count: w.connections }) : w.username))
+          ? watchers.map((w) => {
+              const who = personName(w.username, w.displayName, true);
+              return h("li", null, w.connections > 1 ? t("teacher.watcherWindows", { user: who, count: w.connections }) : who);
+            })
           : [h("li", { class: "muted" }, t("access.nobody"))]),
       );
     }

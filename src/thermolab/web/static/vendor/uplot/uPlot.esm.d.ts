@@ -11,6 +11,9 @@ declare namespace uPlot {
     points?: { show?: boolean };
     spanGaps?: boolean;
     auto?: boolean;
+    /** How the series is drawn (uPlot.paths.bars(...) for a bar chart). */
+    paths?: unknown;
+    fill?: string;
   }
   interface Axis {
     label?: string;
@@ -18,11 +21,15 @@ declare namespace uPlot {
     labelSize?: number;
     /** Tick labels: (plot, tick values, axis index, space, tick spacing) -> texts. */
     values?: (u: uPlot, splits: number[], axisIdx: number, space: number, incr: number) => string[];
+    /** Where the ticks go: (plot, axis index, min, max) -> tick values. */
+    splits?: (u: uPlot, axisIdx: number, min: number, max: number) => number[];
   }
   interface Scale {
     time?: boolean;
     min?: number;
     max?: number;
+    /** The scale's range: (plot, data min, data max) -> [min, max]. */
+    range?: (u: uPlot, min: number, max: number) => [number, number];
   }
   interface Options {
     width: number;
@@ -45,6 +52,8 @@ declare class uPlot {
   setData(data: uPlot.AlignedData, resetScales?: boolean): void;
   setSize(size: { width: number; height: number }): void;
   destroy(): void;
+  /** Path builders; `bars({size: [fraction of the slot, max px], align: -1 | 0 | 1})`. */
+  static paths: { bars?: (opts: { size?: [number, number]; align?: -1 | 0 | 1 }) => unknown };
 }
 
 export default uPlot;

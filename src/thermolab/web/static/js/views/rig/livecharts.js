@@ -2,7 +2,8 @@
 // The live charts: output (with the identified model laid over it) and input
 // against time, over a bounded window of the segment on show — one run's
 // samples, or the rig's idle readings. A watcher who joins mid-run gets the
-// run's earlier samples from its CSV.
+// run's earlier samples from its CSV; when the server's replay of a long run
+// skips its middle (a `truncated` notice), the card says so and links the CSV.
 
 import { api } from "../../api.js";
 import { Chart } from "../../charts.js";
@@ -53,6 +54,7 @@ export class LiveCharts {
     const card = h("section", { class: "card live-charts", "aria-labelledby": "charts-heading" });
     parent.append(card);
     this.note = h("p", { class: "muted small", "data-testid": "chart-note" });
+    this.truncatedNote = h("p", { class: "notice small", role: "status", hidden: true, "data-testid": "chart-truncated" });
     this.overlaySelect = h("select", { id: "overlay-method" });
     this.overlaySelect.addEventListener("change", () => {
       this.overlayMethod = this.overlaySelect.value || null;
@@ -63,6 +65,7 @@ export class LiveCharts {
     card.append(
       h("h2", { id: "charts-heading" }, t("charts.heading")),
       this.note,
+      this.truncatedNote,
       h("div", { class: "field inline" }, h("label", { for: "overlay-method" }, t("charts.overlay")), this.overlaySelect),
       this.liveButton,
     );
@@ -88,6 +91,8 @@ export class LiveCharts {
   startSegment(runId, loadHistory) {
     this.ring.clear();
     this.segment = emptySegment(runId);
+    this.truncatedNote.hidden = true;
+    this.truncatedNote.replaceChildren();
     if (runId !== null && loadHistory) void this._loadHistory(runId);
     this.noteSegment();
     this.invalidate();
@@ -105,6 +110,23 @@ export class LiveCharts {
     if (seg.loading) text = t("charts.loading", { note: text });
     setText(this.note, text);
     this.liveButton.hidden = seg.run === null || (run?.id === seg.run && run.status === "running");
+  }
+
+  /**
+   * The server's `truncated` notice (docs/live-protocol.md, "Replay"): the run
+   * on show was too long to replay whole, so only its newest samples came. Say
+   * that the charts show the run's last part, and offer its whole record.
+   * @param {{run: number, from: number, limit: number}} msg
+   */
+  truncated(msg) {
+    if (msg.run !== this.segment.run) return;
+    const csv = h(
+      "a",
+      { href: api.csvUrl(msg.run), download: `run-${msg.run}.csv`, "data-testid": "chart-truncated-csv" },
+      t("charts.truncatedCsv"),
+    );
+    this.truncatedNote.replaceChildren(t("charts.truncated", { run: msg.run, from: msg.from, limit: msg.limit }), " ", csv);
+    this.truncatedNote.hidden = false;
   }
 
   /** Fill the window with the samples a watcher joining mid-run missed. */

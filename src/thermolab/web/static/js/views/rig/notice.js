@@ -17,6 +17,7 @@ const ENDED = {
   client_gone: "turn.endedGone",
   rig_fault: "turn.endedFault",
   server_restart: "turn.endedRestart",
+  booked: "turn.endedBooked",
 };
 
 export class TurnNotice {

@@ -1,0 +1,202 @@
+"""The wire protocol between a lab and its rig hosts (``thermolab agent``), declared once.
+
+Both ends import this module: the agent (:mod:`thermolab.agent`, rigs and
+runner side) and the lab (:mod:`thermolab.lab.agents`). It sits in the
+``thermolab.agent`` layer, below the lab and above the runner, so that the
+agent never imports the lab and the lab never re-declares a message.
+
+Every message is one JSON text frame, a pydantic model with a ``type``
+discriminator. The agent dials the lab (``wss://LAB/api/agents/link``) and
+speaks first (:class:`Hello`, with its rig's secret); the lab answers
+:class:`Welcome` or closes the
+socket with :data:`CLOSE_REFUSED`.
+
+Durable upward messages (:class:`SampleOut`, :class:`RunEnded`) carry a
+``seq`` that numbers the agent's outbox; the lab stores them idempotently
+and answers :class:`Ack` with the highest ``seq`` it holds, and the agent
+forgets only what is acknowledged (:mod:`thermolab.agent.outbox`).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
+
+__all__ = [
+    "AGENT_LINK_PATH",
+    "CLOSE_NOT_OWNER",
+    "CLOSE_REFUSED",
+    "PROTOCOL_VERSION",
+    "Ack",
+    "AgentMessage",
+    "EndRun",
+    "Heartbeat",
+    "Hello",
+    "LabMessage",
+    "Power",
+    "RunEnded",
+    "SampleBatch",
+    "SampleOut",
+    "SetInput",
+    "StartRun",
+    "Welcome",
+    "decode_agent",
+    "decode_lab",
+    "encode",
+]
+
+PROTOCOL_VERSION = 1
+"""Bumped on an incompatible change; the lab refuses an agent speaking another."""
+AGENT_LINK_PATH = "/api/agents/link"
+"""Where an agent dials in on the lab."""
+CLOSE_REFUSED = 4401
+"""WebSocket close code: unknown rig, wrong secret or protocol version."""
+CLOSE_NOT_OWNER = 4409
+"""WebSocket close code: this web worker does not own the rigs (a follower); dial another."""
+
+_Finite = Annotated[float, Field(allow_inf_nan=False)]
+
+
+class _Message(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+# -- agent -> lab ---------------------------------------------------------------------------
+
+
+class Hello(_Message):
+    """The agent's first message: who it is and its secret."""
+
+    type: Literal["hello"] = "hello"
+    rig: str = Field(min_length=1, max_length=64)
+    secret: str = Field(min_length=16, max_length=200)
+    protocol: int
+    version: str = Field(max_length=64)
+    spec: str = Field(max_length=200)
+
+
+class Heartbeat(_Message):
+    """Sent every second: the agent is alive, and the rig as it is now."""
+
+    type: Literal["heartbeat"] = "heartbeat"
+    powered: bool
+    u: _Finite | None = None
+    y: float | None = None  # a sensor may read NaN: the lab judges it (health)
+    fault: str | None = Field(default=None, max_length=500)
+    run: int | None = None
+    pending: int = Field(ge=0, description="outbox messages not yet acknowledged")
+
+
+class SampleOut(_Message):
+    """One sample of a run, as the agent's runner took it."""
+
+    seq: int = Field(ge=1)
+    run: int = Field(ge=1)
+    k: int = Field(ge=0)
+    t: float
+    u: float
+    y: float
+    t_read: float
+    jitter: float
+    lateness: float
+
+
+class SampleBatch(_Message):
+    """Samples in ``seq`` order (live ones, or a backlog after a link loss)."""
+
+    type: Literal["samples"] = "samples"
+    samples: list[SampleOut]
+
+
+class RunEnded(_Message):
+    """A run ended on the agent (after its last sample in ``seq`` order)."""
+
+    type: Literal["run_ended"] = "run_ended"
+    seq: int = Field(ge=1)
+    run: int = Field(ge=1)
+    reason: str = Field(max_length=32, description="thermolab.runner.EndReason value")
+    message: str = Field(default="", max_length=500)
+    samples: int = Field(ge=0)
+
+
+AgentMessage = Annotated[Hello | Heartbeat | SampleBatch | RunEnded, Field(discriminator="type")]
+"""Anything an agent sends."""
+
+
+# -- lab -> agent ---------------------------------------------------------------------------
+
+
+class Welcome(_Message):
+    """The lab accepted the agent.
+
+    The agent then sends its whole outbox again: what the lab already stored
+    is ignored there, so an Ack lost with the link costs a resend, never a sample.
+    """
+
+    type: Literal["welcome"] = "welcome"
+    grace: float = Field(gt=0, description="seconds a run outlives a lost link")
+
+
+class Ack(_Message):
+    """Everything up to ``seq`` is stored on the lab: the agent may forget it."""
+
+    type: Literal["ack"] = "ack"
+    seq: int = Field(ge=0)
+
+
+class StartRun(_Message):
+    """START a run with the lab's run id; the settings were checked by the lab."""
+
+    type: Literal["start_run"] = "start_run"
+    run: int = Field(ge=1)
+    dt: float = Field(gt=0)
+    samples: int = Field(ge=1)
+    signal: str | None = Field(default=None, max_length=2000)
+    input: _Finite | None = None
+
+
+class EndRun(_Message):
+    """END the run (its controller, a teacher, or the end of the turn)."""
+
+    type: Literal["end_run"] = "end_run"
+    run: int = Field(ge=1)
+
+
+class SetInput(_Message):
+    """A controller's input: to the run ``run`` if given, else to the idle rig."""
+
+    type: Literal["set_input"] = "set_input"
+    u: _Finite
+    run: int | None = None
+
+
+class Power(_Message):
+    """Power the rig on or off (off: actuator at its safe value)."""
+
+    type: Literal["power"] = "power"
+    on: bool
+
+
+LabMessage = Annotated[
+    Welcome | Ack | StartRun | EndRun | SetInput | Power, Field(discriminator="type")
+]
+"""Anything the lab sends."""
+
+_AGENT: TypeAdapter[Hello | Heartbeat | SampleBatch | RunEnded] = TypeAdapter(AgentMessage)
+_LAB: TypeAdapter[Welcome | Ack | StartRun | EndRun | SetInput | Power] = TypeAdapter(LabMessage)
+
+
+def encode(message: _Message) -> str:
+    """Return the message as its JSON text frame."""
+    return message.model_dump_json()
+
+
+def decode_agent(text: str | bytes) -> Hello | Heartbeat | SampleBatch | RunEnded:
+    """Parse a frame from an agent (``pydantic.ValidationError`` if it is not one)."""
+    return _AGENT.validate_json(text)
+
+
+def decode_lab(text: str | bytes) -> Welcome | Ack | StartRun | EndRun | SetInput | Power:
+    """Parse a frame from the lab (``pydantic.ValidationError`` if it is not one)."""
+    return _LAB.validate_json(text)

@@ -1,0 +1,100 @@
+"""A remote run's identification, done by the lab on the samples its host sends.
+
+The host runs the experiment (sampling, input, interlocks); the lab feeds the
+run's online identifiers — built by the same ``plan_run`` as an in-process
+run's — with each sample as it is stored, in ``k`` order, and publishes
+their estimates to the live stream as the runner would
+(:class:`~thermolab.runner.EstimateEvent`). A sample sent again after a link
+loss is already counted and is skipped, so the estimates are the ones an
+in-process run of the same samples gives. At the end each method's result,
+with the paper's figures (:func:`~thermolab.lab.runs.statistics.method_statistics`),
+is what the run stores.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from thermolab.errors import ThermoLabError
+from thermolab.ident.online import OnlineIdentifier
+from thermolab.lab.runs.statistics import method_statistics
+from thermolab.runner import EstimateEvent
+from thermolab.runner.results import MethodTrack
+
+__all__ = ["RemoteIdentification"]
+
+log = logging.getLogger(__name__)
+
+
+class RemoteIdentification:
+    """The online identifiers of one remote run, fed in sample order.
+
+    Parameters
+    ----------
+    identifiers : dict
+        Method name -> online identifier (``plan_run(...).identifiers``).
+    """
+
+    def __init__(self, identifiers: dict[str, OnlineIdentifier]) -> None:
+        self._identifiers = identifiers
+        self._tracks = {name: MethodTrack() for name in identifiers}
+        self._errors: dict[str, str] = {}
+        self._final: dict[str, Any] = {}
+        self._finished = False
+        self.next_k = 0
+
+    def feed(self, k: int, u: float, y: float) -> list[EstimateEvent]:
+        """Give sample ``k`` to every method; return their estimates (none for a repeat)."""
+        if k != self.next_k or self._finished:
+            return []  # a resend of a sample already counted
+        self.next_k = k + 1
+        events = []
+        for name, ident in self._identifiers.items():
+            if name in self._errors:
+                continue
+            try:
+                estimate = ident.update(u, y)
+            except (ThermoLabError, ArithmeticError, ValueError) as exc:
+                self._errors[name] = f"{name}: {exc}"  # that method stops; the run goes on
+                continue
+            if estimate is not None:
+                self._tracks[name].add(k, estimate)
+                events.append(EstimateEvent(k, k, name, estimate, False))
+        return events
+
+    def finish(self) -> list[EstimateEvent]:
+        """END: every method's final estimate (SRM and LSM give theirs only now)."""
+        if self._finished:
+            return []
+        self._finished = True
+        k = max(self.next_k - 1, 0)
+        events = []
+        for name, ident in self._identifiers.items():
+            if name in self._errors:
+                continue
+            try:
+                estimate = ident.finish()
+            except (ThermoLabError, ArithmeticError, ValueError) as exc:
+                # ArithmeticError: step_response's tail fit can overflow on a short record
+                # (seen on an ENDed step run); the run's end is stored all the same.
+                log.warning("%s could not finish: %r", name, exc)
+                self._errors[name] = f"{name}: {exc}"
+                continue
+            self._final[name] = estimate
+            if estimate is not None:
+                events.append(EstimateEvent(k, k, name, estimate, True))
+        return events
+
+    def results(self) -> dict[str, tuple[dict[str, Any], dict[str, Any]]]:
+        """Each method's ``(settings, result)`` as the run stores them, with its figures."""
+        results = {}
+        for name, ident in self._identifiers.items():
+            method = self._tracks[name].result(name, self._final.get(name), self._errors.get(name))
+            data = method.to_dict(trajectory=True)
+            try:
+                data["stats"] = method_statistics(name, ident, data.get("latest"))
+            except (ThermoLabError, ArithmeticError, ValueError) as exc:
+                log.warning("statistics of %s failed: %s", name, exc)
+            results[name] = (dict(ident.params), data)
+        return results

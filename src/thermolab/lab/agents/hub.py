@@ -1,0 +1,425 @@
+"""The lab's end of its rig hosts' links: who is online, what they send, what they are told.
+
+:class:`AgentHub` serves the WebSocket ``/api/agents/link``
+(:data:`~thermolab.agent.protocol.AGENT_LINK_PATH`) that ``thermolab agent``
+dials. A host proves it is its rig's with the secret the lab issued
+(:mod:`.secrets`); a second connection for the same rig replaces the first.
+
+Samples are stored idempotently (``INSERT ... ON CONFLICT DO NOTHING`` on
+the samples' key ``(run_id, k)``) and acknowledged by their ``seq`` only
+once committed, so a backlog sent again after a link loss, or an Ack lost
+with the link, never stores a sample twice nor loses one.
+
+Health (the monitor, :meth:`AgentHub.check`, once a sweep): a rig whose host
+is not connected, has not spoken for ``heartbeat_timeout`` seconds, reports
+a fault, or reads outside its safe range gets a fault that starts with
+:data:`HEALTH_FAULT` — control ends and none is granted (the access model's
+rule for a faulted rig), the teachers' page shows it, an e-mail goes out
+where SMTP is configured (:mod:`.notify`) — and the fault clears by itself
+when the host is healthy again.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from datetime import datetime, timedelta
+from typing import Any
+
+from fastapi import WebSocket, WebSocketDisconnect
+from pydantic import ValidationError
+from sqlalchemy import func, select, update
+from sqlalchemy.dialects import postgresql, sqlite
+
+from thermolab.agent.protocol import (
+    CLOSE_REFUSED,
+    PROTOCOL_VERSION,
+    Ack,
+    EndRun,
+    Heartbeat,
+    Hello,
+    Power,
+    RunEnded,
+    SampleBatch,
+    SetInput,
+    StartRun,
+    Welcome,
+    decode_agent,
+    encode,
+)
+from thermolab.lab.access import AccessService
+from thermolab.lab.agents.secrets import check_secret
+from thermolab.lab.clock import LabClock
+from thermolab.lab.config import LabConfig
+from thermolab.lab.db import Database
+from thermolab.lab.db.agent_models import AgentHost
+from thermolab.lab.db.models import Run, Sample
+from thermolab.lab.devices import DeviceHub
+from thermolab.rigs import RigSpec
+
+__all__ = ["HEALTH_FAULT", "AgentHub", "HostStatus"]
+
+log = logging.getLogger(__name__)
+
+HEALTH_FAULT = "rig host: "
+"""How the monitor's faults begin (they clear by themselves; others wait for a teacher)."""
+
+
+@dataclass
+class HostStatus:
+    """A rig host as the lab sees it (the status page's line)."""
+
+    rig: str
+    online: bool = False
+    last_contact: datetime | None = None
+    version: str | None = None
+    spec: str | None = None
+    fault: str | None = None
+    powered: bool = False
+    u: float | None = None
+    y: float | None = None
+    pending: int = 0
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready."""
+        y = self.y if self.y is None or math.isfinite(self.y) else None
+        return {
+            "rig": self.rig,
+            "online": self.online,
+            "lastContact": None if self.last_contact is None else self.last_contact.isoformat(),
+            "version": self.version,
+            "spec": self.spec,
+            "fault": self.fault,
+            "powered": self.powered,
+            "u": self.u,
+            "y": y,
+            "pending": self.pending,
+        }
+
+
+@dataclass
+class _Link:
+    ws: WebSocket
+    loop: asyncio.AbstractEventLoop
+    status: HostStatus
+    closed: asyncio.Event = field(default_factory=asyncio.Event)
+
+
+class AgentHub:
+    """The rig hosts of the lab's remote rigs (``agent = true`` in its file).
+
+    Parameters
+    ----------
+    db, clock, config, access, devices
+        The lab's.
+    on_online : callable
+        Called (in a worker thread) with a rig id when its host comes or goes.
+    grace : float
+        Seconds a run outlives a lost link on the host (sent in ``Welcome``).
+    heartbeat_timeout : float
+        Seconds of silence after which a host counts as gone.
+    notify : callable, optional
+        Told ``(rig_id, what)`` when a rig goes out of service or comes back.
+    """
+
+    def __init__(
+        self,
+        db: Database,
+        clock: LabClock,
+        config: LabConfig,
+        access: AccessService,
+        devices: DeviceHub,
+        *,
+        on_online: Callable[[str], None],
+        grace: float = 10.0,
+        heartbeat_timeout: float = 5.0,
+        notify: Callable[[str, str], None] | None = None,
+    ) -> None:
+        self._db = db
+        self._clock = clock
+        self._config = config
+        self._access = access
+        self._devices = devices
+        self._on_online = on_online
+        self.grace = grace
+        self.heartbeat_timeout = heartbeat_timeout
+        #: Told ``(rig_id, what)`` when a rig goes out of service or back (e-mail: :mod:`.notify`).
+        self.notify = notify
+        self._lock = threading.Lock()
+        self._links: dict[str, _Link] = {}
+        self._status = {r.id: HostStatus(r.id) for r in config.rigs if r.agent}
+        # The safe range a host's readings must stay in: the rig kind's output limit.
+        self._limits = {
+            r.id: RigSpec.parse(r.spec).describe().output_limit for r in config.rigs if r.agent
+        }
+        #: Called with ``(rig_id, samples)`` after samples are stored, and ``(rig_id, RunEnded)``.
+        self.on_samples: Callable[[str, SampleBatch], None] = lambda rig, batch: None
+        self.on_run_ended: Callable[[str, RunEnded], None] = lambda rig, ended: None
+
+    def serves(self, rig_id: str) -> bool:
+        """Whether ``rig_id`` is a remote rig."""
+        return rig_id in self._status
+
+    def online(self, rig_id: str) -> bool:
+        """Whether the rig's host is connected now."""
+        with self._lock:
+            return rig_id in self._links
+
+    def statuses(self) -> list[HostStatus]:
+        """Every rig host, online or not (the status page)."""
+        with self._db.read() as session:
+            rows = {r.rig_id: r for r in session.scalars(select(AgentHost))}
+        out = []
+        for rig_id, status in self._status.items():
+            row = rows.get(rig_id)
+            if row is not None and status.last_contact is None:
+                status.last_contact, status.version = row.last_contact, row.version
+                status.spec = row.spec
+            # The rig's fault as the lab holds it (the monitor's or any other), not only the host's.
+            out.append(replace(status, fault=self._access.snapshot(rig_id).fault or status.fault))
+        return out
+
+    def send(self, rig_id: str, message: StartRun | EndRun | SetInput | Power) -> bool:
+        """Send a command to the rig's host (from any thread); ``False`` if it is not connected."""
+        with self._lock:
+            link = self._links.get(rig_id)
+        if link is None:
+            return False
+        text = encode(message)
+        link.loop.call_soon_threadsafe(lambda: link.loop.create_task(_send(link, text)))
+        return True
+
+    def sync_power(self, rig_id: str) -> None:
+        """Tell the host the power and idle input the device hub holds for the rig."""
+        if not self.serves(rig_id):
+            return
+        self.send(rig_id, Power(on=self._devices.powered(rig_id)))
+        applied = self._devices.applied(rig_id)
+        if self._devices.powered(rig_id) and applied is not None:
+            self.send(rig_id, SetInput(u=applied))
+
+    def apply(self, rig_id: str, u: float) -> bool:
+        """Send a controller's input to the idle powered remote rig; whether it was sent."""
+        return (
+            self.serves(rig_id)
+            and self._devices.powered(rig_id)
+            and self.send(rig_id, SetInput(u=u))
+        )
+
+    # -- the monitor ---------------------------------------------------------------------
+
+    def check(self, now: datetime) -> None:
+        """Judge every host's health; fault or heal its rig (called by the lab's sweep)."""
+        for rig_id, status in self._status.items():
+            problem = self._problem(rig_id, status, now)
+            if problem is None:
+                if self._access.clear_healed_fault(rig_id, HEALTH_FAULT) and self.notify:
+                    self.notify(rig_id, "back in service (its host is healthy)")
+                continue
+            fault = self._access.snapshot(rig_id).fault
+            if fault is None:
+                self._access.report_fault(rig_id, HEALTH_FAULT + problem)
+                if self.notify is not None:
+                    self.notify(rig_id, "out of service: " + problem)
+            if problem.startswith("stopped answering"):
+                with self._lock:
+                    link = self._links.get(rig_id)
+                if link is not None:  # drop it (after the fault is stored): the host redials
+                    link.loop.call_soon_threadsafe(link.closed.set)
+
+    def _problem(self, rig_id: str, status: HostStatus, now: datetime) -> str | None:
+        with self._lock:
+            link = self._links.get(rig_id)
+        if link is None:
+            return "offline (not connected)"
+        if status.last_contact is not None and now - status.last_contact > timedelta(
+            seconds=self.heartbeat_timeout
+        ):
+            return f"stopped answering (silent for over {self.heartbeat_timeout:g} s)"
+        if status.fault is not None:
+            return f"reports a fault: {status.fault}"
+        limit = self._limits[rig_id]
+        if status.y is not None and (
+            not math.isfinite(status.y) or (limit is not None and status.y > limit)
+        ):
+            return f"reading {status.y:g} is outside the rig's safe range (limit {limit})"
+        return None
+
+    # -- the WebSocket ---------------------------------------------------------------------
+
+    async def endpoint(self, ws: WebSocket) -> None:
+        """Serve one rig host's connection until it closes."""
+        await ws.accept()
+        try:
+            first = decode_agent(await asyncio.wait_for(ws.receive_text(), 10))
+        except (ValidationError, TimeoutError, WebSocketDisconnect):
+            await _close(ws, "expected hello")
+            return
+        if not isinstance(first, Hello) or not await asyncio.to_thread(self._admit, first):
+            await _close(ws, "unknown rig, wrong secret or protocol version")
+            return
+        rig_id = first.rig
+        status = self._status[rig_id]
+        link = _Link(ws, asyncio.get_running_loop(), status)
+        with self._lock:
+            old = self._links.get(rig_id)
+            self._links[rig_id] = link
+        if old is not None:
+            old.closed.set()
+        status.online, status.version, status.spec = True, first.version, first.spec
+        status.last_contact, status.fault = self._clock.now(), None
+        receiver: asyncio.Task[None] | None = None
+        closer: asyncio.Task[bool] | None = None
+        try:  # from the registration on: whatever ends the socket, the rig goes offline
+            await ws.send_text(encode(Welcome(grace=self.grace)))
+            await asyncio.to_thread(self._came, rig_id, first)
+            receiver = asyncio.create_task(self._receive(rig_id, link))
+            closer = asyncio.create_task(link.closed.wait())
+            await asyncio.wait({receiver, closer}, return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            for task in (receiver, closer):
+                if task is not None:
+                    task.cancel()
+            if receiver is not None and receiver.done() and not receiver.cancelled():
+                failure = receiver.exception()
+                if failure is not None:
+                    log.error("rig host %s: link failed", rig_id, exc_info=failure)
+            with self._lock:
+                mine = self._links.get(rig_id) is link
+                if mine:
+                    del self._links[rig_id]
+            if mine:
+                status.online = False
+                # A thread of its own: this task may be being cancelled (server shutdown).
+                threading.Thread(target=self._gone, args=(rig_id,), daemon=True).start()
+            await _close(ws, "replaced or silent", code=1001)
+
+    async def _receive(self, rig_id: str, link: _Link) -> None:
+        status = link.status
+        while True:
+            try:
+                message = decode_agent(await link.ws.receive_text())
+            except ValidationError as exc:
+                log.warning("rig host %s sent a bad message: %s", rig_id, exc.errors()[:1])
+                return
+            except (WebSocketDisconnect, RuntimeError) as exc:
+                log.info("rig host %s: link closed (%r)", rig_id, exc)
+                return
+            status.last_contact = self._clock.now()
+            try:
+                await self._handle(rig_id, link, message)
+            except WebSocketDisconnect:
+                log.info("rig host %s: link closed while answering", rig_id)
+                return
+
+    async def _handle(
+        self, rig_id: str, link: _Link, message: Hello | Heartbeat | SampleBatch | RunEnded
+    ) -> None:
+        """One message of the host: a heartbeat noted, samples or a run's end stored and acked."""
+        status = link.status
+        if isinstance(message, Heartbeat):
+            status.powered, status.u, status.y = message.powered, message.u, message.y
+            status.fault, status.pending = message.fault, message.pending
+            if message.y is not None and message.run is None and math.isfinite(message.y):
+                self._devices.note_sample(rig_id, message.u or 0.0, message.y)
+        elif isinstance(message, SampleBatch) and message.samples:
+            await asyncio.to_thread(self._store, rig_id, message)
+            try:  # the live stream's business: stored is stored, the Ack goes out
+                # A thread: the identifiers run there (in order: awaited before the next).
+                await asyncio.to_thread(self.on_samples, rig_id, message)
+            except Exception:
+                log.exception("rig host %s: telling the samples failed", rig_id)
+            await link.ws.send_text(encode(Ack(seq=message.samples[-1].seq)))
+        elif isinstance(message, RunEnded):
+            await asyncio.to_thread(self.on_run_ended, rig_id, message)
+            await link.ws.send_text(encode(Ack(seq=message.seq)))
+
+    # -- in worker threads -------------------------------------------------------------------
+
+    def _admit(self, hello: Hello) -> bool:
+        return (
+            hello.protocol == PROTOCOL_VERSION
+            and self.serves(hello.rig)
+            and check_secret(self._db, hello.rig, hello.secret)
+        )
+
+    def _came(self, rig_id: str, hello: Hello) -> None:
+        with self._db.write() as session:
+            row = session.get(AgentHost, rig_id)
+            if row is not None:
+                row.last_contact, row.version, row.spec = (
+                    self._clock.now(),
+                    hello.version,
+                    hello.spec,
+                )
+        log.info("rig host %s online (%s, %s)", rig_id, hello.version, hello.spec)
+        self.check(self._clock.now())
+        self._on_online(rig_id)
+
+    def _gone(self, rig_id: str) -> None:
+        log.warning("rig host %s offline", rig_id)
+        try:
+            self._mark_gone(rig_id)
+        except Exception:
+            log.exception("rig host %s: could not record it offline", rig_id)
+
+    def _mark_gone(self, rig_id: str) -> None:
+        with self._db.write() as session:
+            session.execute(
+                update(AgentHost)
+                .where(AgentHost.rig_id == rig_id)
+                .values(last_contact=self._status[rig_id].last_contact)
+            )
+        self.check(self._clock.now())
+        self._on_online(rig_id)
+
+    def _store(self, rig_id: str, batch: SampleBatch) -> None:
+        rows = [
+            {
+                "run_id": s.run,
+                "k": s.k,
+                "t": s.t,
+                "u": s.u,
+                "y": s.y,
+                "t_read": s.t_read,
+                "jitter": s.jitter,
+                "lateness": s.lateness,
+                "extra": None,
+            }
+            for s in batch.samples
+        ]
+        runs = {s.run for s in batch.samples}
+        with self._db.write() as session:
+            # Only this rig's runs: a host cannot write into another rig's (or a deleted) run.
+            mine = select(Run.id).where(Run.id.in_(runs), Run.rig_id == rig_id)
+            known = set(session.scalars(mine))
+            rows = [r for r in rows if r["run_id"] in known]
+            if rows:
+                dialect = session.get_bind().dialect.name
+                insert = postgresql.insert if dialect == "postgresql" else sqlite.insert
+                session.execute(insert(Sample).on_conflict_do_nothing(), rows)
+            for run_id in known:
+                count = select(func.count()).select_from(Sample).where(Sample.run_id == run_id)
+                session.execute(
+                    update(Run)
+                    .where(Run.id == run_id)
+                    .values(samples_stored=count.scalar_subquery())
+                )
+
+
+async def _send(link: _Link, text: str) -> None:
+    try:
+        await link.ws.send_text(text)
+    except Exception as exc:
+        log.info("rig host %s: cannot send (%r)", link.status.rig, exc)
+        link.closed.set()
+
+
+async def _close(ws: WebSocket, reason: str, code: int = CLOSE_REFUSED) -> None:
+    with contextlib.suppress(RuntimeError, OSError, WebSocketDisconnect):  # closed already
+        await ws.close(code=code, reason=reason)

@@ -1,0 +1,279 @@
+"""Runs on remote rigs: the same START, END and inputs, carried out by the rig's host.
+
+:class:`RemoteRuns` sits beside the lab's :class:`~thermolab.lab.runs.RunService`
+(which still stores, reads and lists every run): the lab sends a remote rig's
+START, END and inputs here (``rig_id in lab.remote_rigs``, a set lookup, so
+that an in-process START crosses no new module; tests/lab/test_start_path.py).
+A remote rig's START is decided exactly as an in-process one
+(the same request check, the same locked transaction of the controller's
+turn, the same run row) and then sent to the host (``StartRun``), whose
+runner samples the rig with its own interlocks. The samples come back
+through :class:`~thermolab.lab.agents.hub.AgentHub` (stored there), are
+told to the live stream as runner events, and the host's ``RunEnded``
+stores the run's end. A turn that ends ENDs the run as it does in-process;
+if the link is down the host ENDs it by itself after its grace.
+
+The identification methods run in the lab, on the samples as they are
+stored (:mod:`.estimates`): live estimates and stored results as in-process.
+Not yet for remote rigs: closed-loop runs (refused with 409).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import timedelta
+from typing import Any
+
+from thermolab.agent.protocol import EndRun, RunEnded, SampleBatch, SetInput, StartRun
+from thermolab.errors import AccessDeniedError, ConflictError, NotFoundError, RunInProgressError
+from thermolab.lab.access import AccessService
+from thermolab.lab.agents.estimates import RemoteIdentification
+from thermolab.lab.agents.hub import AgentHub
+from thermolab.lab.clock import LabClock
+from thermolab.lab.config import LabConfig
+from thermolab.lab.db import Database
+from thermolab.lab.devices import DeviceHub
+from thermolab.lab.runs import RunRecord, RunService
+from thermolab.lab.runs.ending import RunEnd, save_end, status_of
+from thermolab.lab.runs.request import RunRequest, check_run_length, plan_run
+from thermolab.lab.runs.store import RunStore, add_run, run_channels
+from thermolab.lab.users import Principal
+from thermolab.rigs import RigSpec
+from thermolab.runner import EndReason, Event, SampleEvent
+
+__all__ = ["RemoteRuns"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class _RemoteRun:
+    run_id: int
+    control_session: int
+    identification: RemoteIdentification
+    ended: threading.Event = field(default_factory=threading.Event)
+    stopped_by: str | None = None
+
+
+class RemoteRuns:
+    """The runs of remote rigs, carried out by their hosts.
+
+    Parameters
+    ----------
+    runs : RunService
+        The lab's run service (it reads the runs back).
+    agents : AgentHub
+        The links to the hosts.
+    db, config, clock, access, devices
+        The lab's.
+    on_finished, on_run, on_event
+        As :class:`RunService`'s: the lab's hooks.
+    """
+
+    def __init__(
+        self,
+        runs: RunService,
+        agents: AgentHub,
+        *,
+        db: Database,
+        config: LabConfig,
+        clock: LabClock,
+        access: AccessService,
+        devices: DeviceHub,
+        on_finished: Callable[[str], None],
+        on_run: Callable[[str, str, RunRecord], None] | None = None,
+        on_event: Callable[[str, int, Event], None] | None = None,
+    ) -> None:
+        self._runs = runs
+        self._agents = agents
+        self._config = config
+        self._clock = clock
+        self._access = access
+        self._hub = devices
+        self._db = db
+        self._store = RunStore(db)
+        self._on_finished = on_finished
+        self._on_run = on_run
+        self._on_event = on_event
+        self._remote: dict[str, _RemoteRun] = {}
+        agents.on_samples = self._samples
+        agents.on_run_ended = self._run_ended
+
+    def start(self, rig_id: str, who: Principal, request: RunRequest) -> RunRecord:
+        """START on a remote rig: checked and stored as in-process, then sent to its host.
+
+        Raises
+        ------
+        ConflictError
+            For a closed-loop run, or when the rig's host is offline.
+        RunInProgressError
+            If a run is still going on the rig.
+        """
+        rig = self._config.rig(rig_id)
+        published = self._hub.published(rig_id)
+        dead_time = RigSpec.parse(rig.spec).typical_dead_time
+        plan = plan_run(request, (published.input_min, published.input_max), dead_time)
+        length = check_run_length(request, rig_id, self._config)
+        if request.control is not None:
+            raise ConflictError(
+                f"rig {rig_id!r} is a remote rig: closed-loop runs need an in-process rig for now"
+            )
+        channels = run_channels(published.input_unit, published.output_unit)
+        with self._hub.locked(rig_id):
+            going = self._remote.get(rig_id)
+            if going is not None:
+                raise RunInProgressError(f"run {going.run_id} is still going on rig {rig_id!r}")
+            if not self._agents.online(rig_id):
+                raise ConflictError(f"the host of rig {rig_id!r} is offline; try again later")
+            with self._access.controlled(rig_id, who, "start a run") as turn:
+                meta = {
+                    "operating_point": plan.operating_point.to_dict(),
+                    "ends_at": (turn.now + timedelta(seconds=length)).isoformat(),
+                }
+                run_id = add_run(
+                    turn.session,
+                    turn.control,
+                    who,
+                    turn.now,
+                    settings=plan.settings,
+                    meta=meta,
+                    channels=channels,
+                )
+                control_id = turn.control.id
+            identification = RemoteIdentification(plan.identifiers)
+            self._remote[rig_id] = _RemoteRun(run_id, control_id, identification)
+            self._hub.claim(rig_id)
+            self._agents.send(
+                rig_id,
+                StartRun(
+                    run=run_id,
+                    dt=request.dt,
+                    samples=request.samples,
+                    signal=request.signal,
+                    input=request.setpoint,
+                ),
+            )
+        record = self._runs.record(run_id)
+        if self._on_run is not None:
+            self._on_run(rig_id, "started", record)
+        return record
+
+    def stop(self, rig_id: str, who: Principal) -> RunRecord:
+        """END the rig's run (its controller or a teacher): sent to its host.
+
+        Raises
+        ------
+        ConflictError
+            If no run is going on the rig.
+        AccessDeniedError
+            If ``who`` neither controls the rig nor is a teacher.
+        """
+        remote = self._remote.get(rig_id)
+        if remote is None:
+            raise ConflictError(f"no run is going on rig {rig_id!r}")
+        if (
+            not who.is_teacher
+            and self._access.caller_turn(rig_id, who.user_id) != remote.control_session
+        ):
+            raise AccessDeniedError(
+                f"only the controller of rig {rig_id!r} or a teacher can END its run"
+            )
+        remote.stopped_by = who.username
+        self._agents.send(rig_id, EndRun(run=remote.run_id))
+        return self._runs.get(remote.run_id, who)
+
+    def set_input(self, rig_id: str, u: float, *, control_session: int | None = None) -> int | None:
+        """Hand an input to the rig's run (see :meth:`RunService.set_input`)."""
+        remote = self._remote.get(rig_id)
+        if remote is None:
+            return None
+        if control_session is not None and control_session != remote.control_session:
+            return None
+        return (
+            remote.run_id if self._agents.send(rig_id, SetInput(u=u, run=remote.run_id)) else None
+        )
+
+    def control_changed(self, rig_id: str, controller_session: int | None) -> None:
+        """END the rig's run when its turn is over (the host ENDs it anyway if unreachable)."""
+        remote = self._remote.get(rig_id)
+        if remote is not None and remote.control_session != controller_session:
+            remote.stopped_by = remote.stopped_by or "end of the turn at the controls"
+            self._agents.send(rig_id, EndRun(run=remote.run_id))
+
+    def running(self, rig_id: str) -> int | None:
+        """The id of the run going on the rig, if any."""
+        remote = self._remote.get(rig_id)
+        return remote.run_id if remote is not None else None
+
+    def wait(self, rig_id: str, timeout: float | None = None) -> None:
+        """Wait until the rig's run (if any) has ended and been stored."""
+        remote = self._remote.get(rig_id)
+        if remote is not None:
+            remote.ended.wait(timeout)
+
+    # -- from the hub ------------------------------------------------------------------------
+
+    def _samples(self, rig_id: str, batch: SampleBatch) -> None:
+        last = batch.samples[-1]
+        self._hub.note_sample(rig_id, last.u, last.y)
+        remote = self._remote.get(rig_id)
+        on_event = self._on_event
+        for s in batch.samples:
+            estimates: list[Event] = []
+            if remote is not None and remote.run_id == s.run:
+                estimates = list(remote.identification.feed(s.k, s.u, s.y))
+            if on_event is None:
+                continue
+            event = SampleEvent(
+                seq=s.k,
+                k=s.k,
+                t=s.t,
+                t_read=s.t_read,
+                u=s.u,
+                y=s.y,
+                jitter=s.jitter,
+                lateness=s.lateness,
+            )
+            for each in (event, *estimates):
+                on_event(rig_id, s.run, each)
+
+    def _run_ended(self, rig_id: str, ended: RunEnded) -> None:
+        remote = self._remote.get(rig_id)
+        try:
+            reason = EndReason(ended.reason)
+        except ValueError:
+            reason = EndReason.ERROR
+        words = reason.value + (f": {ended.message}" if ended.message else "")
+        if reason is EndReason.ENDED and remote is not None and remote.stopped_by:
+            words = f"ended by {remote.stopped_by}"
+        try:
+            run, _ = self._store.read(ended.run)
+        except NotFoundError:  # deleted meanwhile: nothing to store (the host may forget it)
+            log.warning("rig host %s reported the end of run %s, which is gone", rig_id, ended.run)
+            return
+        if run.rig_id != rig_id:
+            log.warning("rig host %s reported the end of run %s of another rig", rig_id, ended.run)
+            return
+        # Sent again after a lost Ack: storing it twice stores the same end.
+        results: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {}
+        if remote is not None and remote.run_id == ended.run:
+            finals = remote.identification.finish()
+            results = remote.identification.results()
+            if self._on_event is not None:
+                for event in finals:
+                    self._on_event(rig_id, ended.run, event)
+        end = RunEnd(status_of(reason), words, results, timing=None, control=None)
+        save_end(self._db, ended.run, end, self._clock.now())
+        if remote is None or remote.run_id != ended.run:
+            return  # a run from before a restart of the lab: stored, nothing going
+        del self._remote[rig_id]
+        self._hub.release(rig_id)
+        if reason is EndReason.RIG_FAULT:
+            self._access.report_fault(rig_id, ended.message or "rig fault")
+        self._on_finished(rig_id)
+        if self._on_run is not None:
+            self._on_run(rig_id, "ended", self._runs.record(ended.run))
+        remote.ended.set()

@@ -1,0 +1,492 @@
+"""Assignments, hand-ins and grades on the database (the API uses this service).
+
+A teacher of a course sets an assignment; a student of the course hands in
+one of their own finished runs on the assignment's rig with their answers.
+The run is identified again with the assignment's methods
+(:mod:`.identify`, outside any transaction: it may take a second), marked
+(:func:`.marking.assess`) and stored; every hand-in is kept, the newest is
+the current one, a hand-in after the deadline is kept and marked late.
+
+For other parts of the lab (LTI grade passback, analytics):
+
+* :meth:`AssignmentService.grade_rows` — the ``(course, assignment, student,
+  mark, max, marked_at, late)`` rows (:class:`~.grades.GradeRow`);
+* :meth:`AssignmentService.on_marked` — subscribe to "submission marked":
+  the callback gets the new :class:`~.grades.GradeRow` after the hand-in is
+  stored (a callback's error is logged, never undoes the hand-in).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import select, update
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+from thermolab.errors import AccessDeniedError, ConflictError, InvalidParameterError, NotFoundError
+from thermolab.lab.assignments.grades import GradeRow
+from thermolab.lab.assignments.identify import check_methods, identify_run
+from thermolab.lab.assignments.marking import MARK_MAX, Answers, Tolerances, assess
+from thermolab.lab.assignments.reference import reference_model
+from thermolab.lab.clock import LabClock
+from thermolab.lab.config import LabConfig
+from thermolab.lab.db import Database
+from thermolab.lab.db.assignment_models import Assignment, Submission
+from thermolab.lab.db.models import Course, CourseMember, Role, Run, RunStatus, Sample, User
+from thermolab.lab.users import Principal
+
+__all__ = [
+    "MIN_SAMPLES",
+    "AssignmentDraft",
+    "AssignmentInfo",
+    "AssignmentService",
+    "MarkedListener",
+    "SubmissionInfo",
+]
+
+log = logging.getLogger(__name__)
+
+#: The fewest stored samples a handed-in run may have.
+MIN_SAMPLES = 10
+MAX_INSTRUCTIONS = 20_000
+MAX_CONCLUSION = 4_000
+
+MarkedListener = Callable[[GradeRow], None]
+
+
+@dataclass(frozen=True, slots=True)
+class AssignmentDraft:
+    """What a teacher writes: checked by :meth:`AssignmentService.create`."""
+
+    title: str
+    instructions: str
+    rig: str
+    methods: tuple[str, ...]
+    deadline: datetime
+    tolerances: Tolerances
+    settings: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, slots=True)
+class SubmissionInfo:
+    """A hand-in and its assessment."""
+
+    id: int
+    assignment_id: int
+    student: str
+    display_name: str | None
+    run_id: int | None
+    answers: dict[str, Any]
+    submitted_at: datetime
+    late: bool
+    current: bool
+    state: str
+    mark: float | None
+    max: float
+    assessment: dict[str, Any]
+    marked_at: datetime
+
+
+@dataclass(frozen=True, slots=True)
+class AssignmentInfo:
+    """An assignment; for a student, their hand-ins (newest first)."""
+
+    id: int
+    course: str
+    course_title: str
+    title: str
+    instructions: str
+    rig: str
+    methods: tuple[str, ...]
+    settings: dict[str, Any]
+    tolerances: Tolerances
+    deadline: datetime
+    created_by: str
+    created_at: datetime
+    updated_at: datetime
+    mine: tuple[SubmissionInfo, ...] = ()
+
+
+class AssignmentService:
+    """Set assignments, hand in, mark, list and export grades.
+
+    Parameters
+    ----------
+    db : Database
+    clock : LabClock
+    config : LabConfig
+        The rigs an assignment may name (and their specs, for the reference model).
+    """
+
+    def __init__(self, db: Database, clock: LabClock, config: LabConfig) -> None:
+        self._db = db
+        self._clock = clock
+        self._config = config
+        self._listeners: list[MarkedListener] = []
+
+    def on_marked(self, listener: MarkedListener) -> Callable[[], None]:
+        """Call ``listener(row)`` after each hand-in is marked and stored; return an unsubscribe."""
+        self._listeners.append(listener)
+        return lambda: self._listeners.remove(listener)
+
+    # -- teachers ------------------------------------------------------------------------
+
+    def create(self, course: str, who: Principal, draft: AssignmentDraft) -> AssignmentInfo:
+        """Set an assignment in ``course`` (a teacher of that course only).
+
+        Raises
+        ------
+        AccessDeniedError, NotFoundError, InvalidParameterError
+        """
+        self._check_draft(draft)
+        now = self._clock.now()
+        with self._db.write() as session:
+            found = _course(session, course)
+            _require_member(session, found, who, Role.TEACHER)
+            row = Assignment(course_id=found.id, created_by=who.username, created_at=now)
+            _fill(row, draft, now)
+            session.add(row)
+            session.flush()
+            return _info(row, found)
+
+    def update(self, assignment_id: int, who: Principal, draft: AssignmentDraft) -> AssignmentInfo:
+        """Change an assignment (its hand-ins keep the marks they were given)."""
+        self._check_draft(draft)
+        now = self._clock.now()
+        with self._db.write() as session:
+            row, found = _assignment(session, assignment_id)
+            _require_member(session, found, who, Role.TEACHER)
+            _fill(row, draft, now)
+            session.flush()
+            return _info(row, found)
+
+    def submissions(self, assignment_id: int, who: Principal) -> list[SubmissionInfo]:
+        """Every hand-in of an assignment, current ones first then by student (its teachers)."""
+        with self._db.read() as session:
+            row, found = _assignment(session, assignment_id)
+            _require_member(session, found, who, Role.TEACHER)
+            rows = session.execute(
+                select(Submission, User.display_name)
+                .join(User, User.id == Submission.user_id)
+                .where(Submission.assignment_id == row.id)
+                .order_by(Submission.current.desc(), Submission.username, Submission.id.desc())
+            ).all()
+            return [_submission(s, name) for s, name in rows]
+
+    def grade_rows(self, course: str, who: Principal | None = None) -> list[GradeRow]:
+        """One row per student × assignment of ``course`` (the current hand-in, or ``missing``).
+
+        This is the function LTI grade passback and analytics read. With
+        ``who`` the caller must be a teacher of the course; ``None`` is the
+        lab itself.
+        """
+        with self._db.read() as session:
+            found = _course(session, course)
+            if who is not None:
+                _require_member(session, found, who, Role.TEACHER)
+            assignments = list(
+                session.scalars(
+                    select(Assignment)
+                    .where(Assignment.course_id == found.id)
+                    .order_by(Assignment.deadline, Assignment.id)
+                )
+            )
+            students = session.execute(
+                select(User.id, User.username, User.display_name)
+                .join(CourseMember, CourseMember.user_id == User.id)
+                .where(
+                    CourseMember.course_id == found.id,
+                    CourseMember.role == Role.STUDENT.value,
+                )
+                .order_by(User.username)
+            ).all()
+            current = {
+                (s.assignment_id, s.user_id): s
+                for s in session.scalars(
+                    select(Submission).where(
+                        Submission.assignment_id.in_([a.id for a in assignments]),
+                        Submission.current,
+                    )
+                )
+            }
+            rows = []
+            for a in assignments:
+                for user_id, username, display in students:
+                    s = current.get((a.id, user_id))
+                    rows.append(_grade(found, a, username, display, s))
+            return rows
+
+    # -- students ------------------------------------------------------------------------
+
+    def for_user(self, who: Principal) -> list[AssignmentInfo]:
+        """The assignments of every course ``who`` is in, with their own hand-ins."""
+        with self._db.read() as session:
+            rows = session.execute(
+                select(Assignment, Course)
+                .join(Course, Course.id == Assignment.course_id)
+                .join(CourseMember, CourseMember.course_id == Course.id)
+                .where(CourseMember.user_id == who.user_id)
+                .order_by(Assignment.deadline, Assignment.id)
+            ).all()
+            return [_info(a, c, _mine(session, a.id, who.user_id)) for a, c in rows]
+
+    def get(self, assignment_id: int, who: Principal) -> AssignmentInfo:
+        """One assignment, for a member of its course (a student sees their own hand-ins)."""
+        with self._db.read() as session:
+            row, found = _assignment(session, assignment_id)
+            _require_member(session, found, who, None)
+            return _info(row, found, _mine(session, row.id, who.user_id))
+
+    def hand_in(
+        self, assignment_id: int, who: Principal, run_id: int, answers: Answers
+    ) -> SubmissionInfo:
+        """Hand in one of ``who``'s finished runs on the assignment's rig, with answers.
+
+        The run is identified again and the answers marked; the hand-in
+        becomes the student's current one (earlier ones are kept). After the
+        deadline it is kept and marked late.
+
+        Raises
+        ------
+        AccessDeniedError
+            Not a student of the course, or not their run.
+        NotFoundError
+            No such assignment or run.
+        ConflictError
+            The run is on another rig, has not finished, or has too few samples.
+        InvalidParameterError
+            Bad answers.
+        """
+        _check_answers(answers)
+        with self._db.read() as session:
+            row, found = _assignment(session, assignment_id)
+            _require_member(session, found, who, Role.STUDENT)
+            run = session.get(Run, run_id)
+            if run is None:
+                raise NotFoundError(f"no run {run_id}")
+            if run.user_id != who.user_id:
+                raise AccessDeniedError(f"run {run_id} is not yours: hand in a run you made")
+            if run.rig_id != row.rig_id:
+                raise ConflictError(
+                    f"run {run_id} was made on rig {run.rig_id!r}; this assignment is on "
+                    f"{row.rig_id!r}"
+                )
+            if run.status != RunStatus.FINISHED.value:
+                raise ConflictError(
+                    f"run {run_id} is {run.status}, not finished: hand in a run that ran to its end"
+                )
+            samples = session.execute(
+                select(Sample.t, Sample.u, Sample.y)
+                .where(Sample.run_id == run_id)
+                .order_by(Sample.k)
+            ).all()
+            if len(samples) < MIN_SAMPLES:
+                raise ConflictError(
+                    f"run {run_id} has {len(samples)} samples; at least {MIN_SAMPLES} are needed"
+                )
+            methods = tuple(row.methods)
+            settings = dict(row.settings)
+            tolerances = _tolerances(row)
+            dt, deadline, rig = run.dt, row.deadline, row.rig_id
+        t, u, y = (list(c) for c in zip(*samples, strict=True))
+        identified = [identify_run(m, t, u, y, dt, settings.get(m)) for m in methods]
+        result = assess(answers, tolerances, self._reference(rig), identified)
+        now = self._clock.now()
+        try:
+            with self._db.write() as session:
+                row, found = _assignment(session, assignment_id)
+                session.execute(
+                    update(Submission)
+                    .where(
+                        Submission.assignment_id == row.id,
+                        Submission.user_id == who.user_id,
+                        Submission.current,
+                    )
+                    .values(current=False)
+                )
+                stored = Submission(
+                    assignment_id=row.id,
+                    user_id=who.user_id,
+                    username=who.username,
+                    run_id=run_id,
+                    answers=answers.to_dict(),
+                    submitted_at=now,
+                    late=now > deadline,
+                    current=True,
+                    state=result.state,
+                    mark=result.mark,
+                    max_mark=result.max,
+                    assessment=result.to_dict(),
+                    marked_at=now,
+                )
+                session.add(stored)
+                session.flush()
+                display = session.scalar(select(User.display_name).where(User.id == who.user_id))
+                info = _submission(stored, display)
+                grade = _grade(found, row, who.username, display, stored)
+        except IntegrityError:
+            raise ConflictError(
+                "another hand-in of yours was stored meanwhile; try again"
+            ) from None
+        for listener in list(self._listeners):
+            try:
+                listener(grade)
+            except Exception:  # a subscriber's fault never undoes a stored hand-in
+                log.exception("a 'submission marked' listener failed")
+        return info
+
+    # -- helpers -------------------------------------------------------------------------
+
+    def _reference(self, rig: str) -> Any:
+        for r in self._config.rigs:
+            if r.id == rig:
+                return reference_model(r.spec)
+        return None
+
+    def _check_draft(self, draft: AssignmentDraft) -> None:
+        if not 0 < len(draft.title.strip()) <= 200:
+            raise InvalidParameterError("an assignment's title must have 1 to 200 characters")
+        if len(draft.instructions) > MAX_INSTRUCTIONS:
+            raise InvalidParameterError(
+                f"the instructions must have at most {MAX_INSTRUCTIONS} characters"
+            )
+        known = {r.id for r in self._config.rigs}
+        if draft.rig not in known:
+            raise NotFoundError(f"no rig called {draft.rig!r}; rigs: {', '.join(sorted(known))}")
+        if not draft.methods:
+            raise InvalidParameterError("choose at least one identification method")
+        if len(set(draft.methods)) != len(draft.methods):
+            raise InvalidParameterError("a method is named twice")
+        check_methods(draft.methods, draft.settings)
+        if draft.deadline.tzinfo is None:
+            raise InvalidParameterError("the deadline must carry its time zone")
+
+
+def _check_answers(answers: Answers) -> None:
+    for name in ("K", "tau"):
+        value = getattr(answers, name)
+        if not math.isfinite(value):
+            raise InvalidParameterError(f"your {name} must be a finite number")
+    if answers.tau <= 0:
+        raise InvalidParameterError("your time constant Ts must be above 0 s")
+    if answers.theta is not None and not (math.isfinite(answers.theta) and answers.theta >= 0):
+        raise InvalidParameterError("your dead time θ must be 0 s or more")
+    if len(answers.conclusion) > MAX_CONCLUSION:
+        raise InvalidParameterError(f"the conclusion must have at most {MAX_CONCLUSION} characters")
+
+
+def _fill(row: Assignment, draft: AssignmentDraft, now: datetime) -> None:
+    row.title = " ".join(draft.title.split())
+    row.instructions = draft.instructions
+    row.rig_id = draft.rig
+    row.methods = list(draft.methods)
+    row.settings = {m: dict(s) for m, s in draft.settings.items()}
+    row.tol_k = draft.tolerances.K
+    row.tol_tau = draft.tolerances.tau
+    row.tol_theta = draft.tolerances.theta
+    row.deadline = draft.deadline
+    row.updated_at = now
+
+
+def _tolerances(row: Assignment) -> Tolerances:
+    return Tolerances(K=row.tol_k, tau=row.tol_tau, theta=row.tol_theta)
+
+
+def _course(session: Session, name: str) -> Course:
+    found = session.scalars(select(Course).where(Course.name == name.strip().lower())).one_or_none()
+    if found is None:
+        raise NotFoundError(f"no course called {name!r}")
+    return found
+
+
+def _assignment(session: Session, assignment_id: int) -> tuple[Assignment, Course]:
+    found = session.execute(
+        select(Assignment, Course)
+        .join(Course, Course.id == Assignment.course_id)
+        .where(Assignment.id == assignment_id)
+    ).one_or_none()
+    if found is None:
+        raise NotFoundError(f"no assignment {assignment_id}")
+    return found[0], found[1]
+
+
+def _require_member(session: Session, course: Course, who: Principal, role: Role | None) -> None:
+    held = session.scalar(
+        select(CourseMember.role).where(
+            CourseMember.course_id == course.id, CourseMember.user_id == who.user_id
+        )
+    )
+    if held is None or (role is not None and held != role.value):
+        what = "a member" if role is None else f"a {role.value}"
+        raise AccessDeniedError(f"only {what} of course {course.name!r} may do this")
+
+
+def _mine(session: Session, assignment_id: int, user_id: int) -> tuple[SubmissionInfo, ...]:
+    rows = session.execute(
+        select(Submission, User.display_name)
+        .join(User, User.id == Submission.user_id)
+        .where(Submission.assignment_id == assignment_id, Submission.user_id == user_id)
+        .order_by(Submission.id.desc())
+    ).all()
+    return tuple(_submission(s, name) for s, name in rows)
+
+
+def _info(row: Assignment, course: Course, mine: Sequence[SubmissionInfo] = ()) -> AssignmentInfo:
+    return AssignmentInfo(
+        id=row.id,
+        course=course.name,
+        course_title=course.title,
+        title=row.title,
+        instructions=row.instructions,
+        rig=row.rig_id,
+        methods=tuple(row.methods),
+        settings=dict(row.settings),
+        tolerances=_tolerances(row),
+        deadline=row.deadline,
+        created_by=row.created_by,
+        created_at=row.created_at,
+        updated_at=row.updated_at,
+        mine=tuple(mine),
+    )
+
+
+def _submission(s: Submission, display: str | None) -> SubmissionInfo:
+    return SubmissionInfo(
+        id=s.id,
+        assignment_id=s.assignment_id,
+        student=s.username,
+        display_name=display,
+        run_id=s.run_id,
+        answers=dict(s.answers),
+        submitted_at=s.submitted_at,
+        late=bool(s.late),
+        current=bool(s.current),
+        state=s.state,
+        mark=s.mark,
+        max=s.max_mark,
+        assessment=dict(s.assessment),
+        marked_at=s.marked_at,
+    )
+
+
+def _grade(
+    course: Course, a: Assignment, username: str, display: str | None, s: Submission | None
+) -> GradeRow:
+    if s is None:
+        return GradeRow(
+            course.name, a.id, a.title, username, display, "missing", None, MARK_MAX,
+            None, None, False, None,
+        )  # fmt: skip
+    answers = s.answers
+    return GradeRow(
+        course.name, a.id, a.title, username, display, s.state, s.mark, s.max_mark,
+        s.marked_at, s.submitted_at, bool(s.late), s.run_id,
+        answers.get("K"), answers.get("tau"), answers.get("theta"),
+        str(answers.get("conclusion") or ""),
+    )  # fmt: skip

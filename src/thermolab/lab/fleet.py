@@ -1,0 +1,298 @@
+"""Several web workers on one database and one bus: who owns the rigs, what travels.
+
+With a broker (``thermolab serve --broker redis://...``), any number of
+workers share one PostgreSQL database. The first to start takes the
+database's lease (:mod:`~thermolab.lab.lease`) as before and becomes the
+**owner**: it opens the rig devices, runs the runs, the sweep and start-up
+recovery, exactly as a lone server. Every later worker, finding the lease
+held by an owner that announces itself on the bus, starts as a **follower**
+(:class:`FollowerLab`): no devices, no start-up recovery, no sweep. Without a
+broker the held lease still refuses the second process (fail closed).
+
+What crosses the bus (:class:`Fleet`):
+
+* ``live``: the owner's replayable live messages (samples, estimates, runs),
+  numbered by the owner (one ``seq`` space for every worker), so a client
+  that moves to another worker resumes with ``since`` and misses nothing;
+* ``access``: "rig X changed" — each worker renders its own clients' access
+  messages from the database;
+* ``owner``: once a second, the owner's address and each rig's ``seq``.
+
+A follower serves logins, accounts, courses, pages and — the bulk of the
+load — live sockets itself; every request about rigs and runs
+(``/api/rigs``, ``/api/runs``, ``/api/control``) is forwarded to the owner
+(:mod:`~thermolab.lab.http.forward`), so one process decides every turn,
+queue place and time limit, under the database's row locks as before.
+Once rig hosts dial in (``thermolab agent``), the owner's part is the
+agent's: :attr:`Fleet.owner_url` is the one place a follower asks where
+rig commands go.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import logging
+import threading
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Literal
+
+from sqlalchemy import select
+
+from thermolab.lab.bus import Bus, open_bus
+from thermolab.lab.config import LabConfig
+from thermolab.lab.config.rig_kinds import PublishedRig
+from thermolab.lab.db.models import Run, RunStatus
+from thermolab.lab.devices import RigOpener
+from thermolab.lab.lease import LeaseHeldError
+from thermolab.lab.service import Lab, StartupReport
+
+if TYPE_CHECKING:
+    from thermolab.lab.fanout import LiveFanout
+
+__all__ = ["ANNOUNCE_INTERVAL", "Fleet", "FollowerLab", "Role", "start_worker"]
+
+log = logging.getLogger(__name__)
+
+ANNOUNCE_INTERVAL = 1.0
+"""Seconds between the owner's announcements on the bus."""
+OWNER_SILENCE = 5.0
+"""A follower that has not heard the owner for this long answers rig requests with 503."""
+
+Role = Literal["alone", "owner", "follower"]
+
+
+class FollowerLab(Lab):
+    """A lab that serves but owns no rig: no devices, no start-up recovery, no sweep.
+
+    The owner (another process) does what touches a rig or a run's limits;
+    this lab reads and writes the shared database for everything else.
+    """
+
+    def __init__(self, config: LabConfig, **options: Any) -> None:
+        super().__init__(config, **options)
+        # The run going on a rig is the owner's (in its memory); here the store says which:
+        # a live client's hello and the replay of what it missed read it.
+        self.runs.running = self._running_in_store  # type: ignore[method-assign]
+        # What each rig accepts (its range, whether a device is attached) is the owner's:
+        # it announces it, and a follower's views say the same.
+        self._published: dict[str, PublishedRig] = {}
+        self._configured = self.hub.published
+        self.hub.published = self._published_by_owner  # type: ignore[method-assign]
+
+    def adopt_published(self, rig_id: str, published: PublishedRig) -> None:
+        """Take what the owner announced that rig ``rig_id`` accepts."""
+        self._published[rig_id] = published
+
+    def _published_by_owner(self, rig_id: str) -> PublishedRig:
+        published = self._published.get(rig_id)
+        return published if published is not None else self._configured(rig_id)
+
+    def _running_in_store(self, rig_id: str) -> int | None:
+        with self.db.read() as session:
+            run_id: int | None = session.scalar(
+                select(Run.id).where(Run.rig_id == rig_id, Run.status == RunStatus.RUNNING.value)
+            )
+        return run_id
+
+    def start(self) -> StartupReport:
+        """Migrate (a no-op when the owner did) and report; runs and turns are the owner's."""
+        if self._report is None:
+            self.db.upgrade()
+            self._report = StartupReport(teachers=self.users.count_teachers(), faults={})
+        return self._report
+
+    def sweep(self) -> list[str]:
+        """Nothing: limits and hand-overs are the owner's (the database holds them)."""
+        return []
+
+
+class Fleet:
+    """This worker's part in a fleet of workers joined by a bus.
+
+    Parameters
+    ----------
+    bus : Bus
+    role : {"alone", "owner", "follower"}
+    url : str, optional
+        Where the owner is reached (its own address, announced to followers).
+    """
+
+    def __init__(self, bus: Bus, role: Role, *, url: str | None = None) -> None:
+        self.bus = bus
+        self.role: Role = role
+        self.url = url
+        self._owner: tuple[str, float] | None = None  # (address, monotonic time heard)
+        self._heard = threading.Event()
+        self._seqs: dict[str, int] = {}
+        self._stop = threading.Event()
+        self._announcer: threading.Thread | None = None
+        self._fanout: LiveFanout | None = None
+        self._access: Callable[[str], None] | None = None
+        self._lab: Lab | None = None
+        self._owner_news: dict[str, Any] = {}
+        if role == "follower":
+            bus.subscribe("owner", self._heard_owner)
+
+    @property
+    def owner_url(self) -> str | None:
+        """The owner's address, if it was heard recently (followers); ``None`` otherwise."""
+        if self.role != "follower":
+            return None
+        owner = self._owner
+        if owner is None or time.monotonic() - owner[1] > OWNER_SILENCE:
+            return None
+        return owner[0]
+
+    def wait_for_owner(self, timeout: float) -> bool:
+        """Wait until the owner has announced itself; ``False`` if it did not in time."""
+        return self._heard.wait(timeout)
+
+    def join(
+        self, fanout: LiveFanout, access_changed: Callable[[str], None], lab: Lab | None = None
+    ) -> None:
+        """Connect this worker's live stream to the others' (call once the loop is bound).
+
+        ``lab`` is this worker's: the owner announces what its rigs accept; a
+        follower (a :class:`FollowerLab`) takes it.
+        """
+        self._fanout = fanout
+        self._access = access_changed
+        self._lab = lab
+        if self.role == "owner":
+            for channel in fanout.channels.values():
+                channel.relay = self._relay
+            self._announcer = threading.Thread(
+                target=self._announce_forever, name="fleet-announce", daemon=True
+            )
+            self._announcer.start()
+        elif self.role == "follower":
+            self._adopt_published()
+            for rig_id, seq in self._seqs.items():
+                heard = fanout.channels.get(rig_id)
+                if heard is not None:
+                    heard.follow(seq)
+            self.bus.subscribe("live", self._heard_live)
+            self.bus.subscribe("access", self._heard_access)
+
+    def access_changed(self, rig_id: str) -> None:
+        """Tell the other workers that a rig's access changed (the owner's lab calls it)."""
+        if self.role == "owner":
+            self.bus.publish("access", rig_id.encode())
+
+    def run_changed(self, rig_id: str, event: str, record: Any) -> None:
+        """Nothing: a run's messages travel on the live stream (``relay``)."""
+
+    def run_event(self, rig_id: str, run_id: int, event: Any) -> None:
+        """Nothing: as :meth:`run_changed`."""
+
+    def reading(self, rig_id: str, u: float | None, y: float, at: Any) -> None:
+        """Nothing: as :meth:`run_changed`."""
+
+    def close(self) -> None:
+        """Stop announcing and leave the bus."""
+        self._stop.set()
+        if self._announcer is not None:
+            self._announcer.join(timeout=5)
+        self.bus.close()
+
+    # -- the owner's side --------------------------------------------------------------------
+
+    def _relay(self, rig_id: str, text: str) -> None:
+        self.bus.publish("live", f"{rig_id}\n{text}".encode())
+
+    def _announce_forever(self) -> None:
+        while not self._stop.is_set():
+            fanout = self._fanout
+            seqs = {} if fanout is None else {r: c.seq for r, c in fanout.channels.items()}
+            lab = self._lab
+            published = (
+                {}
+                if lab is None
+                else {r.id: dataclasses.asdict(lab.hub.published(r.id)) for r in lab.config.rigs}
+            )
+            news = {"url": self.url, "seqs": seqs, "published": published}
+            self.bus.publish("owner", json.dumps(news).encode())
+            self._stop.wait(ANNOUNCE_INTERVAL)
+
+    # -- a follower's side -------------------------------------------------------------------
+
+    def _heard_owner(self, data: bytes) -> None:
+        news: dict[str, Any] = json.loads(data)
+        url = news.get("url")
+        if isinstance(url, str):
+            self._owner = (url, time.monotonic())
+        self._owner_news = news
+        self._adopt_published()
+        seqs = news.get("seqs") or {}
+        fanout = self._fanout
+        for rig_id, seq in seqs.items():
+            self._seqs.setdefault(rig_id, int(seq))
+            channel = None if fanout is None else fanout.channels.get(rig_id)
+            if channel is not None:
+                channel.follow(int(seq))
+        self._heard.set()
+
+    def _adopt_published(self) -> None:
+        lab = self._lab
+        if isinstance(lab, FollowerLab):
+            for rig_id, fields in (self._owner_news.get("published") or {}).items():
+                lab.adopt_published(rig_id, PublishedRig(**fields))
+
+    def _heard_live(self, data: bytes) -> None:
+        rig_id, _, text = data.decode().partition("\n")
+        fanout = self._fanout
+        channel = None if fanout is None else fanout.channels.get(rig_id)
+        if channel is not None:
+            channel.publish_numbered(json.loads(text), text)
+
+    def _heard_access(self, data: bytes) -> None:
+        if self._access is not None:
+            self._access(data.decode())
+
+
+def start_worker(
+    config: LabConfig, *, opener: RigOpener | None, broker: str | None, url: str
+) -> tuple[Lab, Fleet | None, StartupReport]:
+    """Start this process's lab: alone (no broker), the owner, or a follower.
+
+    Raises
+    ------
+    LeaseHeldError
+        Another server holds the database and there is no broker, or that
+        server does not announce itself on the broker (fail closed).
+    BusError
+        The broker cannot be reached.
+    """
+    # The lab's topics are its database's: labs on one broker do not hear each other.
+    lab_key = hashlib.sha256(config.database.encode()).hexdigest()[:12]
+    bus = open_bus(broker, prefix=f"thermolab.{lab_key}.") if broker is not None else None
+    lab = Lab(config, opener=opener, exclusive=True)
+    try:
+        report = lab.start()
+    except LeaseHeldError as held:
+        lab.close()
+        if bus is None:
+            raise
+        fleet = Fleet(bus, "follower")
+        if not fleet.wait_for_owner(3 * ANNOUNCE_INTERVAL + 2.0):
+            bus.close()
+            raise LeaseHeldError(
+                f"{held} (the server holding it does not announce itself on the broker "
+                f"{broker}: start it with the same --broker)"
+            ) from None
+        follower = FollowerLab(config)
+        try:
+            return follower, fleet, follower.start()
+        except BaseException:
+            follower.close()
+            fleet.close()
+            raise
+    except BaseException:
+        lab.close()
+        if bus is not None:
+            bus.close()
+        raise
+    return lab, (Fleet(bus, "owner", url=url) if bus is not None else None), report

@@ -1,0 +1,204 @@
+"""ThermoLab as an LTI 1.3 tool (LTI Advantage): launches, deep linking, roster, grades.
+
+:class:`LtiService` holds the parts, each in its own module:
+
+* :mod:`.platforms` — the LMSs a teacher registered;
+* :mod:`.keys` — the tool's RSA keys, rotated, published as a JWKS;
+* :mod:`.tokens` — checking a platform's ``id_token`` against its JWKS;
+* :mod:`.launch` — OIDC login initiation and the launch (:mod:`.accounts`:
+  who is signed in, which course);
+* :mod:`.deep_linking` — the teacher's choice of what to link;
+* :mod:`.roster` — NRPS roster synchronisation;
+* :mod:`.grades` — the AGS grade outbox: :meth:`LtiService.queue_grade`;
+* :mod:`.assignment_links` — assignments offered to deep linking, their marks
+  queued for the LMS (:meth:`LtiService.follow_assignments`);
+* :mod:`.services` — OAuth 2 client credentials and the HTTP calls.
+
+JOSE is PyJWT (with ``cryptography``); see ``docs/architecture.md`` for why
+not pylti1p3.
+"""
+
+from __future__ import annotations
+
+import logging
+import secrets
+import threading
+import time
+from collections.abc import Callable, Iterable
+from datetime import datetime
+
+from argon2 import PasswordHasher
+
+from thermolab.lab.assignments import AssignmentService
+from thermolab.lab.clock import LabClock
+from thermolab.lab.db import Database
+from thermolab.lab.lti.assignment_links import follow_assignments
+from thermolab.lab.lti.deep_linking import DeepLinkRequests, LinkableItems, LinkItem
+from thermolab.lab.lti.grades import GradeOutbox
+from thermolab.lab.lti.keys import ToolKeys
+from thermolab.lab.lti.launch import LaunchOutcome, LtiLaunches
+from thermolab.lab.lti.platforms import PlatformRegistry
+from thermolab.lab.lti.roster import RosterSync
+from thermolab.lab.lti.services import PlatformClient
+from thermolab.lab.lti.tokens import JwksCache
+
+__all__ = ["LtiService"]
+
+log = logging.getLogger(__name__)
+
+_HANDOFF_LIFETIME = 120.0
+_KICK_INTERVAL = 5.0  # seconds between looks at the grade outbox
+
+
+class LtiService:
+    """Everything of the LTI tool, wired once for the lab.
+
+    Parameters
+    ----------
+    db : Database
+    clock : LabClock
+    hasher : PasswordHasher
+        Hashes the random passwords of accounts made by launches.
+    rigs : iterable of (rig id, title)
+        What deep linking offers (with each rig's guide pages).
+    guide_sections : iterable of str
+        The guide's sections.
+    """
+
+    def __init__(
+        self,
+        db: Database,
+        clock: LabClock,
+        hasher: PasswordHasher,
+        rigs: Iterable[tuple[str, str]],
+        guide_sections: Iterable[str],
+    ) -> None:
+        self._db = db
+        self.platforms = PlatformRegistry(db, clock)
+        self.keys = ToolKeys(db, clock)
+        self.jwks = JwksCache()
+        self.launches = LtiLaunches(db, clock, hasher, self.jwks)
+        self.client = PlatformClient(self.keys, clock)
+        self.grades = GradeOutbox(db, clock, self.client)
+        self.roster = RosterSync(db, clock, hasher, self.client)
+        self.linkable = LinkableItems()
+        rig_list = list(rigs)
+        sections = list(guide_sections)
+        self.linkable.register(lambda: [LinkItem("rig", f"rig:{r}", t, r) for r, t in rig_list])
+        self.linkable.register(
+            lambda: [
+                LinkItem("guide", f"guide:{r}/{s}", f"{t} — {s}", r)
+                for r, t in rig_list
+                for s in sections
+            ]
+        )
+        self.deep_links = DeepLinkRequests(self.keys, self.linkable)
+        self._handoffs: dict[str, tuple[LaunchOutcome, str, float]] = {}
+        self._lock = threading.Lock()
+        self._delivering: threading.Thread | None = None
+        self._next_kick = 0.0
+
+    def follow_assignments(self, assignments: AssignmentService) -> Callable[[], None]:
+        """Offer ``assignments`` to deep linking and post their marks; return an unsubscribe.
+
+        See :mod:`thermolab.lab.lti.assignment_links`.
+        """
+        return follow_assignments(
+            self._db, assignments, self.linkable, self.queue_grade_for_user, self.kick
+        )
+
+    def queue_grade(
+        self,
+        *,
+        platform_id: int,
+        lineitem_url: str,
+        sub: str,
+        score_given: float,
+        score_maximum: float,
+        timestamp: datetime | None = None,
+        comment: str | None = None,
+    ) -> int:
+        """Queue a score for an LMS line item (what "assignment marked" calls).
+
+        See :meth:`thermolab.lab.lti.grades.GradeOutbox.queue_grade`.
+        """
+        return self.grades.queue_grade(
+            platform_id=platform_id,
+            lineitem_url=lineitem_url,
+            sub=sub,
+            score_given=score_given,
+            score_maximum=score_maximum,
+            timestamp=timestamp,
+            comment=comment,
+        )
+
+    def queue_grade_for_user(
+        self,
+        *,
+        user_id: int,
+        target: str,
+        score_given: float,
+        score_maximum: float,
+        timestamp: datetime | None = None,
+        comment: str | None = None,
+    ) -> list[int]:
+        """Queue a lab user's mark for the LMS activities that link ``target``.
+
+        What "an assignment was marked (or re-marked)" calls with
+        ``target="assignment:<id>"``; see
+        :meth:`thermolab.lab.lti.grades.GradeOutbox.queue_for_user`.
+        """
+        return self.grades.queue_for_user(
+            user_id=user_id,
+            target=target,
+            score_given=score_given,
+            score_maximum=score_maximum,
+            timestamp=timestamp,
+            comment=comment,
+        )
+
+    def kick(self) -> None:
+        """Deliver due grades in a background thread (never blocks the caller)."""
+        now = time.monotonic()
+        with self._lock:
+            if now < self._next_kick or (
+                self._delivering is not None and self._delivering.is_alive()
+            ):
+                return
+            self._next_kick = now + _KICK_INTERVAL
+            self._delivering = threading.Thread(
+                target=self._deliver, name="lti-grades", daemon=True
+            )
+            self._delivering.start()
+
+    def close(self, timeout: float = 5.0) -> None:
+        """Wait (a while) for a delivery in progress; rows it did not finish stay queued."""
+        with self._lock:
+            thread = self._delivering
+            self._next_kick = float("inf")  # no more deliveries
+        if thread is not None:
+            thread.join(timeout)
+
+    def _deliver(self) -> None:
+        try:
+            self.grades.deliver_due()
+        except Exception:  # a failed look must not kill the next ones; rows stay queued
+            log.exception("the LTI grade outbox could not be delivered")
+
+    def hand_over(self, outcome: LaunchOutcome, path: str) -> str:
+        """A one-time ticket (2 minutes) that opens the launch's login in a new window."""
+        ticket = secrets.token_urlsafe(32)
+        now = time.monotonic()
+        with self._lock:
+            for old in [k for k, v in self._handoffs.items() if v[2] <= now]:
+                del self._handoffs[old]
+            self._handoffs[ticket] = (outcome, path, now + _HANDOFF_LIFETIME)
+        return ticket
+
+    def take_over(self, ticket: str) -> tuple[LaunchOutcome, str] | None:
+        """The launch of a ticket, once; ``None`` when unknown, used or expired."""
+        with self._lock:
+            found = self._handoffs.pop(ticket, None)
+        if found is None or found[2] <= time.monotonic():
+            return None
+        return found[0], found[1]

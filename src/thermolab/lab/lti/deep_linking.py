@@ -1,0 +1,223 @@
+"""Deep Linking 2.0: a teacher picks lab items in the LMS's activity picker.
+
+The items a teacher can place are one extension point,
+:class:`LinkableItems`: providers (callables) each list items of one kind.
+The lab registers rigs and guide pages; assignments register per course
+(:meth:`LinkableItems.register_course`: a teacher picks an assignment of the
+course the LMS launched them in). An item's ``target`` (``rig:<id>``,
+``guide:<rig>/<section>``, ``assignment:<id>``) travels in
+the content item's ``custom`` parameters and comes back in every launch of
+it, where :func:`target_path` turns it into the page to open.
+
+A deep-linking request is kept in memory (one server process) for 30 minutes,
+bound to the teacher who launched it; the answer is a JWT signed with the
+tool's key, posted back by the browser to the platform's return URL.
+"""
+
+from __future__ import annotations
+
+import re
+import secrets
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from thermolab.errors import InvalidParameterError, NotFoundError
+from thermolab.lab.lti.claims import CLAIM, DEEP_LINKING_RESPONSE, LTI_VERSION
+from thermolab.lab.lti.keys import ToolKeys
+from thermolab.lab.lti.platforms import PlatformInfo
+
+__all__ = [
+    "TARGET_PARAMETER",
+    "DeepLinkRequests",
+    "LinkItem",
+    "LinkableItems",
+    "PendingDeepLink",
+    "target_path",
+]
+
+TARGET_PARAMETER = "thermolab_target"
+# A rig id or a guide section in a target (what the page's own routes accept).
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
+# An assignment's number in a target.
+_ID = re.compile(r"[1-9][0-9]{0,17}")
+_LIFETIME = 1800.0
+
+
+@dataclass(frozen=True, slots=True)
+class LinkItem:
+    """Something a teacher can place in an LMS course."""
+
+    kind: str
+    target: str
+    title: str
+    rig: str | None = None
+
+
+Provider = Callable[[], Sequence[LinkItem]]
+CourseProvider = Callable[[str], Sequence[LinkItem]]
+
+
+class LinkableItems:
+    """The registry of linkable kinds (rigs, guide pages, and later assignments)."""
+
+    def __init__(self) -> None:
+        self._providers: list[Provider] = []
+        self._course_providers: list[CourseProvider] = []
+
+    def register(self, provider: Provider) -> None:
+        """Add a provider of items (called each time the list is shown)."""
+        self._providers.append(provider)
+
+    def register_course(self, provider: CourseProvider) -> None:
+        """Add a provider of one course's items (called with the lab course's name)."""
+        self._course_providers.append(provider)
+
+    def items(self, course: str | None = None) -> list[LinkItem]:
+        """Every item, provider by provider; a course's own items only when ``course`` is given."""
+        found = [item for provider in self._providers for item in provider()]
+        if course is not None:
+            found += [item for provider in self._course_providers for item in provider(course)]
+        return found
+
+    def find(self, target: str, course: str | None = None) -> LinkItem:
+        """The item of ``target`` (among the items of ``course``).
+
+        Raises
+        ------
+        NotFoundError
+        """
+        for item in self.items(course):
+            if item.target == target:
+                return item
+        raise NotFoundError(f"nothing to link is called {target!r}")
+
+
+def target_path(target: object) -> str:
+    """The browser page (``/#/...``) a launched target opens; the lobby when unknown.
+
+    Examples
+    --------
+    >>> target_path("rig:twin")
+    '/#/rig/twin'
+    >>> target_path("guide:twin/theory")
+    '/#/rig/twin?guide=theory'
+    >>> target_path("assignment:7")
+    '/#/assignments/7'
+    >>> target_path(None)
+    '/#/'
+    """
+    if isinstance(target, str):
+        kind, _, rest = target.partition(":")
+        if kind == "rig" and _NAME.fullmatch(rest):
+            return f"/#/rig/{rest}"
+        rig, _, section = rest.partition("/")
+        if kind == "guide" and _NAME.fullmatch(rig) and _NAME.fullmatch(section):
+            return f"/#/rig/{rig}?guide={section}"
+        if kind == "assignment" and _ID.fullmatch(rest):
+            return f"/#/assignments/{int(rest)}"
+    return "/#/"
+
+
+@dataclass(frozen=True, slots=True)
+class PendingDeepLink:
+    """A deep-linking request waiting for the teacher's choice."""
+
+    user_id: int
+    platform: PlatformInfo
+    deployment_id: str
+    settings: dict[str, Any]
+    expires: float
+    course: str | None = None
+
+
+class DeepLinkRequests:
+    """Pending deep-linking requests, and the signed answer to one."""
+
+    def __init__(self, keys: ToolKeys, items: LinkableItems) -> None:
+        self._keys = keys
+        self._items = items
+        self._pending: dict[str, PendingDeepLink] = {}
+        self._lock = threading.Lock()
+
+    def open(
+        self,
+        user_id: int,
+        platform: PlatformInfo,
+        deployment_id: str,
+        settings: dict[str, Any],
+        course: str | None = None,
+    ) -> str:
+        """Keep a request (from the LMS course that fills lab ``course``); return its id."""
+        if not isinstance(settings.get("deep_link_return_url"), str):
+            raise InvalidParameterError("the deep-linking request has no return URL")
+        key = secrets.token_urlsafe(24)
+        now = time.monotonic()
+        with self._lock:
+            for old in [k for k, v in self._pending.items() if v.expires <= now]:
+                del self._pending[old]
+            self._pending[key] = PendingDeepLink(
+                user_id, platform, deployment_id, settings, now + _LIFETIME, course
+            )
+        return key
+
+    def get(self, key: str, user_id: int) -> PendingDeepLink:
+        """A pending request of this teacher.
+
+        Raises
+        ------
+        NotFoundError
+        """
+        with self._lock:
+            pending = self._pending.get(key)
+        if pending is None or pending.user_id != user_id or pending.expires <= time.monotonic():
+            raise NotFoundError("no such deep-linking request (it may have expired)")
+        return pending
+
+    def items(self, pending: PendingDeepLink) -> list[LinkItem]:
+        """What the teacher of ``pending`` can choose (their LMS course's assignments too)."""
+        return self._items.items(pending.course)
+
+    def answer(
+        self, key: str, user_id: int, targets: list[str], launch_url: str
+    ) -> tuple[str, str]:
+        """Sign the answer with the chosen items; return (return URL, JWT). Used once.
+
+        Raises
+        ------
+        NotFoundError
+            An unknown request or item.
+        InvalidParameterError
+            More than one item where the platform accepts one.
+        """
+        pending = self.get(key, user_id)
+        chosen = [self._items.find(t, pending.course) for t in targets]
+        if len(chosen) > 1 and pending.settings.get("accept_multiple") is False:
+            raise InvalidParameterError("the LMS accepts one item here: choose one")
+        now = int(time.time())
+        claims: dict[str, Any] = {
+            "iss": pending.platform.client_id,
+            "aud": pending.platform.issuer,
+            "iat": now,
+            "exp": now + 300,
+            "nonce": secrets.token_urlsafe(16),
+            CLAIM["deployment_id"]: pending.deployment_id,
+            CLAIM["message_type"]: DEEP_LINKING_RESPONSE,
+            CLAIM["version"]: LTI_VERSION,
+            CLAIM["dl_content_items"]: [
+                {
+                    "type": "ltiResourceLink",
+                    "title": item.title,
+                    "url": launch_url,
+                    "custom": {TARGET_PARAMETER: item.target},
+                }
+                for item in chosen
+            ],
+        }
+        if "data" in pending.settings:
+            claims[CLAIM["dl_data"]] = pending.settings["data"]
+        with self._lock:
+            self._pending.pop(key, None)
+        return str(pending.settings["deep_link_return_url"]), self._keys.sign(claims)

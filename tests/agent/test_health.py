@@ -1,0 +1,164 @@
+"""The lab's health monitor of rig hosts, on the real link protocol (in-process lab).
+
+A real WebSocket client (Starlette's test client) speaks the agent protocol
+to the lab's ``/api/agents/link``; the lab's clock is a manual one, so a
+silent host is judged without sleeping. Alerts go to a real SMTP server on
+loopback (``aiosmtpd``), read back as the messages it received.
+"""
+
+from __future__ import annotations
+
+import email
+import email.policy
+import time
+from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import pytest
+from aiosmtpd.controller import Controller
+from argon2 import PasswordHasher
+from fastapi.testclient import TestClient
+from starlette.websockets import WebSocketDisconnect
+
+from thermolab.agent.protocol import (
+    CLOSE_REFUSED,
+    PROTOCOL_VERSION,
+    Ack,
+    Heartbeat,
+    Hello,
+    Power,
+    SampleBatch,
+    SampleOut,
+    Welcome,
+    decode_lab,
+    encode,
+)
+from thermolab.lab.agents import issue_secret
+from thermolab.lab.agents.notify import Mailer
+from thermolab.lab.clock import ManualClock
+from thermolab.lab.config import RigConfig, default_config
+from thermolab.lab.http.app import create_app
+from thermolab.lab.service import Lab
+
+from .fleet import free_port
+
+FAST_HASHER = PasswordHasher(time_cost=1, memory_cost=8, parallelism=1)
+
+
+class _Inbox:
+    def __init__(self) -> None:
+        self.messages: list[str] = []
+
+    async def handle_DATA(self, server: Any, session: Any, envelope: Any) -> str:  # noqa: N802
+        self.messages.append(envelope.content.decode())
+        return "250 OK"
+
+
+@pytest.fixture
+def inbox() -> Iterator[tuple[_Inbox, int]]:
+    handler = _Inbox()
+    port = free_port()
+    controller = Controller(handler, hostname="127.0.0.1", port=port)
+    controller.start()
+    try:
+        yield handler, port
+    finally:
+        controller.stop()
+
+
+@pytest.fixture
+def lab(tmp_path: Path) -> Iterator[Lab]:
+    config = default_config(tmp_path)
+    config = replace(config, rigs=(RigConfig("box", "Remote box", "sim:tclab", agent=True),))
+    the_lab = Lab(config, clock=ManualClock(), hasher=FAST_HASHER)
+    the_lab.start()
+    yield the_lab
+    the_lab.close()
+
+
+def _hello(secret: str) -> str:
+    return encode(
+        Hello(rig="box", secret=secret, protocol=PROTOCOL_VERSION, version="t", spec="sim:tclab")
+    )
+
+
+def _wait(predicate: Any, timeout: float = 10) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)
+
+
+def test_health_faults_and_heals_the_rig_and_mails_the_teachers(
+    lab: Lab, inbox: tuple[_Inbox, int]
+) -> None:
+    handler, port = inbox
+    lab.agents.notify = Mailer("127.0.0.1", port, ("teachers@example.org",))
+    clock = lab.clock
+    assert isinstance(clock, ManualClock)
+    secret = issue_secret(lab.db, lab.config, clock, "box")
+    assert lab.access.snapshot("box").fault == "rig host: offline (not connected)"
+    app = create_app(lab.config, lab=lab, close_lab=False, sweep_interval=None)
+    with TestClient(app) as client, client.websocket_connect("/api/agents/link") as ws:
+        ws.send_text(_hello(secret))
+        assert isinstance(decode_lab(ws.receive_text()), Welcome)
+        _wait(lambda: lab.access.snapshot("box").fault is None)  # healed by itself
+        # A reading over the kit's 90 degC limit: out of service, and back when it cools.
+        ws.send_text(encode(Heartbeat(powered=True, u=0.0, y=95.0, pending=0)))
+        _wait(lambda: lab.agents._status["box"].y == 95.0)
+        lab.sweep()
+        assert "outside the rig's safe range" in str(lab.access.snapshot("box").fault)
+        ws.send_text(encode(Heartbeat(powered=True, u=0.0, y=40.0, pending=0)))
+        _wait(lambda: lab.agents._status["box"].y == 40.0)
+        lab.sweep()
+        assert lab.access.snapshot("box").fault is None
+        # A fault the host reports.
+        ws.send_text(encode(Heartbeat(powered=False, y=40.0, fault="sensor open", pending=0)))
+        _wait(lambda: lab.agents._status["box"].fault == "sensor open")
+        lab.sweep()
+        assert "sensor open" in str(lab.access.snapshot("box").fault)
+        ws.send_text(encode(Heartbeat(powered=False, y=40.0, pending=0)))
+        _wait(lambda: lab.agents._status["box"].fault is None)
+        lab.sweep()
+        assert lab.access.snapshot("box").fault is None
+        # Samples of an unknown run are ignored but acknowledged (idempotent store).
+        batch = SampleBatch(
+            samples=[SampleOut(seq=7, run=99, k=0, t=0, u=0, y=20, t_read=0, jitter=0, lateness=0)]
+        )
+        ws.send_text(encode(batch))
+        answer = decode_lab(ws.receive_text())
+        while isinstance(answer, Power):  # the lab may tell the rig's power first
+            answer = decode_lab(ws.receive_text())
+        assert answer == Ack(seq=7)
+        # Silence: the host is dropped and the rig taken out of service.
+        clock.advance(lab.agents.heartbeat_timeout + 1)
+        lab.sweep()
+        assert "stopped answering" in str(lab.access.snapshot("box").fault)
+    _wait(lambda: len(handler.messages) >= 6)  # back, range, back, fault, back, silent
+    subjects = [
+        str(email.message_from_string(m, policy=email.policy.default)["Subject"])
+        for m in handler.messages
+    ]
+    assert any("outside the rig's safe range" in s for s in subjects), subjects
+    assert any("back in service" in s for s in subjects), subjects
+    assert any("stopped answering" in s for s in subjects), subjects
+
+
+def test_a_wrong_secret_or_a_rotated_one_is_refused(lab: Lab) -> None:
+    old = issue_secret(lab.db, lab.config, lab.clock, "box")
+    new = issue_secret(lab.db, lab.config, lab.clock, "box")  # rotation
+    app = create_app(lab.config, lab=lab, close_lab=False, sweep_interval=None)
+    with TestClient(app) as client:
+        for secret in (old, "x" * 43):
+            with client.websocket_connect("/api/agents/link") as ws:
+                ws.send_text(_hello(secret))
+                with pytest.raises(WebSocketDisconnect) as closed:
+                    ws.receive_text()
+                assert closed.value.code == CLOSE_REFUSED
+        with client.websocket_connect("/api/agents/link") as ws:
+            ws.send_text(_hello(new))
+            assert isinstance(decode_lab(ws.receive_text()), Welcome)
+            assert lab.agents.online("box")
+        _wait(lambda: not lab.agents.online("box"))  # gone with its socket

@@ -1,0 +1,179 @@
+"""The live stream written straight to the sockets (``thermolab serve``'s uvicorn protocol).
+
+A real uvicorn server on loopback runs the app with the WebSocket protocol
+``thermolab serve`` uses, which offers the stream a
+:class:`~thermolab.lab.fanout.FrameWriter`: caught-up clients get each batch's
+one frame written to their socket, with no per-client task or ASGI call.
+These tests check that the stream stays whole and in order that way, that a
+socket that stops reading is still cut, and that a plain watcher's ping
+never reaches the store (a controller's still keeps its turn).
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+import threading
+from collections.abc import Iterator
+from datetime import UTC, datetime
+from typing import Any
+
+import pytest
+import uvicorn
+from websockets.sync.client import ClientConnection, connect
+
+from thermolab.cli.serve import _framed_websockets
+from thermolab.lab.fanout import CLOSE_TOO_SLOW
+from thermolab.lab.http.app import create_app
+from thermolab.lab.http.live_socket import LiveEndpoint
+from thermolab.lab.service import Lab
+from thermolab.lab.users import Principal
+
+from .conftest import LabFactory
+from .test_live import login
+from .test_runs import until
+
+
+@pytest.fixture
+def database_url(sqlite_url: str) -> str:
+    return sqlite_url
+
+
+@pytest.fixture
+def served(make_lab: LabFactory) -> Iterator[tuple[Lab, LiveEndpoint, str]]:
+    lab = make_lab()
+    for name in ("ana", "bob"):
+        lab.users.add(name, "correct horse", "student")
+    app = create_app(lab.config, lab=lab, sweep_interval=None)
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    config = uvicorn.Config(
+        app,
+        host="127.0.0.1",
+        port=port,
+        log_level="warning",
+        ws_per_message_deflate=False,
+        ws=_framed_websockets(),
+    )
+    server = uvicorn.Server(config)
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    try:
+        until(lambda: server.started)
+        yield lab, app.state.live, f"ws://127.0.0.1:{port}"
+    finally:
+        server.should_exit = True
+        thread.join(timeout=30)
+
+
+def _messages(ws: ClientConnection, timeout: float = 5.0) -> list[dict[str, Any]]:
+    frame = json.loads(ws.recv(timeout=timeout))
+    return frame if isinstance(frame, list) else [frame]
+
+
+def _readings(ws: ClientConnection, count: int) -> list[dict[str, Any]]:
+    """The next ``count`` samples, live (``sample``) or replayed (``samples`` items)."""
+    got: list[dict[str, Any]] = []
+    while len(got) < count:
+        for message in _messages(ws):
+            if message["type"] == "sample":
+                got.append(message)
+            elif message["type"] == "samples":
+                got += message["items"]
+    return got
+
+
+def test_caught_up_watchers_are_written_directly_and_miss_nothing(
+    served: tuple[Lab, LiveEndpoint, str],
+) -> None:
+    lab, live, base = served
+    url = base + "/api/rigs/other/live"
+    with (
+        connect(url, additional_headers=login(lab, "ana")) as ana,
+        connect(url, additional_headers=login(lab, "bob")) as bob,
+    ):
+        hello = _messages(ana)[0]
+        assert hello["type"] == "hello"
+        assert _messages(bob)[0]["type"] == "hello"
+        channel = live.hub.channels["other"]
+        until(lambda: len(channel.clients()) == 2)
+        until(lambda: all(c.direct is not None for c in channel.clients()))
+        at = datetime.now(UTC)
+        for k in range(300):
+            live.reading("other", 0.0, float(k), at)
+        for ws in (ana, bob):
+            got = _readings(ws, 300)
+            assert [m["y"] for m in got] == [float(k) for k in range(300)]
+            seqs = [m["seq"] for m in got]
+            assert seqs == list(range(seqs[0], seqs[0] + 300))
+        # A reconnecting watcher gets what it missed, then the live stream, once each.
+        last = seqs[-1]
+        for k in range(300, 310):
+            live.reading("other", 0.0, float(k), at)
+    with connect(f"{url}?since={last}", additional_headers=login(lab, "ana")) as again:
+        assert _messages(again)[0]["type"] == "hello"
+        live.reading("other", 0.0, 310.0, at)
+        got = _readings(again, 11)
+        assert [m["y"] for m in got] == [float(k) for k in range(300, 311)]
+
+
+def test_a_socket_that_stops_reading_is_cut_by_its_unsent_bytes(
+    served: tuple[Lab, LiveEndpoint, str],
+) -> None:
+    lab, live, base = served
+    port = int(base.rsplit(":", 1)[1])
+    cookie = login(lab, "ana")["cookie"]
+    with socket.create_connection(("127.0.0.1", port)) as stalled:
+        stalled.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        stalled.sendall(
+            (
+                "GET /api/rigs/other/live HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+                "Upgrade: websocket\r\nConnection: Upgrade\r\n"
+                "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
+                f"Cookie: {cookie}\r\n\r\n"
+            ).encode()
+        )
+        assert stalled.recv(12) == b"HTTP/1.1 101"  # then it never reads again
+        channel = live.hub.channels["other"]
+        until(lambda: bool(channel.clients()) and channel.clients()[0].direct is not None)
+        client = channel.clients()[0]
+        big = "x" * 60_000
+        for _ in range(400):  # 24 MB: more than the socket buffers and the unsent bound
+            live.hub.publish("other", {"type": "state", "state": "ready", "detail": big})
+            if client.closing is not None:
+                break
+        until(lambda: client.closing is not None)
+        assert client.closing == (CLOSE_TOO_SLOW, "too slow: reconnect with since")
+        until(lambda: not channel.clients())
+
+
+def test_a_watchers_ping_stays_in_memory_and_a_controllers_keeps_the_turn(
+    served: tuple[Lab, LiveEndpoint, str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    lab, live, base = served
+    viewed: list[str] = []
+    view = lab.access.view
+
+    def counted(rig_id: str, who: Any) -> Any:
+        viewed.append(who.username)
+        return view(rig_id, who)
+
+    monkeypatch.setattr(lab.access, "view", counted)
+    bob = lab.users.get("bob")
+    lab.access.request_control("other", Principal(bob.id, bob.username, bob.role))
+    url = base + "/api/rigs/other/live"
+    with (
+        connect(url, additional_headers=login(lab, "ana")) as ana,
+        connect(url, additional_headers=login(lab, "bob")) as bob_ws,
+    ):
+        for ws in (ana, bob_ws):
+            assert _messages(ws)[0]["type"] == "hello"
+        until(lambda: "other" in live._holders)  # the first access snapshot is in
+        viewed.clear()
+        for ws in (ana, bob_ws):
+            ws.send('{"type":"ping"}')
+            while not any(m["type"] == "pong" for m in _messages(ws)):
+                pass
+        assert viewed == ["bob"]  # only the controller's ping looked at the store
+        assert {w.username for w in lab.presence.watchers("other")} == {"ana", "bob"}

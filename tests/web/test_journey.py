@@ -1,0 +1,390 @@
+"""The class's journey in a real Chromium (#10): teacher and student, end to end, in pt-BR and en.
+
+Against ``thermolab serve`` on SQLite and on PostgreSQL (skipped, saying why,
+where the server is unreachable), with the paper's twin at the e2e speed-up:
+
+1. the teacher creates a course and uploads a class list;
+2. writes a guide page (the steps of panel 1);
+2a. books the rig for the course on the calendar, from now for an hour;
+3. sets an assignment (rig, LSM, deadline, tolerances);
+4. a student of the list logs in with the one-time password and chooses their own;
+5. reads the guide beside panel 1;
+6. runs the experiment on the twin inside the course's slot (the rig page says so):
+   a step of the set point, 0 to 10 V;
+7. hands in the run with the Ks, Ts and θ the page showed, and reads the mark and feedback;
+8. the teacher sees the hand-in and downloads the grades: the CSV has the student's row.
+
+The steps are functions in :data:`STEPS`, in order, sharing one
+:class:`Journey`: a new step goes in the list where it belongs.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import uuid
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from .axe import serious_violations
+from .test_messages import catalogue
+
+pytestmark = pytest.mark.browser
+
+WORDS = {
+    "pt-BR": {"locale": "pt-BR", "mark": "Nota: 10 de 10", "state": "corrigida", "theta": "2,5"},
+    "en": {"locale": "en-GB", "mark": "Mark: 10 out of 10", "state": "marked", "theta": "2.5"},
+}
+RIGS = {"pt-BR": "twin-ptbr", "en": "twin-en"}
+CONFIG = """\
+title = "ThermoLab journey"
+{database}
+[[rigs]]
+id = "twin-ptbr"
+title = "Gêmeo digital da caixa"
+spec = "sim"
+
+[[rigs]]
+id = "twin-en"
+title = "Digital twin of the box"
+spec = "sim"
+"""
+POSTGRES = os.environ.get(
+    "THERMOLAB_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/test"
+)
+
+
+@dataclass
+class Journey:
+    """What the steps share: the lab, the browser pages, and what one step tells the next."""
+
+    lab: Any
+    browser: Any
+    language: str
+    artifacts: Path
+    teacher: Any = None
+    student: Any = None
+    course: str = ""
+    login: str = ""
+    one_time: str = ""
+    assignment: int = 0
+    run_text: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def words(self) -> dict[str, str]:
+        return WORDS[self.language]
+
+    @property
+    def course_title(self) -> str:
+        return f"Controle I ({self.language})"
+
+    @property
+    def rig(self) -> str:
+        return RIGS[self.language]
+
+    @property
+    def suffix(self) -> str:
+        return self.language.lower().replace("-", "")
+
+
+def _postgres_schema() -> Iterator[str]:
+    from sqlalchemy import create_engine, text
+    from sqlalchemy.engine import make_url
+    from sqlalchemy.exc import OperationalError
+
+    admin = create_engine(
+        POSTGRES, isolation_level="AUTOCOMMIT", connect_args={"connect_timeout": 3}
+    )
+    schema = f"thermolab_journey_{uuid.uuid4().hex[:12]}"
+    try:
+        with admin.connect() as connection:
+            connection.execute(text(f'CREATE SCHEMA "{schema}"'))
+    except OperationalError as exc:
+        admin.dispose()
+        pytest.skip(
+            f"PostgreSQL at {make_url(POSTGRES).render_as_string()} unreachable: {exc.orig}"
+        )
+    url = make_url(POSTGRES).update_query_dict({"options": f"-csearch_path={schema}"})
+    try:
+        yield url.render_as_string(hide_password=False)
+    finally:
+        with admin.connect() as connection:
+            connection.execute(text(f'DROP SCHEMA "{schema}" CASCADE'))
+        admin.dispose()
+
+
+@pytest.fixture(
+    scope="module", params=["sqlite", pytest.param("postgres", marks=pytest.mark.postgres)]
+)
+def journey_lab(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory, start_lab: Any
+) -> Iterator[Any]:
+    """A lab with one teacher (tess), on SQLite or PostgreSQL, for the module's journeys."""
+    database = ""
+    schemas: Iterator[str] | None = None
+    if request.param == "postgres":
+        schemas = _postgres_schema()
+        database = f'database_url = "{next(schemas)}"\n'
+    folder = tmp_path_factory.mktemp(f"journey-{request.param}")
+    try:
+        with start_lab(folder, {"tess": "teacher"}, config=CONFIG.format(database=database)) as lab:
+            yield lab
+    finally:
+        if schemas is not None:
+            for _ in schemas:  # drop the schema
+                pass
+
+
+# -- the steps ------------------------------------------------------------------------
+
+
+def teacher_uploads_a_class_list(j: Journey) -> None:
+    page = j.teacher
+    page.goto(f"{j.lab.url}/#/courses")
+    page.wait_for_selector("#course-form")
+    page.fill("#course-name", j.course)
+    page.fill("#course-title", j.course_title)
+    page.click("#course-form button[type=submit]")
+    page.wait_for_selector("#course-code")
+    j.login = f"joao.{j.suffix}"
+    data = f"username;name\nJoão.{j.suffix};João Gonçalves\n".encode()
+    page.set_input_files(
+        "#roster-file", files=[{"name": "turma.csv", "mimeType": "text/csv", "buffer": data}]
+    )
+    page.click("#roster-upload")
+    page.wait_for_selector("#roster-passwords")
+    cells = page.locator("#roster-passwords tbody tr").all_inner_texts()
+    created = dict(cell.split("\t") for cell in cells)
+    assert list(created) == [j.login]
+    j.one_time = created[j.login]
+
+
+def teacher_writes_a_guide_page(j: Journey) -> None:
+    page = j.teacher
+    page.goto(f"{j.lab.url}/#/rig/{j.rig}")
+    page.locator("#panel-srm-lsm button[data-guide=panel-1]").click()
+    page.locator("[data-testid=guide-text] h1").wait_for()  # the guide is loaded
+    page.click("[data-testid=guide-edit]")
+    page.fill("[data-testid=guide-source]", f"## {j.course}\n\nA step of $u$ from 0 to 10 V.")
+    page.locator(".guide-editor button").first.click()  # preview, rendered by the server
+    page.locator("[data-testid=guide-preview] h2").wait_for()
+    page.locator(".guide-editor button.primary").click()  # save
+    page.locator("[data-testid=guide-text] h2").wait_for()
+    assert j.course in page.inner_text("[data-testid=guide-text]")
+
+
+def teacher_books_a_slot_for_the_course(j: Journey) -> None:
+    """The rig is the course's from this minute for an hour, typed in the browser's own time."""
+    page = j.teacher
+    page.goto(f"{j.lab.url}/#/bookings")
+    page.wait_for_selector(f"#booking-rig-{j.rig}")
+    assert page.inner_text("h1") == catalogue(j.language)["calendar.title"]
+    date, start, end = page.evaluate(
+        """() => {
+          const two = (n) => String(n).padStart(2, "0");
+          const now = new Date();
+          const later = new Date(now.getTime() + 3600e3);
+          const hm = (d) => `${two(d.getHours())}:${two(d.getMinutes())}`;
+          const day = `${now.getFullYear()}-${two(now.getMonth() + 1)}-${two(now.getDate())}`;
+          return [day, hm(now), later.getDate() === now.getDate() ? hm(later) : "23:59"];
+        }"""
+    )
+    page.select_option("#booking-course", j.course)
+    page.check(f"#booking-rig-{j.rig}")
+    page.fill("#booking-date", date)
+    page.fill("#booking-start", start)
+    page.fill("#booking-end", end)
+    page.click("#booking-submit")
+    slot = page.locator("[data-testid=slot]", has_text=j.course_title)
+    slot.first.wait_for()
+    assert j.rig in slot.first.inner_text()
+    assert serious_violations(page) == []
+
+
+def teacher_sets_an_assignment(j: Journey) -> None:
+    page = j.teacher
+    page.goto(f"{j.lab.url}/#/assignments")
+    page.wait_for_selector("#assign-form")
+    page.select_option("#assign-course", j.course)
+    page.fill("#assign-title", f"Degrau {j.suffix}")
+    page.fill("#assign-instructions", "Step 0 → 10 V; give Ks, Ts and θ.")
+    page.select_option("#assign-rig", j.rig)
+    page.fill("#assign-deadline", "2099-12-31T23:00")
+    page.fill("#assign-tol-k", "5")
+    page.fill("#assign-tol-tau", "5")
+    page.fill("#assign-tol-theta", j.words["theta"])  # the language's decimal mark
+    assert page.is_checked("input[name=method][value=lsm]")
+    assert serious_violations(page) == []
+    page.click("#assign-form button[type=submit]")
+    page.wait_for_selector("#assign-details")
+    j.assignment = int(page.evaluate("() => location.hash.split('/').pop()"))
+    page.wait_for_selector("#submissions p")  # nobody has handed in yet
+
+
+def student_logs_in_from_the_class_list(j: Journey) -> None:
+    page = j.student
+    page.goto(f"{j.lab.url}/")
+    page.fill("#login-username", j.login)
+    page.fill("#login-password", j.one_time)
+    page.click("form button[type=submit]")
+    page.wait_for_selector("#password-new")
+    page.fill("#password-current", j.one_time)
+    page.fill("#password-new", "joao's own long secret")
+    page.click("form button[type=submit]")
+    page.wait_for_function("() => !location.hash.includes('password')")
+    page.wait_for_selector("#nav:not([hidden])")
+
+
+def student_reads_the_guide(j: Journey) -> None:
+    page = j.student
+    page.goto(f"{j.lab.url}/#/rig/{j.rig}")
+    page.locator("#panel-srm-lsm button[data-guide=panel-1]").click()
+    shown = page.locator("[data-testid=guide-text]")
+    shown.locator("h2").wait_for()
+    assert j.course in shown.inner_text()
+    assert page.locator("[data-testid=guide-edit]").count() == 0
+    page.click("[data-testid=guide] .guide-head button")  # close it: back to the panel
+
+
+def student_runs_the_experiment(j: Journey) -> None:
+    page = j.student
+    page.goto(f"{j.lab.url}/#/rig/{j.rig}")
+    page.wait_for_selector("button[data-action=ask]")
+    # Inside the course's slot: the page says the rig is the course's, and control is granted.
+    own = catalogue(j.language)["chance.ownNow"].split("{")[0]
+    page.wait_for_function(
+        "(m) => document.querySelector('[data-testid=chance-now]')?.textContent.startsWith(m)",
+        arg=own,
+    )
+    assert j.course_title in page.inner_text("[data-testid=chance-now]")
+    page.click("button[data-action=ask]")
+    page.wait_for_function(
+        "() => document.querySelector('[data-testid=access-role]')?.dataset.role === 'controller'"
+    )
+    page.click("[role=tab][data-panel=srm-lsm]")
+    page.fill("#srm-lsm-dt", "1")
+    page.fill("#srm-lsm-n", "1500")
+    page.fill("#srm-lsm-setpoint", "0")
+    page.click("[data-panel-view=srm-lsm] button[data-action=start]")
+    page.wait_for_function("() => +document.querySelector('[data-readout=k]').textContent > 20")
+    page.fill("[data-run-form=srm-lsm] input[name=setpoint-live]", "10")
+    page.click("[data-run-form=srm-lsm] button[data-action=setpoint]")
+    row = "[data-testid=results-srm-lsm] [data-method=lsm]"
+    words = catalogue(j.language)
+    page.wait_for_function(
+        """([sel, finished]) => document.querySelector(sel)?.textContent.includes(finished)""",
+        arg=["[data-testid=run-status-srm-lsm]", words["runStatus.finished"]],
+        timeout=90_000,
+    )
+    page.wait_for_function(
+        """([sel, final]) => document.querySelector(sel)?.textContent.includes(final)""",
+        arg=[f"{row} [data-field=status]", words["estimate.final"]],
+    )
+    j.run_text = {
+        "K": page.inner_text(f"{row} [data-field=K]").splitlines()[0],
+        "tau": page.inner_text(f"{row} [data-field=tau]").splitlines()[0],
+    }
+    page.click("button[data-action=release]")
+
+
+def student_hands_in_and_reads_the_mark(j: Journey) -> None:
+    page = j.student
+    page.click("#nav a[data-nav=assignments]")
+    page.locator(f"a[data-assignment='{j.assignment}']").click()
+    page.wait_for_selector("#handin-form")
+    page.wait_for_selector("#handin-run option", state="attached")
+    page.fill("#handin-k", j.run_text["K"])
+    page.fill("#handin-tau", j.run_text["tau"])
+    page.fill("#handin-theta", "0")
+    page.fill("#handin-conclusion", "O sistema é de primeira ordem.")
+    page.click("#handin-form button[type=submit]")
+    page.wait_for_selector("[data-testid=mark]")
+    assert page.inner_text("[data-testid=mark]") == j.words["mark"]
+    verdicts = page.eval_on_selector_all(
+        "#feedback tr[data-check]", "rows => rows.map(r => r.dataset.verdict)"
+    )
+    assert verdicts == ["pass"] * 6  # Ks, Ts, θ against the twin and against the run
+    theta = page.inner_text("#feedback tr[data-check=theta-reference]")
+    assert f"±{j.words['theta']} s" in theta
+    assert page.locator("[data-testid=late]").count() == 0
+    assert serious_violations(page) == []
+    page.screenshot(path=str(j.artifacts / f"journey-handin-{j.suffix}.png"), full_page=True)
+
+
+def teacher_sees_the_hand_in_and_exports_grades(j: Journey) -> None:
+    page = j.teacher
+    page.goto(f"{j.lab.url}/#/assignments/{j.assignment}")
+    page.reload()  # the page set the assignment: read its hand-ins again
+    row = page.locator(f"#submissions tr[data-student='{j.login}']")
+    row.wait_for()
+    assert j.words["state"] in row.inner_text()
+    assert serious_violations(page) == []
+    with page.expect_download() as download:
+        page.click("#grades-link")
+    text = Path(download.value.path()).read_text(encoding="utf-8")
+    rows = list(csv.DictReader(io.StringIO(text)))
+    mine = [r for r in rows if r["student"] == j.login]
+    assert len(mine) == 1
+    assert mine[0]["display_name"] == "João Gonçalves"
+    assert (mine[0]["state"], mine[0]["mark"], mine[0]["max"]) == ("marked", "10.0", "10.0")
+    assert mine[0]["late"] == "no"
+    assert mine[0]["course"] == j.course
+
+
+#: The journey, in order (the booking after the guide, before the run inside the slot).
+STEPS: list[Callable[[Journey], None]] = [
+    teacher_uploads_a_class_list,
+    teacher_writes_a_guide_page,
+    teacher_books_a_slot_for_the_course,
+    teacher_sets_an_assignment,
+    student_logs_in_from_the_class_list,
+    student_reads_the_guide,
+    student_runs_the_experiment,
+    student_hands_in_and_reads_the_mark,
+    teacher_sees_the_hand_in_and_exports_grades,
+]
+
+
+@pytest.mark.parametrize("language", list(WORDS))
+def test_a_teacher_and_a_student_go_from_class_list_to_grades(
+    language: str, browser: Any, journey_lab: Any, artifacts: Path
+) -> None:
+    words = WORDS[language]
+    options = {
+        "locale": words["locale"],
+        "bypass_csp": True,
+        "viewport": {"width": 1280, "height": 900},
+    }
+    # Logged in through the form (not a cached cookie: each database has its own lab).
+    teacher = browser.new_context(accept_downloads=True, **options)
+    student = browser.new_context(accept_downloads=True, **options)
+    errors: list[str] = []
+    try:
+        j = Journey(journey_lab, browser, language, artifacts)
+        j.teacher = teacher.new_page()
+        j.student = student.new_page()
+        for page in (j.teacher, j.student):
+            page.on("pageerror", lambda exc: errors.append(str(exc)))
+        j.course = f"journey-{j.suffix}"
+        j.teacher.goto(f"{journey_lab.url}/")
+        j.teacher.fill("#login-username", "tess")
+        j.teacher.fill("#login-password", journey_lab.password("tess"))
+        j.teacher.click("form button[type=submit]")
+        j.teacher.wait_for_selector("#nav:not([hidden])")
+        for step in STEPS:
+            try:
+                step(j)
+            except Exception:
+                for who, page in (("teacher", j.teacher), ("student", j.student)):
+                    shot = artifacts / f"journey-failed-{step.__name__}-{who}-{j.suffix}.png"
+                    page.screenshot(path=str(shot), full_page=True)
+                raise
+        assert errors == []
+    finally:
+        student.close()
+        teacher.close()
