@@ -76,8 +76,8 @@ class RemoteIdentification:
             try:
                 estimate = ident.finish()
             except (ThermoLabError, ArithmeticError, ValueError) as exc:
-                # ArithmeticError: step_response's tail fit can overflow on a short record
-                # (seen on an ENDed step run); the run's end is stored all the same.
+                # ArithmeticError: a method's arithmetic on an odd record (the step
+                # method's used to overflow on a short ENDed run); the end is stored anyway.
                 log.warning("%s could not finish: %r", name, exc)
                 self._errors[name] = f"{name}: {exc}"
                 continue
