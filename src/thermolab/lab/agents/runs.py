@@ -28,17 +28,25 @@ from datetime import timedelta
 from typing import Any
 
 from thermolab.agent.protocol import EndRun, RunEnded, SampleBatch, SetInput, StartRun
-from thermolab.errors import AccessDeniedError, ConflictError, NotFoundError, RunInProgressError
+from thermolab.errors import (
+    AccessDeniedError,
+    ConflictError,
+    NotFoundError,
+    RunInProgressError,
+    ThermoLabError,
+)
 from thermolab.lab.access import AccessService
 from thermolab.lab.agents.estimates import RemoteIdentification
 from thermolab.lab.agents.hub import AgentHub
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
+from thermolab.lab.db.models import Run
 from thermolab.lab.devices import DeviceHub
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.runs.ending import RunEnd, save_end, status_of
-from thermolab.lab.runs.request import RunRequest, check_run_length, plan_run
+from thermolab.lab.runs.export import RunExport
+from thermolab.lab.runs.request import RUN_SETTINGS, RunRequest, check_run_length, plan_run
 from thermolab.lab.runs.store import RunStore, add_run, run_channels
 from thermolab.lab.users import Principal
 from thermolab.rigs import RigSpec
@@ -250,7 +258,7 @@ class RemoteRuns:
         if reason is EndReason.ENDED and remote is not None and remote.stopped_by:
             words = f"ended by {remote.stopped_by}"
         try:
-            run, _ = self._store.read(ended.run)
+            run, stored = self._store.read(ended.run)
         except NotFoundError:  # deleted meanwhile: nothing to store (the host may forget it)
             log.warning("rig host %s reported the end of run %s, which is gone", rig_id, ended.run)
             return
@@ -261,10 +269,17 @@ class RemoteRuns:
         results: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {}
         if remote is not None and remote.run_id == ended.run:
             finals = remote.identification.finish()
-            results = remote.identification.results()
+            results = remote.identification.results(ended.run)
             if self._on_event is not None:
                 for event in finals:
                     self._on_event(rig_id, ended.run, event)
+        elif not stored:
+            # A run from before a restart of the lab (stored interrupted then): its
+            # methods are identified now, on the samples the host uploaded.
+            late = self._identify_stored(run)
+            if late is not None:
+                late.finish()
+                results = late.results(ended.run)
         end = RunEnd(status_of(reason), words, results, timing=None, control=None)
         save_end(self._db, ended.run, end, self._clock.now())
         if remote is None or remote.run_id != ended.run:
@@ -277,3 +292,36 @@ class RemoteRuns:
         if self._on_run is not None:
             self._on_run(rig_id, "ended", self._runs.record(ended.run))
         remote.ended.set()
+
+    def _identify_stored(self, run: Run) -> RemoteIdentification | None:
+        """The run's identifiers, as its START built them, fed its stored samples in order.
+
+        None (logged) when its settings no longer make a plan (the rig's range changed).
+        """
+        settings = dict((run.meta or {}).get("settings") or {})
+        # RunRequest.settings() read back: lists were tuples (w0), absent is the default.
+        tuned: dict[str, Any] = {
+            name: tuple(value) if isinstance(value, list) else value
+            for name in RUN_SETTINGS
+            if (value := settings.get(name)) is not None
+        }
+        try:
+            request = RunRequest(
+                dt=settings["dt"],
+                samples=settings["samples"],
+                signal=settings["signal"],
+                setpoint=settings["setpoint"],
+                methods=tuple(settings["methods"]),
+                offset=settings["offset"],
+                **tuned,
+            )
+            published = self._hub.published(run.rig_id)
+            dead_time = RigSpec.parse(self._config.rig(run.rig_id).spec).typical_dead_time
+            plan = plan_run(request, (published.input_min, published.input_max), dead_time)
+        except (ThermoLabError, KeyError, TypeError) as exc:
+            log.warning("run %s: its methods cannot be rebuilt to identify it: %r", run.id, exc)
+            return None
+        identification = RemoteIdentification(plan.identifiers)
+        for k, _, u, y in RunExport(self._db).samples(run.id):
+            identification.feed(k, u, y)
+        return identification
