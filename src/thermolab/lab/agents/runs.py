@@ -24,7 +24,6 @@ import logging
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from datetime import timedelta
 from typing import Any
 
 from thermolab.agent.protocol import EndRun, RunEnded, SampleBatch, SetInput, StartRun
@@ -46,10 +45,10 @@ from thermolab.lab.devices import DeviceHub
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.runs.ending import RunEnd, save_end, status_of
 from thermolab.lab.runs.export import RunExport
-from thermolab.lab.runs.request import RUN_SETTINGS, RunRequest, check_run_length, plan_run
-from thermolab.lab.runs.store import RunStore, add_run, run_channels
+from thermolab.lab.runs.request import RUN_SETTINGS, RunRequest
+from thermolab.lab.runs.service import plan_on_rig, plan_start, store_start
+from thermolab.lab.runs.store import RunStore
 from thermolab.lab.users import Principal
-from thermolab.rigs import RigSpec
 from thermolab.runner import EndReason, Event, SampleEvent
 
 __all__ = ["RemoteRuns"]
@@ -120,38 +119,19 @@ class RemoteRuns:
         RunInProgressError
             If a run is still going on the rig.
         """
-        rig = self._config.rig(rig_id)
-        published = self._hub.published(rig_id)
-        dead_time = RigSpec.parse(rig.spec).typical_dead_time
-        plan = plan_run(request, (published.input_min, published.input_max), dead_time)
-        length = check_run_length(request, rig_id, self._config)
+        start = plan_start(self._config, self._hub, self._access, rig_id, request)
         if request.control is not None:
             raise ConflictError(
                 f"rig {rig_id!r} is a remote rig: closed-loop runs need an in-process rig for now"
             )
-        channels = run_channels(published.input_unit, published.output_unit)
         with self._hub.locked(rig_id):
             going = self._remote.get(rig_id)
             if going is not None:
                 raise RunInProgressError(f"run {going.run_id} is still going on rig {rig_id!r}")
             if not self._agents.online(rig_id):
                 raise ConflictError(f"the host of rig {rig_id!r} is offline; try again later")
-            with self._access.controlled(rig_id, who, "start a run") as turn:
-                meta = {
-                    "operating_point": plan.operating_point.to_dict(),
-                    "ends_at": (turn.now + timedelta(seconds=length)).isoformat(),
-                }
-                run_id = add_run(
-                    turn.session,
-                    turn.control,
-                    who,
-                    turn.now,
-                    settings=plan.settings,
-                    meta=meta,
-                    channels=channels,
-                )
-                control_id = turn.control.id
-            identification = RemoteIdentification(plan.identifiers)
+            run_id, control_id = store_start(self._access, rig_id, who, start, start.channels)
+            identification = RemoteIdentification(start.plan.identifiers)
             self._remote[rig_id] = _RemoteRun(run_id, control_id, identification)
             self._hub.claim(rig_id)
             self._agents.send(
@@ -315,9 +295,7 @@ class RemoteRuns:
                 offset=settings["offset"],
                 **tuned,
             )
-            published = self._hub.published(run.rig_id)
-            dead_time = RigSpec.parse(self._config.rig(run.rig_id).spec).typical_dead_time
-            plan = plan_run(request, (published.input_min, published.input_max), dead_time)
+            plan, _ = plan_on_rig(self._config, self._hub, run.rig_id, request)
         except (ThermoLabError, KeyError, TypeError) as exc:
             log.warning("run %s: its methods cannot be rebuilt to identify it: %r", run.id, exc)
             return None
