@@ -133,10 +133,19 @@ class Fleet:
     logs: list[object] = field(default_factory=list)
 
     def start_lab(
-        self, cert: Path, key: Path, *, grace: float, agent_host: str | None = None
+        self,
+        cert: Path,
+        key: Path,
+        *,
+        grace: float,
+        agent_host: str | None = None,
+        port: int | None = None,
     ) -> None:
-        """Serve on 127.0.0.1 (and every address when agents dial ``agent_host``)."""
-        port = free_port()
+        """Serve on 127.0.0.1 (and every address when agents dial ``agent_host``).
+
+        ``port``: the one to serve on (a restart keeps the agents' address); default a free one.
+        """
+        port = port or free_port()
         host = "127.0.0.1" if agent_host is None else "0.0.0.0"
         self.url = f"https://127.0.0.1:{port}"
         self.agent_url = f"wss://{agent_host or '127.0.0.1'}:{port}"
@@ -255,6 +264,16 @@ class Fleet:
                 return time.monotonic() - start
             time.sleep(0.1)
         raise AssertionError(f"rig {rig} not back: {self.host(teacher, rig)}")
+
+    def stop_lab(self) -> None:
+        """Stop the lab as its service manager would (SIGTERM), and wait for it."""
+        assert self.lab is not None
+        self.lab.terminate()
+        try:
+            self.lab.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            self.lab.kill()
+            self.lab.wait()
 
     def pause_lab(self) -> None:
         assert self.lab is not None

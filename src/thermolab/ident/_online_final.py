@@ -56,7 +56,7 @@ class _StepResponse(OnlineIdentifier):
             return _invalid(self.method, self._n - 1, str(exc))
         extras = res.to_dict()
         extras.pop("method", None)
-        valid = math.isfinite(res.K) and math.isfinite(res.tau)
+        valid = math.isfinite(res.K) and math.isfinite(res.tau) and res.tau > 0.0
         return Estimate(self.method, self._n - 1, res.K, res.tau, (), valid, True, extras)
 
 

@@ -31,9 +31,22 @@ _POLISH_POINTS = 50_000
 
 
 def fit_exponential_tail(tr: FloatArray, yr: FloatArray, span: float) -> tuple[float, float] | None:
-    """Fit ``d - c exp(-(t - t0)/tau)``; return ``(d, tau)`` or None if it cannot be done."""
+    """Fit ``d - c exp(-(t - t0)/tau)``; return ``(d, tau)`` or None if it cannot be done.
+
+    None as well when the arithmetic overflows (a record of huge values, or a
+    few samples that let the polish run ``tau`` out of range): the caller then
+    falls back to the last sample, never to an exception.
+    """
     if tr.size < MIN_TAIL:
         return None
+    with np.errstate(all="ignore"):
+        try:
+            return _fit(tr, yr, span)
+        except (ArithmeticError, ValueError):
+            return None
+
+
+def _fit(tr: FloatArray, yr: FloatArray, span: float) -> tuple[float, float] | None:
     x = tr - tr[0]
     width = float(x[-1])
     if width <= 0.0:
@@ -51,6 +64,8 @@ def fit_exponential_tail(tr: FloatArray, yr: FloatArray, span: float) -> tuple[f
 
     grid = np.linspace(lo, hi, 64)
     costs = np.array([sse(g) for g in grid])
+    if not (math.isfinite(lo) and math.isfinite(hi) and np.isfinite(costs).all()):
+        return None  # squares of huge values overflow: nothing to compare
     i = int(np.argmin(costs))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
     best = minimize_scalar(sse, bounds=(a, b), method="bounded")
@@ -69,19 +84,24 @@ def fit_exponential_tail(tr: FloatArray, yr: FloatArray, span: float) -> tuple[f
         e = np.exp(-xp * rate)
         return np.column_stack([np.ones_like(xp), -e, -p[1] * e * xp * rate])
 
-    polished = least_squares(
-        residual,
-        np.array([d0, c0, log_tau]),
-        jac=jacobian,
-        method="lm",
-        xtol=1e-15,
-        ftol=1e-15,
-        gtol=1e-15,
-    )
-    if polished.success and 2.0 * polished.cost <= cost and lo <= polished.x[2] < hi:
-        d, log_tau = float(polished.x[0]), float(polished.x[2])
+    d = d0
+    try:
+        polished = least_squares(
+            residual,
+            np.array([d0, c0, log_tau]),
+            jac=jacobian,
+            method="lm",
+            xtol=1e-15,
+            ftol=1e-15,
+            gtol=1e-15,
+        )
+    except (ArithmeticError, ValueError):
+        # On a few samples Levenberg-Marquardt can step tau to exp(-710): the
+        # bounded search's answer stands.
+        pass
     else:
-        d = d0
+        if polished.success and 2.0 * polished.cost <= cost and lo <= polished.x[2] < hi:
+            d, log_tau = float(polished.x[0]), float(polished.x[2])
     if not math.isfinite(d) or log_tau >= hi - 1e-9:
         return None
     return d, math.exp(log_tau)

@@ -70,6 +70,14 @@ ADVICE: Mapping[str, str] = MappingProxyType(
             "the output was not at rest before the step, so the baseline is wrong; wait for "
             "the plant to settle, or use lsm or oe with --offset auto"
         ),
+        "no sound fit": (
+            "the few samples after the step do not determine K and tau; do not use them, "
+            "and record at least four time constants after the step"
+        ),
+        "poor fit": (
+            "the first-order response with these figures does not follow the record; "
+            "check the record is one clean step from rest, or use lsm or oe"
+        ),
         "not settled": (
             "the record ends before the output settles, so K and tau are extrapolated; "
             "record at least four time constants after the step"

@@ -26,11 +26,15 @@ from ._step_detect import find_step, first_response, median_dt, noise_level, pre
 from ._step_fit import LEVEL_28, LEVEL_63, MIN_TAIL, crossing_time, fit_exponential_tail
 from ._validation import as_record, check_time, integer, real
 from ._warning import IdentificationWarning
+from .diagnostics import plausibility_warnings
 from .step_result import StepResponseResult
 
 __all__ = ["IdentificationWarning", "StepResponseResult", "step_response"]
 
 
+# Huge readings overflow squares and sums to inf; the checks below see it and
+# say so in a warning instead of a RuntimeWarning.
+@np.errstate(all="ignore")
 def step_response(
     t: npt.ArrayLike,
     u: npt.ArrayLike,
@@ -84,8 +88,11 @@ def step_response(
     -----
     IdentificationWarning
         When the record has not settled, the step is under ``min_step``, the record
-        is shorter than ``min_samples``, the output was moving before the step, or
-        the record ends before the 63.2 % crossing. Each is also in ``warnings``.
+        is shorter than ``min_samples``, the output was moving before the step, the
+        record ends before the 63.2 % crossing, the few samples after the step give
+        no sound fit (``K`` or ``tau`` not a finite positive time constant), or the
+        response the figures describe misses the record. Each is also in
+        ``warnings``; a result with any of them is not ``trusted``.
 
     Notes
     -----
@@ -247,18 +254,32 @@ def step_response(
     else:
         t63 = step_time + t63_rel
 
-    recorded = span / tau
-    settled = recorded >= settle
     K = change / amplitude
     K_last = last_change / amplitude
-    if not settled:
+    unsound = not (math.isfinite(K) and K != 0.0 and math.isfinite(tau) and tau > 0.0)
+    recorded = span / tau if not unsound else math.nan
+    settled = recorded >= settle
+    if unsound:
+        notes.insert(
+            0,
+            f"no sound fit: the {n - ks} samples after the step give K = {K:.3g} and "
+            f"tau = {tau:.3g} s, which no first-order response has; do not use them, and "
+            "record the whole response (at least four time constants) after the step",
+        )
+    elif not settled:
+        need = settle * tau / median_dt(t_arr)
         notes.insert(
             0,
             f"not settled: the record lasts {recorded:.2f} time constants after the step "
             f"(needs {settle:g}); the last sample is {100.0 * (K_last - K) / K:+.2f} % off the "
-            f"extrapolated gain; record at least {math.ceil(settle * tau / median_dt(t_arr))} "
-            "samples after the step",
+            "extrapolated gain; record at least "
+            f"{math.ceil(need) if math.isfinite(need) else 'many more'} samples after the step",
         )
+    if not unsound:
+        # What the other methods check of a final model (tau within what the
+        # samples can show), then whether the response follows the record.
+        notes += plausibility_warnings(K, tau, median_dt(t_arr), span)
+        notes += _poor_fit(tr, yr, change, tau, theta, noise)
     if abs(amplitude) < min_step_v * (1.0 - 1e-9):  # a 1 V step read back as 0.99999...9
         notes.append(
             f"small step: the input changes by {abs(amplitude):.3g} V, under {min_step_v:g} V, "
@@ -308,3 +329,33 @@ def step_response(
         u=u_arr,
         y=y_arr,
     )
+
+
+def _poor_fit(
+    tr: npt.NDArray[np.float64],
+    yr: npt.NDArray[np.float64],
+    change: float,
+    tau: float,
+    theta: float,
+    noise: float,
+) -> list[str]:
+    """The warning when the identified response misses the record (empty when it fits).
+
+    A first-order response that the method's figures describe follows the
+    record to within its noise; one that misses it by more than three noise
+    deviations and a tenth of the change (a few samples of noise, a record
+    that is no step response) is not to be shown as the plant's model.
+    """
+    elapsed = np.maximum(tr - theta, 0.0)
+    model = change * -np.expm1(-elapsed / tau)
+    # Relative to the change, so that the squares of huge readings do not overflow.
+    rel = float(np.sqrt(np.mean(((yr - model) / change) ** 2)))
+    if rel <= max(3.0 * noise / abs(change), 0.1):
+        return []
+    rms = rel * abs(change)
+    share = f"{100.0 * rel:.0f} %" if rel < 1e6 else "many times"
+    return [
+        f"poor fit: the first-order response with these K and tau misses the record by "
+        f"{rms:.3g} V RMS ({share} of the change), so they do not describe it; record a "
+        "clean step from rest and at least four time constants after it"
+    ]

@@ -116,6 +116,16 @@ class StepResponseResult:
     y: FloatArray = field(default_factory=lambda: np.empty(0), repr=False, compare=False)
 
     @property
+    def trusted(self) -> bool:
+        """Finite ``K`` and a positive ``tau`` with no warning: figures to show as final."""
+        return (
+            math.isfinite(self.K)
+            and math.isfinite(self.tau)
+            and self.tau > 0.0
+            and not self.warnings
+        )
+
+    @property
     def model(self) -> FirstOrderModel:
         """The identified model ``K exp(-theta s) / (tau s + 1)`` (settled gain)."""
         return FirstOrderModel(self.K, self.tau, theta=self.theta)
@@ -131,7 +141,8 @@ class StepResponseResult:
         Returns
         -------
         dict
-            ``method`` (``"srm"``), every scalar attribute and ``warnings`` (a list).
+            ``method`` (``"srm"``), every scalar attribute, ``warnings`` (a list) and
+            ``trusted``.
 
         Examples
         --------
@@ -174,6 +185,7 @@ class StepResponseResult:
                 value = None
             out[name] = value
         out["warnings"] = list(self.warnings)
+        out["trusted"] = self.trusted
         if arrays:
             for name in ("t", "u", "y"):
                 out[name] = [float(v) for v in getattr(self, name)]

@@ -18,7 +18,7 @@ from typing import Any
 
 from thermolab.errors import ThermoLabError
 from thermolab.ident.online import OnlineIdentifier
-from thermolab.lab.runs.statistics import method_statistics
+from thermolab.lab.runs.ending import method_results
 from thermolab.runner import EstimateEvent
 from thermolab.runner.results import MethodTrack
 
@@ -76,8 +76,8 @@ class RemoteIdentification:
             try:
                 estimate = ident.finish()
             except (ThermoLabError, ArithmeticError, ValueError) as exc:
-                # ArithmeticError: step_response's tail fit can overflow on a short record
-                # (seen on an ENDed step run); the run's end is stored all the same.
+                # ArithmeticError: a method's arithmetic on an odd record (the step
+                # method's used to overflow on a short ENDed run); the end is stored anyway.
                 log.warning("%s could not finish: %r", name, exc)
                 self._errors[name] = f"{name}: {exc}"
                 continue
@@ -86,15 +86,11 @@ class RemoteIdentification:
                 events.append(EstimateEvent(k, k, name, estimate, True))
         return events
 
-    def results(self) -> dict[str, tuple[dict[str, Any], dict[str, Any]]]:
-        """Each method's ``(settings, result)`` as the run stores them, with its figures."""
-        results = {}
-        for name, ident in self._identifiers.items():
-            method = self._tracks[name].result(name, self._final.get(name), self._errors.get(name))
-            data = method.to_dict(trajectory=True)
-            try:
-                data["stats"] = method_statistics(name, ident, data.get("latest"))
-            except (ThermoLabError, ArithmeticError, ValueError) as exc:
-                log.warning("statistics of %s failed: %s", name, exc)
-            results[name] = (dict(ident.params), data)
-        return results
+    def results(self, run_id: int) -> dict[str, tuple[dict[str, Any], dict[str, Any]]]:
+        """Each method's ``(settings, result)`` as the run stores them, with its figures
+        (:func:`~thermolab.lab.runs.ending.method_results`, as an in-process run's)."""
+        methods = {
+            name: self._tracks[name].result(name, self._final.get(name), self._errors.get(name))
+            for name in self._identifiers
+        }
+        return method_results(run_id, methods, self._identifiers)

@@ -24,24 +24,31 @@ import logging
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from datetime import timedelta
 from typing import Any
 
 from thermolab.agent.protocol import EndRun, RunEnded, SampleBatch, SetInput, StartRun
-from thermolab.errors import AccessDeniedError, ConflictError, NotFoundError, RunInProgressError
+from thermolab.errors import (
+    AccessDeniedError,
+    ConflictError,
+    NotFoundError,
+    RunInProgressError,
+    ThermoLabError,
+)
 from thermolab.lab.access import AccessService
 from thermolab.lab.agents.estimates import RemoteIdentification
 from thermolab.lab.agents.hub import AgentHub
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
+from thermolab.lab.db.models import Run
 from thermolab.lab.devices import DeviceHub
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.runs.ending import RunEnd, save_end, status_of
-from thermolab.lab.runs.request import RunRequest, check_run_length, plan_run
-from thermolab.lab.runs.store import RunStore, add_run, run_channels
+from thermolab.lab.runs.export import RunExport
+from thermolab.lab.runs.request import RUN_SETTINGS, RunRequest
+from thermolab.lab.runs.service import plan_on_rig, plan_start, store_start
+from thermolab.lab.runs.store import RunStore
 from thermolab.lab.users import Principal
-from thermolab.rigs import RigSpec
 from thermolab.runner import EndReason, Event, SampleEvent
 
 __all__ = ["RemoteRuns"]
@@ -112,38 +119,19 @@ class RemoteRuns:
         RunInProgressError
             If a run is still going on the rig.
         """
-        rig = self._config.rig(rig_id)
-        published = self._hub.published(rig_id)
-        dead_time = RigSpec.parse(rig.spec).typical_dead_time
-        plan = plan_run(request, (published.input_min, published.input_max), dead_time)
-        length = check_run_length(request, rig_id, self._config)
+        start = plan_start(self._config, self._hub, self._access, rig_id, request)
         if request.control is not None:
             raise ConflictError(
                 f"rig {rig_id!r} is a remote rig: closed-loop runs need an in-process rig for now"
             )
-        channels = run_channels(published.input_unit, published.output_unit)
         with self._hub.locked(rig_id):
             going = self._remote.get(rig_id)
             if going is not None:
                 raise RunInProgressError(f"run {going.run_id} is still going on rig {rig_id!r}")
             if not self._agents.online(rig_id):
                 raise ConflictError(f"the host of rig {rig_id!r} is offline; try again later")
-            with self._access.controlled(rig_id, who, "start a run") as turn:
-                meta = {
-                    "operating_point": plan.operating_point.to_dict(),
-                    "ends_at": (turn.now + timedelta(seconds=length)).isoformat(),
-                }
-                run_id = add_run(
-                    turn.session,
-                    turn.control,
-                    who,
-                    turn.now,
-                    settings=plan.settings,
-                    meta=meta,
-                    channels=channels,
-                )
-                control_id = turn.control.id
-            identification = RemoteIdentification(plan.identifiers)
+            run_id, control_id = store_start(self._access, rig_id, who, start, start.channels)
+            identification = RemoteIdentification(start.plan.identifiers)
             self._remote[rig_id] = _RemoteRun(run_id, control_id, identification)
             self._hub.claim(rig_id)
             self._agents.send(
@@ -250,7 +238,7 @@ class RemoteRuns:
         if reason is EndReason.ENDED and remote is not None and remote.stopped_by:
             words = f"ended by {remote.stopped_by}"
         try:
-            run, _ = self._store.read(ended.run)
+            run, stored = self._store.read(ended.run)
         except NotFoundError:  # deleted meanwhile: nothing to store (the host may forget it)
             log.warning("rig host %s reported the end of run %s, which is gone", rig_id, ended.run)
             return
@@ -261,10 +249,17 @@ class RemoteRuns:
         results: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {}
         if remote is not None and remote.run_id == ended.run:
             finals = remote.identification.finish()
-            results = remote.identification.results()
+            results = remote.identification.results(ended.run)
             if self._on_event is not None:
                 for event in finals:
                     self._on_event(rig_id, ended.run, event)
+        elif not stored:
+            # A run from before a restart of the lab (stored interrupted then): its
+            # methods are identified now, on the samples the host uploaded.
+            late = self._identify_stored(run)
+            if late is not None:
+                late.finish()
+                results = late.results(ended.run)
         end = RunEnd(status_of(reason), words, results, timing=None, control=None)
         save_end(self._db, ended.run, end, self._clock.now())
         if remote is None or remote.run_id != ended.run:
@@ -277,3 +272,34 @@ class RemoteRuns:
         if self._on_run is not None:
             self._on_run(rig_id, "ended", self._runs.record(ended.run))
         remote.ended.set()
+
+    def _identify_stored(self, run: Run) -> RemoteIdentification | None:
+        """The run's identifiers, as its START built them, fed its stored samples in order.
+
+        None (logged) when its settings no longer make a plan (the rig's range changed).
+        """
+        settings = dict((run.meta or {}).get("settings") or {})
+        # RunRequest.settings() read back: lists were tuples (w0), absent is the default.
+        tuned: dict[str, Any] = {
+            name: tuple(value) if isinstance(value, list) else value
+            for name in RUN_SETTINGS
+            if (value := settings.get(name)) is not None
+        }
+        try:
+            request = RunRequest(
+                dt=settings["dt"],
+                samples=settings["samples"],
+                signal=settings["signal"],
+                setpoint=settings["setpoint"],
+                methods=tuple(settings["methods"]),
+                offset=settings["offset"],
+                **tuned,
+            )
+            plan, _ = plan_on_rig(self._config, self._hub, run.rig_id, request)
+        except (ThermoLabError, KeyError, TypeError) as exc:
+            log.warning("run %s: its methods cannot be rebuilt to identify it: %r", run.id, exc)
+            return None
+        identification = RemoteIdentification(plan.identifiers)
+        for k, _, u, y in RunExport(self._db).samples(run.id):
+            identification.feed(k, u, y)
+        return identification

@@ -9,7 +9,7 @@
   who is signed in, which course);
 * :mod:`.deep_linking` — the teacher's choice of what to link;
 * :mod:`.roster` — NRPS roster synchronisation;
-* :mod:`.grades` — the AGS grade outbox: :meth:`LtiService.queue_grade`;
+* :mod:`.grades` — the AGS grade outbox: ``LtiService.queue_grade`` is its ``queue_grade``;
 * :mod:`.assignment_links` — assignments offered to deep linking, their marks
   queued for the LMS (:meth:`LtiService.follow_assignments`);
 * :mod:`.services` — OAuth 2 client credentials and the HTTP calls.
@@ -25,7 +25,6 @@ import secrets
 import threading
 import time
 from collections.abc import Callable, Iterable
-from datetime import datetime
 
 from argon2 import PasswordHasher
 
@@ -80,6 +79,12 @@ class LtiService:
         self.launches = LtiLaunches(db, clock, hasher, self.jwks)
         self.client = PlatformClient(self.keys, clock)
         self.grades = GradeOutbox(db, clock, self.client)
+        #: Queue a score for an LMS line item: :meth:`.GradeOutbox.queue_grade` itself
+        #: (declared there once).
+        self.queue_grade = self.grades.queue_grade
+        #: Queue a lab user's mark for the LMS activities that link a target (what
+        #: "an assignment was marked" calls): :meth:`.GradeOutbox.queue_for_user`.
+        self.queue_grade_for_user = self.grades.queue_for_user
         self.roster = RosterSync(db, clock, hasher, self.client)
         self.linkable = LinkableItems()
         rig_list = list(rigs)
@@ -105,56 +110,6 @@ class LtiService:
         """
         return follow_assignments(
             self._db, assignments, self.linkable, self.queue_grade_for_user, self.kick
-        )
-
-    def queue_grade(
-        self,
-        *,
-        platform_id: int,
-        lineitem_url: str,
-        sub: str,
-        score_given: float,
-        score_maximum: float,
-        timestamp: datetime | None = None,
-        comment: str | None = None,
-    ) -> int:
-        """Queue a score for an LMS line item (what "assignment marked" calls).
-
-        See :meth:`thermolab.lab.lti.grades.GradeOutbox.queue_grade`.
-        """
-        return self.grades.queue_grade(
-            platform_id=platform_id,
-            lineitem_url=lineitem_url,
-            sub=sub,
-            score_given=score_given,
-            score_maximum=score_maximum,
-            timestamp=timestamp,
-            comment=comment,
-        )
-
-    def queue_grade_for_user(
-        self,
-        *,
-        user_id: int,
-        target: str,
-        score_given: float,
-        score_maximum: float,
-        timestamp: datetime | None = None,
-        comment: str | None = None,
-    ) -> list[int]:
-        """Queue a lab user's mark for the LMS activities that link ``target``.
-
-        What "an assignment was marked (or re-marked)" calls with
-        ``target="assignment:<id>"``; see
-        :meth:`thermolab.lab.lti.grades.GradeOutbox.queue_for_user`.
-        """
-        return self.grades.queue_for_user(
-            user_id=user_id,
-            target=target,
-            score_given=score_given,
-            score_maximum=score_maximum,
-            timestamp=timestamp,
-            comment=comment,
         )
 
     def kick(self) -> None:

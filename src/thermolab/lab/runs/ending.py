@@ -12,6 +12,7 @@ it, on the run's own thread (a run's row and samples are :mod:`.store`'s).
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
@@ -27,8 +28,9 @@ from thermolab.lab.runs.active import ActiveRun
 from thermolab.lab.runs.statistics import method_statistics
 from thermolab.lab.runs.timing import timing_summary
 from thermolab.runner import EndReason, RunResult
+from thermolab.runner.results import MethodResult
 
-__all__ = ["SERVER_STOPPED", "RunEnd", "end_of_run", "save_end", "status_of"]
+__all__ = ["SERVER_STOPPED", "RunEnd", "end_of_run", "method_results", "save_end", "status_of"]
 
 log = logging.getLogger(__name__)
 
@@ -65,8 +67,7 @@ def end_of_run(active: ActiveRun, result: RunResult, *, simulated: bool) -> RunE
     """Return what to store of the run ``active`` that ended with ``result``.
 
     ``simulated``: the rig is a twin (its timing is judged against its own clock).
-    A method whose statistics fail keeps its result without them (logged): the
-    figures are a summary and never cost the run.
+    Each method's result: :func:`method_results`.
     """
     status = status_of(result.end_reason)
     if active.stopped_by == SERVER_STOPPED:
@@ -76,22 +77,34 @@ def end_of_run(active: ActiveRun, result: RunResult, *, simulated: bool) -> RunE
         reason = f"{reason}: {result.message}"
     if result.end_reason is EndReason.ENDED and active.stopped_by:
         reason = f"ended by {active.stopped_by}"
-    results: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {}
-    for name, method in result.methods.items():
-        identifier = active.identifiers.get(name)
-        data = method.to_dict(trajectory=True)
-        try:  # computed once, here, and stored with the result
-            data["stats"] = method_statistics(name, identifier, data.get("latest"))
-        except ThermoLabError as exc:
-            log.warning("run %s: statistics of %s failed: %s", active.run_id, name, exc)
-        results[name] = (_params(identifier), data)
+    results = method_results(active.run_id, result.methods, active.identifiers)
     timing = timing_summary(result.t_read, result.lateness, result.dt, simulated=simulated)
     control = None if result.control is None else json_safe(result.control)
     return RunEnd(status, reason, results, timing, control)
 
 
-def _params(identifier: OnlineIdentifier | None) -> dict[str, Any]:
-    return dict(identifier.params) if identifier is not None else {}
+def method_results(
+    run_id: int,
+    methods: Mapping[str, MethodResult],
+    identifiers: Mapping[str, OnlineIdentifier],
+) -> dict[str, tuple[dict[str, Any], dict[str, Any]]]:
+    """Each method's ``(settings, result)`` as a run stores them, the result with its figures.
+
+    The one place a run's results are made, in-process (:func:`end_of_run`) or
+    on a rig host's samples (:mod:`thermolab.lab.agents.estimates`). A method
+    whose statistics fail keeps its result without them (logged): the figures
+    are a summary and never cost the run.
+    """
+    results: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {}
+    for name, method in methods.items():
+        identifier = identifiers.get(name)
+        data = method.to_dict(trajectory=True)
+        try:  # computed once, here, and stored with the result
+            data["stats"] = method_statistics(name, identifier, data.get("latest"))
+        except (ThermoLabError, ArithmeticError, ValueError) as exc:
+            log.warning("run %s: statistics of %s failed: %s", run_id, name, exc)
+        results[name] = (dict(identifier.params) if identifier is not None else {}, data)
+    return results
 
 
 def status_of(reason: EndReason) -> RunStatus:

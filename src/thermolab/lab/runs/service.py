@@ -23,6 +23,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable
+from dataclasses import dataclass
 from datetime import timedelta
 from typing import Any
 
@@ -40,14 +41,14 @@ from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Run
-from thermolab.lab.devices import DeviceHub
+from thermolab.lab.devices import DeviceHub, PublishedRig
 from thermolab.lab.runs.active import ActiveRun
 from thermolab.lab.runs.commands import end_run, hand_input, loop_state, send_command
 from thermolab.lab.runs.control import build_control_loop
 from thermolab.lab.runs.ending import SERVER_STOPPED, end_of_run, save_end
 from thermolab.lab.runs.export import RunExport
 from thermolab.lab.runs.reading import RunReading
-from thermolab.lab.runs.request import RunRequest, check_run_length, plan_run
+from thermolab.lab.runs.request import RunPlan, RunRequest, check_run_length, plan_run
 from thermolab.lab.runs.store import (
     DatabaseRecorder,
     RunRecord,
@@ -57,6 +58,7 @@ from thermolab.lab.runs.store import (
     run_channels,
 )
 from thermolab.lab.users import Principal
+from thermolab.records import ChannelSpec
 from thermolab.rigs import RigSpec
 from thermolab.runner import (
     EndReason,
@@ -67,7 +69,7 @@ from thermolab.runner import (
     closed_loop_channels,
 )
 
-__all__ = ["RunService"]
+__all__ = ["RunService", "StartPlan", "plan_on_rig", "plan_start", "store_start"]
 
 log = logging.getLogger(__name__)
 
@@ -78,6 +80,70 @@ HANDOVER_WAIT = 30.0
 
 def _no_checkpoint(name: str) -> None:
     """The default :attr:`RunService.checkpoint`: START goes straight through."""
+
+
+@dataclass(frozen=True, slots=True)
+class StartPlan:
+    """What a START decides before it stores the run, in-process or on a rig host."""
+
+    plan: RunPlan  #: the checked request and its identifiers (:func:`.request.plan_run`)
+    length: float  #: the run's real seconds (within the rig's and a course's limit)
+    channels: tuple[ChannelSpec, ...]  #: in the rig's units (a closed loop adds its own)
+
+
+def plan_on_rig(
+    config: LabConfig, hub: DeviceHub, rig_id: str, request: RunRequest
+) -> tuple[RunPlan, PublishedRig]:
+    """:func:`.request.plan_run` on the rig: its published input range and, for the live
+    block and recursive methods, its kind's typical dead time as their delay."""
+    published = hub.published(rig_id)
+    dead_time = RigSpec.parse(config.rig(rig_id).spec).typical_dead_time
+    return plan_run(request, (published.input_min, published.input_max), dead_time), published
+
+
+def plan_start(
+    config: LabConfig, hub: DeviceHub, access: AccessService, rig_id: str, request: RunRequest
+) -> StartPlan:
+    """Check a START on the rig: the plan, the length a course's slot allows, the channels.
+
+    Both STARTs (:meth:`RunService.start`, :class:`thermolab.lab.agents.RemoteRuns`)
+    decide it here, before they take the rig's lock. Errors: :func:`.request.plan_run`,
+    :func:`.request.check_run_length`.
+    """
+    plan, published = plan_on_rig(config, hub, rig_id, request)
+    limits = access.course_limits(rig_id)  # a course's, during its slot
+    length = check_run_length(request, rig_id, config, limits)
+    channels = run_channels(published.input_unit, published.output_unit)
+    return StartPlan(plan, length, channels)
+
+
+def store_start(
+    access: AccessService,
+    rig_id: str,
+    who: Principal,
+    start: StartPlan,
+    channels: tuple[ChannelSpec, ...],
+) -> tuple[int, int]:
+    """Store the run in the locked transaction of ``who``'s turn; ``(run id, turn id)``.
+
+    ``AccessDeniedError`` when ``who`` does not control the rig; :func:`.store.add_run`'s errors.
+    """
+    with access.controlled(rig_id, who, "start a run") as turn:
+        meta = {
+            "operating_point": start.plan.operating_point.to_dict(),
+            # The run's planned end: the queue's estimated wait counts it.
+            "ends_at": (turn.now + timedelta(seconds=start.length)).isoformat(),
+        }
+        run_id = add_run(
+            turn.session,
+            turn.control,
+            who,
+            turn.now,
+            settings=start.plan.settings,
+            meta=meta,
+            channels=channels,
+        )
+        return run_id, turn.control.id
 
 
 class RunService(RunReading):
@@ -167,12 +233,8 @@ class RunService(RunReading):
             If the rig has no device.
         """
         self._config.rig(rig_id)  # an unknown rig is a 404, before anything reads its device
-        published = self._hub.published(rig_id)
-        # Live block and recursive methods take the rig kind's typical dead time as their delay.
-        dead_time = RigSpec.parse(self._config.rig(rig_id).spec).typical_dead_time
-        plan = plan_run(request, (published.input_min, published.input_max), dead_time)
-        limits = self._access.course_limits(rig_id)  # a course's, during its slot
-        length = check_run_length(request, rig_id, self._config, limits)
+        start = plan_start(self._config, self._hub, self._access, rig_id, request)
+        plan = start.plan
         driver = self._hub.driver(rig_id)
         if driver is None:
             raise ConflictError(f"rig {rig_id!r} has no device attached; a run needs one")
@@ -185,7 +247,7 @@ class RunService(RunReading):
         self.checkpoint("start:arrived")
         if arrived_in is not None:  # without a turn START is refused (403) below
             self._await_previous_turn(rig_id, arrived_in)
-        channels = run_channels(published.input_unit, published.output_unit)
+        channels = start.channels
         if loop is not None:
             channels = (*channels, *closed_loop_channels(driver, loop))
 
@@ -204,22 +266,7 @@ class RunService(RunReading):
                     )
                 raise self._still_ending(rig_id, going)
             try:
-                with self._access.controlled(rig_id, who, "start a run") as turn:
-                    meta = {
-                        "operating_point": plan.operating_point.to_dict(),
-                        # The run's planned end: the queue's estimated wait counts it.
-                        "ends_at": (turn.now + timedelta(seconds=length)).isoformat(),
-                    }
-                    run_id = add_run(
-                        turn.session,
-                        turn.control,
-                        who,
-                        turn.now,
-                        settings=plan.settings,
-                        meta=meta,
-                        channels=channels,
-                    )
-                    control_id = turn.control.id
+                run_id, control_id = store_start(self._access, rig_id, who, start, channels)
             except AccessDeniedError:
                 if arrived_in is None:
                     raise  # the caller had no turn: not allowed, not a lost race

@@ -7,9 +7,8 @@
 
 import { api } from "../api.js";
 import { announce, h, setText } from "../dom.js";
-import { formatDecimal, t } from "../i18n.js";
-import { checkNumber, rangeText } from "../validate.js";
-import { TEXTS } from "./settings.js";
+import { t } from "../i18n.js";
+import { loadingSection, numberField, readNumber } from "./settings.js";
 
 /**
  * The limits of course ``name``, as a section of the course page; it loads itself.
@@ -17,21 +16,15 @@ import { TEXTS } from "./settings.js";
  * @returns {HTMLElement}
  */
 export function courseLimitsSection(name) {
-  const body = h("div", null, h("p", { class: "muted" }, t("app.loading")));
-  const box = h(
-    "section",
+  return loadingSection(
     { class: "course-limits", "aria-labelledby": "course-limits-heading" },
-    h("h3", { id: "course-limits-heading" }, t("courseLimits.heading")),
-    h("p", { class: "muted", id: "course-limits-rule" }, t("courseLimits.rule")),
-    body,
+    [
+      h("h3", { id: "course-limits-heading" }, t("courseLimits.heading")),
+      h("p", { class: "muted", id: "course-limits-rule" }, t("courseLimits.rule")),
+    ],
+    () => api.courseSettings(name),
+    (data, reload) => limitsForm(name, data, reload),
   );
-  const load = () =>
-    api
-      .courseSettings(name)
-      .then((data) => body.replaceChildren(limitsForm(name, data, load)))
-      .catch((err) => body.replaceChildren(h("p", { class: "error", role: "alert" }, err.message)));
-  void load();
-  return box;
 }
 
 /**
@@ -46,24 +39,11 @@ function limitsForm(name, data, reload) {
   const rows = [];
   for (const s of data.settings) {
     const id = `course-limit-${s.name}`;
-    const [labelKey, helpKey] = TEXTS[/** @type {keyof typeof TEXTS} */ (s.name)] ?? [null, null];
-    const label = labelKey ? t(labelKey) : s.name;
-    const spec = { label, min: s.minimum, max: s.maximum, unit: "s" };
+    const { label, spec, el, hints } = numberField(s, id, "s", { disabled: !s.overridden });
     const own = h("input", { type: "checkbox", id: `${id}-own`, checked: s.overridden });
-    const el = h("input", {
-      id,
-      name: s.name,
-      value: s.value === null || s.value === undefined ? "" : formatDecimal(s.value),
-      inputmode: "decimal",
-      autocomplete: "off",
-      disabled: !s.overridden,
-      "aria-describedby": `${id}-hint`,
-    });
     own.addEventListener("change", () => {
       el.disabled = !own.checked;
     });
-    const hints = [helpKey ? t(helpKey) : s.help, t("settings.range", { range: rangeText(spec) })];
-    if (s.nullable) hints.push(t("settings.emptyAllowed"));
     fields.set(s.name, { own, el, setting: s, spec });
     rows.push(
       h(
@@ -92,18 +72,9 @@ function limitsForm(name, data, reload) {
     for (const [key, { own, el, setting, spec }] of fields) {
       el.removeAttribute("aria-invalid");
       if (!own.checked) continue;
-      if (el.value.trim() === "" && setting.nullable) {
-        values[key] = null;
-        continue;
-      }
-      const r = checkNumber(el.value, spec);
-      if (!r.ok) {
-        el.setAttribute("aria-invalid", "true");
-        setText(message, r.error);
-        el.focus();
-        return;
-      }
-      values[key] = r.value;
+      const value = readNumber(el, setting, spec, message);
+      if (value === undefined) return;
+      values[key] = value;
     }
     save.disabled = true;
     try {

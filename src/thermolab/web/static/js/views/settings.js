@@ -30,21 +30,89 @@ const CHOICES = { none: "settings.choiceNone", ambient: "settings.choiceAmbient"
  */
 export function settingsSection(rigId) {
   const hid = `settings-${rigId}`;
-  const body = h("div", null, h("p", { class: "muted" }, t("app.loading")));
-  const box = h(
-    "section",
+  return loadingSection(
     { class: "rig-settings", "aria-labelledby": hid, "data-settings": rigId },
-    h("h3", { id: hid }, t("settings.heading")),
-    h("p", { class: "muted" }, t("settings.when")),
-    body,
+    [h("h3", { id: hid }, t("settings.heading")), h("p", { class: "muted" }, t("settings.when"))],
+    () => api.rigSettings(rigId),
+    (data, reload) => settingsForm(rigId, data, reload),
   );
+}
+
+/**
+ * A section that loads its form (a rig's settings, a course's limits): "loading",
+ * then the form drawn from the server's answer, or the error; ``reload`` draws it again.
+ * @param {Record<string, string>} attrs  the section's attributes
+ * @param {Node[]} head  what stands above the form
+ * @param {() => Promise<any>} read  the request
+ * @param {(data: any, reload: () => Promise<unknown>) => HTMLElement} draw
+ * @returns {HTMLElement}
+ */
+export function loadingSection(attrs, head, read, draw) {
+  const body = h("div", null, h("p", { class: "muted" }, t("app.loading")));
+  const box = h("section", attrs, ...head, body);
   const load = () =>
-    api
-      .rigSettings(rigId)
-      .then((data) => body.replaceChildren(settingsForm(rigId, data, load)))
+    read()
+      .then((data) => body.replaceChildren(draw(data, load)))
       .catch((err) => body.replaceChildren(h("p", { class: "error", role: "alert" }, err.message)));
   void load();
   return box;
+}
+
+/**
+ * A declared setting's label and help in the page's language (the server's words if none).
+ * @param {any} s  the server's declaration
+ * @returns {{label: string, help: string}}
+ */
+function settingTexts(s) {
+  const [labelKey, helpKey] = TEXTS[/** @type {keyof typeof TEXTS} */ (s.name)] ?? [null, null];
+  return { label: labelKey ? t(labelKey) : s.name, help: helpKey ? t(helpKey) : s.help };
+}
+
+/**
+ * A declared number setting's label, checked range and input, as both forms draw it.
+ * @param {any} s  the server's declaration (name, minimum, maximum, value, nullable, help)
+ * @param {string} id  the input's id (its hint is ``${id}-hint``)
+ * @param {string} unit
+ * @param {Record<string, unknown>} [attrs]  more attributes of the input
+ * @returns {{label: string, spec: any, el: HTMLInputElement, hints: string[]}}
+ */
+export function numberField(s, id, unit, attrs = {}) {
+  const { label, help } = settingTexts(s);
+  const spec = { label, min: s.minimum, max: s.maximum, unit };
+  const el = /** @type {HTMLInputElement} */ (
+    h("input", {
+      id,
+      name: s.name,
+      value: s.value === null || s.value === undefined ? "" : formatDecimal(s.value),
+      inputmode: "decimal",
+      autocomplete: "off",
+      "aria-describedby": `${id}-hint`,
+      ...attrs,
+    })
+  );
+  const hints = [help, t("settings.range", { range: rangeText(spec) })];
+  if (s.nullable) hints.push(t("settings.emptyAllowed"));
+  return { label, spec, el, hints };
+}
+
+/**
+ * A number field's value as the server takes it (empty: null where allowed), or
+ * undefined after marking the field and saying why in ``message``.
+ * @param {HTMLInputElement | HTMLSelectElement} el
+ * @param {any} setting  the server's declaration
+ * @param {any} spec  the field's label and range
+ * @param {HTMLElement} message
+ * @returns {number | null | undefined}
+ */
+export function readNumber(el, setting, spec, message) {
+  el.removeAttribute("aria-invalid");
+  if (el.value.trim() === "" && setting.nullable) return null;
+  const r = checkNumber(el.value, spec);
+  if (r.ok) return r.value;
+  el.setAttribute("aria-invalid", "true");
+  setText(message, r.error);
+  el.focus();
+  return undefined;
 }
 
 /**
@@ -59,19 +127,17 @@ function settingsForm(rigId, data, reload) {
   const rows = [];
   for (const s of data.settings) {
     const id = `settings-${rigId}-${s.name}`;
-    const [labelKey, helpKey] = TEXTS[s.name] ?? [null, null];
-    const label = labelKey ? t(labelKey) : s.name;
     const unit = s.unit === "s" ? "s" : s.unit === "input" ? data.inputUnit : s.unit === "output" ? data.outputUnit : "";
-    const spec = { label, min: s.minimum, max: s.maximum, unit };
-    let el;
-    const hints = [helpKey ? t(helpKey) : s.help];
-    if (s.type === "choice") {
-      el = h("select", { id, name: s.name }, s.choices.map((c) => h("option", { value: c, selected: c === s.value }, c in CHOICES ? t(CHOICES[c]) : c)));
-    } else {
-      el = h("input", { id, name: s.name, value: s.value === null ? "" : formatDecimal(s.value), inputmode: "decimal", autocomplete: "off", "aria-describedby": `${id}-hint` });
-      hints.push(t("settings.range", { range: rangeText(spec) }));
-      if (s.nullable) hints.push(t("settings.emptyAllowed"));
-    }
+    const { label, help } = settingTexts(s);
+    const field =
+      s.type === "choice"
+        ? {
+            spec: { label },
+            el: h("select", { id, name: s.name }, s.choices.map((c) => h("option", { value: c, selected: c === s.value }, c in CHOICES ? t(CHOICES[c]) : c))),
+            hints: [help],
+          }
+        : numberField(s, id, unit);
+    const { spec, el, hints } = field;
     hints.push(t(APPLIES[s.applies] ?? "settings.appliesNow"));
     fields.set(s.name, { el, setting: s, spec });
     rows.push(h("div", { class: "field" }, h("label", { for: id }, label), el, h("span", { class: "hint", id: `${id}-hint` }, hints.join(" "))));
@@ -91,20 +157,8 @@ function settingsForm(rigId, data, reload) {
     /** @type {Record<string, number | string | null>} */
     const values = {};
     for (const [name, { el, setting, spec }] of fields) {
-      el.removeAttribute("aria-invalid");
-      let value;
-      if (setting.type === "choice") value = el.value;
-      else if (el.value.trim() === "" && setting.nullable) value = null;
-      else {
-        const r = checkNumber(el.value, spec);
-        if (!r.ok) {
-          el.setAttribute("aria-invalid", "true");
-          setText(message, r.error);
-          el.focus();
-          return;
-        }
-        value = r.value;
-      }
+      const value = setting.type === "choice" ? el.value : readNumber(el, setting, spec, message);
+      if (value === undefined) return;
       if (value !== setting.value) values[name] = value;
     }
     save.disabled = true;
