@@ -217,3 +217,25 @@ def test_the_snippet_escapes_the_alt_text() -> None:
     assert info.markdown("a]b\\c [d]\n\te") == "![a\\]b\\\\c \\[d\\] e](/api/guide-images/3)"
     html = render_markdown(info.markdown("a]b [d]"))
     assert 'alt="a]b [d]"' in html
+
+
+def test_an_upload_sent_in_chunks_is_cut_at_its_allowance(teacher_and_student: Any) -> None:
+    client, tina, _ = teacher_and_student
+    head = (
+        b'--b\r\nContent-Disposition: form-data; name="file"; filename="x.png"\r\n'
+        b"Content-Type: image/png\r\n\r\n"
+    )
+    chunks = iter([head, *([b"\0" * 512 * 1024] * 5), b"\r\n--b--\r\n"])  # no length declared
+    answer = client.post(
+        UPLOAD,
+        headers={**tina, "content-type": "multipart/form-data; boundary=b"},
+        content=chunks,
+    )
+    assert (answer.status_code, answer.json()["code"]) == (413, "image_too_large")
+    # Other routes keep the lab's own limit and code.
+    other = client.put(
+        "/api/rigs/twin/guide/theory",
+        headers={**tina, "content-type": "application/json"},
+        content=iter([b'{"markdown": "', b"x" * 70_000, b'"}']),
+    )
+    assert (other.status_code, other.json()["code"]) == (413, "body_too_large")
