@@ -52,6 +52,8 @@ TABLES = {
     "lti_grades",
     # Limits per course (issue #10, item 3).
     "course_settings",
+    # Pictures of the guide pages (issue #10, item 1).
+    "guide_images",
 }
 
 
@@ -72,7 +74,7 @@ def test_migrations_create_the_schema_of_the_models(fresh_url: str) -> None:
         assert db.current_revision() is None
         db.upgrade()
         db.upgrade()  # idempotent
-        assert db.current_revision() == "0016"
+        assert db.current_revision() == "0017"
         assert set(db.table_names()) == TABLES | {"alembic_version"}
         with db.engine.connect() as connection:
             context = MigrationContext.configure(connection, opts={"compare_type": True})

@@ -3,7 +3,9 @@
 In Portuguese (Brazil) and English, against a real ``thermolab serve`` and
 Chromium: the teacher's Markdown (with maths and a hostile image) is saved as
 a revision, and the student's "Guide" button on panel 1 opens the drawer at
-that section, maths drawn as MathML, the handler gone, and no editor.
+that section, maths drawn as MathML, the handler gone, and no editor. A teacher
+inserts a picture at the editor's cursor (an SVG refused with the catalogue's
+sentence), saves, and the student's drawer shows it loaded.
 """
 
 from __future__ import annotations
@@ -103,6 +105,82 @@ def test_a_teacher_edits_panel_1_guide_and_a_student_sees_it_beside_panel_1(
         seen.locator("[data-testid=guide] nav button[data-section=theory]").click()
         assert shown.locator("math").count() >= 10
         seen.screenshot(path=str(artifacts / f"guide-student-{lang}.png"))
+    finally:
+        teacher.close()
+        student.close()
+
+
+def _png(width: int, height: int) -> bytes:
+    import io
+
+    from PIL import Image
+
+    out = io.BytesIO()
+    Image.new("RGB", (width, height), (30, 90, 200)).save(out, "PNG")
+    return out.getvalue()
+
+
+def test_a_teacher_inserts_a_picture_and_the_student_sees_it_loaded(
+    logged_in: Any, lab: Any, artifacts: Path
+) -> None:
+    teacher = logged_in("tess", locale="en-US", viewport={"width": 1280, "height": 900})
+    student = logged_in("alice", locale="en-US", viewport={"width": 1280, "height": 900})
+    try:
+        page = teacher.new_page()
+        page.goto(f"{lab.url}/#/rig/{RIG}")
+        page.locator("#panel-srm-lsm button[data-guide=panel-1]").click()
+        page.wait_for_function(
+            "() => document.querySelector('[data-testid=guide-meta]').textContent.length > 0",
+            timeout=30_000,
+        )  # the guide was read
+        page.click("[data-testid=guide-edit]")
+        source = page.locator("[data-testid=guide-source]")
+        source.wait_for()
+        status = page.locator("[data-testid=guide] p[role=status]")
+        # An SVG is refused, with the catalogue's sentence for the server's code.
+        page.set_input_files(
+            "[data-testid=guide-image-file]",
+            files=[{"name": "x.svg", "mimeType": "image/svg+xml", "buffer": b"<svg></svg>"}],
+        )
+        page.click("[data-testid=guide-image-insert]")
+        page.wait_for_function(
+            "() => document.querySelector('[data-testid=guide] p[role=status]').textContent"
+            ".includes('Only PNG, JPEG, GIF and WebP')",
+            timeout=30_000,
+        )
+        assert "/api/guide-images/" not in source.input_value()
+        # A PNG goes in at the cursor: after the heading line.
+        source.fill("# Step response\n\nThe rig:")
+        source.evaluate("el => el.setSelectionRange(el.value.length, el.value.length)")
+        page.set_input_files(
+            "[data-testid=guide-image-file]",
+            files=[{"name": "rig.png", "mimeType": "image/png", "buffer": _png(120, 80)}],
+        )
+        page.fill("[data-testid=guide-image-alt]", "The rig from the front")
+        page.click("[data-testid=guide-image-insert]")
+        page.wait_for_function(
+            "() => document.querySelector('[data-testid=guide-source]').value.includes('/api/')",
+            timeout=30_000,
+        )
+        text = source.input_value()
+        assert text.startswith("# Step response\n\nThe rig:![The rig from the front](/api/")
+        assert "uploaded" in status.inner_text()
+        page.screenshot(path=str(artifacts / "guide-picture-editor.png"))
+        page.locator(".guide-editor button.primary").click()  # save
+        page.locator("[data-testid=guide-text] img").wait_for()
+
+        seen = student.new_page()
+        seen.goto(f"{lab.url}/#/rig/{RIG}")
+        seen.locator("#panel-srm-lsm button[data-guide=panel-1]").click()
+        image = seen.locator("[data-testid=guide-text] img")
+        image.wait_for()
+        assert image.get_attribute("alt") == "The rig from the front"
+        seen.wait_for_function(
+            "() => document.querySelector('[data-testid=guide-text] img').complete",
+            timeout=30_000,
+        )
+        assert image.evaluate("img => img.naturalWidth") == 120  # it loaded (CSP, cookie)
+        seen.screenshot(path=str(artifacts / "guide-picture-student.png"))
     finally:
         teacher.close()
         student.close()

@@ -105,6 +105,13 @@ ERROR_SENTENCES: Mapping[str, str] = {
         "Your browser blocks the lab's cookies inside the LMS: open the lab in a new window."
     ),
     "lti_returning": "Returning to the LMS with your choice.",
+    # Pictures of the guide pages (issue #10, item 1).
+    "image_invalid": "The file is not a picture the lab can read, or it is damaged.",
+    "image_type_unsupported": "Only PNG, JPEG, GIF and WebP pictures are accepted.",
+    "image_too_large": (
+        "The picture's file is too large: save it smaller (as JPEG, for a photo) and try again."
+    ),
+    "image_too_many_pixels": "The picture has too many pixels: scale it down and try again.",
 }
 
 

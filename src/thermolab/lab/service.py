@@ -29,7 +29,7 @@ from thermolab.lab.courses import CourseService
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Role
 from thermolab.lab.devices import DesiredState, DeviceHub, RigOpener
-from thermolab.lab.guides import SECTIONS, GuideService
+from thermolab.lab.guides import SECTIONS, GuideImageService, GuideService
 from thermolab.lab.lease import DatabaseLease
 from thermolab.lab.login_sessions import SessionService
 from thermolab.lab.lti import LtiService
@@ -218,6 +218,7 @@ class Lab:
         self.bookings = BookingService(self.db, self.clock, config)
         # Each rig's guide pages: shipped defaults, teachers' revisions.
         self.guides = GuideService(self.db, self.clock, config)
+        self.guide_images = GuideImageService(self.db, self.clock, config)
         # Assignments, hand-ins, automatic marks, grades (and the "submission marked" hook).
         self.assignments = AssignmentService(self.db, self.clock, config)
         # A course's figures, with each student's assignment state.

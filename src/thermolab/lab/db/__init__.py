@@ -11,6 +11,7 @@ from thermolab.lab.db import (  # noqa: F401
     assignment_models,
     booking_models,
     course_settings_models,
+    guide_image_models,
     lti_models,
     power_models,
     settings_models,

@@ -40,6 +40,7 @@ from thermolab.lab.http.forward import ForwardToOwner, refuse_agent_link
 from thermolab.lab.http.limits import BodyLimit
 from thermolab.lab.http.live_socket import LiveEndpoint
 from thermolab.lab.http.routers import api_router
+from thermolab.lab.http.routers.guide_images import CACHEABLE_PREFIX, UPLOAD_ALLOWANCE
 from thermolab.lab.http.routers.lti import LTI_CROSS_SITE_PATHS
 from thermolab.lab.service import Lab
 
@@ -153,12 +154,15 @@ def create_app(
     install_api_docs(app)
     if static_dir is not None:
         app.mount("/", StaticFiles(directory=static_dir, html=True), name="web")
-    app.add_middleware(BodyLimit, max_bytes=config.access.max_body_bytes)
+    app.add_middleware(
+        BodyLimit, max_bytes=config.access.max_body_bytes, allowances=[UPLOAD_ALLOWANCE]
+    )
     app.add_middleware(
         BrowserGuard,
         frame_ancestors=config.access.frame_ancestors,
         more_ancestors=the_lab.lti.platforms.frame_origins,
         cross_site_paths=LTI_CROSS_SITE_PATHS,
+        cacheable_prefixes=[CACHEABLE_PREFIX],
     )
     if fleet is not None and fleet.role == "follower":
         app.add_middleware(ForwardToOwner, owner_url=lambda: fleet.owner_url)

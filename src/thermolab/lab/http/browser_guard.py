@@ -22,7 +22,9 @@
   keep it so), ``frame-ancestors`` from ``access.frame_ancestors`` (default
   ``'self'``: clickjacking), ``X-Content-Type-Options: nosniff``,
   ``Referrer-Policy: same-origin``, and ``Cache-Control: no-store`` on the API
-  and its schema (answers carry personal data and session state).
+  and its schema (answers carry personal data and session state) — except
+  that an answer under one of ``cacheable_prefixes`` that brings its own
+  ``Cache-Control`` keeps it (a guide's pictures, which never change).
 
 The API docs pages (``/docs``, ``/redoc``) get the same policy except that
 their renderers need inline *styles* and a worker from ``blob:``; scripts stay
@@ -160,6 +162,9 @@ class BrowserGuard:
     cross_site_paths : iterable of str
         Paths a page of another site may POST to: the LTI login and launch,
         authenticated by the platform's signed token, never by a cookie.
+    cacheable_prefixes : iterable of str
+        API paths whose answers may say how long they are cached (their own
+        ``Cache-Control``); any other API answer is ``no-store``.
 
     A response that brings its own Content-Security-Policy keeps it (the
     LTI deep-linking answer posts a form to the platform).
@@ -172,11 +177,13 @@ class BrowserGuard:
         frame_ancestors: Iterable[str] = ("'self'",),
         more_ancestors: Callable[[], tuple[str, ...]] | None = None,
         cross_site_paths: Iterable[str] = (),
+        cacheable_prefixes: Iterable[str] = (),
     ) -> None:
         self.app = app
         self._base = tuple(frame_ancestors)
         self._more = more_ancestors
         self._cross_site = frozenset(cross_site_paths)
+        self._cacheable = tuple(cacheable_prefixes)
         self._ancestors: tuple[str, ...] | None = None
         self._policies(self._base)
 
@@ -218,14 +225,17 @@ class BrowserGuard:
             self._policies(self._base + tuple(o for o in more if o not in self._base))
         csp = self._docs_csp if path.startswith(_DOCS_PATHS) else self._csp
         no_store = path.startswith(_NO_STORE_PREFIXES)
+        may_cache = bool(self._cacheable) and path.startswith(self._cacheable)
         extra = [*self._headers, (b"content-security-policy", csp)]
 
         async def send_with_headers(message: Message) -> None:
+            nonlocal no_store
             if message["type"] == "http.response.start":
+                given = message.get("headers", ())
+                if may_cache and any(k.lower() == b"cache-control" for k, _ in given):
+                    no_store = False
                 headers = [
-                    (k, v)
-                    for k, v in message.get("headers", ())
-                    if not (no_store and k.lower() == b"cache-control")
+                    (k, v) for k, v in given if not (no_store and k.lower() == b"cache-control")
                 ]
                 own = any(k.lower() == b"content-security-policy" for k, _ in headers)
                 headers += [h for h in extra if not (own and h[0] == b"content-security-policy")]

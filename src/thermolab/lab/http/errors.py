@@ -55,6 +55,12 @@ from thermolab.errors import (
 from thermolab.lab.camera import CameraError
 from thermolab.lab.error_messages import LANGUAGE_COOKIE, error_message, negotiate_language
 from thermolab.lab.fanout import CLOSE_BAD_REQUEST, CLOSE_UNAUTHORIZED, MAX_SEQ
+from thermolab.lab.guides.images import (
+    ImageInvalidError,
+    ImagePixelsError,
+    ImageTooLargeError,
+    ImageTypeError,
+)
 from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.deps import COOKIE_NAME
 from thermolab.lab.http.schemas import ValidationErrorOut
@@ -128,6 +134,11 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     LtiUnknownDeploymentError: HttpFault(400, "lti_unknown_deployment"),
     LtiJwksUnreachableError: HttpFault(502, "lti_jwks_unreachable"),
     LtiServiceError: HttpFault(502, "lti_service_failed"),
+    # Pictures of the guide pages (issue #10, item 1).
+    ImageInvalidError: HttpFault(422, "image_invalid"),
+    ImageTypeError: HttpFault(415, "image_type_unsupported"),
+    ImageTooLargeError: HttpFault(413, "image_too_large"),
+    ImagePixelsError: HttpFault(422, "image_too_many_pixels"),
 }
 _OTHER = HttpFault(400, "bad_request")
 _HTTP_CODES = {404: "not_found", 405: "method_not_allowed", 413: "body_too_large"}
@@ -252,7 +263,8 @@ def install_error_handlers(app: FastAPI) -> None:
             detail = f"nothing at {request.method} {path}; see /openapi.json"
         elif status == 405:
             detail = f"{request.method} is not allowed on {path}; use {headers.get('Allow', '')}"
-        code = _HTTP_CODES.get(status, "http_error")
+        own = getattr(exc, "code", None)  # a body limit's own code (http/limits.py)
+        code = own if isinstance(own, str) else _HTTP_CODES.get(status, "http_error")
         language = request_language(request.headers, request.cookies)
         return error_response(status, detail, code, headers, language=language)
 

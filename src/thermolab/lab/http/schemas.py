@@ -93,6 +93,8 @@ class ValidationErrorOut(_Out):
         "setpoint_out_of_range",
         "no_output_unit",
         "setting_out_of_range",
+        "image_invalid",
+        "image_too_many_pixels",
     ] = Field(
         description="invalid_request: the request does not match the schema (a body that is "
         "not UTF-8 JSON included); invalid_parameter: the values match the schema but the lab "
@@ -100,7 +102,8 @@ class ValidationErrorOut(_Out):
         "class_list_invalid: a class list with bad lines (one entry of errors per line); "
         "gain_out_of_range, setpoint_out_of_range, no_output_unit: the closed loop's refusals; "
         "setting_out_of_range: a teacher setting outside the rig's allowed range (the message "
-        "names the range)"
+        "names the range); image_invalid, image_too_many_pixels: a guide picture that is not "
+        "a readable picture, or has too many pixels"
     )
     message: str | None = Field(
         default=None, description="the code's sentence in the reader's language"

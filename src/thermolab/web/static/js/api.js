@@ -82,8 +82,9 @@ export function setUnauthorizedHandler(fn) {
  * @param {string} method
  * @param {string} path starting with /api/
  * @param {unknown} [body] sent as JSON
- * @param {{signal?: AbortSignal, quiet401?: boolean, raw?: ArrayBuffer, rawType?: string}} [opts]
- *   raw: bytes sent as they are (a file), with Content-Type rawType
+ * @param {{signal?: AbortSignal, quiet401?: boolean, raw?: ArrayBuffer, rawType?: string, form?: FormData}} [opts]
+ *   raw: bytes sent as they are (a file), with Content-Type rawType;
+ *   form: a multipart form (files), its Content-Type (with the boundary) set by the browser
  */
 export async function request(method, path, body, opts = {}) {
   /** @type {RequestInit} */
@@ -99,6 +100,8 @@ export async function request(method, path, body, opts = {}) {
   } else if (opts.raw !== undefined) {
     init.headers = { Accept: "application/json", "Accept-Language": language(), "Content-Type": opts.rawType ?? "application/octet-stream" };
     init.body = opts.raw;
+  } else if (opts.form !== undefined) {
+    init.body = opts.form;
   }
   let res;
   try {

@@ -9,7 +9,9 @@
 //
 // Teachers also get an editor: the section's Markdown in a textarea, a preview
 // (the server's rendering), Save (a new revision), and the list of revisions
-// (who, when) with View and Restore.
+// (who, when) with View and Restore. "Insert picture" uploads a file (checked
+// and cleaned by the server) and puts its Markdown, ![alt](/api/guide-images/N),
+// at the textarea's cursor.
 
 import { request } from "../api.js";
 import { h, replaceChildren, setText, when } from "../dom.js";
@@ -39,7 +41,17 @@ const guideApi = {
   revision: (rig, id) => request("GET", `/api/rigs/${enc(rig)}/guide-revisions/${enc(id)}`),
   restore: (rig, id) => request("POST", `/api/rigs/${enc(rig)}/guide-revisions/${enc(id)}/restore`),
   preview: (markdown) => request("POST", "/api/guide-preview", { markdown }),
+  /** @param {string} rig @param {File} file @param {string} alt */
+  uploadImage: (rig, file, alt) => {
+    const form = new FormData();
+    form.append("file", file);
+    form.append("alt", alt);
+    return request("POST", `/api/rigs/${enc(rig)}/guide-images`, undefined, { form });
+  },
 };
+
+/** The picture types the lab takes (the server checks them again with Pillow). */
+const IMAGE_ACCEPT = "image/png,image/jpeg,image/gif,image/webp";
 
 /**
  * Put the server's sanitised HTML in an element. It is parsed into an inert
@@ -161,12 +173,20 @@ export class GuideDrawer {
       "aria-label": t("guide.source") });
     const preview = h("div", { class: "guide-text guide-preview", "data-testid": "guide-preview" });
     const revisions = h("ul", { class: "guide-revisions", "data-testid": "guide-revisions" });
+    const imageFile = h("input", { type: "file", accept: IMAGE_ACCEPT, "data-testid": "guide-image-file" });
+    const imageAlt = h("input", { type: "text", maxlength: "200", "data-testid": "guide-image-alt" });
     const form = h("div", { class: "guide-editor", hidden: true },
       textarea,
       h("div", { class: "buttons" },
         h("button", { type: "button", onclick: () => void this._preview() }, t("guide.preview")),
         h("button", { type: "button", class: "primary", onclick: () => void this._save() }, t("guide.save")),
         h("button", { type: "button", onclick: () => this._closeEditor() }, t("guide.cancel")),
+      ),
+      h("div", { class: "guide-image" },
+        h("label", { class: "field" }, t("guide.imageFile"), " ", imageFile),
+        h("label", { class: "field" }, t("guide.imageAlt"), " ", imageAlt),
+        h("button", { type: "button", "data-testid": "guide-image-insert",
+          onclick: () => void this._insertImage() }, t("guide.imageInsert")),
       ),
       h("h3", null, t("guide.previewHeading")),
       preview,
@@ -175,7 +195,33 @@ export class GuideDrawer {
     );
     const editButton = h("button", { type: "button", "data-testid": "guide-edit",
       onclick: () => void this._openEditor() }, t("guide.edit"));
-    return { el: h("div", null, editButton, form), form, textarea, preview, revisions, editButton };
+    return { el: h("div", null, editButton, form), form, textarea, preview, revisions, editButton,
+      imageFile, imageAlt };
+  }
+
+  /** Upload the chosen picture and put its Markdown at the cursor (the server's message on a refusal). */
+  async _insertImage() {
+    const ed = this.editor;
+    if (!ed) return;
+    const file = ed.imageFile.files?.[0];
+    if (!file) {
+      setText(this.status, t("guide.imageChoose"));
+      ed.imageFile.focus();
+      return;
+    }
+    try {
+      const image = await guideApi.uploadImage(this.rigId, file, ed.imageAlt.value.trim());
+      const area = ed.textarea;
+      const start = area.selectionStart ?? area.value.length;
+      const end = area.selectionEnd ?? start;
+      area.setRangeText(image.markdown, start, end, "end");
+      ed.imageFile.value = "";
+      ed.imageAlt.value = "";
+      setText(this.status, t("guide.imageInserted"));
+      area.focus();
+    } catch (err) {
+      setText(this.status, err.message);
+    }
   }
 
   async _openEditor() {
