@@ -203,6 +203,20 @@ class RemoteRuns:
             remote.stopped_by = remote.stopped_by or "end of the turn at the controls"
             self._agents.send(rig_id, EndRun(run=remote.run_id))
 
+    def adopt(self, rig_id: str, run_id: int, control_session: int) -> None:
+        """Take over run ``run_id``, going on the rig's host, from a dead owner worker.
+
+        A standby that becomes the owner (docs/fleet.md, "Takeover") knows the
+        run from its row only: its END, inputs and end of turn work as for a
+        run started here, its samples are stored and streamed as they come;
+        the online identifiers started on the dead owner are not rebuilt (the
+        run's end is stored without method results).
+        """
+        with self._hub.locked(rig_id):
+            if rig_id not in self._remote:
+                self._remote[rig_id] = _RemoteRun(run_id, control_session, RemoteIdentification({}))
+                self._hub.claim(rig_id)
+
     def running(self, rig_id: str) -> int | None:
         """The id of the run going on the rig, if any."""
         remote = self._remote.get(rig_id)
