@@ -8,7 +8,8 @@ rigs are all on rig hosts) may become the owner without a restart when the
 owner's lease lapses (:meth:`FollowerLab.promote`): it takes the lease (of
 several standbys, one wins: the lease row's lock), opens the devices, and
 recovers as a restarted owner would, except that control sessions and queue
-places stay as the database has them — the same controller goes on:
+places stay as the database has them — the same controller goes on (their
+heartbeats count from the takeover: the followers refused them meanwhile):
 
 * a run that was going on an in-process rig of the dead owner is marked
   interrupted (its device is opened anew, at its safe input);
@@ -21,14 +22,15 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
+from datetime import timedelta
 from typing import Any
 
-from sqlalchemy import select
+from sqlalchemy import select, update
 
 from thermolab.lab.access.queries import SERVER_STOPPED
 from thermolab.lab.config import LabConfig
 from thermolab.lab.config.rig_kinds import PublishedRig
-from thermolab.lab.db.models import Run, RunStatus
+from thermolab.lab.db.models import ControlSession, QueueEntry, Run, RunStatus
 from thermolab.lab.lease import LeaseHeldError
 from thermolab.lab.service import Lab, StartupReport
 
@@ -115,6 +117,8 @@ class FollowerLab(Lab):
             interrupted, remote = self._recover()
             for rig_id, run_id, control in remote:
                 self.remote_runs.adopt(rig_id, run_id, control)
+            # The hosts were the dead owner's: each gets its run's grace to dial in here.
+            self.agents.expect_hosts(self.clock.now() + timedelta(seconds=self.agents.grace))
             self.agents.check(self.clock.now())
             for rig in self.config.rigs:
                 self._reconcile(rig.id)
@@ -133,6 +137,13 @@ class FollowerLab(Lab):
         remote: list[tuple[str, int, int]] = []
         now = self.clock.now()
         with self.db.write() as session:
+            # While no one owned, followers refused the heartbeats (503): the gap is the
+            # lab's, not the students' — no turn or queue place ends for it.
+            for kind, ended in (
+                (ControlSession, ControlSession.ended_at),
+                (QueueEntry, QueueEntry.left_at),
+            ):
+                session.execute(update(kind).where(ended.is_(None)).values(last_heartbeat_at=now))
             going = session.scalars(select(Run).where(Run.status == RunStatus.RUNNING.value))
             for run in going:
                 if run.rig_id in self.remote_rigs and run.control_session_id is not None:
