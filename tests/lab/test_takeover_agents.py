@@ -8,7 +8,8 @@ student starts a run through the follower; the owner is killed with SIGKILL
 mid-run. The follower takes over, the agent's link moves to it (it stops
 refusing), the same run goes on under the same control session, a watcher on
 the follower keeps its socket and its ``seq`` never goes back, the student's
-END through the follower ends the run, and the stored samples have no gap.
+END through the follower ends the run with its method results (the
+identifiers built again), and the stored samples have no gap.
 Skipped, with the reason, where PostgreSQL or Redis is absent.
 """
 
@@ -184,6 +185,8 @@ def test_a_rig_hosts_run_goes_on_under_the_standby_after_the_owner_is_killed(
             lambda: (r := http.get(f"/api/runs/{run_id}").json())["status"] != "running" and r,
         )
     assert run["status"] == "stopped", run
+    # Its identifiers were built again by the new owner, fed what was stored before.
+    assert "lsm" in run["results"], run
     watcher.stop.set()
     watcher.join(timeout=60)
     assert watcher.error is None, watcher.error

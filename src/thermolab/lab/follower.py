@@ -13,9 +13,9 @@ heartbeats count from the takeover: the followers refused them meanwhile):
 
 * a run that was going on an in-process rig of the dead owner is marked
   interrupted (its device is opened anew, at its safe input);
-* a run going on a rig host is adopted (:meth:`RemoteRuns.adopt`): the host
-  keeps sampling through its grace and, once it dials the new owner, its
-  samples and its end are stored as before.
+* a run going on a rig host is adopted (:meth:`RemoteRuns.adopt`, its
+  identifiers built again): the host keeps sampling through its grace and,
+  once it dials the new owner, its samples and its end are stored as before.
 """
 
 from __future__ import annotations

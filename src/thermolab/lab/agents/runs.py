@@ -27,14 +27,23 @@ from dataclasses import dataclass, field
 from datetime import timedelta
 from typing import Any
 
+from sqlalchemy import select
+
 from thermolab.agent.protocol import EndRun, RunEnded, SampleBatch, SetInput, StartRun
-from thermolab.errors import AccessDeniedError, ConflictError, NotFoundError, RunInProgressError
+from thermolab.errors import (
+    AccessDeniedError,
+    ConflictError,
+    NotFoundError,
+    RunInProgressError,
+    ThermoLabError,
+)
 from thermolab.lab.access import AccessService
 from thermolab.lab.agents.estimates import RemoteIdentification
 from thermolab.lab.agents.hub import AgentHub
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
+from thermolab.lab.db.models import Run, Sample
 from thermolab.lab.devices import DeviceHub
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.runs.ending import RunEnd, save_end, status_of
@@ -207,15 +216,51 @@ class RemoteRuns:
         """Take over run ``run_id``, going on the rig's host, from a dead owner worker.
 
         A standby that becomes the owner (docs/fleet.md, "Takeover") knows the
-        run from its row only: its END, inputs and end of turn work as for a
-        run started here, its samples are stored and streamed as they come;
-        the online identifiers started on the dead owner are not rebuilt (the
-        run's end is stored without method results).
+        run from the store: its END, inputs and end of turn work as for a run
+        started here, its samples are stored and streamed as they come, and
+        its online identifiers are built again from the stored request and
+        fed the samples stored so far (a run whose rig's range changed since keeps
+        none: its end is then stored without method results).
         """
+        identification = self._identification_of(rig_id, run_id)
         with self._hub.locked(rig_id):
             if rig_id not in self._remote:
-                self._remote[rig_id] = _RemoteRun(run_id, control_session, RemoteIdentification({}))
+                self._remote[rig_id] = _RemoteRun(run_id, control_session, identification)
                 self._hub.claim(rig_id)
+
+    def _identification_of(self, rig_id: str, run_id: int) -> RemoteIdentification:
+        with self._db.read() as session:
+            run = session.get(Run, run_id)
+            asked = {} if run is None else dict(run.meta.get("settings") or {})
+            stored = session.execute(
+                select(Sample.k, Sample.u, Sample.y)
+                .where(Sample.run_id == run_id)
+                .order_by(Sample.k)
+            ).all()
+        published = self._hub.published(rig_id)
+        dead_time = RigSpec.parse(self._config.rig(rig_id).spec).typical_dead_time
+        try:
+            request = RunRequest(
+                dt=asked["dt"],
+                samples=asked["samples"],
+                signal=asked.get("signal"),
+                setpoint=asked.get("setpoint"),
+                methods=tuple(asked.get("methods") or ()),
+                window=asked.get("window"),
+                block=asked.get("block"),
+                gamma=asked.get("gamma"),
+                pmax=asked.get("pmax"),
+                w0=None if asked.get("w0") is None else tuple(asked["w0"]),
+                offset=asked.get("offset", "auto"),
+            )
+            plan = plan_run(request, (published.input_min, published.input_max), dead_time)
+        except (KeyError, TypeError, ThermoLabError) as exc:  # the rig's range changed since
+            log.warning("run %s: its identifiers could not be built again: %s", run_id, exc)
+            return RemoteIdentification({})
+        identification = RemoteIdentification(plan.identifiers)
+        for k, u, y in stored:  # in order; a gap stops them (the later ones are not counted)
+            identification.feed(k, u, y)
+        return identification
 
     def running(self, rig_id: str) -> int | None:
         """The id of the run going on the rig, if any."""
