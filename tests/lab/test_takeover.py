@@ -8,7 +8,9 @@ killed with SIGKILL; within the lease's expiry (a deadline far above it: the
 machine is loaded) exactly one standby owns (the lease row names it, one log
 says it took over), the run that was going is interrupted, the same control
 session still has the rig, GET and POST under ``/api/rigs`` work through every
-worker, and no watcher lost its socket or saw its ``seq`` go back. Skipped,
+worker, and no watcher lost its socket or saw its ``seq`` go back. An owner
+that only hangs (SIGSTOP past the lease's expiry, then SIGCONT) finds its
+lease taken and stops by itself; the same student still controls. Skipped,
 with the reason, where PostgreSQL or Redis is absent.
 """
 
@@ -174,6 +176,10 @@ def test_killing_the_owner_hands_the_rigs_to_one_standby_with_the_same_controlle
         assert started.status_code == 201, started.text
         first_run: int = started.json()["id"]
     (turn,) = _open_turns(fleet.db)
+    page = threading.Thread(
+        target=_heartbeats, args=(fleet.follower, ana, stop := threading.Event()), daemon=True
+    )
+    page.start()  # ana's page, as a browser's: a heartbeat every 2 s (503s while no one owns)
     watchers = [SeqWatcher(worker, fleet.cookies["bo"]) for worker in followers]
     for watcher in watchers:
         watcher.start()
@@ -231,3 +237,51 @@ def test_killing_the_owner_hands_the_rigs_to_one_standby_with_the_same_controlle
     took = [w for w in fleet.standbys if TAKEN_OVER in w.log.read_text()]
     assert took == [new_owner]
     assert _open_turns(fleet.db) == [turn]
+    stop.set()
+    page.join(timeout=60)
+
+
+def test_an_owner_that_stalled_past_its_lease_stops_and_the_standby_keeps_the_rigs(
+    fleet: Takeover,
+) -> None:
+    ana = fleet.cookies["ana"]
+    answer = httpx.post(
+        fleet.follower.base + "/api/rigs/twin/control", headers={"Cookie": ana}, timeout=30
+    )
+    assert answer.status_code == 200, answer.text
+    (turn,) = _open_turns(fleet.db)
+    page = threading.Thread(
+        target=_heartbeats, args=(fleet.follower, ana, stop := threading.Event()), daemon=True
+    )
+    page.start()  # ana's page, as a browser's: a heartbeat every 2 s (503s while no one owns)
+    # The owner hangs (alive, not renewing): the standbys wait for the lease to run out.
+    fleet.owner.process.send_signal(signal.SIGSTOP)
+    pids = {w.process.pid: w for w in fleet.standbys}
+    try:
+        new_owner: Worker = _wait_for(
+            "a standby takes the run-out lease", lambda: pids.get(_lease_pid(fleet.db) or -1)
+        )
+    finally:
+        fleet.owner.process.send_signal(signal.SIGCONT)
+    # Woken, the old owner finds the lease taken and stops (no two owners).
+    _wait_for("the old owner stops", lambda: fleet.owner.process.poll() is not None)
+    assert "another worker took over the rigs' lease" in fleet.owner.log.read_text()
+    assert _lease_pid(fleet.db) == new_owner.process.pid
+    # The ownerless gap (over the lease's 15 s) ended no turn: the same student controls.
+    assert _open_turns(fleet.db) == [turn]
+    for worker in [*fleet.standbys, fleet.follower]:
+        rig = _wait_for(
+            f"{worker.base} answers", lambda w=worker: (r := _rig(w, ana)).status_code == 200 and r
+        )
+        assert rig.json()["access"]["role"] == "controller"
+    stop.set()
+    page.join(timeout=60)
+
+
+def _heartbeats(worker: Worker, cookie: str, stop: threading.Event) -> None:
+    with httpx.Client(base_url=worker.base, headers={"Cookie": cookie}, timeout=30) as http:
+        while not stop.wait(2.0):
+            try:
+                http.post("/api/rigs/twin/heartbeat")
+            except httpx.HTTPError:
+                continue
