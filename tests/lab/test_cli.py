@@ -283,6 +283,16 @@ def test_serve_refuses_a_busy_port_and_a_bad_config(
     assert err.strip() == f"error: {config}: rigs[0].idle_limit: expected a number, got str 'x'"
     status, _, err = run(["serve", "--speedup", "-3"], capsys, monkeypatch)
     assert (status, err.strip()) == (1, "error: --speedup: expected a finite number > 0, got -3.0")
+    # A standby takes the rigs over from an owner it hears on a broker: none, no standby.
+    status, _, err = run(
+        ["--data-dir", str(tmp_path), "serve", "--port", str(_free_port()), "--standby"],
+        capsys,
+        monkeypatch,
+    )
+    assert (status, err.strip()) == (
+        2,
+        "error: --standby: a standby follows an owner; give --broker too",
+    )
 
 
 def _free_port() -> int:

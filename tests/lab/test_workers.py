@@ -79,6 +79,7 @@ def _free_port() -> int:
 class Worker:
     process: subprocess.Popen[bytes]
     base: str
+    log: Path
 
     @property
     def ws(self) -> str:
@@ -92,12 +93,12 @@ class Fleet:
     cookies: dict[str, str]
 
 
-def _start(tmp: Path, url: str, broker: str | None) -> Worker:
+def _start(tmp: Path, url: str, broker: str | None, *more: str) -> Worker:
     port = _free_port()
     env = dict(os.environ, THERMOLAB_DATA_DIR=str(tmp))
     log = tmp / f"worker-{port}.log"
     with log.open("wb") as err:
-        process = _popen(tmp, url, broker, port, env, err)
+        process = _popen(tmp, url, broker, port, env, err, *more)
     base = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + 90
     while True:
@@ -105,14 +106,14 @@ def _start(tmp: Path, url: str, broker: str | None) -> Worker:
             raise AssertionError(f"the worker stopped: {log.read_text()}")
         try:
             httpx.get(base + "/api/version", timeout=1.0)
-            return Worker(process, base)
+            return Worker(process, base, log)
         except httpx.HTTPError:
             assert time.monotonic() < deadline, "the worker did not start"
             time.sleep(0.2)
 
 
 def _popen(
-    tmp: Path, url: str, broker: str | None, port: int, env: dict[str, str], err: Any
+    tmp: Path, url: str, broker: str | None, port: int, env: dict[str, str], err: Any, *more: str
 ) -> subprocess.Popen[bytes]:
     return subprocess.Popen(
         [
@@ -127,6 +128,7 @@ def _popen(
             "--database-url",
             url,
             *(["--broker", broker] if broker else []),
+            *more,
         ],
         env=env,
         stdout=subprocess.DEVNULL,

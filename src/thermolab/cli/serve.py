@@ -137,6 +137,12 @@ def register(subparsers: Any) -> None:
         help="this worker's address for the other workers (http://HOST:PORT of --host/--port)",
     )
     parser.add_argument(
+        "--standby",
+        action="store_true",
+        help="as a follower, take the rigs over when their owner's lease lapses (only on a "
+        "machine that can open the lab's devices; docs/fleet.md)",
+    )
+    parser.add_argument(
         "--max-connections",
         type=int,
         default=CONNECTION_LIMIT,
@@ -248,9 +254,15 @@ def _serve(args: argparse.Namespace) -> int:
         )
     if not 0 < args.agent_grace <= 3600:
         raise CliError(f"--agent-grace {args.agent_grace:g}: use 0 < S <= 3600", status=2)
+    if args.standby and args.broker is None:
+        raise CliError("--standby: a standby follows an owner; give --broker too", status=2)
     url = args.advertise or f"http://{args.host}:{args.port}"
     lab, fleet, report = start_worker(
-        config, opener=device_opener(config.speedup), broker=args.broker, url=url
+        config,
+        opener=device_opener(config.speedup),
+        broker=args.broker,
+        url=url,
+        standby=args.standby,
     )
     lab.agents.grace = args.agent_grace
     lab.agents.notify = _mailer(args, config.title)
@@ -261,7 +273,8 @@ def _serve(args: argparse.Namespace) -> int:
         print(f"  database: {lab.db.display_url}", file=sys.stderr)
         print(f"  rigs: {rigs}", file=sys.stderr)
         if fleet is not None:
-            print(f"  broker: {args.broker} ({fleet.role})", file=sys.stderr)
+            standing = " on standby" if getattr(lab, "standby", False) else ""
+            print(f"  broker: {args.broker} ({fleet.role}{standing})", file=sys.stderr)
         if config.speedup != 1.0:
             print(
                 f"  simulated rigs run {config.speedup:g}x faster than real time", file=sys.stderr

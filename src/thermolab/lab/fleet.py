@@ -8,6 +8,12 @@ recovery, exactly as a lone server. Every later worker, finding the lease
 held by an owner that announces itself on the bus, starts as a **follower**
 (:class:`FollowerLab`): no devices, no start-up recovery, no sweep. Without a
 broker the held lease still refuses the second process (fail closed).
+A **standby** follower (``--standby``, or any follower when every rig is on
+a rig host) watches the owner's lease and, when it lapses (the owner killed),
+takes it and owns the rigs from then on without a restart
+(:meth:`FollowerLab.promote`; of several standbys the lease lets one win):
+same control sessions and queue, its channels numbering on from the last
+``seq`` heard, its address announced, so the other followers forward to it.
 
 What crosses the bus (:class:`Fleet`):
 
@@ -34,18 +40,18 @@ import dataclasses
 import hashlib
 import json
 import logging
+import os
+import signal
 import threading
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Literal
 
-from sqlalchemy import select
-
 from thermolab.lab.bus import Bus, open_bus
 from thermolab.lab.config import LabConfig
 from thermolab.lab.config.rig_kinds import PublishedRig
-from thermolab.lab.db.models import Run, RunStatus
 from thermolab.lab.devices import RigOpener
+from thermolab.lab.follower import FollowerLab
 from thermolab.lab.lease import LeaseHeldError
 from thermolab.lab.service import Lab, StartupReport
 
@@ -64,51 +70,6 @@ OWNER_SILENCE = 5.0
 Role = Literal["alone", "owner", "follower"]
 
 
-class FollowerLab(Lab):
-    """A lab that serves but owns no rig: no devices, no start-up recovery, no sweep.
-
-    The owner (another process) does what touches a rig or a run's limits;
-    this lab reads and writes the shared database for everything else.
-    """
-
-    def __init__(self, config: LabConfig, **options: Any) -> None:
-        super().__init__(config, **options)
-        # The run going on a rig is the owner's (in its memory); here the store says which:
-        # a live client's hello and the replay of what it missed read it.
-        self.runs.running = self._running_in_store  # type: ignore[method-assign]
-        # What each rig accepts (its range, whether a device is attached) is the owner's:
-        # it announces it, and a follower's views say the same.
-        self._published: dict[str, PublishedRig] = {}
-        self._configured = self.hub.published
-        self.hub.published = self._published_by_owner  # type: ignore[method-assign]
-
-    def adopt_published(self, rig_id: str, published: PublishedRig) -> None:
-        """Take what the owner announced that rig ``rig_id`` accepts."""
-        self._published[rig_id] = published
-
-    def _published_by_owner(self, rig_id: str) -> PublishedRig:
-        published = self._published.get(rig_id)
-        return published if published is not None else self._configured(rig_id)
-
-    def _running_in_store(self, rig_id: str) -> int | None:
-        with self.db.read() as session:
-            run_id: int | None = session.scalar(
-                select(Run.id).where(Run.rig_id == rig_id, Run.status == RunStatus.RUNNING.value)
-            )
-        return run_id
-
-    def start(self) -> StartupReport:
-        """Migrate (a no-op when the owner did) and report; runs and turns are the owner's."""
-        if self._report is None:
-            self.db.upgrade()
-            self._report = StartupReport(teachers=self.users.count_teachers(), faults={})
-        return self._report
-
-    def sweep(self) -> list[str]:
-        """Nothing: limits and hand-overs are the owner's (the database holds them)."""
-        return []
-
-
 class Fleet:
     """This worker's part in a fleet of workers joined by a bus.
 
@@ -117,13 +78,15 @@ class Fleet:
     bus : Bus
     role : {"alone", "owner", "follower"}
     url : str, optional
-        Where the owner is reached (its own address, announced to followers).
+        Where this worker is reached (an owner announces it to followers; a
+        standby follower, once promoted).
     """
 
     def __init__(self, bus: Bus, role: Role, *, url: str | None = None) -> None:
         self.bus = bus
         self.role: Role = role
         self.url = url
+        self._standby: threading.Thread | None = None
         self._owner: tuple[str, float] | None = None  # (address, monotonic time heard)
         self._heard = threading.Event()
         self._seqs: dict[str, int] = {}
@@ -162,12 +125,7 @@ class Fleet:
         self._access = access_changed
         self._lab = lab
         if self.role == "owner":
-            for channel in fanout.channels.values():
-                channel.relay = self._relay
-            self._announcer = threading.Thread(
-                target=self._announce_forever, name="fleet-announce", daemon=True
-            )
-            self._announcer.start()
+            self._own()
         elif self.role == "follower":
             self._adopt_published()
             for rig_id, seq in self._seqs.items():
@@ -176,6 +134,11 @@ class Fleet:
                     heard.follow(seq)
             self.bus.subscribe("live", self._heard_live)
             self.bus.subscribe("access", self._heard_access)
+            if isinstance(lab, FollowerLab) and lab.standby:
+                self._standby = threading.Thread(
+                    target=self._stand_by, args=(lab,), name="fleet-standby", daemon=True
+                )
+                self._standby.start()
 
     def access_changed(self, rig_id: str) -> None:
         """Tell the other workers that a rig's access changed (the owner's lab calls it)."""
@@ -192,19 +155,58 @@ class Fleet:
         """Nothing: as :meth:`run_changed`."""
 
     def close(self) -> None:
-        """Stop announcing and leave the bus."""
+        """Stop announcing (or standing by) and leave the bus."""
         self._stop.set()
+        if self._standby is not None:
+            self._standby.join(timeout=30)
         if self._announcer is not None:
             self._announcer.join(timeout=5)
         self.bus.close()
 
     # -- the owner's side --------------------------------------------------------------------
 
+    def _own(self) -> None:
+        # The live stream goes on from each channel's seq (the old owner's last, on a
+        # promoted follower): one seq space across the takeover, no reset for any client.
+        fanout = self._fanout
+        for channel in () if fanout is None else fanout.channels.values():
+            channel.relay = self._relay
+        self._announcer = threading.Thread(
+            target=self._announce_forever, name="fleet-announce", daemon=True
+        )
+        self._announcer.start()
+
+    def _promoted(self) -> None:
+        self.role = "owner"
+        self._owner = None
+        self._own()
+
+    def _stand_by(self, lab: FollowerLab) -> None:
+        # A standby watches the owner's lease; when it lapses, one standby takes it
+        # (FollowerLab.promote) and owns the rigs from then on, in this process.
+        while not self._stop.wait(ANNOUNCE_INTERVAL):
+            try:
+                if not lab.promote(self._promoted):
+                    continue
+            except Exception:  # the database unreachable: ask again
+                log.exception("a standby worker could not take over the rigs")
+                continue
+            log.warning("this worker now owns the rigs (%s)", self.url)
+            return
+
     def _relay(self, rig_id: str, text: str) -> None:
         self.bus.publish("live", f"{rig_id}\n{text}".encode())
 
     def _announce_forever(self) -> None:
         while not self._stop.is_set():
+            lease = None if self._lab is None else self._lab.lease
+            if lease is not None and lease.lost:
+                # Stalled past the lease's expiry, this worker was replaced (a standby took
+                # over): two owners must not drive one rig. Stop the way a server stops
+                # (runs ended, actuators safe); restarted, it follows the new owner.
+                log.critical("another worker took over the rigs' lease: this worker stops")
+                os.kill(os.getpid(), signal.SIGTERM)
+                return
             fanout = self._fanout
             seqs = {} if fanout is None else {r: c.seq for r, c in fanout.channels.items()}
             lab = self._lab
@@ -220,6 +222,8 @@ class Fleet:
     # -- a follower's side -------------------------------------------------------------------
 
     def _heard_owner(self, data: bytes) -> None:
+        if self.role != "follower":
+            return  # its own announcement, heard back
         news: dict[str, Any] = json.loads(data)
         url = news.get("url")
         if isinstance(url, str):
@@ -242,6 +246,8 @@ class Fleet:
                 lab.adopt_published(rig_id, PublishedRig(**fields))
 
     def _heard_live(self, data: bytes) -> None:
+        if self.role != "follower":
+            return  # promoted: its own messages, heard back
         rig_id, _, text = data.decode().partition("\n")
         fanout = self._fanout
         channel = None if fanout is None else fanout.channels.get(rig_id)
@@ -249,14 +255,24 @@ class Fleet:
             channel.publish_numbered(json.loads(text), text)
 
     def _heard_access(self, data: bytes) -> None:
-        if self._access is not None:
+        if self._access is not None and self.role == "follower":
             self._access(data.decode())
 
 
 def start_worker(
-    config: LabConfig, *, opener: RigOpener | None, broker: str | None, url: str
+    config: LabConfig,
+    *,
+    opener: RigOpener | None,
+    broker: str | None,
+    url: str,
+    standby: bool = False,
 ) -> tuple[Lab, Fleet | None, StartupReport]:
     """Start this process's lab: alone (no broker), the owner, or a follower.
+
+    A follower stands by to take the rigs over (:meth:`FollowerLab.promote`)
+    when ``standby`` (``--standby``: this machine can open the lab's devices)
+    or when every rig of the lab is on a rig host (``agent = true``: the hosts
+    dial in to whichever worker owns).
 
     Raises
     ------
@@ -276,14 +292,15 @@ def start_worker(
         lab.close()
         if bus is None:
             raise
-        fleet = Fleet(bus, "follower")
+        fleet = Fleet(bus, "follower", url=url)
         if not fleet.wait_for_owner(3 * ANNOUNCE_INTERVAL + 2.0):
             bus.close()
             raise LeaseHeldError(
                 f"{held} (the server holding it does not announce itself on the broker "
                 f"{broker}: start it with the same --broker)"
             ) from None
-        follower = FollowerLab(config)
+        remote_only = all(rig.agent for rig in config.rigs)
+        follower = FollowerLab(config, standby=standby or remote_only, opener=opener)
         try:
             return follower, fleet, follower.start()
         except BaseException:

@@ -9,8 +9,12 @@ second); another process may take it over only when it has run out, or at
 once when the holder is a process of the same host that no longer exists
 (``kill -9``: the next start need not wait). A process that finds the lease
 held refuses to start (:class:`LeaseHeldError`), before start-up touches any
-run or control session. Written by hand: no library keeps a lease in a SQL
-database that both SQLite and PostgreSQL serve.
+run or control session. A standby worker of a fleet (``docs/fleet.md``) asks
+:meth:`DatabaseLease.lapsed` about once a second and, when it is, takes the
+lease with :meth:`DatabaseLease.acquire` like a starting server: of several
+standbys, exactly one wins (tests/lab/test_lease_race.py). Written by hand:
+no library keeps a lease in a SQL database that both SQLite and PostgreSQL
+serve.
 """
 
 from __future__ import annotations
@@ -57,6 +61,8 @@ class DatabaseLease:
         self.pid = os.getpid()
         self.token = new_token()
         self.held = False
+        self.lost = False
+        """``True`` once a renewal found the lease taken by another process."""
 
     def acquire(self) -> None:
         """Take the lease, or refuse.
@@ -97,12 +103,25 @@ class DatabaseLease:
             lease.acquired_at = now
             lease.expires_at = now + self._ttl
 
+    def lapsed(self) -> bool:
+        """Whether the lease is free to take now: no row, run out, or its holder gone.
+
+        A read only (a standby worker asks it about once a second); taking it
+        is :meth:`acquire`'s, under the row lock, so of several askers one wins.
+        """
+        with self._db.read() as session:
+            lease = session.get(ServerLease, 1)
+            if lease is None or lease.token == self.token:
+                return lease is None
+            return lease.expires_at <= self._clock.now() or self._gone(lease)
+
     def renew(self) -> bool:
         """Extend the lease; ``False`` if another process has taken it meanwhile."""
         with self._db.write() as session:
             lease = session.get(ServerLease, 1)
             if lease is None or lease.token != self.token:
                 self.held = False
+                self.lost = True
                 return False
             lease.expires_at = self._clock.now() + self._ttl
         return True

@@ -303,8 +303,11 @@ class Lab:
         """
         with self._sweep_lock:
             now = self.clock.now()
-            if self.lease is not None and self.lease.held and not self.lease.renew():
+            lease = self.lease
+            if lease is not None and lease.held and not lease.renew():
                 log.critical("another server process took over this database's lease")
+            if lease is not None and lease.lost:
+                return []  # turns and limits are the new holder's now (docs/fleet.md)
             self.hub.poll(now)
             self._announce_readings(now)
             for rig in self.config.rigs:

@@ -34,6 +34,7 @@ from thermolab.lab.db.models import (
 from thermolab.lab.db.power_models import PowerChange
 
 __all__ = [
+    "SERVER_STOPPED",
     "active",
     "head",
     "queue",
@@ -45,6 +46,9 @@ __all__ = [
     "waiting",
     "write_transition",
 ]
+
+SERVER_STOPPED = "the server stopped during the run"
+"""The end reason of a run whose server stopped (start-up recovery, a takeover)."""
 
 
 class _Q:
@@ -343,4 +347,4 @@ def reset_for_startup(session: Session, config: LabConfig, now: datetime) -> Non
     for run in session.scalars(select(Run).where(Run.status == RunStatus.RUNNING.value)):
         run.status = RunStatus.INTERRUPTED.value
         run.ended_at = now
-        run.end_reason = "the server stopped during the run"
+        run.end_reason = SERVER_STOPPED

@@ -160,6 +160,16 @@ class AgentHub:
         #: Called with ``(rig_id, samples)`` after samples are stored, and ``(rig_id, RunEnded)``.
         self.on_samples: Callable[[str, SampleBatch], None] = lambda rig, batch: None
         self.on_run_ended: Callable[[str, RunEnded], None] = lambda rig, ended: None
+        self._expected_until: datetime | None = None
+
+    def expect_hosts(self, until: datetime) -> None:
+        """Give hosts not linked yet until ``until`` to dial in before their rigs are faulted.
+
+        A standby that just took the rigs over (docs/fleet.md, "Takeover"): the
+        hosts were linked to the dead owner and are dialling their next
+        address; a run on one goes on there through the same grace.
+        """
+        self._expected_until = until
 
     def serves(self, rig_id: str) -> bool:
         """Whether ``rig_id`` is a remote rig."""
@@ -236,7 +246,8 @@ class AgentHub:
         with self._lock:
             link = self._links.get(rig_id)
         if link is None:
-            return "offline (not connected)"
+            expected = self._expected_until
+            return None if expected is not None and now < expected else "offline (not connected)"
         if status.last_contact is not None and now - status.last_contact > timedelta(
             seconds=self.heartbeat_timeout
         ):

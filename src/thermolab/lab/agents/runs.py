@@ -191,6 +191,30 @@ class RemoteRuns:
             remote.stopped_by = remote.stopped_by or "end of the turn at the controls"
             self._agents.send(rig_id, EndRun(run=remote.run_id))
 
+    def adopt(self, rig_id: str, run_id: int, control_session: int) -> None:
+        """Take over run ``run_id``, going on the rig's host, from a dead owner worker.
+
+        A standby that becomes the owner (docs/fleet.md, "Takeover") knows the
+        run from the store: its END, inputs and end of turn work as for a run
+        started here, its samples are stored and streamed as they come, and
+        its online identifiers are built again from the stored request and
+        fed the samples stored so far (a run whose rig's range changed since keeps
+        none: its end is then stored without method results).
+        """
+        identification = self._identification_of(run_id)
+        with self._hub.locked(rig_id):
+            if rig_id not in self._remote:
+                self._remote[rig_id] = _RemoteRun(run_id, control_session, identification)
+                self._hub.claim(rig_id)
+
+    def _identification_of(self, run_id: int) -> RemoteIdentification:
+        try:
+            run, _ = self._store.read(run_id)
+        except NotFoundError:
+            return RemoteIdentification({})
+        identification = self._identify_stored(run)
+        return identification if identification is not None else RemoteIdentification({})
+
     def running(self, rig_id: str) -> int | None:
         """The id of the run going on the rig, if any."""
         remote = self._remote.get(rig_id)

@@ -24,7 +24,7 @@ from collections.abc import AsyncIterator
 from pathlib import Path
 
 import anyio.to_thread
-from fastapi import FastAPI
+from fastapi import FastAPI, WebSocket
 from fastapi.staticfiles import StaticFiles
 from uvicorn.middleware.proxy_headers import ProxyHeadersMiddleware
 
@@ -101,8 +101,9 @@ def create_app(
     the_lab = lab if lab is not None else Lab(config, opener=device_opener(config.speedup))
     live = LiveEndpoint(the_lab)
     the_lab.add_listener(live)
-    if fleet is not None and fleet.role == "owner":
-        the_lab.add_listener(fleet)  # other workers hear of access changes
+    if fleet is not None:
+        # Other workers hear of access changes from the owner (a standby once promoted).
+        the_lab.add_listener(fleet)
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -145,10 +146,16 @@ def create_app(
     app.state.live = live
     app.include_router(api_router)
     app.add_api_websocket_route("/api/rigs/{rig_id}/live", live.endpoint, name="live")
+
     # Rig hosts dial in here (thermolab agent; docs/architecture.md, "Remote rigs").
-    # A follower sends them on to the owner (docs/fleet.md, "Rig hosts").
-    follower = fleet is not None and fleet.role == "follower"
-    agent_link = refuse_agent_link if follower else the_lab.agents.endpoint
+    # A follower sends them on to the owner (docs/fleet.md, "Rig hosts"); a standby
+    # promoted to owner accepts them from then on.
+    async def agent_link(ws: WebSocket) -> None:
+        if fleet is not None and fleet.role == "follower":
+            await refuse_agent_link(ws)
+        else:
+            await the_lab.agents.endpoint(ws)
+
     app.add_api_websocket_route(AGENT_LINK_PATH, agent_link, name="agent_link")
     install_error_handlers(app)
     install_api_docs(app)
@@ -165,7 +172,9 @@ def create_app(
         cacheable_prefixes=[CACHEABLE_PREFIX],
     )
     if fleet is not None and fleet.role == "follower":
-        app.add_middleware(ForwardToOwner, owner_url=lambda: fleet.owner_url)
+        app.add_middleware(
+            ForwardToOwner, owner_url=lambda: fleet.owner_url, here=lambda: fleet.role != "follower"
+        )
     if config.access.trusted_proxies:
         # Outermost, so that the guard and the routes see the client's address and scheme.
         app.add_middleware(

@@ -68,19 +68,27 @@ class ForwardToOwner:
     app : ASGIApp
     owner_url : callable
         The owner's base address now, or ``None`` when unknown.
+    here : callable, optional
+        ``True`` once this worker owns the rigs (a standby promoted): nothing
+        is forwarded from then on.
     timeout : float
         Seconds the owner has to answer.
     """
 
     def __init__(
-        self, app: ASGIApp, owner_url: Callable[[], str | None], timeout: float = 30.0
+        self,
+        app: ASGIApp,
+        owner_url: Callable[[], str | None],
+        here: Callable[[], bool] = lambda: False,
+        timeout: float = 30.0,
     ) -> None:
         self.app = app
         self.owner_url = owner_url
+        self.here = here
         self._client = httpx.AsyncClient(timeout=timeout)
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http" or not _forwarded(scope["path"]):
+        if scope["type"] != "http" or not _forwarded(scope["path"]) or self.here():
             await self.app(scope, receive, send)
             return
         owner = self.owner_url()

@@ -1,0 +1,203 @@
+"""A rig host's run lives through the owner worker's death: the standby adopts it.
+
+Real processes on a fresh PostgreSQL schema and the loopback Redis: an owner
+and a follower of a lab whose only rig is on a rig host (``agent = true``: a
+follower of such a lab stands by without ``--standby``), and
+``thermolab agent`` on a twin given both addresses, the follower's first. A
+student starts a run through the follower; the owner is killed with SIGKILL
+mid-run. The follower takes over, the agent's link moves to it (it stops
+refusing), the same run goes on under the same control session, a watcher on
+the follower keeps its socket and its ``seq`` never goes back, the student's
+END through the follower ends the run with its method results (the
+identifiers built again), and the stored samples have no gap.
+Skipped, with the reason, where PostgreSQL or Redis is absent.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+from sqlalchemy import select
+from websockets.sync.client import connect
+
+from thermolab.lab.agents import issue_secret
+from thermolab.lab.clock import SystemClock
+from thermolab.lab.db import Database
+from thermolab.lab.db.models import Sample
+from thermolab.lab.http.deps import COOKIE_NAME
+from thermolab.lab.service import Lab
+
+from .conftest import FAST_HASHER
+from .test_takeover import TAKEN_OVER, _open_turns
+from .test_workers import Worker, _start, redis_url
+from .test_workers_agents import LAB_TOML
+
+pytestmark = [pytest.mark.postgres, pytest.mark.redis, pytest.mark.slow]
+
+__all__ = ["redis_url"]  # the fixture, imported for this module's tests
+
+GRACE = "300"
+"""The rig host's grace (``--agent-grace``): far above a loaded machine's takeover."""
+
+
+@pytest.fixture
+def lab(
+    tmp_path: Path, postgres_url: str, redis_url: str
+) -> Iterator[tuple[Worker, Worker, dict[str, str], Database]]:
+    (tmp_path / "lab.toml").write_text(textwrap.dedent(LAB_TOML))
+    from thermolab.lab.config import load_config
+
+    config = load_config(tmp_path / "lab.toml", tmp_path).with_overrides(
+        database_url=postgres_url, speedup=None
+    )
+    setup = Lab(config, hasher=FAST_HASHER, database=Database(postgres_url))
+    setup.start()
+    cookies = {}
+    for name, role in [("tina", "teacher"), ("ana", "student"), ("bo", "student")]:
+        setup.users.add(name, "correct horse", role)
+        token, _ = setup.sessions.create(setup.users.get(name))
+        cookies[name] = f"{COOKIE_NAME}={token}"
+    (tmp_path / "box.secret").write_text(issue_secret(setup.db, config, SystemClock(), "box"))
+    setup.close()
+    processes: list[subprocess.Popen[bytes]] = []
+    db = Database(postgres_url)
+    try:
+        owner = _start(tmp_path, postgres_url, redis_url, "--agent-grace", GRACE)
+        processes.append(owner.process)
+        follower = _start(tmp_path, postgres_url, redis_url, "--agent-grace", GRACE)
+        processes.append(follower.process)
+        with (tmp_path / "agent.log").open("wb") as log:
+            agent = subprocess.Popen(
+                [sys.executable, "-m", "thermolab", "agent",
+                 "--lab", follower.ws, "--lab", owner.ws,
+                 "--rig", "box", "--spec", "sim:tclab",
+                 "--secret-file", str(tmp_path / "box.secret"),
+                 "--outbox", str(tmp_path / "outbox.sqlite3")],
+                env=dict(os.environ, THERMOLAB_DATA_DIR=str(tmp_path)),
+                stdout=log, stderr=subprocess.STDOUT,
+            )  # fmt: skip
+        processes.append(agent)
+        yield owner, follower, cookies, db
+    finally:
+        for process in reversed(processes):
+            if process.poll() is None:
+                process.send_signal(signal.SIGINT)
+        for process in reversed(processes):
+            try:
+                process.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+        db.close()
+
+
+def _wait_for(what: str, check: Any, timeout: float = 120.0) -> Any:
+    deadline = time.monotonic() + timeout
+    while True:
+        found = check()
+        if found:
+            return found
+        assert time.monotonic() < deadline, f"not in time: {what}"
+        time.sleep(0.5)
+
+
+class Watcher(threading.Thread):
+    def __init__(self, url: str, cookie: str) -> None:
+        super().__init__(daemon=True)
+        self.url, self.cookie = url, cookie
+        self.seqs: list[int] = []
+        self.ks: dict[int, list[int]] = {}
+        self.error: str | None = None
+        self.stop = threading.Event()
+
+    def run(self) -> None:
+        try:
+            with connect(self.url, additional_headers={"Cookie": self.cookie}) as ws:
+                while not self.stop.is_set():
+                    try:
+                        frame = json.loads(ws.recv(timeout=1.0))
+                    except TimeoutError:
+                        continue
+                    for m in frame if isinstance(frame, list) else [frame]:
+                        if "seq" in m:
+                            self.seqs.append(m["seq"])
+                        if m["type"] in ("sample", "samples"):
+                            for item in m["items"] if m["type"] == "samples" else [m]:
+                                self.ks.setdefault(item["run"], []).append(item["k"])
+        except Exception as exc:  # the socket must outlive the takeover
+            self.error = repr(exc)
+
+
+def _hosts_online(worker: Worker, cookie: str) -> bool:
+    answer = httpx.get(worker.base + "/api/agents", headers={"Cookie": cookie}, timeout=30)
+    assert answer.status_code in (200, 503), answer.text
+    # Linked, and the health check agrees (a loaded machine may fault it for a while).
+    return answer.status_code == 200 and [(h["online"], h["fault"]) for h in answer.json()] == [
+        (True, None)
+    ]
+
+
+def test_a_rig_hosts_run_goes_on_under_the_standby_after_the_owner_is_killed(
+    lab: tuple[Worker, Worker, dict[str, str], Database], tmp_path: Path
+) -> None:
+    owner, follower, cookies, db = lab
+    ana = cookies["ana"]
+    _wait_for("the agent links to the owner", lambda: _hosts_online(follower, cookies["tina"]))
+    watcher = Watcher(follower.ws + "/api/rigs/box/live", cookies["bo"])
+    watcher.start()
+    with httpx.Client(base_url=follower.base, headers={"Cookie": ana}, timeout=30) as http:
+        _wait_for(  # 409 while the health check has the rig out of service
+            "ana takes the box", lambda: http.post("/api/rigs/box/control").status_code == 200
+        )
+        started = http.post(
+            "/api/rigs/box/runs",
+            json={"dt": 0.2, "samples": 3000, "signal": "step:0:40@0.4", "methods": ["lsm"]},
+        )
+        assert started.status_code == 201, started.text
+        run_id: int = started.json()["id"]
+    (turn,) = _open_turns(db)
+    _wait_for("samples reach the watcher", lambda: len(watcher.ks.get(run_id, [])) >= 5)
+
+    owner.process.send_signal(signal.SIGKILL)
+    owner.process.wait()
+    _wait_for("the follower takes over", lambda: TAKEN_OVER in follower.log.read_text())
+    before = len(watcher.ks.get(run_id, []))
+    _wait_for(
+        "the run's samples flow again, through the new owner",
+        lambda: len(watcher.ks.get(run_id, [])) >= before + 10,
+    )
+    assert "linked to " + follower.ws in (tmp_path / "agent.log").read_text()
+    with httpx.Client(base_url=follower.base, headers={"Cookie": ana}, timeout=30) as http:
+        rig = http.get("/api/rigs/box").json()
+        assert rig["access"]["role"] == "controller"
+        ended = http.post("/api/rigs/box/runs/current/stop")
+        assert ended.status_code in (200, 202), ended.text
+        run = _wait_for(
+            "the run's end is stored",
+            lambda: (r := http.get(f"/api/runs/{run_id}").json())["status"] != "running" and r,
+        )
+    assert run["status"] == "stopped", run
+    # Its identifiers were built again by the new owner, fed what was stored before.
+    assert "lsm" in run["results"], run
+    watcher.stop.set()
+    watcher.join(timeout=60)
+    assert watcher.error is None, watcher.error
+    assert all(b > a for a, b in itertools.pairwise(watcher.seqs)), "seq went back"
+    with db.read() as session:
+        stored = select(Sample.k).where(Sample.run_id == run_id).order_by(Sample.k)
+        ks = list(session.scalars(stored))
+    assert ks == list(range(len(ks))), "a gap in the stored samples"
+    assert _open_turns(db) == [turn]
