@@ -36,6 +36,7 @@ __all__ = [
     "RunInProgressError",
     "RunStateError",
     "SetpointRangeError",
+    "SettingNotForRigError",
     "SettingRangeError",
     "SettingsChangedError",
     "SignalSpecError",
@@ -200,6 +201,17 @@ class SettingRangeError(InvalidParameterError):
         self.setting = setting
         self.minimum = minimum
         self.maximum = maximum
+        super().__init__(message)
+
+
+class SettingNotForRigError(InvalidParameterError):
+    """A teacher setting this rig does not have (the twin speed-up of a hardware rig).
+
+    ``setting`` is its name.
+    """
+
+    def __init__(self, setting: str, message: str) -> None:
+        self.setting = setting
         super().__init__(message)
 
 

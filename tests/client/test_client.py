@@ -184,7 +184,7 @@ def test_a_lab_of_another_api_version_is_refused_clearly(
     other_server: tuple[str, dict[str, Any]], api: str, message: str | None
 ) -> None:
     url, answer = other_server
-    answer.update({"name": "thermolab", "version": "9.9.9", "api": api, "speedup": 1.0})
+    answer.update({"name": "thermolab", "version": "9.9.9", "api": api})
     if message is None:
         Lab(url, "tlab_x").close()
         return

@@ -140,7 +140,8 @@ def test_the_twin_at_the_labs_speedup_one_heater_and_the_kits_other_names(
     with TwinLab(url=served_lab.url, token=token) as lab:
         note = capsys.readouterr().out
         assert "the lab's twin runs at 20x real time, not the 10x asked for" in note
-        assert "the lab's teacher sets one speed-up for every simulated rig" in note
+        assert "a teacher sets each twin's speed-up in the rig's settings (twin_speedup)" in note
+        assert lab.speedup == SPEEDUP
         assert lab.rig_id == "kit"  # the simulated rig with a heater (%)
         assert labtime.rate == SPEEDUP
         with pytest.raises(SecondHeaterError, match="one heater and one sensor: Q2"):

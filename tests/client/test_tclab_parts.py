@@ -172,4 +172,5 @@ def test_the_speedup_note_says_which_is_in_force_and_why() -> None:
     assert note is not None
     assert note.startswith("note: the lab's twin runs at 200x real time, not the real time (1x)")
     assert "a client cannot change it" in note
+    assert "a teacher sets each twin's speed-up in the rig's settings" in note
     assert note.endswith("clock() and labtime follow 200x")

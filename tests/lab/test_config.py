@@ -65,7 +65,8 @@ def test_without_a_file_the_lab_has_one_twin_and_sqlite_in_the_data_dir(tmp_path
 
 def test_a_full_file(tmp_path: Path) -> None:
     config = load_config(write(tmp_path, FULL), tmp_path)
-    assert (config.title, config.speedup) == ("Room 2.14", 20.0)
+    assert config.title == "Room 2.14"
+    assert {rig.twin_speedup for rig in config.rigs} == {20.0}  # the twins' first speed-up
     assert config.database == "postgresql://lab@db/thermolab"
     assert (config.access.client_timeout, config.access.session_lifetime) == (20.0, 3600.0)
     assert (config.access.cookie_samesite, config.access.cookie_secure) == ("lax", "always")
@@ -93,7 +94,7 @@ def test_overrides_from_the_command_line(tmp_path: Path) -> None:
     config = load_config(write(tmp_path, FULL), tmp_path).with_overrides(
         database_url="sqlite:////x.db", speedup=5
     )
-    assert (config.database, config.speedup) == ("sqlite:////x.db", 5)
+    assert (config.database, config.speedup_override) == ("sqlite:////x.db", 5)
     with pytest.raises(ConfigError, match="--speedup: expected a finite number > 0, got -1"):
         config.with_overrides(speedup=-1)
 

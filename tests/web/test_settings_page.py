@@ -2,9 +2,10 @@
 
 A lab of its own (one twin, a technician's cap on the longest run), in
 Brazilian Portuguese and English: the form is the server's declarations in
-the page's language, a value out of range is refused beside its field with
-the range, a saved value is the one in force, and the student's rig page
-shows the new turn length. The teacher's view passes axe with the form.
+the page's language (the twin's speed-up among them, the lab's
+``--speedup``), a value out of range is refused beside its field with the
+range, a saved value is the one in force, and the student's rig page shows
+the new turn length. The teacher's view passes axe with the form.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ CASES = {
         "typed": "150",
         "shown": "2 minutos 30 segundos",
         "range": "Limite do turno deve ser",
+        "speedup": "Aceleração do gêmeo",
     },
     "en": {
         "locale": "en-GB",
@@ -44,6 +46,7 @@ CASES = {
         "typed": "90",
         "shown": "1 minute 30 seconds",
         "range": "Turn limit must be",
+        "speedup": "Twin speed-up",
     },
 }
 
@@ -88,6 +91,10 @@ def test_a_teacher_changes_the_turn_limit_and_the_student_page_shows_it(
         version = int(form.get_attribute("data-version") or "0")
         # The technician's cap is the longest run's range.
         assert "7" in page.inner_text("#settings-twin-max_run_seconds-hint")
+        # The twin's speed-up, labelled in the page's language: the lab's --speedup (saved
+        # as every twin's at start).
+        assert page.inner_text('label[for="settings-twin-twin_speedup"]') == case["speedup"]
+        assert page.input_value("#settings-twin-twin_speedup") == f"{settings_lab.speedup:g}"
         # Out of range: refused beside the field, in the page's language, nothing sent.
         page.fill(field, "5")
         form.locator("button[type=submit]").click()

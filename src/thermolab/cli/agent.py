@@ -66,7 +66,12 @@ def register(subparsers: Any) -> None:
         "--outbox", metavar="FILE", help="the durable sample outbox (default: in the data folder)"
     )
     agent.add_argument(
-        "--speedup", type=float, default=1.0, metavar="X", help="twins only: X times real time"
+        "--speedup",
+        type=float,
+        default=1.0,
+        metavar="X",
+        help="twins only: X times real time (the host's own: the lab's twin_speedup setting "
+        "is for the twins the lab runs)",
     )
     agent.add_argument(
         "--ping", type=float, default=1.0, metavar="S", help="seconds between link checks (1)"

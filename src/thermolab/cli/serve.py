@@ -54,7 +54,7 @@ examples:
   thermolab serve
   thermolab --data-dir /srv/thermolab serve --host 0.0.0.0 --config lab.toml
   thermolab serve --database-url postgresql+psycopg://lab@localhost/thermolab
-  thermolab serve --speedup 50        # twins run 50x faster than real time (demos)
+  thermolab serve --speedup 50        # saves 50 as every twin's speed-up (demos)
 """
 
 
@@ -96,7 +96,8 @@ def register(subparsers: Any) -> None:
         "--speedup",
         type=float,
         metavar="X",
-        help="run simulated rigs X times faster than real time (demos and tests)",
+        help="save X as the twin speed-up of every twin the lab runs, over the teachers' "
+        "setting (demos and tests); without it each twin keeps its saved one",
     )
     parser.add_argument(
         "--request-timeout",
@@ -259,7 +260,7 @@ def _serve(args: argparse.Namespace) -> int:
     url = args.advertise or f"http://{args.host}:{args.port}"
     lab, fleet, report = start_worker(
         config,
-        opener=device_opener(config.speedup),
+        opener=device_opener(),
         broker=args.broker,
         url=url,
         standby=args.standby,
@@ -275,10 +276,13 @@ def _serve(args: argparse.Namespace) -> int:
         if fleet is not None:
             standing = " on standby" if getattr(lab, "standby", False) else ""
             print(f"  broker: {args.broker} ({fleet.role}{standing})", file=sys.stderr)
-        if config.speedup != 1.0:
-            print(
-                f"  simulated rigs run {config.speedup:g}x faster than real time", file=sys.stderr
-            )
+        twins = [lab.config.rig(rig.id) for rig in config.rigs if rig.lab_twin]
+        paces = ", ".join(f"{rig.id} {rig.twin_speedup:g}x" for rig in twins)
+        if twins and (
+            config.speedup_override is not None or any(r.twin_speedup != 1 for r in twins)
+        ):
+            given = " (--speedup)" if config.speedup_override is not None else ""
+            print(f"  twin speed-ups{given}: {paces}", file=sys.stderr)
         for rig_id, fault in report.faults.items():
             print(f"  warning: rig {rig_id}: {fault}", file=sys.stderr)
         if report.teachers == 0:

@@ -181,10 +181,17 @@ class Lab:
 
     # -- reading the lab --------------------------------------------------------------------
 
-    @property
-    def speedup(self) -> float:
-        """How many times faster than real time the lab's simulated rigs run."""
-        return float(self.info.get("speedup", 1.0))
+    def speedup(self, rig_id: str) -> float | None:
+        """How many times faster than real time rig ``rig_id`` runs (its ``speedup``).
+
+        1 for hardware; a twin's is its teacher's setting (``twin_speedup``);
+        ``None`` for a twin on a rig host, whose speed-up the lab is not told.
+        """
+        rig = next((r for r in self.rigs() if r["id"] == rig_id), None)
+        if rig is None:
+            raise LabRequestError("GET", "/api/rigs", 404, "not_found", f"no rig {rig_id!r}")
+        value = rig.get("speedup")
+        return None if value is None else float(value)
 
     def whoami(self) -> dict[str, Any]:
         """The user the token acts as."""

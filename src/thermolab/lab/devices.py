@@ -12,6 +12,12 @@ A rig's driver is opened by an *opener* (``RigConfig -> Rig``, any object of
 the :class:`thermolab.rigs.Rig` interface). Without one, the hub still
 publishes the rig's input range from its kind and configuration, and records
 that inputs were not applied to a device.
+
+A twin the lab runs has its own :class:`~thermolab.rigs.RateClock`; the hub
+sets its rate to the teacher's ``twin_speedup`` when a run STARTs
+(:meth:`DeviceHub.claim`), when the setting is saved while no run is going
+(:meth:`DeviceHub.follow_settings`) and when a run ends, so a run keeps the
+pace it started with and simulated time never jumps.
 """
 
 from __future__ import annotations
@@ -28,7 +34,7 @@ from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig, RigConfig
 from thermolab.lab.config.rig_kinds import PublishedRig, narrow_range, published_defaults
 from thermolab.lab.db.models import PowerState
-from thermolab.rigs import Rig, RigSpec, make_clock
+from thermolab.rigs import RateClock, RealClock, Rig, RigSpec
 
 __all__ = [
     "DesiredState",
@@ -45,23 +51,24 @@ RigOpener = Callable[[RigConfig], Rig]
 """Opens the driver of a configured rig (the digital twin, a TCLab on its port)."""
 
 
-def device_opener(speedup: float = 1.0) -> RigOpener:
+def device_opener() -> RigOpener:
     """Return the opener of real rigs: :meth:`thermolab.rigs.RigSpec.open` on the rig's spec.
 
-    Twins run ``speedup`` times faster than real time; hardware always runs
-    in real time.
+    Each twin gets a clock of its own whose rate the hub changes (a
+    :class:`~thermolab.rigs.RateClock` at the rig's ``twin_speedup``);
+    hardware always runs in real time.
 
     Examples
     --------
     >>> opener = device_opener()
-    >>> with opener(RigConfig("a", "A", "sim:tclab")) as rig:
-    ...     rig.describe().input_unit
-    '%'
+    >>> with opener(RigConfig("a", "A", "sim:tclab", twin_speedup=20.0)) as rig:
+    ...     rig.describe().input_unit, rig.clock.rate
+    ('%', 20.0)
     """
 
     def open_configured(rig: RigConfig) -> Rig:
         spec = RigSpec.parse(rig.spec)
-        return spec.open(clock=make_clock(speedup if spec.simulated else 1.0))
+        return spec.open(clock=RateClock(rig.twin_speedup) if spec.simulated else RealClock())
 
     return open_configured
 
@@ -126,6 +133,7 @@ class DeviceHub:
     ) -> None:
         self._opener = opener
         self._clock = clock
+        self._config = config
         self._slots = {rig.id: _Slot(rig) for rig in config.rigs}
 
     def open_all(self) -> dict[str, str]:
@@ -161,17 +169,49 @@ class DeviceHub:
                 return slot.fault
 
     def claim(self, rig_id: str) -> None:
-        """A run takes the device: the hub leaves it alone until :meth:`release`."""
+        """A run takes the device: the hub leaves it alone until :meth:`release`.
+
+        A twin's clock takes the speed-up in force, which the run keeps to its end.
+        """
         slot = self._slots[rig_id]
         with slot.lock:
+            self._pace(slot, self._config.rig(rig_id))
             slot.claimed = True
 
     def release(self, rig_id: str) -> None:
-        """The run is over: the hub looks after the device again (call :meth:`reconcile`)."""
+        """The run is over: the hub looks after the device again (call :meth:`reconcile`).
+
+        A twin's clock takes the speed-up in force (saved during the run, perhaps).
+        """
         slot = self._slots[rig_id]
         with slot.lock:
             slot.claimed = False
             slot.controller_session = None
+            self._pace(slot, self._config.rig(rig_id))
+
+    def follow_settings(self, rig: RigConfig) -> None:
+        """A rig's teacher settings were put in force: a twin with no run takes its speed-up.
+
+        A run going keeps its pace; :meth:`release` applies the new one after it.
+        """
+        slot = self._slots.get(rig.id)
+        if slot is None:
+            return
+        with slot.lock:
+            if not slot.claimed:
+                self._pace(slot, rig)
+
+    def clock_rate(self, rig_id: str) -> float | None:
+        """The rate of the rig's clock if the hub sets it (a twin the lab runs), else ``None``."""
+        driver = self._slots[rig_id].driver
+        clock = None if driver is None else driver.clock
+        return clock.rate if isinstance(clock, RateClock) else None
+
+    @staticmethod
+    def _pace(slot: _Slot, rig: RigConfig) -> None:
+        clock = None if slot.driver is None else slot.driver.clock
+        if isinstance(clock, RateClock) and rig.lab_twin:
+            clock.set_rate(rig.twin_speedup)
 
     def note_sample(self, rig_id: str, u: float, y: float) -> None:
         """Record a sample taken by someone else (a run samples the rig)."""

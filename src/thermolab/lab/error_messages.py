@@ -67,6 +67,7 @@ ERROR_SENTENCES: Mapping[str, str] = {
     "enrol_code_wrong": "No course has this enrolment code.",
     "password_change_required": "Choose a new password before going on.",
     "setting_out_of_range": "A setting is outside the range this rig allows.",
+    "setting_not_for_rig": "This rig does not have that setting.",
     "settings_changed": "Someone changed these settings meanwhile: load them again.",
     # The closed loop and the runs' precise conflicts.
     "gain_out_of_range": "A controller setting is not a finite number within its published range.",

@@ -8,7 +8,13 @@ every save put the rig with its settings on the configuration's board
 (:class:`~thermolab.lab.config.model.RigSettingsBoard`), which
 ``LabConfig.rig`` reads. A change applies when it is next read: the turn limit
 when the next turn starts (a turn's deadline is set then), the maximum run at
-the next START, the idle limit and the cool-down at the next check.
+the next START, the idle limit and the cool-down at the next check; the twin
+speed-up is handed to the device hub (``on_change``), which sets the twin's
+clock at once when no run is going, else when the next run STARTs.
+
+``thermolab serve --speedup X`` (``LabConfig.speedup_override``) is the
+technician's: :meth:`load` saves it as the ``twin_speedup`` of every twin the
+lab runs (a save by the lab file, ``updated_by`` empty).
 
 Saves are optimistic: a change names the version it was based on, and a save
 in between makes it a 409 (``settings_changed``). A value the teacher did not
@@ -25,16 +31,16 @@ from datetime import datetime
 
 from sqlalchemy.exc import IntegrityError
 
-from thermolab.errors import SettingsChangedError
+from thermolab.errors import SettingNotForRigError, SettingsChangedError
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config.model import LabConfig, RigConfig
 from thermolab.lab.config.teacher_settings import (
     SETTINGS,
-    TEACHER_SETTINGS,
     SettingValue,
     allowed_range,
     check_value,
     seed_values,
+    settings_of,
     with_values,
 )
 from thermolab.lab.db import Database
@@ -45,6 +51,9 @@ __all__ = ["RigSettings", "RigSettingsService"]
 
 InputRange = Callable[[str], tuple[float, float] | None]
 """A rig's input range (the cool-down input's range), from the live rigs."""
+
+OnChange = Callable[[RigConfig], None]
+"""Told of a rig with its settings in force (after :meth:`RigSettingsService.load`, a save)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -84,15 +93,23 @@ class RigSettingsService:
         Its ``rigs`` are the file's (first values, caps); its board gets the values in force.
     input_range : callable
         A rig's input range, for the cool-down input.
+    on_change : callable, optional
+        Told of each rig put in force (the device hub sets a twin's speed-up).
     """
 
     def __init__(
-        self, db: Database, clock: LabClock, config: LabConfig, input_range: InputRange
+        self,
+        db: Database,
+        clock: LabClock,
+        config: LabConfig,
+        input_range: InputRange,
+        on_change: OnChange | None = None,
     ) -> None:
         self._db = db
         self._clock = clock
         self._config = config
         self._input_range = input_range
+        self._on_change = on_change
         self._lock = threading.Lock()
 
     def _file_rig(self, rig_id: str) -> RigConfig:
@@ -101,12 +118,12 @@ class RigSettingsService:
 
     def _ranges(self, rig: RigConfig) -> dict[str, tuple[float, float] | None]:
         caps = dict(rig.caps)
-        return {s.name: allowed_range(s, caps, self._input_range(rig.id)) for s in TEACHER_SETTINGS}
+        return {s.name: allowed_range(s, caps, self._input_range(rig.id)) for s in settings_of(rig)}
 
     def _in_force(self, rig: RigConfig, row: RigSettingsRow) -> RigSettings:
         """The row's values over the file's (a setting added since keeps its file value), capped."""
         values = seed_values(rig)
-        values.update({k: v for k, v in row.values.items() if k in SETTINGS})
+        values.update({k: v for k, v in row.values.items() if k in values})
         caps = dict(rig.caps)
         for name, cap in caps.items():
             value = values.get(name)
@@ -117,11 +134,37 @@ class RigSettingsService:
         )
 
     def load(self) -> None:
-        """Write the file's first values for rigs that have none; put every rig's in force."""
+        """Write the file's first values for rigs that have none; put every rig's in force.
+
+        A ``serve --speedup`` is saved first as the speed-up of every twin the lab runs.
+        """
+        override = self._config.speedup_override
         for rig in self._config.rigs:
             with self._lock:
                 row = self._row(rig)
-                self._config.board.put(with_values(rig, self._in_force(rig, row).values))
+                if override is not None and rig.lab_twin:
+                    row = self._save_override(rig, row, override)
+                self._put(rig, self._in_force(rig, row).values)
+
+    def _put(self, rig: RigConfig, values: Mapping[str, SettingValue]) -> None:
+        in_force = with_values(rig, values)
+        self._config.board.put(in_force)
+        if self._on_change is not None:
+            self._on_change(in_force)
+
+    def _save_override(self, rig: RigConfig, row: RigSettingsRow, speedup: float) -> RigSettingsRow:
+        if row.values.get("twin_speedup") == speedup:
+            return row
+        with self._db.write() as session:
+            locked = session.get(RigSettingsRow, rig.id, with_for_update=True)
+            assert locked is not None  # _row seeded it
+            if locked.values.get("twin_speedup") != speedup:
+                locked.values = {**locked.values, "twin_speedup": speedup}
+                locked.version += 1
+                locked.updated_at = self._clock.now()
+                locked.updated_by = None
+                session.flush()
+            return locked
 
     def _row(self, rig: RigConfig) -> RigSettingsRow:
         with self._db.read() as session:
@@ -174,6 +217,8 @@ class RigSettingsService:
             For a student.
         SettingRangeError
             A changed value outside its range (the message names it); nothing is saved.
+        SettingNotForRigError
+            A setting the rig does not have (the twin speed-up of hardware); nothing is saved.
         SettingsChangedError
             The settings were saved since ``version``.
         """
@@ -190,6 +235,13 @@ class RigSettingsService:
             checked = dict(current.values)
             for name, value in values.items():
                 setting = SETTINGS[name]
+                if name not in current.values:
+                    raise SettingNotForRigError(
+                        name,
+                        f"rig {rig_id!r} has no setting {name} (only the digital twins the lab "
+                        "runs itself have it: a real rig runs in real time, and a rig host's "
+                        "twin at its host's --speedup)",
+                    )
                 if value == current.values[name]:
                     continue
                 checked[name] = check_value(setting, value, current.ranges[name])
@@ -207,5 +259,5 @@ class RigSettingsService:
                 row.updated_by = who.username
                 session.flush()
                 saved = self._in_force(rig, row)
-            self._config.board.put(with_values(rig, saved.values))
+            self._put(rig, saved.values)
             return saved

@@ -184,8 +184,11 @@ class Lab:
         policy = config.access
         self.presence = Presence(self.clock, timeout=policy.client_timeout)
         self.hub = DeviceHub(config, opener, self.clock)
-        # Teacher settings: first values from the file, then the database's, in force at once.
-        self.settings = RigSettingsService(self.db, self.clock, config, self.hub.input_range)
+        # Teacher settings: first values from the file, then the database's, in force at once
+        # (a twin's speed-up: on its clock when no run is going, else at the next START).
+        self.settings = RigSettingsService(
+            self.db, self.clock, config, self.hub.input_range, self.hub.follow_settings
+        )
         # Logins that end (logout, expiry, new password, removed account) are announced
         # here; the live stream closes their sockets.
         self.logins_ended = LoginsEnded()

@@ -15,7 +15,14 @@ is imported from its module.
 from thermolab.errors import RigError, RigFaultError, RigStateError, RigTimeoutError
 from thermolab.rigs._factory import RIG_SPECS, open_rig
 from thermolab.rigs.base import BaseRig, Reading, Rig, RigInfo, RigState
-from thermolab.rigs.clock import Clock, RealClock, ScaledClock, VirtualClock, make_clock
+from thermolab.rigs.clock import (
+    Clock,
+    RateClock,
+    RealClock,
+    ScaledClock,
+    VirtualClock,
+    make_clock,
+)
 from thermolab.rigs.spec import RIG_KINDS, FanSpec, RigKind, RigSpec
 from thermolab.rigs.tclab import TCLabRig, TCLabVersion, find_tclab, tclab_info
 from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_info, twin_params, twin_preset
@@ -27,6 +34,7 @@ __all__ = [
     "BaseRig",
     "Clock",
     "FanSpec",
+    "RateClock",
     "Reading",
     "RealClock",
     "Rig",

@@ -2,8 +2,10 @@
 
 Every rig and the runner take a :class:`Clock` instead of calling :mod:`time`,
 so the same code runs in real time (the lab), in virtual time as fast as
-possible (tests, batch runs) or in virtual time that runs a fixed number of
-times faster than real time (a demonstration of a 2000 s experiment in 20 s).
+possible (tests, batch runs), in virtual time that runs a fixed number of
+times faster than real time (a demonstration of a 2000 s experiment in 20 s),
+or at a rate that can be changed while time stays continuous (a lab's twin,
+whose speed-up a teacher sets: :class:`RateClock`).
 
 Times are seconds as ``float``; only differences matter (the origin is
 arbitrary, as with :func:`time.monotonic`).
@@ -18,7 +20,7 @@ from typing import Protocol, runtime_checkable
 
 from thermolab.errors import InvalidParameterError
 
-__all__ = ["Clock", "RealClock", "ScaledClock", "VirtualClock", "make_clock"]
+__all__ = ["Clock", "RateClock", "RealClock", "ScaledClock", "VirtualClock", "make_clock"]
 
 
 @runtime_checkable
@@ -221,6 +223,134 @@ class ScaledClock:
 
     def __repr__(self) -> str:
         return f"ScaledClock({self.speedup!r}, source={self._source!r})"
+
+
+class RateClock:
+    """Virtual time running ``rate`` times a source clock, with a rate that can change.
+
+    A change of rate (:meth:`set_rate`) keeps the time continuous: the clock
+    reads the same just before and just after, and from then on advances at
+    the new rate; it never jumps and never goes back. A :meth:`sleep_until`
+    in progress waits on its source in slices of at most ``max_slice`` source
+    seconds and recomputes its end after each one, so it honours a new rate
+    within a slice. A lab gives each twin its own (the teacher's
+    ``twin_speedup``; :mod:`thermolab.lab.devices`).
+
+    Parameters
+    ----------
+    rate : float
+        Positive, finite factor: virtual seconds per source second.
+    source : Clock, optional
+        The clock that really passes (default :class:`RealClock`).
+    start : float, optional
+        The virtual time at construction (default 0.0).
+    max_slice : float, optional
+        Longest wait on the source before a sleep looks at the rate again
+        (default 0.05 s).
+
+    Raises
+    ------
+    InvalidParameterError
+        If ``rate``, ``start`` or ``max_slice`` is not a finite number, or
+        ``rate`` or ``max_slice`` is not positive.
+
+    Examples
+    --------
+    >>> source = VirtualClock()
+    >>> clock = RateClock(10.0, source=source)
+    >>> source.advance(2.0)
+    >>> clock.now()
+    20.0
+    >>> clock.set_rate(100.0)  # the time goes on from 20 s, 100 times the source
+    >>> source.advance(1.0)
+    >>> clock.now()
+    120.0
+    """
+
+    def __init__(
+        self,
+        rate: float,
+        *,
+        source: Clock | None = None,
+        start: float = 0.0,
+        max_slice: float = 0.05,
+    ) -> None:
+        self._check_rate(rate)
+        if not math.isfinite(start):
+            raise InvalidParameterError(f"clock start must be a finite number, got {start!r}")
+        if not (math.isfinite(max_slice) and max_slice > 0.0):
+            raise InvalidParameterError(
+                f"max_slice must be a positive finite number of seconds, got {max_slice!r}"
+            )
+        self._lock = threading.Lock()
+        self._source: Clock = source if source is not None else RealClock()
+        self._rate = float(rate)
+        self._max_slice = float(max_slice)
+        # now() = _at + _rate * (source.now() - _source_at): re-anchored at every change.
+        self._source_at = self._source.now()
+        self._at = float(start)
+
+    @staticmethod
+    def _check_rate(rate: float) -> None:
+        if isinstance(rate, bool) or not (math.isfinite(rate) and rate > 0.0):
+            raise InvalidParameterError(
+                f"a clock rate must be a positive finite number, got {rate!r}"
+            )
+
+    @property
+    def rate(self) -> float:
+        """Virtual seconds per source second, now."""
+        with self._lock:
+            return self._rate
+
+    def _now(self) -> float:
+        # Float rounding is monotonic, so this never decreases while the source does not.
+        return self._at + self._rate * (self._source.now() - self._source_at)
+
+    def now(self) -> float:
+        """Return the virtual time."""
+        with self._lock:
+            return self._now()
+
+    def set_rate(self, rate: float) -> None:
+        """Run at ``rate`` from now on; the time reads on from where it is.
+
+        Raises
+        ------
+        InvalidParameterError
+            If ``rate`` is not a positive finite number.
+        """
+        self._check_rate(rate)
+        with self._lock:
+            source_now = self._source.now()
+            self._at = self._at + self._rate * (source_now - self._source_at)
+            self._source_at = source_now
+            self._rate = float(rate)
+
+    def sleep_until(self, t: float) -> None:
+        """Wait on the source until the virtual time reaches ``t``, at the rate in force.
+
+        Parameters
+        ----------
+        t : float
+            Target virtual instant.
+        """
+        if not math.isfinite(t):
+            raise InvalidParameterError(f"sleep_until needs a finite instant, got {t!r}")
+        while True:
+            with self._lock:
+                source_now = self._source.now()
+                if self._at + self._rate * (source_now - self._source_at) >= t:
+                    return
+                target = self._source_at + (t - self._at) / self._rate
+                wake = min(target, source_now + self._max_slice)
+                if wake <= source_now:
+                    # Rounding left now() a hair short of t: wait out the last ulp.
+                    wake = math.nextafter(source_now, math.inf)
+            self._source.sleep_until(wake)
+
+    def __repr__(self) -> str:
+        return f"RateClock({self.rate!r}, source={self._source!r})"
 
 
 def make_clock(speedup: float | None = 1.0) -> Clock:

@@ -33,28 +33,27 @@ __all__ = [
 def speedup_note(asked: float, in_force: float) -> str | None:
     """What ``setup(connected=False, speedup=asked)`` tells when the lab's twin runs otherwise.
 
-    The lab's teacher sets one speed-up for every simulated rig (``speedup``
-    in the lab's file, or ``thermolab serve --speedup``); a client cannot
-    change it, because the twin is shared — its clock is the lab's, the same
-    for every user and the lab's own runs. ``None`` when they agree.
+    A teacher sets each twin's speed-up in the rig's settings (``twin_speedup``,
+    on the lab's Teacher page); a client cannot change it, because the twin is
+    shared — its clock is the lab's, the same for every user and the lab's own
+    runs. ``None`` when they agree.
 
     Examples
     --------
     >>> speedup_note(20, 20) is None
     True
     >>> print(speedup_note(10, 50))  # doctest: +NORMALIZE_WHITESPACE
-    note: the lab's twin runs at 50x real time, not the 10x asked for: the lab's teacher sets
-    one speed-up for every simulated rig (`speedup` in the lab's file or `thermolab serve
-    --speedup`) and a client cannot change it; clock() and labtime follow 50x
+    note: the lab's twin runs at 50x real time, not the 10x asked for: a teacher sets each
+    twin's speed-up in the rig's settings (twin_speedup) and a client cannot change it;
+    clock() and labtime follow 50x
     """
     if asked == in_force:
         return None
     wanted = "real time (1x)" if asked == 1 else f"{asked:g}x"
     return (
         f"note: the lab's twin runs at {in_force:g}x real time, not the {wanted} asked for: "
-        "the lab's teacher sets one speed-up for every simulated rig (`speedup` in the lab's "
-        "file or `thermolab serve --speedup`) and a client cannot change it; clock() and "
-        f"labtime follow {in_force:g}x"
+        "a teacher sets each twin's speed-up in the rig's settings (twin_speedup) and a "
+        f"client cannot change it; clock() and labtime follow {in_force:g}x"
     )
 
 
@@ -67,9 +66,9 @@ def setup(connected: bool = True, speedup: float = 1) -> type[TCLab]:
         ``True``: a lab rig (a kit, if the lab has one); ``False``: the lab's
         simulated rig (its twin), in place of the kit's offline model.
     speedup : float
-        Only with ``connected=False``. The twin runs at the lab's speed-up,
-        which the lab's teacher decides for every simulated rig (``speedup``
-        in the lab's file, ``thermolab serve --speedup``); ``clock`` and
+        Only with ``connected=False``. The twin runs at its own speed-up,
+        which a teacher sets per twin in the rig's settings (``twin_speedup``;
+        the rig listing publishes it as ``speedup``); ``clock`` and
         ``labtime`` follow it. A client cannot choose another: when the one in
         force differs from ``speedup`` (the default 1 included), connecting
         prints which is in force and why (:func:`speedup_note`); it is never
@@ -91,7 +90,7 @@ def setup(connected: bool = True, speedup: float = 1) -> type[TCLab]:
 
         def __init__(self, *args: object, **kwargs: object) -> None:
             super().__init__(*args, **kwargs)  # type: ignore[arg-type]
-            note = None if connected else speedup_note(asked, self.lab.speedup)
+            note = None if connected else speedup_note(asked, self.speedup)
             if note is not None:
                 print(note)
 

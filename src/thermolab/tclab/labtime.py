@@ -1,7 +1,8 @@
 """Lab time and the sampling clock, as the ``tclab`` package's ``labtime`` and ``clock``.
 
-Lab time runs at a rate: 1 for a real rig, the lab's speed-up for its
-simulated rigs (set when a :class:`~thermolab.tclab.TCLab` connects), so a
+Lab time runs at a rate: 1 for a real rig, the twin's own speed-up for a
+simulated rig (its teacher's setting, set when a :class:`~thermolab.tclab.TCLab`
+connects), so a
 notebook's ``for t in clock(600)`` takes 600 s on a kit and 12 s on a twin
 the lab runs at 50×.
 """

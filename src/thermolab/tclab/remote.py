@@ -102,6 +102,12 @@ class TCLab:
         The lab, a personal API token and the rig (default: the environment).
     wait : float, optional
         Seconds to wait in the queue (default: as long as it takes).
+
+    Attributes
+    ----------
+    speedup : float
+        The rig's speed-up when it connected (``labtime`` follows it): 1 for
+        hardware, a twin's teacher setting (1 when the lab does not know it).
     """
 
     _simulated: ClassVar[bool | None] = None  # set by ``setup(connected=...)``
@@ -140,8 +146,9 @@ class TCLab:
             self.info = info
             self._low = float(info["input"]["min"])
             self._high = float(info["input"]["max"])
-            simulated = info["kind"] == "sim"
-            labtime.set_rate(self.lab.speedup if simulated else 1.0)
+            # The rig's own speed-up (a twin's: its teacher's setting; unknown on a rig host: 1).
+            self.speedup = float(info.get("speedup") or 1.0)
+            labtime.set_rate(self.speedup)
             _install_exit_hooks()
             self._turn = self.lab.control(self.rig_id, timeout=wait)
         except BaseException:
@@ -150,7 +157,7 @@ class TCLab:
         _open.add(self)
         self.connected = True
         self.version = f"ThermoLab {self.lab.info.get('version')} (API {self.lab.info.get('api')})"
-        speed = f" at {self.lab.speedup:g}x" if simulated and self.lab.speedup != 1 else ""
+        speed = f" at {self.speedup:g}x" if self.speedup != 1 else ""
         print(f"TCLab connected to rig {self.rig_id!r}{speed} of the lab at {self.lab.url}.")
 
     # -- the kit's interface ---------------------------------------------------------------

@@ -5,7 +5,7 @@ database in the data folder). A TOML file declares more::
 
     title = "Control lab, room 2.14"
     database_url = "postgresql+psycopg://lab@db.example/thermolab"   # optional
-    speedup = 1.0            # twin rigs run this many times faster than real time
+    speedup = 1.0            # the twins' first speed-up (a teacher's setting: twin_speedup)
 
     [access]                 # lab-wide policy (every key optional)
     client_timeout = 15      # s without contact before a controller's client counts as gone
@@ -217,6 +217,10 @@ class RigConfig:
     agent : bool
         The rig lives on a rig host that dials in (``thermolab agent``); the lab
         opens no driver for it and ``spec`` says what that host drives.
+    twin_speedup : float
+        A twin the lab runs runs this many times faster than real time (a
+        teacher setting; its first value is the file's top-level ``speedup``).
+        Not for hardware, nor for a rig on a host (the host's ``--speedup``).
 
     Examples
     --------
@@ -236,6 +240,28 @@ class RigConfig:
     max_run_seconds: float = 3600.0
     caps: tuple[tuple[str, float], ...] = ()
     agent: bool = False
+    twin_speedup: float = 1.0
+
+    @property
+    def lab_twin(self) -> bool:
+        """``True`` for a digital twin the lab runs itself (not on a rig host)."""
+        return self.kind == "sim" and not self.agent
+
+    @property
+    def speedup(self) -> float | None:
+        """How many times faster than real time the rig runs, as far as the lab knows.
+
+        ``twin_speedup`` for a twin the lab runs, 1 for hardware, ``None`` for a
+        twin on a rig host (its host's ``--speedup``, which the lab is not told).
+
+        >>> RigConfig("t", "T", "sim", twin_speedup=50.0).speedup
+        50.0
+        >>> RigConfig("k", "K", "tclab").speedup, RigConfig("h", "H", "sim", agent=True).speedup
+        (1.0, None)
+        """
+        if self.kind != "sim":
+            return 1.0
+        return None if self.agent else self.twin_speedup
 
     @property
     def kind(self) -> str:
@@ -285,8 +311,9 @@ class LabConfig:
         Lab-wide rules.
     database_url : str or None
         SQLAlchemy URL; ``None`` is SQLite in ``data_dir``.
-    speedup : float
-        Twin rigs run this many times faster than real time.
+    speedup_override : float or None
+        ``thermolab serve --speedup``: the technician's speed-up, saved at start
+        as the ``twin_speedup`` of every twin the lab runs (``None``: none given).
     title : str
         Name of the lab shown to users.
     board : RigSettingsBoard
@@ -304,7 +331,7 @@ class LabConfig:
     rigs: tuple[RigConfig, ...]
     access: AccessPolicy = field(default_factory=AccessPolicy)
     database_url: str | None = None
-    speedup: float = 1.0
+    speedup_override: float | None = None
     title: str = "ThermoLab"
     board: RigSettingsBoard = field(default_factory=RigSettingsBoard, compare=False, repr=False)
 
@@ -350,7 +377,7 @@ class LabConfig:
         return replace(
             self,
             database_url=database_url if database_url is not None else self.database_url,
-            speedup=speedup if speedup is not None else self.speedup,
+            speedup_override=speedup if speedup is not None else self.speedup_override,
         )
 
 

@@ -9,7 +9,9 @@ file's ``caps``; the cool-down input's is the rig's input range), the check of a
 new value (:func:`check_value`), the effective rig (:func:`with_values`), the API's
 schema and the browser's form (``GET /api/rigs/{rig}/settings`` lists them).
 
-Adding a setting is one entry here (and its field in ``RigConfig``).
+Adding a setting is one entry here (and its field in ``RigConfig``). A
+setting may hold for some rigs only (``twins_only``: the twin speed-up, for the
+twins the lab runs itself); :func:`settings_of` lists a rig's.
 
 Examples
 --------
@@ -45,6 +47,7 @@ __all__ = [
     "check_value",
     "course_override",
     "seed_values",
+    "settings_of",
     "value_of",
     "with_values",
 ]
@@ -82,6 +85,9 @@ class TeacherSetting:
         ``None`` is allowed (idle limit: never; cool-down input: the rig's safe input).
     per_course : bool
         A course may override it during its booked slots (:data:`COURSE_SETTINGS`).
+    twins_only : bool
+        Only the digital twins the lab runs itself have it (not hardware, nor a
+        rig on a host: :attr:`RigConfig.lab_twin`).
     """
 
     name: str
@@ -95,6 +101,7 @@ class TeacherSetting:
     choices: tuple[str, ...] = ()
     nullable: bool = False
     per_course: bool = False
+    twins_only: bool = False
 
     @property
     def default(self) -> SettingValue:
@@ -194,6 +201,18 @@ TEACHER_SETTINGS: tuple[TeacherSetting, ...] = (
         "now",
         nullable=True,
     ),
+    TeacherSetting(
+        "twin_speedup",
+        "twin_speedup",
+        "number",
+        "",
+        1.0,
+        1000.0,
+        "How many times faster than real time the twin runs (1: real time); a run keeps "
+        "the pace it started with.",
+        "next_run",
+        twins_only=True,
+    ),
 )
 
 #: The settings by name.
@@ -225,9 +244,19 @@ def value_of(rig: RigConfig, setting: TeacherSetting) -> SettingValue:
     return float(holder)
 
 
+def settings_of(rig: RigConfig) -> tuple[TeacherSetting, ...]:
+    """The settings ``rig`` has, in declaration order (a ``twins_only`` one: a lab's twin).
+
+    >>> from thermolab.lab.config.model import RigConfig
+    >>> "twin_speedup" in [s.name for s in settings_of(RigConfig("k", "K", "tclab"))]
+    False
+    """
+    return tuple(s for s in TEACHER_SETTINGS if rig.lab_twin or not s.twins_only)
+
+
 def seed_values(rig: RigConfig) -> dict[str, SettingValue]:
     """Every setting's value in ``rig`` (the technician's file: the first values)."""
-    return {s.name: value_of(rig, s) for s in TEACHER_SETTINGS}
+    return {s.name: value_of(rig, s) for s in settings_of(rig)}
 
 
 def with_values(rig: RigConfig, values: Mapping[str, SettingValue]) -> RigConfig:

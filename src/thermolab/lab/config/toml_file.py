@@ -135,6 +135,7 @@ class _Limits:
     max_run_seconds: float = DEFAULT_RIG.max_run_seconds
     cooldown: CooldownPolicy = DEFAULT_RIG.cooldown
     caps: tuple[tuple[str, float], ...] = DEFAULT_RIG.caps
+    twin_speedup: float = DEFAULT_RIG.twin_speedup  # the file's top-level ``speedup``
 
 
 class _LimitsTable(_Table):
@@ -228,7 +229,8 @@ class _File(_Table):
     rigs: Annotated[list[_Rig], Field(min_length=1)] | None = None
 
     def build(self, data_dir: Path) -> LabConfig:
-        limits = _Limits() if self.rig_defaults is None else self.rig_defaults.over(_Limits())
+        first = _Limits() if self.speedup is None else _Limits(twin_speedup=self.speedup)
+        limits = first if self.rig_defaults is None else self.rig_defaults.over(first)
         if self.rigs is None:
             # No rig declared: the default twin, with the file's rig defaults.
             rigs: tuple[RigConfig, ...] = (_with_limits(DEFAULT_RIG, limits),)
@@ -245,7 +247,7 @@ class _File(_Table):
             rigs=rigs,
             access=access,
             database_url=self.database_url,
-            **{k: top[k] for k in ("speedup", "title") if k in top},
+            **{k: top[k] for k in ("title",) if k in top},
         )
 
 
@@ -258,6 +260,7 @@ def _with_limits(rig: RigConfig, limits: _Limits) -> RigConfig:
         max_run_seconds=limits.max_run_seconds,
         cooldown=limits.cooldown,
         caps=limits.caps,
+        twin_speedup=limits.twin_speedup,
     )
 
 

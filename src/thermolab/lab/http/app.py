@@ -98,7 +98,7 @@ def create_app(
     True
     """
     owned = lab is None if close_lab is None else close_lab
-    the_lab = lab if lab is not None else Lab(config, opener=device_opener(config.speedup))
+    the_lab = lab if lab is not None else Lab(config, opener=device_opener())
     live = LiveEndpoint(the_lab)
     the_lab.add_listener(live)
     if fleet is not None:

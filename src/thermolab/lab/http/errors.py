@@ -45,6 +45,7 @@ from thermolab.errors import (
     RigError,
     RunInProgressError,
     SetpointRangeError,
+    SettingNotForRigError,
     SettingRangeError,
     SettingsChangedError,
     ThermoLabError,
@@ -122,6 +123,7 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     PasswordChangeRequiredError: HttpFault(403, "password_change_required"),
     # Teacher settings (issue #10).
     SettingRangeError: HttpFault(422, "setting_out_of_range"),
+    SettingNotForRigError: HttpFault(422, "setting_not_for_rig"),
     SettingsChangedError: HttpFault(409, "settings_changed"),
     # Bookings (issue #10, item 5).
     BookingClashError: HttpFault(409, "booking_clash"),
@@ -215,7 +217,8 @@ def install_error_handlers(app: FastAPI) -> None:
             return invalid_response(str(exc), fault.code, problems, language=language)
         if fault.status == 422:
             # A setting's refusal names the value it is about, as a schema error would.
-            where = ["body", "values", exc.setting] if isinstance(exc, SettingRangeError) else []
+            about = exc if isinstance(exc, SettingRangeError | SettingNotForRigError) else None
+            where = [] if about is None else ["body", "values", about.setting]
             problem = {"loc": where, "type": fault.code, "msg": str(exc)}
             return invalid_response(str(exc), fault.code, [problem], language=language)
         # A booking refusal names the slot in the way, for the page to show.

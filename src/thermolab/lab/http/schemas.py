@@ -95,6 +95,7 @@ class ValidationErrorOut(_Out):
         "setting_out_of_range",
         "image_invalid",
         "image_too_many_pixels",
+        "setting_not_for_rig",
     ] = Field(
         description="invalid_request: the request does not match the schema (a body that is "
         "not UTF-8 JSON included); invalid_parameter: the values match the schema but the lab "
@@ -103,7 +104,8 @@ class ValidationErrorOut(_Out):
         "gain_out_of_range, setpoint_out_of_range, no_output_unit: the closed loop's refusals; "
         "setting_out_of_range: a teacher setting outside the rig's allowed range (the message "
         "names the range); image_invalid, image_too_many_pixels: a guide picture that is not "
-        "a readable picture, or has too many pixels"
+        "a readable picture, or has too many pixels; setting_not_for_rig: a setting this rig "
+        "does not have (the twin speed-up of hardware or of a rig host's twin)"
     )
     message: str | None = Field(
         default=None, description="the code's sentence in the reader's language"
@@ -297,6 +299,12 @@ class RigOut(_Out):
     fault: str | None
     input: InputRangeOut
     output_unit: str
+    speedup: float | None = Field(
+        description="how many times faster than real time the rig runs: 1 for hardware; a "
+        "twin the lab runs, its teacher setting twin_speedup (the pace of the next run, and "
+        "of the twin when no run is going: a run keeps the pace it started with); null for "
+        "a twin on a rig host (its host's --speedup, which the lab is not told)"
+    )
     limits: LimitsOut
     access: AccessOut
     queue: list[QueueSlotOut] | None = Field(description="teachers only")
@@ -324,6 +332,7 @@ class RigOut(_Out):
                 live=pub.live,
             ),
             output_unit=pub.output_unit,
+            speedup=cfg.speedup,
             limits=LimitsOut(
                 control_time_limit=cfg.control_time_limit,
                 idle_limit=cfg.idle_limit,

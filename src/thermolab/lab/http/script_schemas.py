@@ -62,7 +62,6 @@ class LabVersionOut(Out):
     title: str
     version: str = Field(description="the lab's package version")
     api: str = Field(description="the API version, MAJOR.MINOR")
-    speedup: float = Field(description="simulated rigs run this many times faster than real time")
 
 
 class ReadingOut(Out):

@@ -18,8 +18,8 @@ operating point found (its ``extras``). What the lab stores with the run is
 what was asked, what the identifiers were given and why
 (:class:`OperatingPoint`, :func:`choose_operating_point`).
 
-The run's length: the rig's ``max_run_seconds`` bounds it in real time (a
-twin's speed-up counted), :func:`check_run_length`.
+The run's length: the rig's ``max_run_seconds`` bounds it in real time (the
+twin's own speed-up counted), :func:`check_run_length`.
 """
 
 from __future__ import annotations
@@ -447,10 +447,12 @@ def plan_run(
 def run_seconds(config: LabConfig, rig_id: str, samples: int, dt: float) -> float:
     """The real time a run of ``samples`` × ``dt`` takes on the rig ``rig_id``.
 
-    A twin runs the lab's ``speedup`` times faster than real time.
+    A twin the lab runs runs its speed-up in force (the teacher's
+    ``twin_speedup``, which the run STARTed now keeps) times faster than real
+    time; hardware, and a twin on a rig host (whose host's ``--speedup`` the
+    lab is not told), are counted in real time.
     """
-    speedup = config.speedup if config.rig(rig_id).kind == "sim" else 1.0
-    return samples * dt / speedup
+    return samples * dt / (config.rig(rig_id).speedup or 1.0)
 
 
 def check_run_length(

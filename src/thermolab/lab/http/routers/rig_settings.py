@@ -2,8 +2,9 @@
 
 The body's fields and the answer's list are built from the declarations in
 :mod:`thermolab.lab.config.teacher_settings`; a value outside the rig's range
-is a 422 ``setting_out_of_range`` naming the range, a save based on an old
-version a 409 ``settings_changed``.
+is a 422 ``setting_out_of_range`` naming the range, one the rig does not have
+(the twin speed-up of hardware or of a rig host's twin) a 422
+``setting_not_for_rig``, a save based on an old version a 409 ``settings_changed``.
 """
 
 from __future__ import annotations
@@ -88,6 +89,8 @@ def _out(lab: Lab, settings: RigSettings) -> RigSettingsOut:
     published = lab.hub.published(settings.rig_id)
     rows = []
     for setting in TEACHER_SETTINGS:
+        if setting.name not in settings.values:
+            continue  # not this rig's (the twin speed-up of hardware)
         bounds = settings.ranges[setting.name]
         rows.append(
             SettingOut(
@@ -123,8 +126,8 @@ def _out(lab: Lab, settings: RigSettings) -> RigSettingsOut:
     responses=documented_errors(403, 404),
 )
 def get_settings(rig_id: RigId, who: UserDep, lab: LabDep) -> RigSettingsOut:
-    """The turn and idle limits, maximum run and cool-down in force on the rig, with the
-    range a teacher may set each to (teachers only)."""
+    """The turn and idle limits, maximum run, cool-down and (a twin the lab runs) speed-up
+    in force on the rig, with the range a teacher may set each to (teachers only)."""
     return _out(lab, lab.settings.get(rig_id, who))
 
 
@@ -137,8 +140,9 @@ def get_settings(rig_id: RigId, who: UserDep, lab: LabDep) -> RigSettingsOut:
 )
 def put_settings(rig_id: RigId, body: SettingsIn, who: UserDep, lab: LabDep) -> RigSettingsOut:
     """Save some or all settings over ``version`` (409 ``settings_changed`` if someone saved
-    since). The turn limit applies from the next turn, the maximum run from the next run;
-    the turn and the run going keep theirs."""
+    since). The turn limit applies from the next turn, the maximum run and the twin speed-up
+    from the next run; the turn and the run going keep theirs. A setting the rig does not
+    have is a 422 ``setting_not_for_rig``."""
     given: BaseModel = body.values
     values = {name: getattr(given, name) for name in given.model_fields_set}
     return _out(lab, lab.settings.update(rig_id, who, values, body.version))

@@ -17,12 +17,11 @@ router = APIRouter()
 @router.get("/version", response_model=LabVersionOut, tags=["session"], summary="The lab's version")
 def lab_version(lab: LabDep) -> LabVersionOut:
     """The package and API versions (clients check ``api``: same major, minor at least
-    theirs) and the speed-up of the lab's simulated rigs. Needs no login.
+    theirs). Needs no login. Each twin's speed-up is its rig's (``GET /api/rigs``).
     """
     return LabVersionOut(
         name="thermolab",
         title=lab.config.title,
         version=__version__,
         api=API_VERSION,
-        speedup=lab.config.speedup,
     )

@@ -1,5 +1,6 @@
 // @ts-check
-// A rig's teacher settings (turn and idle limits, maximum run, cool-down): the
+// A rig's teacher settings (turn and idle limits, maximum run, cool-down, a
+// twin's speed-up: only the twins the lab runs list it): the
 // form is built from the server's declarations (GET /api/rigs/{rig}/settings:
 // name, type, unit, range on this rig, choices, when a change applies), checked
 // here with the same ranges and saved with the version it was read at (a save
@@ -19,6 +20,7 @@ export const TEXTS = {
   cooldown_tolerance: ["settings.cooldownTolerance", "settings.cooldownToleranceHelp"],
   cooldown_max_seconds: ["settings.cooldownMaxSeconds", "settings.cooldownMaxSecondsHelp"],
   cooldown_input: ["settings.cooldownInput", "settings.cooldownInputHelp"],
+  twin_speedup: ["settings.twinSpeedup", "settings.twinSpeedupHelp"],
 };
 const APPLIES = { next_turn: "settings.appliesNextTurn", next_run: "settings.appliesNextRun", now: "settings.appliesNow" };
 const CHOICES = { none: "settings.choiceNone", ambient: "settings.choiceAmbient" };
