@@ -19,8 +19,6 @@ from __future__ import annotations
 import itertools
 import json
 import signal
-import subprocess
-import textwrap
 import threading
 import time
 from collections.abc import Iterator
@@ -35,10 +33,8 @@ from websockets.sync.client import connect
 
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import ControlSession, ServerLease
-from thermolab.lab.http.deps import COOKIE_NAME
-from thermolab.lab.service import Lab
 
-from .conftest import FAST_HASHER
+from .fleet_setup import PEOPLE, seed_lab, stop
 from .test_workers import LAB_TOML, Worker, _start, redis_url
 
 pytestmark = [pytest.mark.postgres, pytest.mark.redis, pytest.mark.slow]
@@ -60,20 +56,7 @@ class Takeover:
 
 @pytest.fixture
 def fleet(tmp_path: Path, postgres_url: str, redis_url: str) -> Iterator[Takeover]:
-    (tmp_path / "lab.toml").write_text(textwrap.dedent(LAB_TOML))
-    from thermolab.lab.config import load_config
-
-    config = load_config(tmp_path / "lab.toml", tmp_path).with_overrides(
-        database_url=postgres_url, speedup=None
-    )
-    setup = Lab(config, hasher=FAST_HASHER, database=Database(postgres_url))
-    setup.start()
-    cookies = {}
-    for name, role in [("tina", "teacher"), ("ana", "student"), ("bo", "student")]:
-        setup.users.add(name, "correct horse", role)
-        token, _ = setup.sessions.create(setup.users.get(name))
-        cookies[name] = f"{COOKIE_NAME}={token}"
-    setup.close()
+    cookies = seed_lab(tmp_path, postgres_url, LAB_TOML, PEOPLE)
     workers: list[Worker] = []
     db = Database(postgres_url)
     try:
@@ -85,15 +68,7 @@ def fleet(tmp_path: Path, postgres_url: str, redis_url: str) -> Iterator[Takeove
         workers.append(follower)
         yield Takeover(owner, standbys, follower, cookies, db)
     finally:
-        for worker in workers:
-            if worker.process.poll() is None:
-                worker.process.send_signal(signal.SIGINT)
-        for worker in workers:
-            try:
-                worker.process.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                worker.process.kill()
-                worker.process.wait()
+        stop([worker.process for worker in workers])
         db.close()
 
 

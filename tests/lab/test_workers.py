@@ -30,11 +30,7 @@ import httpx
 import pytest
 from websockets.sync.client import ClientConnection, connect
 
-from thermolab.lab.db import Database
-from thermolab.lab.http.deps import COOKIE_NAME
-from thermolab.lab.service import Lab
-
-from .conftest import FAST_HASHER
+from .fleet_setup import seed_lab, stop
 
 pytestmark = [pytest.mark.postgres, pytest.mark.redis, pytest.mark.slow]
 
@@ -138,20 +134,8 @@ def _popen(
 
 @pytest.fixture
 def fleet(tmp_path: Path, postgres_url: str, redis_url: str) -> Iterator[Fleet]:
-    (tmp_path / "lab.toml").write_text(textwrap.dedent(LAB_TOML))
-    from thermolab.lab.config import load_config
-
-    config = load_config(tmp_path / "lab.toml", tmp_path).with_overrides(
-        database_url=postgres_url, speedup=None
-    )
-    setup = Lab(config, hasher=FAST_HASHER, database=Database(postgres_url))
-    setup.start()
-    cookies = {}
-    for name, role in [("tina", "teacher")] + [(f"s{i}", "student") for i in range(STUDENTS)]:
-        setup.users.add(name, "correct horse", role)
-        token, _ = setup.sessions.create(setup.users.get(name))
-        cookies[name] = f"{COOKIE_NAME}={token}"
-    setup.close()
+    people = [("tina", "teacher")] + [(f"s{i}", "student") for i in range(STUDENTS)]
+    cookies = seed_lab(tmp_path, postgres_url, LAB_TOML, people)
     owner = _start(tmp_path, postgres_url, redis_url)
     workers = [owner]
     try:
@@ -159,15 +143,7 @@ def fleet(tmp_path: Path, postgres_url: str, redis_url: str) -> Iterator[Fleet]:
         workers.append(follower)
         yield Fleet(owner, follower, cookies)
     finally:
-        for worker in workers:
-            if worker.process.poll() is None:
-                worker.process.send_signal(signal.SIGINT)
-        for worker in workers:
-            try:
-                worker.process.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                worker.process.kill()
-                worker.process.wait()
+        stop([worker.process for worker in workers])
 
 
 def _frames(ws: ClientConnection, timeout: float) -> list[dict[str, Any]]:

@@ -12,11 +12,7 @@ reason, where PostgreSQL or Redis is absent.
 from __future__ import annotations
 
 import itertools
-import os
-import signal
 import subprocess
-import sys
-import textwrap
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -26,13 +22,7 @@ import httpx
 import pytest
 from websockets.sync.client import connect
 
-from thermolab.lab.agents import issue_secret
-from thermolab.lab.clock import SystemClock
-from thermolab.lab.db import Database
-from thermolab.lab.http.deps import COOKIE_NAME
-from thermolab.lab.service import Lab
-
-from .conftest import FAST_HASHER
+from .fleet_setup import PEOPLE, seed_lab, start_agent, stop
 from .test_workers import Worker, _frames, _start, redis_url
 
 pytestmark = [pytest.mark.postgres, pytest.mark.redis, pytest.mark.slow]
@@ -67,49 +57,19 @@ def _hosts(worker: Worker, cookie: str) -> list[dict[str, Any]]:
 def lab_with_agent(
     tmp_path: Path, postgres_url: str, redis_url: str
 ) -> Iterator[tuple[Worker, Worker, subprocess.Popen[bytes], dict[str, str]]]:
-    (tmp_path / "lab.toml").write_text(textwrap.dedent(LAB_TOML))
-    from thermolab.lab.config import load_config
-
-    config = load_config(tmp_path / "lab.toml", tmp_path).with_overrides(
-        database_url=postgres_url, speedup=None
-    )
-    setup = Lab(config, hasher=FAST_HASHER, database=Database(postgres_url))
-    setup.start()
-    cookies = {}
-    for name, role in [("tina", "teacher"), ("ana", "student"), ("bo", "student")]:
-        setup.users.add(name, "correct horse", role)
-        token, _ = setup.sessions.create(setup.users.get(name))
-        cookies[name] = f"{COOKIE_NAME}={token}"
-    (tmp_path / "box.secret").write_text(issue_secret(setup.db, config, SystemClock(), "box"))
-    setup.close()
+    cookies = seed_lab(tmp_path, postgres_url, LAB_TOML, PEOPLE, agent_rigs=["box"])
     processes: list[subprocess.Popen[bytes]] = []
     try:
         owner = _start(tmp_path, postgres_url, redis_url)
         processes.append(owner.process)
         follower = _start(tmp_path, postgres_url, redis_url)
         processes.append(follower.process)
-        with (tmp_path / "agent.log").open("wb") as log:
-            agent = subprocess.Popen(
-                [sys.executable, "-m", "thermolab", "agent",
-                 "--lab", follower.ws, "--lab", owner.ws,  # the follower first: sent on
-                 "--rig", "box", "--spec", "sim:tclab",
-                 "--secret-file", str(tmp_path / "box.secret"),
-                 "--outbox", str(tmp_path / "outbox.sqlite3")],
-                env=dict(os.environ, THERMOLAB_DATA_DIR=str(tmp_path)),
-                stdout=log, stderr=subprocess.STDOUT,
-            )  # fmt: skip
+        # The follower first: it sends the host on to the owner.
+        agent = start_agent(tmp_path, [follower.ws, owner.ws])
         processes.append(agent)
         yield owner, follower, agent, cookies
     finally:
-        for process in reversed(processes):
-            if process.poll() is None:
-                process.send_signal(signal.SIGINT)
-        for process in reversed(processes):
-            try:
-                process.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                process.kill()
-                process.wait()
+        stop(processes)
 
 
 def test_an_agent_sent_on_by_the_follower_serves_watchers_on_the_follower(

@@ -152,79 +152,6 @@ class VirtualClock:
         return f"VirtualClock(start={self.now()!r})"
 
 
-class ScaledClock:
-    """Virtual time that runs ``speedup`` times faster than a source clock.
-
-    With ``speedup=100`` a 2000 s experiment takes 20 s of real time, and the
-    runner's schedule, the rig's physics and every timestamp agree on the
-    virtual time.
-
-    Parameters
-    ----------
-    speedup : float
-        Positive, finite factor: virtual seconds per source second.
-    source : Clock, optional
-        The clock that really passes (default :class:`RealClock`). Tests pass a
-        :class:`VirtualClock` here so that nothing sleeps.
-    start : float, optional
-        The virtual time at construction (default 0.0).
-
-    Raises
-    ------
-    InvalidParameterError
-        If ``speedup`` is not a positive finite number.
-
-    Examples
-    --------
-    >>> source = VirtualClock()
-    >>> clock = ScaledClock(10.0, source=source)
-    >>> source.advance(2.0)
-    >>> clock.now()
-    20.0
-    >>> clock.sleep_until(50.0)  # waits 3 s on the source
-    >>> source.now()
-    5.0
-    """
-
-    def __init__(self, speedup: float, *, source: Clock | None = None, start: float = 0.0) -> None:
-        if not (math.isfinite(speedup) and speedup > 0.0):
-            raise InvalidParameterError(
-                f"speed-up must be a positive finite number, got {speedup!r} "
-                "(use VirtualClock for 'as fast as possible')"
-            )
-        if not math.isfinite(start):
-            raise InvalidParameterError(f"clock start must be a finite number, got {start!r}")
-        self.speedup = float(speedup)
-        self._source: Clock = source if source is not None else RealClock()
-        self._source_origin = self._source.now()
-        self._start = float(start)
-
-    def now(self) -> float:
-        """Return the virtual time: ``start + speedup * (source elapsed)``."""
-        return self._start + self.speedup * (self._source.now() - self._source_origin)
-
-    def sleep_until(self, t: float) -> None:
-        """Wait on the source clock until the virtual time reaches ``t``.
-
-        Parameters
-        ----------
-        t : float
-            Target virtual instant.
-        """
-        if not math.isfinite(t):
-            raise InvalidParameterError(f"sleep_until needs a finite instant, got {t!r}")
-        source_t = self._source_origin + (t - self._start) / self.speedup
-        self._source.sleep_until(source_t)
-        # Rounding in the conversion can leave now() a hair short of t; the
-        # contract says we never return early, so wait out the last ulp.
-        while self.now() < t:
-            source_t = math.nextafter(source_t, math.inf)
-            self._source.sleep_until(source_t)
-
-    def __repr__(self) -> str:
-        return f"ScaledClock({self.speedup!r}, source={self._source!r})"
-
-
 class RateClock:
     """Virtual time running ``rate`` times a source clock, with a rate that can change.
 
@@ -246,13 +173,13 @@ class RateClock:
         The virtual time at construction (default 0.0).
     max_slice : float, optional
         Longest wait on the source before a sleep looks at the rate again
-        (default 0.05 s).
+        (default 0.05 s; ``math.inf`` for a rate nobody changes).
 
     Raises
     ------
     InvalidParameterError
-        If ``rate``, ``start`` or ``max_slice`` is not a finite number, or
-        ``rate`` or ``max_slice`` is not positive.
+        If ``rate`` or ``start`` is not a finite number, or ``rate`` or
+        ``max_slice`` is not positive.
 
     Examples
     --------
@@ -278,9 +205,9 @@ class RateClock:
         self._check_rate(rate)
         if not math.isfinite(start):
             raise InvalidParameterError(f"clock start must be a finite number, got {start!r}")
-        if not (math.isfinite(max_slice) and max_slice > 0.0):
+        if not max_slice > 0.0:  # math.inf: one wait per sleep (a fixed rate)
             raise InvalidParameterError(
-                f"max_slice must be a positive finite number of seconds, got {max_slice!r}"
+                f"max_slice must be a positive number of seconds, got {max_slice!r}"
             )
         self._lock = threading.Lock()
         self._source: Clock = source if source is not None else RealClock()
@@ -351,6 +278,59 @@ class RateClock:
 
     def __repr__(self) -> str:
         return f"RateClock({self.rate!r}, source={self._source!r})"
+
+
+class ScaledClock(RateClock):
+    """Virtual time that runs ``speedup`` times faster than a source clock: a :class:`RateClock`
+    whose rate the program that made it does not change.
+
+    With ``speedup=100`` a 2000 s experiment takes 20 s of real time, and the
+    runner's schedule, the rig's physics and every timestamp agree on the
+    virtual time.
+
+    Parameters
+    ----------
+    speedup : float
+        Positive, finite factor: virtual seconds per source second.
+    source : Clock, optional
+        The clock that really passes (default :class:`RealClock`). Tests pass a
+        :class:`VirtualClock` here so that nothing sleeps.
+    start : float, optional
+        The virtual time at construction (default 0.0).
+
+    Raises
+    ------
+    InvalidParameterError
+        If ``speedup`` is not a positive finite number.
+
+    Examples
+    --------
+    >>> source = VirtualClock()
+    >>> clock = ScaledClock(10.0, source=source)
+    >>> source.advance(2.0)
+    >>> clock.now()
+    20.0
+    >>> clock.sleep_until(50.0)  # waits 3 s on the source
+    >>> source.now()
+    5.0
+    """
+
+    def __init__(self, speedup: float, *, source: Clock | None = None, start: float = 0.0) -> None:
+        if not (math.isfinite(speedup) and speedup > 0.0):
+            raise InvalidParameterError(
+                f"speed-up must be a positive finite number, got {speedup!r} "
+                "(use VirtualClock for 'as fast as possible')"
+            )
+        # One wait on the source per sleep: nothing changes the rate to look at between.
+        super().__init__(speedup, source=source, start=start, max_slice=math.inf)
+
+    @property
+    def speedup(self) -> float:
+        """Virtual seconds per source second."""
+        return self.rate
+
+    def __repr__(self) -> str:
+        return f"ScaledClock({self.speedup!r}, source={self._source!r})"
 
 
 def make_clock(speedup: float | None = 1.0) -> Clock:
