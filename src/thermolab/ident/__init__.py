@@ -22,7 +22,7 @@ and ``resid`` with plausibility and timing checks
 Sample-by-sample forms of every method, for a running experiment, are in
 :mod:`thermolab.ident.online`; every method and setting is declared once in
 :mod:`thermolab.ident.registry`. Models and the ``W <-> (K, tau)`` conversion are in
-:mod:`thermolab.ident.models`.
+:mod:`thermolab.ident.models`, the general ARX model in :mod:`thermolab.ident.arx`.
 
 The names below are imported on first use (PEP 562), so that the command
 line can read the light :mod:`~thermolab.ident.registry` without loading NumPy
@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from ._warning import IdentificationWarning
+    from .arx import ArxModel
     from .batch import least_squares
     from .blocks import block_least_squares
     from .deadtime import DelaySearch
@@ -44,7 +45,6 @@ if TYPE_CHECKING:
     from .models import (
         FIRST_ORDER,
         INVALID_REASONS,
-        ArxModel,
         ArxOrder,
         FirstOrderModel,
         discrete_to_first_order,
@@ -90,7 +90,7 @@ __all__ = [
 _HOME = {
     "FIRST_ORDER": "models",
     "INVALID_REASONS": "models",
-    "ArxModel": "models",
+    "ArxModel": "arx",
     "ArxOrder": "models",
     "FirstOrderModel": "models",
     "discrete_to_first_order": "models",

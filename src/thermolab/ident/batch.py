@@ -19,9 +19,10 @@ from . import _regression as _reg
 from . import _validation as _v
 from . import diagnostics as _diag
 from ._warning import IdentificationWarning
+from .arx import ArxModel
 from .deadtime import DEFAULT_CRITERION, DelaySearch, default_max_delay, search_delay
 from .lsm_result import LeastSquaresResult
-from .models import ArxModel, ArxOrder, FirstOrderModel
+from .models import ArxOrder, FirstOrderModel
 from .operating_point import OperatingPoint, decide_operating_point
 from .registry import SETTINGS
 

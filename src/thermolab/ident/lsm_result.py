@@ -12,8 +12,9 @@ import numpy.typing as npt
 from thermolab.jsonsafe import finite_or_none
 
 from . import diagnostics as _diag
+from .arx import ArxModel
 from .deadtime import DelaySearch
-from .models import ArxModel, ArxOrder, FirstOrderModel
+from .models import ArxOrder, FirstOrderModel
 from .operating_point import OperatingPoint
 
 if TYPE_CHECKING:
