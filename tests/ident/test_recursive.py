@@ -16,6 +16,7 @@ from thermolab.ident import (
     ArxOrder,
     IdentificationWarning,
     _kernels,
+    _kernels_first_order,
     _regression,
     least_squares,
     moving_window_least_squares,
@@ -135,7 +136,7 @@ def test_first_order_and_general_malsm_kernels_agree() -> None:
         code = np.empty(n, dtype=np.int8)
         buf, sums, shift, ints = _kernels.malsm_state(49, 49, 2, first)
         if first:
-            _kernels.malsm2_chunk(u, y, 1, n, buf, sums, ints, W, code)
+            _kernels_first_order.malsm2_chunk(u, y, 1, n, buf, sums, ints, W, code)
         else:
             _kernels.malsm_chunk(u, y, 1, n, 1, 1, 0, False, buf, sums, shift, ints, W, code)
         out.append((W[1:], code[1:]))
@@ -290,7 +291,7 @@ def test_first_order_and_general_wlsm_kernels_are_identical() -> None:
             Wk = np.array(PAPER_W0)
             Pk = np.eye(2) * 400.0
             if first:
-                _kernels.wlsm2_chunk(u, y, 1, n, paper, 0.96, Wk, Pk, W, code)
+                _kernels_first_order.wlsm2_chunk(u, y, 1, n, paper, 0.96, Wk, Pk, W, code)
             else:
                 _kernels.wlsm_chunk(u, y, 1, n, 1, 1, 0, False, paper, 0.96, Wk, Pk, W, code)
             results.append((W[1:], Pk))

@@ -47,9 +47,10 @@ class _Recursive(OnlineIdentifier):
 
     def __init__(self, dt: float, params: dict[str, Any], order: ArxOrder, offset: str | float):
         super().__init__(dt, params)
-        from . import _kernels
+        from . import _kernels, _kernels_first_order
 
         self._k = _kernels
+        self._k1 = _kernels_first_order
         self._order = order
         self._offset = offset
         self._settings: dict[str, Any] = {}
@@ -221,7 +222,7 @@ class _MovingWindow(_Recursive):
             self._W[k] = np.nan
             return None
         if self._first:
-            status, a, b = self._k.malsm2_chunk(
+            status, a, b = self._k1.malsm2_chunk(
                 self._u, self._ys, k, k + 1, self._buf, self._sums, self._ints, self._W, self._code
             )
             if status == 0:
@@ -285,7 +286,7 @@ class _Weighted(_Recursive):
                 return self._from_status(k, 0, float(self._W0[0]), float(self._W0[1]))
             return self._from_row(k)
         if self._first:
-            status, a, b = self._k.wlsm2_chunk(
+            status, a, b = self._k1.wlsm2_chunk(
                 self._u, self._ys, k, k + 1, self._paper, self._gamma, self._Wk, self._Pk,
                 self._W, self._code,
             )  # fmt: skip

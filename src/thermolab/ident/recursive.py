@@ -45,7 +45,7 @@ def run_malsm(
     u: FloatArray, ys: FloatArray, order: ArxOrder, constant: bool, rows: int, every: int
 ) -> tuple[FloatArray, npt.NDArray[np.int8]]:
     """MALSM over a record already in the offset frame: ``(W, status)`` per sample."""
-    from . import _kernels
+    from . import _kernels, _kernels_first_order
 
     n = ys.size
     p = order.na + order.nb + int(constant)
@@ -59,7 +59,7 @@ def run_malsm(
     code[:start] = 1
     buf, sums, shift, ints = _kernels.malsm_state(rows, every, p, first)
     if first:
-        _kernels.malsm2_chunk(u, ys, start, n, buf, sums, ints, W, code)
+        _kernels_first_order.malsm2_chunk(u, ys, start, n, buf, sums, ints, W, code)
     else:
         _kernels.malsm_chunk(
             u, ys, start, n, order.na, order.nb, order.delay, constant,
@@ -79,7 +79,7 @@ def run_wlsm(
     P0: FloatArray,
 ) -> tuple[FloatArray, npt.NDArray[np.int8]]:
     """WLSM over a record already in the offset frame: ``(W, status)`` per sample."""
-    from . import _kernels
+    from . import _kernels, _kernels_first_order
 
     n = ys.size
     p = W0.size
@@ -91,7 +91,7 @@ def run_wlsm(
     Wk = W0.copy()
     Pk = P0.copy()
     if order.is_first_order and not constant:
-        _kernels.wlsm2_chunk(u, ys, start, n, paper, gamma, Wk, Pk, W, code)
+        _kernels_first_order.wlsm2_chunk(u, ys, start, n, paper, gamma, Wk, Pk, W, code)
     else:
         _kernels.wlsm_chunk(
             u, ys, start, n, order.na, order.nb, order.delay, constant, paper, gamma,
