@@ -124,6 +124,28 @@ def test_a_teacher_books_edits_and_cancels_and_clashes_name_the_slot(
     assert len(ana.get("/api/bookings", params=window).json()) == 1
 
 
+def test_only_the_courses_teachers_book_move_or_cancel_its_slots(
+    school: dict[str, Principal], app_client: Clients
+) -> None:
+    tina = app_client("tina")
+    theo = app_client("theo")  # teaches ctrl2, not ctrl1
+    slot = {"course": "ctrl1", "rigs": ["twin"], "startsAt": iso(60), "endsAt": iso(120)}
+    refused = theo.post("/api/bookings", json=slot)
+    assert refused.status_code == 403, refused.text
+    assert refused.json()["code"] == "access_denied"
+    assert "ctrl1" in refused.json()["detail"]
+    booked = tina.post("/api/bookings", json=slot)
+    assert booked.status_code == 201, booked.text
+    slot_id = booked.json()["id"]
+    moved = {"rigs": ["twin"], "startsAt": iso(200), "endsAt": iso(260)}
+    assert theo.put(f"/api/bookings/{slot_id}", json=moved).status_code == 403
+    assert theo.delete(f"/api/bookings/{slot_id}").status_code == 403
+    window = {"from": iso(0), "to": iso(24 * 60)}
+    kept = tina.get("/api/bookings", params=window).json()
+    assert [(b["id"], b["startsAt"][:16]) for b in kept] == [(slot_id, "2026-01-01T01:00")]
+    assert tina.delete(f"/api/bookings/{slot_id}").status_code == 204
+
+
 @pytest.mark.parametrize(
     ("changes", "code"),
     [

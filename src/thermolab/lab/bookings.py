@@ -33,9 +33,10 @@ from sqlalchemy.orm import Session
 from thermolab.errors import BookingClashError, InvalidParameterError, NotFoundError
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
+from thermolab.lab.courses import require_member
 from thermolab.lab.db import Database
 from thermolab.lab.db.booking_models import Booking, BookingRig
-from thermolab.lab.db.models import Course, CourseMember
+from thermolab.lab.db.models import Course, CourseMember, Role
 from thermolab.lab.users import Principal
 
 __all__ = [
@@ -112,12 +113,12 @@ class BookingService:
         ends_at: datetime,
         note: str = "",
     ) -> BookingInfo:
-        """Book ``rigs`` for ``course`` from ``starts_at`` to ``ends_at`` (teachers only).
+        """Book ``rigs`` for ``course`` from ``starts_at`` to ``ends_at`` (its teachers only).
 
         Raises
         ------
         AccessDeniedError
-            If ``who`` is not a teacher.
+            If ``who`` is not a teacher of the course.
         InvalidParameterError
             Naive or reversed times, a slot longer than a day or already over,
             no rigs or too many, a note too long.
@@ -132,6 +133,7 @@ class BookingService:
         now = self._clock.now()
         with self._db.write() as session:
             course_row = _course(session, course)
+            require_member(session, course_row, who, Role.TEACHER, "book rigs for it")
             self._lock(session, wanted)
             _refuse_clash(session, wanted, starts_at, ends_at, exclude=None)
             booking = Booking(
@@ -158,7 +160,7 @@ class BookingService:
         ends_at: datetime,
         note: str = "",
     ) -> BookingInfo:
-        """Move a booking or change its rigs (teachers only); same checks as :meth:`create`.
+        """Move a booking or change its rigs (its course's teachers); checks as :meth:`create`.
 
         Raises
         ------
@@ -170,6 +172,7 @@ class BookingService:
         starts_at, ends_at = starts_at.astimezone(UTC), ends_at.astimezone(UTC)
         with self._db.write() as session:
             booking = _booking(session, booking_id)
+            _require_course_teacher(session, booking, who, "move its bookings")
             old = set(session.scalars(select(BookingRig.rig_id).where(_of(booking.id))))
             self._lock(session, sorted(old | set(wanted)))
             _refuse_clash(session, wanted, starts_at, ends_at, exclude=booking.id)
@@ -187,7 +190,7 @@ class BookingService:
             return _info(session, booking, who, teacher=True)
 
     def cancel(self, who: Principal, booking_id: int) -> None:
-        """Cancel a booking (teachers only); the rules stop applying it at once.
+        """Cancel a booking (its course's teachers); the rules stop applying it at once.
 
         Raises
         ------
@@ -197,6 +200,7 @@ class BookingService:
         who.require_teacher("cancel bookings")
         with self._db.write() as session:
             booking = _booking(session, booking_id)
+            _require_course_teacher(session, booking, who, "cancel its bookings")
             rigs = sorted(session.scalars(select(BookingRig.rig_id).where(_of(booking.id))))
             self._lock(session, rigs)
             session.delete(booking)
@@ -379,3 +383,11 @@ def _info(session: Session, booking: Booking, who: Principal, *, teacher: bool) 
         note=booking.note if shown else "",
         created_by=booking.created_by if shown else None,
     )
+
+
+def _require_course_teacher(
+    session: Session, booking: Booking, who: Principal, action: str
+) -> None:
+    course = session.get(Course, booking.course_id)
+    assert course is not None  # a course's bookings go with it (ON DELETE CASCADE)
+    require_member(session, course, who, Role.TEACHER, action)

@@ -25,7 +25,7 @@ from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from thermolab.errors import AccessDeniedError, NotFoundError, SettingsChangedError
+from thermolab.errors import NotFoundError, SettingsChangedError
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config.teacher_settings import (
     COURSE_SETTINGS,
@@ -33,9 +33,10 @@ from thermolab.lab.config.teacher_settings import (
     allowed_range,
     check_value,
 )
+from thermolab.lab.courses import require_member
 from thermolab.lab.db import Database
 from thermolab.lab.db.course_settings_models import CourseSettingsRow
-from thermolab.lab.db.models import Course, CourseMember
+from thermolab.lab.db.models import Course, Role
 from thermolab.lab.users import Principal
 
 __all__ = ["CourseSettings", "CourseSettingsService"]
@@ -85,16 +86,7 @@ class CourseSettingsService:
         ).one_or_none()
         if course is None:
             raise NotFoundError(f"no course called {name!r}")
-        role = session.scalar(
-            select(CourseMember.role).where(
-                CourseMember.course_id == course.id, CourseMember.user_id == who.user_id
-            )
-        )
-        if role != "teacher":
-            raise AccessDeniedError(
-                f"only a teacher of course {course.name!r} may {action}; ask one of them "
-                "to add you as a teacher"
-            )
+        require_member(session, course, who, Role.TEACHER, action)
         return course
 
     def get(self, name: str, who: Principal) -> CourseSettings:

@@ -35,7 +35,7 @@ from thermolab.lab.db import Database
 from thermolab.lab.db.models import Course, CourseMember, CourseRig, LoginSession, Role, User
 from thermolab.lab.names import normalize_display_name, normalize_username
 from thermolab.lab.security import validate_password
-from thermolab.lab.users import LoginsEnded, UserInfo
+from thermolab.lab.users import LoginsEnded, Principal, UserInfo
 
 __all__ = [
     "COURSE_NAME",
@@ -44,6 +44,7 @@ __all__ = [
     "ImportReport",
     "Member",
     "new_enrol_code",
+    "require_member",
     "temporary_password",
 ]
 
@@ -445,3 +446,24 @@ def _info(session: Session, course: Course, *, roster: bool) -> CourseInfo:
     return CourseInfo(
         course.name, course.title, course.enrol_code, course.created_at, rigs, members
     )
+
+
+def require_member(
+    session: Session, course: Course, who: Principal, role: Role | None, action: str
+) -> None:
+    """Refuse ``action`` unless ``who`` is in ``course`` (as ``role``, if given).
+
+    Raises
+    ------
+    AccessDeniedError
+        Naming the course, and for a teacher's action who can let them in.
+    """
+    held = session.scalar(
+        select(CourseMember.role).where(
+            CourseMember.course_id == course.id, CourseMember.user_id == who.user_id
+        )
+    )
+    if held is None or (role is not None and held != role.value):
+        what = "a member" if role is None else f"a {role.value}"
+        hint = "; ask one of them to add you as a teacher" if role is Role.TEACHER else ""
+        raise AccessDeniedError(f"only {what} of course {course.name!r} may {action}{hint}")

@@ -36,6 +36,7 @@ from thermolab.lab.assignments.marking import MARK_MAX, Answers, Tolerances, ass
 from thermolab.lab.assignments.reference import reference_model
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
+from thermolab.lab.courses import require_member
 from thermolab.lab.db import Database
 from thermolab.lab.db.assignment_models import Assignment, Submission
 from thermolab.lab.db.models import Course, CourseMember, Role, Run, RunStatus, Sample, User
@@ -148,7 +149,7 @@ class AssignmentService:
         now = self._clock.now()
         with self._db.write() as session:
             found = _course(session, course)
-            _require_member(session, found, who, Role.TEACHER)
+            require_member(session, found, who, Role.TEACHER, "set assignments")
             row = Assignment(course_id=found.id, created_by=who.username, created_at=now)
             _fill(row, draft, now)
             session.add(row)
@@ -161,7 +162,7 @@ class AssignmentService:
         now = self._clock.now()
         with self._db.write() as session:
             row, found = _assignment(session, assignment_id)
-            _require_member(session, found, who, Role.TEACHER)
+            require_member(session, found, who, Role.TEACHER, "edit its assignments")
             _fill(row, draft, now)
             session.flush()
             return _info(row, found)
@@ -170,7 +171,7 @@ class AssignmentService:
         """Every hand-in of an assignment, current ones first then by student (its teachers)."""
         with self._db.read() as session:
             row, found = _assignment(session, assignment_id)
-            _require_member(session, found, who, Role.TEACHER)
+            require_member(session, found, who, Role.TEACHER, "see the hand-ins")
             rows = session.execute(
                 select(Submission, User.display_name)
                 .join(User, User.id == Submission.user_id)
@@ -189,7 +190,7 @@ class AssignmentService:
         with self._db.read() as session:
             found = _course(session, course)
             if who is not None:
-                _require_member(session, found, who, Role.TEACHER)
+                require_member(session, found, who, Role.TEACHER, "export its grades")
             assignments = list(
                 session.scalars(
                     select(Assignment)
@@ -240,7 +241,7 @@ class AssignmentService:
         """One assignment, for a member of its course (a student sees their own hand-ins)."""
         with self._db.read() as session:
             row, found = _assignment(session, assignment_id)
-            _require_member(session, found, who, None)
+            require_member(session, found, who, None, "see its assignments")
             return _info(row, found, _mine(session, row.id, who.user_id))
 
     def hand_in(
@@ -266,7 +267,7 @@ class AssignmentService:
         _check_answers(answers)
         with self._db.read() as session:
             row, found = _assignment(session, assignment_id)
-            _require_member(session, found, who, Role.STUDENT)
+            require_member(session, found, who, Role.STUDENT, "hand in")
             run = session.get(Run, run_id)
             if run is None:
                 raise NotFoundError(f"no run {run_id}")
@@ -414,17 +415,6 @@ def _assignment(session: Session, assignment_id: int) -> tuple[Assignment, Cours
     if found is None:
         raise NotFoundError(f"no assignment {assignment_id}")
     return found[0], found[1]
-
-
-def _require_member(session: Session, course: Course, who: Principal, role: Role | None) -> None:
-    held = session.scalar(
-        select(CourseMember.role).where(
-            CourseMember.course_id == course.id, CourseMember.user_id == who.user_id
-        )
-    )
-    if held is None or (role is not None and held != role.value):
-        what = "a member" if role is None else f"a {role.value}"
-        raise AccessDeniedError(f"only {what} of course {course.name!r} may do this")
 
 
 def _mine(session: Session, assignment_id: int, user_id: int) -> tuple[SubmissionInfo, ...]:
