@@ -198,6 +198,21 @@ def test_a_replayed_launch_and_an_unknown_platform_are_refused(
     assert "lti_unknown_platform" in stranger.text
 
 
+@pytest.mark.parametrize("path", ["/api/lti/login", "/api/lti/launch"])
+def test_a_form_with_too_many_fields_is_refused_with_a_page(app_client: Client, path: str) -> None:
+    client = app_client(base_url=TOOL)
+    form = "&".join(f"field{i}=x" for i in range(60))
+    answer = client.post(
+        path,
+        content=form,
+        headers={"Content-Type": "application/x-www-form-urlencoded"},
+        follow_redirects=False,
+    )
+    assert answer.status_code == 400, answer.text
+    assert "lti_invalid_token" in answer.text
+    assert "too many fields" in answer.text
+
+
 def test_a_platform_whose_keys_cannot_be_fetched_is_refused(
     lab: Lab, app_client: Client, teacher: TestClient, platform: Platform
 ) -> None:

@@ -47,6 +47,7 @@ log = logging.getLogger(__name__)
 STATE_COOKIE = "thermolab_lti_state"
 LTI_CROSS_SITE_PATHS = ("/api/lti/login", "/api/lti/launch")
 _MAX_FORM = 64 * 1024
+_MAX_FIELDS = 50  # a login or launch form has a handful
 _FORM_BODY: dict[str, Any] = {
     "requestBody": {
         "content": {
@@ -74,7 +75,11 @@ async def _form(request: Request) -> dict[str, str]:
             text = body.decode("utf-8")
         except UnicodeDecodeError:
             raise LtiError("the LMS's form is not UTF-8") from None
-        for key, values in parse_qs(text, max_num_fields=50).items():
+        try:
+            parsed = parse_qs(text, max_num_fields=_MAX_FIELDS)
+        except ValueError:  # the standard library's refusal of more fields
+            raise LtiError(f"the LMS's form has too many fields (over {_MAX_FIELDS})") from None
+        for key, values in parsed.items():
             fields[key] = values[0]
     if any("\x00" in v or len(v) > _MAX_FORM for v in fields.values()):
         raise LtiError("the LMS's form has a NUL character or a value too long")
