@@ -86,6 +86,10 @@ def test_a_closed_loop_run_on_a_rig_host_tracks_commands_and_outlives_a_cut_link
     ):
         fleet.wait_online(teacher, "box")
         assert ana.post("/api/rigs/box/control").json()["access"]["role"] == "controller"
+        # The loop's commands need a closed-loop run, as in-process.
+        answer = ana.put("/api/rigs/box/runs/current/setpoint", json={"setpoint": 30.0})
+        assert answer.status_code == 409, answer.text
+        assert answer.json()["code"] == "no_run"
         # A set point the rig cannot reach is refused as in-process, before anything starts.
         refused = ana.post(
             "/api/rigs/box/runs",
