@@ -4,11 +4,18 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import replace
+from typing import Any
+
+import pytest
 
 from thermolab.agent.host import RigHost
 from thermolab.agent.outbox import Outbox
-from thermolab.agent.protocol import StartRun
+from thermolab.agent.protocol import SetGains, SetSetpoint, StartRun
+from thermolab.control import PIDGains
+from thermolab.errors import SetpointRangeError, ThermoLabError
 from thermolab.rigs import RigSpec, make_clock
+from thermolab.runner.control_request import ControlRequest
 
 
 def _host(grace: float) -> RigHost:
@@ -64,5 +71,43 @@ def test_a_link_back_within_the_grace_keeps_the_run_and_an_idle_rig_goes_off_at_
         host.end_run(8)
         _wait(lambda: host.heartbeat().run is None)
         assert not host.rig.powered
+    finally:
+        host.close()
+
+
+def test_a_closed_loop_run_records_its_channels_and_takes_the_loops_commands() -> None:
+    host = _host(grace=60.0)
+    control = ControlRequest(setpoint=30.0, kp=4.0, ti=140.0)
+    try:
+        with pytest.raises(SetpointRangeError):  # checked on the host too; the link refuses it
+            host.start_run(
+                StartRun(run=6, dt=0.05, samples=100, control=replace(control, setpoint=500.0))
+            )
+        host.start_run(StartRun(run=7, dt=0.05, samples=10_000, control=control))
+
+        def samples() -> list[dict[str, Any]]:
+            rows = host.outbox.pending(0, 10**6)
+            return [json.loads(body) for _, kind, body in rows if kind == "sample"]
+
+        _wait(lambda: len(samples()) > 3, timeout=30)
+        assert set(samples()[0]["extra"]) == {"r", "u_pid", "e", "auto", "fan"}
+        with pytest.raises(SetpointRangeError):
+            host.command(SetSetpoint(run=7, setpoint=500.0))
+        with pytest.raises(ThermoLabError):
+            host.command(SetSetpoint(run=8, setpoint=28.0))  # not the run going
+        host.command(SetSetpoint(run=7, setpoint=28.0))
+        host.command(SetGains(run=7, gains=PIDGains(5.0, 120.0)))
+        _wait(lambda: samples()[-1]["extra"]["r"] == 28.0, timeout=30)
+        loop = host.heartbeat().loop
+        assert loop is not None
+        assert loop["setpoint"] == 28.0
+        _wait(lambda: host.heartbeat().loop["gains"]["Kp"] == 5.0, timeout=30)  # type: ignore[index]
+        host.end_run(7)
+        _wait(lambda: host.heartbeat().run is None, timeout=30)
+        assert not host.rig.powered  # actuator at its safe value
+        ended = json.loads(host.outbox.pending(0, 10**6)[-1][2])
+        assert ended["reason"] == "ended"
+        assert ended["control"]["setpoint"] == 28.0
+        assert ended["control"]["gains"]["Kp"] == 5.0
     finally:
         host.close()

@@ -11,6 +11,11 @@ It needs no link to stay safe: when the link is lost (:meth:`link_lost`), a
 run in progress is ENDed after ``grace`` seconds (the runner puts the
 actuator at its safe value on the way out) and an idle rig is powered off at
 once; a lab that never comes back cannot leave a heater on.
+
+A closed-loop run's PID is this runner's (:class:`~thermolab.runner.ControlLoop`,
+built from the START's request as the lab builds it), so the loop keeps
+running without the link; its commands (:meth:`RigHost.command`) act on the
+run's controller as the lab's act on an in-process run's.
 """
 
 from __future__ import annotations
@@ -20,10 +25,22 @@ import threading
 from collections.abc import Callable
 
 from thermolab.agent.outbox import Outbox
-from thermolab.agent.protocol import Heartbeat, RunEnded, SampleOut, StartRun
+from thermolab.agent.protocol import (
+    Heartbeat,
+    LoopCommand,
+    RunEnded,
+    SampleOut,
+    SetFan,
+    SetGains,
+    SetMode,
+    StartRun,
+)
 from thermolab.errors import RigError, ThermoLabError
+from thermolab.jsonsafe import json_safe
+from thermolab.records import RUN_CHANNELS, ChannelSpec
 from thermolab.rigs import Rig
-from thermolab.runner import EventBus, Experiment
+from thermolab.runner import EventBus, Experiment, closed_loop_channels
+from thermolab.runner.control_request import build_control_loop
 from thermolab.signals import parse_signal
 
 __all__ = ["RigHost"]
@@ -37,14 +54,31 @@ class _OutboxRecorder:
     def __init__(self, host: RigHost, run_id: int) -> None:
         self._host = host
         self._run = run_id
+        #: The run's channels (``Experiment`` checks them against its own).
+        self.channels: tuple[ChannelSpec, ...] = RUN_CHANNELS
+        #: The extra channels (a closed loop's), in the order ``write`` takes them.
+        self.extra: tuple[str, ...] = ()
+
+    def declare(self, extra: tuple[ChannelSpec, ...]) -> None:
+        """The run records ``extra`` after the standard channels."""
+        self.channels = (*RUN_CHANNELS, *extra)
+        self.extra = tuple(c.name for c in extra)
 
     def open(self) -> None:
         """Nothing to prepare: the outbox is open."""
 
     def write(
-        self, k: int, t: float, u: float, y: float, t_read: float, jitter: float, lateness: float
+        self,
+        k: int,
+        t: float,
+        u: float,
+        y: float,
+        t_read: float,
+        jitter: float,
+        lateness: float,
+        *extra: float,
     ) -> None:
-        """Store the sample in the outbox (its ``seq`` is given there)."""
+        """Store the sample, every channel, in the outbox (its ``seq`` is given there)."""
         body = SampleOut(
             seq=1,
             run=self._run,
@@ -55,6 +89,7 @@ class _OutboxRecorder:
             t_read=t_read,
             jitter=jitter,
             lateness=lateness,
+            extra=dict(zip(self.extra, extra, strict=True)) if self.extra else None,
         ).model_dump_json(exclude={"seq"})
         self._host.outbox.append("sample", body)
         self._host.note(u, y)
@@ -110,14 +145,21 @@ class RigHost:
             info = self.rig.describe()
             limits = (info.input_min, info.input_max)
             signal = parse_signal(command.signal, limits) if command.signal is not None else None
+            loop = None
+            recorder = _OutboxRecorder(self, command.run)
+            if command.control is not None:
+                times = [k * command.dt for k in range(command.samples)]
+                loop = build_control_loop(command.control, command.dt, times, info)
+                recorder.declare(closed_loop_channels(self.rig, loop))
             experiment = Experiment(
                 self.rig,
                 command.dt,
                 command.samples,
                 signal=signal,
                 set_point=command.input,
-                recorder=_OutboxRecorder(self, command.run),
+                recorder=recorder,
                 events=EventBus(),
+                controller=loop,
             )
             self._run, self._run_id = experiment, command.run
             experiment.start()
@@ -149,6 +191,30 @@ class RigHost:
                 return
             if run_id is None and self.rig.powered:
                 self._guard(lambda: self._set_u(self.rig.apply(u)))
+
+    def command(self, command: LoopCommand) -> None:
+        """Apply a closed-loop command to run ``command.run`` if it is the one going.
+
+        Raises
+        ------
+        ThermoLabError
+            As the run's :class:`~thermolab.runner.Experiment` refuses it (the link logs it).
+        """
+        with self._lock:
+            run = self._run
+            if run is None or command.run != self._run_id:
+                raise ThermoLabError(f"run {command.run} is not going on this rig")
+        if isinstance(command, SetMode):
+            if command.auto:
+                run.set_auto(command.setpoint)
+            else:
+                run.set_manual(command.u)
+        elif isinstance(command, SetGains):
+            run.set_gains(command.gains)
+        elif isinstance(command, SetFan):
+            run.set_fan(command.percent)
+        else:
+            run.set_setpoint(command.setpoint)
 
     def power(self, on: bool) -> None:
         """Power the idle rig on (input at its safe value) or off."""
@@ -188,6 +254,7 @@ class RigHost:
         with self._lock:
             if self._run is None and self.rig.powered:
                 self._guard(lambda: self._read())
+            loop = None if self._run is None else self._run.controller
             return Heartbeat(
                 powered=self.rig.powered,
                 u=self._u,
@@ -195,6 +262,7 @@ class RigHost:
                 fault=self.fault,
                 run=self._run_id,
                 pending=self.outbox.count(),
+                loop=None if loop is None else json_safe(loop.to_dict()),
             )
 
     def note(self, u: float, y: float) -> None:
@@ -231,12 +299,20 @@ class RigHost:
             reason = "error" if result is None else result.end_reason.value
             message = "" if result is None else (result.message or "")
             samples = 0 if result is None else len(result.t)
+            control = None if result is None else result.control
             body = RunEnded(
-                seq=1, run=run_id, reason=reason, message=message[:500], samples=samples
+                seq=1,
+                run=run_id,
+                reason=reason,
+                message=message[:500],
+                samples=samples,
+                control=None if control is None else json_safe(control),
             ).model_dump_json(exclude={"seq"})
             self.outbox.append("run_ended", body)
             if reason == "rig_fault":
                 self.fault = message or "rig fault"
+            if not self.rig.powered:  # the run left the rig off (actuator safe)
+                self._u = None
         self.on_outbox()
 
     def _set_u(self, u: float) -> None:

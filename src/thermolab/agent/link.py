@@ -46,7 +46,11 @@ from thermolab.agent.protocol import (
     EndRun,
     Hello,
     Power,
+    SetFan,
+    SetGains,
     SetInput,
+    SetMode,
+    SetSetpoint,
     StartRun,
     Welcome,
     decode_lab,
@@ -248,6 +252,8 @@ class AgentLink:
                     await asyncio.to_thread(self.host.set_input, message.u, message.run)
                 elif isinstance(message, Power):
                     await asyncio.to_thread(self.host.power, message.on)
+                elif isinstance(message, SetMode | SetSetpoint | SetGains | SetFan):
+                    await asyncio.to_thread(self.host.command, message)
             except ThermoLabError as exc:
                 log.warning("%s refused: %s", message.type, exc)
 

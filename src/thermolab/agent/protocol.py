@@ -15,13 +15,24 @@ Durable upward messages (:class:`SampleOut`, :class:`RunEnded`) carry a
 ``seq`` that numbers the agent's outbox; the lab stores them idempotently
 and answers :class:`Ack` with the highest ``seq`` it holds, and the agent
 forgets only what is acknowledged (:mod:`thermolab.agent.outbox`).
+
+A closed-loop run: :class:`StartRun` carries the run's
+:class:`~thermolab.runner.control_request.ControlRequest` as it is (the
+control layer's declaration, checked by the host as by the lab), each live
+command of the loop is one message (:class:`SetMode`, :class:`SetSetpoint`,
+:class:`SetGains` with :class:`~thermolab.control.PIDGains`, :class:`SetFan`),
+each sample carries the loop's channels (``extra``), the heartbeat the loop's
+state, and :class:`RunEnded` the controller as it ended.
 """
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
+
+from thermolab.control import PIDGains
+from thermolab.runner.control_request import ControlRequest
 
 __all__ = [
     "AGENT_LINK_PATH",
@@ -34,11 +45,16 @@ __all__ = [
     "Heartbeat",
     "Hello",
     "LabMessage",
+    "LoopCommand",
     "Power",
     "RunEnded",
     "SampleBatch",
     "SampleOut",
+    "SetFan",
+    "SetGains",
     "SetInput",
+    "SetMode",
+    "SetSetpoint",
     "StartRun",
     "Welcome",
     "decode_agent",
@@ -46,7 +62,7 @@ __all__ = [
     "encode",
 ]
 
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2
 """Bumped on an incompatible change; the lab refuses an agent speaking another."""
 AGENT_LINK_PATH = "/api/agents/link"
 """Where an agent dials in on the lab."""
@@ -86,6 +102,9 @@ class Heartbeat(_Message):
     fault: str | None = Field(default=None, max_length=500)
     run: int | None = None
     pending: int = Field(ge=0, description="outbox messages not yet acknowledged")
+    loop: dict[str, Any] | None = Field(
+        default=None, description="the run's control loop now (ControlLoop.to_dict), if any"
+    )
 
 
 class SampleOut(_Message):
@@ -100,6 +119,9 @@ class SampleOut(_Message):
     t_read: float
     jitter: float
     lateness: float
+    extra: dict[str, float | None] | None = Field(
+        default=None, description="the run's extra channels (a closed loop's), by name"
+    )
 
 
 class SampleBatch(_Message):
@@ -118,6 +140,9 @@ class RunEnded(_Message):
     reason: str = Field(max_length=32, description="thermolab.runner.EndReason value")
     message: str = Field(default="", max_length=500)
     samples: int = Field(ge=0)
+    control: dict[str, Any] | None = Field(
+        default=None, description="a closed loop's controller as it ended (ControlLoop.to_dict)"
+    )
 
 
 AgentMessage = Annotated[Hello | Heartbeat | SampleBatch | RunEnded, Field(discriminator="type")]
@@ -154,6 +179,9 @@ class StartRun(_Message):
     samples: int = Field(ge=1)
     signal: str | None = Field(default=None, max_length=2000)
     input: _Finite | None = None
+    control: ControlRequest | None = Field(
+        default=None, description="a closed-loop run's controller (checked again by the host)"
+    )
 
 
 class EndRun(_Message):
@@ -171,6 +199,44 @@ class SetInput(_Message):
     run: int | None = None
 
 
+class SetMode(_Message):
+    """Switch the run's controller: AUTO (with a new set point) or MANUAL (holding ``u``)."""
+
+    type: Literal["set_mode"] = "set_mode"
+    run: int = Field(ge=1)
+    auto: bool
+    setpoint: _Finite | None = None
+    u: _Finite | None = None
+
+
+class SetSetpoint(_Message):
+    """A new set point for the run's controller."""
+
+    type: Literal["set_setpoint"] = "set_setpoint"
+    run: int = Field(ge=1)
+    setpoint: _Finite
+
+
+class SetGains(_Message):
+    """New gains for the run's controller (bumpless)."""
+
+    type: Literal["set_gains"] = "set_gains"
+    run: int = Field(ge=1)
+    gains: PIDGains
+
+
+class SetFan(_Message):
+    """Run the rig's disturbance fan at ``percent`` during the run."""
+
+    type: Literal["set_fan"] = "set_fan"
+    run: int = Field(ge=1)
+    percent: _Finite
+
+
+LoopCommand = SetMode | SetSetpoint | SetGains | SetFan
+"""A closed-loop command to the run going on the host."""
+
+
 class Power(_Message):
     """Power the rig on or off (off: actuator at its safe value)."""
 
@@ -178,13 +244,12 @@ class Power(_Message):
     on: bool
 
 
-LabMessage = Annotated[
-    Welcome | Ack | StartRun | EndRun | SetInput | Power, Field(discriminator="type")
-]
+_LabUnion = Welcome | Ack | StartRun | EndRun | SetInput | Power | LoopCommand
+LabMessage = Annotated[_LabUnion, Field(discriminator="type")]
 """Anything the lab sends."""
 
 _AGENT: TypeAdapter[Hello | Heartbeat | SampleBatch | RunEnded] = TypeAdapter(AgentMessage)
-_LAB: TypeAdapter[Welcome | Ack | StartRun | EndRun | SetInput | Power] = TypeAdapter(LabMessage)
+_LAB: TypeAdapter[_LabUnion] = TypeAdapter(LabMessage)
 
 
 def encode(message: _Message) -> str:
@@ -197,6 +262,6 @@ def decode_agent(text: str | bytes) -> Hello | Heartbeat | SampleBatch | RunEnde
     return _AGENT.validate_json(text)
 
 
-def decode_lab(text: str | bytes) -> Welcome | Ack | StartRun | EndRun | SetInput | Power:
+def decode_lab(text: str | bytes) -> _LabUnion:
     """Parse a frame from the lab (``pydantic.ValidationError`` if it is not one)."""
     return _LAB.validate_json(text)

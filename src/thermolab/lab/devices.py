@@ -178,15 +178,20 @@ class DeviceHub:
             self._pace(slot, self._config.rig(rig_id))
             slot.claimed = True
 
-    def release(self, rig_id: str) -> None:
+    def release(self, rig_id: str, *, left_off: bool = False) -> None:
         """The run is over: the hub looks after the device again (call :meth:`reconcile`).
 
         A twin's clock takes the speed-up in force (saved during the run, perhaps).
+        ``left_off``: the run powered a device the hub does not hold off (a rig
+        host's), so the hub powers it on again at its safe input, never at the
+        run's last input (a driver's own state tells this in-process).
         """
         slot = self._slots[rig_id]
         with slot.lock:
             slot.claimed = False
             slot.controller_session = None
+            if left_off:
+                slot.powered, slot.input = False, None
             self._pace(slot, self._config.rig(rig_id))
 
     def follow_settings(self, rig: RigConfig) -> None:

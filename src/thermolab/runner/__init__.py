@@ -10,7 +10,7 @@ settings; imported on its own because it loads the compiled kernels).
 """
 
 from thermolab.runner.closed_loop import ControlLoop, adaptive_tuner, estimate_trust
-from thermolab.runner.control_requests import closed_loop_channels
+from thermolab.runner.control_requests import LoopCommands, closed_loop_channels
 from thermolab.runner.events import (
     EstimateEvent,
     Event,
@@ -45,6 +45,7 @@ __all__ = [
     "IdentifierLike",
     "InputSignal",
     "Interlocks",
+    "LoopCommands",
     "MethodResult",
     "Recorder",
     "RunResult",

@@ -10,6 +10,7 @@ state are the sampling loop's and still win.
 from __future__ import annotations
 
 import math
+from typing import Protocol
 
 from thermolab.control import PIDGains
 from thermolab.errors import InvalidParameterError
@@ -17,20 +18,79 @@ from thermolab.records import ChannelSpec
 from thermolab.rigs import RigInfo
 from thermolab.runner.closed_loop import ControlLoop
 
-__all__ = ["FAN_CHANNEL", "ControlRequests", "closed_loop_channels"]
+__all__ = [
+    "FAN_CHANNEL",
+    "ControlRequests",
+    "LoopCommands",
+    "closed_loop_channels",
+    "fan_level",
+]
 
 #: The disturbance fan's channel (recorded by a closed-loop run on a rig with a fan).
 FAN_CHANNEL = ChannelSpec("fan", "%", "other", "disturbance fan, % of full speed")
 
 
-def closed_loop_channels(rig: object, loop: ControlLoop) -> tuple[ChannelSpec, ...]:
+def closed_loop_channels(
+    rig: object, loop: ControlLoop, *, fan: bool | None = None
+) -> tuple[ChannelSpec, ...]:
     """The channels a closed-loop run adds after ``RUN_CHANNELS`` (``loop`` bound first).
 
     The loop's (``r, u_pid, e, auto``...), then ``fan`` when the rig has a
-    disturbance fan: what a recorder of the run must declare.
+    disturbance fan (``fan``: whether it has, for a rig known by its spec
+    only, e.g. a rig host's): what a recorder of the run must declare.
     """
-    fan = (FAN_CHANNEL,) if callable(getattr(rig, "set_fan", None)) else ()
-    return (*loop.channels(), *fan)
+    has_fan = callable(getattr(rig, "set_fan", None)) if fan is None else fan
+    return (*loop.channels(), *((FAN_CHANNEL,) if has_fan else ()))
+
+
+def fan_level(info: RigInfo, has_fan: bool, percent: float) -> float:
+    """Return ``percent`` as a fan level for the rig ``info``.
+
+    Raises
+    ------
+    InvalidParameterError
+        If the rig has no disturbance fan or ``percent`` is not in [0, 100].
+    """
+    if not has_fan:
+        raise InvalidParameterError(f"rig {info.name!r} has no disturbance fan")
+    try:
+        level = float(percent)
+    except (TypeError, ValueError):
+        raise InvalidParameterError(f"the fan takes 0-100 %, got {percent!r}") from None
+    if not (math.isfinite(level) and 0.0 <= level <= 100.0):
+        raise InvalidParameterError(f"the fan takes 0-100 %, got {percent!r}")
+    return level
+
+
+class LoopCommands(Protocol):
+    """What a closed-loop command acts on: a run's :class:`~thermolab.runner.Experiment`,
+    or a stand-in that checks the command as the run would and forwards it (a rig host's run).
+    """
+
+    @property
+    def controller(self) -> ControlLoop | None:
+        """The control loop (``None``: an open-loop run)."""
+        ...
+
+    def set_auto(self, setpoint: float | None = None) -> None:
+        """Switch to AUTO (see :meth:`ControlRequests.set_auto`)."""
+        ...
+
+    def set_manual(self, u: float | None = None) -> None:
+        """Switch to MANUAL (see :meth:`ControlRequests.set_manual`)."""
+        ...
+
+    def set_setpoint(self, setpoint: float) -> None:
+        """Change the set point (see :meth:`ControlRequests.set_setpoint`)."""
+        ...
+
+    def set_gains(self, gains: PIDGains) -> None:
+        """Change the gains (see :meth:`ControlRequests.set_gains`)."""
+        ...
+
+    def set_fan(self, percent: float) -> None:
+        """Run the disturbance fan (see :meth:`ControlRequests.set_fan`)."""
+        ...
 
 
 class ControlRequests:
@@ -136,14 +196,7 @@ class ControlRequests:
         RunStateError
             If the run is already over.
         """
-        if not self.has_fan:
-            raise InvalidParameterError(f"rig {self._info.name!r} has no disturbance fan")
-        try:
-            level = float(percent)
-        except (TypeError, ValueError):
-            raise InvalidParameterError(f"the fan takes 0-100 %, got {percent!r}") from None
-        if not (math.isfinite(level) and 0.0 <= level <= 100.0):
-            raise InvalidParameterError(f"the fan takes 0-100 %, got {percent!r}")
+        level = fan_level(self._info, self.has_fan, percent)
         self._refuse_when_over("set the fan")
         self._fan_request = level
 

@@ -43,6 +43,7 @@ from thermolab.agent.protocol import (
     EndRun,
     Heartbeat,
     Hello,
+    LoopCommand,
     Power,
     RunEnded,
     SampleBatch,
@@ -153,6 +154,8 @@ class AgentHub:
         self._lock = threading.Lock()
         self._links: dict[str, _Link] = {}
         self._status = {r.id: HostStatus(r.id) for r in config.rigs if r.agent}
+        #: Each host's last told ``(run, control loop)`` (its heartbeat's).
+        self._loops: dict[str, tuple[int | None, dict[str, Any] | None]] = {}
         # The safe range a host's readings must stay in: the rig kind's output limit.
         self._limits = {
             r.id: RigSpec.parse(r.spec).describe().output_limit for r in config.rigs if r.agent
@@ -194,7 +197,14 @@ class AgentHub:
             out.append(replace(status, fault=self._access.snapshot(rig_id).fault or status.fault))
         return out
 
-    def send(self, rig_id: str, message: StartRun | EndRun | SetInput | Power) -> bool:
+    def loop(self, rig_id: str, run_id: int) -> dict[str, Any] | None:
+        """Run ``run_id``'s control loop as the host's last heartbeat told it, if any."""
+        run, loop = self._loops.get(rig_id, (None, None))
+        return loop if run == run_id else None
+
+    def send(
+        self, rig_id: str, message: StartRun | EndRun | SetInput | Power | LoopCommand
+    ) -> bool:
         """Send a command to the rig's host (from any thread); ``False`` if it is not connected."""
         with self._lock:
             link = self._links.get(rig_id)
@@ -336,6 +346,7 @@ class AgentHub:
         if isinstance(message, Heartbeat):
             status.powered, status.u, status.y = message.powered, message.u, message.y
             status.fault, status.pending = message.fault, message.pending
+            self._loops[rig_id] = (message.run, message.loop)
             if message.y is not None and message.run is None and math.isfinite(message.y):
                 self._devices.note_sample(rig_id, message.u or 0.0, message.y)
         elif isinstance(message, SampleBatch) and message.samples:
@@ -400,7 +411,7 @@ class AgentHub:
                 "t_read": s.t_read,
                 "jitter": s.jitter,
                 "lateness": s.lateness,
-                "extra": None,
+                "extra": s.extra,
             }
             for s in batch.samples
         ]

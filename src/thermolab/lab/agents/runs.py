@@ -15,15 +15,24 @@ if the link is down the host ENDs it by itself after its grace.
 
 The identification methods run in the lab, on the samples as they are
 stored (:mod:`.estimates`): live estimates and stored results as in-process.
-Not yet for remote rigs: closed-loop runs (refused with 409).
+
+A closed-loop START is checked as in-process (:func:`~thermolab.lab.runs.control.build_control_loop`
+on the rig as published, its channels declared with the run) and its request
+sent with ``StartRun``: the host's runner drives the PID, so the loop goes on
+while the link is lost (within the grace, as any run). The loop's commands
+are checked and recorded as in-process (:func:`~thermolab.lab.runs.commands.send_command`
+with a :class:`~.loop.RemoteLoop`) and sent to the host; the loop's channels
+come back with the samples, its state with the heartbeats, and the
+controller's end with ``RunEnded`` (stored as an in-process run's end).
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from thermolab.agent.protocol import EndRun, RunEnded, SampleBatch, SetInput, StartRun
@@ -37,19 +46,30 @@ from thermolab.errors import (
 from thermolab.lab.access import AccessService
 from thermolab.lab.agents.estimates import RemoteIdentification
 from thermolab.lab.agents.hub import AgentHub
+from thermolab.lab.agents.loop import RemoteLoop
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Run
 from thermolab.lab.devices import DeviceHub
 from thermolab.lab.runs import RunRecord, RunService
+from thermolab.lab.runs.commands import loop_state, send_command
+from thermolab.lab.runs.control import ControlRequest, build_control_loop
 from thermolab.lab.runs.ending import RunEnd, save_end, status_of
 from thermolab.lab.runs.export import RunExport
 from thermolab.lab.runs.request import RUN_SETTINGS, RunRequest
 from thermolab.lab.runs.service import plan_on_rig, plan_start, store_start
 from thermolab.lab.runs.store import RunStore
 from thermolab.lab.users import Principal
-from thermolab.runner import EndReason, Event, SampleEvent
+from thermolab.rigs import RigInfo, RigSpec
+from thermolab.runner import (
+    ControlLoop,
+    EndReason,
+    Event,
+    LoopCommands,
+    SampleEvent,
+    closed_loop_channels,
+)
 
 __all__ = ["RemoteRuns"]
 
@@ -61,6 +81,7 @@ class _RemoteRun:
     run_id: int
     control_session: int
     identification: RemoteIdentification
+    experiment: RemoteLoop  # what the closed-loop commands act on (send_command's)
     ended: threading.Event = field(default_factory=threading.Event)
     stopped_by: str | None = None
 
@@ -115,24 +136,30 @@ class RemoteRuns:
         Raises
         ------
         ConflictError
-            For a closed-loop run, or when the rig's host is offline.
+            When the rig's host is offline.
+        GainRangeError, SetpointRangeError, NoOutputUnitError
+            For a closed-loop request the rig cannot take (as in-process).
         RunInProgressError
             If a run is still going on the rig.
         """
         start = plan_start(self._config, self._hub, self._access, rig_id, request)
+        info, fan = self._rig(rig_id)
+        loop = None
+        channels = start.channels
         if request.control is not None:
-            raise ConflictError(
-                f"rig {rig_id!r} is a remote rig: closed-loop runs need an in-process rig for now"
-            )
+            # Checked as in-process, before anything is stored; the host builds it again.
+            loop = self._loop(request.control, request.dt, request.samples, info)
+            channels = (*channels, *closed_loop_channels(None, loop, fan=fan))
         with self._hub.locked(rig_id):
             going = self._remote.get(rig_id)
             if going is not None:
                 raise RunInProgressError(f"run {going.run_id} is still going on rig {rig_id!r}")
             if not self._agents.online(rig_id):
                 raise ConflictError(f"the host of rig {rig_id!r} is offline; try again later")
-            run_id, control_id = store_start(self._access, rig_id, who, start, start.channels)
+            run_id, control_id = store_start(self._access, rig_id, who, start, channels)
             identification = RemoteIdentification(start.plan.identifiers)
-            self._remote[rig_id] = _RemoteRun(run_id, control_id, identification)
+            commands = RemoteLoop(run_id, loop, info, fan, lambda c: self._agents.send(rig_id, c))
+            self._remote[rig_id] = _RemoteRun(run_id, control_id, identification, commands)
             self._hub.claim(rig_id)
             self._agents.send(
                 rig_id,
@@ -142,6 +169,7 @@ class RemoteRuns:
                     samples=request.samples,
                     signal=request.signal,
                     input=request.setpoint,
+                    control=request.control,
                 ),
             )
         record = self._runs.record(run_id)
@@ -184,6 +212,32 @@ class RemoteRuns:
             remote.run_id if self._agents.send(rig_id, SetInput(u=u, run=remote.run_id)) else None
         )
 
+    def command(
+        self,
+        rig_id: str,
+        who: Principal,
+        kind: str,
+        payload: dict[str, Any],
+        act: Callable[[LoopCommands], None],
+    ) -> RunRecord:
+        """Check, record and send a closed-loop command to the rig's run (as in-process:
+        :meth:`RunService.command`, the same errors; ``ConflictError`` if the host is offline).
+        """
+        run_id = send_command(
+            self._access, self._remote.get(rig_id), rig_id, who, kind, payload, act
+        )
+        return self._runs.get(run_id, who)
+
+    def loop_state(self, rig_id: str) -> dict[str, Any] | None:
+        """The control loop of the rig's run as its host last told it, or ``None``."""
+        remote = self._remote.get(rig_id)
+        if remote is None or remote.experiment.controller is None:
+            return None
+        told = self._agents.loop(rig_id, remote.run_id)
+        if told is None:  # no heartbeat of the run yet: the loop as started
+            return loop_state(remote)
+        return {**told, "run": remote.run_id}
+
     def control_changed(self, rig_id: str, controller_session: int | None) -> None:
         """END the rig's run when its turn is over (the host ENDs it anyway if unreachable)."""
         remote = self._remote.get(rig_id)
@@ -202,10 +256,45 @@ class RemoteRuns:
         none: its end is then stored without method results).
         """
         identification = self._identification_of(run_id)
+        commands = self._adopted_loop(rig_id, run_id)
         with self._hub.locked(rig_id):
             if rig_id not in self._remote:
-                self._remote[rig_id] = _RemoteRun(run_id, control_session, identification)
+                self._remote[rig_id] = _RemoteRun(run_id, control_session, identification, commands)
                 self._hub.claim(rig_id)
+
+    def _rig(self, rig_id: str) -> tuple[RigInfo, bool]:
+        """The rig as published (its spec's, within its published input range); has it a fan."""
+        spec = RigSpec.parse(self._config.rig(rig_id).spec)
+        published = self._hub.published(rig_id)
+        info = replace(
+            spec.describe(), input_min=published.input_min, input_max=published.input_max
+        )
+        return info, spec.fan is not None
+
+    @staticmethod
+    def _loop(control: ControlRequest, dt: float, samples: int, info: RigInfo) -> ControlLoop:
+        times = [k * dt for k in range(samples)]
+        return build_control_loop(control, dt, times, info)
+
+    def _adopted_loop(self, rig_id: str, run_id: int) -> RemoteLoop:
+        """The closed-loop commands of an adopted run, its loop built again from its request."""
+        info, fan = self._rig(rig_id)
+        loop = None
+        try:
+            run, _ = self._store.read(run_id)
+            settings = dict((run.meta or {}).get("settings") or {})
+            control = settings.get("control")
+            if control is not None:
+                # ControlRequest.settings() read back: lists were tuples.
+                given: dict[str, Any] = {
+                    k: tuple(v) if isinstance(v, list) else v for k, v in control.items()
+                }
+                loop = self._loop(
+                    ControlRequest(**given), settings["dt"], settings["samples"], info
+                )
+        except (ThermoLabError, KeyError, TypeError) as exc:
+            log.warning("run %s: its control loop cannot be rebuilt: %r", run_id, exc)
+        return RemoteLoop(run_id, loop, info, fan, lambda c: self._agents.send(rig_id, c))
 
     def _identification_of(self, run_id: int) -> RemoteIdentification:
         try:
@@ -248,6 +337,8 @@ class RemoteRuns:
                 y=s.y,
                 jitter=s.jitter,
                 lateness=s.lateness,
+                # JSON's null is the runner's NaN (a PID output before the first sample).
+                extra={n: math.nan if v is None else v for n, v in (s.extra or {}).items()},
             )
             for each in (event, *estimates):
                 on_event(rig_id, s.run, each)
@@ -284,12 +375,12 @@ class RemoteRuns:
             if late is not None:
                 late.finish()
                 results = late.results(ended.run)
-        end = RunEnd(status_of(reason), words, results, timing=None, control=None)
+        end = RunEnd(status_of(reason), words, results, timing=None, control=ended.control)
         save_end(self._db, ended.run, end, self._clock.now())
         if remote is None or remote.run_id != ended.run:
             return  # a run from before a restart of the lab: stored, nothing going
         del self._remote[rig_id]
-        self._hub.release(rig_id)
+        self._hub.release(rig_id, left_off=True)  # the host's runner powered the rig off
         if reason is EndReason.RIG_FAULT:
             self._access.report_fault(rig_id, ended.message or "rig fault")
         self._on_finished(rig_id)

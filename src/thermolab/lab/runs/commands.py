@@ -12,7 +12,7 @@ the rig's :class:`~.active.ActiveRun` (``None``: no run is going).
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol
 
 from thermolab.errors import AccessDeniedError, ConflictError, NoRunError, NotClosedLoopError
 from thermolab.jsonsafe import json_safe
@@ -20,9 +20,29 @@ from thermolab.lab.access import AccessService
 from thermolab.lab.runs.active import ActiveRun
 from thermolab.lab.runs.store import run_command
 from thermolab.lab.users import Principal
-from thermolab.runner import Experiment
+from thermolab.runner import LoopCommands
 
-__all__ = ["end_run", "hand_input", "loop_state", "send_command"]
+__all__ = ["GoingRun", "end_run", "hand_input", "loop_state", "send_command"]
+
+
+class GoingRun(Protocol):
+    """What :func:`send_command` needs of a run: an :class:`~.active.ActiveRun`, or a rig
+    host's (:mod:`thermolab.lab.agents.runs`), whose ``experiment`` forwards the commands."""
+
+    @property
+    def run_id(self) -> int:
+        """The run's id."""
+        ...
+
+    @property
+    def control_session(self) -> int:
+        """The turn the run belongs to."""
+        ...
+
+    @property
+    def experiment(self) -> LoopCommands:
+        """What the commands act on."""
+        ...
 
 
 def end_run(access: AccessService, active: ActiveRun | None, rig_id: str, who: Principal) -> int:
@@ -62,18 +82,20 @@ def hand_input(active: ActiveRun | None, u: float, control_session: int | None) 
 
 def send_command(
     access: AccessService,
-    active: ActiveRun | None,
+    active: GoingRun | None,
     rig_id: str,
     who: Principal,
     kind: str,
     payload: dict[str, Any],
-    act: Callable[[Experiment], None],
+    act: Callable[[LoopCommands], None],
 ) -> int:
     """Hand a closed-loop command to the rig's run ``active``; return the run's id.
 
     Only the controller, in the turn the run belongs to, may; ``act`` is
     applied to the run's :class:`~thermolab.runner.Experiment` (which checks
-    the values and raises before changing anything), then the command is
+    the values and raises before changing anything; a rig host's run: its
+    :class:`~thermolab.lab.agents.loop.RemoteLoop`, which checks them alike and
+    forwards them), then the command is
     recorded (``commands``, kind ``kind``, ``payload``), in the same
     transaction of the rig. The run applies it from its next sample on, after
     the interlocks, as any input.
@@ -107,7 +129,7 @@ def send_command(
     return active.run_id
 
 
-def loop_state(active: ActiveRun | None) -> dict[str, Any] | None:
+def loop_state(active: GoingRun | None) -> dict[str, Any] | None:
     """The control loop of the run ``active`` now (``ControlLoop.to_dict``), or ``None``."""
     if active is None or active.experiment.controller is None:
         return None

@@ -65,6 +65,7 @@ from thermolab.runner import (
     Event,
     EventBus,
     Experiment,
+    LoopCommands,
     RunResult,
     closed_loop_channels,
 )
@@ -351,7 +352,7 @@ class RunService(RunReading):
         who: Principal,
         kind: str,
         payload: dict[str, Any],
-        act: Callable[[Experiment], None],
+        act: Callable[[LoopCommands], None],
     ) -> RunRecord:
         """Hand a closed-loop command to the rig's run (mode, set point, gains, fan).
 

@@ -3,7 +3,8 @@
 Live commands act on the rig's current run (started with ``control`` in its
 START body) from its next sample on; only the controller, in the turn the run
 belongs to, may send them (the access checks of ``PUT .../input``), and the
-interlocks and the safe state still come first in the sampling loop.
+interlocks and the safe state still come first in the sampling loop (a rig
+host's run: checked here the same way, applied by the host's runner).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from thermolab.lab.http.routers.runs import RunOut
 from thermolab.lab.runs.tuning_table import closed_loop_figures, run_model, tuning_table
 from thermolab.lab.service import Lab
 from thermolab.rigs import RigSpec
-from thermolab.runner import Experiment
+from thermolab.runner import LoopCommands
 
 __all__ = ["router"]
 
@@ -67,7 +68,7 @@ def rig_loop(rig_id: RigId, who: UserDep, lab: LabDep) -> LoopOut:
         output_limit=info.output_limit,
         closed_loop=bool(published.output_unit),
         fan=None if spec.fan is None else spec.fan.to_dict(),
-        loop=lab.runs.loop_state(rig_id),
+        loop=(lab.remote_runs if rig_id in lab.remote_rigs else lab.runs).loop_state(rig_id),
     )
 
 
@@ -75,7 +76,8 @@ def _command(
     lab: Lab, rig_id: str, who: Any, kind: str, payload: dict[str, Any], act: Any
 ) -> RunOut:
     lab.config.rig(rig_id)
-    return RunOut.of(lab.runs.command(rig_id, who, kind, payload, act))
+    runs = lab.remote_runs if rig_id in lab.remote_rigs else lab.runs  # on its host, or here
+    return RunOut.of(runs.command(rig_id, who, kind, payload, act))
 
 
 _COMMAND_ERRORS = documented_errors(403, 404, 409, 422)
@@ -94,7 +96,7 @@ def set_mode(rig_id: RigId, body: ModeIn, who: UserDep, lab: LabDep) -> RunOut:
     PID tracks it. 409 ``no_run`` without a run, ``not_closed_loop`` for an open-loop run.
     """
 
-    def act(experiment: Experiment) -> None:
+    def act(experiment: LoopCommands) -> None:
         if body.mode == "auto":
             experiment.set_auto(body.setpoint)
         else:
