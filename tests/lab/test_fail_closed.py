@@ -359,6 +359,22 @@ def test_a_start_that_loses_the_race_gets_turn_ended_every_time(
         scene.lab.runs.wait(RIG, timeout=30)
 
 
+def test_a_runs_late_sample_does_not_become_the_idle_rigs_input(make_lab: LabFactory) -> None:
+    # A run's recorder hands samples in by batches, the last perhaps after the run let
+    # the rig go: their input is history, and the hub keeps saying what the rig has.
+    lab = make_lab()
+    hub = lab.hub
+    hub.claim(RIG)
+    hub.note_sample(RIG, 6.0, 30.0, of_run=True)
+    assert hub.applied(RIG) == 6.0  # during the run: the run's input
+    hub.release(RIG)
+    before = hub.applied(RIG)
+    hub.note_sample(RIG, 7.0, 31.0, of_run=True)  # the recorder's last batch, late
+    assert hub.applied(RIG) == before
+    hub.note_sample(RIG, 0.5, 25.0)  # a rig host's idle reading still counts
+    assert hub.applied(RIG) == 0.5
+
+
 def test_a_start_after_the_turn_ended_is_refused_not_a_lost_race(
     make_lab: LabFactory, clock: ManualClock
 ) -> None:

@@ -218,12 +218,21 @@ class DeviceHub:
         if isinstance(clock, RateClock) and rig.lab_twin:
             clock.set_rate(rig.twin_speedup)
 
-    def note_sample(self, rig_id: str, u: float, y: float) -> None:
-        """Record a sample taken by someone else (a run samples the rig)."""
+    def note_sample(self, rig_id: str, u: float, y: float, *, of_run: bool = False) -> None:
+        """Record a sample taken by someone else (a run samples the rig; a rig host reports).
+
+        ``of_run``: a run's sample, ignored once the run has let the rig go
+        (:meth:`release`). Its recorder stores samples in batches and may hand
+        the last ones in after the end; the input they carry is history, not
+        what the rig now has.
+        """
         slot = self._slots[rig_id]
-        slot.input = u
-        slot.output = y
-        slot.output_at = self._clock.now() if self._clock is not None else slot.output_at
+        with slot.lock:
+            if of_run and not slot.claimed:
+                return
+            slot.input = u
+            slot.output = y
+            slot.output_at = self._clock.now() if self._clock is not None else slot.output_at
 
     def driver(self, rig_id: str) -> Rig | None:
         """Return the rig's open driver, if any (the runner samples it during a run)."""

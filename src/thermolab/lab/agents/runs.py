@@ -319,7 +319,7 @@ class RemoteRuns:
 
     def _samples(self, rig_id: str, batch: SampleBatch) -> None:
         last = batch.samples[-1]
-        self._hub.note_sample(rig_id, last.u, last.y)
+        self._hub.note_sample(rig_id, last.u, last.y, of_run=True)
         remote = self._remote.get(rig_id)
         on_event = self._on_event
         for s in batch.samples:

@@ -276,7 +276,7 @@ class RunService(RunReading):
             recorder = DatabaseRecorder(
                 self._db,
                 run_id,
-                on_sample=lambda u, y: self._hub.note_sample(rig_id, u, y),
+                on_sample=lambda u, y: self._hub.note_sample(rig_id, u, y, of_run=True),
                 channels=channels,
             )
             experiment = Experiment(
