@@ -42,6 +42,21 @@ def postgres_base_url() -> str:
     return os.environ.get("THERMOLAB_TEST_POSTGRES_URL", DEFAULT_POSTGRES_URL)
 
 
+#: The Redis of the several-workers tests (a broker on loopback here and on CI).
+REDIS_URL = os.environ.get("THERMOLAB_TEST_REDIS_URL", "redis://127.0.0.1:6379/0")
+
+
+@pytest.fixture(scope="session")
+def redis_url() -> str:
+    """The test Redis's URL; the test is skipped, saying why, where it is unreachable."""
+    redis = pytest.importorskip("redis")
+    try:
+        redis.Redis.from_url(REDIS_URL, socket_connect_timeout=2).ping()
+    except redis.RedisError as exc:
+        pytest.skip(f"Redis at {REDIS_URL} unreachable: {exc}")
+    return REDIS_URL
+
+
 @pytest.fixture(scope="session")
 def postgres_server() -> str:
     """The PostgreSQL URL, or a skip saying why it cannot be used."""

@@ -9,8 +9,6 @@ import pytest
 
 from thermolab.lab.bus import BusError, LocalBus, open_bus
 
-from .test_workers import REDIS_URL
-
 
 def test_the_local_bus_delivers_in_order_to_every_subscriber_of_the_topic() -> None:
     bus = open_bus(None)
@@ -33,16 +31,13 @@ def test_an_unknown_broker_or_an_unreachable_one_is_one_clear_error() -> None:
 
 
 @pytest.mark.redis
-def test_two_workers_on_redis_hear_each_other_in_order_and_labs_do_not_mix() -> None:
-    redis = pytest.importorskip("redis")
-    try:
-        redis.Redis.from_url(REDIS_URL, socket_connect_timeout=2).ping()
-    except redis.RedisError as exc:
-        pytest.skip(f"Redis at {REDIS_URL} unreachable: {exc}")
+def test_two_workers_on_redis_hear_each_other_in_order_and_labs_do_not_mix(
+    redis_url: str,
+) -> None:
     prefix = f"test.{uuid.uuid4().hex[:8]}."
-    a = open_bus(REDIS_URL, prefix=prefix)
-    b = open_bus(REDIS_URL, prefix=prefix)
-    stranger = open_bus(REDIS_URL, prefix=prefix + "other.")
+    a = open_bus(redis_url, prefix=prefix)
+    b = open_bus(redis_url, prefix=prefix)
+    stranger = open_bus(redis_url, prefix=prefix + "other.")
     try:
         assert a.shared
         heard: list[bytes] = []

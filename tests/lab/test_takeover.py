@@ -35,11 +35,10 @@ from thermolab.lab.db import Database
 from thermolab.lab.db.models import ControlSession, ServerLease
 
 from .fleet_setup import PEOPLE, seed_lab, stop
-from .test_workers import LAB_TOML, Worker, _start, redis_url
+from .test_workers import LAB_TOML, Worker, _start
 
 pytestmark = [pytest.mark.postgres, pytest.mark.redis, pytest.mark.slow]
 
-__all__ = ["redis_url"]  # the fixture, imported for this module's tests
 
 TAKEN_OVER = "this worker now owns the rigs"
 """What a promoted standby logs (lab/fleet.py)."""

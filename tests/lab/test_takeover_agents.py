@@ -35,12 +35,11 @@ from thermolab.lab.db.models import Sample
 
 from .fleet_setup import PEOPLE, seed_lab, start_agent, stop
 from .test_takeover import TAKEN_OVER, _open_turns
-from .test_workers import Worker, _start, redis_url
+from .test_workers import Worker, _start
 from .test_workers_agents import LAB_TOML
 
 pytestmark = [pytest.mark.postgres, pytest.mark.redis, pytest.mark.slow]
 
-__all__ = ["redis_url"]  # the fixture, imported for this module's tests
 
 GRACE = "300"
 """The rig host's grace (``--agent-grace``): far above a loaded machine's takeover."""

@@ -34,7 +34,6 @@ from .fleet_setup import seed_lab, stop
 
 pytestmark = [pytest.mark.postgres, pytest.mark.redis, pytest.mark.slow]
 
-REDIS_URL = os.environ.get("THERMOLAB_TEST_REDIS_URL", "redis://127.0.0.1:6379/0")
 STUDENTS = 100
 
 LAB_TOML = """
@@ -52,16 +51,6 @@ id = "twin"
 title = "Twin"
 spec = "sim:paper-practical"
 """
-
-
-@pytest.fixture(scope="module")
-def redis_url() -> str:
-    redis = pytest.importorskip("redis")
-    try:
-        redis.Redis.from_url(REDIS_URL, socket_connect_timeout=2).ping()
-    except redis.RedisError as exc:
-        pytest.skip(f"Redis at {REDIS_URL} unreachable: {exc}")
-    return REDIS_URL
 
 
 def _free_port() -> int:

@@ -23,11 +23,10 @@ import pytest
 from websockets.sync.client import connect
 
 from .fleet_setup import PEOPLE, seed_lab, start_agent, stop
-from .test_workers import Worker, _frames, _start, redis_url
+from .test_workers import Worker, _frames, _start
 
 pytestmark = [pytest.mark.postgres, pytest.mark.redis, pytest.mark.slow]
 
-__all__ = ["redis_url"]  # the fixture, imported for this module's tests
 
 LAB_TOML = """
 [access]
