@@ -83,7 +83,9 @@ async def start_watchers(
     return clients
 
 
-async def bench(workers: int, watchers: int, seconds: float) -> dict[str, Any]:
+async def bench(
+    workers: int, watchers: int, seconds: float, server_log: Path | None = None
+) -> dict[str, Any]:
     samples = round(seconds / bench_live.DT)
     schema, url = new_schema()
     servers: list[subprocess.Popen[bytes]] = []
@@ -104,8 +106,10 @@ async def bench(workers: int, watchers: int, seconds: float) -> dict[str, Any]:
                 port = bench_live.free_port()
                 serve = [PYTHON, "-m", "thermolab", "serve", "--port", str(port), *common]
                 serve += ["--broker", REDIS, "--max-connections", "20000"]
-                quiet = subprocess.DEVNULL
-                servers.append(subprocess.Popen(serve, env=env, stdout=quiet, stderr=quiet))
+                log = subprocess.DEVNULL
+                if server_log is not None:  # each worker's own file: what went wrong, if anything
+                    log = open(f"{server_log}-{watchers}-{workers}-{len(servers)}.log", "wb")  # noqa: SIM115
+                servers.append(subprocess.Popen(serve, env=env, stdout=log, stderr=log))
                 bases.append(f"http://127.0.0.1:{port}")
                 bench_live.wait_for(bases[-1] + "/openapi.json", 90)
             async with httpx.AsyncClient(base_url=bases[0], timeout=60) as http:
@@ -163,6 +167,12 @@ def main() -> int:
     parser.add_argument("--workers", default="1,2,4", help="comma-separated (1,2,4)")
     parser.add_argument("--watchers", default="1000,2000", help="comma-separated (1000,2000)")
     parser.add_argument("--seconds", type=float, default=15.0, help="length of each run (15)")
+    parser.add_argument(
+        "--server-log",
+        type=Path,
+        metavar="PREFIX",
+        help="keep each worker's output in PREFIX-<watchers>-<workers>-<i>.log",
+    )
     args = parser.parse_args()
     print(
         f"one rig at {1 / bench_live.DT:g} samples/s, {args.seconds:g} s per run, watchers "
@@ -180,7 +190,7 @@ def main() -> int:
     for watchers in [int(n) for n in args.watchers.split(",")]:
         print(f"  -- {watchers} watchers")
         for workers in [int(n) for n in args.workers.split(",")]:
-            row = asyncio.run(bench(workers, watchers, args.seconds))
+            row = asyncio.run(bench(workers, watchers, args.seconds, args.server_log))
             bench_live.print_row(row)
             alone = bench_bus.run_bus("redis", 20.0, min(args.seconds, 5.0), workers)
             if "p99" in alone:

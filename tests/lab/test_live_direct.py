@@ -11,6 +11,7 @@ never reaches the store (a controller's still keeps its turn).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import socket
 import threading
@@ -23,6 +24,7 @@ import uvicorn
 from websockets.sync.client import ClientConnection, connect
 
 from thermolab.cli.serve import _framed_websockets
+from thermolab.lab.clock import ManualClock
 from thermolab.lab.fanout import CLOSE_TOO_SLOW
 from thermolab.lab.http.app import create_app
 from thermolab.lab.http.live_socket import LiveEndpoint
@@ -177,3 +179,42 @@ def test_a_watchers_ping_stays_in_memory_and_a_controllers_keeps_the_turn(
                 pass
         assert viewed == ["bob"]  # only the controller's ping looked at the store
         assert {w.username for w in lab.presence.watchers("other")} == {"ana", "bob"}
+
+
+def test_a_controllers_many_sockets_keep_the_turn_with_one_look_a_second(
+    served: tuple[Lab, LiveEndpoint, str], monkeypatch: pytest.MonkeyPatch, clock: ManualClock
+) -> None:
+    # Per socket, 2000 of one login's sockets pinging queued store work without bound,
+    # their reads stopped meanwhile and the server failed them on its own keepalive (1011).
+    lab, live, base = served
+    viewed: list[str] = []
+    view = lab.access.view
+
+    def counted(rig_id: str, who: Any) -> Any:
+        viewed.append(who.username)
+        return view(rig_id, who)
+
+    monkeypatch.setattr(lab.access, "view", counted)
+    bob = lab.users.get("bob")
+    lab.access.request_control("other", Principal(bob.id, bob.username, bob.role))
+    url = base + "/api/rigs/other/live"
+    with contextlib.ExitStack() as stack:
+        tabs = [
+            stack.enter_context(connect(url, additional_headers=login(lab, "bob")))
+            for _ in range(4)
+        ]
+        for ws in tabs:
+            assert _messages(ws)[0]["type"] == "hello"
+        until(lambda: "other" in live._holders)
+        viewed.clear()
+        for ws in tabs:
+            ws.send('{"type":"ping"}')
+        for ws in tabs:  # every ping is answered, the skipped ones too
+            while not any(m["type"] == "pong" for m in _messages(ws)):
+                pass
+        assert viewed == ["bob"]  # one look at the store for all four
+        clock.advance(1.1)  # a second later the place is kept again
+        tabs[0].send('{"type":"ping"}')
+        while not any(m["type"] == "pong" for m in _messages(tabs[0])):
+            pass
+        assert viewed == ["bob", "bob"]

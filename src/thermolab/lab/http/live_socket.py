@@ -125,6 +125,9 @@ class LiveEndpoint:
         self._states: dict[str, tuple[str, str | None]] = {}
         self._signatures: dict[str, tuple[Any, ...]] = {}
         self._holders: dict[str, frozenset[int | None]] = {}  # who holds a control or queue place
+        # When each (rig, user) holding a place last had it kept by a ping: one heartbeat a
+        # second per user, however many of their sockets ping (tabs, a projector).
+        self._kept_at: dict[tuple[str, int | None], datetime] = {}
         self._limiter: anyio.CapacityLimiter | None = None
         self.logins = LoginWatch(lab, self.hub)
 
@@ -198,7 +201,9 @@ class LiveEndpoint:
     async def _push_access(self, rig_id: str) -> None:
         channel = self.hub.channels[rig_id]
         snap = await self._in_thread(self.lab.access.snapshot, rig_id)
-        self._holders[rig_id] = _holders(snap)
+        holders = self._holders[rig_id] = _holders(snap)
+        for key in [k for k in self._kept_at if k[0] == rig_id and k[1] not in holders]:
+            del self._kept_at[key]  # their place is gone: nothing left to keep
         watchers = self.lab.presence.watchers(rig_id)
         # Heartbeats change nothing anyone sees: only a visible change is sent.
         signature = _signature(snap, len(watchers))
@@ -346,6 +351,16 @@ class LiveEndpoint:
         self.lab.presence.touch(rig_id, who.username)
         holders = self._holders.get(rig_id)
         if holders is None or who.user_id in holders:
+            # The place is the user's, not the socket's: one heartbeat a second however
+            # many of their sockets ping. Per socket, a user with many sockets would queue
+            # store work without bound, and every waiting socket's reads stop (uvicorn
+            # reads a socket's next frame once the app took the last one), so the server's
+            # own keepalive pongs go unread and the connections are failed (1011).
+            key = (rig_id, who.user_id)
+            kept = self._kept_at.get(key)
+            if kept is not None and now - kept < _PING_INTERVAL:
+                return
+            self._kept_at[key] = now
             await self._in_thread(self.lab.access.view, rig_id, who)
 
     async def _in_thread(self, work: Callable[..., _T], *args: Any) -> _T:
