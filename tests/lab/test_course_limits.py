@@ -20,9 +20,10 @@ from thermolab.lab.access.rules import Slot, TurnRules, TurnState, Waiting, curr
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import CooldownPolicy
 from thermolab.lab.db.models import PowerState
-from thermolab.lab.runs.request import RunRequest, check_run_length
+from thermolab.lab.runs.request import RunRequest
 from thermolab.lab.service import Lab
 from thermolab.lab.users import Principal
+from thermolab.rigs import TwinRig, VirtualClock
 
 from .conftest import PASSWORD, LabFactory
 
@@ -130,7 +131,12 @@ def person(lab: Lab, name: str, role: str = "student") -> Principal:
 
 @pytest.fixture
 def lab(make_lab: LabFactory) -> Lab:
-    return make_lab(control_time_limit=300.0, idle_limit=120.0, max_run_seconds=600.0)
+    return make_lab(
+        control_time_limit=300.0,
+        idle_limit=120.0,
+        max_run_seconds=600.0,
+        opener=lambda rig: TwinRig("paper", clock=VirtualClock()),
+    )
 
 
 @pytest.fixture
@@ -219,7 +225,6 @@ def test_during_the_slot_the_courses_limits_apply_and_a_turn_keeps_its_own(
     lab.access.release("twin", ana)
     start = clock.now() + timedelta(seconds=30)
     lab.bookings.create(tina, "ctrl1", ["twin"], start, start + timedelta(hours=1))
-    assert lab.access.course_limits("twin") == ()
     clock.advance(40.0)
     lab.access.request_control("twin", ana)
     control = lab.access.snapshot("twin").controller
@@ -231,11 +236,8 @@ def test_during_the_slot_the_courses_limits_apply_and_a_turn_keeps_its_own(
     assert (seen.config.control_time_limit, seen.config.idle_limit) == (900.0, None)
     assert seen.config.max_run_seconds == 60.0
     # The longest run: the course's 60 s, in force at START.
-    limits = lab.access.course_limits("twin")
-    assert dict(limits)["max_run_seconds"] == 60.0
-    request = RunRequest(dt=1.0, samples=120)
-    with pytest.raises(InvalidParameterError, match="60 s"):
-        check_run_length(request, "twin", lab.config, limits)
+    with pytest.raises(InvalidParameterError, match=r"longer than rig 'twin' allows \(60 s\)"):
+        lab.runs.start("twin", ana, RunRequest(dt=1.0, samples=120))
     # In its last minute the turn may be extended: the ceiling counts the course's 900 s
     # (with the rig's 300 s it would be refused).
     for _ in range(172):
@@ -264,3 +266,26 @@ def test_during_the_slot_the_courses_limits_apply_and_a_turn_keeps_its_own(
     # Someone outside the course is still refused during the slot.
     with pytest.raises(RigBookedError):
         lab.access.request_control("twin", sam)
+
+
+def test_a_slot_that_ends_while_a_start_is_decided_no_longer_lengthens_that_run(
+    lab: Lab, clock: ManualClock, school: dict[str, Principal]
+) -> None:
+    # The course's longest run is read in START's own transaction: read before it, a
+    # slot ending in between still gave the run the course's 1200 s, not the rig's 600 s.
+    ana, tina = school["ana"], school["tina"]
+    lab.course_settings.update("ctrl1", tina, {"max_run_seconds": 1200}, 0)
+    begins = clock.now() + timedelta(seconds=10)
+    lab.bookings.create(tina, "ctrl1", ["twin"], begins, begins + timedelta(minutes=5))
+    clock.advance(280.0)  # 10 s of the slot left
+    lab.access.request_control("twin", ana)
+
+    def meanwhile(point: str) -> None:
+        if point == "start:arrived":
+            clock.advance(20.0)  # the slot ends while the START is being decided
+
+    lab.runs.checkpoint = meanwhile
+    with pytest.raises(InvalidParameterError, match=r"longer than rig 'twin' allows \(600 s\)"):
+        lab.runs.start("twin", ana, RunRequest(dt=1.0, samples=900))
+    assert lab.runs.list(ana) == []
+    assert lab.access.snapshot("twin").controller is not None  # the refusal ends no turn

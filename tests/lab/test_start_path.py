@@ -33,18 +33,18 @@ from .conftest import PASSWORD, LabFactory
 #: The modules that do START's work, in the order first entered (docs/architecture.md).
 START_PATH = (
     "http.routers.runs",  # the route and its bodies: RunIn.request(), RunOut.of()
-    "runs.service",  # RunService.start
+    "runs.service",  # RunService.start: plan_start, then store_start in the turn's transaction
     "devices",  # the rig's published range and driver, the hub's lock
     "runs.request",  # plan_run: the one check, the operating point, the identifiers
-    "access.transactions",  # course_limits, caller_turn (a lost race is told apart), controlled()
+    "runs.store",  # run_channels, add_run, DatabaseRecorder, read
+    "access.transactions",  # caller_turn (a lost race is told apart), controlled()
     "db.engine",  # the transactions
     "access.queries",  # their SQL (read_slots: a course's limits during its slot)
     "access.rules",  # current_slot; next_state: the limits applied
-    "runs.store",  # run_channels, add_run, DatabaseRecorder, read
 )
 #: Values every part of the lab reads (the rig's config, the clock, the column
 #: types, the watchers a request touches), not steps of START.
-LEAVES = frozenset({"config.model", "config.rig_kinds", "clock", "db.models", "presence"})
+LEAVES = frozenset({"config.model", "clock", "db.models", "presence"})
 #: The listeners the lab registered, told of the change (events going up).
 EVENTS = frozenset({"service", "http.live_socket", "fanout"})
 

@@ -34,7 +34,7 @@ from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig, RigConfig
 from thermolab.lab.config.rig_kinds import PublishedRig, narrow_range, published_defaults
 from thermolab.lab.db.models import PowerState
-from thermolab.rigs import RateClock, RealClock, Rig, RigSpec
+from thermolab.rigs import RateClock, RealClock, Rig
 
 __all__ = [
     "DesiredState",
@@ -67,7 +67,7 @@ def device_opener() -> RigOpener:
     """
 
     def open_configured(rig: RigConfig) -> Rig:
-        spec = RigSpec.parse(rig.spec)
+        spec = rig.rig_spec
         return spec.open(clock=RateClock(rig.twin_speedup) if spec.simulated else RealClock())
 
     return open_configured

@@ -85,6 +85,11 @@ class Controlled:
     control: ControlSession
     now: datetime
 
+    def course_limits(self) -> tuple[tuple[str, SettingValue], ...]:
+        """The limits a course's slot going on now sets on the rig (empty: the rig's own)."""
+        slot = current_slot(q.read_slots(self.session, self.rig.id, self.now, set()), self.now)
+        return () if slot is None else slot.limits
+
 
 class RigTransactions:
     """The turn rules applied over the lab's database, one locked transaction per decision.
@@ -170,13 +175,6 @@ class RigTransactions:
                 )
             )
         return turn
-
-    def course_limits(self, rig_id: str) -> tuple[tuple[str, SettingValue], ...]:
-        """The limits a course's slot going on now sets on the rig (empty: the rig's own)."""
-        with self._db.read() as session:
-            now = self._clock.now()
-            slot = current_slot(q.read_slots(session, rig_id, now, set()), now)
-        return () if slot is None else slot.limits
 
     def turn_ended_error(self, rig_id: str, turn: int) -> TurnEndedError:
         """The 409 of an action whose turn ``turn`` ended while it was being decided.

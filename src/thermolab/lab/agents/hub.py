@@ -61,7 +61,6 @@ from thermolab.lab.db import Database
 from thermolab.lab.db.agent_models import AgentHost
 from thermolab.lab.db.models import Run, Sample
 from thermolab.lab.devices import DeviceHub
-from thermolab.rigs import RigSpec
 
 __all__ = ["HEALTH_FAULT", "AgentHub", "HostStatus"]
 
@@ -157,9 +156,7 @@ class AgentHub:
         #: Each host's last told ``(run, control loop)`` (its heartbeat's).
         self._loops: dict[str, tuple[int | None, dict[str, Any] | None]] = {}
         # The safe range a host's readings must stay in: the rig kind's output limit.
-        self._limits = {
-            r.id: RigSpec.parse(r.spec).describe().output_limit for r in config.rigs if r.agent
-        }
+        self._limits = {r.id: r.rig_spec.describe().output_limit for r in config.rigs if r.agent}
         #: Called with ``(rig_id, samples)`` after samples are stored, and ``(rig_id, RunEnded)``.
         self.on_samples: Callable[[str, SampleBatch], None] = lambda rig, batch: None
         self.on_run_ended: Callable[[str, RunEnded], None] = lambda rig, ended: None

@@ -61,7 +61,7 @@ from thermolab.lab.runs.request import RUN_SETTINGS, RunRequest
 from thermolab.lab.runs.service import plan_on_rig, plan_start, store_start
 from thermolab.lab.runs.store import RunStore
 from thermolab.lab.users import Principal
-from thermolab.rigs import RigInfo, RigSpec
+from thermolab.rigs import RigInfo
 from thermolab.runner import (
     ControlLoop,
     EndReason,
@@ -142,7 +142,7 @@ class RemoteRuns:
         RunInProgressError
             If a run is still going on the rig.
         """
-        start = plan_start(self._config, self._hub, self._access, rig_id, request)
+        start = plan_start(self._config, self._hub, rig_id, request)
         info, fan = self._rig(rig_id)
         loop = None
         channels = start.channels
@@ -156,7 +156,9 @@ class RemoteRuns:
                 raise RunInProgressError(f"run {going.run_id} is still going on rig {rig_id!r}")
             if not self._agents.online(rig_id):
                 raise ConflictError(f"the host of rig {rig_id!r} is offline; try again later")
-            run_id, control_id = store_start(self._access, rig_id, who, start, channels)
+            run_id, control_id = store_start(
+                self._config, self._access, rig_id, who, start, channels
+            )
             identification = RemoteIdentification(start.plan.identifiers)
             commands = RemoteLoop(run_id, loop, info, fan, lambda c: self._agents.send(rig_id, c))
             self._remote[rig_id] = _RemoteRun(run_id, control_id, identification, commands)
@@ -264,7 +266,7 @@ class RemoteRuns:
 
     def _rig(self, rig_id: str) -> tuple[RigInfo, bool]:
         """The rig as published (its spec's, within its published input range); has it a fan."""
-        spec = RigSpec.parse(self._config.rig(rig_id).spec)
+        spec = self._config.rig(rig_id).rig_spec
         published = self._hub.published(rig_id)
         info = replace(
             spec.describe(), input_min=published.input_min, input_max=published.input_max

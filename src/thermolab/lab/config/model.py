@@ -56,6 +56,7 @@ from typing import Literal
 import platformdirs
 
 from thermolab.errors import ConfigError, NotFoundError
+from thermolab.rigs import RigSpec
 
 __all__ = [
     "DATABASE_FILE",
@@ -264,12 +265,18 @@ class RigConfig:
         return None if self.agent else self.twin_speedup
 
     @property
+    def rig_spec(self) -> RigSpec:
+        """``spec`` parsed by the rigs layer's grammar (checked when the configuration was read).
+
+        >>> RigConfig("k", "K", "tclab:/dev/ttyUSB0").rig_spec.argument
+        '/dev/ttyUSB0'
+        """
+        return RigSpec.parse(self.spec)
+
+    @property
     def kind(self) -> str:
         """``"sim"`` or ``"tclab"`` (the part of ``spec`` before the colon)."""
-        # Imported here: the spec grammar reads this module's RigConfig.
-        from thermolab.lab.config.rig_kinds import parse_rig_spec
-
-        return parse_rig_spec(self.spec)[0]
+        return self.rig_spec.kind
 
 
 class RigSettingsBoard:

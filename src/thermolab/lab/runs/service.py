@@ -59,7 +59,6 @@ from thermolab.lab.runs.store import (
 )
 from thermolab.lab.users import Principal
 from thermolab.records import ChannelSpec
-from thermolab.rigs import RigSpec
 from thermolab.runner import (
     EndReason,
     Event,
@@ -87,8 +86,8 @@ def _no_checkpoint(name: str) -> None:
 class StartPlan:
     """What a START decides before it stores the run, in-process or on a rig host."""
 
+    request: RunRequest  #: as the controller asked
     plan: RunPlan  #: the checked request and its identifiers (:func:`.request.plan_run`)
-    length: float  #: the run's real seconds (within the rig's and a course's limit)
     channels: tuple[ChannelSpec, ...]  #: in the rig's units (a closed loop adds its own)
 
 
@@ -98,27 +97,25 @@ def plan_on_rig(
     """:func:`.request.plan_run` on the rig: its published input range and, for the live
     block and recursive methods, its kind's typical dead time as their delay."""
     published = hub.published(rig_id)
-    dead_time = RigSpec.parse(config.rig(rig_id).spec).typical_dead_time
+    dead_time = config.rig(rig_id).rig_spec.typical_dead_time
     return plan_run(request, (published.input_min, published.input_max), dead_time), published
 
 
-def plan_start(
-    config: LabConfig, hub: DeviceHub, access: AccessService, rig_id: str, request: RunRequest
-) -> StartPlan:
-    """Check a START on the rig: the plan, the length a course's slot allows, the channels.
+def plan_start(config: LabConfig, hub: DeviceHub, rig_id: str, request: RunRequest) -> StartPlan:
+    """Check a START on the rig: the plan, the length the rig allows, the channels.
 
     Both STARTs (:meth:`RunService.start`, :class:`thermolab.lab.agents.RemoteRuns`)
     decide it here, before they take the rig's lock. Errors: :func:`.request.plan_run`,
     :func:`.request.check_run_length`.
     """
     plan, published = plan_on_rig(config, hub, rig_id, request)
-    limits = access.course_limits(rig_id)  # a course's, during its slot
-    length = check_run_length(request, rig_id, config, limits)
+    check_run_length(request, rig_id, config)  # the rig's own limit, before any wait
     channels = run_channels(published.input_unit, published.output_unit)
-    return StartPlan(plan, length, channels)
+    return StartPlan(request, plan, channels)
 
 
 def store_start(
+    config: LabConfig,
     access: AccessService,
     rig_id: str,
     who: Principal,
@@ -127,13 +124,18 @@ def store_start(
 ) -> tuple[int, int]:
     """Store the run in the locked transaction of ``who``'s turn; ``(run id, turn id)``.
 
-    ``AccessDeniedError`` when ``who`` does not control the rig; :func:`.store.add_run`'s errors.
+    A course's slot going on now may lower the longest run: it is read in the
+    same transaction, so a slot that begins while the START is decided counts.
+
+    ``AccessDeniedError`` when ``who`` does not control the rig;
+    :func:`.request.check_run_length`'s and :func:`.store.add_run`'s errors.
     """
     with access.controlled(rig_id, who, "start a run") as turn:
+        length = check_run_length(start.request, rig_id, config, turn.course_limits())
         meta = {
             "operating_point": start.plan.operating_point.to_dict(),
             # The run's planned end: the queue's estimated wait counts it.
-            "ends_at": (turn.now + timedelta(seconds=start.length)).isoformat(),
+            "ends_at": (turn.now + timedelta(seconds=length)).isoformat(),
         }
         run_id = add_run(
             turn.session,
@@ -234,7 +236,7 @@ class RunService(RunReading):
             If the rig has no device.
         """
         self._config.rig(rig_id)  # an unknown rig is a 404, before anything reads its device
-        start = plan_start(self._config, self._hub, self._access, rig_id, request)
+        start = plan_start(self._config, self._hub, rig_id, request)
         plan = start.plan
         driver = self._hub.driver(rig_id)
         if driver is None:
@@ -267,7 +269,9 @@ class RunService(RunReading):
                     )
                 raise self._still_ending(rig_id, going)
             try:
-                run_id, control_id = store_start(self._access, rig_id, who, start, channels)
+                run_id, control_id = store_start(
+                    self._config, self._access, rig_id, who, start, channels
+                )
             except AccessDeniedError:
                 if arrived_in is None:
                     raise  # the caller had no turn: not allowed, not a lost race

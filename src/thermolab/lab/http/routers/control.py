@@ -19,7 +19,6 @@ from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, RunId, UserDep
 from thermolab.lab.http.routers.runs import RunOut
 from thermolab.lab.runs.tuning_table import closed_loop_figures, run_model, tuning_table
 from thermolab.lab.service import Lab
-from thermolab.rigs import RigSpec
 from thermolab.runner import LoopCommands
 
 __all__ = ["router"]
@@ -57,7 +56,7 @@ def rig_loop(rig_id: RigId, who: UserDep, lab: LabDep) -> LoopOut:
     """
     cfg = lab.config.rig(rig_id)
     published = lab.hub.published(rig_id)
-    spec = RigSpec.parse(cfg.spec)
+    spec = cfg.rig_spec
     info = spec.describe()
     lab.presence.touch(rig_id, who.username)
     return LoopOut(
