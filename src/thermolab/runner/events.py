@@ -19,7 +19,7 @@ server answers by resynchronising the client from a snapshot.
 
 Two ways to consume the same queue:
 
-* :meth:`EventBus.subscribe`: pull (``get``, ``drain``, iteration) from any thread.
+* :meth:`EventBus.subscribe`: pull (``drain``, iteration) from any thread.
 * :meth:`EventBus.subscribe_callback`: a function called on a thread of its
   own, in event order (what the lab service uses to forward events to its
   live stream, which does its own asyncio fan-out to browsers).
@@ -308,7 +308,6 @@ class Subscription:
         self._ready = threading.Condition(self._lock)
         self._closed = False
         self._cut_reason: str | None = None
-        self._delivered = 0
 
     # -- state visible to the consumer and to the run ----------------------------
 
@@ -327,43 +326,12 @@ class Subscription:
         """``True`` once no more events will be queued (end of run, cut or unsubscribed)."""
         return self._closed
 
-    @property
-    def pending(self) -> int:
-        """Events queued and not yet consumed."""
-        return len(self._items)
-
     def close(self) -> None:
         """Unsubscribe: no more events are queued; what is queued can still be read."""
         self._bus._remove(self)
         self._finish(None)
 
     # -- consumer side -------------------------------------------------------------
-
-    def get(self, timeout: float | None = None) -> Event | None:
-        """Return the next event, waiting for it if needed.
-
-        Parameters
-        ----------
-        timeout : float or None
-            Seconds to wait at most (``None``: until an event or the end).
-
-        Returns
-        -------
-        Event or None
-            The next event; ``None`` if the timeout passed or the stream has
-            ended (``closed`` tells which).
-
-        Raises
-        ------
-        SubscriberCutError
-            Once the queued events are consumed, if the subscriber was cut.
-        """
-        with self._ready:
-            event = self._take()
-            if event is not None or self._closed:
-                return event
-            self._ready.wait(timeout)
-            return self._take()
 
     def drain(self) -> list[Event]:
         """Return every queued event without waiting (possibly none).
@@ -376,7 +344,6 @@ class Subscription:
         with self._lock:
             events = list(self._items)
             self._items.clear()
-            self._delivered += len(events)
             if not events and self._cut_reason is not None:
                 raise SubscriberCutError(self._cut_reason)
             return events
@@ -431,7 +398,6 @@ class Subscription:
             If the queue is empty and the subscriber was cut.
         """
         if self._items:
-            self._delivered += 1
             return self._items.popleft()
         if self._cut_reason is not None:
             raise SubscriberCutError(self._cut_reason)
@@ -486,7 +452,7 @@ class EventBus:
     >>> slow = bus.subscribe(maxsize=2, name="slow")
     >>> for _ in range(3):
     ...     bus.publish(StateEvent(bus.next_seq(), RunState.RUNNING, RunState.IDLE))
-    >>> fast.pending, slow.cut
+    >>> len(fast.drain()), slow.cut
     (3, True)
     """
 
@@ -573,7 +539,7 @@ class EventBus:
         Returns
         -------
         Subscription
-            The queue the thread consumes (for ``cut``, ``dropped``, ``close()``).
+            The queue the thread consumes (for ``cut``, ``cut_reason``, ``close()``).
         """
         sub = Subscription(self, self._name(name), maxsize)
         runner = _CallbackRunner(self, sub, callback, fatal_errors)
