@@ -1,8 +1,10 @@
 """Rigs: one interface for the digital twin and every hardware driver.
 
-See :mod:`thermolab.rigs.base` for the interface (:class:`Rig`,
-:class:`BaseRig`, :class:`RigInfo`, :class:`Reading`, :class:`RigState`) and
-:mod:`thermolab.rigs.clock` for the clocks every rig and the runner share.
+See :mod:`thermolab.rigs.contract` for the interface (:class:`Rig`,
+:class:`RigInfo`, :class:`Reading`, :class:`RigState`),
+:mod:`thermolab.rigs.base` for :class:`BaseRig` (the state machine and safe
+state every rig shares) and :mod:`thermolab.rigs.clock` for the clocks every
+rig and the runner share.
 The implementations are the digital twin (:mod:`thermolab.rigs.twin`) and the
 TCLab driver (:mod:`thermolab.rigs.tclab`); :class:`RigSpec` parses the one-line
 specification that names a rig (``sim``, ``sim:PRESET``, ``tclab``,
@@ -14,7 +16,7 @@ is imported from its module.
 
 from thermolab.errors import RigError, RigFaultError, RigStateError, RigTimeoutError
 from thermolab.rigs._factory import RIG_SPECS, open_rig
-from thermolab.rigs.base import BaseRig, Reading, Rig, RigInfo, RigState
+from thermolab.rigs.base import BaseRig
 from thermolab.rigs.clock import (
     Clock,
     RateClock,
@@ -23,6 +25,7 @@ from thermolab.rigs.clock import (
     VirtualClock,
     make_clock,
 )
+from thermolab.rigs.contract import Reading, Rig, RigInfo, RigState
 from thermolab.rigs.spec import RIG_KINDS, FanSpec, RigKind, RigSpec
 from thermolab.rigs.tclab import TCLabRig, TCLabVersion, find_tclab, tclab_info
 from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_info, twin_params, twin_preset

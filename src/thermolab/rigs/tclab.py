@@ -60,8 +60,9 @@ import serial
 import serial.tools.list_ports
 
 from thermolab.errors import InvalidParameterError, RigError, RigFaultError, RigTimeoutError
-from thermolab.rigs.base import BaseRig, Reading, RigInfo
+from thermolab.rigs.base import BaseRig
 from thermolab.rigs.clock import Clock, RealClock
+from thermolab.rigs.contract import Reading, RigInfo
 
 __all__ = ["TCLabRig", "TCLabVersion", "find_tclab", "tclab_info"]
 
