@@ -6,7 +6,9 @@ See :mod:`thermolab.rigs.contract` for the interface (:class:`Rig`,
 state every rig shares) and :mod:`thermolab.rigs.clock` for the clocks every
 rig and the runner share.
 The implementations are the digital twin (:mod:`thermolab.rigs.twin`) and the
-TCLab driver (:mod:`thermolab.rigs.tclab`); :class:`RigSpec` parses the one-line
+TCLab driver (:mod:`thermolab.rigs.tclab`; finding a kit's port:
+:mod:`thermolab.rigs.tclab_port`; heaters off when the process ends:
+:mod:`thermolab.rigs.tclab_exit`); :class:`RigSpec` parses the one-line
 specification that names a rig (``sim``, ``sim:PRESET``, ``tclab``,
 ``tclab:PORT``) and tells what it is without opening it (units, ranges, safe
 input, defaults: :mod:`thermolab.rigs.spec`); :func:`open_rig` opens it. The TCLab firmware emulator
@@ -27,7 +29,8 @@ from thermolab.rigs.clock import (
 )
 from thermolab.rigs.contract import Reading, Rig, RigInfo, RigState
 from thermolab.rigs.spec import RIG_KINDS, FanSpec, RigKind, RigSpec
-from thermolab.rigs.tclab import TCLabRig, TCLabVersion, find_tclab, tclab_info
+from thermolab.rigs.tclab import TCLabRig, tclab_info
+from thermolab.rigs.tclab_port import TCLabVersion, find_tclab
 from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_info, twin_params, twin_preset
 
 __all__ = [
