@@ -20,7 +20,7 @@ from numpy.testing import assert_allclose
 
 import thermolab.rigs
 from thermolab.cli import main
-from thermolab.cli.run import _Progress
+from thermolab.cli._run_report import Progress
 from thermolab.rigs import Reading, Rig
 from thermolab.rigs.tclab_emulator import TCLabEmulator
 from thermolab.rigs.twin import TwinRig
@@ -264,7 +264,7 @@ def test_progress_bar_draws_one_line() -> None:
         k, samples, dt = 500, 2000, 1.0
 
     stream = io.StringIO()
-    _Progress(Stub(), stream)._draw(elapsed=2.0)
+    Progress(Stub(), stream)._draw(elapsed=2.0)
     text = stream.getvalue()
     assert text.startswith("\r[#######-----------------------]  25%  500/2000 samples  t=500 s")
     assert "ETA    6 s" in text

@@ -2,7 +2,9 @@
 
 Each subcommand lives in a module of its own that exposes ``register(subparsers)``;
 the module adds its parser and sets ``handler`` to a function taking the parsed
-arguments and returning the exit status. Heavy imports (NumPy, Numba, the server)
+arguments and returning the exit status; a module whose name starts with ``_``
+is a part of one or more subcommands (``_settings``, ``_run_args``,
+``_run_report``), not a subcommand. Heavy imports (NumPy, Numba, the server)
 happen inside the handlers so that ``thermolab --help`` stays instant.
 
 Every error a user can cause ends as one line on standard error and a non-zero

@@ -1,10 +1,14 @@
 """Rigs: one interface for the digital twin and every hardware driver.
 
-See :mod:`thermolab.rigs.base` for the interface (:class:`Rig`,
-:class:`BaseRig`, :class:`RigInfo`, :class:`Reading`, :class:`RigState`) and
-:mod:`thermolab.rigs.clock` for the clocks every rig and the runner share.
+See :mod:`thermolab.rigs.contract` for the interface (:class:`Rig`,
+:class:`RigInfo`, :class:`Reading`, :class:`RigState`),
+:mod:`thermolab.rigs.base` for :class:`BaseRig` (the state machine and safe
+state every rig shares) and :mod:`thermolab.rigs.clock` for the clocks every
+rig and the runner share.
 The implementations are the digital twin (:mod:`thermolab.rigs.twin`) and the
-TCLab driver (:mod:`thermolab.rigs.tclab`); :class:`RigSpec` parses the one-line
+TCLab driver (:mod:`thermolab.rigs.tclab`; finding a kit's port:
+:mod:`thermolab.rigs.tclab_port`; heaters off when the process ends:
+:mod:`thermolab.rigs.tclab_exit`); :class:`RigSpec` parses the one-line
 specification that names a rig (``sim``, ``sim:PRESET``, ``tclab``,
 ``tclab:PORT``) and tells what it is without opening it (units, ranges, safe
 input, defaults: :mod:`thermolab.rigs.spec`); :func:`open_rig` opens it. The TCLab firmware emulator
@@ -14,7 +18,7 @@ is imported from its module.
 
 from thermolab.errors import RigError, RigFaultError, RigStateError, RigTimeoutError
 from thermolab.rigs._factory import RIG_SPECS, open_rig
-from thermolab.rigs.base import BaseRig, Reading, Rig, RigInfo, RigState
+from thermolab.rigs.base import BaseRig
 from thermolab.rigs.clock import (
     Clock,
     RateClock,
@@ -23,8 +27,10 @@ from thermolab.rigs.clock import (
     VirtualClock,
     make_clock,
 )
+from thermolab.rigs.contract import Reading, Rig, RigInfo, RigState
 from thermolab.rigs.spec import RIG_KINDS, FanSpec, RigKind, RigSpec
-from thermolab.rigs.tclab import TCLabRig, TCLabVersion, find_tclab, tclab_info
+from thermolab.rigs.tclab import TCLabRig, tclab_info
+from thermolab.rigs.tclab_port import TCLabVersion, find_tclab
 from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_info, twin_params, twin_preset
 
 __all__ = [

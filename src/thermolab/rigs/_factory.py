@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from thermolab.rigs.base import Rig
 from thermolab.rigs.clock import Clock
+from thermolab.rigs.contract import Rig
 from thermolab.rigs.spec import RIG_SPECS, RigSpec
 
 __all__ = ["RIG_SPECS", "open_rig"]

@@ -9,7 +9,7 @@ Each kind of rig (:class:`RigKind`, one per word before the colon, in
 :data:`RIG_KINDS`) declares what it is *without opening anything*: its
 argument, whether it is simulated (and so follows a lab's speed-up), the
 options its constructor takes with their defaults, and — through
-:meth:`RigSpec.describe` — the :class:`~thermolab.rigs.base.RigInfo` the open
+:meth:`RigSpec.describe` — the :class:`~thermolab.rigs.contract.RigInfo` the open
 rig will report (units, input range, safe input, output limit). A lab can
 validate its configuration and publish every rig's ranges before powering
 anything; :meth:`RigSpec.open` (and :func:`thermolab.rigs.open_rig`) then
@@ -26,8 +26,8 @@ from types import MappingProxyType
 from typing import Any
 
 from thermolab.errors import InvalidParameterError
-from thermolab.rigs.base import Rig, RigInfo
 from thermolab.rigs.clock import Clock
+from thermolab.rigs.contract import Rig, RigInfo
 from thermolab.rigs.tclab import TCLabRig, tclab_info
 from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_info, twin_params
 

@@ -34,6 +34,10 @@ the kit runs ThermoLab's watchdog sketch (``firmware/tclab_watchdog``):
   watchdog sketch, which switches the heaters off ``firmware_watchdog``
   seconds after the last command.
 
+Finding and opening the port is :mod:`thermolab.rigs.tclab_port`
+(:func:`find_tclab`, :class:`TCLabVersion`, re-exported here), switching
+every open kit off when the process ends :mod:`thermolab.rigs.tclab_exit`.
+
 Every exchange has a timeout; a kit that does not answer raises
 :class:`~thermolab.errors.RigTimeoutError`, one that answers garbage or
 disappears (unplugged) :class:`~thermolab.errors.RigFaultError`, and in each
@@ -43,163 +47,26 @@ waits longer than the timeout.
 
 from __future__ import annotations
 
-import atexit
 import contextlib
 import math
 import re
-import signal
 import threading
 import time
-from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
-from types import FrameType
-from typing import Any
+from collections.abc import Sequence
 
 import serial
-import serial.tools.list_ports
 
 from thermolab.errors import InvalidParameterError, RigError, RigFaultError, RigTimeoutError
-from thermolab.rigs.base import BaseRig, Reading, RigInfo
+from thermolab.rigs.base import BaseRig
 from thermolab.rigs.clock import Clock, RealClock
+from thermolab.rigs.contract import Reading, RigInfo
+from thermolab.rigs.tclab_exit import register, unregister
+from thermolab.rigs.tclab_port import PORT_ERRORS, TCLabVersion, find_tclab, open_port
 
 __all__ = ["TCLabRig", "TCLabVersion", "find_tclab", "tclab_info"]
 
-try:  # POSIX: pyserial lets termios errors (EIO from an unplugged device) escape
-    import termios
-
-    _PORT_ERRORS: tuple[type[BaseException], ...] = (
-        serial.SerialException,
-        OSError,
-        termios.error,
-    )
-except ImportError:  # pragma: no cover - Windows
-    _PORT_ERRORS = (serial.SerialException, OSError)
-
-_VERSION_RE = re.compile(r"^TCLab Firmware (\d+)\.(\d+)\.(\d+)\s*(.*)$")
 #: Below this a TMP36 reading means a broken or disconnected sensor, not a cold room.
 _MIN_PLAUSIBLE_TEMPERATURE = -20.0
-
-
-@dataclass(frozen=True, slots=True)
-class TCLabVersion:
-    """A kit's answer to ``VER``.
-
-    Attributes
-    ----------
-    major, minor, patch : int
-        Firmware version.
-    board : str
-        Board name (``"Arduino Uno"``, ``"Arduino Leonardo"``...).
-
-    Examples
-    --------
-    >>> TCLabVersion.parse("TCLab Firmware 2.0.1 Arduino Uno")
-    TCLabVersion(major=2, minor=0, patch=1, board='Arduino Uno')
-    >>> TCLabVersion.parse("hello") is None
-    True
-    """
-
-    major: int
-    minor: int
-    patch: int
-    board: str
-
-    @classmethod
-    def parse(cls, reply: str) -> TCLabVersion | None:
-        """Parse a ``VER`` reply; ``None`` if it is not a TCLab's."""
-        match = _VERSION_RE.match(reply.strip())
-        if match is None:
-            return None
-        major, minor, patch, board = match.groups()
-        return cls(int(major), int(minor), int(patch), board)
-
-    @property
-    def text(self) -> str:
-        """``"2.0.1"``."""
-        return f"{self.major}.{self.minor}.{self.patch}"
-
-
-def _open_port(port: str, baudrate: float, timeout: float) -> serial.Serial:
-    try:
-        return serial.Serial(
-            port, int(baudrate), timeout=timeout, write_timeout=timeout, exclusive=True
-        )
-    except (serial.SerialException, OSError, ValueError) as exc:
-        raise RigError(f"cannot open serial port {port!r}: {exc}") from None
-
-
-def _probe(port: str, baudrate: int, timeout: float, reset_wait: float) -> str:
-    """Open ``port``, ask ``VER`` and return the reply line (``""`` if none)."""
-    with _open_port(port, baudrate, timeout) as link:
-        time.sleep(reset_wait)  # a physical board reset, not simulated time
-        link.reset_input_buffer()
-        link.write(b"VER\r\n")
-        return bytes(link.read_until(b"\n")).decode("ascii", errors="replace").strip()
-
-
-def find_tclab(
-    candidates: Sequence[str] | None = None,
-    *,
-    baudrate: int = 115200,
-    timeout: float = 1.0,
-    reset_wait: float = 2.0,
-) -> tuple[str, TCLabVersion]:
-    """Find a TCLab kit by asking every serial port ``VER``.
-
-    Every candidate port is probed (in parallel, so the boards' reset waits
-    overlap), not only ports with a known USB id: clones and other boards
-    carry other ids.
-
-    Parameters
-    ----------
-    candidates : sequence of str, optional
-        Ports to probe, in order of preference; default: every serial port
-        the operating system lists.
-    baudrate : int
-        Baud rate (115200 for firmware 2.x).
-    timeout : float
-        Seconds to wait for each reply.
-    reset_wait : float
-        Seconds to wait after opening a port (a board resets when its port
-        opens, about 2 s).
-
-    Returns
-    -------
-    tuple of (str, TCLabVersion)
-        The first candidate that answered as a TCLab, and its version.
-
-    Raises
-    ------
-    RigError
-        If no port answered as a TCLab (the message says what each port did).
-    """
-    ports = (
-        list(candidates)
-        if candidates is not None
-        else [info.device for info in serial.tools.list_ports.comports()]
-    )
-    if not ports:
-        raise RigError("no TCLab found: there is no serial port on this machine")
-
-    def attempt(port: str) -> str | Exception:
-        try:
-            return _probe(port, baudrate, timeout, reset_wait)
-        except Exception as exc:  # a port that fails only rules itself out
-            return exc
-
-    with ThreadPoolExecutor(max_workers=min(len(ports), 16)) as pool:
-        outcomes = list(pool.map(attempt, ports))
-    reports = []
-    for port, outcome in zip(ports, outcomes, strict=True):
-        if isinstance(outcome, Exception):
-            reports.append(f"{port} ({outcome})")
-            continue
-        version = TCLabVersion.parse(outcome)
-        if version is not None:
-            return port, version
-        reports.append(f"{port} (" + (f"answered {outcome!r}" if outcome else "no answer") + ")")
-    raise RigError("no TCLab found; probed " + "; ".join(reports))
 
 
 def tclab_info(port: str | None, max_temperature: float = 90.0) -> RigInfo:
@@ -344,7 +211,7 @@ class TCLabRig(BaseRig):
             tclab_info(port, max_temperature),
             clock,
         )
-        self._link = _open_port(port, baudrate, timeout)
+        self._link = open_port(port, baudrate, timeout)
         try:
             time.sleep(reset_wait)  # a physical board reset, not simulated time
             reply = self._exchange("VER")
@@ -374,7 +241,7 @@ class TCLabRig(BaseRig):
                 target=self._watch, name=f"tclab-watchdog {port}", daemon=True
             )
             self._watchdog_thread.start()
-        _register(self)
+        register(self)
 
     # -- serial exchange ---------------------------------------------------------
 
@@ -409,7 +276,7 @@ class TCLabRig(BaseRig):
                 f"TCLab on {self.port}: could not send {command!r} within "
                 f"{self._timeout:g} s; heaters switched off"
             ) from None
-        except _PORT_ERRORS as exc:
+        except PORT_ERRORS as exc:
             raise RigFaultError(
                 f"TCLab on {self.port} is gone (unplugged?) during {command!r}: {exc}"
             ) from None
@@ -447,7 +314,7 @@ class TCLabRig(BaseRig):
                 )
             try:
                 raw = bytes(link.read_until(b"\r\n"))
-            except _PORT_ERRORS as exc:
+            except PORT_ERRORS as exc:
                 raise RigFaultError(
                     f"TCLab on {self.port} is gone (unplugged?) during {marker!r}: {exc}"
                 ) from None
@@ -531,7 +398,7 @@ class TCLabRig(BaseRig):
         if thread is not None and thread is not threading.current_thread():
             thread.join(timeout=2.0)
         self._close_link()
-        _unregister(self)
+        unregister(self)
 
     def _close_link(self) -> None:
         link, self._link = self._link, None
@@ -573,55 +440,3 @@ class TCLabRig(BaseRig):
     def _check_fault_cleared(self) -> None:
         reading = self._read_output()
         self._check_limit(reading)
-
-
-# -- heaters off when the process ends ---------------------------------------------
-
-# Strong references: a kit that was never closed must still be switched off at exit.
-_open_rigs: set[TCLabRig] = set()
-_registry_lock = threading.Lock()
-_exit_hooks_installed = False
-_SignalHandler = Callable[[int, FrameType | None], Any] | int | None
-
-
-def _register(rig: TCLabRig) -> None:
-    global _exit_hooks_installed
-    with _registry_lock:
-        _open_rigs.add(rig)
-        if _exit_hooks_installed:
-            return
-        _exit_hooks_installed = True
-    atexit.register(_close_all)
-    if threading.current_thread() is threading.main_thread():
-        for signum in (signal.SIGTERM, signal.SIGINT):
-            previous: _SignalHandler = signal.getsignal(signum)
-            signal.signal(signum, _make_signal_handler(previous))
-
-
-def _unregister(rig: TCLabRig) -> None:
-    with _registry_lock:
-        _open_rigs.discard(rig)
-
-
-def _close_all() -> None:
-    with _registry_lock:
-        rigs = list(_open_rigs)
-    for rig in rigs:
-        rig.close()
-
-
-def _make_signal_handler(previous: _SignalHandler) -> Callable[[int, FrameType | None], None]:
-    def handler(signum: int, frame: FrameType | None) -> None:
-        # Heaters off first, without waiting for locks or replies; then unwind as before.
-        for rig in list(_open_rigs):
-            rig._emergency_off()
-        if callable(previous):
-            previous(signum, frame)
-        elif previous == signal.SIG_IGN:
-            return
-        elif signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        else:
-            raise SystemExit(128 + signum)
-
-    return handler

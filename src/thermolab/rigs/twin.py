@@ -55,8 +55,9 @@ from thermolab.errors import (
     RigTimeoutError,
 )
 from thermolab.rigs._thermal import ThermalModel
-from thermolab.rigs.base import BaseRig, Reading, RigState
+from thermolab.rigs.base import BaseRig
 from thermolab.rigs.clock import Clock, RealClock
+from thermolab.rigs.contract import Reading, RigState
 from thermolab.rigs.twin_params import (
     DAQ16_STEP,
     PRESETS,

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from thermolab.errors import InvalidParameterError
-from thermolab.rigs.base import RigInfo
+from thermolab.rigs.contract import RigInfo
 
 __all__ = [
     "DAQ16_STEP",

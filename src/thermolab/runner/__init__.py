@@ -1,7 +1,8 @@
 """The experiment runner: samples a rig, applies inputs, feeds identifiers.
 
 See :class:`Experiment` (one run), :mod:`thermolab.runner.events` (what a run
-publishes and how subscribers receive it without delaying sampling),
+publishes), :mod:`thermolab.runner.event_bus` (how subscribers receive it
+without delaying sampling),
 :mod:`thermolab.runner.interlocks` (output limits, input range, watchdog),
 :mod:`thermolab.runner.recorder` (incremental CSV records),
 :mod:`thermolab.runner.state` (the run's state machine) and
@@ -11,14 +12,13 @@ settings; imported on its own because it loads the compiled kernels).
 
 from thermolab.runner.closed_loop import ControlLoop, adaptive_tuner, estimate_trust
 from thermolab.runner.control_requests import LoopCommands, closed_loop_channels
+from thermolab.runner.event_bus import EventBus, Subscription
 from thermolab.runner.events import (
     EstimateEvent,
     Event,
-    EventBus,
     FaultEvent,
     SampleEvent,
     StateEvent,
-    Subscription,
 )
 from thermolab.runner.experiment import (
     Experiment,

@@ -39,10 +39,8 @@ from thermolab.records import RUN_CHANNELS, ChannelSpec, channel_names
 from thermolab.rigs import Rig
 from thermolab.runner.closed_loop import ControlLoop
 from thermolab.runner.control_requests import FAN_CHANNEL, ControlRequests
-from thermolab.runner.events import (
-    EventBus,
-    SupportsToDict,
-)
+from thermolab.runner.event_bus import EventBus
+from thermolab.runner.events import SupportsToDict
 from thermolab.runner.inputs import ChannelSource, IdentifierLike, InputSignal
 from thermolab.runner.interlocks import Interlocks
 from thermolab.runner.recorder import Recorder

@@ -28,10 +28,10 @@ from thermolab.errors import RigError, ThermoLabError
 from thermolab.records import ChannelSpec
 from thermolab.rigs import Clock, Rig, RigInfo, VirtualClock
 from thermolab.runner.closed_loop import ControlLoop
+from thermolab.runner.event_bus import EventBus
 from thermolab.runner.events import (
     NO_EXTRA,
     EstimateEvent,
-    EventBus,
     FaultEvent,
     SampleEvent,
     StateEvent,
