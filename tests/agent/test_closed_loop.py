@@ -85,6 +85,8 @@ def test_a_closed_loop_run_on_a_rig_host_tracks_commands_and_outlives_a_cut_link
         contextlib.closing(fleet.client("ana")) as ana,
     ):
         fleet.wait_online(teacher, "box")
+        # The host said its pace when it dialled in: the lab publishes it.
+        assert teacher.get("/api/rigs/box").json()["speedup"] == SPEEDUP
         assert ana.post("/api/rigs/box/control").json()["access"]["role"] == "controller"
         # The loop's commands need a closed-loop run, as in-process.
         answer = ana.put("/api/rigs/box/runs/current/setpoint", json={"setpoint": 30.0})

@@ -96,19 +96,35 @@ def test_the_maximum_run_counts_the_rigs_own_speedup(make_lab: LabFactory) -> No
     lab = make_lab(max_run_seconds=100.0)
     tina = person(lab, "tina", "teacher")
     long_run = RunRequest(dt=1.0, samples=2000, signal="step:0:4@1")
+
+    def length(rig: str) -> float:
+        return check_run_length(long_run, rig, lab.config, lab.hub.published(rig).speedup)
+
     with pytest.raises(InvalidParameterError, match=r"lasts 2000 s, longer than .* \(100 s\)"):
-        check_run_length(long_run, "twin", lab.config)
+        length("twin")
     lab.settings.update("twin", tina, {"twin_speedup": 50.0}, 1)
-    assert check_run_length(long_run, "twin", lab.config) == pytest.approx(40.0)
+    assert lab.hub.published("twin").speedup == 50.0
+    assert length("twin") == pytest.approx(40.0)
     # The other twin keeps its own speed-up (1): the same run lasts 2000 s there.
-    assert check_run_length(long_run, "other", lab.config) == pytest.approx(2000.0)
+    assert length("other") == pytest.approx(2000.0)
 
 
-def test_hardware_and_a_hosts_twin_count_runs_in_real_time(mixed_lab: Lab) -> None:
-    # A kit runs in real time; a host's twin is counted so (its pace is its host's).
+def test_hardware_runs_in_real_time_and_a_hosts_twin_at_its_hosts_pace(mixed_lab: Lab) -> None:
+    # A kit runs in real time; a host's twin at the pace its host said when it dialled
+    # in, counted in real time before that.
     long_run = RunRequest(dt=1.0, samples=2000, signal="step:0:4@1")
+
+    def length(rig: str) -> float:
+        speedup = mixed_lab.hub.published(rig).speedup
+        return check_run_length(long_run, rig, mixed_lab.config, speedup)
+
+    assert mixed_lab.hub.published("host").speedup is None
     for rig in ("kit", "host"):
-        assert check_run_length(long_run, rig, mixed_lab.config) == pytest.approx(2000.0)
+        assert length(rig) == pytest.approx(2000.0)
+    mixed_lab.hub.host_said("host", 40.0)
+    assert mixed_lab.hub.published("host").speedup == 40.0
+    assert length("host") == pytest.approx(50.0)
+    assert length("kit") == pytest.approx(2000.0)
 
 
 def test_hardware_and_a_hosts_twin_have_no_speedup_setting(mixed_lab: Lab) -> None:

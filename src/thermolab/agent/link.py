@@ -93,6 +93,9 @@ class LinkSettings:
         CA certificate(s) to trust for the lab (default: the system's).
     heartbeat, ping, ping_timeout, max_backoff : float
         Seconds.
+    speedup : float
+        Times real time the host's rig runs (``--speedup`` of a twin), told in ``Hello``
+        so that the lab counts a run's real length and publishes the pace.
     """
 
     url: str
@@ -105,6 +108,7 @@ class LinkSettings:
     ping: float = 1.0
     ping_timeout: float = 3.0
     max_backoff: float = 10.0
+    speedup: float = 1.0
 
 
 class AgentLink:
@@ -179,6 +183,7 @@ class AgentLink:
                 protocol=PROTOCOL_VERSION,
                 version=__version__,
                 spec=s.spec,
+                speedup=s.speedup,
             )
             await ws.send(encode(hello))
             try:

@@ -90,6 +90,11 @@ class Hello(_Message):
     protocol: int
     version: str = Field(max_length=64)
     spec: str = Field(max_length=200)
+    speedup: _Finite = Field(
+        default=1.0,
+        gt=0,
+        description="times real time the host's rig runs (--speedup of a twin; 1 for hardware)",
+    )
 
 
 class Heartbeat(_Message):

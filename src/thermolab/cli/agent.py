@@ -119,7 +119,8 @@ def _agent(args: argparse.Namespace) -> int:
     outbox_path = Path(args.outbox) if args.outbox else _default_outbox(args)
     outbox_path.parent.mkdir(parents=True, exist_ok=True)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
-    rig = spec.open(clock=make_clock(args.speedup if spec.simulated else 1.0))
+    speedup = args.speedup if spec.simulated else 1.0
+    rig = spec.open(clock=make_clock(speedup))
     outbox = Outbox(outbox_path)
     url, *others = [lab.rstrip("/") + "/api/agents/link" for lab in args.lab]
     settings = LinkSettings(
@@ -131,6 +132,7 @@ def _agent(args: argparse.Namespace) -> int:
         cafile=args.ca,
         ping=args.ping,
         ping_timeout=max(2 * args.ping, 2.0),
+        speedup=speedup,
     )
     host = RigHost(rig, outbox)
     link = AgentLink(host, settings)

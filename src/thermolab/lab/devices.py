@@ -22,6 +22,7 @@ pace it started with and simulated time never jumps.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import threading
 from collections.abc import Callable, Iterator
@@ -103,6 +104,7 @@ class _Slot:
         self.fault: str | None = None
         self.claimed = False
         self.input: float | None = None
+        self.host_speedup: float | None = None  # a rig host's, as its Hello said
 
 
 class DeviceHub:
@@ -239,8 +241,19 @@ class DeviceHub:
         return self._slots[rig_id].driver
 
     def published(self, rig_id: str) -> PublishedRig:
-        """Return what rig ``rig_id`` accepts (KeyError for an unknown rig)."""
-        return self._slots[rig_id].published
+        """Return what rig ``rig_id`` accepts and its pace (KeyError for an unknown rig).
+
+        The pace (``speedup``) is read now: a twin's teacher setting may change,
+        and a rig host says its own when it dials in (:meth:`host_said`).
+        """
+        slot = self._slots[rig_id]
+        rig = self._config.rig(rig_id)
+        speedup = slot.host_speedup if rig.agent else rig.speedup
+        return dataclasses.replace(slot.published, speedup=speedup)
+
+    def host_said(self, rig_id: str, speedup: float) -> None:
+        """A rig host dialled in and said how fast its rig runs (``Hello.speedup``)."""
+        self._slots[rig_id].host_speedup = speedup
 
     def input_range(self, rig_id: str) -> tuple[float, float]:
         """The rig's published input range (KeyError for an unknown rig)."""

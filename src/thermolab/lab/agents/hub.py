@@ -290,6 +290,7 @@ class AgentHub:
         if old is not None:
             old.closed.set()
         status.online, status.version, status.spec = True, first.version, first.spec
+        self._devices.host_said(rig_id, first.speedup)
         status.last_contact, status.fault = self._clock.now(), None
         receiver: asyncio.Task[None] | None = None
         closer: asyncio.Task[bool] | None = None

@@ -253,7 +253,8 @@ class RigConfig:
         """How many times faster than real time the rig runs, as far as the lab knows.
 
         ``twin_speedup`` for a twin the lab runs, 1 for hardware, ``None`` for a
-        twin on a rig host (its host's ``--speedup``, which the lab is not told).
+        twin on a rig host (its host's ``--speedup``, which the host tells when it
+        dials in: :meth:`DeviceHub.published <thermolab.lab.devices.DeviceHub.published>`).
 
         >>> RigConfig("t", "T", "sim", twin_speedup=50.0).speedup
         50.0

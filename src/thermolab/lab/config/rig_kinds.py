@@ -11,6 +11,7 @@ the key.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 from thermolab.errors import ConfigError, InvalidParameterError
@@ -33,6 +34,11 @@ class PublishedRig:
         Input the rig rests at without a controller.
     live : bool
         ``True`` when a driver is attached and inputs reach a device.
+    speedup : float or None
+        Times real time the rig runs: 1 for hardware, a twin the lab runs its
+        ``twin_speedup``, a twin on a rig host its host's ``--speedup`` once the
+        host has said it (``None`` before). :meth:`DeviceHub.published
+        <thermolab.lab.devices.DeviceHub.published>` fills it in.
     """
 
     input_min: float
@@ -41,6 +47,7 @@ class PublishedRig:
     output_unit: str
     safe_input: float
     live: bool
+    speedup: float | None = None
 
     @classmethod
     def of(cls, info: RigInfo, *, live: bool) -> PublishedRig:
@@ -125,4 +132,4 @@ def narrow_range(base: PublishedRig, rig: RigConfig) -> PublishedRig:
             f"[{base.input_min:g}, {base.input_max:g}] {base.input_unit}"
         )
     safe = min(max(base.safe_input, low), high)
-    return PublishedRig(low, high, base.input_unit, base.output_unit, safe, base.live)
+    return dataclasses.replace(base, input_min=low, input_max=high, safe_input=safe)

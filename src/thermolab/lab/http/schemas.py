@@ -302,8 +302,8 @@ class RigOut(_Out):
     speedup: float | None = Field(
         description="how many times faster than real time the rig runs: 1 for hardware; a "
         "twin the lab runs, its teacher setting twin_speedup (the pace of the next run, and "
-        "of the twin when no run is going: a run keeps the pace it started with); null for "
-        "a twin on a rig host (its host's --speedup, which the lab is not told)"
+        "of the twin when no run is going: a run keeps the pace it started with); a twin on "
+        "a rig host, its host's --speedup (null until the host has dialled in)"
     )
     limits: LimitsOut
     access: AccessOut
@@ -332,7 +332,7 @@ class RigOut(_Out):
                 live=pub.live,
             ),
             output_unit=pub.output_unit,
-            speedup=cfg.speedup,
+            speedup=pub.speedup,
             limits=LimitsOut(
                 control_time_limit=cfg.control_time_limit,
                 idle_limit=cfg.idle_limit,

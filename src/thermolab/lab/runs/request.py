@@ -444,34 +444,37 @@ def plan_run(
     return RunPlan(inputs, identifiers, settings, point)
 
 
-def run_seconds(config: LabConfig, rig_id: str, samples: int, dt: float) -> float:
-    """The real time a run of ``samples`` × ``dt`` takes on the rig ``rig_id``.
+def run_seconds(samples: int, dt: float, speedup: float | None) -> float:
+    """The real time a run of ``samples`` × ``dt`` takes on a rig running ``speedup`` times
+    faster than real time (:attr:`PublishedRig.speedup
+    <thermolab.lab.config.PublishedRig.speedup>`: a twin's teacher setting, which the run
+    STARTed now keeps, or its host's; ``None``, a host not heard yet, counts as real time).
 
-    A twin the lab runs runs its speed-up in force (the teacher's
-    ``twin_speedup``, which the run STARTed now keeps) times faster than real
-    time; hardware, and a twin on a rig host (whose host's ``--speedup`` the
-    lab is not told), are counted in real time.
+    >>> run_seconds(2000, 1.0, 50.0), run_seconds(2000, 1.0, None)
+    (40.0, 2000.0)
     """
-    return samples * dt / (config.rig(rig_id).speedup or 1.0)
+    return samples * dt / (speedup or 1.0)
 
 
 def check_run_length(
     request: RunRequest,
     rig_id: str,
     config: LabConfig,
+    speedup: float | None,
     limits: tuple[tuple[str, SettingValue], ...] = (),
 ) -> float:
     """Return how long the run lasts (real seconds), if the rig's ``max_run_seconds`` allows it.
 
-    ``limits``: a course's, in force during its slot on the rig (its
-    ``max_run_seconds``, lowered to the rig's cap, replaces the rig's).
+    ``speedup``: the rig's pace (:func:`run_seconds`). ``limits``: a course's, in
+    force during its slot on the rig (its ``max_run_seconds``, lowered to the rig's
+    cap, replaces the rig's).
 
     Raises
     ------
     InvalidParameterError
         For a longer run, giving the most samples allowed at its dt.
     """
-    length = run_seconds(config, rig_id, request.samples, request.dt)
+    length = run_seconds(request.samples, request.dt, speedup)
     rig = config.rig(rig_id)
     longest = rig.max_run_seconds
     course = dict(limits).get("max_run_seconds")

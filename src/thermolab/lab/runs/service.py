@@ -87,6 +87,7 @@ class StartPlan:
     """What a START decides before it stores the run, in-process or on a rig host."""
 
     request: RunRequest  #: as the controller asked
+    speedup: float | None  #: the rig's pace (its published ``speedup``)
     plan: RunPlan  #: the checked request and its identifiers (:func:`.request.plan_run`)
     channels: tuple[ChannelSpec, ...]  #: in the rig's units (a closed loop adds its own)
 
@@ -109,9 +110,9 @@ def plan_start(config: LabConfig, hub: DeviceHub, rig_id: str, request: RunReque
     :func:`.request.check_run_length`.
     """
     plan, published = plan_on_rig(config, hub, rig_id, request)
-    check_run_length(request, rig_id, config)  # the rig's own limit, before any wait
+    check_run_length(request, rig_id, config, published.speedup)  # the rig's own, at once
     channels = run_channels(published.input_unit, published.output_unit)
-    return StartPlan(request, plan, channels)
+    return StartPlan(request, published.speedup, plan, channels)
 
 
 def store_start(
@@ -131,7 +132,8 @@ def store_start(
     :func:`.request.check_run_length`'s and :func:`.store.add_run`'s errors.
     """
     with access.controlled(rig_id, who, "start a run") as turn:
-        length = check_run_length(start.request, rig_id, config, turn.course_limits())
+        limits = turn.course_limits()
+        length = check_run_length(start.request, rig_id, config, start.speedup, limits)
         meta = {
             "operating_point": start.plan.operating_point.to_dict(),
             # The run's planned end: the queue's estimated wait counts it.
