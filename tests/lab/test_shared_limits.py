@@ -1,15 +1,19 @@
-"""The login throttle shared by a fleet's workers in Redis (thermolab.lab.shared_limits).
+"""The login throttle and live-socket counts shared by a fleet's workers in Redis.
 
+(:mod:`thermolab.lab.shared_limits`; real processes: test_workers_limits.py.)
 Two throttles on one real Redis stand for two web workers: failures on one
 delay logins on the other, an address's attempts on both count together, the
 waits end when the rules say (the same as the in-memory throttle's, checked
 step by step against it), and a throttle whose Redis is unreachable falls
-back to its own worker's counts. Skipped, with the reason, without Redis.
+back to its own worker's counts. Two workers' socket counts see each other's
+and stop counting when one closes or stops refreshing. Skipped, with the
+reason, without Redis.
 """
 
 from __future__ import annotations
 
 import random
+import time
 import uuid
 from collections.abc import Iterator
 from typing import Any
@@ -18,11 +22,15 @@ import pytest
 
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.security import LoginThrottle, RateLimitedError
-from thermolab.lab.shared_limits import SharedLoginThrottle, limits_client
+from thermolab.lab.shared_limits import (
+    SharedLiveSocketCounts,
+    SharedLoginThrottle,
+    limits_client,
+)
 
 pytestmark = pytest.mark.redis
 
-NUMBERS = {"failures_per_user": 2, "attempts_per_address": 5, "window": 60.0}
+NUMBERS: dict[str, Any] = {"failures_per_user": 2, "attempts_per_address": 5, "window": 60.0}
 
 
 @pytest.fixture
@@ -93,7 +101,9 @@ def test_an_addresss_attempts_on_both_workers_count_until_the_window_has_passed(
         worker.record(f"user{i}", "10.0.0.9", success=i == 4)
         clock.advance(1)
     for worker in (first, second):
-        with pytest.raises(RateLimitedError, match="too many login attempts from 10.0.0.9") as info:
+        with pytest.raises(
+            RateLimitedError, match=r"too many login attempts from 10\.0\.0\.9"
+        ) as info:
             worker.check("someone", "10.0.0.9")
         assert info.value.retry_after == pytest.approx(55.0)  # the first attempt's window
     first.check("someone", "10.0.0.8")
@@ -166,3 +176,53 @@ def test_without_redis_each_worker_throttles_on_its_own_counts() -> None:
     throttle.check("ana", "10.0.0.3")  # nor everyone locked out
     clock.advance(1)
     throttle.check("tina", "10.0.0.1")
+
+
+def until(condition: Any, within: float) -> float:
+    start = time.monotonic()
+    while not condition():
+        assert time.monotonic() - start < within, "not in time"
+        time.sleep(0.02)
+    return time.monotonic() - start
+
+
+def test_each_worker_counts_the_others_sockets_until_they_close_or_stop_refreshing(
+    redis: Any, prefix: str
+) -> None:
+    first = SharedLiveSocketCounts(redis, prefix, refresh=0.2, ttl=1.0)
+    second = SharedLiveSocketCounts(redis, prefix, refresh=0.2, ttl=1.0)
+    third = SharedLiveSocketCounts(redis, prefix, refresh=0.2, ttl=1.0)
+    ana, bo = ("session", 1), ("session", 2)
+    try:
+        first.add(ana, "twin")
+        first.add(bo, "twin")
+        second.add(ana, "other")
+        # Published at once after a change (not at the next refresh).
+        assert until(lambda: third.others(ana, "twin") == (2, 2), within=0.5) < 0.5
+        assert first.others(ana, "twin") == (1, 0)  # not its own
+        assert first.here(ana, "twin") == (1, 2)
+        first.remove(bo, "twin")
+        until(lambda: third.others(ana, "twin") == (2, 1), within=0.5)
+        second.close()  # a worker that stops cleanly takes its counts out at once
+        assert third.others(ana, "twin") == (1, 1)
+        # A worker that stops refreshing (killed) stops counting when its hash expires.
+        first._stop.set()
+        first._dirty.set()
+        first._publisher.join()
+        assert third.others(ana, "twin") == (1, 1)
+        waited = until(lambda: third.others(ana, "twin") == (0, 0), within=3.0)
+        assert waited > 0.3
+        assert redis.sismember(prefix + "live.workers", first._worker) == 0  # forgotten
+    finally:
+        for counts in (first, second, third):
+            counts.close()
+
+
+def test_without_redis_each_worker_counts_only_its_own_sockets() -> None:
+    counts = SharedLiveSocketCounts(limits_client("redis://127.0.0.1:1/0"), "thermolab.x.")
+    try:
+        counts.add(("session", 1), "twin")
+        assert counts.others(("session", 1), "twin") == (0, 0)
+        assert counts.here(("session", 1), "twin") == (1, 1)
+    finally:
+        counts.close()
