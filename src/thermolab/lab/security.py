@@ -213,6 +213,12 @@ class LoginThrottle:
     window : float
         Seconds: the sliding window of the address limit and the longest delay.
 
+    Attributes
+    ----------
+    clock, failures_per_user, attempts_per_address
+        As given (a shared throttle is built alike: ``SharedLoginThrottle.like``).
+    window : timedelta
+
     Notes
     -----
     These counts live in memory: they protect one server process, and a restart
