@@ -54,6 +54,12 @@ from thermolab.lab.devices import RigOpener
 from thermolab.lab.follower import FollowerLab
 from thermolab.lab.lease import LeaseHeldError
 from thermolab.lab.service import Lab, StartupReport
+from thermolab.lab.shared_limits import (
+    LiveSocketCounts,
+    SharedLiveSocketCounts,
+    SharedLoginThrottle,
+    limits_client,
+)
 
 if TYPE_CHECKING:
     from thermolab.lab.fanout import LiveFanout
@@ -80,12 +86,23 @@ class Fleet:
     url : str, optional
         Where this worker is reached (an owner announces it to followers; a
         standby follower, once promoted).
+    live_sockets : LiveSocketCounts, optional
+        The live sockets of every worker (:mod:`~thermolab.lab.shared_limits`),
+        which the live stream's limits count; closed with the fleet.
     """
 
-    def __init__(self, bus: Bus, role: Role, *, url: str | None = None) -> None:
+    def __init__(
+        self,
+        bus: Bus,
+        role: Role,
+        *,
+        url: str | None = None,
+        live_sockets: LiveSocketCounts | None = None,
+    ) -> None:
         self.bus = bus
         self.role: Role = role
         self.url = url
+        self.live_sockets = live_sockets
         self._standby: threading.Thread | None = None
         self._owner: tuple[str, float] | None = None  # (address, monotonic time heard)
         self._heard = threading.Event()
@@ -161,6 +178,8 @@ class Fleet:
             self._standby.join(timeout=30)
         if self._announcer is not None:
             self._announcer.join(timeout=5)
+        if self.live_sockets is not None:
+            self.live_sockets.close()
         self.bus.close()
 
     # -- the owner's side --------------------------------------------------------------------
@@ -282,15 +301,20 @@ def start_worker(
     BusError
         The broker cannot be reached.
     """
-    # The lab's topics are its database's: labs on one broker do not hear each other.
+    # The lab's topics and keys are its database's: labs on one broker do not hear each other.
     lab_key = hashlib.sha256(config.database.encode()).hexdigest()[:12]
-    bus = open_bus(broker, prefix=f"thermolab.{lab_key}.") if broker is not None else None
+    prefix = f"thermolab.{lab_key}."
+    bus = open_bus(broker, prefix=prefix) if broker is not None else None
+    # With a broker, the login throttle and the live-socket limits count lab-wide.
+    limits = limits_client(broker) if broker is not None else None
     lab = Lab(config, opener=opener, exclusive=True)
+    if limits is not None:
+        lab.throttle = SharedLoginThrottle.like(lab.throttle, limits, prefix)
     try:
         report = lab.start()
     except LeaseHeldError as held:
         lab.close()
-        if bus is None:
+        if bus is None or limits is None:
             raise
         fleet = Fleet(bus, "follower", url=url)
         if not fleet.wait_for_owner(3 * ANNOUNCE_INTERVAL + 2.0):
@@ -299,8 +323,10 @@ def start_worker(
                 f"{held} (the server holding it does not announce itself on the broker "
                 f"{broker}: start it with the same --broker)"
             ) from None
+        fleet.live_sockets = SharedLiveSocketCounts(limits, prefix)
         remote_only = all(rig.agent for rig in config.rigs)
         follower = FollowerLab(config, standby=standby or remote_only, opener=opener)
+        follower.throttle = SharedLoginThrottle.like(follower.throttle, limits, prefix)
         try:
             return follower, fleet, follower.start()
         except BaseException:
@@ -312,4 +338,7 @@ def start_worker(
         if bus is not None:
             bus.close()
         raise
-    return lab, (Fleet(bus, "owner", url=url) if bus is not None else None), report
+    if bus is None or limits is None:
+        return lab, None, report
+    live_sockets = SharedLiveSocketCounts(limits, prefix)
+    return lab, Fleet(bus, "owner", url=url, live_sockets=live_sockets), report

@@ -38,10 +38,12 @@ __all__ = [
     "AuthenticationError",
     "LoginThrottle",
     "RateLimitedError",
+    "address_limited",
     "default_password_hasher",
     "hash_token",
     "new_token",
     "normalize_username",
+    "pair_delayed",
     "validate_password",
 ]
 
@@ -211,10 +213,18 @@ class LoginThrottle:
     window : float
         Seconds: the sliding window of the address limit and the longest delay.
 
+    Attributes
+    ----------
+    clock, failures_per_user, attempts_per_address
+        As given (a shared throttle is built alike: ``SharedLoginThrottle.like``).
+    window : timedelta
+
     Notes
     -----
-    The counts live in memory: they protect one server process, and a restart
-    forgets them (a restart is far slower than the delays anyway).
+    These counts live in memory: they protect one server process, and a restart
+    forgets them (a restart is far slower than the delays anyway). Several web
+    workers on one broker share theirs in Redis instead
+    (:class:`~thermolab.lab.shared_limits.SharedLoginThrottle`, same rules).
 
     Examples
     --------
@@ -233,8 +243,8 @@ class LoginThrottle:
     >>> throttle.check("alice", "10.0.0.1")
     """
 
-    # A pair's failures are forgotten this long after its last one.
-    _FORGET = timedelta(minutes=15)
+    FORGET = timedelta(minutes=15)
+    """A pair's failures are forgotten this long after its last one."""
 
     def __init__(
         self,
@@ -244,10 +254,10 @@ class LoginThrottle:
         attempts_per_address: int = 30,
         window: float = 60.0,
     ) -> None:
-        self._clock = clock
-        self._free = failures_per_user
-        self._per_address = attempts_per_address
-        self._window = timedelta(seconds=window)
+        self.clock = clock
+        self.failures_per_user = failures_per_user
+        self.attempts_per_address = attempts_per_address
+        self.window = timedelta(seconds=window)
         self._failures: dict[tuple[str, str], tuple[int, datetime]] = {}
         self._attempts: dict[str, deque[datetime]] = {}
         self._lock = threading.Lock()
@@ -262,10 +272,10 @@ class LoginThrottle:
         >>> [t.delay(n) for n in (5, 6, 7, 8, 20)]
         [0.0, 1.0, 2.0, 4.0, 60.0]
         """
-        extra = failures - self._free
+        extra = failures - self.failures_per_user
         if extra <= 0:
             return 0.0
-        return min(2.0 ** min(extra - 1, 32), self._window.total_seconds())
+        return min(2.0 ** min(extra - 1, 32), self.window.total_seconds())
 
     def check(self, username: str, address: str) -> None:
         """Raise if a login for ``username`` from ``address`` must wait.
@@ -275,32 +285,25 @@ class LoginThrottle:
         RateLimitedError
             With ``retry_after`` in seconds.
         """
-        now = self._clock.now()
+        now = self.clock.now()
         with self._lock:
             wait = self._address_wait(address, now)
             if wait is not None:
-                raise RateLimitedError(
-                    f"too many login attempts from {address}; try again in {_seconds(wait)} s",
-                    wait,
-                )
+                raise address_limited(address, wait)
             failed = self._failures.get((username, address))
             if failed is None:
                 return
             count, last = failed
-            if now - last >= self._FORGET:
+            if now - last >= self.FORGET:
                 del self._failures[(username, address)]
                 return
             wait = self.delay(count) - (now - last).total_seconds()
             if wait > 0:
-                raise RateLimitedError(
-                    f"too many failed logins for {username!r} from {address}; "
-                    f"try again in {_seconds(wait)} s",
-                    wait,
-                )
+                raise pair_delayed(username, address, wait)
 
     def record(self, username: str, address: str, *, success: bool) -> None:
         """Count one login attempt and its outcome."""
-        now = self._clock.now()
+        now = self.clock.now()
         key = (username, address)
         with self._lock:
             self._attempts.setdefault(address, deque()).append(now)
@@ -308,7 +311,7 @@ class LoginThrottle:
                 self._failures.pop(key, None)
             else:
                 count, last = self._failures.get(key, (0, now))
-                self._failures[key] = (0 if now - last >= self._FORGET else count) + 1, now
+                self._failures[key] = (0 if now - last >= self.FORGET else count) + 1, now
             if len(self._attempts) + len(self._failures) > 10_000:
                 self._forget_old(now)
 
@@ -316,23 +319,38 @@ class LoginThrottle:
         times = self._attempts.get(address)
         if times is None:
             return None
-        while times and now - times[0] >= self._window:
+        while times and now - times[0] >= self.window:
             times.popleft()
         if not times:
             del self._attempts[address]
             return None
-        if len(times) < self._per_address:
+        if len(times) < self.attempts_per_address:
             return None
-        return (times[0] + self._window - now).total_seconds()
+        return (times[0] + self.window - now).total_seconds()
 
     def _forget_old(self, now: datetime) -> None:
         # Bound the memory an attacker can make us use with made-up names.
         for address in [
-            a for a, v in self._attempts.items() if not v or now - v[-1] >= self._window
+            a for a, v in self._attempts.items() if not v or now - v[-1] >= self.window
         ]:
             del self._attempts[address]
-        for key in [k for k, (_, last) in self._failures.items() if now - last >= self._FORGET]:
+        for key in [k for k, (_, last) in self._failures.items() if now - last >= self.FORGET]:
             del self._failures[key]
+
+
+def address_limited(address: str, wait: float) -> RateLimitedError:
+    """The refusal of a client address over its attempts for ``wait`` more seconds."""
+    return RateLimitedError(
+        f"too many login attempts from {address}; try again in {_seconds(wait)} s", wait
+    )
+
+
+def pair_delayed(username: str, address: str, wait: float) -> RateLimitedError:
+    """The refusal of a (user name, address) pair delayed ``wait`` more seconds."""
+    return RateLimitedError(
+        f"too many failed logins for {username!r} from {address}; try again in {_seconds(wait)} s",
+        wait,
+    )
 
 
 def _seconds(wait: float) -> int:

@@ -99,7 +99,7 @@ def create_app(
     """
     owned = lab is None if close_lab is None else close_lab
     the_lab = lab if lab is not None else Lab(config, opener=device_opener())
-    live = LiveEndpoint(the_lab)
+    live = LiveEndpoint(the_lab, sockets=None if fleet is None else fleet.live_sockets)
     the_lab.add_listener(live)
     if fleet is not None:
         # Other workers hear of access changes from the owner (a standby once promoted).

@@ -7,8 +7,9 @@ each rig's :class:`~thermolab.lab.fanout.LiveChannel`, and serves the clients:
 the current run's samples from the store when memory no longer has them;
 :mod:`~thermolab.lab.http.live_replay`, paged and budgeted), then the live
 messages. Sockets are limited per login and per rig (the lab's access
-policy). A client's ``ping`` keeps its control or queue place alive and is
-answered with ``pong``.
+policy; lab-wide over a fleet's workers, :mod:`~thermolab.lab.shared_limits`).
+A client's ``ping`` keeps its control or queue place alive and is answered
+with ``pong``.
 
 A connection lives as long as the login (or API token) it was opened with
 (:class:`~thermolab.lab.http.live_logins.LoginWatch`). A script connects with
@@ -19,7 +20,6 @@ a personal API token (``Authorization: Bearer`` on the handshake,
 from __future__ import annotations
 
 import asyncio
-import collections
 import logging
 from collections.abc import Callable
 from datetime import datetime, timedelta
@@ -63,6 +63,7 @@ from thermolab.lab.http.routers.runs import RunOut
 from thermolab.lab.http.schemas import RigOut, people_named
 from thermolab.lab.runs import RunRecord
 from thermolab.lab.service import Lab
+from thermolab.lab.shared_limits import LiveSocketCounts
 from thermolab.lab.users import Principal
 from thermolab.runner import EstimateEvent, Event, SampleEvent
 
@@ -96,6 +97,10 @@ class LiveEndpoint:
         this lab ends arrive at once as :attr:`Lab.logins_ended` events.
     budget : ReplayBudget, optional
         How replays share the server (default: :class:`ReplayBudget`'s).
+    sockets : LiveSocketCounts, optional
+        The sockets held, per login and per rig: this worker's alone (the
+        default), or every live worker's of a fleet
+        (:class:`~thermolab.lab.shared_limits.SharedLiveSocketCounts`).
 
     The socket limits (per login, per rig) and the most stored samples one
     socket is replayed come from the lab's :class:`~thermolab.lab.config.AccessPolicy`.
@@ -109,6 +114,7 @@ class LiveEndpoint:
         client_queue: int = 2000,
         session_check: float | None = 5.0,
         budget: ReplayBudget | None = None,
+        sockets: LiveSocketCounts | None = None,
     ) -> None:
         self.lab = lab
         policy = lab.config.access
@@ -116,8 +122,7 @@ class LiveEndpoint:
         self._sockets_per_rig = policy.live_sockets_per_rig
         self._replay_limit = policy.live_replay_samples
         self.budget = budget if budget is not None else ReplayBudget()
-        self._sockets: collections.Counter[tuple[str, int | None]] = collections.Counter()
-        self._rig_sockets: collections.Counter[str] = collections.Counter()
+        self.sockets = sockets if sockets is not None else LiveSocketCounts()
         self.hub = LiveFanout([rig.id for rig in lab.config.rigs])
         self._access_delay = access_delay
         self._client_queue = client_queue
@@ -257,27 +262,29 @@ class LiveEndpoint:
             await websocket.close(CLOSE_UNKNOWN_RIG, f"no rig called {rig_id!r}")
             return
         # One login cannot hold the server's sockets (and replays) for everyone, nor one
-        # rig's watchers every connection the server accepts.
+        # rig's watchers every connection the server accepts. Other workers' sockets are
+        # read first; this worker's, exact, are read and counted with no await between.
         login = who.login_key
-        if self._sockets[login] >= self._sockets_per_login:
+        others = self.sockets.others
+        elsewhere = await self._in_thread(others, login, rig_id) if self.sockets.shared else (0, 0)
+        here = self.sockets.here(login, rig_id)
+        if here[0] + elsewhere[0] >= self._sockets_per_login:
             await websocket.close(
                 CLOSE_TOO_MANY,
                 f"at most {self._sockets_per_login} live sockets per login; close one first",
             )
             return
-        if self._rig_sockets[rig_id] >= self._sockets_per_rig:
+        if here[1] + elsewhere[1] >= self._sockets_per_rig:
             await websocket.close(
                 CLOSE_RIG_FULL,
                 f"rig {rig_id!r} has its {self._sockets_per_rig} live sockets; try again later",
             )
             return
-        self._sockets[login] += 1
-        self._rig_sockets[rig_id] += 1
+        self.sockets.add(login, rig_id)
         try:
             await self._attached(websocket, channel, rig_id, who, since)
         finally:
-            _release(self._sockets, login)
-            _release(self._rig_sockets, rig_id)
+            self.sockets.remove(login, rig_id)
 
     async def _attached(
         self,
@@ -368,12 +375,6 @@ class LiveEndpoint:
         if self._limiter is None:
             self._limiter = anyio.CapacityLimiter(_LIVE_THREADS)
         return await anyio.to_thread.run_sync(work, *args, limiter=self._limiter)
-
-
-def _release(counts: collections.Counter[Any], key: Any) -> None:
-    counts[key] -= 1
-    if counts[key] <= 0:
-        del counts[key]
 
 
 def _signature(snap: RigSnapshot, watchers: int) -> tuple[Any, ...]:
