@@ -150,10 +150,8 @@ def test_a_socket_that_stops_reading_is_cut_by_its_unsent_bytes(
         until(lambda: not channel.clients())
 
 
-def test_a_watchers_ping_stays_in_memory_and_a_controllers_keeps_the_turn(
-    served: tuple[Lab, LiveEndpoint, str], monkeypatch: pytest.MonkeyPatch
-) -> None:
-    lab, live, base = served
+def looks_at_the_store(lab: Lab, monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """Bob controls the rig; the list fills with whom each ``access.view`` was for."""
     viewed: list[str] = []
     view = lab.access.view
 
@@ -164,6 +162,14 @@ def test_a_watchers_ping_stays_in_memory_and_a_controllers_keeps_the_turn(
     monkeypatch.setattr(lab.access, "view", counted)
     bob = lab.users.get("bob")
     lab.access.request_control("other", Principal(bob.id, bob.username, bob.role))
+    return viewed
+
+
+def test_a_watchers_ping_stays_in_memory_and_a_controllers_keeps_the_turn(
+    served: tuple[Lab, LiveEndpoint, str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    lab, live, base = served
+    viewed = looks_at_the_store(lab, monkeypatch)
     url = base + "/api/rigs/other/live"
     with (
         connect(url, additional_headers=login(lab, "ana")) as ana,
@@ -187,16 +193,7 @@ def test_a_controllers_many_sockets_keep_the_turn_with_one_look_a_second(
     # Per socket, 2000 of one login's sockets pinging queued store work without bound,
     # their reads stopped meanwhile and the server failed them on its own keepalive (1011).
     lab, live, base = served
-    viewed: list[str] = []
-    view = lab.access.view
-
-    def counted(rig_id: str, who: Any) -> Any:
-        viewed.append(who.username)
-        return view(rig_id, who)
-
-    monkeypatch.setattr(lab.access, "view", counted)
-    bob = lab.users.get("bob")
-    lab.access.request_control("other", Principal(bob.id, bob.username, bob.role))
+    viewed = looks_at_the_store(lab, monkeypatch)
     url = base + "/api/rigs/other/live"
     with contextlib.ExitStack() as stack:
         tabs = [
