@@ -191,9 +191,7 @@ def test_a_request_waiting_when_its_worker_is_promoted_is_answered_here_with_its
     promoted = threading.Event()
     listeners: list[Callable[[], None]] = []
     local: list[bytes] = []
-    follower = _follower(
-        lambda: None, here=promoted.is_set, on_owner=listeners.append, local=local
-    )
+    follower = _follower(lambda: None, here=promoted.is_set, on_owner=listeners.append, local=local)
     with _serve(follower) as base:
 
         def promote() -> None:

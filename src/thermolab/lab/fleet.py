@@ -27,8 +27,9 @@ What crosses the bus (:class:`Fleet`):
 A follower serves logins, accounts, courses, pages and — the bulk of the
 load — live sockets itself; every request about rigs and runs
 (``/api/rigs``, ``/api/runs``, ``/api/control``) is forwarded to the owner
-(:mod:`~thermolab.lab.http.forward`), so one process decides every turn,
-queue place and time limit, under the database's row locks as before.
+(:mod:`~thermolab.lab.http.forward`; held up to :data:`OWNER_WAIT` while
+no owner answers, e.g. during a takeover), so one process decides every
+turn, queue place and time limit, under the database's row locks as before.
 Once rig hosts dial in (``thermolab agent``), the owner's part is the
 agent's: :attr:`Fleet.owner_url` is the one place a follower asks where
 rig commands go.
