@@ -7,7 +7,8 @@ known; or known and refusing connections, then listening) gets the request,
 once; one that never appears gets a 503 ``rig_unavailable`` with
 ``Retry-After`` after the (short) wait; a request the owner took and did not
 answer is not sent again; a request waiting when its worker is promoted is
-answered by that worker, body and all.
+answered by that worker, body and all; a request whose client hung up while
+it waited is never sent.
 """
 
 from __future__ import annotations
@@ -205,3 +206,26 @@ def test_a_request_waiting_when_its_worker_is_promoted_is_answered_here_with_its
     assert answer.status_code == 200, answer.text
     assert answer.json() == {"by": "here", "body": "beat"}
     assert local == [b"beat"]
+
+
+def test_a_request_whose_client_hung_up_while_it_waited_is_never_sent() -> None:
+    # A script's timeout (thermolab.client's is 10 s) shorter than the wait: the script was
+    # told it failed, so the owner heard later must not apply it behind its back.
+    owner = Owner()
+    known: list[str] = []
+    listeners: list[Callable[[], None]] = []
+    with _serve(owner.app) as owner_base:
+        follower = _follower(lambda: known[0] if known else None, on_owner=listeners.append)
+        with _serve(follower) as base:
+            with contextlib.suppress(httpx.ReadTimeout):
+                answer = httpx.post(base + "/api/rigs/twin/runs", content=b"{}", timeout=0.5)
+                raise AssertionError(f"answered while no owner was known: {answer.text}")
+            time.sleep(0.3)  # the follower hears the client hang up
+            known.append(owner_base)
+            for listener in listeners:
+                listener()
+            time.sleep(1.5)  # past the next try, had the request still waited
+            assert owner.got == []
+            # The next request goes through (the owner heard and answering).
+            assert httpx.get(base + "/api/rigs/twin", timeout=30).status_code == 200
+    assert owner.got == [("GET", b"")]

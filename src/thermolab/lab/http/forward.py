@@ -15,9 +15,11 @@ of failing: it is woken by each owner announcement (:meth:`Fleet.on_owner`)
 and sent to the owner then; a worker promoted meanwhile answers it itself.
 Sending it again is safe, even a POST: a refused connection carried no
 request. Only after the wait is the answer 503 ``rig_unavailable`` (with
-``Retry-After``). A request that was sent and got no answer (the owner died
-reading it, or timed out) is not sent again — the owner may have applied it —
-and is answered 503 at once.
+``Retry-After``). A request whose client hangs up while it waits (a
+script's timeout) is dropped, never applied behind the client's back. A
+request that was sent and got no answer (the owner died reading it, or timed
+out) is not sent again — the owner may have applied it — and is answered 503
+at once.
 
 Rig hosts (``thermolab agent``) link to the owner only: a follower accepts
 their WebSocket and closes it at once with
@@ -29,10 +31,11 @@ and the agent dials the next address it was given. The hosts page
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import math
 import time
+from asyncio import FIRST_COMPLETED
 from collections.abc import Callable
+from typing import Any
 
 import httpx
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -148,10 +151,14 @@ class ForwardToOwner:
 
         return received
 
-    async def _news_of_owner(self, timeout: float) -> None:
-        heard = self._owner_heard
-        with contextlib.suppress(TimeoutError):
-            await asyncio.wait_for(heard.wait(), timeout)
+    async def _news_of_owner(self, timeout: float, hung_up: asyncio.Future[None]) -> None:
+        # Until an owner is heard, the client hangs up, or the timeout.
+        news = asyncio.ensure_future(self._owner_heard.wait())
+        either: list[asyncio.Future[Any]] = [news, hung_up]
+        try:
+            await asyncio.wait(either, timeout=timeout, return_when=FIRST_COMPLETED)
+        finally:
+            news.cancel()
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] == "lifespan":
@@ -167,34 +174,35 @@ class ForwardToOwner:
             body += message.get("body", b"")
             if not message.get("more_body", False):
                 break
+        await self._forward(scope, bytes(body), receive, send)
+
+    async def _forward(self, scope: Scope, body: bytes, receive: Receive, send: Send) -> None:
         deadline = time.monotonic() + self.wait
-        while True:
-            if self.here():  # promoted while the request waited: this worker answers it
-                await self.app(scope, _replay(bytes(body), receive), send)
-                return
-            owner = self.owner_url()
-            if owner is not None:
-                try:
-                    answer = await self._client.send(
-                        _request(self._client, scope, owner, body), stream=True
-                    )
-                except (httpx.ConnectError, httpx.ConnectTimeout):
-                    pass  # never sent: safe to send again, even a POST
-                except httpx.HTTPError:
-                    # Sent, and no answer: the owner may have applied it; sending it again
-                    # could apply it twice (a second run started). The caller decides.
-                    response = error_response(
-                        503, "the worker that owns the rigs did not answer", "rig_unavailable"
-                    )
-                    await response(scope, receive, send)
+        hung_up: asyncio.Future[None] | None = None  # watching the client, once it waits
+        try:
+            while True:
+                if self.here():  # promoted while the request waited: this worker answers it
+                    if hung_up is not None:  # the app hears the client from now on
+                        hung_up.cancel()
+                        await asyncio.wait([hung_up])
+                    await self.app(scope, _replay(body, receive), send)
                     return
-                else:
-                    await _relay(answer, send)
+                owner = self.owner_url()
+                if owner is not None and await self._sent(scope, owner, body, receive, send):
                     return
-            left = deadline - time.monotonic()
-            if left <= 0:
-                break
-            await self._news_of_owner(min(left, ANNOUNCE_INTERVAL))
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                if hung_up is None:
+                    # While the request waits, its client may hang up (a script's timeout,
+                    # a closed tab): it is then dropped, never applied behind its back.
+                    hung_up = asyncio.ensure_future(_hang_up(receive))
+                await self._news_of_owner(min(left, ANNOUNCE_INTERVAL), hung_up)
+                if hung_up.done():
+                    return  # no one to answer
+        finally:
+            if hung_up is not None:
+                hung_up.cancel()
         # A new owner is heard within an announcement of its start; trying again then waits
         # for it as this request did.
         response = error_response(
@@ -205,12 +213,33 @@ class ForwardToOwner:
         )
         await response(scope, receive, send)
 
+    async def _sent(
+        self, scope: Scope, owner: str, body: bytes, receive: Receive, send: Send
+    ) -> bool:
+        # Whether the request was sent to the owner (and answered, by it or by a 503).
+        try:
+            answer = await self._client.send(
+                _request(self._client, scope, owner, body), stream=True
+            )
+        except (httpx.ConnectError, httpx.ConnectTimeout):
+            return False  # never sent: safe to send again, even a POST
+        except httpx.HTTPError:
+            # Sent, and no answer: the owner may have applied it; sending it again could
+            # apply it twice (a second run started). The caller decides.
+            response = error_response(
+                503, "the worker that owns the rigs did not answer", "rig_unavailable"
+            )
+            await response(scope, receive, send)
+            return True
+        await _relay(answer, send)
+        return True
 
-def _request(client: httpx.AsyncClient, scope: Scope, owner: str, body: bytearray) -> httpx.Request:
+
+def _request(client: httpx.AsyncClient, scope: Scope, owner: str, body: bytes) -> httpx.Request:
     headers = [(k, v) for k, v in scope["headers"] if k.lower() not in _HOP_BY_HOP]
     query = scope.get("query_string", b"").decode("latin-1")
     url = owner.rstrip("/") + scope["raw_path"].decode("latin-1") + (f"?{query}" if query else "")
-    return client.build_request(scope["method"], url, headers=headers, content=bytes(body))
+    return client.build_request(scope["method"], url, headers=headers, content=body)
 
 
 async def _relay(answer: httpx.Response, send: Send) -> None:
@@ -227,6 +256,12 @@ async def _relay(answer: httpx.Response, send: Send) -> None:
         await send({"type": "http.response.body", "body": b"", "more_body": False})
     finally:
         await answer.aclose()
+
+
+async def _hang_up(receive: Receive) -> None:
+    # After the body, the server's next message for this request is its client hanging up.
+    while (await receive())["type"] != "http.disconnect":
+        pass
 
 
 def _replay(body: bytes, receive: Receive) -> Receive:
