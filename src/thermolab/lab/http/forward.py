@@ -11,7 +11,8 @@ kept for the worker's life.
 While no owner answers — none heard recently, or the one heard refuses the
 connection (killed: a standby is taking over) — a request waits for an owner
 (:data:`~thermolab.lab.fleet.OWNER_WAIT`, a takeover's longest gap) instead
-of failing: it is woken by each owner announcement (:meth:`Fleet.on_owner`)
+of failing: it is woken by each owner announcement
+(:meth:`~thermolab.lab.fleet.Fleet.on_owner`)
 and sent to the owner then; a worker promoted meanwhile answers it itself.
 Sending it again is safe, even a POST: a refused connection carried no
 request. Only after the wait is the answer 503 ``rig_unavailable`` (with
