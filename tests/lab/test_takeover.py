@@ -10,7 +10,9 @@ says it took over), the run that was going is interrupted, the same control
 session still has the rig, GET and POST under ``/api/rigs`` work through every
 worker, and no watcher lost its socket or saw its ``seq`` go back. An owner
 that only hangs (SIGSTOP past the lease's expiry, then SIGCONT) finds its
-lease taken and stops by itself; the same student still controls. Skipped,
+lease taken and stops by itself; the same student still controls. Requests
+made to every follower the moment the owner is killed (GET the rig, POST a
+heartbeat) wait for the new owner and are answered by it, not 503. Skipped,
 with the reason, where PostgreSQL or Redis is absent.
 """
 
@@ -153,7 +155,7 @@ def test_killing_the_owner_hands_the_rigs_to_one_standby_with_the_same_controlle
     page = threading.Thread(
         target=_heartbeats, args=(fleet.follower, ana, stop := threading.Event()), daemon=True
     )
-    page.start()  # ana's page, as a browser's: a heartbeat every 2 s (503s while no one owns)
+    page.start()  # ana's page, as a browser's: a heartbeat every 2 s (held while no one owns)
     watchers = [SeqWatcher(worker, fleet.cookies["bo"]) for worker in followers]
     for watcher in watchers:
         watcher.start()
@@ -227,7 +229,9 @@ def test_an_owner_that_stalled_past_its_lease_stops_and_the_standby_keeps_the_ri
     page = threading.Thread(
         target=_heartbeats, args=(fleet.follower, ana, stop := threading.Event()), daemon=True
     )
-    page.start()  # ana's page, as a browser's: a heartbeat every 2 s (503s while no one owns)
+    # ana's page, as a browser's: a heartbeat every 2 s (those the stalled owner took and did
+    # not answer are 503s: they may have been applied, the follower does not send them again)
+    page.start()
     # The owner hangs (alive, not renewing): the standbys wait for the lease to run out.
     fleet.owner.process.send_signal(signal.SIGSTOP)
     pids = {w.process.pid: w for w in fleet.standbys}
@@ -250,6 +254,52 @@ def test_an_owner_that_stalled_past_its_lease_stops_and_the_standby_keeps_the_ri
         assert rig.json()["access"]["role"] == "controller"
     stop.set()
     page.join(timeout=60)
+
+
+def test_requests_made_the_moment_the_owner_dies_are_answered_by_the_new_owner(
+    fleet: Takeover,
+) -> None:
+    ana = fleet.cookies["ana"]
+    taken = httpx.post(
+        fleet.follower.base + "/api/rigs/twin/control", headers={"Cookie": ana}, timeout=30
+    )
+    assert taken.status_code == 200, taken.text
+    (turn,) = _open_turns(fleet.db)
+    followers = [*fleet.standbys, fleet.follower]
+    for worker in followers:  # each follower has heard the owner and forwards to it
+        assert _rig(worker, ana).status_code == 200
+    fleet.owner.process.send_signal(signal.SIGKILL)
+    fleet.owner.process.wait()
+    # At once, before any standby took over: the rig, and a heartbeat (a POST that needs the
+    # controls), through every follower — the one about to be promoted among them.
+    answers: dict[tuple[str, str], httpx.Response | str] = {}
+
+    def ask(worker: Worker, method: str) -> None:
+        path = "/api/rigs/twin" if method == "GET" else "/api/rigs/twin/heartbeat"
+        try:
+            answers[worker.base, method] = httpx.request(
+                method, worker.base + path, headers={"Cookie": ana}, timeout=90
+            )
+        except httpx.HTTPError as exc:
+            answers[worker.base, method] = repr(exc)
+
+    asking = [
+        threading.Thread(target=ask, args=(worker, method))
+        for worker in followers
+        for method in ("GET", "POST")
+    ]
+    for thread in asking:
+        thread.start()
+    for thread in asking:
+        thread.join(timeout=120)
+    assert len(answers) == len(asking)
+    for (base, method), answer in answers.items():
+        assert isinstance(answer, httpx.Response), (base, method, answer)
+        assert answer.status_code == 200, (base, method, answer.text)
+        assert answer.json()["access"]["role"] == "controller"
+    pids = {w.process.pid: w for w in fleet.standbys}
+    assert _lease_pid(fleet.db) in pids  # answered by the new owner
+    assert _open_turns(fleet.db) == [turn]
 
 
 def _heartbeats(worker: Worker, cookie: str, stop: threading.Event) -> None:

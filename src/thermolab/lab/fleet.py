@@ -27,8 +27,9 @@ What crosses the bus (:class:`Fleet`):
 A follower serves logins, accounts, courses, pages and — the bulk of the
 load — live sockets itself; every request about rigs and runs
 (``/api/rigs``, ``/api/runs``, ``/api/control``) is forwarded to the owner
-(:mod:`~thermolab.lab.http.forward`), so one process decides every turn,
-queue place and time limit, under the database's row locks as before.
+(:mod:`~thermolab.lab.http.forward`; held up to :data:`OWNER_WAIT` while
+no owner answers, e.g. during a takeover), so one process decides every
+turn, queue place and time limit, under the database's row locks as before.
 Once rig hosts dial in (``thermolab agent``), the owner's part is the
 agent's: :attr:`Fleet.owner_url` is the one place a follower asks where
 rig commands go.
@@ -52,7 +53,7 @@ from thermolab.lab.config import LabConfig
 from thermolab.lab.config.rig_kinds import PublishedRig
 from thermolab.lab.devices import RigOpener
 from thermolab.lab.follower import FollowerLab
-from thermolab.lab.lease import LeaseHeldError
+from thermolab.lab.lease import LEASE_TTL, LeaseHeldError
 from thermolab.lab.service import Lab, StartupReport
 from thermolab.lab.shared_limits import (
     LiveSocketCounts,
@@ -64,14 +65,23 @@ from thermolab.lab.shared_limits import (
 if TYPE_CHECKING:
     from thermolab.lab.fanout import LiveFanout
 
-__all__ = ["ANNOUNCE_INTERVAL", "Fleet", "FollowerLab", "Role", "start_worker"]
+__all__ = ["ANNOUNCE_INTERVAL", "OWNER_WAIT", "Fleet", "FollowerLab", "Role", "start_worker"]
 
 log = logging.getLogger(__name__)
 
 ANNOUNCE_INTERVAL = 1.0
 """Seconds between the owner's announcements on the bus."""
 OWNER_SILENCE = 5.0
-"""A follower that has not heard the owner for this long answers rig requests with 503."""
+"""A follower that has not heard the owner for this long knows none (:attr:`Fleet.owner_url`)."""
+OWNER_WAIT = LEASE_TTL.total_seconds() + 2 * ANNOUNCE_INTERVAL
+"""Seconds a follower holds a rig request while no owner answers: a takeover's longest gap.
+
+The dead owner's lease runs out at most ``LEASE_TTL`` after its last renewal
+(at once when it was a process of the standby's host); a standby asks once an
+``ANNOUNCE_INTERVAL`` whether it has; once it owns, its first announcement goes
+out at once — one more interval allowed for opening the devices, recovering
+and the bus. A follower that hears no owner answer within this answers 503.
+"""
 
 Role = Literal["alone", "owner", "follower"]
 
@@ -113,6 +123,7 @@ class Fleet:
         self._access: Callable[[str], None] | None = None
         self._lab: Lab | None = None
         self._owner_news: dict[str, Any] = {}
+        self._owner_listeners: list[Callable[[], None]] = []
         if role == "follower":
             bus.subscribe("owner", self._heard_owner)
 
@@ -125,6 +136,18 @@ class Fleet:
         if owner is None or time.monotonic() - owner[1] > OWNER_SILENCE:
             return None
         return owner[0]
+
+    def on_owner(self, listener: Callable[[], None]) -> None:
+        """Call ``listener()`` each time an owner is heard, or this worker becomes the owner.
+
+        It is called from the bus's thread: it must only hand the news on
+        (the forwarding wakes the requests waiting for an owner).
+        """
+        self._owner_listeners.append(listener)
+
+    def _tell_owner_listeners(self) -> None:
+        for listener in self._owner_listeners:
+            listener()
 
     def wait_for_owner(self, timeout: float) -> bool:
         """Wait until the owner has announced itself; ``False`` if it did not in time."""
@@ -199,6 +222,7 @@ class Fleet:
         self.role = "owner"
         self._owner = None
         self._own()
+        self._tell_owner_listeners()
 
     def _stand_by(self, lab: FollowerLab) -> None:
         # A standby watches the owner's lease; when it lapses, one standby takes it
@@ -257,6 +281,7 @@ class Fleet:
             if channel is not None:
                 channel.follow(int(seq))
         self._heard.set()
+        self._tell_owner_listeners()
 
     def _adopt_published(self) -> None:
         lab = self._lab

@@ -9,7 +9,8 @@ owner's lease lapses (:meth:`FollowerLab.promote`): it takes the lease (of
 several standbys, one wins: the lease row's lock), opens the devices, and
 recovers as a restarted owner would, except that control sessions and queue
 places stay as the database has them — the same controller goes on (their
-heartbeats count from the takeover: the followers refused them meanwhile):
+heartbeats count from the takeover: the followers held them meanwhile, or
+refused those the dead owner took unanswered):
 
 * a run that was going on an in-process rig of the dead owner is marked
   interrupted (its device is opened anew, at its safe input);
@@ -137,7 +138,7 @@ class FollowerLab(Lab):
         remote: list[tuple[str, int, int]] = []
         now = self.clock.now()
         with self.db.write() as session:
-            # While no one owned, followers refused the heartbeats (503): the gap is the
+            # While no one owned, followers held the heartbeats (some 503): the gap is the
             # lab's, not the students' — no turn or queue place ends for it.
             for kind, ended in (
                 (ControlSession, ControlSession.ended_at),

@@ -173,7 +173,10 @@ def create_app(
     )
     if fleet is not None and fleet.role == "follower":
         app.add_middleware(
-            ForwardToOwner, owner_url=lambda: fleet.owner_url, here=lambda: fleet.role != "follower"
+            ForwardToOwner,
+            owner_url=lambda: fleet.owner_url,
+            here=lambda: fleet.role != "follower",
+            on_owner=fleet.on_owner,
         )
     if config.access.trusted_proxies:
         # Outermost, so that the guard and the routes see the client's address and scheme.

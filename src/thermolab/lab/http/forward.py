@@ -6,8 +6,21 @@ headers, body) to the owner worker's address, and the owner's answer goes
 back unchanged — its status, its ``code``, its headers. One process thus
 decides every turn, queue place and run, whichever worker a browser reached.
 The HTTP client is httpx (already the project's), with a connection pool
-kept for the worker's life. When no owner was heard recently, the answer is
-503 ``rig_unavailable``.
+kept for the worker's life.
+
+While no owner answers — none heard recently, or the one heard refuses the
+connection (killed: a standby is taking over) — a request waits for an owner
+(:data:`~thermolab.lab.fleet.OWNER_WAIT`, a takeover's longest gap) instead
+of failing: it is woken by each owner announcement
+(:meth:`~thermolab.lab.fleet.Fleet.on_owner`)
+and sent to the owner then; a worker promoted meanwhile answers it itself.
+Sending it again is safe, even a POST: a refused connection carried no
+request. Only after the wait is the answer 503 ``rig_unavailable`` (with
+``Retry-After``). A request whose client hangs up while it waits (a
+script's timeout) is dropped, never applied behind the client's back. A
+request that was sent and got no answer (the owner died reading it, or timed
+out) is not sent again — the owner may have applied it — and is answered 503
+at once.
 
 Rig hosts (``thermolab agent``) link to the owner only: a follower accepts
 their WebSocket and closes it at once with
@@ -18,13 +31,19 @@ and the agent dials the next address it was given. The hosts page
 
 from __future__ import annotations
 
+import asyncio
+import math
+import time
+from asyncio import FIRST_COMPLETED
 from collections.abc import Callable
+from typing import Any
 
 import httpx
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from starlette.websockets import WebSocket
 
 from thermolab.agent.protocol import CLOSE_NOT_OWNER
+from thermolab.lab.fleet import ANNOUNCE_INTERVAL, OWNER_WAIT
 from thermolab.lab.http.errors import error_response
 
 __all__ = ["FORWARDED_PREFIXES", "ForwardToOwner", "refuse_agent_link"]
@@ -73,6 +92,19 @@ class ForwardToOwner:
         is forwarded from then on.
     timeout : float
         Seconds the owner has to answer.
+    wait : float
+        Seconds a request waits for an owner that answers before 503.
+    on_owner : callable, optional
+        Registers a listener to call, from any thread, each time an owner is
+        heard (:meth:`~thermolab.lab.fleet.Fleet.on_owner`): a waiting request
+        is sent at once then. Without it, waiting requests try again every
+        announcement interval.
+
+    Notes
+    -----
+    Waiting requests are not counted here: each is one coroutine and its
+    body, and the server's connection limit (``--max-connections``) bounds
+    how many there are.
     """
 
     def __init__(
@@ -81,57 +113,167 @@ class ForwardToOwner:
         owner_url: Callable[[], str | None],
         here: Callable[[], bool] = lambda: False,
         timeout: float = 30.0,
+        wait: float = OWNER_WAIT,
+        on_owner: Callable[[Callable[[], None]], None] | None = None,
     ) -> None:
         self.app = app
         self.owner_url = owner_url
         self.here = here
-        self._client = httpx.AsyncClient(timeout=timeout)
+        self.wait = wait
+        # A try's connection gets one announcement interval: a dead owner's machine may drop
+        # the connection attempt unanswered, and the next owner's address, announced meanwhile,
+        # is then tried within about one more interval.
+        self._client = httpx.AsyncClient(
+            timeout=httpx.Timeout(timeout, connect=min(timeout, ANNOUNCE_INTERVAL))
+        )
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._owner_heard = asyncio.Event()
+        if on_owner is not None:
+            on_owner(self._heard_owner)
+
+    def _heard_owner(self) -> None:
+        # Any thread (the bus's): wake the waiting requests in the server's loop.
+        loop = self._loop
+        if loop is not None and not loop.is_closed():
+            loop.call_soon_threadsafe(self._wake)
+
+    def _wake(self) -> None:
+        # Each waiter holds the event of its wait: set it, and later waits get a fresh one.
+        heard, self._owner_heard = self._owner_heard, asyncio.Event()
+        heard.set()
+
+    def _closing_on_shutdown(self, receive: Receive) -> Receive:
+        # The server stopping: the pool's connections to the owner close with it.
+        async def received() -> Message:
+            message = await receive()
+            if message["type"] == "lifespan.shutdown":
+                await self._client.aclose()
+            return message
+
+        return received
+
+    async def _news_of_owner(self, timeout: float, hung_up: asyncio.Future[None]) -> None:
+        # Until an owner is heard, the client hangs up, or the timeout.
+        news = asyncio.ensure_future(self._owner_heard.wait())
+        either: list[asyncio.Future[Any]] = [news, hung_up]
+        try:
+            await asyncio.wait(either, timeout=timeout, return_when=FIRST_COMPLETED)
+        finally:
+            news.cancel()
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] == "lifespan":
+            await self.app(scope, self._closing_on_shutdown(receive), send)
+            return
         if scope["type"] != "http" or not _forwarded(scope["path"]) or self.here():
             await self.app(scope, receive, send)
             return
-        owner = self.owner_url()
-        if owner is None:
-            response = error_response(
-                503, "the worker that owns the rigs is not reachable now", "rig_unavailable"
-            )
-            await response(scope, receive, send)
-            return
+        self._loop = asyncio.get_running_loop()
         body = bytearray()
         while True:
             message: Message = await receive()
             body += message.get("body", b"")
             if not message.get("more_body", False):
                 break
-        headers = [(k, v) for k, v in scope["headers"] if k.lower() not in _HOP_BY_HOP]
-        query = scope.get("query_string", b"").decode("latin-1")
-        url = (
-            owner.rstrip("/") + scope["raw_path"].decode("latin-1") + (f"?{query}" if query else "")
-        )
+        await self._forward(scope, bytes(body), receive, send)
+
+    async def _forward(self, scope: Scope, body: bytes, receive: Receive, send: Send) -> None:
+        deadline = time.monotonic() + self.wait
+        hung_up: asyncio.Future[None] | None = None  # watching the client, once it waits
         try:
-            request = self._client.build_request(
-                scope["method"], url, headers=headers, content=bytes(body)
+            while True:
+                if self.here():  # promoted while the request waited: this worker answers it
+                    if hung_up is not None:  # the app hears the client from now on
+                        hung_up.cancel()
+                        await asyncio.wait([hung_up])
+                    await self.app(scope, _replay(body, receive), send)
+                    return
+                owner = self.owner_url()
+                if owner is not None and await self._sent(scope, owner, body, receive, send):
+                    return
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                if hung_up is None:
+                    # While the request waits, its client may hang up (a script's timeout,
+                    # a closed tab): it is then dropped, never applied behind its back.
+                    hung_up = asyncio.ensure_future(_hang_up(receive))
+                await self._news_of_owner(min(left, ANNOUNCE_INTERVAL), hung_up)
+                if hung_up.done():
+                    return  # no one to answer
+        finally:
+            if hung_up is not None:
+                hung_up.cancel()
+        # A new owner is heard within an announcement of its start; trying again then waits
+        # for it as this request did.
+        response = error_response(
+            503,
+            f"no worker that owns the rigs could be reached for {self.wait:g} s",
+            "rig_unavailable",
+            headers={"Retry-After": str(math.ceil(ANNOUNCE_INTERVAL))},
+        )
+        await response(scope, receive, send)
+
+    async def _sent(
+        self, scope: Scope, owner: str, body: bytes, receive: Receive, send: Send
+    ) -> bool:
+        # Whether the request was sent to the owner (and answered, by it or by a 503).
+        try:
+            answer = await self._client.send(
+                _request(self._client, scope, owner, body), stream=True
             )
-            answer = await self._client.send(request, stream=True)
+        except (httpx.ConnectError, httpx.ConnectTimeout):
+            return False  # never sent: safe to send again, even a POST
         except httpx.HTTPError:
+            # Sent, and no answer: the owner may have applied it; sending it again could
+            # apply it twice (a second run started). The caller decides.
             response = error_response(
                 503, "the worker that owns the rigs did not answer", "rig_unavailable"
             )
             await response(scope, receive, send)
-            return
-        try:
-            await send(
-                {
-                    "type": "http.response.start",
-                    "status": answer.status_code,
-                    "headers": [
-                        (k, v) for k, v in answer.headers.raw if k.lower() not in _HOP_BY_HOP
-                    ],
-                }
-            )
-            async for chunk in answer.aiter_raw():
-                await send({"type": "http.response.body", "body": chunk, "more_body": True})
-            await send({"type": "http.response.body", "body": b"", "more_body": False})
-        finally:
-            await answer.aclose()
+            return True
+        await _relay(answer, send)
+        return True
+
+
+def _request(client: httpx.AsyncClient, scope: Scope, owner: str, body: bytes) -> httpx.Request:
+    headers = [(k, v) for k, v in scope["headers"] if k.lower() not in _HOP_BY_HOP]
+    query = scope.get("query_string", b"").decode("latin-1")
+    url = owner.rstrip("/") + scope["raw_path"].decode("latin-1") + (f"?{query}" if query else "")
+    return client.build_request(scope["method"], url, headers=headers, content=body)
+
+
+async def _relay(answer: httpx.Response, send: Send) -> None:
+    try:
+        await send(
+            {
+                "type": "http.response.start",
+                "status": answer.status_code,
+                "headers": [(k, v) for k, v in answer.headers.raw if k.lower() not in _HOP_BY_HOP],
+            }
+        )
+        async for chunk in answer.aiter_raw():
+            await send({"type": "http.response.body", "body": chunk, "more_body": True})
+        await send({"type": "http.response.body", "body": b"", "more_body": False})
+    finally:
+        await answer.aclose()
+
+
+async def _hang_up(receive: Receive) -> None:
+    # After the body, the server's next message for this request is its client hanging up.
+    while (await receive())["type"] != "http.disconnect":
+        pass
+
+
+def _replay(body: bytes, receive: Receive) -> Receive:
+    # The body was read for the owner; the app reads it again, then hears the client as usual.
+    given = False
+
+    async def replayed() -> Message:
+        nonlocal given
+        if given:
+            return await receive()
+        given = True
+        return {"type": "http.request", "body": body, "more_body": False}
+
+    return replayed
