@@ -62,15 +62,18 @@ def seed_lab(
     return cookies
 
 
-def start_agent(tmp: Path, labs: Sequence[str], rig: str = "box") -> subprocess.Popen[bytes]:
-    """``thermolab agent`` for ``rig`` (a realistic twin), dialling the ``labs`` in order."""
+def start_agent(
+    tmp: Path, labs: Sequence[str], rig: str = "box", *, speedup: float = 1.0
+) -> subprocess.Popen[bytes]:
+    """``thermolab agent`` for ``rig`` (a realistic twin, ``speedup`` times real time),
+    dialling the ``labs`` in order."""
     dial = [arg for lab in labs for arg in ("--lab", lab)]
     with (tmp / "agent.log").open("wb") as log:
         return subprocess.Popen(
             [sys.executable, "-m", "thermolab", "agent", *dial,
              "--rig", rig, "--spec", "sim:tclab",
              "--secret-file", str(tmp / f"{rig}.secret"),
-             "--outbox", str(tmp / "outbox.sqlite3")],
+             "--outbox", str(tmp / "outbox.sqlite3"), "--speedup", str(speedup)],
             env=dict(os.environ, THERMOLAB_DATA_DIR=str(tmp)),
             stdout=log, stderr=subprocess.STDOUT,
         )  # fmt: skip

@@ -15,6 +15,7 @@ Skipped, with the reason, where PostgreSQL or Redis is absent.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
 import signal
@@ -45,10 +46,11 @@ GRACE = "300"
 """The rig host's grace (``--agent-grace``): far above a loaded machine's takeover."""
 
 
-@pytest.fixture
-def lab(
-    tmp_path: Path, postgres_url: str, redis_url: str
+@contextlib.contextmanager
+def owner_standby_and_host(
+    tmp_path: Path, postgres_url: str, redis_url: str, *, speedup: float = 1.0
 ) -> Iterator[tuple[Worker, Worker, dict[str, str], Database]]:
+    """The owner, its standby and the box's host (its twin ``speedup`` times real time)."""
     cookies = seed_lab(tmp_path, postgres_url, LAB_TOML, PEOPLE, agent_rigs=["box"])
     processes: list[subprocess.Popen[bytes]] = []
     db = Database(postgres_url)
@@ -57,14 +59,22 @@ def lab(
         processes.append(owner.process)
         follower = _start(tmp_path, postgres_url, redis_url, "--agent-grace", GRACE)
         processes.append(follower.process)
-        processes.append(start_agent(tmp_path, [follower.ws, owner.ws]))
+        processes.append(start_agent(tmp_path, [follower.ws, owner.ws], speedup=speedup))
         yield owner, follower, cookies, db
     finally:
         stop(processes)
         db.close()
 
 
-def _wait_for(what: str, check: Any, timeout: float = 120.0) -> Any:
+@pytest.fixture
+def lab(
+    tmp_path: Path, postgres_url: str, redis_url: str
+) -> Iterator[tuple[Worker, Worker, dict[str, str], Database]]:
+    with owner_standby_and_host(tmp_path, postgres_url, redis_url) as made:
+        yield made
+
+
+def wait_for(what: str, check: Any, timeout: float = 120.0) -> Any:
     deadline = time.monotonic() + timeout
     while True:
         found = check()
@@ -101,7 +111,7 @@ class Watcher(threading.Thread):
             self.error = repr(exc)
 
 
-def _hosts_online(worker: Worker, cookie: str) -> bool:
+def hosts_online(worker: Worker, cookie: str) -> bool:
     answer = httpx.get(worker.base + "/api/agents", headers={"Cookie": cookie}, timeout=30)
     assert answer.status_code in (200, 503), answer.text
     # Linked, and the health check agrees (a loaded machine may fault it for a while).
@@ -115,11 +125,11 @@ def test_a_rig_hosts_run_goes_on_under_the_standby_after_the_owner_is_killed(
 ) -> None:
     owner, follower, cookies, db = lab
     ana = cookies["ana"]
-    _wait_for("the agent links to the owner", lambda: _hosts_online(follower, cookies["tina"]))
+    wait_for("the agent links to the owner", lambda: hosts_online(follower, cookies["tina"]))
     watcher = Watcher(follower.ws + "/api/rigs/box/live", cookies["bo"])
     watcher.start()
     with httpx.Client(base_url=follower.base, headers={"Cookie": ana}, timeout=30) as http:
-        _wait_for(  # 409 while the health check has the rig out of service
+        wait_for(  # 409 while the health check has the rig out of service
             "ana takes the box", lambda: http.post("/api/rigs/box/control").status_code == 200
         )
         started = http.post(
@@ -129,13 +139,13 @@ def test_a_rig_hosts_run_goes_on_under_the_standby_after_the_owner_is_killed(
         assert started.status_code == 201, started.text
         run_id: int = started.json()["id"]
     (turn,) = _open_turns(db)
-    _wait_for("samples reach the watcher", lambda: len(watcher.ks.get(run_id, [])) >= 5)
+    wait_for("samples reach the watcher", lambda: len(watcher.ks.get(run_id, [])) >= 5)
 
     owner.process.send_signal(signal.SIGKILL)
     owner.process.wait()
-    _wait_for("the follower takes over", lambda: TAKEN_OVER in follower.log.read_text())
+    wait_for("the follower takes over", lambda: TAKEN_OVER in follower.log.read_text())
     before = len(watcher.ks.get(run_id, []))
-    _wait_for(
+    wait_for(
         "the run's samples flow again, through the new owner",
         lambda: len(watcher.ks.get(run_id, [])) >= before + 10,
     )
@@ -145,7 +155,7 @@ def test_a_rig_hosts_run_goes_on_under_the_standby_after_the_owner_is_killed(
         assert rig["access"]["role"] == "controller"
         ended = http.post("/api/rigs/box/runs/current/stop")
         assert ended.status_code in (200, 202), ended.text
-        run = _wait_for(
+        run = wait_for(
             "the run's end is stored",
             lambda: (r := http.get(f"/api/runs/{run_id}").json())["status"] != "running" and r,
         )

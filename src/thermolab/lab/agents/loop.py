@@ -7,20 +7,63 @@ copy of the run's :class:`~thermolab.runner.ControlLoop`, bound to the rig as
 published (the same set-point, input and fan checks, so the same 4xx codes),
 then sent to the host, whose runner applies it from its next sample on. A
 command the host still refuses (the run ended meanwhile) is logged there.
+
+A run adopted by a new owner worker (docs/fleet.md, "Takeover") has its loop
+built again from its request with the commands recorded since folded in
+(:func:`commanded_request`): until the host's first heartbeat to the new
+owner tells the loop, the loop route answers what the lab last commanded,
+not the loop as started.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import replace
+from typing import Any
 
 from thermolab.agent.protocol import LoopCommand, SetFan, SetGains, SetMode, SetSetpoint
 from thermolab.control import PIDGains
 from thermolab.errors import ConflictError, InvalidParameterError
 from thermolab.rigs import RigInfo
 from thermolab.runner import ControlLoop, Interlocks
+from thermolab.runner.control_request import ControlRequest
 from thermolab.runner.control_requests import fan_level
 
-__all__ = ["RemoteLoop"]
+__all__ = ["RemoteLoop", "commanded_request"]
+
+
+def commanded_request(
+    request: ControlRequest, commands: Iterable[tuple[str, Mapping[str, Any] | None]]
+) -> ControlRequest:
+    """``request`` as the run's recorded loop commands left it, in order.
+
+    ``commands`` are ``(kind, payload)`` as :func:`~thermolab.lab.runs.commands.send_command`
+    recorded them: ``setpoint`` (``{"setpoint"}``), ``gains`` (``PIDGains.to_dict``),
+    ``mode`` (``{"mode", "setpoint"?, "u"?}``); others (``fan``, inputs) leave the loop as
+    it is. An adaptive loop's own retunes are the host's: only its heartbeats tell them.
+
+    Examples
+    --------
+    >>> start = ControlRequest(setpoint=35.0, kp=4.0, ti=140.0)
+    >>> after = commanded_request(
+    ...     start, [("setpoint", {"setpoint": 30.0}), ("mode", {"mode": "manual", "u": 20.0})]
+    ... )
+    >>> after.setpoint, after.mode, after.kp
+    (30.0, 'manual', 4.0)
+    """
+    for kind, payload in commands:
+        given = dict(payload or {})
+        if kind == "setpoint":
+            request = replace(request, setpoint=float(given["setpoint"]))
+        elif kind == "gains":
+            request = replace(
+                request, kp=float(given["Kp"]), ti=float(given["Ti"]), td=float(given["Td"])
+            )
+        elif kind == "mode":
+            request = replace(request, mode=str(given["mode"]))
+            if given.get("setpoint") is not None:
+                request = replace(request, setpoint=float(given["setpoint"]))
+    return request
 
 
 class RemoteLoop:

@@ -35,6 +35,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from sqlalchemy import select
+
 from thermolab.agent.protocol import EndRun, RunEnded, SampleBatch, SetInput, StartRun
 from thermolab.errors import (
     AccessDeniedError,
@@ -46,11 +48,11 @@ from thermolab.errors import (
 from thermolab.lab.access import AccessService
 from thermolab.lab.agents.estimates import RemoteIdentification
 from thermolab.lab.agents.hub import AgentHub
-from thermolab.lab.agents.loop import RemoteLoop
+from thermolab.lab.agents.loop import RemoteLoop, commanded_request
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
-from thermolab.lab.db.models import Run
+from thermolab.lab.db.models import Command, Run
 from thermolab.lab.devices import DeviceHub
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.runs.commands import loop_state, send_command
@@ -255,7 +257,10 @@ class RemoteRuns:
         started here, its samples are stored and streamed as they come, and
         its online identifiers are built again from the stored request and
         fed the samples stored so far (a run whose rig's range changed since keeps
-        none: its end is then stored without method results).
+        none: its end is then stored without method results). A closed loop's
+        checks are built again from its request with the commands recorded since
+        folded in: until the host's heartbeat tells it, the loop state is the one
+        the lab last commanded.
         """
         identification = self._identification_of(run_id)
         commands = self._adopted_loop(rig_id, run_id)
@@ -291,12 +296,22 @@ class RemoteRuns:
                 given: dict[str, Any] = {
                     k: tuple(v) if isinstance(v, list) else v for k, v in control.items()
                 }
-                loop = self._loop(
-                    ControlRequest(**given), settings["dt"], settings["samples"], info
-                )
+                # The loop as the lab last commanded it (the host tells it once linked here).
+                request = commanded_request(ControlRequest(**given), self._commands_of(run_id))
+                loop = self._loop(request, settings["dt"], settings["samples"], info)
         except (ThermoLabError, KeyError, TypeError) as exc:
             log.warning("run %s: its control loop cannot be rebuilt: %r", run_id, exc)
         return RemoteLoop(run_id, loop, info, fan, lambda c: self._agents.send(rig_id, c))
+
+    def _commands_of(self, run_id: int) -> list[tuple[str, dict[str, Any] | None]]:
+        """The run's recorded commands, ``(kind, payload)`` in the order they were given."""
+        with self._db.read() as session:
+            rows = session.execute(
+                select(Command.kind, Command.payload)
+                .where(Command.run_id == run_id)
+                .order_by(Command.at, Command.id)
+            )
+            return [(kind, payload) for kind, payload in rows]
 
     def _identification_of(self, run_id: int) -> RemoteIdentification:
         try:
