@@ -70,7 +70,7 @@ def _until(what: str, check: Callable[[], Any], timeout: float = 120.0) -> Any:
 
 def _settled(client: httpx.Client, run_id: int, setpoint: float, after: int = 0) -> bool:
     """The stored ``y`` has stayed within 1 degC of ``setpoint`` for its last 30 samples."""
-    client.get("/api/rigs/box/loop")  # the controller is there: its turn goes on
+    client.post("/api/rigs/box/heartbeat")  # the controller is there: its turn goes on
     rows = _samples(client, run_id)
     ys = rows["y"][after:]
     return len(ys) >= 30 and all(abs(y - setpoint) < 1.0 for y in ys[-30:])
