@@ -41,6 +41,7 @@ from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import RigConfig, default_config
 from thermolab.lab.http.app import create_app
 from thermolab.lab.service import Lab
+from thermolab.lab.users import Principal
 
 from .fleet import free_port
 
@@ -162,3 +163,38 @@ def test_a_wrong_secret_or_a_rotated_one_is_refused(lab: Lab) -> None:
             assert isinstance(decode_lab(ws.receive_text()), Welcome)
             assert lab.agents.online("box")
         _wait(lambda: not lab.agents.online("box"))  # gone with its socket
+
+
+def test_a_host_that_redials_within_the_timeout_keeps_the_rig_and_the_turn(lab: Lab) -> None:
+    clock = lab.clock
+    assert isinstance(clock, ManualClock)
+    secret = issue_secret(lab.db, lab.config, clock, "box")
+    info = lab.users.add("ana", "correct horse battery", "student")
+    ana = Principal(info.id, info.username, info.role)
+    app = create_app(lab.config, lab=lab, close_lab=False, sweep_interval=None)
+    with TestClient(app) as client:
+        with client.websocket_connect("/api/agents/link") as ws:
+            ws.send_text(_hello(secret))
+            assert isinstance(decode_lab(ws.receive_text()), Welcome)
+            _wait(lambda: lab.access.snapshot("box").fault is None)
+            lab.access.request_control("box", ana)
+        # The link closed: offline at once, but the rig stays in service for the timeout.
+        _wait(lambda: not lab.agents.online("box"))
+        clock.advance(lab.agents.heartbeat_timeout - 1)
+        lab.sweep()
+        assert lab.access.snapshot("box").fault is None
+        with client.websocket_connect("/api/agents/link") as ws:  # the host redials
+            ws.send_text(_hello(secret))
+            assert isinstance(decode_lab(ws.receive_text()), Welcome)
+            _wait(lambda: lab.agents.online("box"))
+            clock.advance(2.0)  # past the first loss's timeout: it no longer counts
+            lab.sweep()
+            assert lab.access.snapshot("box").fault is None
+            controller = lab.access.snapshot("box").controller
+            assert controller is not None and controller.user_id == ana.user_id
+        # Away for longer than a silent host may be: out of service, the turn ended.
+        _wait(lambda: not lab.agents.online("box"))
+        clock.advance(lab.agents.heartbeat_timeout + 1)
+        lab.sweep()
+        assert lab.access.snapshot("box").fault == "rig host: offline (not connected)"
+        assert lab.access.snapshot("box").controller is None
