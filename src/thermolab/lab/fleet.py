@@ -55,13 +55,13 @@ from thermolab.lab.devices import RigOpener
 from thermolab.lab.follower import FollowerLab
 from thermolab.lab.lease import LEASE_TTL, LeaseHeldError
 from thermolab.lab.service import Lab, StartupReport
-from thermolab.lab.shared_presence import SharedPresence
 from thermolab.lab.shared_limits import (
     LiveSocketCounts,
     SharedLiveSocketCounts,
     SharedLoginThrottle,
     limits_client,
 )
+from thermolab.lab.shared_presence import SharedPresence
 
 if TYPE_CHECKING:
     from thermolab.lab.fanout import LiveFanout

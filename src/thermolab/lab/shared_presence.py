@@ -69,7 +69,9 @@ class SharedPresence:
             redis, prefix, "watchers", self._fields, refresh=refresh, ttl=ttl, gap=gap
         )
         presence.share(self)
-        self._reader = threading.Thread(target=self._read_forever, name="watchers-read", daemon=True)
+        self._reader = threading.Thread(
+            target=self._read_forever, name="watchers-read", daemon=True
+        )
         self._reader.start()
 
     def watchers(self, rig_id: str) -> list[Watcher]:
