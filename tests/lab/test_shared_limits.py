@@ -206,13 +206,11 @@ def test_each_worker_counts_the_others_sockets_until_they_close_or_stop_refreshi
         second.close()  # a worker that stops cleanly takes its counts out at once
         assert third.others(ana, "twin") == (1, 1)
         # A worker that stops refreshing (killed) stops counting when its hash expires.
-        first._stop.set()
-        first._dirty.set()
-        first._publisher.join()
+        first.published.halt()
         assert third.others(ana, "twin") == (1, 1)
         waited = until(lambda: third.others(ana, "twin") == (0, 0), within=3.0)
         assert waited > 0.3
-        assert redis.sismember(prefix + "live.workers", first._worker) == 0  # forgotten
+        assert redis.sismember(prefix + "live.workers", first.published.worker) == 0  # forgotten
     finally:
         for counts in (first, second, third):
             counts.close()

@@ -61,6 +61,7 @@ from thermolab.lab.shared_limits import (
     SharedLoginThrottle,
     limits_client,
 )
+from thermolab.lab.shared_presence import SharedPresence
 
 if TYPE_CHECKING:
     from thermolab.lab.fanout import LiveFanout
@@ -99,6 +100,9 @@ class Fleet:
     live_sockets : LiveSocketCounts, optional
         The live sockets of every worker (:mod:`~thermolab.lab.shared_limits`),
         which the live stream's limits count; closed with the fleet.
+    watchers : SharedPresence, optional
+        Who watches each rig on every worker (:mod:`~thermolab.lab.shared_presence`);
+        closed with the fleet.
     """
 
     def __init__(
@@ -108,11 +112,13 @@ class Fleet:
         *,
         url: str | None = None,
         live_sockets: LiveSocketCounts | None = None,
+        watchers: SharedPresence | None = None,
     ) -> None:
         self.bus = bus
         self.role: Role = role
         self.url = url
         self.live_sockets = live_sockets
+        self.watchers = watchers
         self._standby: threading.Thread | None = None
         self._owner: tuple[str, float] | None = None  # (address, monotonic time heard)
         self._heard = threading.Event()
@@ -203,6 +209,8 @@ class Fleet:
             self._announcer.join(timeout=5)
         if self.live_sockets is not None:
             self.live_sockets.close()
+        if self.watchers is not None:
+            self.watchers.close()
         self.bus.close()
 
     # -- the owner's side --------------------------------------------------------------------
@@ -330,7 +338,7 @@ def start_worker(
     lab_key = hashlib.sha256(config.database.encode()).hexdigest()[:12]
     prefix = f"thermolab.{lab_key}."
     bus = open_bus(broker, prefix=prefix) if broker is not None else None
-    # With a broker, the login throttle and the live-socket limits count lab-wide.
+    # With a broker, the login throttle, the live-socket limits and the watchers are lab-wide.
     limits = limits_client(broker) if broker is not None else None
     lab = Lab(config, opener=opener, exclusive=True)
     if limits is not None:
@@ -352,6 +360,7 @@ def start_worker(
         remote_only = all(rig.agent for rig in config.rigs)
         follower = FollowerLab(config, standby=standby or remote_only, opener=opener)
         follower.throttle = SharedLoginThrottle.like(follower.throttle, limits, prefix)
+        fleet.watchers = SharedPresence(follower.presence, limits, prefix)
         try:
             return follower, fleet, follower.start()
         except BaseException:
@@ -366,4 +375,6 @@ def start_worker(
     if bus is None or limits is None:
         return lab, None, report
     live_sockets = SharedLiveSocketCounts(limits, prefix)
-    return lab, Fleet(bus, "owner", url=url, live_sockets=live_sockets), report
+    watchers = SharedPresence(lab.presence, limits, prefix)
+    fleet = Fleet(bus, "owner", url=url, live_sockets=live_sockets, watchers=watchers)
+    return lab, fleet, report

@@ -22,15 +22,13 @@ from __future__ import annotations
 
 import collections
 import hashlib
-import logging
 import secrets
 import threading
-import time
-import uuid
 from typing import Any
 
 from thermolab.lab.clock import LabClock
 from thermolab.lab.security import LoginThrottle, address_limited, pair_delayed
+from thermolab.lab.worker_hashes import Reachable, WorkerHash
 
 __all__ = [
     "LiveSocketCounts",
@@ -38,10 +36,6 @@ __all__ = [
     "SharedLoginThrottle",
     "limits_client",
 ]
-
-log = logging.getLogger(__name__)
-
-_BACK_OFF = 5.0  # s: after Redis failed, the local counts alone decide for this long
 
 # One attempt: its time in the address's window (trimmed to the newest ``keep``: the
 # limit is reached with them, and they say when it is no longer), and, for a failure,
@@ -73,30 +67,6 @@ def limits_client(url: str) -> Any:
     import redis
 
     return redis.Redis.from_url(url, socket_connect_timeout=1.0, socket_timeout=1.0)
-
-
-class _Reachable:
-    """Whether to ask Redis now: not for :data:`_BACK_OFF` seconds after it failed."""
-
-    def __init__(self, what: str) -> None:
-        self._what = what
-        self._failed_at: float | None = None
-
-    def now(self) -> bool:
-        failed = self._failed_at
-        return failed is None or time.monotonic() - failed >= _BACK_OFF
-
-    def failed(self, error: Exception) -> None:
-        if self._failed_at is None:
-            log.warning(
-                "%s: Redis unreachable (%s); this worker's counts decide", self._what, error
-            )
-        self._failed_at = time.monotonic()
-
-    def ok(self) -> None:
-        if self._failed_at is not None:
-            log.warning("%s: Redis reachable again; the counts are lab-wide", self._what)
-        self._failed_at = None
 
 
 class SharedLoginThrottle(LoginThrottle):
@@ -135,7 +105,7 @@ class SharedLoginThrottle(LoginThrottle):
         self._redis = redis
         self._prefix = prefix
         self._record_script = redis.register_script(_RECORD)
-        self._reachable = _Reachable("the login throttle")
+        self._reachable = Reachable("the login throttle")
 
     @classmethod
     def like(cls, throttle: LoginThrottle, redis: Any, prefix: str) -> SharedLoginThrottle:
@@ -274,12 +244,10 @@ class LiveSocketCounts:
 class SharedLiveSocketCounts(LiveSocketCounts):
     """Live-socket counts published to Redis, and the other workers' read from it.
 
-    A publishing thread writes this worker's counts as the hash
-    ``<prefix>live.worker:<id>`` (field ``alive`` and one field per login and
-    rig), at once after each change and every ``refresh`` seconds, with a
-    ``ttl``: a worker that dies stops counting ``ttl`` seconds after its last
-    write. The set ``<prefix>live.workers`` names the workers; a reader drops
-    the names whose hash has expired.
+    This worker's counts are its :class:`~thermolab.lab.worker_hashes.WorkerHash`
+    of kind ``live`` (one field per login and rig), written at once after each
+    change and every ``refresh`` seconds, with a ``ttl``: a worker that dies
+    stops counting ``ttl`` seconds after its last write.
 
     Parameters
     ----------
@@ -295,81 +263,23 @@ class SharedLiveSocketCounts(LiveSocketCounts):
 
     def __init__(self, redis: Any, prefix: str, *, refresh: float = 2.0, ttl: float = 6.0) -> None:
         super().__init__()
-        self._redis = redis
-        self._workers = f"{prefix}live.workers"
-        self._worker = uuid.uuid4().hex
-        self._key = f"{prefix}live.worker:{self._worker}"
-        self._refresh = refresh
-        self._ttl_ms = int(ttl * 1000)
-        self._reachable = _Reachable("the live-socket limits")
-        self._dirty = threading.Event()
-        self._stop = threading.Event()
-        self._dirty.set()  # the first write says this worker is alive
-        self._publisher = threading.Thread(
-            target=self._publish_forever, name="live-counts", daemon=True
-        )
-        self._publisher.start()
+        self.published = WorkerHash(redis, prefix, "live", self._fields, refresh=refresh, ttl=ttl)
 
     def others(self, login: tuple[str, int | None], rig_id: str) -> tuple[int, int]:
         """The other live workers' published sockets of ``login`` and on ``rig_id``.
 
         Without Redis: nothing (this worker's own counts decide, as a lone server's).
         """
-        if not self._reachable.now():
+        found = self.published.others(_login_field(login), f"r:{rig_id}")
+        if found is None:
             return 0, 0
-        fields = (_login_field(login), f"r:{rig_id}", "alive")
-        try:
-            names = (w.decode() for w in self._redis.smembers(self._workers))
-            workers = [w for w in names if w != self._worker]
-            pipe = self._redis.pipeline(transaction=False)
-            for worker in workers:
-                pipe.hmget(self._key_of(worker), *fields)
-            found = pipe.execute() if workers else []
-            dead = [w for w, (_, _, alive) in zip(workers, found, strict=True) if alive is None]
-            if dead:
-                self._redis.srem(self._workers, *dead)
-        except Exception as exc:  # redis.RedisError, OSError: the broker is away
-            self._reachable.failed(exc)
-            return 0, 0
-        self._reachable.ok()
-        logins = sum(int(n) for n, _, alive in found if alive is not None and n is not None)
-        rigs = sum(int(n) for _, n, alive in found if alive is not None and n is not None)
+        logins = sum(int(n) for n, _ in found if n is not None)
+        rigs = sum(int(n) for _, n in found if n is not None)
         return logins, rigs
 
     def close(self) -> None:
         """Stop publishing and take this worker's counts out at once."""
-        self._stop.set()
-        self._dirty.set()
-        self._publisher.join(timeout=5)
-        try:
-            pipe = self._redis.pipeline(transaction=True)
-            pipe.delete(self._key)
-            pipe.srem(self._workers, self._worker)
-            pipe.execute()
-        except Exception:  # the broker may be gone: the counts expire anyway
-            log.debug("removing this worker's live counts", exc_info=True)
+        self.published.close()
 
     def _changed(self) -> None:
-        self._dirty.set()
-
-    def _key_of(self, worker: str) -> str:
-        return self._key[: -len(self._worker)] + worker
-
-    def _publish_forever(self) -> None:
-        while not self._stop.is_set():
-            self._dirty.wait(self._refresh)
-            if self._stop.is_set():
-                return
-            self._dirty.clear()
-            # The whole hash each time, as the counts are now: a lost write heals at the next.
-            fields: dict[str, int] = {"alive": 1, **self._fields()}
-            try:
-                pipe = self._redis.pipeline(transaction=True)
-                pipe.delete(self._key)
-                pipe.hset(self._key, mapping=fields)
-                pipe.pexpire(self._key, self._ttl_ms)
-                pipe.sadd(self._workers, self._worker)
-                pipe.pexpire(self._workers, self._ttl_ms)
-                pipe.execute()
-            except Exception as exc:  # the broker is away: try again at the next refresh
-                self._reachable.failed(exc)
+        self.published.changed()

@@ -135,6 +135,8 @@ class LiveEndpoint:
         self._kept_at: dict[tuple[str, int | None], datetime] = {}
         self._limiter: anyio.CapacityLimiter | None = None
         self.logins = LoginWatch(lab, self.hub)
+        # Watchers arriving or leaving on other workers change the count everyone sees.
+        lab.presence.on_elsewhere(self.access_changed)
 
     # -- the lab's side (worker threads) ---------------------------------------------------
 
