@@ -191,7 +191,8 @@ def test_a_host_that_redials_within_the_timeout_keeps_the_rig_and_the_turn(lab: 
             lab.sweep()
             assert lab.access.snapshot("box").fault is None
             controller = lab.access.snapshot("box").controller
-            assert controller is not None and controller.user_id == ana.user_id
+            assert controller is not None
+            assert controller.user_id == ana.user_id
         # Away for longer than a silent host may be: out of service, the turn ended.
         _wait(lambda: not lab.agents.online("box"))
         clock.advance(lab.agents.heartbeat_timeout + 1)
