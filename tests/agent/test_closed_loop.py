@@ -3,7 +3,8 @@
 The host's runner drives the PID on its twin (20 times real time): the run
 reaches its set point, a set-point change goes through the lab to the host
 and shows in the stored ``r`` channel, END leaves the actuator safe and
-stores the controller's end as an in-process run does. A second run: the
+stores the controller's end as an in-process run does; the run's record shows
+the loop live (the host's heartbeat) and, at the end, the run's timing. A second run: the
 lab paused mid-run (the link cut, as tests/agent/test_fleet.py cuts it)
 does not stop the loop (the grace is longer than the cut), and every sample
 taken meanwhile, control channels included, is stored after the link is back.
@@ -110,6 +111,9 @@ def test_a_closed_loop_run_on_a_rig_host_tracks_commands_and_outlives_a_cut_link
         )
         assert run.status_code == 201, run.text
         run_id = run.json()["id"]
+        # The run's record shows its loop from the start, as an in-process run's does.
+        started = run.json()["control"]
+        assert (started["mode"], started["setpoint"], started["gains"]["Kp"]) == ("auto", 35.0, KP)
         # The host's loop, as its heartbeat tells it.
         loop = _until(
             "the host's loop state",
@@ -118,6 +122,11 @@ def test_a_closed_loop_run_on_a_rig_host_tracks_commands_and_outlives_a_cut_link
         assert loop["run"] == run_id
         assert loop["mode"] == "auto"
         assert loop["setpoint"] == 35.0
+        live = ana.get(f"/api/runs/{run_id}").json()
+        assert live["status"] == "running"
+        assert live["control"].keys() == loop.keys() - {"run"}  # the same loop, the same shape
+        assert (live["control"]["mode"], live["control"]["setpoint"]) == ("auto", 35.0)
+        assert live["timing"] is None  # judged at the end, as in-process
 
         _until("the set point 35", lambda: _settled(ana, run_id, 35.0))
 
@@ -136,6 +145,11 @@ def test_a_closed_loop_run_on_a_rig_host_tracks_commands_and_outlives_a_cut_link
             "the host's new set point",
             lambda: ana.get("/api/rigs/box/loop").json()["loop"]["setpoint"] == 30.0,
         )
+        # ... and the run's record with it (the host's heartbeat, not the lab's copy).
+        _until(
+            "the record's new set point",
+            lambda: ana.get(f"/api/runs/{run_id}").json()["control"]["setpoint"] == 30.0,
+        )
 
         _until("the set point 30", lambda: _settled(ana, run_id, 30.0, after=changed_at))
         answer = ana.post(f"{url}/stop")
@@ -150,6 +164,13 @@ def test_a_closed_loop_run_on_a_rig_host_tracks_commands_and_outlives_a_cut_link
         assert record["control"]["mode"] == "auto"
         assert record["control"]["setpoint"] == 30.0
         assert record["control"]["gains"]["Kp"] == KP
+        # Its timing, stored as an in-process run's end stores it: the twin's data are
+        # exact (timed by its own clock, so no lateness), its period does not spread.
+        timing = record["timing"]
+        assert timing.keys() == {"rig", "maxLateness", "p95Lateness", "periodSpread", "warnings"}
+        assert (timing["rig"], timing["maxLateness"], timing["p95Lateness"]) == ("twin", None, None)
+        assert 0.0 <= timing["periodSpread"] < 0.01
+        assert timing["warnings"] == []
         names = [c["name"] for c in record["channels"]]
         assert names[-5:] == ["r", "u_pid", "e", "auto", "fan"]
 

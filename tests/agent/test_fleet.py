@@ -159,6 +159,15 @@ def test_link_cut_mid_run_keeps_every_sample_and_the_rig_safe(fleet: Fleet, rig:
         assert record["results"]["lsm"]["latest"] is not None
         srm = record["results"]["srm"]  # an estimate, or why there is none (a short step)
         assert srm["latest"] is not None or srm.get("error")
+        # Its timing, judged on the samples' own as an in-process run's end judges it:
+        # the TCLab's readings were taken by the wall clock (lateness), the twin's are exact.
+        timing = record["timing"]
+        assert timing is not None, record
+        if rig == "kit":
+            assert timing["rig"] == "real"
+            assert 0.0 <= timing["p95Lateness"] <= timing["maxLateness"] < 5.0, timing
+        else:
+            assert (timing["rig"], timing["maxLateness"], timing["warnings"]) == ("twin", None, [])
         rows = _samples(ana, run_id)
         ks = [int(k) for k in rows["k"]]
         assert ks == list(range(len(ks))), "a sample is missing or doubled"

@@ -3,7 +3,9 @@
 In-process and quick beside tests/agent/test_restart.py (real processes): the
 run row as START stores it, marked interrupted as a restart leaves it, the
 host's samples stored by the lab's own store, then the host's ``RunEnded``
-as the lab's endpoint hands it on, twice (a resend after a lost Ack).
+as the lab's endpoint hands it on, twice (a resend after a lost Ack). The
+end stores the run's timing as an in-process run's end does, judged on the
+timing each stored sample came with (a real rig's late samples show).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from thermolab.agent.protocol import RunEnded, SampleBatch, SampleOut
 from thermolab.lab.config import RigConfig, default_config
 from thermolab.lab.db.models import MethodResultRow, Run, RunStatus, User
 from thermolab.lab.runs.request import RunRequest, plan_run
+from thermolab.lab.runs.timing import timing_summary
 from thermolab.lab.service import Lab
 from thermolab.simulation import simulate_first_order
 
@@ -33,7 +36,11 @@ K, TAU = 0.5, 20.0
 def lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Lab]:
     tmp = tmp_path_factory.mktemp("late")
     config = replace(
-        default_config(tmp), rigs=(RigConfig("box", "Remote box", "sim:tclab", agent=True),)
+        default_config(tmp),
+        rigs=(
+            RigConfig("box", "Remote box", "sim:tclab", agent=True),
+            RigConfig("kit", "Remote kit", "tclab", agent=True),
+        ),
     )
     the_lab = Lab(config, hasher=FAST_HASHER)
     the_lab.start()
@@ -42,8 +49,13 @@ def lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Lab]:
     the_lab.close()
 
 
-def _interrupted_run(lab: Lab, n: int) -> int:
-    """A run as START stored it, interrupted by a restart, with ``n`` samples from its host."""
+def _interrupted_run(lab: Lab, n: int, rig: str = "box", late: np.ndarray | None = None) -> int:
+    """A run as START stored it, interrupted by a restart, with ``n`` samples from its host.
+
+    ``late``: each sample's lateness (s) as the host's runner measured it (default none),
+    its reading taken that late.
+    """
+    lateness = np.zeros(n) if late is None else late
     request = RunRequest(dt=1.0, samples=n, signal="step:0:10@1", methods=("srm", "lsm"))
     plan = plan_run(request, (0.0, 100.0))
     now = datetime.now(UTC)
@@ -51,7 +63,7 @@ def _interrupted_run(lab: Lab, n: int) -> int:
         user_id = session.scalar(select(User.id))
         assert user_id is not None
         run = Run(
-            rig_id="box",
+            rig_id=rig,
             user_id=user_id,
             status=RunStatus.INTERRUPTED.value,
             dt=1.0,
@@ -73,13 +85,13 @@ def _interrupted_run(lab: Lab, n: int) -> int:
             t=float(k),
             u=float(u[k]),
             y=float(y[k]),
-            t_read=float(k),
-            jitter=0.0,
-            lateness=0.0,
+            t_read=float(k + lateness[k]),
+            jitter=float(lateness[k] - lateness[k - 1]) if k else 0.0,
+            lateness=float(lateness[k]),
         )
         for k in range(n)
     ]
-    lab.agents._store("box", SampleBatch(samples=samples))  # the lab's store, as its endpoint
+    lab.agents._store(rig, SampleBatch(samples=samples))  # the lab's store, as its endpoint
     return run_id
 
 
@@ -105,3 +117,28 @@ def test_the_hosts_late_end_stores_each_methods_result_once(lab: Lab) -> None:
     lsm = record.results["lsm"]
     assert lsm["latest"]["valid"]
     assert "stats" in lsm  # the paper's figures, as an in-process run's end stores them
+    # Its timing, judged as an in-process run's end judges it: a twin's (exact) data.
+    timing = record.timing
+    assert timing is not None
+    assert timing.keys() == timing_summary([], [], 1.0, simulated=True).keys()
+    assert (timing["rig"], timing["maxLateness"], timing["p95Lateness"]) == ("twin", None, None)
+    assert timing["periodSpread"] == 0.0
+    assert timing["warnings"] == []
+
+
+def test_the_late_end_of_a_real_rigs_run_shows_its_late_samples(lab: Lab) -> None:
+    # Every tenth reading 0.3 s late (the host's computer busy), the others on time.
+    late = np.where(np.arange(100) % 10 == 5, 0.3, 0.002)
+    run_id = _interrupted_run(lab, 100, rig="kit", late=late)
+    lab.agents.on_run_ended("kit", RunEnded(seq=101, run=run_id, reason="completed", samples=100))
+    timing = lab.runs.record(run_id).timing
+    assert timing is not None
+    assert timing["rig"] == "real"
+    assert timing["maxLateness"] == pytest.approx(0.3)
+    assert 0.002 <= timing["p95Lateness"] <= 0.3
+    # Periods of 1.298 and 0.702 s among 1 s ones spread ~13 %: over the 5 % limit.
+    assert timing["periodSpread"] == pytest.approx(
+        timing_summary(np.arange(100) + late, late, 1.0, simulated=False)["periodSpread"]
+    )
+    assert timing["periodSpread"] > 0.05
+    assert timing["warnings"][0].startswith("timing jitter: the sample period spreads")

@@ -3,7 +3,8 @@
 The lab stores the run interrupted when it starts again; the rig host, which
 ENDed the run by itself when the link went, uploads the samples and the end
 once the link is back. That end stores the run's status and, as an
-in-process run's end does, each method's result with its figures.
+in-process run's end does, each method's result with its figures and the
+run's timing.
 Real processes: a TLS lab (``thermolab serve``, stopped with SIGTERM and
 served again on the same port) and a ``thermolab agent`` driving a twin.
 """
@@ -90,5 +91,11 @@ def test_the_hosts_end_after_a_lab_restart_stores_the_runs_results(tmp_path: Pat
         assert "stats" in lsm
         srm = record["results"]["srm"]  # an estimate, or why there is none
         assert srm["latest"] is not None or srm.get("error")
+        # ... and its timing judged on the uploaded samples, as an in-process run's end.
+        timing = record["timing"]
+        assert timing is not None, record
+        assert (timing["rig"], timing["maxLateness"]) == ("twin", None)
+        assert timing["periodSpread"] < 0.01
+        assert timing["warnings"] == []
     finally:
         fleet.stop()

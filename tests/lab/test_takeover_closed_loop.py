@@ -5,10 +5,10 @@ processes on PostgreSQL and Redis), but the run is a closed loop driven by the
 host's runner (tests/agent/test_closed_loop.py): ana starts it with the set
 point 35 through the standby, the owner is killed with SIGKILL mid-run, the
 standby takes over. Then the same student still controls, the loop state
-route answers on the new owner (the host's heartbeats), a set-point change
+route and the run's record answer on the new owner (the host's heartbeats), a set-point change
 through it reaches the host and shows in the stored ``r``, and the run goes on
-to its last sample on the host: its end is stored with its controller and its
-method results, every sample with the control channels, and the rig is left
+to its last sample on the host: its end is stored with its controller, its
+method results and its timing, every sample with the control channels, and the rig is left
 at its safe input. Skipped, with the reason, where PostgreSQL or Redis is absent.
 """
 
@@ -135,6 +135,14 @@ def test_a_rig_hosts_closed_loop_run_goes_on_to_its_end_under_the_standby(
         assert loop["run"] == run_id
         assert loop["mode"] == "auto"
         assert loop["setpoint"] == 33.0
+        # ... and so does the run's record, in the shape of an in-process run's.
+        control = ana.get(f"/api/runs/{run_id}").json()["control"]
+        assert control.keys() == loop.keys() - {"run"}
+        assert (control["mode"], control["setpoint"], control["gains"]) == (
+            "auto",
+            33.0,
+            loop["gains"],
+        )
 
         # A set-point change through the new owner reaches the host.
         changed = ana.put("/api/rigs/box/runs/current/setpoint", json={"setpoint": 30.0})
@@ -144,6 +152,7 @@ def test_a_rig_hosts_closed_loop_run_goes_on_to_its_end_under_the_standby(
             lambda: (state := _loop(ana)) is not None and state["setpoint"] == 30.0,
         )
         wait_for("the new set point stored", _here(ana, lambda: 30.0 in _samples(ana, run_id)["r"]))
+        assert ana.get(f"/api/runs/{run_id}").json()["control"]["setpoint"] == 30.0
 
         record = wait_for(
             "the run's end on the host, stored",
@@ -156,6 +165,10 @@ def test_a_rig_hosts_closed_loop_run_goes_on_to_its_end_under_the_standby(
         assert record["status"] == "finished", (record["endReason"], record["samplesStored"])
         assert record["control"]["mode"] == "auto"
         assert record["control"]["setpoint"] == 30.0
+        # Its timing, judged by the new owner on every stored sample (a twin: exact).
+        timing = record["timing"]
+        assert timing is not None, record
+        assert (timing["rig"], timing["maxLateness"], timing["warnings"]) == ("twin", None, [])
         # Its identifiers, built again by the new owner from what was stored before.
         assert "lsm" in record["results"], record
         rows = _samples(ana, run_id)

@@ -57,7 +57,7 @@ from thermolab.lab.devices import DeviceHub
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.runs.commands import loop_state, send_command
 from thermolab.lab.runs.control import ControlRequest, build_control_loop
-from thermolab.lab.runs.ending import RunEnd, save_end, status_of
+from thermolab.lab.runs.ending import RunEnd, save_end, status_of, stored_timing
 from thermolab.lab.runs.export import RunExport
 from thermolab.lab.runs.request import RUN_SETTINGS, RunRequest
 from thermolab.lab.runs.service import plan_on_rig, plan_start, store_start
@@ -131,6 +131,7 @@ class RemoteRuns:
         self._remote: dict[str, _RemoteRun] = {}
         agents.on_samples = self._samples
         agents.on_run_ended = self._run_ended
+        runs.remote_loop = self._loop_of_run
 
     def start(self, rig_id: str, who: Principal, request: RunRequest) -> RunRecord:
         """START on a remote rig: checked and stored as in-process, then sent to its host.
@@ -241,6 +242,13 @@ class RemoteRuns:
         if told is None:  # no heartbeat of the run yet: the loop as started
             return loop_state(remote)
         return {**told, "run": remote.run_id}
+
+    def _loop_of_run(self, rig_id: str, run_id: int) -> dict[str, Any] | None:
+        """Run ``run_id``'s loop now if it is the rig's run going (``RunOut.control``: the
+        loop route's state without its ``run``, as an in-process run's), else ``None``."""
+        remote = self._remote.get(rig_id)
+        state = self.loop_state(rig_id) if remote is not None and remote.run_id == run_id else None
+        return None if state is None else {k: v for k, v in state.items() if k != "run"}
 
     def control_changed(self, rig_id: str, controller_session: int | None) -> None:
         """END the rig's run when its turn is over (the host ENDs it anyway if unreachable)."""
@@ -392,7 +400,11 @@ class RemoteRuns:
             if late is not None:
                 late.finish()
                 results = late.results(ended.run)
-        end = RunEnd(status_of(reason), words, results, timing=None, control=ended.control)
+        # Judged on the stored samples: all of them are stored by now (the host sends its
+        # outbox in order), also for a late end, whose run's samples came before a restart.
+        simulated = self._config.rig(rig_id).kind == "sim"
+        timing = stored_timing(self._db, ended.run, run.dt, simulated=simulated)
+        end = RunEnd(status_of(reason), words, results, timing=timing, control=ended.control)
         save_end(self._db, ended.run, end, self._clock.now())
         if remote is None or remote.run_id != ended.run:
             return  # a run from before a restart of the lab: stored, nothing going

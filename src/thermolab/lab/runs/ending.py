@@ -7,6 +7,12 @@ method's settings and result with the paper's figures (:mod:`.statistics`,
 computed once, here), how well it kept its sampling times (:mod:`.timing`)
 and, for a closed loop, the controller as it ended. :func:`save_end` writes
 it, on the run's own thread (a run's row and samples are :mod:`.store`'s).
+
+A rig host's run is sampled on the host and its end comes after its last
+sample is stored (the host's outbox is sent in order): its timing is judged
+on the stored samples by :func:`stored_timing`, which reads each sample's
+``t_read`` and ``lateness`` (stored with it), so an end that comes late, after
+a restart or a takeover, is judged the same way.
 """
 
 from __future__ import annotations
@@ -30,7 +36,15 @@ from thermolab.lab.runs.timing import timing_summary
 from thermolab.runner import EndReason, RunResult
 from thermolab.runner.results import MethodResult
 
-__all__ = ["SERVER_STOPPED", "RunEnd", "end_of_run", "method_results", "save_end", "status_of"]
+__all__ = [
+    "SERVER_STOPPED",
+    "RunEnd",
+    "end_of_run",
+    "method_results",
+    "save_end",
+    "status_of",
+    "stored_timing",
+]
 
 log = logging.getLogger(__name__)
 
@@ -49,9 +63,9 @@ class RunEnd:
         How it ended, in words ("ended by ana", "rig_fault: ...").
     results : dict
         Each method's ``(settings, result)``, the result with its ``stats``.
-    timing : dict or None
-        :func:`~thermolab.lab.runs.timing.timing_summary` of the run (``None``:
-        not judged here, e.g. a rig host's run, sampled on the host).
+    timing : dict
+        :func:`~thermolab.lab.runs.timing.timing_summary` of the run (a rig
+        host's: :func:`stored_timing`).
     control : dict or None
         The controller as it ended (a closed loop), else ``None``.
     """
@@ -59,7 +73,7 @@ class RunEnd:
     status: RunStatus
     reason: str
     results: dict[str, tuple[dict[str, Any], dict[str, Any]]]
-    timing: dict[str, Any] | None
+    timing: dict[str, Any]
     control: dict[str, Any] | None
 
 
@@ -105,6 +119,23 @@ def method_results(
             log.warning("run %s: statistics of %s failed: %s", run_id, name, exc)
         results[name] = (dict(identifier.params) if identifier is not None else {}, data)
     return results
+
+
+def stored_timing(db: Database, run_id: int, dt: float, *, simulated: bool) -> dict[str, Any]:
+    """:func:`~thermolab.lab.runs.timing.timing_summary` of the run's stored samples.
+
+    A rig host's run: each sample's ``t_read`` and ``lateness`` came with it
+    and are stored with it, so the figures are the ones the host's runner would
+    have given. Samples stored before revision 0004 (no timing) are left out.
+    """
+    with db.read() as session:
+        rows = session.execute(
+            select(Sample.t_read, Sample.lateness).where(Sample.run_id == run_id).order_by(Sample.k)
+        ).all()
+    timed = [(t, late) for t, late in rows if t is not None and late is not None]
+    return timing_summary(
+        [t_read for t_read, _ in timed], [late for _, late in timed], dt, simulated=simulated
+    )
 
 
 def status_of(reason: EndReason) -> RunStatus:

@@ -207,6 +207,9 @@ class RunService(RunReading):
         #: transaction; ``"start:committed"``, after it, under the rig's hub lock) so that a
         #: test can force any interleaving with the end of a turn (tests/lab/test_fail_closed.py).
         self.checkpoint: Callable[[str], None] = _no_checkpoint
+        #: ``(rig_id, run_id)`` -> the control loop of that run if it is going on a rig host
+        #: (``ControlLoop.to_dict``, as the host last told it): set by the lab's remote runs.
+        self.remote_loop: Callable[[str, int], dict[str, Any] | None] = lambda rig, run: None
 
     @property
     def stored_samples(self) -> RunExport:
@@ -497,4 +500,5 @@ class RunService(RunReading):
         results = {}
         for name, result in (stored or {}).items():
             results[name] = {k: v for k, v in result.items() if k != "trajectory"}
-        return record_of(run, results, run.samples_stored, run.meta.get("control_end"))
+        # A run going on a rig host shows its loop live, as an in-process one; else its end.
+        return record_of(run, results, run.samples_stored, self.remote_loop(run.rig_id, run.id))
