@@ -78,10 +78,6 @@ log = logging.getLogger(__name__)
 HANDOVER_WAIT = 30.0
 
 
-def _no_checkpoint(name: str) -> None:
-    """The default :attr:`RunService.checkpoint`: START goes straight through."""
-
-
 @dataclass(frozen=True, slots=True)
 class StartPlan:
     """What a START decides before it stores the run, in-process or on a rig host."""
@@ -206,7 +202,7 @@ class RunService(RunReading):
         #: Called by START at its decision points (``"start:arrived"``, before the rig's
         #: transaction; ``"start:committed"``, after it, under the rig's hub lock) so that a
         #: test can force any interleaving with the end of a turn (tests/lab/test_fail_closed.py).
-        self.checkpoint: Callable[[str], None] = _no_checkpoint
+        self.checkpoint: Callable[[str], None] = lambda point: None  # straight through
         #: ``(rig_id, run_id)`` -> the control loop of that run if it is going on a rig host
         #: (``ControlLoop.to_dict``, as the host last told it): set by the lab's remote runs.
         self.remote_loop: Callable[[str, int], dict[str, Any] | None] = lambda rig, run: None
@@ -488,8 +484,7 @@ class RunService(RunReading):
                     log.exception("run %s: announcing the end failed", active.run_id)
 
     def _save_end(self, active: ActiveRun, result: RunResult) -> None:
-        simulated = self._config.rig(active.rig_id).kind == "sim"
-        end = end_of_run(active, result, simulated=simulated)
+        end = end_of_run(active, result, simulated=self._config.rig(active.rig_id).kind == "sim")
         save_end(self._db, active.run_id, end, self._clock.now())
 
     def _record(self, run: Run, stored: dict[str, Any] | None) -> RunRecord:
@@ -497,8 +492,8 @@ class RunService(RunReading):
         if active is not None and active.run_id == run.id:
             results, taken, control = active.now()
             return record_of(run, results, taken, control)
-        results = {}
-        for name, result in (stored or {}).items():
-            results[name] = {k: v for k, v in result.items() if k != "trajectory"}
+        results = {
+            n: {k: v for k, v in r.items() if k != "trajectory"} for n, r in (stored or {}).items()
+        }
         # A run going on a rig host shows its loop live, as an in-process one; else its end.
         return record_of(run, results, run.samples_stored, self.remote_loop(run.rig_id, run.id))
