@@ -496,4 +496,5 @@ class RunService(RunReading):
             n: {k: v for k, v in r.items() if k != "trajectory"} for n, r in (stored or {}).items()
         }
         # A run going on a rig host shows its loop live, as an in-process one; else its end.
-        return record_of(run, results, run.samples_stored, self.remote_loop(run.rig_id, run.id))
+        live = self.remote_loop(run.rig_id, run.id) if self._config.rig(run.rig_id).agent else None
+        return record_of(run, results, run.samples_stored, live)
