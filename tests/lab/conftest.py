@@ -30,6 +30,7 @@ from thermolab.lab.db.models import Base
 from thermolab.lab.devices import RigOpener
 from thermolab.lab.http.app import create_app
 from thermolab.lab.service import Lab
+from thermolab.lab.shared_limits import limits_client
 
 DEFAULT_POSTGRES_URL = "postgresql+psycopg://postgres@127.0.0.1:5432/test"
 
@@ -55,6 +56,24 @@ def redis_url() -> str:
     except redis.RedisError as exc:
         pytest.skip(f"Redis at {REDIS_URL} unreachable: {exc}")
     return REDIS_URL
+
+
+@pytest.fixture
+def redis(redis_url: str) -> Iterator[Any]:
+    """A client of the test Redis (the lab's own settings: shared_limits.limits_client)."""
+    client = limits_client(redis_url)
+    yield client
+    client.close()
+
+
+@pytest.fixture
+def prefix(redis: Any) -> Iterator[str]:
+    """A lab of its own on the test Redis; its keys are gone after the test."""
+    prefix = f"thermolab.test-{uuid.uuid4().hex[:8]}."
+    yield prefix
+    keys = list(redis.scan_iter(match=prefix + "*"))
+    if keys:
+        redis.delete(*keys)
 
 
 @pytest.fixture(scope="session")

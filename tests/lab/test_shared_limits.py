@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import random
 import time
-import uuid
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
@@ -31,23 +29,6 @@ from thermolab.lab.shared_limits import (
 pytestmark = pytest.mark.redis
 
 NUMBERS: dict[str, Any] = {"failures_per_user": 2, "attempts_per_address": 5, "window": 60.0}
-
-
-@pytest.fixture
-def redis(redis_url: str) -> Iterator[Any]:
-    client = limits_client(redis_url)
-    yield client
-    client.close()
-
-
-@pytest.fixture
-def prefix(redis: Any) -> Iterator[str]:
-    """A lab of its own on the test Redis; its keys are gone after the test."""
-    prefix = f"thermolab.test-{uuid.uuid4().hex[:8]}."
-    yield prefix
-    keys = list(redis.scan_iter(match=prefix + "*"))
-    if keys:
-        redis.delete(*keys)
 
 
 def two_workers(

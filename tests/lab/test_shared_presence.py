@@ -10,9 +10,6 @@ Skipped, with the reason, where Redis is absent.
 
 from __future__ import annotations
 
-import time
-import uuid
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
@@ -22,34 +19,11 @@ from thermolab.lab.presence import Presence
 from thermolab.lab.shared_limits import limits_client
 from thermolab.lab.shared_presence import SharedPresence
 
+from .test_shared_limits import until
+
 pytestmark = pytest.mark.redis
 
 FAST: dict[str, float] = {"refresh": 0.2, "ttl": 1.0, "gap": 0.05, "poll": 0.1}
-
-
-@pytest.fixture
-def redis(redis_url: str) -> Iterator[Any]:
-    client = limits_client(redis_url)
-    yield client
-    client.close()
-
-
-@pytest.fixture
-def prefix(redis: Any) -> Iterator[str]:
-    """A lab of its own on the test Redis; its keys are gone after the test."""
-    prefix = f"thermolab.test-{uuid.uuid4().hex[:8]}."
-    yield prefix
-    keys = list(redis.scan_iter(match=prefix + "*"))
-    if keys:
-        redis.delete(*keys)
-
-
-def until(condition: Any, within: float) -> float:
-    start = time.monotonic()
-    while not condition():
-        assert time.monotonic() - start < within, "not in time"
-        time.sleep(0.02)
-    return time.monotonic() - start
 
 
 def seen(presence: Presence, rig_id: str = "twin") -> list[tuple[str, int]]:
