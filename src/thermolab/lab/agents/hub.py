@@ -84,8 +84,6 @@ class HostStatus:
     u: float | None = None
     y: float | None = None
     pending: int = 0
-    lost_at: datetime | None = None
-    """When the lab saw the link close (``None`` while linked or before the first link)."""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready."""
@@ -258,12 +256,13 @@ class AgentHub:
             expected = self._expected_until
             if expected is not None and now < expected:
                 return None
-            # A link that closed a moment ago is a host redialling (a Wi-Fi blip, a lab
-            # worker restarted): it is offline at once, but out of service — which ends
-            # the turn — only if it stays away as long as a silent host may. The host
-            # keeps its rig safe meanwhile (an idle rig off, a run within its grace).
-            lost = status.lost_at
-            if lost is not None and now - lost <= timedelta(seconds=self.heartbeat_timeout):
+            # A link that closed while its host was talking is a host redialling (a Wi-Fi
+            # blip, a lab worker restarted): offline at once, but out of service — which
+            # ends the turn — only once it has been away as long as a silent host may be,
+            # counted from its last message (a host dropped for silence is away already).
+            # The host keeps its rig safe meanwhile (an idle rig off, a run within its grace).
+            heard = status.last_contact
+            if heard is not None and now - heard <= timedelta(seconds=self.heartbeat_timeout):
                 return None
             return "offline (not connected)"
         if status.last_contact is not None and now - status.last_contact > timedelta(
@@ -302,7 +301,7 @@ class AgentHub:
             old.closed.set()
         status.online, status.version, status.spec = True, first.version, first.spec
         self._devices.host_said(rig_id, first.speedup)
-        status.last_contact, status.fault, status.lost_at = self._clock.now(), None, None
+        status.last_contact, status.fault = self._clock.now(), None
         receiver: asyncio.Task[None] | None = None
         closer: asyncio.Task[bool] | None = None
         try:  # from the registration on: whatever ends the socket, the rig goes offline
@@ -324,7 +323,7 @@ class AgentHub:
                 if mine:
                     del self._links[rig_id]
             if mine:
-                status.online, status.lost_at = False, self._clock.now()
+                status.online = False
                 # A thread of its own: this task may be being cancelled (server shutdown).
                 threading.Thread(target=self._gone, args=(rig_id,), daemon=True).start()
             await _close(ws, "replaced or silent", code=1001)
