@@ -27,6 +27,18 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import NameOID
 
 PASSWORD = "a long enough password"
+#: A lab whose one rig, ``box``, is a TCLab twin on a rig host; nobody's turn or power
+#: lapses while a test pauses or cuts the link.
+ONE_REMOTE_BOX = """
+[rig_defaults]
+power_off_grace = 600
+idle_limit = 600
+
+[[rigs]]
+id = "box"
+spec = "sim:tclab"
+agent = true
+"""
 
 
 def free_port() -> int:

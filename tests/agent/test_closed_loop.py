@@ -22,28 +22,18 @@ from typing import Any
 import httpx
 import pytest
 
-from .fleet import Fleet, make_fleet
+from .fleet import ONE_REMOTE_BOX, Fleet, make_fleet
 
 pytestmark = pytest.mark.slow
 
 GRACE = 120.0  # longer than the cut: the run must go on through it
 SPEEDUP = 20.0
 KP, TI = 4.0, 140.0  # SIMC on the kit twin's FOPDT (0.6, 140 s, 16 s), tau_c ~ 40 s
-TOML = """
-[rig_defaults]
-power_off_grace = 600
-idle_limit = 600
-
-[[rigs]]
-id = "box"
-spec = "sim:tclab"
-agent = true
-"""
 
 
 @pytest.fixture
 def fleet(tmp_path: Path) -> Iterator[Fleet]:
-    made = make_fleet(tmp_path, TOML)
+    made = make_fleet(tmp_path, ONE_REMOTE_BOX)
     try:
         made.start_lab(made.cert, made.key, grace=GRACE)  # type: ignore[attr-defined]
         yield made

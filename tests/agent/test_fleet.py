@@ -20,21 +20,14 @@ from pathlib import Path
 import httpx
 import pytest
 
-from .fleet import Fleet, NetNs, make_fleet
+from .fleet import ONE_REMOTE_BOX, Fleet, NetNs, make_fleet
 
 pytestmark = pytest.mark.slow
 
 GRACE = 2.0
-TOML = """
-[rig_defaults]
-power_off_grace = 600
-idle_limit = 600
-
-[[rigs]]
-id = "box"
-spec = "sim:tclab"
-agent = true
-
+TOML = (
+    ONE_REMOTE_BOX
+    + """
 [[rigs]]
 id = "kit"
 spec = "tclab"
@@ -44,6 +37,7 @@ agent = true
 id = "local"
 spec = "sim"
 """
+)
 
 
 @pytest.fixture

@@ -18,25 +18,15 @@ from urllib.parse import urlsplit
 
 import pytest
 
-from .fleet import make_fleet
+from .fleet import ONE_REMOTE_BOX, make_fleet
 
 pytestmark = pytest.mark.slow
 
 GRACE = 2.0
-TOML = """
-[rig_defaults]
-power_off_grace = 600
-idle_limit = 600
-
-[[rigs]]
-id = "box"
-spec = "sim:tclab"
-agent = true
-"""
 
 
 def test_the_hosts_end_after_a_lab_restart_stores_the_runs_results(tmp_path: Path) -> None:
-    fleet = make_fleet(tmp_path, TOML)
+    fleet = make_fleet(tmp_path, ONE_REMOTE_BOX)
     cert, key = fleet.cert, fleet.key  # type: ignore[attr-defined]
     try:
         fleet.start_lab(cert, key, grace=GRACE)

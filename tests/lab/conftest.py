@@ -30,7 +30,7 @@ from thermolab.lab.db.models import Base
 from thermolab.lab.devices import RigOpener
 from thermolab.lab.http.app import create_app
 from thermolab.lab.service import Lab
-from thermolab.lab.shared_limits import limits_client
+from thermolab.lab.worker_hashes import figures_client
 
 DEFAULT_POSTGRES_URL = "postgresql+psycopg://postgres@127.0.0.1:5432/test"
 
@@ -60,8 +60,8 @@ def redis_url() -> str:
 
 @pytest.fixture
 def redis(redis_url: str) -> Iterator[Any]:
-    """A client of the test Redis (the lab's own settings: shared_limits.limits_client)."""
-    client = limits_client(redis_url)
+    """A client of the test Redis (the lab's own settings: shared_limits.figures_client)."""
+    client = figures_client(redis_url)
     yield client
     client.close()
 

@@ -23,8 +23,8 @@ from thermolab.lab.security import LoginThrottle, RateLimitedError
 from thermolab.lab.shared_limits import (
     SharedLiveSocketCounts,
     SharedLoginThrottle,
-    limits_client,
 )
+from thermolab.lab.worker_hashes import figures_client
 
 pytestmark = pytest.mark.redis
 
@@ -148,7 +148,7 @@ def test_the_shared_throttle_answers_as_the_in_memory_one_step_by_step(
 def test_without_redis_each_worker_throttles_on_its_own_counts() -> None:
     clock = ManualClock()
     # Nothing listens there: every Redis call fails at once.
-    unreachable = limits_client("redis://127.0.0.1:1/0")
+    unreachable = figures_client("redis://127.0.0.1:1/0")
     throttle = SharedLoginThrottle(unreachable, "thermolab.nowhere.", clock, **NUMBERS)
     for _ in range(3):
         fail(throttle, "tina", "10.0.0.1")
@@ -198,7 +198,7 @@ def test_each_worker_counts_the_others_sockets_until_they_close_or_stop_refreshi
 
 
 def test_without_redis_each_worker_counts_only_its_own_sockets() -> None:
-    counts = SharedLiveSocketCounts(limits_client("redis://127.0.0.1:1/0"), "thermolab.x.")
+    counts = SharedLiveSocketCounts(figures_client("redis://127.0.0.1:1/0"), "thermolab.x.")
     try:
         counts.add(("session", 1), "twin")
         assert counts.others(("session", 1), "twin") == (0, 0)

@@ -16,8 +16,8 @@ import pytest
 
 from thermolab.lab.clock import SystemClock
 from thermolab.lab.presence import Presence
-from thermolab.lab.shared_limits import limits_client
 from thermolab.lab.shared_presence import SharedPresence
+from thermolab.lab.worker_hashes import figures_client
 
 from .test_shared_limits import until
 
@@ -72,7 +72,7 @@ def test_each_worker_counts_the_others_watchers_once_per_person(redis: Any, pref
 
 def test_without_redis_a_worker_counts_its_own_watchers() -> None:
     presence = Presence(SystemClock(), timeout=15)
-    shared = SharedPresence(presence, limits_client("redis://127.0.0.1:1/0"), "x.", poll=0.05)
+    shared = SharedPresence(presence, figures_client("redis://127.0.0.1:1/0"), "x.", poll=0.05)
     try:
         presence.connect("twin", "ana")
         shared.read()

@@ -59,9 +59,9 @@ from thermolab.lab.shared_limits import (
     LiveSocketCounts,
     SharedLiveSocketCounts,
     SharedLoginThrottle,
-    limits_client,
 )
 from thermolab.lab.shared_presence import SharedPresence
+from thermolab.lab.worker_hashes import figures_client
 
 if TYPE_CHECKING:
     from thermolab.lab.fanout import LiveFanout
@@ -339,15 +339,15 @@ def start_worker(
     prefix = f"thermolab.{lab_key}."
     bus = open_bus(broker, prefix=prefix) if broker is not None else None
     # With a broker, the login throttle, the live-socket limits and the watchers are lab-wide.
-    limits = limits_client(broker) if broker is not None else None
+    figures = figures_client(broker) if broker is not None else None
     lab = Lab(config, opener=opener, exclusive=True)
-    if limits is not None:
-        lab.throttle = SharedLoginThrottle.like(lab.throttle, limits, prefix)
+    if figures is not None:
+        lab.throttle = SharedLoginThrottle.like(lab.throttle, figures, prefix)
     try:
         report = lab.start()
     except LeaseHeldError as held:
         lab.close()
-        if bus is None or limits is None:
+        if bus is None or figures is None:
             raise
         fleet = Fleet(bus, "follower", url=url)
         if not fleet.wait_for_owner(3 * ANNOUNCE_INTERVAL + 2.0):
@@ -356,11 +356,11 @@ def start_worker(
                 f"{held} (the server holding it does not announce itself on the broker "
                 f"{broker}: start it with the same --broker)"
             ) from None
-        fleet.live_sockets = SharedLiveSocketCounts(limits, prefix)
+        fleet.live_sockets = SharedLiveSocketCounts(figures, prefix)
         remote_only = all(rig.agent for rig in config.rigs)
         follower = FollowerLab(config, standby=standby or remote_only, opener=opener)
-        follower.throttle = SharedLoginThrottle.like(follower.throttle, limits, prefix)
-        fleet.watchers = SharedPresence(follower.presence, limits, prefix)
+        follower.throttle = SharedLoginThrottle.like(follower.throttle, figures, prefix)
+        fleet.watchers = SharedPresence(follower.presence, figures, prefix)
         try:
             return follower, fleet, follower.start()
         except BaseException:
@@ -372,9 +372,9 @@ def start_worker(
         if bus is not None:
             bus.close()
         raise
-    if bus is None or limits is None:
+    if bus is None or figures is None:
         return lab, None, report
-    live_sockets = SharedLiveSocketCounts(limits, prefix)
-    watchers = SharedPresence(lab.presence, limits, prefix)
+    live_sockets = SharedLiveSocketCounts(figures, prefix)
+    watchers = SharedPresence(lab.presence, figures, prefix)
     fleet = Fleet(bus, "owner", url=url, live_sockets=live_sockets, watchers=watchers)
     return lab, fleet, report

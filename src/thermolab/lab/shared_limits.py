@@ -34,7 +34,6 @@ __all__ = [
     "LiveSocketCounts",
     "SharedLiveSocketCounts",
     "SharedLoginThrottle",
-    "limits_client",
 ]
 
 # One attempt: its time in the address's window (trimmed to the newest ``keep``: the
@@ -62,13 +61,6 @@ return count
 """
 
 
-def limits_client(url: str) -> Any:
-    """A redis-py client for the limits: short timeouts (a lost broker costs a login ~1 s)."""
-    import redis
-
-    return redis.Redis.from_url(url, socket_connect_timeout=1.0, socket_timeout=1.0)
-
-
 class SharedLoginThrottle(LoginThrottle):
     """:class:`~thermolab.lab.security.LoginThrottle` with its counts in Redis, lab-wide.
 
@@ -79,7 +71,7 @@ class SharedLoginThrottle(LoginThrottle):
     Parameters
     ----------
     redis : redis.Redis
-        The broker (:func:`limits_client`).
+        The broker (:func:`figures_client`).
     prefix : str
         Put before every key: the lab's (its workers share it, another lab's differ).
     clock, failures_per_user, attempts_per_address, window
@@ -252,7 +244,7 @@ class SharedLiveSocketCounts(LiveSocketCounts):
     Parameters
     ----------
     redis : redis.Redis
-        The broker (:func:`limits_client`).
+        The broker (:func:`figures_client`).
     prefix : str
         The lab's key prefix.
     refresh, ttl : float

@@ -37,7 +37,7 @@ class SharedPresence:
     presence : Presence
         This worker's: it is shared (:meth:`Presence.share`) until :meth:`close`.
     redis : redis.Redis
-        The broker (:func:`~thermolab.lab.shared_limits.limits_client`).
+        The broker (:func:`~thermolab.lab.worker_hashes.figures_client`).
     prefix : str
         The lab's key prefix.
     refresh, ttl : float

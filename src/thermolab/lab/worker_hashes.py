@@ -23,12 +23,20 @@ import uuid
 from collections.abc import Callable, Mapping
 from typing import Any
 
-__all__ = ["BACK_OFF", "Reachable", "WorkerHash"]
+__all__ = ["BACK_OFF", "Reachable", "WorkerHash", "figures_client"]
 
 log = logging.getLogger(__name__)
 
 BACK_OFF = 5.0
 """Seconds during which, after Redis failed, this worker's own figures alone decide."""
+
+
+def figures_client(url: str) -> Any:
+    """A redis-py client for the shared figures (the limits, the watchers): short timeouts,
+    so that a lost broker costs a login or a socket about a second, not a hang."""
+    import redis
+
+    return redis.Redis.from_url(url, socket_connect_timeout=1.0, socket_timeout=1.0)
 
 
 class Reachable:
@@ -79,7 +87,7 @@ class WorkerHash:
     Parameters
     ----------
     redis : redis.Redis
-        The broker (:func:`~thermolab.lab.shared_limits.limits_client`).
+        The broker (:func:`~thermolab.lab.worker_hashes.figures_client`).
     prefix : str
         The lab's key prefix.
     kind : str
