@@ -60,7 +60,9 @@ class GainBounds:
     ti, td : (float, float)
         Ranges of ``Ti`` and ``Td`` in seconds.
 
-    Default: the published :data:`~thermolab.control.pid.GAIN_LIMITS`.
+    Notes
+    -----
+    The defaults are the published :data:`~thermolab.control.pid.GAIN_LIMITS`.
     """
 
     kp: tuple[float, float] = field(default=GAIN_LIMITS["kp"])
