@@ -46,7 +46,7 @@ def _cell(text: object) -> str:
 def _type(schema: dict[str, Any]) -> str:
     """A short name for a schema: its component's name, or its JSON type."""
     if "$ref" in schema:
-        return "`" + schema["$ref"].rsplit("/", 1)[-1] + "`"
+        return "`" + str(schema["$ref"]).rsplit("/", 1)[-1] + "`"
     if "anyOf" in schema:
         return " or ".join(_type(s) for s in schema["anyOf"])
     if "allOf" in schema and len(schema["allOf"]) == 1:
@@ -81,7 +81,7 @@ def _bounds(schema: dict[str, Any]) -> str:
 
 def _description(operation: dict[str, Any]) -> str:
     """The operation's description up to its numpydoc sections (those are for Python)."""
-    lines = []
+    lines: list[str] = []
     for line in operation.get("description", "").splitlines():
         if set(line.strip()) == {"-"}:
             if lines:
@@ -125,8 +125,10 @@ def render(spec: dict[str, Any]) -> str:
                 out += [text, ""]
             params = op.get("parameters", [])
             if params:
-                out += ["| Parameter | In | Type | Required | Bounds | Description |",
-                        "|---|---|---|---|---|---|"]
+                out += [
+                    "| Parameter | In | Type | Required | Bounds | Description |",
+                    "|---|---|---|---|---|---|",
+                ]
                 for p in params:
                     schema = p.get("schema", {})
                     out.append(

@@ -16,10 +16,15 @@ import pytest
 from sybil import Sybil
 from sybil.parsers.markdown import PythonCodeBlockParser, SkipParser
 
-DOCS = Path(__file__).resolve().parent.parent / "docs"
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs"
 
-#: The pages whose examples run: every Markdown page of the site (generated ones aside).
-PAGES = sorted(p for p in DOCS.rglob("*.md") if "reference" not in p.relative_to(DOCS).parts)
+#: The pages whose examples run: the README and every Markdown page of the site
+#: (the reference pages aside: they are generated from the code).
+PAGES = [
+    ROOT / "README.md",
+    *sorted(p for p in DOCS.rglob("*.md") if "reference" not in p.relative_to(DOCS).parts),
+]
 
 FLAGS = doctest.NORMALIZE_WHITESPACE | doctest.ELLIPSIS
 
@@ -33,7 +38,7 @@ def test_pages_have_examples() -> None:
         assert name in sources, name
 
 
-@pytest.mark.parametrize("page", PAGES, ids=[str(p.relative_to(DOCS)) for p in PAGES])
+@pytest.mark.parametrize("page", PAGES, ids=[str(p.relative_to(ROOT)) for p in PAGES])
 def test_page_examples(page: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Every example of ``page`` runs (in a temporary folder) and prints what it says."""
     monkeypatch.chdir(tmp_path)  # examples that write a CSV write it here

@@ -147,7 +147,7 @@ def create_app(
     app.include_router(api_router)
     app.add_api_websocket_route("/api/rigs/{rig_id}/live", live.endpoint, name="live")
 
-    # Rig hosts dial in here (thermolab agent; docs/architecture.md, "Remote rigs").
+    # Rig hosts dial in here (thermolab agent; docs/operator.md, "Rigs on their own computers").
     # A follower sends them on to the owner (docs/fleet.md, "Rig hosts"); a standby
     # promoted to owner accepts them from then on.
     async def agent_link(ws: WebSocket) -> None:

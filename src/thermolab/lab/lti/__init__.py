@@ -14,8 +14,16 @@
   queued for the LMS (:meth:`LtiService.follow_assignments`);
 * :mod:`.services` — OAuth 2 client credentials and the HTTP calls.
 
-JOSE is PyJWT (with ``cryptography``); see ``docs/architecture.md`` for why
-not pylti1p3.
+JOSE is PyJWT (with ``cryptography``): RS256 signing and checking, JWK
+import and export, and ``PyJWKClient``, which fetches a platform's JWKS, caches
+it and fetches again once when a token carries an unknown ``kid`` (a key
+rotation), with a 10 s cooldown so that made-up kids cannot make the lab hammer
+the LMS. The LTI flow is written here. pylti1p3, the common LTI library, takes
+bug fixes only, is synchronous and framework-bound (Django/Flask adapters whose
+session, cookie and cache abstractions would have to be re-plumbed into FastAPI
+and our database), and stores launch data in a cache we do not run; the flow on
+a well-kept JOSE library is smaller and testable against our own database.
+joserfc would have done as well; PyJWT was chosen for ``PyJWKClient``.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 :meth:`thermolab.lab.db.Database.upgrade` builds the Alembic configuration in
 code and passes an open connection in ``config.attributes["connection"]``;
 there is no ``alembic.ini`` and no URL here. To write a new migration, see
-``docs/architecture.md`` (lab section).
+``docs/contributing.md`` ("Changing the database schema").
 """
 
 from __future__ import annotations
