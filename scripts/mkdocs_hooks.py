@@ -43,10 +43,29 @@ def _cell(text: object) -> str:
     return " ".join(str(text).split()).replace("|", "\\|")
 
 
+#: Display names of the components (set by :func:`render`): FastAPI names a
+#: component ``thermolab__lab__http__schemas__RigOut`` when two share a class name.
+_NAMES: dict[str, str] = {}
+
+
+def _short_names(components: list[str]) -> dict[str, str]:
+    """``RigOut`` for each component, ``RigOut (lab.http.schemas)`` where two share it."""
+    last = [c.rsplit("__", 1)[-1] for c in components]
+    names = {}
+    for full, short in zip(components, last, strict=True):
+        if last.count(short) > 1 and "__" in full:
+            module = full.rsplit("__", 1)[0].replace("__", ".").removeprefix("thermolab.")
+            names[full] = f"{short} ({module})"
+        else:
+            names[full] = short
+    return names
+
+
 def _type(schema: dict[str, Any]) -> str:
     """A short name for a schema: its component's name, or its JSON type."""
     if "$ref" in schema:
-        return "`" + str(schema["$ref"]).rsplit("/", 1)[-1] + "`"
+        full = str(schema["$ref"]).rsplit("/", 1)[-1]
+        return "`" + _NAMES.get(full, full) + "`"
     if "anyOf" in schema:
         return " or ".join(_type(s) for s in schema["anyOf"])
     if "allOf" in schema and len(schema["allOf"]) == 1:
@@ -55,7 +74,7 @@ def _type(schema: dict[str, Any]) -> str:
     if kind == "array":
         return "array of " + _type(schema.get("items", {}))
     if "enum" in schema:
-        return " \\| ".join(f"`{v}`" for v in schema["enum"])
+        return " | ".join(f"`{v}`" for v in schema["enum"])
     if "const" in schema:
         return f"`{schema['const']}`"
     return f"{kind}" if kind else "any"
@@ -94,6 +113,9 @@ def _description(operation: dict[str, Any]) -> str:
 def render(spec: dict[str, Any]) -> str:
     """The Markdown reference page of an OpenAPI document."""
     info = spec["info"]
+    components = spec.get("components", {}).get("schemas", {})
+    _NAMES.clear()
+    _NAMES.update(_short_names(sorted(components)))
     out = [
         "# HTTP API reference",
         "",
@@ -115,7 +137,7 @@ def render(spec: dict[str, Any]) -> str:
                 for tag in op.get("tags", ["other"]):
                     by_tag.setdefault(tag, []).append((method, path, op))
     for tag in sorted(by_tag):
-        out += [f"## {tag.capitalize()}", ""]
+        out += [f"## {tag.upper() if tag == 'lti' else tag.capitalize()}", ""]
         for method, path, op in by_tag[tag]:
             out += [f"### `{method.upper()} {path}`", ""]
             if op.get("summary"):
@@ -151,8 +173,8 @@ def render(spec: dict[str, Any]) -> str:
             if answers:
                 out += ["Answers:", "", *answers, ""]
     out += ["## Schemas", ""]
-    for name, schema in sorted(spec.get("components", {}).get("schemas", {}).items()):
-        out += [f"### `{name}`", ""]
+    for name, schema in sorted(components.items(), key=lambda item: _NAMES[item[0]]):
+        out += [f"### `{_NAMES[name]}`", ""]
         if schema.get("description"):
             out += [_cell(schema["description"]), ""]
         props = schema.get("properties", {})
