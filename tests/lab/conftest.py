@@ -27,10 +27,10 @@ from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import LabConfig, RigConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Base
-from thermolab.lab.devices import RigOpener
+from thermolab.lab.fleet.worker_hashes import figures_client
 from thermolab.lab.http.app import create_app
+from thermolab.lab.rigs.devices import RigOpener
 from thermolab.lab.service import Lab
-from thermolab.lab.worker_hashes import figures_client
 
 DEFAULT_POSTGRES_URL = "postgresql+psycopg://postgres@127.0.0.1:5432/test"
 

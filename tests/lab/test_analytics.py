@@ -278,7 +278,7 @@ def test_the_power_history_is_written_by_the_access_model(lab: Lab, clock: Manua
 
 
 def principal_of(lab: Lab, username: str) -> Any:
-    from thermolab.lab.users import Principal
+    from thermolab.lab.accounts.users import Principal
 
     info = lab.users.get(username)
     return Principal(info.id, info.username, info.role)
