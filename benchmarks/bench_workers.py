@@ -2,7 +2,7 @@
 
 For each number of workers W and each number of watchers N: a fresh
 PostgreSQL schema, W ``thermolab serve --broker redis://...`` processes (the
-first owns the rig, the others follow, :mod:`thermolab.lab.fleet`), one
+first owns the rig, the others follow, :mod:`thermolab.lab.fleet.workers`), one
 teacher running the realistic twin at 10 samples/s (LSM and WLSM, a sample
 and an estimate message each), and N watchers split evenly over the workers
 (the client processes and the per-watcher delay figures of

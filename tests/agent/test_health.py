@@ -35,13 +35,13 @@ from thermolab.agent.protocol import (
     decode_lab,
     encode,
 )
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.agents import issue_secret
 from thermolab.lab.agents.notify import Mailer
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import RigConfig, default_config
 from thermolab.lab.http.app import create_app
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 
 from .fleet import free_port
 

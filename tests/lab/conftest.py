@@ -1,9 +1,9 @@
 """Fixtures of the lab tests: databases (SQLite and PostgreSQL), labs on a manual clock.
 
-PostgreSQL tests (marker ``postgres``) use THERMOLAB_TEST_POSTGRES_URL
-(default ``postgresql+psycopg://postgres@127.0.0.1:5432/test``); each test gets
-a schema of its own, dropped afterwards, and the tests skip with the reason
-when the server cannot be reached.
+PostgreSQL tests (marker ``postgres``) use the test run's own database
+(``THERMOLAB_TEST_POSTGRES_URL``, made by ``tests/conftest.py``); each test gets
+a schema of its own there, dropped afterwards, and the tests skip with the
+reason when the server cannot be reached.
 """
 
 from __future__ import annotations
@@ -27,12 +27,10 @@ from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import LabConfig, RigConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Base
-from thermolab.lab.devices import RigOpener
+from thermolab.lab.fleet.worker_hashes import figures_client
 from thermolab.lab.http.app import create_app
+from thermolab.lab.rigs.devices import RigOpener
 from thermolab.lab.service import Lab
-from thermolab.lab.worker_hashes import figures_client
-
-DEFAULT_POSTGRES_URL = "postgresql+psycopg://postgres@127.0.0.1:5432/test"
 
 # Argon2 at its cheapest: the tests create many accounts; production uses the defaults.
 FAST_HASHER = PasswordHasher(time_cost=1, memory_cost=8, parallelism=1)
@@ -40,11 +38,12 @@ PASSWORD = "correct horse"
 
 
 def postgres_base_url() -> str:
-    return os.environ.get("THERMOLAB_TEST_POSTGRES_URL", DEFAULT_POSTGRES_URL)
+    """The test run's own PostgreSQL database (tests/conftest.py made it)."""
+    return os.environ["THERMOLAB_TEST_POSTGRES_URL"]
 
 
 #: The Redis of the several-workers tests (a broker on loopback here and on CI).
-REDIS_URL = os.environ.get("THERMOLAB_TEST_REDIS_URL", "redis://127.0.0.1:6379/0")
+REDIS_URL = os.environ["THERMOLAB_TEST_REDIS_URL"]  # tests/conftest.py: never db 0
 
 
 @pytest.fixture(scope="session")

@@ -12,11 +12,11 @@ import pytest
 from sqlalchemy import select
 
 from thermolab.errors import AccessDeniedError, ConflictError, InvalidParameterError, RigError
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import CooldownPolicy, RigConfig
 from thermolab.lab.db.models import ControlSession, QueueEntry
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 from thermolab.rigs import BaseRig, Reading, RigInfo, VirtualClock
 
 from .conftest import PASSWORD, LabFactory

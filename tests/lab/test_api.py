@@ -33,7 +33,7 @@ def people(lab: Lab) -> None:
     lab.users.add("tina", PASSWORD, "teacher")
 
 
-#: The LTI routes an LMS sends a browser to (no lab login; see docs/architecture.md).
+#: The LTI routes an LMS sends a browser to (no lab login; see docs/lti.md).
 LMS_FACING = {"/api/lti/login", "/api/lti/launch", "/api/lti/continue"}
 
 

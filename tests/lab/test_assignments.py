@@ -16,11 +16,11 @@ import pytest
 from fastapi.testclient import TestClient
 
 from thermolab.errors import ConflictError
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.assignments import Answers, GradeRow
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.runs.request import RunRequest
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 
 from .conftest import PASSWORD, LabFactory
 from .test_runs import twin_lab

@@ -19,9 +19,9 @@ from hypothesis.stateful import RuleBasedStateMachine, invariant, rule, run_stat
 from sqlalchemy import func, select
 
 from thermolab.errors import BookingClashError, InvalidParameterError, RigBookedError
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.db.models import ControlSession
-from thermolab.lab.users import Principal
 
 from .conftest import PASSWORD, LabFactory
 

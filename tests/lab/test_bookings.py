@@ -11,11 +11,11 @@ from fastapi.testclient import TestClient
 from sqlalchemy import func, select
 
 from thermolab.errors import BookingClashError, RigBookedError
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.db.booking_models import Booking
 from thermolab.lab.db.models import ControlSession, QueueEntry
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 
 from .conftest import PASSWORD, LabFactory
 

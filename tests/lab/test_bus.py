@@ -7,7 +7,7 @@ import uuid
 
 import pytest
 
-from thermolab.lab.bus import BusError, LocalBus, open_bus
+from thermolab.lab.fleet.bus import BusError, LocalBus, open_bus
 
 
 def test_the_local_bus_delivers_in_order_to_every_subscriber_of_the_topic() -> None:

@@ -12,9 +12,9 @@ import pytest
 from fastapi.testclient import TestClient
 from PIL import Image
 
-from thermolab.lab.camera import PictureCache, first_jpeg
 from thermolab.lab.config import RigConfig
 from thermolab.lab.http.app import create_app
+from thermolab.lab.rigs.camera import PictureCache, first_jpeg
 from thermolab.rigs import Rig, TwinRig, VirtualClock
 
 from .conftest import PASSWORD, LabFactory

@@ -11,9 +11,9 @@ import pytest
 
 import thermolab.cli.serve
 from thermolab.cli import main
+from thermolab.lab.accounts.users import UserService
 from thermolab.lab.clock import SystemClock
 from thermolab.lab.db import Database
-from thermolab.lab.users import UserService
 
 from .conftest import FAST_HASHER, PASSWORD
 
@@ -33,7 +33,9 @@ def run(
 @pytest.fixture(autouse=True)
 def _cheap_hashes(monkeypatch: pytest.MonkeyPatch) -> None:
     """Argon2 at its cheapest: the commands hash a password each (production: the defaults)."""
-    monkeypatch.setattr("thermolab.lab.security.default_password_hasher", lambda: FAST_HASHER)
+    monkeypatch.setattr(
+        "thermolab.lab.accounts.security.default_password_hasher", lambda: FAST_HASHER
+    )
 
 
 @pytest.fixture

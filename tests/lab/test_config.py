@@ -14,7 +14,7 @@ from thermolab.lab.config import (
     parse_rig_spec,
     resolve_data_dir,
 )
-from thermolab.lab.devices import published_defaults
+from thermolab.lab.rigs.devices import published_defaults
 
 FULL = """
 title = "Room 2.14"

@@ -17,9 +17,9 @@ import pytest
 from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
-from thermolab.lab.fanout import CLOSE_BAD_REQUEST, CLOSE_UNAUTHORIZED, MAX_SEQ
 from thermolab.lab.http.app import create_app
 from thermolab.lab.http.deps import MAX_ROW_ID
+from thermolab.lab.live.fanout import CLOSE_BAD_REQUEST, CLOSE_UNAUTHORIZED, MAX_SEQ
 from thermolab.lab.service import Lab
 from thermolab.web import STATIC_DIR
 

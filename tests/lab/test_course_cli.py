@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
+from thermolab.lab.accounts.users import UserService
 from thermolab.lab.clock import SystemClock
 from thermolab.lab.db import Database
-from thermolab.lab.users import UserService
 
 from .conftest import FAST_HASHER, PASSWORD
 from .test_cli import run
@@ -18,7 +18,9 @@ from .test_cli import run
 
 @pytest.fixture(autouse=True)
 def _cheap_hashes(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr("thermolab.lab.security.default_password_hasher", lambda: FAST_HASHER)
+    monkeypatch.setattr(
+        "thermolab.lab.accounts.security.default_password_hasher", lambda: FAST_HASHER
+    )
 
 
 def test_a_class_list_imported_twice_from_the_shell(

@@ -17,12 +17,12 @@ from hypothesis import strategies as st
 
 from thermolab.errors import InvalidParameterError, RigBookedError
 from thermolab.lab.access.rules import Slot, TurnRules, TurnState, Waiting, current_slot, next_state
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import CooldownPolicy
 from thermolab.lab.db.models import PowerState
 from thermolab.lab.runs.request import RunRequest
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 from thermolab.rigs import TwinRig, VirtualClock
 
 from .conftest import PASSWORD, LabFactory

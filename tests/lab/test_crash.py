@@ -23,11 +23,11 @@ import httpx
 import pytest
 from websockets.sync.client import connect
 
+from thermolab.lab.accounts.users import UserService
 from thermolab.lab.clock import SystemClock
 from thermolab.lab.config import load_config
 from thermolab.lab.db import Database
 from thermolab.lab.service import Lab
-from thermolab.lab.users import UserService
 
 from .conftest import FAST_HASHER, PASSWORD
 

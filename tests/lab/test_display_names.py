@@ -9,11 +9,11 @@ from collections.abc import Callable
 
 from fastapi.testclient import TestClient
 
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.config import RigConfig
 from thermolab.lab.http.app import create_app
 from thermolab.lab.runs import RunRequest
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 from thermolab.rigs import Rig, TwinRig, VirtualClock
 
 from .conftest import PASSWORD, LabFactory

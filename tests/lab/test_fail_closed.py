@@ -33,11 +33,11 @@ from thermolab.errors import (
     PreviousRunEndingError,
     TurnEndedError,
 )
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import RigConfig
 from thermolab.lab.db.models import ControlSession, Course, CourseMember, Run, RunStatus
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 from thermolab.rigs import Rig, TwinRig
 
 from .conftest import PASSWORD, LabFactory

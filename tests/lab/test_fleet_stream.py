@@ -2,7 +2,7 @@
 
 Property (Hypothesis): the owner's channel publishes a rig's messages and
 relays each, numbered and encoded, to followers' channels (as
-:class:`~thermolab.lab.fleet.Fleet` does over the bus), which may start
+:class:`~thermolab.lab.fleet.workers.Fleet` does over the bus), which may start
 following at any point (an announcement of the owner's ``seq`` first, or
 not). A watcher attached to one worker takes what it is sent, then at any
 moment moves to another worker and resumes with the last ``seq`` it saw
@@ -19,8 +19,8 @@ from typing import Any
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from thermolab.lab.bus import LocalBus
-from thermolab.lab.fanout import LiveChannel
+from thermolab.lab.fleet.bus import LocalBus
+from thermolab.lab.live.fanout import LiveChannel
 
 
 def _fleet(followers: int, announce: bool) -> tuple[LiveChannel, list[LiveChannel]]:

@@ -16,14 +16,14 @@ from pathlib import Path
 
 import pytest
 
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
-from thermolab.lab.devices import device_opener
-from thermolab.lab.follower import FollowerLab
-from thermolab.lab.lease import LEASE_TTL
+from thermolab.lab.fleet.follower import FollowerLab
+from thermolab.lab.fleet.lease import LEASE_TTL
+from thermolab.lab.rigs.devices import device_opener
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 
 from .conftest import FAST_HASHER, PASSWORD, make_config
 
@@ -107,5 +107,5 @@ def test_one_standby_takes_a_lapsed_lease_and_the_same_student_controls(
     assert owner.lease is not None
     assert not owner.lease.lost
     owner.sweep()
-    assert owner.lease.lost  # the fleet stops such a worker (lab/fleet.py)
+    assert owner.lease.lost  # the fleet stops such a worker (lab/fleet/workers.py)
     assert winner.access.caller_turn("twin", people["ana"].user_id) == turn

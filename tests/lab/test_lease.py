@@ -16,13 +16,13 @@ from pathlib import Path
 
 import pytest
 
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import LabConfig, RigConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import ServerLease
-from thermolab.lab.lease import LEASE_TTL, DatabaseLease, LeaseHeldError
+from thermolab.lab.fleet.lease import LEASE_TTL, DatabaseLease, LeaseHeldError
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 
 from .conftest import FAST_HASHER, PASSWORD
 

@@ -1,6 +1,6 @@
 """Never two owners: processes racing for a free database lease, exactly one wins.
 
-The fleet's takeover rests on the lease (:mod:`thermolab.lab.lease`): when
+The fleet's takeover rests on the lease (:mod:`thermolab.lab.fleet.lease`): when
 the owner is gone, every follower may try to take it at the same moment.
 Each contender here is a :class:`DatabaseLease` of its own (its own token,
 its own connection from the pool) on a thread released by one barrier; the
@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import ServerLease
-from thermolab.lab.lease import LEASE_TTL, DatabaseLease, LeaseHeldError
+from thermolab.lab.fleet.lease import LEASE_TTL, DatabaseLease, LeaseHeldError
 
 _DEAD_PID = int(
     subprocess.run(

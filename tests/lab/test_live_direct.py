@@ -2,7 +2,7 @@
 
 A real uvicorn server on loopback runs the app with the WebSocket protocol
 ``thermolab serve`` uses, which offers the stream a
-:class:`~thermolab.lab.fanout.FrameWriter`: caught-up clients get each batch's
+:class:`~thermolab.lab.live.fanout.FrameWriter`: caught-up clients get each batch's
 one frame written to their socket, with no per-client task or ASGI call.
 These tests check that the stream stays whole and in order that way, that a
 socket that stops reading is still cut, and that a plain watcher's ping
@@ -24,12 +24,12 @@ import uvicorn
 from websockets.sync.client import ClientConnection, connect
 
 from thermolab.cli.serve import _framed_websockets
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import ManualClock
-from thermolab.lab.fanout import CLOSE_TOO_SLOW
 from thermolab.lab.http.app import create_app
 from thermolab.lab.http.live_socket import LiveEndpoint
+from thermolab.lab.live.fanout import CLOSE_TOO_SLOW
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 
 from .conftest import LabFactory
 from .test_live import login

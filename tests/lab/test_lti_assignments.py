@@ -18,9 +18,9 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import select
 
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.db.models import Course, CourseMember, User
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 
 from .conftest import PASSWORD, LabFactory
 from .lti_platform import INSTRUCTOR, LEARNER, PendingLaunch, Person, Platform

@@ -15,8 +15,8 @@ from sqlalchemy import text
 
 from thermolab.cli import main
 from thermolab.errors import ConfigError, ConflictError, InvalidParameterError
+from thermolab.lab.accounts.names import normalize_display_name, normalize_username, username_form
 from thermolab.lab.db import MIGRATIONS_DIR, Database
-from thermolab.lab.names import normalize_display_name, normalize_username, username_form
 from thermolab.lab.service import Lab
 
 from .conftest import PASSWORD

@@ -20,12 +20,12 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import create_engine, func, select, text
 
+from thermolab.lab.accounts.security import hash_token, new_token
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.db.models import ControlSession, LoginSession, QueueEntry, Role, User
 from thermolab.lab.http.app import create_app
 from thermolab.lab.http.deps import COOKIE_NAME
-from thermolab.lab.security import hash_token, new_token
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 
 from .conftest import FAST_HASHER, PASSWORD, LabFactory
 

@@ -19,13 +19,13 @@ from fastapi.testclient import TestClient
 
 from thermolab.control import tune
 from thermolab.errors import ThermoLabError
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.config import RigConfig
 from thermolab.lab.http.app import create_app
 from thermolab.lab.http.routers.runs import RunOut
 from thermolab.lab.runs import samples_csv
 from thermolab.lab.runs.store import DatabaseRecorder, add_run, run_channels
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 from thermolab.records import RUN_CHANNELS, ChannelSpec, read_record
 from thermolab.rigs import Rig, TwinRig, VirtualClock
 from thermolab.runner import ControlLoop, Experiment

@@ -30,6 +30,7 @@ from thermolab.ident import (
     moving_window_least_squares,
     weighted_least_squares,
 )
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import RigConfig
 from thermolab.lab.db import MIGRATIONS_DIR
@@ -37,7 +38,6 @@ from thermolab.lab.db.models import Command, MethodResultRow, Sample
 from thermolab.lab.http.app import create_app
 from thermolab.lab.runs import RunRequest, choose_operating_point
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 from thermolab.records import read_record
 from thermolab.rigs import Rig, TwinRig, VirtualClock
 from thermolab.runner import EstimateEvent

@@ -1,6 +1,6 @@
 """The login throttle and live-socket counts shared by a fleet's workers in Redis.
 
-(:mod:`thermolab.lab.shared_limits`; real processes: test_workers_limits.py.)
+(:mod:`thermolab.lab.fleet.shared_limits`; real processes: test_workers_limits.py.)
 Two throttles on one real Redis stand for two web workers: failures on one
 delay logins on the other, an address's attempts on both count together, the
 waits end when the rules say (the same as the in-memory throttle's, checked
@@ -18,13 +18,13 @@ from typing import Any
 
 import pytest
 
+from thermolab.lab.accounts.security import LoginThrottle, RateLimitedError
 from thermolab.lab.clock import ManualClock
-from thermolab.lab.security import LoginThrottle, RateLimitedError
-from thermolab.lab.shared_limits import (
+from thermolab.lab.fleet.shared_limits import (
     SharedLiveSocketCounts,
     SharedLoginThrottle,
 )
-from thermolab.lab.worker_hashes import figures_client
+from thermolab.lab.fleet.worker_hashes import figures_client
 
 pytestmark = pytest.mark.redis
 

@@ -15,9 +15,9 @@ from typing import Any
 import pytest
 
 from thermolab.lab.clock import SystemClock
-from thermolab.lab.presence import Presence
-from thermolab.lab.shared_presence import SharedPresence
-from thermolab.lab.worker_hashes import figures_client
+from thermolab.lab.fleet.worker_hashes import figures_client
+from thermolab.lab.live.presence import Presence
+from thermolab.lab.live.shared_presence import SharedPresence
 
 from .test_shared_limits import until
 

@@ -21,11 +21,11 @@ from pathlib import Path
 
 import pytest
 
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.config import RigConfig
 from thermolab.lab.http.app import create_app
 from thermolab.lab.http.routers.runs import RunIn, start_run
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 from thermolab.rigs import Rig, TwinRig, VirtualClock
 
 from .conftest import PASSWORD, LabFactory
@@ -33,8 +33,9 @@ from .conftest import PASSWORD, LabFactory
 #: The modules that do START's work, in the order first entered (docs/architecture.md).
 START_PATH = (
     "http.routers.runs",  # the route and its bodies: RunIn.request(), RunOut.of()
+    "runs.where",  # RunsByRig: the rig's runs are in this process (not on a rig host)
     "runs.service",  # RunService.start: plan_start, then store_start in the turn's transaction
-    "devices",  # the rig's published range and driver, the hub's lock
+    "rigs.devices",  # the rig's published range and driver, the hub's lock
     "runs.request",  # plan_run: the one check, the operating point, the identifiers
     "runs.store",  # run_channels, add_run, DatabaseRecorder, read
     "access.transactions",  # caller_turn (a lost race is told apart), controlled()
@@ -44,9 +45,9 @@ START_PATH = (
 )
 #: Values every part of the lab reads (the rig's config, the clock, the column
 #: types, the watchers a request touches), not steps of START.
-LEAVES = frozenset({"config.model", "clock", "db.models", "presence"})
+LEAVES = frozenset({"config.model", "clock", "db.models", "live.presence"})
 #: The listeners the lab registered, told of the change (events going up).
-EVENTS = frozenset({"service", "http.live_socket", "fanout"})
+EVENTS = frozenset({"service", "http.live_socket", "live.fanout"})
 
 #: Listeners through which a lower module tells an upper one (events, not calls): the
 #: lab's ``on_change`` / ``on_run`` hooks, and the live endpoint as a ``LabListener``.

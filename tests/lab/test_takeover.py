@@ -43,7 +43,7 @@ pytestmark = [pytest.mark.postgres, pytest.mark.redis, pytest.mark.slow]
 
 
 TAKEN_OVER = "this worker now owns the rigs"
-"""What a promoted standby logs (lab/fleet.py)."""
+"""What a promoted standby logs (lab/fleet/workers.py)."""
 
 
 @dataclass

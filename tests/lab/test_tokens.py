@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 from sqlalchemy import select
 
+from thermolab.lab.accounts.security import hash_token
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.db.models import ApiToken
-from thermolab.lab.security import hash_token
 
 from .conftest import PASSWORD, LabFactory
 from .test_live import closed_with, login, make, receive, still_open

@@ -9,10 +9,10 @@ from fastapi.testclient import TestClient
 
 from thermolab.errors import ConflictError, TurnExtensionRefusedError
 from thermolab.lab.access.extension import EXTEND_WINDOW, MAX_TURN_EXTENSIONS, TURN_EXTENSION
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.http.app import create_app
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 
 from .conftest import PASSWORD, LabFactory
 

@@ -7,16 +7,16 @@ from argon2 import PasswordHasher
 from sqlalchemy import select
 
 from thermolab.errors import ConflictError, InvalidParameterError, NotFoundError
-from thermolab.lab.clock import ManualClock
-from thermolab.lab.db.models import LoginSession, Role, User
-from thermolab.lab.security import (
+from thermolab.lab.accounts.security import (
     AuthenticationError,
     LoginThrottle,
     RateLimitedError,
     hash_token,
 )
+from thermolab.lab.accounts.users import UserService
+from thermolab.lab.clock import ManualClock
+from thermolab.lab.db.models import LoginSession, Role, User
 from thermolab.lab.service import Lab
-from thermolab.lab.users import UserService
 
 from .conftest import PASSWORD
 

@@ -2,7 +2,7 @@
 
 Real processes: two workers (``python -m thermolab serve --broker redis://...``)
 on a fresh PostgreSQL schema; the first owns the rigs, the second follows
-(:mod:`thermolab.lab.fleet`). A watcher on the follower sees a run driven
+(:mod:`thermolab.lab.fleet.workers`). A watcher on the follower sees a run driven
 through the owner; the follower killed with SIGKILL under load, its watchers
 resume on the owner with ``since`` and miss no sample, and the controller is
 unchanged; 100 students racing for control over both workers get one

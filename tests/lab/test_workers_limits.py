@@ -1,7 +1,7 @@
 """The login throttle and the live-socket limits hold across real web workers (issue #14).
 
 Two ``thermolab serve --broker redis://...`` processes on one PostgreSQL
-schema (:mod:`thermolab.lab.fleet`), real HTTP and WebSockets: failed logins
+schema (:mod:`thermolab.lab.fleet.workers`), real HTTP and WebSockets: failed logins
 on one worker delay the next on the other; a rig limited to 3 live sockets
 refuses a 4th on the other worker with 4503 and a login limited to 2 a 3rd
 with 4429; a killed worker's sockets stop counting once its published counts

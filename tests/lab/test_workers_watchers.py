@@ -1,7 +1,7 @@
 """Watchers on every worker count on the rig's page (issue #14), with real web workers.
 
 Two ``thermolab serve --broker redis://...`` processes on one PostgreSQL
-schema (:mod:`thermolab.lab.fleet`), real HTTP and WebSockets: a student's
+schema (:mod:`thermolab.lab.fleet.workers`), real HTTP and WebSockets: a student's
 live socket on the follower counts in the owner's ``GET /api/rigs/twin``
 (``access.watchers``, the teacher's ``watcherList``) and in the access
 messages the owner's live sockets get; one person on both workers counts

@@ -54,9 +54,7 @@ id = "twin-en"
 title = "Digital twin of the box"
 spec = "sim"
 """
-POSTGRES = os.environ.get(
-    "THERMOLAB_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/test"
-)
+POSTGRES = os.environ["THERMOLAB_TEST_POSTGRES_URL"]  # the test run's own (tests/conftest.py)
 
 
 @dataclass

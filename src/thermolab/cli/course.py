@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 from thermolab.cli.serve import add_database_options, lab_config_from_args, make_private
 
 if TYPE_CHECKING:
-    from thermolab.lab.courses import CourseService
+    from thermolab.lab.classes.courses import CourseService
     from thermolab.lab.db import Database
 
 __all__ = ["register"]
@@ -65,10 +65,10 @@ def register(subparsers: Any) -> None:
 
 
 def _courses(args: argparse.Namespace) -> tuple[Database, CourseService]:
+    from thermolab.lab.accounts.security import default_password_hasher
+    from thermolab.lab.classes.courses import CourseService
     from thermolab.lab.clock import SystemClock
-    from thermolab.lab.courses import CourseService
     from thermolab.lab.db import Database
-    from thermolab.lab.security import default_password_hasher
 
     config = lab_config_from_args(args)
     for path in make_private(config):
@@ -104,7 +104,7 @@ def _list(args: argparse.Namespace) -> int:
 
 def _import(args: argparse.Namespace) -> int:
     from thermolab.cli import CliError
-    from thermolab.lab.class_list import MAX_CLASS_LIST_BYTES
+    from thermolab.lab.classes.class_list import MAX_CLASS_LIST_BYTES
 
     path: Path = args.file
     try:

@@ -238,9 +238,9 @@ def make_private(config: LabConfig) -> list[str]:
 
 def _serve(args: argparse.Namespace) -> int:
     from thermolab.cli import CliError
-    from thermolab.lab.devices import device_opener
-    from thermolab.lab.fleet import start_worker
+    from thermolab.lab.fleet.workers import start_worker
     from thermolab.lab.http.app import create_app
+    from thermolab.lab.rigs.devices import device_opener
     from thermolab.web import STATIC_DIR
 
     config = lab_config_from_args(args)
@@ -390,7 +390,7 @@ def _bounded_h11(request_timeout: float) -> type[asyncio.Protocol]:
 def _framed_websockets() -> type[asyncio.Protocol]:
     """uvicorn's WebSocket protocol, offering the live stream direct writes to its socket.
 
-    The ASGI scope gets :data:`~thermolab.lab.fanout.FRAMES_EXTENSION`: a
+    The ASGI scope gets :data:`~thermolab.lab.live.fanout.FRAMES_EXTENSION`: a
     writer that puts a whole, ready-made frame on the connection's transport
     (the frame the channel built once for every client). The protocol's own
     frames (pings, close) go to the same transport from the same thread, so
@@ -399,7 +399,7 @@ def _framed_websockets() -> type[asyncio.Protocol]:
     from uvicorn.protocols.websockets.websockets_sansio_impl import WebSocketsSansIOProtocol
     from websockets.http11 import Request
 
-    from thermolab.lab.fanout import FRAMES_EXTENSION
+    from thermolab.lab.live.fanout import FRAMES_EXTENSION
 
     class Frames:
         __slots__ = ("protocol",)

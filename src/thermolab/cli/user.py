@@ -18,8 +18,8 @@ from typing import TYPE_CHECKING, Any
 from thermolab.cli.serve import add_database_options, lab_config_from_args, make_private
 
 if TYPE_CHECKING:
+    from thermolab.lab.accounts.users import UserService
     from thermolab.lab.db import Database
-    from thermolab.lab.users import UserService
 
 __all__ = ["register"]
 
@@ -95,10 +95,10 @@ def _password_option(parser: argparse.ArgumentParser) -> None:
 
 
 def _users(args: argparse.Namespace) -> tuple[Database, UserService]:
+    from thermolab.lab.accounts.security import default_password_hasher
+    from thermolab.lab.accounts.users import UserService
     from thermolab.lab.clock import SystemClock
     from thermolab.lab.db import Database
-    from thermolab.lab.security import default_password_hasher
-    from thermolab.lab.users import UserService
 
     config = lab_config_from_args(args)
     for path in make_private(config):
@@ -110,7 +110,7 @@ def _users(args: argparse.Namespace) -> tuple[Database, UserService]:
 
 def _read_password(args: argparse.Namespace, name: str) -> str:
     from thermolab.cli import CliError
-    from thermolab.lab.security import validate_password
+    from thermolab.lab.accounts.security import validate_password
 
     if args.password_stdin:
         line = sys.stdin.readline()
@@ -131,9 +131,9 @@ def _read_password(args: argparse.Namespace, name: str) -> str:
 
 
 def _add(args: argparse.Namespace) -> int:
-    from thermolab.lab.names import normalize_display_name
-    from thermolab.lab.security import normalize_username
-    from thermolab.lab.users import parse_role
+    from thermolab.lab.accounts.names import normalize_display_name
+    from thermolab.lab.accounts.security import normalize_username
+    from thermolab.lab.accounts.users import parse_role
 
     name = normalize_username(args.name)
     if args.display_name is not None:

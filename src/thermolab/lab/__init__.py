@@ -1,14 +1,23 @@
 """The lab service: shared rigs, turns at the controls, runs, and their HTTP/WebSocket API.
 
+One folder per domain:
+
 * :mod:`.config` — what the lab serves (model, TOML reader, rig kinds);
 * :mod:`.db` — rows, engine, Alembic migrations;
-* :mod:`.users`, :mod:`.login_sessions`, :mod:`.security` — accounts, logins, throttling;
+* :mod:`.accounts` — users, logins, API tokens, passwords and the throttle;
+* :mod:`.classes` — courses, class lists, per-course limits, bookings;
+* :mod:`.assignments`, :mod:`.analytics`, :mod:`.guides` — set work, what was done, guide pages;
 * :mod:`.access` — turn rules (one transition table), queries, views, the locked
   transaction, the actions;
-* :mod:`.runs` — request (with its operating point), timing, statistics, store,
-  export, ending, reading, service;
-* :mod:`.devices` — :class:`~thermolab.lab.devices.DeviceHub`, the live rigs;
-* :mod:`.fanout` — the live stream's per-rig channels;
-* :mod:`.service` — :class:`~thermolab.lab.service.Lab`, everything wired together;
+* :mod:`.rigs` — :class:`~thermolab.lab.rigs.devices.DeviceHub`, rig settings, the camera;
+* :mod:`.runs` — a run's request, store, statistics, export and service;
+* :mod:`.agents` — rigs on a remote host (``thermolab agent``);
+* :mod:`.live` — the live stream's per-rig channels and who watches;
+* :mod:`.fleet` — several web workers: the lease, the bus, followers, takeover;
+* :mod:`.lti` — LTI 1.3 launches, deep links, roster and grades;
 * :mod:`.http` — the app factory, routers, schemas, errors and the live socket.
+
+At the top: :mod:`.service` (:class:`~thermolab.lab.service.Lab`, everything
+wired together), :mod:`.clock` (the injected clock) and :mod:`.error_messages`
+(the server's words in each language).
 """

@@ -17,29 +17,30 @@ from argon2 import PasswordHasher
 
 from thermolab.errors import ThermoLabError
 from thermolab.lab.access import AccessService, RigView
+from thermolab.lab.accounts.login_sessions import SessionService
+from thermolab.lab.accounts.name_book import NameBook
+from thermolab.lab.accounts.security import LoginThrottle, default_password_hasher
+from thermolab.lab.accounts.tokens import TokenService
+from thermolab.lab.accounts.users import LoginsEnded, Principal, UserInfo, UserService
 from thermolab.lab.agents import AgentHub, RemoteRuns
 from thermolab.lab.analytics import AnalyticsService, assignment_state
 from thermolab.lab.assignments import AssignmentService
-from thermolab.lab.bookings import BookingService
-from thermolab.lab.camera import Picture, PictureCache, draw_twin, fetch_camera
+from thermolab.lab.classes.bookings import BookingService
+from thermolab.lab.classes.course_settings import CourseSettingsService
+from thermolab.lab.classes.courses import CourseService
 from thermolab.lab.clock import LabClock, SystemClock
 from thermolab.lab.config import LabConfig
-from thermolab.lab.course_settings import CourseSettingsService
-from thermolab.lab.courses import CourseService
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Role
-from thermolab.lab.devices import DesiredState, DeviceHub, RigOpener
+from thermolab.lab.fleet.lease import DatabaseLease
 from thermolab.lab.guides import SECTIONS, GuideImageService, GuideService
-from thermolab.lab.lease import DatabaseLease
-from thermolab.lab.login_sessions import SessionService
+from thermolab.lab.live.presence import Presence
 from thermolab.lab.lti import LtiService
-from thermolab.lab.name_book import NameBook
-from thermolab.lab.presence import Presence
-from thermolab.lab.rig_settings import RigSettingsService
+from thermolab.lab.rigs.camera import Picture, PictureCache, draw_twin, fetch_camera
+from thermolab.lab.rigs.devices import DesiredState, DeviceHub, RigOpener
+from thermolab.lab.rigs.rig_settings import RigSettingsService
 from thermolab.lab.runs import RunRecord, RunService
-from thermolab.lab.security import LoginThrottle, default_password_hasher
-from thermolab.lab.tokens import TokenService
-from thermolab.lab.users import LoginsEnded, Principal, UserInfo, UserService
+from thermolab.lab.runs.where import RunsByRig
 from thermolab.runner import Event
 
 __all__ = ["InputResult", "Lab", "LabListener", "StartupReport"]
@@ -271,6 +272,8 @@ class Lab:
             on_run=self._run_changed,
             on_event=self._run_event,
         )
+        #: Every action on a rig's current run goes through this, here or on the rig's host.
+        self.rig_runs = RunsByRig(self.runs, self.remote_runs, self.remote_rigs)
         self._last_purge: datetime | None = None
         self._pictures = PictureCache(ttl=0.5)
         self._sweep_lock = threading.Lock()
@@ -335,7 +338,7 @@ class Lab:
         sample on (``applied`` is then the value it will apply).
         """
         self.config.rig(rig_id)  # an unknown rig is a 404, before anything reads its device
-        runs = self.remote_runs if rig_id in self.remote_rigs else self.runs
+        runs = self.rig_runs.of(rig_id)
         run_id = runs.running(rig_id)
         record = self.access.record_input(rig_id, who, u, run_id=run_id)
         applied: float | None
@@ -361,7 +364,7 @@ class Lab:
 
     def running(self, rig_id: str) -> int | None:
         """The id of the run going on the rig, in-process or on its host, if any."""
-        return (self.remote_runs if rig_id in self.remote_rigs else self.runs).running(rig_id)
+        return self.rig_runs.running(rig_id)
 
     def read_output(self, rig_id: str, who: Principal) -> OutputReading:
         """The rig's output: read now for its controller, the latest reading for others.
@@ -486,11 +489,10 @@ class Lab:
         with self.hub.locked(rig_id):
             power, controller = self.access.desired(rig_id)
             # A run belongs to a turn: when the turn is over, so is the run.
-            remote = rig_id in self.remote_rigs
-            (self.remote_runs if remote else self.runs).control_changed(rig_id, controller)
+            self.rig_runs.control_changed(rig_id, controller)
             desired = DesiredState(power=power, controller_session=controller)
             self.hub.reconcile(rig_id, desired, cfg.cooldown.input)
-            if remote:
+            if rig_id in self.remote_rigs:
                 self.agents.sync_power(rig_id)
         for listener in self.listeners:
             listener.access_changed(rig_id)

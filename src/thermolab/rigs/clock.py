@@ -161,7 +161,7 @@ class RateClock:
     in progress waits on its source in slices of at most ``max_slice`` source
     seconds and recomputes its end after each one, so it honours a new rate
     within a slice. A lab gives each twin its own (the teacher's
-    ``twin_speedup``; :mod:`thermolab.lab.devices`).
+    ``twin_speedup``; :mod:`thermolab.lab.rigs.devices`).
 
     Parameters
     ----------

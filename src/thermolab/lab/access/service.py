@@ -34,6 +34,7 @@ from thermolab.lab.access.extension import TURN_EXTENSION, extension_refusal
 from thermolab.lab.access.rules import Slot, current_slot
 from thermolab.lab.access.transactions import RigTransactions
 from thermolab.lab.access.views import CommandRecord, RigView, turn_limit
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.db.models import (
     Command,
     ControlSession,
@@ -43,8 +44,7 @@ from thermolab.lab.db.models import (
     TurnEndReason,
     User,
 )
-from thermolab.lab.devices import PublishedRig
-from thermolab.lab.users import Principal
+from thermolab.lab.rigs.devices import PublishedRig
 
 __all__ = ["AccessService"]
 

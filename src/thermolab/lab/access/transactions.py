@@ -45,13 +45,13 @@ from thermolab.errors import (
 from thermolab.lab.access import queries as q
 from thermolab.lab.access.rules import TurnRules, current_slot, end_turn, is_due, next_state
 from thermolab.lab.access.views import RigMonitor, RigSnapshot, RigView, render_view
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig, RigConfig
 from thermolab.lab.config.teacher_settings import SettingValue
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import ControlSession, PowerState, RigRow, Role, TurnEndReason
-from thermolab.lab.presence import Presence, Watcher
-from thermolab.lab.users import Principal
+from thermolab.lab.live.presence import Presence, Watcher
 
 __all__ = ["Controlled", "LockedRig", "RigTransactions"]
 

@@ -20,12 +20,12 @@ from thermolab.lab.access.rules import (
     current_slot,
     queue_wait,
 )
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.config import RigConfig
 from thermolab.lab.config.teacher_settings import course_override, with_values
 from thermolab.lab.db.models import PowerState
-from thermolab.lab.devices import PublishedRig
-from thermolab.lab.presence import Watcher
-from thermolab.lab.users import Principal
+from thermolab.lab.live.presence import Watcher
+from thermolab.lab.rigs.devices import PublishedRig
 
 __all__ = [
     "AccessRole",

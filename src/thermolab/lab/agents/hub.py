@@ -60,7 +60,7 @@ from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.agent_models import AgentHost
 from thermolab.lab.db.models import Run, Sample
-from thermolab.lab.devices import DeviceHub
+from thermolab.lab.rigs.devices import DeviceHub
 
 __all__ = ["HEALTH_FAULT", "AgentHub", "HostStatus"]
 

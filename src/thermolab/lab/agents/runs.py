@@ -46,6 +46,7 @@ from thermolab.errors import (
     ThermoLabError,
 )
 from thermolab.lab.access import AccessService
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.agents.estimates import RemoteIdentification
 from thermolab.lab.agents.hub import AgentHub
 from thermolab.lab.agents.loop import RemoteLoop, commanded_request
@@ -53,7 +54,7 @@ from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Command, Run
-from thermolab.lab.devices import DeviceHub
+from thermolab.lab.rigs.devices import DeviceHub
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.runs.commands import loop_state, send_command
 from thermolab.lab.runs.control import ControlRequest, build_control_loop
@@ -62,7 +63,6 @@ from thermolab.lab.runs.export import RunExport
 from thermolab.lab.runs.request import RUN_SETTINGS, RunRequest
 from thermolab.lab.runs.service import plan_on_rig, plan_start, store_start
 from thermolab.lab.runs.store import RunStore
-from thermolab.lab.users import Principal
 from thermolab.rigs import RigInfo
 from thermolab.runner import (
     ControlLoop,

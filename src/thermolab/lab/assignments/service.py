@@ -30,17 +30,17 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from thermolab.errors import AccessDeniedError, ConflictError, InvalidParameterError, NotFoundError
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.assignments.grades import GradeRow
 from thermolab.lab.assignments.identify import check_methods, identify_run
 from thermolab.lab.assignments.marking import MARK_MAX, Answers, Tolerances, assess
 from thermolab.lab.assignments.reference import reference_model
+from thermolab.lab.classes.courses import require_member
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
-from thermolab.lab.courses import require_member
 from thermolab.lab.db import Database
 from thermolab.lab.db.assignment_models import Assignment, Submission
 from thermolab.lab.db.models import Course, CourseMember, Role, Run, RunStatus, Sample, User
-from thermolab.lab.users import Principal
 
 __all__ = [
     "MIN_SAMPLES",

@@ -254,7 +254,7 @@ class RigConfig:
 
         ``twin_speedup`` for a twin the lab runs, 1 for hardware, ``None`` for a
         twin on a rig host (its host's ``--speedup``, which the host tells when it
-        dials in: :meth:`DeviceHub.published <thermolab.lab.devices.DeviceHub.published>`).
+        dials in: :meth:`DeviceHub.published <thermolab.lab.rigs.devices.DeviceHub.published>`).
 
         >>> RigConfig("t", "T", "sim", twin_speedup=50.0).speedup
         50.0
@@ -284,7 +284,7 @@ class RigSettingsBoard:
     """The teacher settings in force, per rig: what :meth:`LabConfig.rig` returns.
 
     The lab fills it from its database at start and after every change
-    (:mod:`thermolab.lab.rig_settings`); a rig it holds nothing for is the
+    (:mod:`thermolab.lab.rigs.rig_settings`); a rig it holds nothing for is the
     file's. One server serves a database (its lease), so this copy is the
     database's; every reader reads it at each check, so a change applies to
     the next turn (whose deadline is set when it starts) and the next run.

@@ -38,7 +38,7 @@ class PublishedRig:
         Times real time the rig runs: 1 for hardware, a twin the lab runs its
         ``twin_speedup``, a twin on a rig host its host's ``--speedup`` once the
         host has said it (``None`` before). :meth:`DeviceHub.published
-        <thermolab.lab.devices.DeviceHub.published>` fills it in.
+        <thermolab.lab.rigs.devices.DeviceHub.published>` fills it in.
     """
 
     input_min: float

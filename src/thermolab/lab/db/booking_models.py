@@ -2,7 +2,7 @@
 
 A :class:`Booking` is a course's slot, ``[starts_at, ends_at)`` in UTC; its
 rigs are :class:`BookingRig` rows. Two bookings that share a rig never
-overlap: :mod:`thermolab.lab.bookings` checks that inside the locks of every
+overlap: :mod:`thermolab.lab.classes.bookings` checks that inside the locks of every
 rig involved (``SELECT ... FOR UPDATE`` on PostgreSQL, ``BEGIN IMMEDIATE`` on
 SQLite), the same locks every turn decision takes.
 """

@@ -1,4 +1,6 @@
-"""A course's overrides of the rigs' limits (:mod:`thermolab.lab.course_settings`), by course.
+"""A course's overrides of the rigs' limits, by course.
+
+Read and written by :mod:`thermolab.lab.classes.course_settings`.
 
 The values are one JSON object keyed by the names of the settings a course may
 override (``COURSE_SETTINGS`` in :mod:`thermolab.lab.config.teacher_settings`);

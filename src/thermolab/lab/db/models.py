@@ -164,7 +164,7 @@ class Base(DeclarativeBase):
 class User(Base):
     """A person who may log in.
 
-    ``username`` is the login name in its normal form (``thermolab.lab.names``:
+    ``username`` is the login name in its normal form (``thermolab.lab.accounts.names``:
     NFKC, case folded, accents stripped), unique, so names never collide by case
     or accent; ``display_name`` is the name as the person writes it.
     """
@@ -186,7 +186,7 @@ class User(Base):
 class Course(Base):
     """A course: its teachers and students are :class:`CourseMember` rows.
 
-    ``enrol_code`` is what a student types to join (``thermolab.lab.courses``);
+    ``enrol_code`` is what a student types to join (``thermolab.lab.classes.courses``);
     a teacher rotates it to close the door on an old one.
     """
 
@@ -448,7 +448,7 @@ class MethodResultRow(Base):
 
 
 class ServerLease(Base):
-    """The one server process allowed on this database (see :mod:`thermolab.lab.lease`)."""
+    """The one server process allowed on this database (see :mod:`thermolab.lab.fleet.lease`)."""
 
     __tablename__ = "server_lease"
 

@@ -1,4 +1,4 @@
-"""The teacher settings of each rig (:mod:`thermolab.lab.rig_settings`), one row per rig.
+"""The teacher settings of each rig (:mod:`thermolab.lab.rigs.rig_settings`), one row per rig.
 
 The values are one JSON object keyed by the names declared in
 :mod:`thermolab.lab.config.teacher_settings` (a column per setting would declare

@@ -16,12 +16,12 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from thermolab.errors import NotFoundError
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config.model import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.guide_image_models import GuideImage
 from thermolab.lab.guides.images import clean_image
-from thermolab.lab.users import Principal
 
 __all__ = ["IMAGE_URL", "MAX_ALT_CHARS", "GuideImageService", "ImageData", "ImageInfo"]
 

@@ -21,12 +21,12 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from thermolab.errors import AccessDeniedError, InvalidParameterError, NotFoundError
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config.model import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import GuidePage, GuideRevision
 from thermolab.lab.guides.render import MAX_MARKDOWN_CHARS, render_markdown
-from thermolab.lab.users import Principal
 
 __all__ = [
     "FALLBACK_LANGUAGE",

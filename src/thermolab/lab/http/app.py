@@ -31,8 +31,7 @@ from uvicorn.middleware.proxy_headers import ProxyHeadersMiddleware
 from thermolab import __version__
 from thermolab.agent.protocol import AGENT_LINK_PATH
 from thermolab.lab.config import LabConfig
-from thermolab.lab.devices import device_opener
-from thermolab.lab.fleet import Fleet
+from thermolab.lab.fleet.workers import Fleet
 from thermolab.lab.http.api_docs import install_api_docs
 from thermolab.lab.http.browser_guard import BrowserGuard
 from thermolab.lab.http.errors import install_error_handlers
@@ -42,6 +41,7 @@ from thermolab.lab.http.live_socket import LiveEndpoint
 from thermolab.lab.http.routers import api_router
 from thermolab.lab.http.routers.guide_images import CACHEABLE_PREFIX, UPLOAD_ALLOWANCE
 from thermolab.lab.http.routers.lti import LTI_CROSS_SITE_PATHS
+from thermolab.lab.rigs.devices import device_opener
 from thermolab.lab.service import Lab
 
 __all__ = ["create_app"]
@@ -79,7 +79,7 @@ def create_app(
     fleet : Fleet, optional
         This worker's part in a fleet of workers on one bus (``--broker``): the
         owner relays its live stream; a follower also forwards rig and run
-        requests to the owner (:mod:`~thermolab.lab.fleet`).
+        requests to the owner (:mod:`~thermolab.lab.fleet.workers`).
     sweep_interval : float or None
         Seconds between sweeps of the access limits in the background;
         ``None`` for none (tests sweep by hand).

@@ -10,8 +10,8 @@ made-up header next to the victim's cookie gets 401, not the victim's rights.
 
 from __future__ import annotations
 
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 
 __all__ = ["BEARER", "bearer_token", "resolve_principal"]
 

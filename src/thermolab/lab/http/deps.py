@@ -12,12 +12,12 @@ from fastapi import Depends, Path, Query, Request, Security
 from fastapi.security import APIKeyCookie, HTTPAuthorizationCredentials, HTTPBearer
 
 from thermolab.errors import AccessDeniedError, PasswordChangeRequiredError
+from thermolab.lab.accounts.security import AuthenticationError
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.config.model import RIG_ID
 from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.schemas import ErrorOut, ValidationErrorOut
-from thermolab.lab.security import AuthenticationError
 from thermolab.lab.service import Lab
-from thermolab.lab.users import Principal
 
 __all__ = [
     "AUTHENTICATED",

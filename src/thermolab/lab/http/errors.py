@@ -53,9 +53,8 @@ from thermolab.errors import (
     TurnExtensionRefusedError,
     WrongEnrolCodeError,
 )
-from thermolab.lab.camera import CameraError
+from thermolab.lab.accounts.security import AuthenticationError, RateLimitedError
 from thermolab.lab.error_messages import LANGUAGE_COOKIE, error_message, negotiate_language
-from thermolab.lab.fanout import CLOSE_BAD_REQUEST, CLOSE_UNAUTHORIZED, MAX_SEQ
 from thermolab.lab.guides.images import (
     ImageInvalidError,
     ImagePixelsError,
@@ -65,6 +64,7 @@ from thermolab.lab.guides.images import (
 from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.deps import COOKIE_NAME
 from thermolab.lab.http.schemas import ValidationErrorOut
+from thermolab.lab.live.fanout import CLOSE_BAD_REQUEST, CLOSE_UNAUTHORIZED, MAX_SEQ
 from thermolab.lab.lti.errors import (
     LtiError,
     LtiJwksUnreachableError,
@@ -74,7 +74,7 @@ from thermolab.lab.lti.errors import (
     LtiUnknownDeploymentError,
     LtiUnknownPlatformError,
 )
-from thermolab.lab.security import AuthenticationError, RateLimitedError
+from thermolab.lab.rigs.camera import CameraError
 from thermolab.lab.service import Lab
 
 __all__ = [

@@ -1,4 +1,6 @@
-"""A follower's requests about rigs and runs, answered by the owner (:mod:`~thermolab.lab.fleet`).
+"""A follower's requests about rigs and runs, answered by the owner.
+
+Who owns the rigs and who follows is :mod:`~thermolab.lab.fleet.workers`' business.
 
 An ASGI middleware: on a follower, every HTTP request under ``/api/rigs``,
 ``/api/runs`` and ``/api/control`` is sent as it came (method, path, query,
@@ -10,9 +12,9 @@ kept for the worker's life.
 
 While no owner answers — none heard recently, or the one heard refuses the
 connection (killed: a standby is taking over) — a request waits for an owner
-(:data:`~thermolab.lab.fleet.OWNER_WAIT`, a takeover's longest gap) instead
+(:data:`~thermolab.lab.fleet.workers.OWNER_WAIT`, a takeover's longest gap) instead
 of failing: it is woken by each owner announcement
-(:meth:`~thermolab.lab.fleet.Fleet.on_owner`)
+(:meth:`~thermolab.lab.fleet.workers.Fleet.on_owner`)
 and sent to the owner then; a worker promoted meanwhile answers it itself.
 Sending it again is safe, even a POST: a refused connection carried no
 request. Only after the wait is the answer 503 ``rig_unavailable`` (with
@@ -43,7 +45,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from starlette.websockets import WebSocket
 
 from thermolab.agent.protocol import CLOSE_NOT_OWNER
-from thermolab.lab.fleet import ANNOUNCE_INTERVAL, OWNER_WAIT
+from thermolab.lab.fleet.workers import ANNOUNCE_INTERVAL, OWNER_WAIT
 from thermolab.lab.http.errors import error_response
 
 __all__ = ["FORWARDED_PREFIXES", "ForwardToOwner", "refuse_agent_link"]
@@ -96,7 +98,7 @@ class ForwardToOwner:
         Seconds a request waits for an owner that answers before 503.
     on_owner : callable, optional
         Registers a listener to call, from any thread, each time an owner is
-        heard (:meth:`~thermolab.lab.fleet.Fleet.on_owner`): a waiting request
+        heard (:meth:`~thermolab.lab.fleet.workers.Fleet.on_owner`): a waiting request
         is sent at once then. Without it, waiting requests try again every
         announcement interval.
 

@@ -1,7 +1,7 @@
 """The live stream's logins: a connection lives as long as the login it was opened with.
 
 The lab announces every login it ends (logout, expiry, a password change, an
-account removed) as a :class:`~thermolab.lab.users.LoginsEnded` event, and
+account removed) as a :class:`~thermolab.lab.accounts.users.LoginsEnded` event, and
 :class:`LoginWatch` closes those clients with 4401 at once; a check every few
 seconds catches logins ended by another process (an account removed from the
 command line). Revoking an API token closes its connections the same way
@@ -18,7 +18,7 @@ import anyio.to_thread
 from sqlalchemy import select
 
 from thermolab.lab.db.models import LoginSession
-from thermolab.lab.fanout import CLOSE_UNAUTHORIZED, LiveFanout
+from thermolab.lab.live.fanout import CLOSE_UNAUTHORIZED, LiveFanout
 from thermolab.lab.service import Lab
 
 __all__ = ["LoginWatch"]

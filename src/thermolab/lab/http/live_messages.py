@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 from typing import Any, Literal, TypedDict
 
-from thermolab.lab.fanout import MAX_CLIENT_MESSAGE, MAX_CLIENT_NESTING
+from thermolab.lab.live.fanout import MAX_CLIENT_MESSAGE, MAX_CLIENT_NESTING
 
 __all__ = [
     "AccessMessage",

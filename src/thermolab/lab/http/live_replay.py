@@ -35,8 +35,8 @@ from typing import Any, TypeVar
 import anyio.to_thread
 from starlette.websockets import WebSocket
 
-from thermolab.lab.fanout import CLOSE_TOO_SLOW, MAX_FRAME_MESSAGES, LiveChannel, encode
 from thermolab.lab.http.live_messages import SamplesMessage, TruncatedMessage
+from thermolab.lab.live.fanout import CLOSE_TOO_SLOW, MAX_FRAME_MESSAGES, LiveChannel, encode
 from thermolab.lab.runs.export import RunExport
 
 __all__ = ["PAGE", "SEND_TIMEOUT", "ReplayBudget", "ReplayTooSlowError", "replay"]
@@ -216,7 +216,7 @@ def _stored_frame(
 
 
 def _number(value: float | None) -> str:
-    """A JSON number as :func:`~thermolab.lab.fanout.encode` writes it (non-finite: null).
+    """A JSON number as :func:`~thermolab.lab.live.fanout.encode` writes it (non-finite: null).
 
     >>> _number(0.1), _number(float("nan")), _number(None)
     ('0.1', 'null', 'null')

@@ -2,8 +2,8 @@
 
 The sender takes the client's queue through the ASGI ``send`` until it has
 caught up (``hello`` and any replay went first), then — where the server
-offers a :class:`~thermolab.lab.fanout.FrameWriter` in the scope's
-:data:`~thermolab.lab.fanout.FRAMES_EXTENSION` — hands the client to the
+offers a :class:`~thermolab.lab.live.fanout.FrameWriter` in the scope's
+:data:`~thermolab.lab.live.fanout.FRAMES_EXTENSION` — hands the client to the
 channel for direct writes: from then on a batch costs this client one socket
 write, made by the channel's flush, and the sender only waits for the end.
 
@@ -20,8 +20,8 @@ from collections.abc import Awaitable, Callable
 
 from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
 
-from thermolab.lab.fanout import FRAMES_EXTENSION, FrameWriter, LiveClient, encode
 from thermolab.lab.http.live_messages import ErrorMessage, client_message_type
+from thermolab.lab.live.fanout import FRAMES_EXTENSION, FrameWriter, LiveClient, encode
 
 __all__ = ["CLOSE_TIMEOUT", "frame_writer", "serve_client"]
 

@@ -2,12 +2,12 @@
 
 :class:`LiveEndpoint` listens to the lab (access changes, runs, runner
 events, idle readings), turns what it hears into the protocol's messages on
-each rig's :class:`~thermolab.lab.fanout.LiveChannel`, and serves the clients:
+each rig's :class:`~thermolab.lab.live.fanout.LiveChannel`, and serves the clients:
 ``hello``, the replay of what a reconnecting client missed (from memory, or
 the current run's samples from the store when memory no longer has them;
 :mod:`~thermolab.lab.http.live_replay`, paged and budgeted), then the live
 messages. Sockets are limited per login and per rig (the lab's access
-policy; lab-wide over a fleet's workers, :mod:`~thermolab.lab.shared_limits`).
+policy; lab-wide over a fleet's workers, :mod:`~thermolab.lab.fleet.shared_limits`).
 A client's ``ping`` keeps its control or queue place alive and is answered
 with ``pong``.
 
@@ -32,20 +32,9 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from thermolab.jsonsafe import finite_or_none
 from thermolab.lab.access import RigSnapshot
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.db.models import Role
-from thermolab.lab.fanout import (
-    CLOSE_RIG_FULL,
-    CLOSE_TOO_MANY,
-    CLOSE_TOO_SLOW,
-    CLOSE_UNAUTHORIZED,
-    CLOSE_UNKNOWN_RIG,
-    MAX_SEQ,
-    Batch,
-    LiveChannel,
-    LiveClient,
-    LiveFanout,
-    encode,
-)
+from thermolab.lab.fleet.shared_limits import LiveSocketCounts
 from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.deps import COOKIE_NAME
 from thermolab.lab.http.live_logins import LoginWatch
@@ -61,10 +50,21 @@ from thermolab.lab.http.live_replay import ReplayBudget, ReplayTooSlowError, rep
 from thermolab.lab.http.live_serve import serve_client
 from thermolab.lab.http.routers.runs import RunOut
 from thermolab.lab.http.schemas import RigOut, people_named
+from thermolab.lab.live.fanout import (
+    CLOSE_RIG_FULL,
+    CLOSE_TOO_MANY,
+    CLOSE_TOO_SLOW,
+    CLOSE_UNAUTHORIZED,
+    CLOSE_UNKNOWN_RIG,
+    MAX_SEQ,
+    Batch,
+    LiveChannel,
+    LiveClient,
+    LiveFanout,
+    encode,
+)
 from thermolab.lab.runs import RunRecord
 from thermolab.lab.service import Lab
-from thermolab.lab.shared_limits import LiveSocketCounts
-from thermolab.lab.users import Principal
 from thermolab.runner import EstimateEvent, Event, SampleEvent
 
 __all__ = ["LiveEndpoint"]
@@ -100,7 +100,7 @@ class LiveEndpoint:
     sockets : LiveSocketCounts, optional
         The sockets held, per login and per rig: this worker's alone (the
         default), or every live worker's of a fleet
-        (:class:`~thermolab.lab.shared_limits.SharedLiveSocketCounts`).
+        (:class:`~thermolab.lab.fleet.shared_limits.SharedLiveSocketCounts`).
 
     The socket limits (per login, per rig) and the most stored samples one
     socket is replayed come from the lab's :class:`~thermolab.lab.config.AccessPolicy`.

@@ -15,13 +15,13 @@ from typing import Annotated, Literal
 from pydantic import Field
 
 from thermolab.lab.access import QueueSlot, RigView
+from thermolab.lab.accounts.security import MAX_PASSWORD_LENGTH, MIN_PASSWORD_LENGTH
+from thermolab.lab.accounts.users import Principal, UserInfo
 from thermolab.lab.db.models import ControlSession
 from thermolab.lab.http.bodies import In as _In
 from thermolab.lab.http.bodies import Out as _Out
-from thermolab.lab.presence import Watcher
-from thermolab.lab.security import MAX_PASSWORD_LENGTH, MIN_PASSWORD_LENGTH
+from thermolab.lab.live.presence import Watcher
 from thermolab.lab.service import InputResult
-from thermolab.lab.users import Principal, UserInfo
 
 __all__ = [
     "AccessOut",

@@ -7,9 +7,14 @@ from typing import Annotated
 
 from pydantic import Field
 
+from thermolab.lab.accounts.tokens import (
+    DEFAULT_TOKEN_DAYS,
+    MAX_TOKEN_DAYS,
+    MAX_TOKEN_NAME,
+    TokenInfo,
+)
 from thermolab.lab.http.bodies import In, Out
 from thermolab.lab.service import OutputReading
-from thermolab.lab.tokens import DEFAULT_TOKEN_DAYS, MAX_TOKEN_DAYS, MAX_TOKEN_NAME, TokenInfo
 
 __all__ = ["LabVersionOut", "NewTokenOut", "ReadingOut", "TokenIn", "TokenOut"]
 

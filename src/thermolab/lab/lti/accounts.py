@@ -31,11 +31,11 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from thermolab.errors import InvalidParameterError
-from thermolab.lab.courses import new_enrol_code
+from thermolab.lab.accounts.names import normalize_display_name, normalize_username
+from thermolab.lab.classes.courses import new_enrol_code
 from thermolab.lab.db.lti_models import URL_LENGTH, LtiContext, LtiIdentity, LtiResourceLink
 from thermolab.lab.db.models import Course, CourseMember, Role, User
 from thermolab.lab.lti.claims import CLAIM, lab_role
-from thermolab.lab.names import normalize_display_name, normalize_username
 
 __all__ = [
     "LmsPerson",

@@ -30,6 +30,7 @@ from urllib.parse import urlencode
 from argon2 import PasswordHasher
 from sqlalchemy import select, update
 
+from thermolab.lab.accounts.users import UserInfo
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
 from thermolab.lab.db.lti_models import LtiLoginState, LtiPlatform
@@ -56,7 +57,6 @@ from thermolab.lab.lti.errors import (
 )
 from thermolab.lab.lti.platforms import PlatformInfo
 from thermolab.lab.lti.tokens import JwksCache, unverified_identity, verify_id_token
-from thermolab.lab.users import UserInfo
 
 __all__ = ["LaunchOutcome", "LoginRedirect", "LtiLaunches"]
 

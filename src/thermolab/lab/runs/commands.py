@@ -17,9 +17,9 @@ from typing import Any, Protocol
 from thermolab.errors import AccessDeniedError, ConflictError, NoRunError, NotClosedLoopError
 from thermolab.jsonsafe import json_safe
 from thermolab.lab.access import AccessService
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.runs.active import ActiveRun
 from thermolab.lab.runs.store import run_command
-from thermolab.lab.users import Principal
 from thermolab.runner import LoopCommands
 
 __all__ = ["GoingRun", "end_run", "hand_input", "loop_state", "send_command"]

@@ -14,10 +14,10 @@ from collections.abc import Iterator
 from typing import Any
 
 from thermolab.jsonsafe import json_safe
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.db.models import Run
 from thermolab.lab.runs.export import RunExport, StoredSample
 from thermolab.lab.runs.store import RunRecord, RunStore
-from thermolab.lab.users import Principal
 from thermolab.records import ChannelSpec
 
 __all__ = ["RunReading"]

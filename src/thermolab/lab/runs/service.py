@@ -37,11 +37,12 @@ from thermolab.errors import (
     TurnEndedError,
 )
 from thermolab.lab.access import AccessService
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Run
-from thermolab.lab.devices import DeviceHub, PublishedRig
+from thermolab.lab.rigs.devices import DeviceHub, PublishedRig
 from thermolab.lab.runs.active import ActiveRun
 from thermolab.lab.runs.commands import end_run, hand_input, loop_state, send_command
 from thermolab.lab.runs.control import build_control_loop
@@ -57,7 +58,6 @@ from thermolab.lab.runs.store import (
     record_of,
     run_channels,
 )
-from thermolab.lab.users import Principal
 from thermolab.records import ChannelSpec
 from thermolab.runner import (
     EndReason,

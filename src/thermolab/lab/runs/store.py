@@ -36,6 +36,8 @@ from thermolab.errors import (
     ThermoLabError,
 )
 from thermolab.jsonsafe import finite_or_none, json_safe
+from thermolab.lab.accounts.security import normalize_username
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import (
     Command,
@@ -46,8 +48,6 @@ from thermolab.lab.db.models import (
     Sample,
     User,
 )
-from thermolab.lab.security import normalize_username
-from thermolab.lab.users import Principal
 from thermolab.records import INPUT, OUTPUT, RUN_CHANNELS, ChannelSpec
 
 __all__ = [

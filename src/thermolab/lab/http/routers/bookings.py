@@ -15,7 +15,7 @@ from fastapi import APIRouter, Path, Query, Response, status
 from pydantic import AwareDatetime, Field
 
 from thermolab.errors import InvalidParameterError
-from thermolab.lab.bookings import BookingInfo, NextChance
+from thermolab.lab.classes.bookings import BookingInfo, NextChance
 from thermolab.lab.http.bodies import In, Out
 from thermolab.lab.http.deps import (
     AUTHENTICATED,
@@ -85,7 +85,7 @@ class BookingOut(Out):
 
     @classmethod
     def of(cls, b: BookingInfo) -> BookingOut:
-        """Build from a :class:`~thermolab.lab.bookings.BookingInfo`."""
+        """Build from a :class:`~thermolab.lab.classes.bookings.BookingInfo`."""
         return cls(
             id=b.id,
             course=b.course,
@@ -111,7 +111,7 @@ class NextChanceOut(Out):
 
     @classmethod
     def of(cls, n: NextChance) -> NextChanceOut:
-        """Build from a :class:`~thermolab.lab.bookings.NextChance`."""
+        """Build from a :class:`~thermolab.lab.classes.bookings.NextChance`."""
         return cls(
             booked_now=None if n.booked_now is None else BookingOut.of(n.booked_now),
             free_from=n.free_from,

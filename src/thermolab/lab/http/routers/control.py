@@ -67,7 +67,7 @@ def rig_loop(rig_id: RigId, who: UserDep, lab: LabDep) -> LoopOut:
         output_limit=info.output_limit,
         closed_loop=bool(published.output_unit),
         fan=None if spec.fan is None else spec.fan.to_dict(),
-        loop=(lab.remote_runs if rig_id in lab.remote_rigs else lab.runs).loop_state(rig_id),
+        loop=lab.rig_runs.loop_state(rig_id),
     )
 
 
@@ -75,8 +75,7 @@ def _command(
     lab: Lab, rig_id: str, who: Any, kind: str, payload: dict[str, Any], act: Any
 ) -> RunOut:
     lab.config.rig(rig_id)
-    runs = lab.remote_runs if rig_id in lab.remote_rigs else lab.runs  # on its host, or here
-    return RunOut.of(runs.command(rig_id, who, kind, payload, act))
+    return RunOut.of(lab.rig_runs.command(rig_id, who, kind, payload, act))
 
 
 _COMMAND_ERRORS = documented_errors(403, 404, 409, 422)

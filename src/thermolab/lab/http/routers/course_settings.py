@@ -3,7 +3,7 @@
 During the course's booked slot on a rig, the values given here replace the
 rig's teacher settings there (each lowered to the rig's technician cap); a
 setting left out keeps the rig's value, and outside slots the rig's are in
-force (:mod:`thermolab.lab.course_settings`). The body's fields are built from
+force (:mod:`thermolab.lab.classes.course_settings`). The body's fields are built from
 the declarations in :mod:`thermolab.lab.config.teacher_settings`
 (``COURSE_SETTINGS``); a value outside its range is a 422
 ``setting_out_of_range``, a save based on an old version a 409 ``settings_changed``.
@@ -17,8 +17,8 @@ from typing import Annotated, Literal
 from fastapi import APIRouter
 from pydantic import BaseModel, Field, create_model
 
+from thermolab.lab.classes.course_settings import CourseSettings, ranges
 from thermolab.lab.config.teacher_settings import COURSE_SETTINGS
-from thermolab.lab.course_settings import CourseSettings, ranges
 from thermolab.lab.http.bodies import In, Out
 from thermolab.lab.http.deps import AUTHENTICATED, LabDep, UserDep, documented_errors
 from thermolab.lab.http.routers.courses import CourseName

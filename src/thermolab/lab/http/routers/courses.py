@@ -15,17 +15,17 @@ from fastapi import APIRouter, Path, Request, status
 from pydantic import Field
 
 from thermolab.errors import AccessDeniedError, ClassListError, WrongEnrolCodeError
-from thermolab.lab.class_list import MAX_CLASS_LIST_BYTES
-from thermolab.lab.courses import CourseInfo, ImportReport
-from thermolab.lab.http.bodies import In, Out
-from thermolab.lab.http.deps import AUTHENTICATED, LabDep, UserDep, Username, documented_errors
-from thermolab.lab.names import MAX_DISPLAY_NAME
-from thermolab.lab.security import (
+from thermolab.lab.accounts.names import MAX_DISPLAY_NAME
+from thermolab.lab.accounts.security import (
     MAX_PASSWORD_LENGTH,
     MIN_PASSWORD_LENGTH,
     AuthenticationError,
     normalize_username,
 )
+from thermolab.lab.classes.class_list import MAX_CLASS_LIST_BYTES
+from thermolab.lab.classes.courses import CourseInfo, ImportReport
+from thermolab.lab.http.bodies import In, Out
+from thermolab.lab.http.deps import AUTHENTICATED, LabDep, UserDep, Username, documented_errors
 
 __all__ = ["router"]
 
@@ -73,7 +73,7 @@ class CourseOut(Out):
 
     @classmethod
     def of(cls, course: CourseInfo) -> CourseOut:
-        """Build from a :class:`~thermolab.lab.courses.CourseInfo`."""
+        """Build from a :class:`~thermolab.lab.classes.courses.CourseInfo`."""
         return cls(
             name=course.name,
             title=course.title,
@@ -101,7 +101,7 @@ class ImportOut(Out):
 
     @classmethod
     def of(cls, report: ImportReport) -> ImportOut:
-        """Build from an :class:`~thermolab.lab.courses.ImportReport`."""
+        """Build from an :class:`~thermolab.lab.classes.courses.ImportReport`."""
         return cls(created=report.created, updated=report.updated, unchanged=report.unchanged)
 
 

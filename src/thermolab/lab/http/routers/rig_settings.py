@@ -18,7 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, create_model
 from thermolab.lab.config.teacher_settings import TEACHER_SETTINGS, TeacherSetting
 from thermolab.lab.http.bodies import In, Out
 from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, UserDep, documented_errors
-from thermolab.lab.rig_settings import RigSettings
+from thermolab.lab.rigs.rig_settings import RigSettings
 from thermolab.lab.service import Lab
 
 __all__ = ["router"]

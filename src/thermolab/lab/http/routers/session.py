@@ -6,6 +6,8 @@ import logging
 
 from fastapi import APIRouter, Request, Response, status
 
+from thermolab.lab.accounts.names import username_form
+from thermolab.lab.accounts.security import AuthenticationError, RateLimitedError
 from thermolab.lab.http.deps import (
     AUTHENTICATED,
     COOKIE_NAME,
@@ -14,8 +16,6 @@ from thermolab.lab.http.deps import (
     documented_errors,
 )
 from thermolab.lab.http.schemas import CredentialsIn, SessionOut
-from thermolab.lab.names import username_form
-from thermolab.lab.security import AuthenticationError, RateLimitedError
 
 __all__ = ["router"]
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 from fastapi import APIRouter, Request, Response, status
 
 from thermolab.errors import AccessDeniedError, InvalidParameterError
+from thermolab.lab.accounts.security import AuthenticationError, normalize_username
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.http.deps import AUTHENTICATED, LabDep, UserDep, Username, documented_errors
 from thermolab.lab.http.schemas import NewUserIn, PasswordIn, UserOut
-from thermolab.lab.security import AuthenticationError, normalize_username
-from thermolab.lab.users import Principal
 
 __all__ = ["router"]
 

@@ -1,4 +1,4 @@
-"""The server lease: one server process per database (see thermolab.lab.lease).
+"""The server lease: one server process per database (see thermolab.lab.fleet.lease).
 
 Revision ID: 0005
 Revises: 0004

@@ -1,4 +1,4 @@
-"""Personal API tokens for scripts (thermolab.lab.tokens).
+"""Personal API tokens for scripts (thermolab.lab.accounts.tokens).
 
 Revision ID: 0006
 Revises: 0005

@@ -5,7 +5,7 @@ Revises: 0005
 Create Date: 2026-11-24
 
 Login names become NFKC, case folded, accents stripped
-(``thermolab.lab.names.username_form``), so that two accounts never differ
+(``thermolab.lab.accounts.names.username_form``), so that two accounts never differ
 only by case or accent; ``users.display_name`` keeps a name as written. Rows
 stored earlier are rewritten to the normal form (the history of turns and
 commands, which keeps names as text, too). If two existing accounts have the
@@ -39,7 +39,7 @@ _NAME_COLUMNS = (
 
 def _form(username: str) -> str:
     # Self-contained (a migration must not change when the library does): the rule
-    # of thermolab.lab.names.username_form at this revision.
+    # of thermolab.lab.accounts.names.username_form at this revision.
     folded = unicodedata.normalize("NFKC", username).casefold()
     decomposed = unicodedata.normalize("NFD", folded)
     bare = "".join(ch for ch in decomposed if not unicodedata.combining(ch))

@@ -26,6 +26,8 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from thermolab.errors import NotFoundError, SettingsChangedError
+from thermolab.lab.accounts.users import Principal
+from thermolab.lab.classes.courses import require_member
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config.teacher_settings import (
     COURSE_SETTINGS,
@@ -33,11 +35,9 @@ from thermolab.lab.config.teacher_settings import (
     allowed_range,
     check_value,
 )
-from thermolab.lab.courses import require_member
 from thermolab.lab.db import Database
 from thermolab.lab.db.course_settings_models import CourseSettingsRow
 from thermolab.lab.db.models import Course, Role
-from thermolab.lab.users import Principal
 
 __all__ = ["CourseSettings", "CourseSettingsService"]
 

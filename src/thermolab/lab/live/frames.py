@@ -1,6 +1,6 @@
 """A WebSocket connection written to directly: the frame, and the writer a server offers.
 
-The live stream (:mod:`~thermolab.lab.fanout`) builds each batch's frame once
+The live stream (:mod:`~thermolab.lab.live.fanout`) builds each batch's frame once
 (:func:`text_frame`) and, where the server puts a :class:`FrameWriter` in the
 ASGI scope's extensions under :data:`FRAMES_EXTENSION` (``thermolab serve``'s
 uvicorn protocol, :mod:`thermolab.cli.serve`), writes those same bytes to

@@ -2,7 +2,7 @@
 
 With a broker (``thermolab serve --broker redis://...``), any number of
 workers share one PostgreSQL database. The first to start takes the
-database's lease (:mod:`~thermolab.lab.lease`) as before and becomes the
+database's lease (:mod:`~thermolab.lab.fleet.lease`) as before and becomes the
 **owner**: it opens the rig devices, runs the runs, the sweep and start-up
 recovery, exactly as a lone server. Every later worker, finding the lease
 held by an owner that announces itself on the bus, starts as a **follower**
@@ -48,23 +48,23 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Literal
 
-from thermolab.lab.bus import Bus, open_bus
 from thermolab.lab.config import LabConfig
 from thermolab.lab.config.rig_kinds import PublishedRig
-from thermolab.lab.devices import RigOpener
-from thermolab.lab.follower import FollowerLab
-from thermolab.lab.lease import LEASE_TTL, LeaseHeldError
-from thermolab.lab.service import Lab, StartupReport
-from thermolab.lab.shared_limits import (
+from thermolab.lab.fleet.bus import Bus, open_bus
+from thermolab.lab.fleet.follower import FollowerLab
+from thermolab.lab.fleet.lease import LEASE_TTL, LeaseHeldError
+from thermolab.lab.fleet.shared_limits import (
     LiveSocketCounts,
     SharedLiveSocketCounts,
     SharedLoginThrottle,
 )
-from thermolab.lab.shared_presence import SharedPresence
-from thermolab.lab.worker_hashes import figures_client
+from thermolab.lab.fleet.worker_hashes import figures_client
+from thermolab.lab.live.shared_presence import SharedPresence
+from thermolab.lab.rigs.devices import RigOpener
+from thermolab.lab.service import Lab, StartupReport
 
 if TYPE_CHECKING:
-    from thermolab.lab.fanout import LiveFanout
+    from thermolab.lab.live.fanout import LiveFanout
 
 __all__ = ["ANNOUNCE_INTERVAL", "OWNER_WAIT", "Fleet", "FollowerLab", "Role", "start_worker"]
 
@@ -98,10 +98,10 @@ class Fleet:
         Where this worker is reached (an owner announces it to followers; a
         standby follower, once promoted).
     live_sockets : LiveSocketCounts, optional
-        The live sockets of every worker (:mod:`~thermolab.lab.shared_limits`),
+        The live sockets of every worker (:mod:`~thermolab.lab.fleet.shared_limits`),
         which the live stream's limits count; closed with the fleet.
     watchers : SharedPresence, optional
-        Who watches each rig on every worker (:mod:`~thermolab.lab.shared_presence`);
+        Who watches each rig on every worker (:mod:`~thermolab.lab.live.shared_presence`);
         closed with the fleet.
     """
 

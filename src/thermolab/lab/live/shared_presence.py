@@ -1,10 +1,10 @@
 """Who watches which rig, lab-wide when workers share a Redis broker.
 
-Each worker knows its own watchers exactly (:class:`~thermolab.lab.presence.Presence`:
+Each worker knows its own watchers exactly (:class:`~thermolab.lab.live.presence.Presence`:
 its live sockets, the recent requests it served). Over a fleet (``docs/fleet.md``)
 the rig's page must count everyone, wherever their socket landed:
 :class:`SharedPresence` publishes this worker's watchers as its
-:class:`~thermolab.lab.worker_hashes.WorkerHash` of kind ``watchers`` (one
+:class:`~thermolab.lab.fleet.worker_hashes.WorkerHash` of kind ``watchers`` (one
 field per rig: each watcher's name, live connections and last contact), and
 reads the other live workers' once a second into memory, which the presence
 merges with its own (rendering a rig never waits on Redis). A remote change
@@ -21,8 +21,8 @@ import threading
 from datetime import UTC, datetime
 from typing import Any
 
-from thermolab.lab.presence import Presence, Watcher
-from thermolab.lab.worker_hashes import WorkerHash
+from thermolab.lab.fleet.worker_hashes import WorkerHash
+from thermolab.lab.live.presence import Presence, Watcher
 
 __all__ = ["SharedPresence"]
 
@@ -37,7 +37,7 @@ class SharedPresence:
     presence : Presence
         This worker's: it is shared (:meth:`Presence.share`) until :meth:`close`.
     redis : redis.Redis
-        The broker (:func:`~thermolab.lab.worker_hashes.figures_client`).
+        The broker (:func:`~thermolab.lab.fleet.worker_hashes.figures_client`).
     prefix : str
         The lab's key prefix.
     refresh, ttl : float

@@ -31,13 +31,13 @@ from sqlalchemy import ColumnElement, select
 from sqlalchemy.orm import Session
 
 from thermolab.errors import BookingClashError, InvalidParameterError, NotFoundError
+from thermolab.lab.accounts.users import Principal
+from thermolab.lab.classes.courses import require_member
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
-from thermolab.lab.courses import require_member
 from thermolab.lab.db import Database
 from thermolab.lab.db.booking_models import Booking, BookingRig
 from thermolab.lab.db.models import Course, CourseMember, Role
-from thermolab.lab.users import Principal
 
 __all__ = [
     "MAX_CALENDAR_DAYS",

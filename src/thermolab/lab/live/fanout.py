@@ -51,7 +51,7 @@ from functools import cached_property
 from typing import Any
 
 from thermolab.jsonsafe import json_safe
-from thermolab.lab.frames import FRAMES_EXTENSION, MAX_UNSENT_BYTES, FrameWriter, text_frame
+from thermolab.lab.live.frames import FRAMES_EXTENSION, MAX_UNSENT_BYTES, FrameWriter, text_frame
 
 __all__ = [
     "CLOSE_BAD_REQUEST",

@@ -3,7 +3,7 @@
 :class:`UserService` keeps accounts (the ``thermolab user`` command and the
 teachers' API use it); :class:`LoginsEnded` is the event every ended login is
 announced on. The login sessions themselves (a password into a session, a
-cookie token back into its user) are :mod:`thermolab.lab.login_sessions`.
+cookie token back into its user) are :mod:`thermolab.lab.accounts.login_sessions`.
 Both work on the :class:`~thermolab.lab.db.Database` directly, so the
 command line can manage accounts while the server runs.
 """
@@ -21,6 +21,13 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from thermolab.errors import AccessDeniedError, ConflictError, InvalidParameterError, NotFoundError
+from thermolab.lab.accounts.names import normalize_display_name
+from thermolab.lab.accounts.security import (
+    MAX_PASSWORD_LENGTH,
+    AuthenticationError,
+    normalize_username,
+    validate_password,
+)
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import (
@@ -30,13 +37,6 @@ from thermolab.lab.db.models import (
     Role,
     TurnEndReason,
     User,
-)
-from thermolab.lab.names import normalize_display_name
-from thermolab.lab.security import (
-    MAX_PASSWORD_LENGTH,
-    AuthenticationError,
-    normalize_username,
-    validate_password,
 )
 
 __all__ = [
@@ -120,7 +120,7 @@ class Principal:
         When the login session (or the API token) ends at the latest.
     token_id : int or None
         The personal API token the request came with (``session_id`` is then
-        ``None``): see :mod:`thermolab.lab.tokens`.
+        ``None``): see :mod:`thermolab.lab.accounts.tokens`.
     read_only : bool
         A read-only token: it may only read (GET), never change anything.
     must_change_password : bool
@@ -260,7 +260,8 @@ class UserService:
         NotFoundError
             If there is no such user.
         InvalidParameterError
-            If the password does not meet :func:`~thermolab.lab.security.validate_password`.
+            If the password does not meet
+            :func:`~thermolab.lab.accounts.security.validate_password`.
         """
         password_hash = self._hasher.hash(validate_password(password, username))
         with self._db.write() as session:

@@ -6,7 +6,7 @@ counts connections) or have made a request for it within the client timeout
 of this server process and means nothing after a restart.
 
 Workers of a fleet (``docs/fleet.md``) each know their own watchers exactly;
-shared (:meth:`Presence.share`, :mod:`~thermolab.lab.shared_presence`), a
+shared (:meth:`Presence.share`, :mod:`~thermolab.lab.live.shared_presence`), a
 worker's watchers are its own merged with what the other live workers
 published, one person counting once however many workers they are on.
 """
@@ -44,7 +44,7 @@ class Watcher:
 
 
 class Elsewhere(Protocol):
-    """The watchers other workers hold (:class:`~thermolab.lab.shared_presence.SharedPresence`)."""
+    """The watchers other workers hold (:class:`.shared_presence.SharedPresence`)."""
 
     def watchers(self, rig_id: str) -> list[Watcher]:
         """What the other live workers published for ``rig_id`` (from memory: never blocks)."""

@@ -1,6 +1,6 @@
 """A follower worker's lab (:class:`FollowerLab`) and its promotion to owner.
 
-A follower (:mod:`~thermolab.lab.fleet`) serves but owns no rig: no
+A follower (:mod:`~thermolab.lab.fleet.workers`) serves but owns no rig: no
 devices, no start-up recovery, no sweep; the owner, another process, does
 what touches a rig or a run's limits. A **standby** follower
 (``thermolab serve --broker ... --standby``, or any follower of a lab whose
@@ -32,7 +32,7 @@ from thermolab.lab.access.queries import SERVER_STOPPED
 from thermolab.lab.config import LabConfig
 from thermolab.lab.config.rig_kinds import PublishedRig
 from thermolab.lab.db.models import ControlSession, QueueEntry, Run, RunStatus
-from thermolab.lab.lease import LeaseHeldError
+from thermolab.lab.fleet.lease import LeaseHeldError
 from thermolab.lab.service import Lab, StartupReport
 
 __all__ = ["FollowerLab"]

@@ -6,8 +6,8 @@ workers on one database share one broker (``--broker redis://HOST:PORT/DB``):
 :class:`RedisBus` publishes on Redis pub/sub channels and delivers what any
 worker published, its own messages included, to this worker's subscribers.
 
-Why Redis pub/sub (``docs/architecture.md`` has the figures measured here by
-``benchmarks/bench_bus.py``): the live stream is fire-and-forget — a worker
+Why Redis pub/sub (``docs/fleet.md``, "Measured", has the figures measured here
+by ``benchmarks/bench_bus.py``): the live stream is fire-and-forget — a worker
 that misses messages (it was restarting) fills the gap from the store by
 sample index, like any reconnecting client — so a persistent log (JetStream,
 Redis streams) buys nothing the store does not already give, while pub/sub

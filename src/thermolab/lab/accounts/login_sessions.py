@@ -1,8 +1,8 @@
 """Login sessions: a user name and password into a server-side session, a cookie
 token back into the user it belongs to (:class:`SessionService`).
 
-Accounts and the :class:`~thermolab.lab.users.LoginsEnded` event every ended
-login is announced on are :mod:`thermolab.lab.users`.
+Accounts and the :class:`~thermolab.lab.accounts.users.LoginsEnded` event every ended
+login is announced on are :mod:`thermolab.lab.accounts.users`.
 """
 
 from __future__ import annotations
@@ -11,11 +11,11 @@ from datetime import timedelta
 
 from sqlalchemy import delete, select
 
+from thermolab.lab.accounts.security import hash_token, new_token
+from thermolab.lab.accounts.users import LoginsEnded, Principal, UserInfo
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import LoginSession, Role, User
-from thermolab.lab.security import hash_token, new_token
-from thermolab.lab.users import LoginsEnded, Principal, UserInfo
 
 __all__ = ["SessionService"]
 

@@ -31,8 +31,8 @@ from functools import cache
 from argon2 import PasswordHasher
 
 from thermolab.errors import InvalidParameterError, ThermoLabError
+from thermolab.lab.accounts.names import normalize_username
 from thermolab.lab.clock import LabClock
-from thermolab.lab.names import normalize_username
 
 __all__ = [
     "AuthenticationError",
@@ -224,7 +224,7 @@ class LoginThrottle:
     These counts live in memory: they protect one server process, and a restart
     forgets them (a restart is far slower than the delays anyway). Several web
     workers on one broker share theirs in Redis instead
-    (:class:`~thermolab.lab.shared_limits.SharedLoginThrottle`, same rules).
+    (:class:`~thermolab.lab.fleet.shared_limits.SharedLoginThrottle`, same rules).
 
     Examples
     --------
@@ -237,7 +237,7 @@ class LoginThrottle:
     >>> throttle.check("alice", "10.0.0.1")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    thermolab.lab.security.RateLimitedError: too many failed logins for 'alice' from 10.0.0.1; ...
+    thermolab.lab.accounts.security.RateLimitedError: too many failed logins for 'alice' ...
     >>> throttle.check("alice", "10.0.0.2")  # another address is not delayed
     >>> clock.advance(1)
     >>> throttle.check("alice", "10.0.0.1")

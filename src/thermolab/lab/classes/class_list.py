@@ -15,7 +15,7 @@ import io
 from dataclasses import dataclass
 
 from thermolab.errors import ClassListError, InvalidParameterError
-from thermolab.lab.names import normalize_display_name, normalize_username
+from thermolab.lab.accounts.names import normalize_display_name, normalize_username
 
 __all__ = ["MAX_CLASS_LIST_BYTES", "MAX_CLASS_LIST_ROWS", "ClassListEntry", "parse_class_list"]
 

@@ -29,13 +29,13 @@ from thermolab.errors import (
     NotFoundError,
     WrongEnrolCodeError,
 )
-from thermolab.lab.class_list import parse_class_list
+from thermolab.lab.accounts.names import normalize_display_name, normalize_username
+from thermolab.lab.accounts.security import validate_password
+from thermolab.lab.accounts.users import LoginsEnded, Principal, UserInfo
+from thermolab.lab.classes.class_list import parse_class_list
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Course, CourseMember, CourseRig, LoginSession, Role, User
-from thermolab.lab.names import normalize_display_name, normalize_username
-from thermolab.lab.security import validate_password
-from thermolab.lab.users import LoginsEnded, Principal, UserInfo
 
 __all__ = [
     "COURSE_NAME",

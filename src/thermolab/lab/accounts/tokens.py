@@ -6,7 +6,7 @@ Bearer <token>`` on HTTP and on the live WebSocket's handshake. The token
 acts as its user, with the user's rights (a teacher's token is a teacher's),
 optionally read-only (GET only). The secret is shown once: the table keeps
 its SHA-256, like a login's cookie token (random 256 bits, so a fast hash is
-right; see :mod:`thermolab.lab.security`). Revoking deletes the row, so the
+right; see :mod:`thermolab.lab.accounts.security`). Revoking deletes the row, so the
 next request with the token is refused, and the lab announces the revoked
 ids so that the live stream closes that token's sockets at once.
 
@@ -24,11 +24,11 @@ from datetime import datetime, timedelta
 from sqlalchemy import delete, func, select
 
 from thermolab.errors import ConflictError, InvalidParameterError, NotFoundError
+from thermolab.lab.accounts.security import hash_token
+from thermolab.lab.accounts.users import LoginsEnded, Principal
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import ApiToken, Role, User
-from thermolab.lab.security import hash_token
-from thermolab.lab.users import LoginsEnded, Principal
 
 __all__ = [
     "DEFAULT_TOKEN_DAYS",

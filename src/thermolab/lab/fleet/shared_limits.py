@@ -1,7 +1,7 @@
 """The login throttle and the live-socket limits, lab-wide when workers share a Redis broker.
 
 One ``thermolab serve`` process keeps both in memory
-(:class:`~thermolab.lab.security.LoginThrottle`, :class:`LiveSocketCounts`).
+(:class:`~thermolab.lab.accounts.security.LoginThrottle`, :class:`LiveSocketCounts`).
 Several workers on one broker (``--broker redis://...``, ``docs/fleet.md``)
 would multiply them by the number of workers, so there they count in Redis:
 
@@ -26,9 +26,9 @@ import secrets
 import threading
 from typing import Any
 
+from thermolab.lab.accounts.security import LoginThrottle, address_limited, pair_delayed
 from thermolab.lab.clock import LabClock
-from thermolab.lab.security import LoginThrottle, address_limited, pair_delayed
-from thermolab.lab.worker_hashes import Reachable, WorkerHash
+from thermolab.lab.fleet.worker_hashes import Reachable, WorkerHash
 
 __all__ = [
     "LiveSocketCounts",
@@ -62,7 +62,7 @@ return count
 
 
 class SharedLoginThrottle(LoginThrottle):
-    """:class:`~thermolab.lab.security.LoginThrottle` with its counts in Redis, lab-wide.
+    """:class:`~thermolab.lab.accounts.security.LoginThrottle` with its counts in Redis, lab-wide.
 
     Same rules, numbers and refusals; the times are the lab clock's (workers'
     clocks agree through NTP), Redis's expiries only forget keys no rule needs
@@ -75,7 +75,7 @@ class SharedLoginThrottle(LoginThrottle):
     prefix : str
         Put before every key: the lab's (its workers share it, another lab's differ).
     clock, failures_per_user, attempts_per_address, window
-        As :class:`~thermolab.lab.security.LoginThrottle`'s.
+        As :class:`~thermolab.lab.accounts.security.LoginThrottle`'s.
     """
 
     def __init__(
@@ -236,7 +236,7 @@ class LiveSocketCounts:
 class SharedLiveSocketCounts(LiveSocketCounts):
     """Live-socket counts published to Redis, and the other workers' read from it.
 
-    This worker's counts are its :class:`~thermolab.lab.worker_hashes.WorkerHash`
+    This worker's counts are its :class:`~thermolab.lab.fleet.worker_hashes.WorkerHash`
     of kind ``live`` (one field per login and rig), written at once after each
     change and every ``refresh`` seconds, with a ``ttl``: a worker that dies
     stops counting ``ttl`` seconds after its last write.

@@ -32,6 +32,7 @@ from datetime import datetime
 from sqlalchemy.exc import IntegrityError
 
 from thermolab.errors import SettingNotForRigError, SettingsChangedError
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config.model import LabConfig, RigConfig
 from thermolab.lab.config.teacher_settings import (
@@ -45,7 +46,6 @@ from thermolab.lab.config.teacher_settings import (
 )
 from thermolab.lab.db import Database
 from thermolab.lab.db.settings_models import RigSettingsRow
-from thermolab.lab.users import Principal
 
 __all__ = ["RigSettings", "RigSettingsService"]
 

@@ -87,7 +87,7 @@ class WorkerHash:
     Parameters
     ----------
     redis : redis.Redis
-        The broker (:func:`~thermolab.lab.worker_hashes.figures_client`).
+        The broker (:func:`~thermolab.lab.fleet.worker_hashes.figures_client`).
     prefix : str
         The lab's key prefix.
     kind : str

@@ -27,10 +27,10 @@ from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 
 from thermolab.errors import ConflictError
+from thermolab.lab.accounts.security import new_token
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import ServerLease
-from thermolab.lab.security import new_token
 
 __all__ = ["LEASE_TTL", "DatabaseLease", "LeaseHeldError"]
 

@@ -1,0 +1,10 @@
+"""The lab's rigs as devices: power, safe state, inputs, readings, settings, the image.
+
+* :mod:`.devices` — :class:`~.devices.DeviceHub`: makes each rig match the
+  committed access state (the only module that drives a rig's inputs);
+* :mod:`.rig_settings` — teachers' settings per rig, within the technician's caps;
+* :mod:`.camera` — the live image of a rig.
+
+The drivers themselves are :mod:`thermolab.rigs` (the layer below); rigs on a
+remote host are :mod:`thermolab.lab.agents`.
+"""
