@@ -92,7 +92,8 @@ def classify(spec: corpus.Spec, method: str, path: Path, peer: bool) -> Outcome:
         errors = (
             100 * abs(K / ref.K - 1), 100 * abs(tau / ref.tau - 1), abs((theta or 0.0) - ref.theta),
         )  # fmt: skip
-    notes = [str(w) for w in s.get("warnings") or []]
+    verdict = s.get("verdict") or {}
+    notes = [str(w) for w in verdict.get("reasons") or s.get("warnings") or []]
     return Outcome(
         spec.name, method, spec.held_out, kind, K, tau, theta, errors,
         "; ".join(n[:90] for n in notes) or (s.get("reason") or ""),

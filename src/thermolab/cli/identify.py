@@ -25,6 +25,7 @@ from thermolab.ident.advice import advice
 from thermolab.ident.registry import METHOD_NAMES, get_method, owners
 
 if TYPE_CHECKING:  # the records module loads NumPy; `thermolab --help` should not
+    from thermolab.ident.verdict import Verdict
     from thermolab.records import Record
 
 __all__ = ["register", "run"]
@@ -105,7 +106,9 @@ def run(args: argparse.Namespace) -> int:
             notes.append(text)
     summary["warnings"] = notes
     summary["advice"] = [advice(note) for note in notes]
-    summary["trusted"] = bool(summary.get("trusted", summary.get("valid", True))) and not notes
+    verdict = _verdict(method, summary, record, dt)
+    summary["trusted"] = verdict.trusted
+    summary["verdict"] = verdict.to_dict()
     summary["file"] = str(args.file)
     summary["n_samples"] = record.n
     if args.plot:
@@ -117,6 +120,49 @@ def run(args: argparse.Namespace) -> int:
         for note, what in zip(notes, summary["advice"], strict=True):
             print(f"warning: {note}\n  what it means, what to do: {what}", file=sys.stderr)
     return 0
+
+
+def _verdict(method: str, s: dict[str, Any], record: Record, dt: float) -> Verdict:
+    """Judge the model on the record (:func:`thermolab.ident.verdict.judge`).
+
+    Every method but oe is compared with the output-error fit of the same record
+    (the unbiased whole-record estimate, which simulates at the time stamps).
+    """
+    from thermolab.ident.verdict import judge
+
+    peer = None if method == "oe" else _peer_estimate(record, dt)
+    after = s.get("after_convergence")
+    converged = None if after is None else bool(after.get("converged"))
+    valid = s.get("valid", True) is not False
+    return judge(
+        s.get("K") if valid else None,
+        s.get("tau") if valid else None,
+        s.get("theta"),
+        s["warnings"],
+        record.t,
+        record.u,
+        record.y,
+        honours_time=method == "oe",
+        peer=peer,
+        converged=converged,
+        reason=s.get("reason"),
+    )
+
+
+def _peer_estimate(record: Record, dt: float) -> dict[str, Any]:
+    """The output-error fit of the record with its defaults, or no model (and why)."""
+    from thermolab.errors import ThermoLabError
+    from thermolab.ident.oe import output_error
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = output_error(record.u, record.y, dt, t=record.t)
+    except ThermoLabError as exc:
+        return {"method": "oe", "K": None, "tau": None, "theta": None, "reason": str(exc)}
+    if not r.model.valid:
+        return {"method": "oe", "K": None, "tau": None, "theta": None, "reason": r.model.reason}
+    return {"method": "oe", "K": r.K, "tau": r.tau, "theta": r.theta}
 
 
 def _identify(method: str, record: Record, dt: float, args: argparse.Namespace) -> Any:
@@ -144,6 +190,12 @@ def _summary(method: str, result: Any, dt: float, args: argparse.Namespace) -> d
     stats = {k: v for k, v in stats.items() if k in m.setting_names("statistics")}
     d = result.to_dict(arrays=False, **stats)
     final = d.pop("final")
+    at, last = result.last_estimate
+    if at is not None and at != result.n_samples - 1:
+        # A complete record: its answer is the last estimate made, not "not yet".
+        final = {"K": last.K if last.valid else None, "tau": last.tau if last.valid else None,
+                 "theta": last.theta if last.valid else None, "valid": last.valid,
+                 "reason": last.reason}  # fmt: skip
     out = {
         "method": method,
         "dt": dt,
@@ -152,6 +204,7 @@ def _summary(method: str, result: Any, dt: float, args: argparse.Namespace) -> d
         "theta": final["theta"],
         "valid": final["valid"],
         "reason": final["reason"],
+        "estimate_at": at,
         "stats": d.pop("stats"),
         # The paper's count (statistics after convergence) unless --last asks
         # for the last N samples.
@@ -277,12 +330,23 @@ def _trust_lines(s: dict[str, Any]) -> list[str]:
             f"input independence {'ok' if rt['independent'] else 'failed'}, 99 % bound "
             f"±{_num(rt['bound'], '.3g')})"
         )
-    n = len(s["warnings"])
-    lines.append(
-        "trusted          yes" if s["trusted"] else
-        f"trusted          NO ({n} warning{'s' if n != 1 else ''} below)" if n else
-        "trusted          NO (the estimate is not a valid first-order model)"
-    )  # fmt: skip
+    v = s["verdict"]
+    if v["fit_record"] is not None:
+        lines.append(
+            f"free-run fit     {v['fit_record']:.1f} % on the record, {v['fit_holdout']:.1f} % "
+            "on its last third (predicted)"
+        )
+    peer = v["agreement"]
+    if peer and peer.get("K") is not None:
+        lines.append(
+            f"compared with    {peer['method']}: K {_num(peer['K'], '.4g')}, tau "
+            f"{_num(peer['tau'], '.4g')} s, theta {_num(peer['theta'], '.3g')} s"
+        )
+    if s["trusted"]:
+        lines.append("trusted          yes")
+    else:
+        lines.append("trusted          NO, because:")
+        lines += [f"  - {reason}" for reason in v["reasons"]]
     return lines
 
 
