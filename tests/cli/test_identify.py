@@ -253,8 +253,20 @@ def test_method_errors_are_one_line(run: Run, square_csv: Path, tmp_path: Path) 
     err = _one_line_error(run, str(square_csv), "--method", "wlsm", "--gamma", "1")
     assert "gamma = 1 is not allowed in the paper's form" in err
     flat = _write(tmp_path / "flat.csv", _record("const:0", 300))
-    err = _one_line_error(run, str(flat), "--method", "srm")
-    assert "no step" in err
+    for method in ("srm", "lsm", "oe", "malsm", "wlsm", "blockls"):
+        # One refusal for bad input, whichever method is asked (issue #21).
+        err = _one_line_error(run, str(flat), "--method", method)
+        assert "no excitation: the input never changes" in err
+
+
+def test_too_few_samples_and_a_flat_output_are_refused_alike(run: Run, tmp_path: Path) -> None:
+    short = tmp_path / "short.csv"
+    short.write_text("t,u,y\n" + "".join(f"{k},{5.0 * (k >= 3)},{0.1 * k}\n" for k in range(12)))
+    dead = tmp_path / "dead.csv"
+    dead.write_text("t,u,y\n" + "".join(f"{k},{5.0 * (k >= 30)},1.5\n" for k in range(300)))
+    for method in ("srm", "lsm", "oe", "malsm", "wlsm", "blockls"):
+        assert "too few samples: 12" in _one_line_error(run, str(short), "--method", method)
+        assert "flat output" in _one_line_error(run, str(dead), "--method", method)
 
 
 @pytest.mark.parametrize(

@@ -95,10 +95,19 @@ def run(args: argparse.Namespace) -> int:
 
     record = read_record(Path(args.file), channels=())
     dt = args.dt if args.dt is not None else record.median_dt
+    from thermolab.ident.verdict import check_identifiable
+
+    check_identifiable(record.u, record.y)  # one refusal for every method
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = _identify(method, record, dt, args)
     summary = _summary(method, result, dt, args)
+    if summary.get("K") is None or summary.get("tau") is None or summary.get("valid") is False:
+        from thermolab.errors import InsufficientExcitationError
+
+        # Never a null model with exit status 0.
+        why = summary.get("reason") or "the estimate has no first-order meaning"
+        raise InsufficientExcitationError(f"no first-order model from {method}: {why}")
     notes = list(summary.get("warnings", []))
     for w in caught:
         text = str(w.message)

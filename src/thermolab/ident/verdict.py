@@ -42,15 +42,19 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from thermolab.errors import InsufficientExcitationError, InvalidDataError
+
 from .oe import simulate_fopdt_at
 
 __all__ = [
     "AGREE_REL",
     "AGREE_THETA",
     "MIN_FIT",
+    "MIN_SAMPLES",
     "NOTE_PREFIXES",
     "TIMING_PREFIXES",
     "Verdict",
+    "check_identifiable",
     "free_run_fit",
     "judge",
 ]
@@ -63,6 +67,9 @@ AGREE_REL = 0.10
 """Relative agreement of ``K`` and ``tau`` with the independent estimate."""
 AGREE_THETA = 5.0
 """Agreement of the dead time with the independent estimate, in seconds."""
+
+MIN_SAMPLES = 20
+"""The fewest samples any method is given a record with (the output-error fit's minimum)."""
 
 NOTE_PREFIXES = ("residual test failed", "short record", "not settled")
 """Warnings that are notes only: the free-run fit and the agreement judge the model."""
@@ -106,6 +113,44 @@ class Verdict:
             "fit_holdout": self.fit_holdout,
             "agreement": dict(self.agreement),
         }
+
+
+def check_identifiable(u: npt.ArrayLike, y: npt.ArrayLike, y_unit: str = "") -> None:
+    """Refuse, in one line, a record no method can identify a model from.
+
+    The same refusal whichever method is asked: too few samples, an input that
+    never changes, an output that never changes.
+
+    Raises
+    ------
+    InvalidDataError
+        Fewer than :data:`MIN_SAMPLES` samples.
+    InsufficientExcitationError
+        No excitation (the input never changes) or a flat output.
+
+    Examples
+    --------
+    >>> check_identifiable([0.0] * 30, list(range(30)))
+    Traceback (most recent call last):
+    ...
+    thermolab.errors.InsufficientExcitationError: no excitation: the input never changes ...
+    """
+    ua, ya = np.asarray(u, dtype=np.float64), np.asarray(y, dtype=np.float64)
+    if ya.size < MIN_SAMPLES:
+        raise InvalidDataError(
+            f"too few samples: {ya.size}, at least {MIN_SAMPLES} are needed to identify a model"
+        )
+    if np.ptp(ua) == 0.0:
+        raise InsufficientExcitationError(
+            f"no excitation: the input never changes (it stays at {float(ua[0]):g}), so no "
+            "method can tell the gain from the ambient; record a step or a square wave"
+        )
+    if np.ptp(ya) == 0.0:
+        unit = f" {y_unit}" if y_unit else ""
+        raise InsufficientExcitationError(
+            f"flat output: the output never changes (it stays at {float(ya[0]):g}{unit}) while "
+            "the input does; check that the sensor is connected and the right column is read"
+        )
 
 
 def free_run_fit(
