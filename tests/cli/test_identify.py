@@ -387,3 +387,55 @@ def test_spreadsheet_problems_are_one_line(
     path = tmp_path / "bad.csv"
     path.write_bytes(content)
     assert message in _one_line_error(run, str(path), "--method", "lsm")
+
+
+def _fopdt_step(n: int = 700) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A kit-like step in % and °C (0.6 °C/%, 140 s, 15 s), 0.05 °C of seeded noise."""
+    from thermolab.ident.oe import simulate_fopdt_at
+
+    t = np.arange(float(n))
+    u = np.where(t >= 20, 50.0, 0.0)
+    noise = np.random.default_rng(21).normal(0.0, 0.05, n)
+    return t, u, 21.0 + simulate_fopdt_at(t, u, 0.6, 140.0, 15.0) + noise
+
+
+@pytest.mark.parametrize(
+    ("header", "options"),
+    [
+        ("Time (s),Q1 (%),T1 (°C),T2 (°C)", ["--columns", "t=Time,u=Q1,y=T1"]),
+        ("time [sec],heater,temperature (degC),T2", ["--columns", "t=1,u=heater,y=3",
+                                                    "--units", "u=%"]),
+        (None, ["--columns", "t=1,u=2,y=3", "--units", "u=%,y=°C"]),
+        ("Time,T1,T2,Q1,Q2", []),  # the tclab Historian's layout, recognised
+    ],
+)  # fmt: skip
+def test_columns_by_name_or_position_and_units_from_the_header(
+    run: Run, tmp_path: Path, header: str | None, options: list[str]
+) -> None:
+    t, u, y = _fopdt_step()
+    if header == "Time,T1,T2,Q1,Q2":
+        rows = zip(t, y, y - 1.0, u, 0 * u, strict=True)
+    else:
+        rows = zip(t, u, y, y - 1.0, strict=True)
+    body = "".join(",".join(repr(float(v)) for v in row) + "\n" for row in rows)
+    path = tmp_path / "kit.csv"
+    path.write_text(("" if header is None else header + "\n") + body, encoding="utf-8")
+    code, out, err = run(str(path), "--method", "oe", *options, "--json")
+    assert code == 0, err
+    s = json.loads(out)
+    assert s["units"]["K"] == "°C/%"
+    assert_allclose([s["K"], s["tau"], s["theta"]], [0.6, 140.0, 15.0], rtol=0.03, atol=0.5)
+    assert s["trusted"]
+    assert " V" not in json.dumps(s, ensure_ascii=False)
+
+
+def test_a_bad_column_map_is_one_line(run: Run, tmp_path: Path) -> None:
+    path = tmp_path / "kit.csv"
+    path.write_text("Time,Q1,T1\n0,0,20\n1,50,20\n2,50,20.3\n")
+    err = _one_line_error(run, str(path), "--method", "lsm", "--columns", "t=Time,u=Q9,y=T1")
+    assert "u='Q9'" in err
+    assert "names no such column" in err
+    err = _one_line_error(run, str(path), "--method", "lsm", "--columns", "t=Time,u=Q1")
+    assert "lacks y" in err
+    err = _one_line_error(run, str(path), "--method", "lsm", "--columns", "t=1,u=2,y=7")
+    assert "has 3 columns" in err

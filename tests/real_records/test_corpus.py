@@ -195,3 +195,46 @@ def test_offline_methods_answer_on_a_complete_record(
     for spec in corpus.SPECS:
         s = outcomes[spec.name, method]
         assert "have arrived" not in (s.get("reason") or s.get("refused") or ""), spec.name
+
+
+# --- the user's files as they come --------------------------------------------------------
+
+AS_RECORDED = [s for s in corpus.SPECS if not s.rest_before and s.name != "kantor_Step_Test_Data"]
+
+
+@pytest.mark.parametrize("spec", AS_RECORDED, ids=[s.name for s in AS_RECORDED])
+def test_read_record_takes_the_file_with_a_column_map(spec: corpus.Spec) -> None:
+    """Positions from 1, a header or none: the same numbers as the spec's NumPy reader."""
+    from thermolab.records import read_record
+
+    where = ",".join(f"{k}={j + 1}" for k, j in zip("tuy", spec.columns, strict=True))
+    r = read_record(spec.path, columns=where, channels=())
+    d = corpus.load(spec)
+    for mine, theirs in ((r.t, d.t), (r.u, d.u), (r.y, d.y)):
+        assert_allclose(mine, theirs, rtol=1e-15, atol=0)
+
+
+def test_the_tclab_historian_layout_is_read_without_options(tmp_path: Path) -> None:
+    """Kantor's record is a Historian CSV (Time,T1,T2,Q1): heater 1, in s, % and °C."""
+    spec = next(s for s in corpus.SPECS if s.name == "kantor_StepTestData")
+    code, s = _cli(spec.path, "oe")
+    assert code == 0
+    assert s["units"] == {"t": "s", "u": "%", "y": "°C", "K": "°C/%", "tau": "s", "theta": "s"}
+    assert s["trusted"]
+    assert corpus.scipy_fit(spec).right(s["K"], s["tau"], s["theta"])
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_no_volts_on_a_record_in_percent_and_degrees(method: str, tmp_path: Path) -> None:
+    spec = next(s for s in corpus.SPECS if s.name == "apm_pds_TCLab_data")
+    code, s = _cli(spec.path, method, "--columns", "t=time,u=Q,y=T", "--units", "u=%,y=°C")
+    text = json.dumps(s, ensure_ascii=False) if code == 0 else s["refused"]
+    assert " V" not in text.replace(" V0", "")
+    assert "volts" not in text
+
+
+def _cli(path: Path, method: str, *options: str) -> tuple[int, dict[str, Any]]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = thermolab(["identify", str(path), "--method", method, *options, "--json"])
+    return code, (json.loads(out.getvalue()) if code == 0 else {"refused": err.getvalue()})

@@ -14,6 +14,7 @@ import argparse
 import inspect
 import json
 import math
+import re
 import sys
 import warnings
 from pathlib import Path
@@ -46,6 +47,20 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         required=True,
         choices=METHOD_NAMES,
         help="; ".join(f"{name}: {_label(name)}" for name in METHOD_NAMES),
+    )
+    p.add_argument(
+        "--columns",
+        metavar="t=COL,u=COL,y=COL",
+        help="which columns are the time, the input and the output: header names (with or "
+        "without their unit, any case) or positions counted from 1, e.g. t=Time,u=Q1,y=T1, or "
+        "t=1,u=2,y=3 for a file without a header (default: the columns t,u,y, else the tclab "
+        "Historian's Time,Q1,T1)",
+    )
+    p.add_argument(
+        "--units",
+        metavar="u=UNIT,y=UNIT",
+        help="units of the input and output, e.g. u=%%,y=°C (default: from the header, as in "
+        "'T1 (°C)'; volts for the lab's own t,u,y records)",
     )
     p.add_argument(
         "--dt",
@@ -93,31 +108,48 @@ def run(args: argparse.Namespace) -> int:
             )
     from thermolab.records import read_record
 
-    record = read_record(Path(args.file), channels=())
+    record = read_record(Path(args.file), channels=(), columns=args.columns, units=args.units)
+    units = record.units
+    u_unit, y_unit = units["u"], units["y"]
     dt = args.dt if args.dt is not None else record.median_dt
+    from thermolab.errors import InsufficientExcitationError, ThermoLabError
     from thermolab.ident.verdict import check_identifiable
 
-    check_identifiable(record.u, record.y)  # one refusal for every method
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        result = _identify(method, record, dt, args)
-    summary = _summary(method, result, dt, args)
-    if summary.get("K") is None or summary.get("tau") is None or summary.get("valid") is False:
-        from thermolab.errors import InsufficientExcitationError
-
-        # Never a null model with exit status 0.
-        why = summary.get("reason") or "the estimate has no first-order meaning"
-        raise InsufficientExcitationError(f"no first-order model from {method}: {why}")
+    try:
+        check_identifiable(record.u, record.y, y_unit)  # one refusal for every method
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = _identify(method, record, dt, args)
+        summary = _summary(method, result, dt, args)
+        if summary.get("K") is None or summary.get("tau") is None or summary.get("valid") is False:
+            # Never a null model with exit status 0.
+            why = summary.get("reason") or "the estimate has no first-order meaning"
+            raise InsufficientExcitationError(f"no first-order model from {method}: {why}")
+    except ThermoLabError as exc:
+        raise _in_units_error(exc, u_unit, y_unit) from None
     notes = list(summary.get("warnings", []))
     for w in caught:
         text = str(w.message)
         if text not in notes:
             notes.append(text)
-    summary["warnings"] = notes
-    summary["advice"] = [advice(note) for note in notes]
-    verdict = _verdict(method, summary, record, dt)
+    verdict = _verdict(method, {**summary, "warnings": notes}, record, dt)
+    summary["warnings"] = [in_units(note, u_unit, y_unit) for note in notes]
+    summary["advice"] = [in_units(advice(note), u_unit, y_unit) for note in notes]
     summary["trusted"] = verdict.trusted
     summary["verdict"] = verdict.to_dict()
+    summary["verdict"]["reasons"] = [in_units(r, u_unit, y_unit) for r in verdict.reasons]
+    summary["verdict"]["notes"] = [in_units(r, u_unit, y_unit) for r in verdict.notes]
+    if summary.get("reason"):
+        summary["reason"] = in_units(summary["reason"], u_unit, y_unit)
+    op = summary.get("operating_point")
+    if isinstance(op, dict):
+        for key in ("reason", "start"):
+            if isinstance(op.get(key), str):
+                op[key] = in_units(op[key], u_unit, y_unit)
+    k_unit = (
+        f"{y_unit}/{u_unit}" if y_unit and u_unit else y_unit or (f"1/{u_unit}" if u_unit else "")
+    )
+    summary["units"] = {"t": "s", "u": u_unit, "y": y_unit, "K": k_unit, "tau": "s", "theta": "s"}
     summary["file"] = str(args.file)
     summary["n_samples"] = record.n
     if args.plot:
@@ -129,6 +161,48 @@ def run(args: argparse.Namespace) -> int:
         for note, what in zip(notes, summary["advice"], strict=True):
             print(f"warning: {note}\n  what it means, what to do: {what}", file=sys.stderr)
     return 0
+
+
+_INPUT_WORDS = ("input", "under", "kept at", "stays at", "u[0]", "held")
+_OUTPUT_WORDS = ("output", "ambient", "y[0]", "noise", "rms", "±", "it changes", "changed by")
+_VOLTS = re.compile(r"(?P<num>[-+]?\d[\d.]*(?:e[-+]?\d+)?) V\b")
+
+
+def in_units(text: str, u_unit: str, y_unit: str) -> str:
+    """A method's message with its volts in the record's units (input or output, by context).
+
+    The methods speak of volts (the paper's rig); a record in % and °C should
+    not read "V". Each number followed by ``V`` takes the unit of the signal
+    named nearest before it.
+
+    Examples
+    --------
+    >>> in_units("small step: the input changes by 0.5 V; the output moves 2 V", "%", "°C")
+    'small step: the input changes by 0.5 %; the output moves 2 °C'
+    """
+    if u_unit == "V" and y_unit == "V":
+        return text
+
+    def unit(m: re.Match[str]) -> str:
+        before = text[: m.start()].lower()
+        last_in = max(before.rfind(w) for w in _INPUT_WORDS)
+        last_out = max(before.rfind(w) for w in _OUTPUT_WORDS)
+        chosen = u_unit if last_in > last_out else y_unit
+        return m.group("num") + (f" {chosen}" if chosen else "")
+
+    out = _VOLTS.sub(unit, text)
+    return out.replace("in volts", "in the record's units").replace("of volts", "")
+
+
+def _in_units_error(exc: Exception, u_unit: str, y_unit: str) -> Exception:
+    """``exc`` again, its message in the record's units (the same type, for the exit status)."""
+    text = in_units(str(exc), u_unit, y_unit)
+    if text == str(exc):
+        return exc
+    try:
+        return type(exc)(text)
+    except TypeError:
+        return exc
 
 
 def _verdict(method: str, s: dict[str, Any], record: Record, dt: float) -> Verdict:
@@ -240,17 +314,19 @@ def _table(s: dict[str, Any]) -> str:
         lines += _trajectory_table(s)
         lines += _trust_lines(s)
         return "\n".join(lines)
-    rows = [("K", _num(s["K"])), ("tau", f"{_num(s['tau'])} s")]
+    un = s.get("units", {})
+    u_unit, y_unit = un.get("u", "V"), un.get("y", "V")
+    rows = [("K", f"{_num(s['K'])} {un.get('K', '')}".rstrip()), ("tau", f"{_num(s['tau'])} s")]
     if s.get("theta") is not None:
         rows.append(("theta (dead time)", f"{_num(s['theta'], '.6g')} s"))
     if method == "srm":
         rows += [
             ("K (paper, last sample)", _num(s["K_last_sample"])),
-            ("final value", f"{_num(s['final_value'])} V ({s['final_value_basis']})"),
+            ("final value", f"{_num(s['final_value'])} {y_unit} ({s['final_value_basis']})"),
             ("tau from", s["tau_basis"]),
             (
                 "step",
-                f"{s['u_before']:g} -> {s['u_after']:g} V at t = {s['step_time']:g} s "
+                f"{s['u_before']:g} -> {s['u_after']:g} {u_unit} at t = {s['step_time']:g} s "
                 f"({s['direction']})",
             ),
             (
