@@ -413,10 +413,8 @@ def test_columns_by_name_or_position_and_units_from_the_header(
     run: Run, tmp_path: Path, header: str | None, options: list[str]
 ) -> None:
     t, u, y = _fopdt_step()
-    if header == "Time,T1,T2,Q1,Q2":
-        rows = zip(t, y, y - 1.0, u, 0 * u, strict=True)
-    else:
-        rows = zip(t, u, y, y - 1.0, strict=True)
+    order = (t, y, y - 1.0, u, 0 * u) if header == "Time,T1,T2,Q1,Q2" else (t, u, y, y - 1.0)
+    rows = zip(*order, strict=True)
     body = "".join(",".join(repr(float(v)) for v in row) + "\n" for row in rows)
     path = tmp_path / "kit.csv"
     path.write_text(("" if header is None else header + "\n") + body, encoding="utf-8")

@@ -250,7 +250,8 @@ def control_fit(spec: Spec, grid: float = 0.5) -> Fit:
         u = np.r_[np.zeros(shift), u[: u.size - shift]] if shift else u
         sys = control.tf([K], [max(tau, 1e-3), 1.0])
         y = control.forced_response(sys, T=fine, U=u).outputs
-        return np.interp(d.t, fine, np.asarray(y)) + y0
+        out: Array = np.interp(d.t, fine, np.asarray(y, dtype=np.float64)) + y0
+        return out
 
     def cost(p: Array) -> float:
         return float(np.mean((simulate(p) - d.y) ** 2))

@@ -117,7 +117,8 @@ def _fit_arrays(t: np.ndarray, u: np.ndarray, y: np.ndarray) -> np.ndarray:
     from scipy.optimize import least_squares
 
     def residual(p: np.ndarray) -> np.ndarray:
-        return corpus.fopdt_response(t, u, p[0], p[1], p[2], p[3]) - y
+        r: np.ndarray = corpus.fopdt_response(t, u, p[0], p[1], p[2], p[3]) - y
+        return r
 
     best = min(
         (
@@ -129,7 +130,8 @@ def _fit_arrays(t: np.ndarray, u: np.ndarray, y: np.ndarray) -> np.ndarray:
         ),
         key=lambda r: r.cost,
     )  # fmt: skip
-    return np.asarray(best.x)
+    fitted: np.ndarray = np.asarray(best.x, dtype=np.float64)
+    return fitted
 
 
 @pytest.mark.slow
