@@ -240,3 +240,19 @@ def _cli(path: Path, method: str, *options: str) -> tuple[int, dict[str, Any]]:
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         code = thermolab(["identify", str(path), "--method", method, *options, "--json"])
     return code, (json.loads(out.getvalue()) if code == 0 else {"refused": err.getvalue()})
+
+
+@pytest.mark.parametrize("name", ["kantor_step01", "che436_step_test"])
+def test_the_same_timing_warnings_whichever_method(
+    name: str, outcomes: dict[tuple[str, str], Any]
+) -> None:
+    """Irregular records: every method that answers gives the same jitter and gap warnings."""
+    seen = set()
+    for method in METHODS:
+        s = outcomes[name, method]
+        if "refused" in s:
+            continue
+        timing = tuple(w for w in s["warnings"] if w.startswith(("timing jitter", "gap in time")))
+        assert len(timing) == 2, (method, s["warnings"])
+        seen.add(timing)
+    assert len(seen) == 1

@@ -127,9 +127,11 @@ def run(args: argparse.Namespace) -> int:
             raise InsufficientExcitationError(f"no first-order model from {method}: {why}")
     except ThermoLabError as exc:
         raise _in_units_error(exc, u_unit, y_unit) from None
+    from thermolab.ident.diagnostics import timing_warnings
+
     notes = list(summary.get("warnings", []))
-    for w in caught:
-        text = str(w.message)
+    # The same jitter and gap warnings whichever method is asked.
+    for text in [str(w.message) for w in caught] + timing_warnings(record.t):
         if text not in notes:
             notes.append(text)
     verdict = _verdict(method, {**summary, "warnings": notes}, record, dt)
@@ -205,6 +207,10 @@ def _in_units_error(exc: Exception, u_unit: str, y_unit: str) -> Exception:
         return exc
 
 
+_ON_TIME_STAMPS = ("srm", "oe")
+"""Methods that use the recorded time stamps (interpolated crossing; simulation at the stamps)."""
+
+
 def _verdict(method: str, s: dict[str, Any], record: Record, dt: float) -> Verdict:
     """Judge the model on the record (:func:`thermolab.ident.verdict.judge`).
 
@@ -225,7 +231,7 @@ def _verdict(method: str, s: dict[str, Any], record: Record, dt: float) -> Verdi
         record.t,
         record.u,
         record.y,
-        honours_time=method == "oe",
+        honours_time=method in _ON_TIME_STAMPS,
         peer=peer,
         converged=converged,
         reason=s.get("reason"),
