@@ -230,7 +230,8 @@ def _one_line_error(run: Run, *argv: str, status: int = 1) -> str:
         (b"t,u,y\n0,0,0\n1,1,0\n2,abc,0\n3,1,1\n", "line 4 (sample 2), column u: 'abc' is not"),
         (b"t,u,y\n0,0,0\n1,1,nan\n2,1,0\n", "line 3 (sample 1), column y: 'nan' is not finite"),
         (b"t,u,y\n0,0,0\n1,1\n2,1,0\n", "line 3 (sample 1) has 2 cells"),
-        (b"t,u,y\n0,0,0\n1,1,0\n1,1,0\n", "line 4 (sample 2): t = 1.0 does not increase"),
+        # Equal times are merged (see below); a time that goes back is refused.
+        (b"t,u,y\n0,0,0\n1,1,0\n0.5,1,0\n", "line 4 (sample 2): t = 0.5 does not increase"),
         (b"\x89PNG\r\n\x1a\n\x00\x00\xff\xfe", "not a CSV text file"),
     ],
 )
@@ -437,3 +438,16 @@ def test_a_bad_column_map_is_one_line(run: Run, tmp_path: Path) -> None:
     assert "lacks y" in err
     err = _one_line_error(run, str(path), "--method", "lsm", "--columns", "t=1,u=2,y=7")
     assert "has 3 columns" in err
+
+
+def test_a_duplicated_time_is_merged_and_said_whichever_method(run: Run, tmp_path: Path) -> None:
+    t, u, y = _fopdt_step()
+    rows = [(0.0, 0.0, float(y[0])), *zip(t.tolist(), u.tolist(), y.tolist(), strict=True)]
+    path = tmp_path / "dup.csv"
+    path.write_text("t,u,y\n" + "".join(f"{a!r},{b!r},{c!r}\n" for a, b, c in rows))
+    for method in ("lsm", "oe", "malsm", "wlsm", "blockls", "srm"):
+        code, out, err = run(str(path), "--method", method, "--json")
+        assert code == 0, err
+        s = json.loads(out)
+        assert s["n_samples"] == t.size
+        assert any(w.startswith("duplicated time: 1 row") for w in s["warnings"]), method

@@ -108,13 +108,22 @@ def run(args: argparse.Namespace) -> int:
             )
     from thermolab.records import read_record
 
-    record = read_record(Path(args.file), channels=(), columns=args.columns, units=args.units)
+    record = read_record(
+        Path(args.file), channels=(), columns=args.columns, units=args.units, equal_times="last"
+    )
     units = record.units
     u_unit, y_unit = units["u"], units["y"]
     dt = args.dt if args.dt is not None else record.median_dt
     from thermolab.errors import InsufficientExcitationError, ThermoLabError
     from thermolab.ident.verdict import check_identifiable
 
+    merged = []
+    if record.merged_times is not None:
+        count, first = record.merged_times
+        merged.append(
+            f"duplicated time: {count} row{'s' if count > 1 else ''} shared the time stamp of the "
+            f"next (first at t = {first:g} s); the last reading at each time was kept"
+        )
     try:
         check_identifiable(record.u, record.y, y_unit)  # one refusal for every method
         with warnings.catch_warnings(record=True) as caught:
@@ -126,12 +135,14 @@ def run(args: argparse.Namespace) -> int:
             why = summary.get("reason") or "the estimate has no first-order meaning"
             raise InsufficientExcitationError(f"no first-order model from {method}: {why}")
     except ThermoLabError as exc:
+        if merged:  # the refusal may come from the rows merged: say so on the same line
+            exc.args = (f"{exc}; {merged[0]}",)
         raise _in_units_error(exc, u_unit, y_unit) from None
     from thermolab.ident.diagnostics import timing_warnings
 
     notes = list(summary.get("warnings", []))
     # The same jitter and gap warnings whichever method is asked.
-    for text in [str(w.message) for w in caught] + timing_warnings(record.t):
+    for text in merged + [str(w.message) for w in caught] + timing_warnings(record.t):
         if text not in notes:
             notes.append(text)
     verdict = _verdict(method, {**summary, "warnings": notes}, record, dt)

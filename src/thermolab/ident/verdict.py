@@ -71,7 +71,7 @@ AGREE_THETA = 5.0
 MIN_SAMPLES = 20
 """The fewest samples any method is given a record with (the output-error fit's minimum)."""
 
-NOTE_PREFIXES = ("residual test failed", "short record", "not settled")
+NOTE_PREFIXES = ("residual test failed", "short record", "not settled", "duplicated time")
 """Warnings that are notes only: the free-run fit and the agreement judge the model."""
 TIMING_PREFIXES = ("timing jitter", "gap in time")
 """Warnings about the time axis: notes for a method that simulates at the time stamps."""

@@ -10,6 +10,7 @@ import os
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -38,12 +39,16 @@ class Record:
         The ``#`` lines before the header, without the ``#``.
     dialect : Dialect
         The separator, decimal mark and encoding found.
+    merged_times : tuple of (int, float) or None
+        With ``equal_times="last"``: how many rows shared their time with the
+        next and were dropped, and the first such time; None if none.
     """
 
     channels: tuple[ChannelSpec, ...]
     columns: Mapping[str, npt.NDArray[np.float64]]
     comments: tuple[str, ...] = ()
     dialect: Dialect = field(default_factory=Dialect)
+    merged_times: tuple[int, float] | None = None
 
     @property
     def t(self) -> npt.NDArray[np.float64]:
@@ -94,6 +99,7 @@ def read_record(
     columns: Mapping[str, str | int] | str | None = None,
     units: Mapping[str, str] | str | None = None,
     header: bool | None = None,
+    equal_times: Literal["refuse", "last"] = "refuse",
 ) -> Record:
     """Read a record from a CSV file.
 
@@ -124,6 +130,10 @@ def read_record(
         Whether the first line that is not a comment is a header (default:
         it is, unless every cell is a number; a file without one needs
         positions in ``columns``).
+    equal_times : {"refuse", "last"}, optional
+        Rows whose time equals the previous row's: refused (the default), or
+        merged into the last of them (the latest reading at that time); the
+        record's ``merged_times`` says how many rows were dropped and where.
 
     Returns
     -------
@@ -218,9 +228,21 @@ def read_record(
     for _ in range(skip):
         newline = complete.find(b"\n", body)
         body = len(complete) if newline < 0 else newline + 1
+    if equal_times not in ("refuse", "last"):
+        raise ValueError(f"equal_times must be 'refuse' or 'last', got {equal_times!r}")
+    merge = equal_times == "last"
     arrays = _fast_columns(path, body, names, wanted, dialect)
-    if arrays is None or not _plausible(arrays):
-        arrays, dialect = exact_columns(path, skip, names, wanted, dialect, decimal)
+    if arrays is None or not _plausible(arrays, merge):
+        arrays, dialect = exact_columns(path, skip, names, wanted, dialect, decimal, merge)
+    merged: tuple[int, float] | None = None
+    if merge:
+        t = arrays["t"]
+        dropped = np.flatnonzero(t[1:] == t[:-1])
+        if dropped.size:
+            keep = np.ones(t.size, dtype=bool)
+            keep[dropped] = False  # the earlier of two rows at one time
+            merged = (int(dropped.size), float(t[dropped[0]]))
+            arrays = {k: np.ascontiguousarray(v[keep]) for k, v in arrays.items()}
     n = int(arrays["t"].size)
     if n < min_rows:
         raise RecordFormatError(
@@ -232,7 +254,13 @@ def read_record(
     specs = tuple(
         dataclasses.replace(c, unit=unit_of[c.name]) if c.name in unit_of else c for c in specs
     )
-    return Record(channels=specs, columns=arrays, comments=tuple(comments), dialect=dialect)
+    return Record(
+        channels=specs,
+        columns=arrays,
+        comments=tuple(comments),
+        dialect=dialect,
+        merged_times=merged,
+    )
 
 
 def _is_number(cell: str) -> bool:
@@ -454,10 +482,12 @@ def _to_numpy(chunked: object) -> npt.NDArray[np.float64]:
     return out
 
 
-def _plausible(columns: Mapping[str, npt.NDArray[np.float64]]) -> bool:
+def _plausible(columns: Mapping[str, npt.NDArray[np.float64]], equal: bool = False) -> bool:
     """True if the fast reader's t, u, y need no diagnosis (finite, t increasing)."""
     for name in channel_names(REQUIRED):
         if not np.isfinite(columns[name]).all():
             return False
     t = columns["t"]
+    if equal:
+        return bool(t.size < 2 or (t[1:] >= t[:-1]).all())
     return bool(t.size < 2 or (t[1:] > t[:-1]).all())
