@@ -451,3 +451,13 @@ def test_a_duplicated_time_is_merged_and_said_whichever_method(run: Run, tmp_pat
         s = json.loads(out)
         assert s["n_samples"] == t.size
         assert any(w.startswith("duplicated time: 1 row") for w in s["warnings"]), method
+
+
+def test_a_saturated_input_is_refused_alike(run: Run, tmp_path: Path) -> None:
+    t, u, y = _fopdt_step()
+    path = tmp_path / "sat.csv"
+    rows = zip(t.tolist(), (2.5 * u).tolist(), y.tolist(), strict=True)
+    path.write_text("t,Q1 (%),T1 (°C)\n" + "".join(f"{a!r},{b!r},{c!r}\n" for a, b, c in rows))
+    for method in ("srm", "lsm", "oe", "malsm", "wlsm", "blockls"):
+        err = _one_line_error(run, str(path), "--method", method, "--columns", "t=t,u=Q1,y=T1")
+        assert "saturated input: the record asks the heater for 125 %" in err

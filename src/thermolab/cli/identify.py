@@ -125,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
             f"next (first at t = {first:g} s); the last reading at each time was kept"
         )
     try:
-        check_identifiable(record.u, record.y, y_unit)  # one refusal for every method
+        check_identifiable(record.u, record.y, y_unit, u_unit)  # one refusal for every method
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             result = _identify(method, record, dt, args)

@@ -115,16 +115,20 @@ class Verdict:
         }
 
 
-def check_identifiable(u: npt.ArrayLike, y: npt.ArrayLike, y_unit: str = "") -> None:
+def check_identifiable(
+    u: npt.ArrayLike, y: npt.ArrayLike, y_unit: str = "", u_unit: str = ""
+) -> None:
     """Refuse, in one line, a record no method can identify a model from.
 
     The same refusal whichever method is asked: too few samples, an input that
-    never changes, an output that never changes.
+    never changes, an output that never changes, and an input in % outside
+    0-100 (a heater asked for more than it can give saturates: the output
+    answers to 100 %, not to what was recorded).
 
     Raises
     ------
     InvalidDataError
-        Fewer than :data:`MIN_SAMPLES` samples.
+        Fewer than :data:`MIN_SAMPLES` samples, or a saturated input.
     InsufficientExcitationError
         No excitation (the input never changes) or a flat output.
 
@@ -144,6 +148,12 @@ def check_identifiable(u: npt.ArrayLike, y: npt.ArrayLike, y_unit: str = "") -> 
         raise InsufficientExcitationError(
             f"no excitation: the input never changes (it stays at {float(ua[0]):g}), so no "
             "method can tell the gain from the ambient; record a step or a square wave"
+        )
+    if u_unit == "%" and (float(np.min(ua)) < 0.0 or float(np.max(ua)) > 100.0):
+        worst = float(np.max(ua)) if float(np.max(ua)) > 100.0 else float(np.min(ua))
+        raise InvalidDataError(
+            f"saturated input: the record asks the heater for {worst:g} % but it gives 0 to "
+            "100 %, so the output answers to a clipped input; keep the input within 0-100 %"
         )
     if np.ptp(ya) == 0.0:
         unit = f" {y_unit}" if y_unit else ""
