@@ -111,3 +111,26 @@ def test_a_model_that_does_not_follow_the_record_is_not_trusted() -> None:
     assert not v.trusted
     assert v.fit_record is not None
     assert v.fit_record < MIN_FIT
+
+
+def test_a_model_that_depends_on_what_came_before_the_record_is_not_trusted() -> None:
+    t, u, y = kit(6)
+    same = {"K": 0.61, "tau": 143.0, "u0": 50.0}
+    other = {"K": 0.3, "tau": 143.0, "u0": 50.0}
+    assert judge(0.6, 140.0, 15.0, [], t, u, y, at_rest=same).trusted
+    v = judge(0.6, 140.0, 15.0, [], t, u, y, at_rest=other)
+    assert not v.trusted
+    assert v.reasons[0].startswith("start uncertain: the input is on (50) from the first row")
+
+
+def test_output_error_can_take_the_kit_at_rest_before_the_record() -> None:
+    t = np.arange(-1.0, 700.0)
+    u = np.where(t >= 0.0, 50.0, 0.0)
+    y = 21.0 + simulate_fopdt_at(t, u, 0.6, 140.0, 15.0)
+    y = y + np.random.default_rng(7).normal(0, 0.05, t.size)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = output_error(u, y, 1.0, t=t, start="rest")
+    assert_allclose([r.K, r.tau, r.theta], [0.6, 140.0, 15.0], rtol=0.02, atol=0.5)
+    with pytest.raises(ValueError, match="start must be"):
+        output_error(u, y, 1.0, start="warm")

@@ -228,9 +228,19 @@ def _verdict(method: str, s: dict[str, Any], record: Record, dt: float) -> Verdi
     Every method but oe is compared with the output-error fit of the same record
     (the unbiased whole-record estimate, which simulates at the time stamps).
     """
+    import numpy as np
+
     from thermolab.ident.verdict import judge
 
-    peer = None if method == "oe" else _peer_estimate(record, dt)
+    peer = None if method == "oe" else _peer_estimate(record.t, record.u, record.y, dt)
+    at_rest = None
+    if record.u[0] != 0.0:
+        # What the record would say had the kit been at rest, input off, before it.
+        t0 = float(record.t[0]) - dt
+        rest = _peer_estimate(
+            np.r_[t0, record.t], np.r_[0.0, record.u], np.r_[record.y[0], record.y], dt, "rest"
+        )
+        at_rest = {**rest, "u0": float(record.u[0])}
     after = s.get("after_convergence")
     converged = None if after is None else bool(after.get("converged"))
     valid = s.get("valid", True) is not False
@@ -246,18 +256,19 @@ def _verdict(method: str, s: dict[str, Any], record: Record, dt: float) -> Verdi
         peer=peer,
         converged=converged,
         reason=s.get("reason"),
+        at_rest=at_rest,
     )
 
 
-def _peer_estimate(record: Record, dt: float) -> dict[str, Any]:
-    """The output-error fit of the record with its defaults, or no model (and why)."""
+def _peer_estimate(t: Any, u: Any, y: Any, dt: float, start: str = "auto") -> dict[str, Any]:
+    """The output-error fit of a record with its defaults, or no model (and why)."""
     from thermolab.errors import ThermoLabError
     from thermolab.ident.oe import output_error
 
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            r = output_error(record.u, record.y, dt, t=record.t)
+            r = output_error(u, y, dt, t=t, start=start)
     except ThermoLabError as exc:
         return {"method": "oe", "K": None, "tau": None, "theta": None, "reason": str(exc)}
     if not r.model.valid:

@@ -242,6 +242,7 @@ def output_error(
     max_delay: int | None = SETTINGS["max_delay"].default,
     expected_sign: int | None = SETTINGS["expected_sign"].default,
     t: npt.ArrayLike | None = None,
+    start: str = "auto",
 ) -> OutputErrorResult:
     """Fit ``K exp(-theta s) / (tau s + 1)`` by minimising the free-run simulation error.
 
@@ -264,6 +265,12 @@ def output_error(
         as by :func:`thermolab.ident.least_squares`, and where they are found
         the model is simulated at these times (:func:`simulate_fopdt_at`)
         instead of every ``dt``.
+    start : {"auto", "rest"}, optional
+        ``"auto"``: the initial state is fixed when the record starts at rest at
+        ambient and fitted otherwise (decided from the data); ``"rest"``: the
+        kit is taken at rest with the input off before the record, whatever the
+        data say (what a record with the input on from its first row means when
+        its notebook says the kit was cold).
 
     Returns
     -------
@@ -334,7 +341,11 @@ def output_error(
     # record); otherwise it is free. Both free on a record that starts at rest
     # would make the ambient, the initial state and the gain indistinguishable
     # after a single step.
-    at_rest = arx.operating_point is not None and arx.operating_point.handling == "initial"
+    if start not in ("auto", "rest"):
+        raise InvalidParameterError(f"start must be 'auto' or 'rest', got {start!r}")
+    at_rest = start == "rest" or (
+        arx.operating_point is not None and arx.operating_point.handling == "initial"
+    )
     if not arx.model.valid:
         raise InsufficientExcitationError(
             f"the output-error fit needs a starting model, and least squares gave none: "
@@ -370,14 +381,14 @@ def output_error(
         r: FloatArray = amb + x - y_arr
         return r
 
-    start = {"K": K0, "log_tau": math.log(tau0), "ambient": amb0, "x0": x00, "theta": th0}
-    start["u_before"] = float(u_arr[0])
+    first = {"K": K0, "log_tau": math.log(tau0), "ambient": amb0, "x0": x00, "theta": th0}
+    first["u_before"] = float(u_arr[0])
     lower = {"log_tau": math.log(tau_lo), "theta": 0.0}
     upper = {"log_tau": math.log(tau_hi), "theta": theta_hi}
     widths = {"K": max(abs(K0), 1e-6), "log_tau": 0.1, "ambient": scale_y, "x0": scale_y}
     widths["theta"] = step
     widths["u_before"] = max(float(np.ptp(u_arr)), 1e-12)
-    p0 = [start[k] for k in names]
+    p0 = [first[k] for k in names]
     lo = [lower.get(k, -np.inf) for k in names]
     hi = [upper.get(k, np.inf) for k in names]
     x_scale = [widths[k] for k in names]

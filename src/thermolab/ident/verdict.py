@@ -212,6 +212,7 @@ def judge(
     peer: dict[str, Any] | None = None,
     converged: bool | None = None,
     reason: str | None = None,
+    at_rest: dict[str, Any] | None = None,
 ) -> Verdict:
     """The verdict on one model of one record (see the module's docstring for the checks).
 
@@ -231,6 +232,12 @@ def judge(
         For a recursive or windowed estimate: whether it converged.
     reason : str, optional
         Why the method gave no model (when ``K`` or ``tau`` is None).
+    at_rest : dict, optional
+        For a record whose input is on from its first row: the estimate
+        (``K``, ``tau``, ``u0``) that assumes the kit at rest, input off,
+        before it. A model that differs from it by more than :data:`AGREE_REL`
+        depends on what happened before the record, which the record does not
+        show: its start is uncertain.
 
     Returns
     -------
@@ -280,6 +287,14 @@ def judge(
                     f"dead time uncertain: {th:.3g} s here, {float(pth or 0.0):.3g} s from "
                     f"{peer.get('method')} (more than {AGREE_THETA:g} s apart)"
                 )
+    if at_rest is not None and at_rest.get("K") is not None:
+        rK, rtau = float(at_rest["K"]), float(at_rest["tau"])
+        if abs(K / rK - 1.0) > AGREE_REL or abs(tau / rtau - 1.0) > AGREE_REL:
+            reasons.append(
+                f"start uncertain: the input is on ({at_rest.get('u0', 0.0):g}) from the first "
+                f"row, and a kit at rest before the record gives K {rK:.4g}, tau {rtau:.4g} s "
+                f"instead; record some samples with the input off (or settled) first"
+            )
     if converged is False:
         reasons.append(
             "the estimate did not converge: it never stays within ±1 % to the end of the record"
