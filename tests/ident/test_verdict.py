@@ -10,7 +10,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from thermolab.ident.oe import output_error, simulate_fopdt, simulate_fopdt_at
+from thermolab.ident.oe import (
+    output_error,
+    output_error_at_rest,
+    simulate_fopdt,
+    simulate_fopdt_at,
+)
 from thermolab.ident.verdict import MIN_FIT, free_run_fit, judge
 
 
@@ -130,7 +135,5 @@ def test_output_error_can_take_the_kit_at_rest_before_the_record() -> None:
     y = y + np.random.default_rng(7).normal(0, 0.05, t.size)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        r = output_error(u, y, 1.0, t=t, start="rest")
+        r = output_error_at_rest(u, y, 1.0, t=t)
     assert_allclose([r.K, r.tau, r.theta], [0.6, 140.0, 15.0], rtol=0.02, atol=0.5)
-    with pytest.raises(ValueError, match="start must be"):
-        output_error(u, y, 1.0, start="warm")

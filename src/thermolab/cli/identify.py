@@ -263,12 +263,15 @@ def _verdict(method: str, s: dict[str, Any], record: Record, dt: float) -> Verdi
 def _peer_estimate(t: Any, u: Any, y: Any, dt: float, start: str = "auto") -> dict[str, Any]:
     """The output-error fit of a record with its defaults, or no model (and why)."""
     from thermolab.errors import ThermoLabError
-    from thermolab.ident.oe import output_error
+    from thermolab.ident.oe import output_error, output_error_at_rest
 
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            r = output_error(u, y, dt, t=t, start=start)
+            if start == "rest":
+                r = output_error_at_rest(u, y, dt, t=t)
+            else:
+                r = output_error(u, y, dt, t=t)
     except ThermoLabError as exc:
         return {"method": "oe", "K": None, "tau": None, "theta": None, "reason": str(exc)}
     if not r.model.valid:

@@ -49,7 +49,13 @@ from .deadtime import default_max_delay
 from .models import ArxOrder, FirstOrderModel
 from .registry import SETTINGS
 
-__all__ = ["OutputErrorResult", "output_error", "simulate_fopdt", "simulate_fopdt_at"]
+__all__ = [
+    "OutputErrorResult",
+    "output_error",
+    "output_error_at_rest",
+    "simulate_fopdt",
+    "simulate_fopdt_at",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -242,7 +248,6 @@ def output_error(
     max_delay: int | None = SETTINGS["max_delay"].default,
     expected_sign: int | None = SETTINGS["expected_sign"].default,
     t: npt.ArrayLike | None = None,
-    start: str = "auto",
 ) -> OutputErrorResult:
     """Fit ``K exp(-theta s) / (tau s + 1)`` by minimising the free-run simulation error.
 
@@ -265,12 +270,6 @@ def output_error(
         as by :func:`thermolab.ident.least_squares`, and where they are found
         the model is simulated at these times (:func:`simulate_fopdt_at`)
         instead of every ``dt``.
-    start : {"auto", "rest"}, optional
-        ``"auto"``: the initial state is fixed when the record starts at rest at
-        ambient and fitted otherwise (decided from the data); ``"rest"``: the
-        kit is taken at rest with the input off before the record, whatever the
-        data say (what a record with the input on from its first row means when
-        its notebook says the kit was cold).
 
     Returns
     -------
@@ -304,6 +303,46 @@ def output_error(
     >>> abs(r.K / 0.14 - 1) < 0.02, abs(r.tau / 250 - 1) < 0.05, abs(r.theta - 12.5) < 1.5
     (True, True, True)
     """
+    return _fit(u, y, dt, theta, max_delay, expected_sign, t, at_rest=False)
+
+
+def output_error_at_rest(
+    u: npt.ArrayLike,
+    y: npt.ArrayLike,
+    dt: float,
+    *,
+    t: npt.ArrayLike | None = None,
+) -> OutputErrorResult:
+    """:func:`output_error` with the kit at rest at its ambient, input off, before the record.
+
+    The initial state is not fitted, whatever the data say: what a record
+    means when its notebook says the kit was cold before it. A record whose
+    model differs from this one depends on what came before it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(-1.0, 700.0); u = np.where(t >= 0, 50.0, 0.0)
+    >>> y = 21.0 + simulate_fopdt_at(t, u, 0.6, 140.0, 15.0)
+    >>> r = output_error_at_rest(u, y, 1.0, t=t)
+    >>> round(r.K, 3), round(r.tau, 1), round(r.theta, 1)
+    (0.6, 140.0, 15.0)
+    """
+    defaults = SETTINGS["theta"].default, SETTINGS["max_delay"].default
+    return _fit(u, y, dt, *defaults, SETTINGS["expected_sign"].default, t, at_rest=True)
+
+
+def _fit(
+    u: npt.ArrayLike,
+    y: npt.ArrayLike,
+    dt: float,
+    theta: float | None,
+    max_delay: int | None,
+    expected_sign: int | None,
+    t: npt.ArrayLike | None,
+    *,
+    at_rest: bool,
+) -> OutputErrorResult:
     u_arr, y_arr = _v.as_record(u, y)
     step = _v.check_dt(dt)
     n = y_arr.size
@@ -341,9 +380,7 @@ def output_error(
     # record); otherwise it is free. Both free on a record that starts at rest
     # would make the ambient, the initial state and the gain indistinguishable
     # after a single step.
-    if start not in ("auto", "rest"):
-        raise InvalidParameterError(f"start must be 'auto' or 'rest', got {start!r}")
-    at_rest = start == "rest" or (
+    at_rest = at_rest or (
         arx.operating_point is not None and arx.operating_point.handling == "initial"
     )
     if not arx.model.valid:
