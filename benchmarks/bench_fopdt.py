@@ -114,7 +114,8 @@ def main() -> None:
         verdict = "yes" if within else "NO"
         row += f"   {devs[0]:+6.1f} {devs[1]:+7.1f} {devs[2]:+8.1f}  {verdict:>10}"
         print(row + f"  {valid}/{len(results)}  {trusted:>5}/{len(results)}")
-        notes = [w for r in results for w in list(r.get("warnings") or [])]  # type: ignore[call-overload]
+        # The verdict's reasons (the warnings that decide, and the failed checks).
+        notes = [w for r in results for w in r["verdict"]["reasons"]]  # type: ignore[index]
         warned = [str(w).split(":")[0] for w in notes]
         reasons[method] = set(warned)
     print("\nwarnings (why a result is not marked trusted):")

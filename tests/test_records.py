@@ -5,11 +5,13 @@ from __future__ import annotations
 import io
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from numpy.testing import assert_allclose
 
 from thermolab import records
 from thermolab.errors import InvalidDataError, InvalidParameterError, RecordFormatError
@@ -288,3 +290,40 @@ def test_no_header_in_the_first_64_kib(tmp_path: Path) -> None:
     path = _write(tmp_path, "# a comment line of some length\n" * 3000 + "t,u,y\n0,0,0\n")
     with pytest.raises(RecordFormatError, match="no header in the first 65536 bytes"):
         read_record(path)
+
+
+def test_equal_times_are_refused_or_merged_into_the_last(tmp_path: Path) -> None:
+    """A second reading at one time stamp (issue #21): refused by default, or the last kept."""
+    path = tmp_path / "dup.csv"
+    path.write_text("t,u,y\n0,0,1\n1,0,1\n1,5,1.5\n2,5,2\n3,5,2.5\n")
+    with pytest.raises(RecordFormatError, match="does not increase"):
+        read_record(path)
+    r = read_record(path, equal_times="last")
+    assert_allclose(r.t, [0.0, 1.0, 2.0, 3.0], rtol=0, atol=0)
+    assert_allclose(r.u, [0.0, 5.0, 5.0, 5.0], rtol=0, atol=0)
+    assert r.merged_times == (1, 1.0)
+    path.write_text("t,u,y\n0,0,1\n2,0,1\n1,5,1.5\n")
+    with pytest.raises(RecordFormatError, match="does not increase"):
+        read_record(path, equal_times="last")
+
+
+@pytest.mark.parametrize(
+    ("text", "options", "units"),
+    [
+        ("Time (s);Q1 (%);T1 (degC)\n0;0;20,5\n1;50;20,5\n2;50;21\n",
+         {"columns": "t=Time,u=Q1,y=T1"}, ("s", "%", "°C")),
+        ("0,0,299.5\n1,150,299.5\n2,150,300\n", {"columns": {"t": 1, "u": 2, "y": 3},
+         "units": "u=PWM,y=K"}, ("s", "PWM", "K")),
+        ("Time,T1,T2,Q1,Q2\n0,20,20,0,0\n1,20,20,50,0\n2,20.3,20,50,0\n", {}, ("s", "%", "°C")),
+        ("t,u,y\n0,0,0\n1,1,0\n2,1,0.1\n", {}, ("s", "V", "V")),
+    ],
+)  # fmt: skip
+def test_columns_and_units_as_the_user_has_them(
+    tmp_path: Path, text: str, options: dict[str, Any], units: tuple[str, str, str]
+) -> None:
+    path = tmp_path / "record.csv"
+    path.write_text(text, encoding="utf-8")
+    r = read_record(path, channels=(), **options)
+    assert (r.units["t"], r.units["u"], r.units["y"]) == units
+    assert r.n == 3
+    assert r.u[1] > r.u[0]

@@ -230,7 +230,8 @@ def _one_line_error(run: Run, *argv: str, status: int = 1) -> str:
         (b"t,u,y\n0,0,0\n1,1,0\n2,abc,0\n3,1,1\n", "line 4 (sample 2), column u: 'abc' is not"),
         (b"t,u,y\n0,0,0\n1,1,nan\n2,1,0\n", "line 3 (sample 1), column y: 'nan' is not finite"),
         (b"t,u,y\n0,0,0\n1,1\n2,1,0\n", "line 3 (sample 1) has 2 cells"),
-        (b"t,u,y\n0,0,0\n1,1,0\n1,1,0\n", "line 4 (sample 2): t = 1.0 does not increase"),
+        # Equal times are merged (see below); a time that goes back is refused.
+        (b"t,u,y\n0,0,0\n1,1,0\n0.5,1,0\n", "line 4 (sample 2): t = 0.5 does not increase"),
         (b"\x89PNG\r\n\x1a\n\x00\x00\xff\xfe", "not a CSV text file"),
     ],
 )
@@ -253,8 +254,20 @@ def test_method_errors_are_one_line(run: Run, square_csv: Path, tmp_path: Path) 
     err = _one_line_error(run, str(square_csv), "--method", "wlsm", "--gamma", "1")
     assert "gamma = 1 is not allowed in the paper's form" in err
     flat = _write(tmp_path / "flat.csv", _record("const:0", 300))
-    err = _one_line_error(run, str(flat), "--method", "srm")
-    assert "no step" in err
+    for method in ("srm", "lsm", "oe", "malsm", "wlsm", "blockls"):
+        # One refusal for bad input, whichever method is asked (issue #21).
+        err = _one_line_error(run, str(flat), "--method", method)
+        assert "no excitation: the input never changes" in err
+
+
+def test_too_few_samples_and_a_flat_output_are_refused_alike(run: Run, tmp_path: Path) -> None:
+    short = tmp_path / "short.csv"
+    short.write_text("t,u,y\n" + "".join(f"{k},{5.0 * (k >= 3)},{0.1 * k}\n" for k in range(12)))
+    dead = tmp_path / "dead.csv"
+    dead.write_text("t,u,y\n" + "".join(f"{k},{5.0 * (k >= 30)},1.5\n" for k in range(300)))
+    for method in ("srm", "lsm", "oe", "malsm", "wlsm", "blockls"):
+        assert "too few samples: 12" in _one_line_error(run, str(short), "--method", method)
+        assert "flat output" in _one_line_error(run, str(dead), "--method", method)
 
 
 @pytest.mark.parametrize(
@@ -375,3 +388,76 @@ def test_spreadsheet_problems_are_one_line(
     path = tmp_path / "bad.csv"
     path.write_bytes(content)
     assert message in _one_line_error(run, str(path), "--method", "lsm")
+
+
+def _fopdt_step(n: int = 700) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A kit-like step in % and °C (0.6 °C/%, 140 s, 15 s), 0.05 °C of seeded noise."""
+    from thermolab.ident.oe import simulate_fopdt_at
+
+    t = np.arange(float(n))
+    u = np.where(t >= 20, 50.0, 0.0)
+    noise = np.random.default_rng(21).normal(0.0, 0.05, n)
+    return t, u, 21.0 + simulate_fopdt_at(t, u, 0.6, 140.0, 15.0) + noise
+
+
+@pytest.mark.parametrize(
+    ("header", "options"),
+    [
+        ("Time (s),Q1 (%),T1 (°C),T2 (°C)", ["--columns", "t=Time,u=Q1,y=T1"]),
+        ("time [sec],heater,temperature (degC),T2", ["--columns", "t=1,u=heater,y=3",
+                                                    "--units", "u=%"]),
+        (None, ["--columns", "t=1,u=2,y=3", "--units", "u=%,y=°C"]),
+        ("Time,T1,T2,Q1,Q2", []),  # the tclab Historian's layout, recognised
+    ],
+)  # fmt: skip
+def test_columns_by_name_or_position_and_units_from_the_header(
+    run: Run, tmp_path: Path, header: str | None, options: list[str]
+) -> None:
+    t, u, y = _fopdt_step()
+    order = (t, y, y - 1.0, u, 0 * u) if header == "Time,T1,T2,Q1,Q2" else (t, u, y, y - 1.0)
+    rows = zip(*order, strict=True)
+    body = "".join(",".join(repr(float(v)) for v in row) + "\n" for row in rows)
+    path = tmp_path / "kit.csv"
+    path.write_text(("" if header is None else header + "\n") + body, encoding="utf-8")
+    code, out, err = run(str(path), "--method", "oe", *options, "--json")
+    assert code == 0, err
+    s = json.loads(out)
+    assert s["units"]["K"] == "°C/%"
+    assert_allclose([s["K"], s["tau"], s["theta"]], [0.6, 140.0, 15.0], rtol=0.03, atol=0.5)
+    assert s["trusted"]
+    assert " V" not in json.dumps(s, ensure_ascii=False)
+
+
+def test_a_bad_column_map_is_one_line(run: Run, tmp_path: Path) -> None:
+    path = tmp_path / "kit.csv"
+    path.write_text("Time,Q1,T1\n0,0,20\n1,50,20\n2,50,20.3\n")
+    err = _one_line_error(run, str(path), "--method", "lsm", "--columns", "t=Time,u=Q9,y=T1")
+    assert "u='Q9'" in err
+    assert "names no such column" in err
+    err = _one_line_error(run, str(path), "--method", "lsm", "--columns", "t=Time,u=Q1")
+    assert "lacks y" in err
+    err = _one_line_error(run, str(path), "--method", "lsm", "--columns", "t=1,u=2,y=7")
+    assert "has 3 columns" in err
+
+
+def test_a_duplicated_time_is_merged_and_said_whichever_method(run: Run, tmp_path: Path) -> None:
+    t, u, y = _fopdt_step()
+    rows = [(0.0, 0.0, float(y[0])), *zip(t.tolist(), u.tolist(), y.tolist(), strict=True)]
+    path = tmp_path / "dup.csv"
+    path.write_text("t,u,y\n" + "".join(f"{a!r},{b!r},{c!r}\n" for a, b, c in rows))
+    for method in ("lsm", "oe", "malsm", "wlsm", "blockls", "srm"):
+        code, out, err = run(str(path), "--method", method, "--json")
+        assert code == 0, err
+        s = json.loads(out)
+        assert s["n_samples"] == t.size
+        assert any(w.startswith("duplicated time: 1 row") for w in s["warnings"]), method
+
+
+def test_a_saturated_input_is_refused_alike(run: Run, tmp_path: Path) -> None:
+    t, u, y = _fopdt_step()
+    path = tmp_path / "sat.csv"
+    rows = zip(t.tolist(), (2.5 * u).tolist(), y.tolist(), strict=True)
+    path.write_text("t,Q1 (%),T1 (°C)\n" + "".join(f"{a!r},{b!r},{c!r}\n" for a, b, c in rows))
+    for method in ("srm", "lsm", "oe", "malsm", "wlsm", "blockls"):
+        err = _one_line_error(run, str(path), "--method", method, "--columns", "t=t,u=Q1,y=T1")
+        assert "saturated input: the record asks the heater for 125 %" in err

@@ -270,7 +270,7 @@ def test_every_entry_point_agrees_with_the_registry(
 
 # The options of each command that are not method settings.
 COMMAND_OPTIONS = {
-    "identify": {"help", "file", "method", "dt", "json", "plot"},
+    "identify": {"help", "file", "method", "dt", "json", "plot", "columns", "units"},
     "run": {"help", "rig", "dt", "duration", "samples", "signal", "method", "speedup", "fast",
             "seed", "out", "json", "max_output", "watchdog",
             # closed-loop control (thermolab.control), not identifier settings

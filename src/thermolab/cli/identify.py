@@ -14,6 +14,7 @@ import argparse
 import inspect
 import json
 import math
+import re
 import sys
 import warnings
 from pathlib import Path
@@ -25,6 +26,7 @@ from thermolab.ident.advice import advice
 from thermolab.ident.registry import METHOD_NAMES, get_method, owners
 
 if TYPE_CHECKING:  # the records module loads NumPy; `thermolab --help` should not
+    from thermolab.ident.verdict import Verdict
     from thermolab.records import Record
 
 __all__ = ["register", "run"]
@@ -45,6 +47,20 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         required=True,
         choices=METHOD_NAMES,
         help="; ".join(f"{name}: {_label(name)}" for name in METHOD_NAMES),
+    )
+    p.add_argument(
+        "--columns",
+        metavar="t=COL,u=COL,y=COL",
+        help="which columns are the time, the input and the output: header names (with or "
+        "without their unit, any case) or positions counted from 1, e.g. t=Time,u=Q1,y=T1, or "
+        "t=1,u=2,y=3 for a file without a header (default: the columns t,u,y, else the tclab "
+        "Historian's Time,Q1,T1)",
+    )
+    p.add_argument(
+        "--units",
+        metavar="u=UNIT,y=UNIT",
+        help="units of the input and output, e.g. u=%%,y=°C (default: from the header, as in "
+        "'T1 (°C)'; volts for the lab's own t,u,y records)",
     )
     p.add_argument(
         "--dt",
@@ -92,20 +108,61 @@ def run(args: argparse.Namespace) -> int:
             )
     from thermolab.records import read_record
 
-    record = read_record(Path(args.file), channels=())
+    record = read_record(
+        Path(args.file), channels=(), columns=args.columns, units=args.units, equal_times="last"
+    )
+    units = record.units
+    u_unit, y_unit = units["u"], units["y"]
     dt = args.dt if args.dt is not None else record.median_dt
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        result = _identify(method, record, dt, args)
-    summary = _summary(method, result, dt, args)
+    from thermolab.errors import InsufficientExcitationError, ThermoLabError
+    from thermolab.ident.verdict import check_identifiable
+
+    merged = []
+    if record.merged_times is not None:
+        count, first = record.merged_times
+        merged.append(
+            f"duplicated time: {count} row{'s' if count > 1 else ''} shared the time stamp of the "
+            f"next (first at t = {first:g} s); the last reading at each time was kept"
+        )
+    try:
+        check_identifiable(record.u, record.y, y_unit, u_unit)  # one refusal for every method
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = _identify(method, record, dt, args)
+        summary = _summary(method, result, dt, args)
+        if summary.get("K") is None or summary.get("tau") is None or summary.get("valid") is False:
+            # Never a null model with exit status 0.
+            why = summary.get("reason") or "the estimate has no first-order meaning"
+            raise InsufficientExcitationError(f"no first-order model from {method}: {why}")
+    except ThermoLabError as exc:
+        if merged:  # the refusal may come from the rows merged: say so on the same line
+            exc.args = (f"{exc}; {merged[0]}",)
+        raise _in_units_error(exc, u_unit, y_unit) from None
+    from thermolab.ident.diagnostics import timing_warnings
+
     notes = list(summary.get("warnings", []))
-    for w in caught:
-        text = str(w.message)
+    # The same jitter and gap warnings whichever method is asked.
+    for text in merged + [str(w.message) for w in caught] + timing_warnings(record.t):
         if text not in notes:
             notes.append(text)
-    summary["warnings"] = notes
-    summary["advice"] = [advice(note) for note in notes]
-    summary["trusted"] = bool(summary.get("trusted", summary.get("valid", True))) and not notes
+    verdict = _verdict(method, {**summary, "warnings": notes}, record, dt)
+    summary["warnings"] = [in_units(note, u_unit, y_unit) for note in notes]
+    summary["advice"] = [in_units(advice(note), u_unit, y_unit) for note in notes]
+    summary["trusted"] = verdict.trusted
+    summary["verdict"] = verdict.to_dict()
+    summary["verdict"]["reasons"] = [in_units(r, u_unit, y_unit) for r in verdict.reasons]
+    summary["verdict"]["notes"] = [in_units(r, u_unit, y_unit) for r in verdict.notes]
+    if summary.get("reason"):
+        summary["reason"] = in_units(summary["reason"], u_unit, y_unit)
+    op = summary.get("operating_point")
+    if isinstance(op, dict):
+        for key in ("reason", "start"):
+            if isinstance(op.get(key), str):
+                op[key] = in_units(op[key], u_unit, y_unit)
+    k_unit = (
+        f"{y_unit}/{u_unit}" if y_unit and u_unit else y_unit or (f"1/{u_unit}" if u_unit else "")
+    )
+    summary["units"] = {"t": "s", "u": u_unit, "y": y_unit, "K": k_unit, "tau": "s", "theta": "s"}
     summary["file"] = str(args.file)
     summary["n_samples"] = record.n
     if args.plot:
@@ -117,6 +174,109 @@ def run(args: argparse.Namespace) -> int:
         for note, what in zip(notes, summary["advice"], strict=True):
             print(f"warning: {note}\n  what it means, what to do: {what}", file=sys.stderr)
     return 0
+
+
+_INPUT_WORDS = ("input", "under", "kept at", "stays at", "u[0]", "held")
+_OUTPUT_WORDS = ("output", "ambient", "y[0]", "noise", "rms", "±", "it changes", "changed by")
+_VOLTS = re.compile(r"(?P<num>[-+]?\d[\d.]*(?:e[-+]?\d+)?) V\b")
+
+
+def in_units(text: str, u_unit: str, y_unit: str) -> str:
+    """A method's message with its volts in the record's units (input or output, by context).
+
+    The methods speak of volts (the paper's rig); a record in % and °C should
+    not read "V". Each number followed by ``V`` takes the unit of the signal
+    named nearest before it.
+
+    Examples
+    --------
+    >>> in_units("small step: the input changes by 0.5 V; the output moves 2 V", "%", "°C")
+    'small step: the input changes by 0.5 %; the output moves 2 °C'
+    """
+    if u_unit == "V" and y_unit == "V":
+        return text
+
+    def unit(m: re.Match[str]) -> str:
+        before = text[: m.start()].lower()
+        last_in = max(before.rfind(w) for w in _INPUT_WORDS)
+        last_out = max(before.rfind(w) for w in _OUTPUT_WORDS)
+        chosen = u_unit if last_in > last_out else y_unit
+        return m.group("num") + (f" {chosen}" if chosen else "")
+
+    out = _VOLTS.sub(unit, text)
+    return out.replace("in volts", "in the record's units").replace("of volts", "")
+
+
+def _in_units_error(exc: Exception, u_unit: str, y_unit: str) -> Exception:
+    """``exc`` again, its message in the record's units (the same type, for the exit status)."""
+    text = in_units(str(exc), u_unit, y_unit)
+    if text == str(exc):
+        return exc
+    try:
+        return type(exc)(text)
+    except TypeError:
+        return exc
+
+
+_ON_TIME_STAMPS = ("srm", "oe")
+"""Methods that use the recorded time stamps (interpolated crossing; simulation at the stamps)."""
+
+
+def _verdict(method: str, s: dict[str, Any], record: Record, dt: float) -> Verdict:
+    """Judge the model on the record (:func:`thermolab.ident.verdict.judge`).
+
+    Every method but oe is compared with the output-error fit of the same record
+    (the unbiased whole-record estimate, which simulates at the time stamps).
+    """
+    import numpy as np
+
+    from thermolab.ident.verdict import judge
+
+    peer = None if method == "oe" else _peer_estimate(record.t, record.u, record.y, dt)
+    at_rest = None
+    if record.u[0] != 0.0:
+        # What the record would say had the kit been at rest, input off, before it.
+        t0 = float(record.t[0]) - dt
+        rest = _peer_estimate(
+            np.r_[t0, record.t], np.r_[0.0, record.u], np.r_[record.y[0], record.y], dt, "rest"
+        )
+        at_rest = {**rest, "u0": float(record.u[0])}
+    after = s.get("after_convergence")
+    converged = None if after is None else bool(after.get("converged"))
+    valid = s.get("valid", True) is not False
+    return judge(
+        s.get("K") if valid else None,
+        s.get("tau") if valid else None,
+        s.get("theta"),
+        s["warnings"],
+        record.t,
+        record.u,
+        record.y,
+        honours_time=method in _ON_TIME_STAMPS,
+        peer=peer,
+        converged=converged,
+        reason=s.get("reason"),
+        at_rest=at_rest,
+    )
+
+
+def _peer_estimate(t: Any, u: Any, y: Any, dt: float, start: str = "auto") -> dict[str, Any]:
+    """The output-error fit of a record with its defaults, or no model (and why)."""
+    from thermolab.errors import ThermoLabError
+    from thermolab.ident.oe import output_error, output_error_at_rest
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            if start == "rest":
+                r = output_error_at_rest(u, y, dt, t=t)
+            else:
+                r = output_error(u, y, dt, t=t)
+    except ThermoLabError as exc:
+        return {"method": "oe", "K": None, "tau": None, "theta": None, "reason": str(exc)}
+    if not r.model.valid:
+        return {"method": "oe", "K": None, "tau": None, "theta": None, "reason": r.model.reason}
+    return {"method": "oe", "K": r.K, "tau": r.tau, "theta": r.theta}
 
 
 def _identify(method: str, record: Record, dt: float, args: argparse.Namespace) -> Any:
@@ -144,6 +304,12 @@ def _summary(method: str, result: Any, dt: float, args: argparse.Namespace) -> d
     stats = {k: v for k, v in stats.items() if k in m.setting_names("statistics")}
     d = result.to_dict(arrays=False, **stats)
     final = d.pop("final")
+    at, last = result.last_estimate
+    if at is not None and at != result.n_samples - 1:
+        # A complete record: its answer is the last estimate made, not "not yet".
+        final = {"K": last.K if last.valid else None, "tau": last.tau if last.valid else None,
+                 "theta": last.theta if last.valid else None, "valid": last.valid,
+                 "reason": last.reason}  # fmt: skip
     out = {
         "method": method,
         "dt": dt,
@@ -152,6 +318,7 @@ def _summary(method: str, result: Any, dt: float, args: argparse.Namespace) -> d
         "theta": final["theta"],
         "valid": final["valid"],
         "reason": final["reason"],
+        "estimate_at": at,
         "stats": d.pop("stats"),
         # The paper's count (statistics after convergence) unless --last asks
         # for the last N samples.
@@ -178,17 +345,19 @@ def _table(s: dict[str, Any]) -> str:
         lines += _trajectory_table(s)
         lines += _trust_lines(s)
         return "\n".join(lines)
-    rows = [("K", _num(s["K"])), ("tau", f"{_num(s['tau'])} s")]
+    un = s.get("units", {})
+    u_unit, y_unit = un.get("u", "V"), un.get("y", "V")
+    rows = [("K", f"{_num(s['K'])} {un.get('K', '')}".rstrip()), ("tau", f"{_num(s['tau'])} s")]
     if s.get("theta") is not None:
         rows.append(("theta (dead time)", f"{_num(s['theta'], '.6g')} s"))
     if method == "srm":
         rows += [
             ("K (paper, last sample)", _num(s["K_last_sample"])),
-            ("final value", f"{_num(s['final_value'])} V ({s['final_value_basis']})"),
+            ("final value", f"{_num(s['final_value'])} {y_unit} ({s['final_value_basis']})"),
             ("tau from", s["tau_basis"]),
             (
                 "step",
-                f"{s['u_before']:g} -> {s['u_after']:g} V at t = {s['step_time']:g} s "
+                f"{s['u_before']:g} -> {s['u_after']:g} {u_unit} at t = {s['step_time']:g} s "
                 f"({s['direction']})",
             ),
             (
@@ -277,12 +446,23 @@ def _trust_lines(s: dict[str, Any]) -> list[str]:
             f"input independence {'ok' if rt['independent'] else 'failed'}, 99 % bound "
             f"±{_num(rt['bound'], '.3g')})"
         )
-    n = len(s["warnings"])
-    lines.append(
-        "trusted          yes" if s["trusted"] else
-        f"trusted          NO ({n} warning{'s' if n != 1 else ''} below)" if n else
-        "trusted          NO (the estimate is not a valid first-order model)"
-    )  # fmt: skip
+    v = s["verdict"]
+    if v["fit_record"] is not None:
+        lines.append(
+            f"free-run fit     {v['fit_record']:.1f} % on the record, {v['fit_holdout']:.1f} % "
+            "on its last third (predicted)"
+        )
+    peer = v["agreement"]
+    if peer and peer.get("K") is not None:
+        lines.append(
+            f"compared with    {peer['method']}: K {_num(peer['K'], '.4g')}, tau "
+            f"{_num(peer['tau'], '.4g')} s, theta {_num(peer['theta'], '.3g')} s"
+        )
+    if s["trusted"]:
+        lines.append("trusted          yes")
+    else:
+        lines.append("trusted          NO, because:")
+        lines += [f"  - {reason}" for reason in v["reasons"]]
     return lines
 
 

@@ -49,7 +49,13 @@ from .deadtime import default_max_delay
 from .models import ArxOrder, FirstOrderModel
 from .registry import SETTINGS
 
-__all__ = ["OutputErrorResult", "output_error", "simulate_fopdt"]
+__all__ = [
+    "OutputErrorResult",
+    "output_error",
+    "output_error_at_rest",
+    "simulate_fopdt",
+    "simulate_fopdt_at",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -87,6 +93,50 @@ def simulate_fopdt(
     out[0] = x0
     if n > 1:
         out[1:] = lfilter([1.0], [1.0, -a], drive, zi=[a * x0])[0]
+    return out
+
+
+def simulate_fopdt_at(
+    t: FloatArray,
+    u: FloatArray,
+    K: float,
+    tau: float,
+    theta: float,
+    x0: float = 0.0,
+    u_before: float | None = None,
+) -> FloatArray:
+    """Deviation ``x`` of the FOPDT model at the recorded time stamps ``t``.
+
+    Exact for an input held from each time stamp to the next (jitter, gaps):
+    the delayed input changes at ``t[i] + theta``, between samples as often as
+    not, so the model is stepped over the merged grid of both. The input
+    before the record is held at ``u_before`` (default ``u[0]``); ``x[0] = x0``.
+    On evenly spaced times it agrees with :func:`simulate_fopdt`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> u = np.r_[0.0, np.ones(5)]
+    >>> x = simulate_fopdt_at(np.arange(6.0), u, 1.0, 1.0, 1.5)
+    >>> bool(np.allclose(x, simulate_fopdt(u, 1.0, 1.0, 1.5, 1.0), atol=1e-12))
+    True
+    """
+    past = float(u[0]) if u_before is None else float(u_before)
+    shifted = t + theta
+    grid = np.union1d(t, shifted[(shifted > t[0]) & (shifted < t[-1])])
+    # Which recorded input drives each grid interval (-1: the input before the record);
+    # a margin so that t[j] + theta - theta lands on sample j, not before it.
+    margin = 1e-9 * max(float(np.max(np.abs(t))), 1.0)
+    idx = np.searchsorted(t, grid - theta + margin, side="right") - 1
+    v = np.where(idx >= 0, u[np.maximum(idx, 0)], past)
+    a = np.exp(-np.diff(grid) / tau)
+    drive = (K * (1.0 - a) * v[:-1]).tolist()
+    x = [x0]
+    last = x0
+    for ak, dk in zip(a.tolist(), drive, strict=True):
+        last = ak * last + dk
+        x.append(last)
+    out: FloatArray = np.asarray(x)[np.searchsorted(grid, t)]
     return out
 
 
@@ -197,6 +247,7 @@ def output_error(
     theta: float | None = SETTINGS["theta"].default,
     max_delay: int | None = SETTINGS["max_delay"].default,
     expected_sign: int | None = SETTINGS["expected_sign"].default,
+    t: npt.ArrayLike | None = None,
 ) -> OutputErrorResult:
     """Fit ``K exp(-theta s) / (tau s + 1)`` by minimising the free-run simulation error.
 
@@ -214,6 +265,11 @@ def output_error(
         :func:`thermolab.ident.least_squares`).
     expected_sign : {1, -1}, optional
         The sign the gain must have; the other sign is flagged.
+    t : array_like, optional
+        The sample times (s), strictly increasing. Jitter and gaps are flagged
+        as by :func:`thermolab.ident.least_squares`, and where they are found
+        the model is simulated at these times (:func:`simulate_fopdt_at`)
+        instead of every ``dt``.
 
     Returns
     -------
@@ -247,10 +303,55 @@ def output_error(
     >>> abs(r.K / 0.14 - 1) < 0.02, abs(r.tau / 250 - 1) < 0.05, abs(r.theta - 12.5) < 1.5
     (True, True, True)
     """
+    return _fit(u, y, dt, theta, max_delay, expected_sign, t, at_rest=False)
+
+
+def output_error_at_rest(
+    u: npt.ArrayLike,
+    y: npt.ArrayLike,
+    dt: float,
+    *,
+    t: npt.ArrayLike | None = None,
+) -> OutputErrorResult:
+    """:func:`output_error` with the kit at rest at its ambient, input off, before the record.
+
+    The initial state is not fitted, whatever the data say: what a record
+    means when its notebook says the kit was cold before it. A record whose
+    model differs from this one depends on what came before it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(-1.0, 700.0); u = np.where(t >= 0, 50.0, 0.0)
+    >>> y = 21.0 + simulate_fopdt_at(t, u, 0.6, 140.0, 15.0)
+    >>> r = output_error_at_rest(u, y, 1.0, t=t)
+    >>> round(r.K, 3), round(r.tau, 1), round(r.theta, 1)
+    (0.6, 140.0, 15.0)
+    """
+    defaults = SETTINGS["theta"].default, SETTINGS["max_delay"].default
+    return _fit(u, y, dt, *defaults, SETTINGS["expected_sign"].default, t, at_rest=True)
+
+
+def _fit(
+    u: npt.ArrayLike,
+    y: npt.ArrayLike,
+    dt: float,
+    theta: float | None,
+    max_delay: int | None,
+    expected_sign: int | None,
+    t: npt.ArrayLike | None,
+    *,
+    at_rest: bool,
+) -> OutputErrorResult:
     u_arr, y_arr = _v.as_record(u, y)
     step = _v.check_dt(dt)
     n = y_arr.size
     _v.check_min_samples(n, 20, "the output-error fit")
+    timing: list[str] = []
+    t_arr: FloatArray | None = None
+    if t is not None:
+        t_arr, steps = _v.check_time_steps(t, n)
+        timing = _diag.timing_warnings_from_steps(t_arr, steps)
     if np.all(u_arr == u_arr[0]):
         raise InsufficientExcitationError(
             "no excitation: the input never changes in the record, so the output-error fit "
@@ -279,7 +380,9 @@ def output_error(
     # record); otherwise it is free. Both free on a record that starts at rest
     # would make the ambient, the initial state and the gain indistinguishable
     # after a single step.
-    at_rest = arx.operating_point is not None and arx.operating_point.handling == "initial"
+    at_rest = at_rest or (
+        arx.operating_point is not None and arx.operating_point.handling == "initial"
+    )
     if not arx.model.valid:
         raise InsufficientExcitationError(
             f"the output-error fit needs a starting model, and least squares gave none: "
@@ -308,18 +411,21 @@ def output_error(
 
     def residual(p: FloatArray) -> FloatArray:
         K, tau, th, amb, x0, past = unpack(p)
-        x = simulate_fopdt(u_arr, K, tau, th, step, x0, past)
+        if timing and t_arr is not None:
+            x = simulate_fopdt_at(t_arr, u_arr, K, tau, th, x0, past)
+        else:
+            x = simulate_fopdt(u_arr, K, tau, th, step, x0, past)
         r: FloatArray = amb + x - y_arr
         return r
 
-    start = {"K": K0, "log_tau": math.log(tau0), "ambient": amb0, "x0": x00, "theta": th0}
-    start["u_before"] = float(u_arr[0])
+    first = {"K": K0, "log_tau": math.log(tau0), "ambient": amb0, "x0": x00, "theta": th0}
+    first["u_before"] = float(u_arr[0])
     lower = {"log_tau": math.log(tau_lo), "theta": 0.0}
     upper = {"log_tau": math.log(tau_hi), "theta": theta_hi}
     widths = {"K": max(abs(K0), 1e-6), "log_tau": 0.1, "ambient": scale_y, "x0": scale_y}
     widths["theta"] = step
     widths["u_before"] = max(float(np.ptp(u_arr)), 1e-12)
-    p0 = [start[k] for k in names]
+    p0 = [first[k] for k in names]
     lo = [lower.get(k, -np.inf) for k in names]
     hi = [upper.get(k, np.inf) for k in names]
     x_scale = [widths[k] for k in names]
@@ -366,6 +472,8 @@ def output_error(
             )
     if not best.success:
         notes.append(f"the optimiser did not converge: {best.message}")
+    # The same words as every method; this fit simulated at the recorded times.
+    notes += timing
     for note in notes:
         warnings.warn(note, IdentificationWarning, stacklevel=2)
     return OutputErrorResult(

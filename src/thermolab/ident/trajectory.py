@@ -12,7 +12,13 @@ import numpy.typing as npt
 from thermolab.errors import InvalidParameterError
 from thermolab.jsonsafe import finite_or_none, json_safe
 
-from .models import INVALID_REASONS, ArxOrder, FirstOrderModel, discrete_to_first_order
+from .models import (
+    INVALID_REASONS,
+    NO_ESTIMATE,
+    ArxOrder,
+    FirstOrderModel,
+    discrete_to_first_order,
+)
 from .operating_point import OperatingPoint
 
 if TYPE_CHECKING:
@@ -151,6 +157,26 @@ class Trajectory:
             return FirstOrderModel(math.nan, math.nan, INVALID_REASONS[code])
         return FirstOrderModel(
             float(self.K[-1]), float(self.tau[-1]), theta=self.order.delay * self.dt
+        )
+
+    @property
+    def last_estimate(self) -> tuple[int | None, FirstOrderModel]:
+        """The last sample that holds an estimate, and its model: the offline answer.
+
+        On a complete record the samples after the last full block (or before
+        the first full window) have no estimate of their own; the record's best
+        answer is then the last estimate made, not "no estimate yet".
+        ``(None, final)`` when no sample holds one.
+        """
+        has = np.flatnonzero(self.reason_code != NO_ESTIMATE)
+        if not has.size:
+            return None, self.final
+        k = int(has[-1])
+        code = int(self.reason_code[k])
+        if code:
+            return k, FirstOrderModel(math.nan, math.nan, INVALID_REASONS[code])
+        return k, FirstOrderModel(
+            float(self.K[k]), float(self.tau[k]), theta=self.order.delay * self.dt
         )
 
     @property

@@ -48,14 +48,19 @@ def exact_columns(
     wanted: tuple[str, ...],
     dialect: Dialect,
     decimal: str | None,
+    equal_times: bool = False,
 ) -> tuple[dict[str, npt.NDArray[np.float64]], Dialect]:
-    """Read the file with the csv module: the reference semantics, with exact diagnostics."""
+    """Read the file with the csv module: the reference semantics, with exact diagnostics.
+
+    ``equal_times``: a time equal to the previous one is read (the caller merges them).
+    """
     encoding = dialect.encoding
+    args = (path, header_line, names, wanted, dialect, decimal)
     try:
-        return _exact_read(path, header_line, names, wanted, dialect, decimal, encoding)
+        return _exact_read(*args, encoding, equal_times)
     except UnicodeDecodeError:
         # UTF-8 in the first 64 KiB but not further on: a Latin-1 file after all.
-        return _exact_read(path, header_line, names, wanted, dialect, decimal, "latin-1")
+        return _exact_read(*args, "latin-1", equal_times)
 
 
 def _exact_read(
@@ -66,6 +71,7 @@ def _exact_read(
     dialect: Dialect,
     decimal: str | None,
     encoding: str,
+    equal_times: bool = False,
 ) -> tuple[dict[str, npt.NDArray[np.float64]], Dialect]:
     index = [names.index(n) for n in wanted]
     required = len(REQUIRED)
@@ -136,7 +142,7 @@ def _exact_read(
                         f"{row[j].strip()!r} is not finite (NaN or inf); remove or repair the row"
                     )
                 if c == 0:
-                    if not v > previous_t:
+                    if not (v > previous_t or (equal_times and v == previous_t)):
                         raise RecordFormatError(
                             f"{path}: line {line} (sample {sample}): t = {v!r} does not "
                             f"increase (previous t = {previous_t!r}); t must be strictly "

@@ -4,17 +4,20 @@ from __future__ import annotations
 
 import codecs
 import csv
+import dataclasses
 import math
 import os
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 
 from thermolab.errors import RecordFormatError
 from thermolab.records._exact import check_cell_marks, exact_columns, mixed_marks
+from thermolab.records._mapping import KNOWN_LAYOUTS, map_columns, parse_assignments, split_unit
 from thermolab.records.channels import KNOWN_CHANNELS, REQUIRED, ChannelSpec, channel_names
 from thermolab.records.dialect import Dialect
 
@@ -36,12 +39,16 @@ class Record:
         The ``#`` lines before the header, without the ``#``.
     dialect : Dialect
         The separator, decimal mark and encoding found.
+    merged_times : tuple of (int, float) or None
+        With ``equal_times="last"``: how many rows shared their time with the
+        next and were dropped, and the first such time; None if none.
     """
 
     channels: tuple[ChannelSpec, ...]
     columns: Mapping[str, npt.NDArray[np.float64]]
     comments: tuple[str, ...] = ()
     dialect: Dialect = field(default_factory=Dialect)
+    merged_times: tuple[int, float] | None = None
 
     @property
     def t(self) -> npt.NDArray[np.float64]:
@@ -57,6 +64,11 @@ class Record:
     def y(self) -> npt.NDArray[np.float64]:
         """Outputs."""
         return self.columns["y"]
+
+    @property
+    def units(self) -> dict[str, str]:
+        """The unit of every channel (``""`` where the file does not say)."""
+        return {c.name: c.unit for c in self.channels}
 
     @property
     def n(self) -> int:
@@ -84,6 +96,10 @@ def read_record(
     channels: Iterable[str] | None = None,
     known: Iterable[ChannelSpec] = (),
     min_rows: int = 3,
+    columns: Mapping[str, str | int] | str | None = None,
+    units: Mapping[str, str] | str | None = None,
+    header: bool | None = None,
+    equal_times: Literal["refuse", "last"] = "refuse",
 ) -> Record:
     """Read a record from a CSV file.
 
@@ -101,6 +117,23 @@ def read_record(
         carries names only); other unknown columns get ``ChannelSpec(name)``.
     min_rows : int, optional
         The fewest samples accepted (default 3).
+    columns : mapping or str, optional
+        Which columns are ``t``, ``u`` and ``y``: a header name (with or
+        without its unit, any case) or a 1-based position, as a mapping or as
+        text ``"t=Time,u=Q1,y=T1"`` / ``"t=1,u=2,y=3"``. Default: the columns
+        named ``t, u, y``, else a known layout (the ``tclab`` Historian's
+        ``Time, T1, T2, Q1, Q2``: heater 1).
+    units : mapping or str, optional
+        Units of ``t, u, y`` (``"u=%,y=°C"``), over those in the header
+        (``T1 (°C)``, ``Time [s]``).
+    header : bool, optional
+        Whether the first line that is not a comment is a header (default:
+        it is, unless every cell is a number; a file without one needs
+        positions in ``columns``).
+    equal_times : {"refuse", "last"}, optional
+        Rows whose time equals the previous row's: refused (the default), or
+        merged into the last of them (the latest reading at that time); the
+        record's ``merged_times`` says how many rows were dropped and where.
 
     Returns
     -------
@@ -157,20 +190,60 @@ def read_record(
         if line.strip() and not line.lstrip().startswith("#")
     ][:_SNIFF_LINES]
     delimiter = _delimiter(path, header_index + 1, header_line, samples)
-    header = next(csv.reader([header_line], delimiter=delimiter))
-    names = [c.strip().lower() for c in header]
-    wanted = _wanted(path, header_index + 1, header, names, channels)
+    first = next(csv.reader([header_line], delimiter=delimiter))
+    column_map: Mapping[str, str | int] | None = (
+        parse_assignments(columns, "columns") if isinstance(columns, str) else columns
+    )
+    given_units = parse_assignments(units, "units") if isinstance(units, str) else dict(units or {})
+    has_header = header if header is not None else not all(_is_number(c) for c in first)
+    if not has_header and column_map is not None:
+        # No header: the first line is a sample; columns are named c1, c2, ...
+        samples = [(header_index + 1, header_line), *samples][:_SNIFF_LINES]
+        split = [(f"c{j + 1}", "") for j in range(len(first))]
+        skip = header_index
+    else:
+        split = [split_unit(c) for c in first]
+        skip = header_index + 1
+    names = [n.lower() for n, _ in split]
+    layout_units: dict[str, str] = {}
+    if column_map is None and has_header and not {"t", "u", "y"} <= set(names):
+        for layout, layout_unit in KNOWN_LAYOUTS:
+            if all(names.count(v) == 1 for v in layout.values()):
+                column_map, layout_units = dict(layout), dict(layout_unit)
+                break
+    if column_map is not None:
+        where = map_columns(
+            path, header_index + 1, first if has_header else None, len(first), column_map
+        )
+        names = _other_names(names, where)
+        # A file that is not the lab's own: its units are what it says, not volts.
+        layout_units = {"t": "s", "u": "", "y": "", **layout_units}
+    said = {names[j]: unit for j, (_, unit) in enumerate(split) if unit}
+    unit_of = {**layout_units, **said, **given_units}
+    wanted = _wanted(path, header_index + 1, first, names, channels)
     decimal = _decimal(path, delimiter, names, samples)
     dialect = Dialect(delimiter, decimal or ".", encoding)
     # Bytes up to the end of the header line (the newline after it, if any).
     body = start
-    for _ in range(header_index + 1):
+    for _ in range(skip):
         newline = complete.find(b"\n", body)
         body = len(complete) if newline < 0 else newline + 1
-    columns = _fast_columns(path, body, names, wanted, dialect)
-    if columns is None or not _plausible(columns):
-        columns, dialect = exact_columns(path, header_index + 1, names, wanted, dialect, decimal)
-    n = int(columns["t"].size)
+    if equal_times not in ("refuse", "last"):
+        raise ValueError(f"equal_times must be 'refuse' or 'last', got {equal_times!r}")
+    merge = equal_times == "last"
+    arrays = _fast_columns(path, body, names, wanted, dialect)
+    if arrays is None or not _plausible(arrays, merge):
+        arrays, dialect = exact_columns(path, skip, names, wanted, dialect, decimal, merge)
+    merged: tuple[int, float] | None = None
+    if merge:
+        t = arrays["t"]
+        dropped = np.flatnonzero(t[1:] == t[:-1])
+        if dropped.size:
+            keep = np.ones(t.size, dtype=bool)
+            keep[dropped] = False  # the earlier of two rows at one time
+            merged = (int(dropped.size), float(t[dropped[0]]))
+            arrays = {k: np.ascontiguousarray(v[keep]) for k, v in arrays.items()}
+    n = int(arrays["t"].size)
     if n < min_rows:
         raise RecordFormatError(
             f"{path}: too few rows: {n} sample{'s' if n != 1 else ''}, "
@@ -178,7 +251,42 @@ def read_record(
         )
     declared = {**KNOWN_CHANNELS, **{c.name: c for c in known}}
     specs = tuple(declared.get(name) or ChannelSpec(name) for name in wanted)
-    return Record(channels=specs, columns=columns, comments=tuple(comments), dialect=dialect)
+    specs = tuple(
+        dataclasses.replace(c, unit=unit_of[c.name]) if c.name in unit_of else c for c in specs
+    )
+    return Record(
+        channels=specs,
+        columns=arrays,
+        comments=tuple(comments),
+        dialect=dialect,
+        merged_times=merged,
+    )
+
+
+def _is_number(cell: str) -> bool:
+    try:
+        float(cell.strip().replace(",", "."))
+    except ValueError:
+        return False
+    return True
+
+
+def _other_names(names: list[str], where: Mapping[str, int]) -> list[str]:
+    """Header names with t, u, y at the mapped columns; other columns as valid, distinct names."""
+    out: list[str] = []
+    for j, name in enumerate(names):
+        clean = "_".join("".join(c if c.isascii() and c.isalnum() else " " for c in name).split())
+        if not clean or not clean[0].isalpha():
+            clean = f"c{j + 1}" if not clean else f"c{j + 1}_{clean}"
+        out.append(clean)
+    for key, j in where.items():
+        out[j] = key
+    taken: set[str] = set()
+    for j, name in enumerate(out):
+        if name in taken or (name in ("t", "u", "y") and where.get(name) != j):
+            out[j] = f"{name}_{j + 1}"
+        taken.add(out[j])
+    return out
 
 
 def _read_head(path: Path) -> bytes:
@@ -374,10 +482,12 @@ def _to_numpy(chunked: object) -> npt.NDArray[np.float64]:
     return out
 
 
-def _plausible(columns: Mapping[str, npt.NDArray[np.float64]]) -> bool:
+def _plausible(columns: Mapping[str, npt.NDArray[np.float64]], equal: bool = False) -> bool:
     """True if the fast reader's t, u, y need no diagnosis (finite, t increasing)."""
     for name in channel_names(REQUIRED):
         if not np.isfinite(columns[name]).all():
             return False
     t = columns["t"]
+    if equal:
+        return bool(t.size < 2 or (t[1:] >= t[:-1]).all())
     return bool(t.size < 2 or (t[1:] > t[:-1]).all())
