@@ -3,11 +3,13 @@
 Browser tests use the system Chromium (``/usr/bin/chromium``) through Playwright;
 they never download a browser. Where either is missing they skip and say why.
 
-The end-to-end tests run a real lab, started the way a teacher would: users
-are created with ``thermolab user add ... --password-stdin`` and the lab runs
-as ``thermolab --data-dir DIR serve --config lab.toml --port PORT --speedup X``
-in a subprocess, so they exercise the shipped command line, the real app and
-the twin rigs, with nothing mocked.
+The end-to-end tests run a real lab as a teacher would: ``thermolab --data-dir
+DIR serve --config lab.toml --port PORT --speedup X`` in a subprocess, so they
+exercise the shipped command, the real app and the twin rigs, with nothing
+mocked. Its accounts are made in this process, through the same service
+``thermolab user add`` calls, on the lab's own database (the command itself is
+tested by tests/lab/test_cli.py): a process per account, each importing the lab
+and hashing at production cost, took most of a lab's start.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from argon2 import PasswordHasher
 
 from thermolab.web import STATIC_DIR
 
@@ -274,62 +277,36 @@ def running_lab(
     """
     (data_dir / "lab.toml").write_text(config, encoding="utf-8")
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    # The first account creates the database; the others are then added while
-    # the server starts (its start-up finds the schema already there).
-    accounts = list(users.items())
-    _wait_users(_add_users(data_dir, accounts[:1], env))
+    add_accounts(data_dir, users)
     server = LabServer(data_dir, _free_port(), env, speedup)
     server.start()
     try:
-        _wait_users(_add_users(data_dir, accounts[1:], env))
         server.wait_until_up()
         yield server
     finally:
         server.stop()
 
 
-def _add_users(
-    data_dir: Path, users: list[tuple[str, str]], env: dict[str, str]
-) -> list[tuple[str, subprocess.Popen[str]]]:
-    """Start ``thermolab user add`` for each user, the password on standard input."""
-    procs = []
-    for user, role in users:
-        proc = subprocess.Popen(
-            _thermolab(
-                data_dir,
-                "user",
-                "add",
-                user,
-                "--role",
-                role,
-                "--password-stdin",
-                # The lab's own file: its database_url (PostgreSQL) holds the accounts too.
-                "--config",
-                str(data_dir / "lab.toml"),
-            ),
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            text=True,
-            env=env,
-        )
-        assert proc.stdin is not None
-        proc.stdin.write(password(user) + "\n")
-        proc.stdin.close()
-        procs.append((user, proc))
-    return procs
+# Argon2 at its cheapest: the server verifies any hash by the parameters stored in it.
+CHEAP_HASHER = PasswordHasher(time_cost=1, memory_cost=8, parallelism=1)
 
 
-def _wait_users(procs: list[tuple[str, subprocess.Popen[str]]]) -> None:
-    failed = []
-    for user, proc in procs:
-        assert proc.stdout is not None
-        out = proc.stdout.read()
-        proc.stdout.close()
-        if proc.wait(60) != 0:
-            failed.append(f"{user}: {out.strip()}")
-    if failed:
-        raise RuntimeError("thermolab user add failed: " + "; ".join(failed))
+def add_accounts(data_dir: Path, users: dict[str, str]) -> None:
+    """Make the lab's database (migrated) and its accounts, as ``thermolab user add`` does."""
+    from thermolab.lab.accounts.users import UserService
+    from thermolab.lab.clock import SystemClock
+    from thermolab.lab.config import load_config
+    from thermolab.lab.db import Database
+
+    config = load_config(data_dir / "lab.toml", data_dir)
+    db = Database(config.database, pool_size=1, max_overflow=1)
+    try:
+        db.upgrade()
+        accounts = UserService(db, SystemClock(), CHEAP_HASHER)
+        for user, role in users.items():
+            accounts.add(user, password(user), role)
+    finally:
+        db.close()
 
 
 def _wait_until_up(url: str, proc: subprocess.Popen[bytes], log: Path) -> None:
