@@ -295,6 +295,7 @@ def test_the_tuning_table_from_an_identified_model(make_lab: LabFactory) -> None
     assert simc["predicted"]["settling_time"] > 0
     assert simc["response"]["y"][-1] == pytest.approx(50.0, abs=0.5)
     # tauC's published range is in the schema: refused before the route, one problem named.
-    answer = client.get(f"/api/runs/{run_id}/tuning", params={"tauC": -1})
-    assert (answer.status_code, answer.json()["code"]) == (422, "invalid_request")
-    assert answer.json()["errors"][0]["loc"] == ["query", "tauC"]
+    for tiny in (-1, 0, 5e-324, 1e-3):  # 5e-324 made the gains overflow: a 500 before
+        answer = client.get(f"/api/runs/{run_id}/tuning", params={"tauC": tiny})
+        assert (answer.status_code, answer.json()["code"]) == (422, "invalid_request")
+        assert answer.json()["errors"][0]["loc"] == ["query", "tauC"]

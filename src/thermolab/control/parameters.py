@@ -169,7 +169,8 @@ PARAMETERS: Mapping[str, ControlParameter] = MappingProxyType(
                              "first)", choices=("pid", "pi")),
             ControlParameter("tau_c", "number", None, "closed-loop time constant of imc and "
                              "simc (default: the model's dead time, or tau/10 without one)",
-                             0.0, 1e6, exclusive_minimum=True, unit="s"),
+                             # above a millisecond: a tinier one (5e-324) overflows the gains
+                             1e-3, 1e6, exclusive_minimum=True, unit="s"),
             ControlParameter("every", "integer", 50, "adaptive: retune every this many "
                              "samples", 1, 100_000, unit="samples"),
             ControlParameter("max_change", "number", 0.2, "adaptive: largest relative change "
