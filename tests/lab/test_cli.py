@@ -302,3 +302,23 @@ def _free_port() -> int:
         probe.bind(("127.0.0.1", 0))
         port: int = probe.getsockname()[1]
         return port
+
+
+def test_the_first_start_hint_names_the_command_as_it_can_be_typed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The quick start runs ``.venv/bin/thermolab`` from a venv that is not activated."""
+    from thermolab.cli.serve import command_name
+
+    script = tmp_path / ".venv" / "bin" / "thermolab"
+    script.parent.mkdir(parents=True)
+    script.write_text("#!/bin/sh\n")
+    script.chmod(0o755)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr("sys.argv", [str(script), "serve"])
+    monkeypatch.setenv("PATH", "/usr/bin:/bin")
+    assert command_name() == ".venv/bin/thermolab"
+    monkeypatch.setenv("PATH", str(script.parent))  # activated: the plain name works
+    assert command_name() == "thermolab"
+    monkeypatch.setattr("sys.argv", ["/somewhere/thermolab/__main__.py"])  # python -m
+    assert command_name() == "thermolab"

@@ -23,6 +23,7 @@ import argparse
 import asyncio
 import gc
 import os
+import shutil
 import socket
 import stat
 import sys
@@ -173,8 +174,24 @@ def lab_config_from_args(args: argparse.Namespace) -> LabConfig:
     return config
 
 
+def command_name() -> str:
+    """``thermolab`` as the user can type it here: the quick start's ``.venv/bin/thermolab``
+    is not on PATH (its venv is not activated), so a hint naming plain ``thermolab``
+    would fail as printed."""
+    script = Path(sys.argv[0])
+    if script.name != "thermolab":  # python -m thermolab, or an embedding program
+        return "thermolab"
+    found = shutil.which("thermolab")
+    if found and Path(found).resolve() == script.resolve():
+        return "thermolab"
+    try:
+        return str(Path(".") / script.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(script.resolve())
+
+
 def _teacher_hint(args: argparse.Namespace) -> str:
-    parts = ["thermolab"]
+    parts = [command_name()]
     if args.data_dir:
         parts += ["--data-dir", args.data_dir]
     parts += ["user", "add", "NAME", "--role", "teacher"]
@@ -288,7 +305,9 @@ def _serve(args: argparse.Namespace) -> int:
         if report.teachers == 0:
             print(
                 "  No teacher account yet. Create one (then log in at the address above) with:\n"
-                f"    {_teacher_hint(args)}",
+                f"    {_teacher_hint(args)}\n"
+                "  and each student the same way with --role student (or, once logged in,\n"
+                "  upload a class list on a course's page).",
                 file=sys.stderr,
             )
         static = STATIC_DIR if (STATIC_DIR / "index.html").is_file() else None
