@@ -301,7 +301,8 @@ def _add_users(
                 "add",
                 user,
                 "--role",
-                role,
+                # The browser journeys' teachers run the whole lab (accounts, rigs, LTI).
+                "admin" if role == "teacher" else role,
                 "--password-stdin",
                 # The lab's own file: its database_url (PostgreSQL) holds the accounts too.
                 "--config",
