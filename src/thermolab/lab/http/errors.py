@@ -66,11 +66,15 @@ from thermolab.lab.http.deps import COOKIE_NAME
 from thermolab.lab.http.schemas import ValidationErrorOut
 from thermolab.lab.live.fanout import CLOSE_BAD_REQUEST, CLOSE_UNAUTHORIZED, MAX_SEQ
 from thermolab.lab.lti.errors import (
+    LtiClaimError,
     LtiError,
+    LtiFormTooLargeError,
     LtiJwksUnreachableError,
     LtiReplayError,
     LtiServiceError,
     LtiStateError,
+    LtiTargetError,
+    LtiThrottledError,
     LtiUnknownDeploymentError,
     LtiUnknownPlatformError,
 )
@@ -131,6 +135,10 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     # The LTI 1.3 tool (issue #12): a refused launch, or a platform that failed us.
     LtiError: HttpFault(400, "lti_invalid_token"),
     LtiReplayError: HttpFault(400, "lti_replayed"),
+    LtiClaimError: HttpFault(400, "lti_claim_invalid"),
+    LtiTargetError: HttpFault(400, "lti_target_invalid"),
+    LtiFormTooLargeError: HttpFault(413, "lti_form_too_large"),
+    LtiThrottledError: HttpFault(429, "rate_limited"),
     LtiStateError: HttpFault(400, "lti_state_invalid"),
     LtiUnknownPlatformError: HttpFault(400, "lti_unknown_platform"),
     LtiUnknownDeploymentError: HttpFault(400, "lti_unknown_deployment"),
