@@ -239,7 +239,7 @@ def test_serve_starts_a_lab_and_says_how_to_add_a_teacher(
     assert f"ThermoLab on http://127.0.0.1:{port}/" in err
     assert "rigs: twin (sim)" in err
     assert "No teacher account yet" in err
-    assert f"thermolab --data-dir {data_dir} user add NAME --role teacher" in err
+    assert f"thermolab --data-dir {data_dir} user add NAME --role admin" in err
     assert any(getattr(route, "name", "") == "web" for route in app.routes)  # the browser UI
     run(
         [

@@ -384,7 +384,10 @@ def _describe_error(error: Any) -> str:
     message = error.get("msg", "invalid value")
     loc = error.get("loc", ())
     secret = bool(loc) and str(loc[-1]) in _SECRET_FIELDS
-    if "input" in error and kind != "missing" and not secret:
+    # Only a field's own scalar value is repeated: a whole body (a form, bytes, an
+    # object or a list) may carry a password in any field or encoding.
+    scalar = isinstance(error.get("input"), int | float | str) and where != "request body"
+    if "input" in error and kind != "missing" and not secret and scalar:
         shown = repr(error["input"])
         shown = shown if len(shown) <= 60 else shown[:57] + "..."
         return f"{where}: {message} (got {shown})"
