@@ -13,7 +13,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from thermolab.errors import AccessDeniedError, NotFoundError
-from thermolab.lab.accounts.policy import Action, Scope, require_lab, scope_of
+from thermolab.lab.accounts.policy import POLICY, Action, Scope, require_lab, scope_of
 from thermolab.lab.accounts.security import normalize_username
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.db import Database
@@ -42,7 +42,9 @@ class Authorizer:
             When the table gives ``who`` no scope for ``action``.
         """
         if scope_of(who, action) is Scope.NONE:
-            require_lab(who, action)
+            whom = [a.value for a, scope in POLICY[action].items() if scope is not Scope.NONE]
+            names = " or ".join("a lab administrator" if w == "admin" else f"a {w}" for w in whom)
+            raise AccessDeniedError(f"only {names} may {action}")
 
     def require_lab(self, who: Principal, action: Action) -> None:
         """Refuse ``action`` unless ``who`` may do it lab-wide (an administrator's)."""

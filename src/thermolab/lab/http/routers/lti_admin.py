@@ -159,7 +159,12 @@ class DeepLinkOut(Out):
     items: list[LinkItemOut]
 
 
-@router.get("/tool", response_model=ToolOut, summary="The tool's URLs for an LMS")
+@router.get(
+    "/tool",
+    response_model=ToolOut,
+    summary="The tool's URLs for an LMS",
+    responses=documented_errors(403),
+)
 def tool(request: Request, who: UserDep) -> ToolOut:
     """The URLs an LMS administrator enters when adding ThermoLab as an LTI 1.3 tool."""
     who.require_teacher("see the LTI settings")
@@ -170,7 +175,12 @@ def tool(request: Request, who: UserDep) -> ToolOut:
     )
 
 
-@router.get("/platforms", response_model=list[PlatformOut], summary="Registered platforms")
+@router.get(
+    "/platforms",
+    response_model=list[PlatformOut],
+    summary="Registered platforms",
+    responses=documented_errors(403),
+)
 def list_platforms(lab: LabDep, who: UserDep) -> list[PlatformOut]:
     """Every registered LMS (administrators)."""
     lab.authorize.require_lab(who, Action.LTI_PLATFORMS)
@@ -258,7 +268,12 @@ def sync_roster(course: CourseName, lab: LabDep, who: UserDep, request: Request)
     return RosterOut(added=report.added, removed=report.removed, kept=report.kept)
 
 
-@router.get("/grades", response_model=list[GradeOut], summary="The grade outbox")
+@router.get(
+    "/grades",
+    response_model=list[GradeOut],
+    summary="The grade outbox",
+    responses=documented_errors(403),
+)
 def list_grades(lab: LabDep, who: UserDep) -> list[GradeOut]:
     """Scores queued for LMS gradebooks, newest first (your courses' students' only)."""
     lab.authorize.require(who, Action.COURSE_LMS_GRADES)
