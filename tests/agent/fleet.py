@@ -321,7 +321,7 @@ def make_fleet(data_dir: Path, toml: str, extra_ip: str | None = None) -> Fleet:
         "add",
         "tina",
         "--role",
-        "teacher",
+        "admin",
         "--password-stdin",
         "--config",
         str(config),

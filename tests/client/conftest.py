@@ -87,7 +87,7 @@ def served_lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServedLab]:
         "add",
         "tina",
         "--role",
-        "teacher",
+        "admin",
         "--password-stdin",
         stdin=PASSWORD + "\n",
     )

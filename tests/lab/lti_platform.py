@@ -60,7 +60,8 @@ class PendingLaunch:
     person: Person
     message_type: str = "LtiResourceLinkRequest"
     custom: dict[str, str] = field(default_factory=dict)
-    # A way to spoil the id_token: {"exp": -3600}, {"aud": "other"}, {"deployment": "x"}...
+    # A way to spoil the id_token: {"exp": -3600}, {"aud": "other"}, {"deployment": "x"},
+    # {"drop": ["roles"]}, {"claims": {"resource_link": {}}}, {"dl_settings": {...}}...
     spoil: dict[str, Any] = field(default_factory=dict)
 
 
@@ -176,9 +177,16 @@ class Platform:
             claims[DL + "deep_linking_settings"] = {
                 "deep_link_return_url": f"{self.url}/deep-link-return",
                 "accept_types": ["ltiResourceLink"],
+                "accept_presentation_document_targets": ["iframe", "window"],
                 "accept_multiple": True,
                 "data": "opaque-42",
+                **spoil.get("dl_settings", {}),
             }
+        # Claims taken out ({"drop": [name]}: a short name of LTI's claims) or replaced.
+        for name in spoil.get("drop", ()):
+            claims.pop(LTI + name, None)
+        for name, value in spoil.get("claims", {}).items():
+            claims[LTI + name] = value
         key = spoil.get("key", self._key)
         return jwt.encode(claims, key, algorithm="RS256", headers={"kid": self._jwk["kid"]})
 

@@ -30,7 +30,7 @@ def database_url(sqlite_url: str) -> str:
 def people(lab: Lab) -> None:
     for name in ("ana", "ben", "cai"):
         lab.users.add(name, PASSWORD, "student")
-    lab.users.add("tina", PASSWORD, "teacher")
+    lab.users.add("tina", PASSWORD, "teacher", admin=True)
 
 
 #: The LTI routes an LMS sends a browser to (no lab login; see docs/lti.md).

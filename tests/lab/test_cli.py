@@ -56,7 +56,7 @@ def test_add_list_passwd_remove(
     status, out, _ = run([*base, "list"], capsys, monkeypatch)
     assert (status, out.strip()) == (
         0,
-        "no accounts yet; add one with: thermolab user add NAME --role teacher",
+        "no accounts yet; add one with: thermolab user add NAME --role admin",
     )
     status, out, err = run(
         [*base, "add", "Tina", "--role", "teacher", "--password-stdin"],
@@ -97,10 +97,10 @@ def test_add_list_passwd_remove(
             "error: user 'tina' already exists",
         ),
         (
-            ["add", "bob", "--role", "admin", "--password-stdin"],
+            ["add", "bob", "--role", "boss", "--password-stdin"],
             PASSWORD + "\n",
             1,
-            "error: role 'admin' is not known; use 'student' or 'teacher'",
+            "error: role 'boss' is not known; use 'student', 'teacher' or 'admin'",
         ),
         (
             ["add", "bo b", "--role", "student", "--password-stdin"],
@@ -239,7 +239,7 @@ def test_serve_starts_a_lab_and_says_how_to_add_a_teacher(
     assert f"ThermoLab on http://127.0.0.1:{port}/" in err
     assert "rigs: twin (sim)" in err
     assert "No teacher account yet" in err
-    assert f"thermolab --data-dir {data_dir} user add NAME --role teacher" in err
+    assert f"thermolab --data-dir {data_dir} user add NAME --role admin" in err
     assert any(getattr(route, "name", "") == "web" for route in app.routes)  # the browser UI
     run(
         [
@@ -322,3 +322,36 @@ def test_the_first_start_hint_names_the_command_as_it_can_be_typed(
     assert command_name() == "thermolab"
     monkeypatch.setattr("sys.argv", ["/somewhere/thermolab/__main__.py"])  # python -m
     assert command_name() == "thermolab"
+
+
+def test_admins_are_added_promoted_and_kept(
+    data_dir: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    base = ["--data-dir", str(data_dir), "user"]
+    status, out, _ = run(
+        [*base, "add", "root", "--role", "admin", "--password-stdin"],
+        capsys,
+        monkeypatch,
+        PASSWORD + "\n",
+    )
+    assert (status, out.strip()) == (0, "added admin 'root'")
+    run(
+        [*base, "add", "tina", "--role", "teacher", "--password-stdin"],
+        capsys,
+        monkeypatch,
+        PASSWORD + "\n",
+    )
+    status, out, _ = run([*base, "admin", "tina"], capsys, monkeypatch)
+    assert (status, out.strip()) == (0, "'tina' is now a lab administrator")
+    status, out, _ = run([*base, "list"], capsys, monkeypatch)
+    assert [line.split()[:2] for line in out.splitlines()[1:]] == [
+        ["root", "admin"],
+        ["tina", "admin"],
+    ]
+    run([*base, "admin", "tina", "--revoke"], capsys, monkeypatch)
+    status, _, err = run([*base, "admin", "root", "--revoke"], capsys, monkeypatch)
+    assert (status, err.strip()) == (
+        1,
+        "error: this is the lab's last administrator; make another one first",
+    )
+    assert [u.admin for u in users_of(data_dir).list()] == [True, False]

@@ -164,6 +164,7 @@ def test_a_teacher_resets_a_students_password_after_reauthenticating(
     lab: Lab, teacher: TestClient, app_client: Clients
 ) -> None:
     lab.users.add("ana", PASSWORD, "student")
+    lab.courses.import_class_list("ctrl1", b"username,display_name\nana,Ana\n")
     ana = app_client("ana")
     wrong = teacher.post(
         "/api/users/ana/password-reset", json={"currentPassword": "not mine at all"}

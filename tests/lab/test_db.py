@@ -19,6 +19,7 @@ from thermolab.lab.db import Database, normalize_database_url
 from thermolab.lab.db.models import Base, ControlSession, QueueEntry, RigRow, User, UTCDateTime
 
 TABLES = {
+    "audit_log",  # issue #25: privileged actions (thermolab.lab.db.audit_models)
     "agent_hosts",  # issue #14: rig hosts (thermolab.lab.db.agent_models)
     "users",
     "courses",
@@ -74,7 +75,7 @@ def test_migrations_create_the_schema_of_the_models(fresh_url: str) -> None:
         assert db.current_revision() is None
         db.upgrade()
         db.upgrade()  # idempotent
-        assert db.current_revision() == "0017"
+        assert db.current_revision() == "0018"
         assert set(db.table_names()) == TABLES | {"alembic_version"}
         with db.engine.connect() as connection:
             context = MigrationContext.configure(connection, opts={"compare_type": True})

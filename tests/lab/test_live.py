@@ -54,7 +54,7 @@ def make(make_lab: LabFactory, clock: Any = None) -> tuple[Lab, TestClient, Live
     lab = make_lab(opener=opener)
     for name in ("ana", "ben"):
         lab.users.add(name, PASSWORD, "student")
-    lab.users.add("tina", PASSWORD, "teacher")
+    lab.users.add("tina", PASSWORD, "teacher", admin=True)
     app = create_app(lab.config, lab=lab, sweep_interval=None)
     client = TestClient(app)
     live: LiveEndpoint = app.state.live

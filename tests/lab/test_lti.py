@@ -42,7 +42,7 @@ def platform(lab: Lab) -> Iterator[Platform]:
 
 @pytest.fixture
 def teacher(lab: Lab, app_client: Client) -> TestClient:
-    lab.users.add("tess", PASSWORD, "teacher")
+    lab.users.add("tess", PASSWORD, "teacher", admin=True)
     return app_client("tess", base_url=TOOL)
 
 

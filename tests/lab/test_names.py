@@ -89,7 +89,7 @@ def test_accounts_never_collide_by_case_or_accent(lab: Lab) -> None:
 def test_the_api_takes_display_names_and_normalises_login_names(
     lab: Lab, app_client: Client
 ) -> None:
-    lab.users.add("tina", PASSWORD, "teacher")
+    lab.users.add("tina", PASSWORD, "teacher", admin=True)
     tina = app_client("tina")
     answer = tina.post(
         "/api/users",
@@ -192,7 +192,7 @@ def test_migration_0007_normalises_names_and_refuses_collisions(fresh_url: str) 
             assert sorted(names) == ["ANA", "Zoë", "ana", "bea"]  # nothing changed
             connection.execute(text("DELETE FROM users WHERE username = 'ANA'"))
         db.upgrade()
-        assert db.current_revision() == "0017"
+        assert db.current_revision() == "0018"
         with db.engine.connect() as connection:
             names = connection.execute(text("SELECT username FROM users")).scalars().all()
         assert sorted(names) == ["ana", "bea", "zoe"]

@@ -30,7 +30,7 @@ Clients = Callable[..., TestClient]
 
 @pytest.fixture
 def teacher(lab: Lab, app_client: Clients) -> TestClient:
-    lab.users.add("tina", PASSWORD, "teacher")
+    lab.users.add("tina", PASSWORD, "teacher", admin=True)
     return app_client("tina")
 
 
@@ -144,7 +144,7 @@ def test_the_file_gives_first_values_and_caps_then_the_database_wins(
 ) -> None:
     caps = (("max_run_seconds", 600.0),)
     lab = make_lab(control_time_limit=120.0, caps=caps)
-    tina = person(lab, "tina", "teacher")
+    tina = person(lab, "tina", "admin")
     assert lab.settings.get("twin", tina).values["control_time_limit"] == 120.0
     # The technician's cap bounds the teacher.
     assert lab.settings.get("twin", tina).ranges["max_run_seconds"] == (10.0, 600.0)
@@ -172,7 +172,7 @@ def test_a_changed_turn_limit_applies_to_the_next_turn_and_never_cuts_the_run(
 
     try:
         lab = make_lab(opener=opener, control_time_limit=300.0)
-        tina, ana, ben = person(lab, "tina", "teacher"), person(lab, "ana"), person(lab, "ben")
+        tina, ana, ben = person(lab, "tina", "admin"), person(lab, "ana"), person(lab, "ben")
         lab.access.request_control("twin", ana)
         from thermolab.lab.runs import RunRequest
 

@@ -77,8 +77,10 @@ def until(condition: Callable[[], bool], timeout: float = 10.0) -> None:
 
 
 def person(lab: Lab, name: str, role: str = "student") -> Principal:
-    info = lab.users.add(name, PASSWORD, role)
-    return Principal(info.id, info.username, info.role)
+    """An account and its principal; ``role`` "admin" is a teacher who runs the lab."""
+    admin = role == "admin"
+    info = lab.users.add(name, PASSWORD, "teacher" if admin else role, admin=admin)
+    return Principal(info.id, info.username, info.role, admin=info.admin)
 
 
 @pytest.fixture
@@ -591,8 +593,8 @@ def test_runs_stored_without_statistics_get_them_from_the_migration(
         config.attributes["connection"] = connection
         alembic.command.upgrade(config, "0003")
         # Back at the head (the later revisions' tables are there): the schema is shared.
-        connection.execute(text("UPDATE alembic_version SET version_num = '0017'"))
-    assert lab.db.current_revision() == "0017"
+        connection.execute(text("UPDATE alembic_version SET version_num = '0018'"))
+    assert lab.db.current_revision() == "0018"
     again = lab.runs.get(run.id, ana).results
     for method in ("lsm", "malsm", "wlsm"):
         assert again[method]["stats"] == fresh[method]["stats"]

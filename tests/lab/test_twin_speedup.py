@@ -60,7 +60,7 @@ def test_a_saved_speedup_paces_the_next_run_and_a_run_going_keeps_its_own(
     source = StepClock()
     try:
         lab = make_lab(opener=_gated_twin(source))
-        tina, ana = person(lab, "tina", "teacher"), person(lab, "ana")
+        tina, ana = person(lab, "tina", "admin"), person(lab, "ana")
         assert lab.hub.clock_rate("twin") == 1.0  # the file's first value
         # No run going: the twin takes the new pace at once.
         lab.settings.update("twin", tina, {"twin_speedup": 50.0}, 1)
@@ -94,7 +94,7 @@ def test_a_saved_speedup_paces_the_next_run_and_a_run_going_keeps_its_own(
 
 def test_the_maximum_run_counts_the_rigs_own_speedup(make_lab: LabFactory) -> None:
     lab = make_lab(max_run_seconds=100.0)
-    tina = person(lab, "tina", "teacher")
+    tina = person(lab, "tina", "admin")
     long_run = RunRequest(dt=1.0, samples=2000, signal="step:0:4@1")
 
     def length(rig: str) -> float:
@@ -128,7 +128,7 @@ def test_hardware_runs_in_real_time_and_a_hosts_twin_at_its_hosts_pace(mixed_lab
 
 
 def test_hardware_and_a_hosts_twin_have_no_speedup_setting(mixed_lab: Lab) -> None:
-    tina = person(mixed_lab, "tina", "teacher")
+    tina = person(mixed_lab, "tina", "admin")
     app = create_app(mixed_lab.config, lab=mixed_lab, sweep_interval=None)
     with TestClient(app) as teacher:
         login = teacher.post("/api/session", json={"username": "tina", "password": PASSWORD})
@@ -167,7 +167,7 @@ def test_hardware_and_a_hosts_twin_have_no_speedup_setting(mixed_lab: Lab) -> No
 
 @pytest.mark.parametrize("value", [0.5, 0, -3, 1000.5, 1e9])
 def test_a_speedup_out_of_range_is_refused_with_the_range(lab: Lab, value: float) -> None:
-    lab.users.add("tina", PASSWORD, "teacher")
+    lab.users.add("tina", PASSWORD, "teacher", admin=True)
     app = create_app(lab.config, lab=lab, sweep_interval=None)
     with TestClient(app) as teacher:
         teacher.post("/api/session", json={"username": "tina", "password": PASSWORD})
@@ -182,7 +182,7 @@ def test_a_speedup_out_of_range_is_refused_with_the_range(lab: Lab, value: float
 
 def test_a_technicians_cap_bounds_the_speedup(make_lab: LabFactory) -> None:
     lab = make_lab(caps=(("twin_speedup", 100.0),))
-    tina = person(lab, "tina", "teacher")
+    tina = person(lab, "tina", "admin")
     assert lab.settings.get("twin", tina).ranges["twin_speedup"] == (1.0, 100.0)
     with pytest.raises(SettingRangeError, match="allowed: 1 to 100"):
         lab.settings.update("twin", tina, {"twin_speedup": 150.0}, 1)
@@ -200,7 +200,7 @@ def test_serve_speedup_is_saved_as_every_lab_twins_speedup(
             lab = Lab(config, clock=clock, hasher=FAST_HASHER, database=Database(database_url))
             labs.append(lab)
             lab.start()
-            tina = person(lab, f"tina{len(labs)}", "teacher")
+            tina = person(lab, f"tina{len(labs)}", "admin")
             twin = lab.settings.get("twin", tina)
             assert (twin.values["twin_speedup"], twin.version, twin.updated_by) == (30.0, 2, None)
             assert lab.config.rig("twin").speedup == 30.0

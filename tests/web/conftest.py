@@ -304,7 +304,8 @@ def add_accounts(data_dir: Path, users: dict[str, str]) -> None:
         db.upgrade()
         accounts = UserService(db, SystemClock(), CHEAP_HASHER)
         for user, role in users.items():
-            accounts.add(user, password(user), role)
+            # The browser journeys' teachers run the whole lab (accounts, rigs, LTI).
+            accounts.add(user, password(user), role, admin=role == "teacher")
     finally:
         db.close()
 

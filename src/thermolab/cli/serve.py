@@ -9,7 +9,8 @@ more rigs and the access policy (see :mod:`thermolab.lab.config`);
 Server limits (issue #13): uvicorn runs the pure-Python h11 parser, whose
 incomplete-event bound refuses request heads over 16 KiB (httptools, which
 uvicorn picks by default, has none), a client has ``--request-timeout``
-seconds to send a whole request (a slow or silent client is cut), an idle
+seconds to send a whole request (a slow or silent client is cut), a WebSocket
+frame over 1 MiB is refused from its header (``WS_MAX_SIZE``), an idle
 keep-alive connection is closed after 5 s, and beyond 1000 open connections
 (``--max-connections``) new requests get 503. Files: the process's umask is 077, so the data folder,
 the SQLite database (and its journal) and the run records are the server
@@ -37,6 +38,7 @@ __all__ = [
     "CONNECTION_LIMIT",
     "HEAD_LIMIT",
     "KEEP_ALIVE_TIMEOUT",
+    "WS_MAX_SIZE",
     "add_database_options",
     "lab_config_from_args",
     "make_private",
@@ -49,6 +51,12 @@ KEEP_ALIVE_TIMEOUT = 5
 """Seconds an idle keep-alive connection stays open."""
 CONNECTION_LIMIT = 1000
 """Open connections (HTTP and WebSocket) beyond which new requests get 503."""
+WS_MAX_SIZE = 2**20
+"""Largest WebSocket message read: a bigger frame is refused from its header (close 1009).
+
+A live client's messages are refused over 4 KiB by the lab itself; rig hosts'
+messages, on the same server, stay under the 1 MiB their own end accepts.
+"""
 
 _EXAMPLES = """\
 examples:
@@ -194,7 +202,7 @@ def _teacher_hint(args: argparse.Namespace) -> str:
     parts = [command_name()]
     if args.data_dir:
         parts += ["--data-dir", args.data_dir]
-    parts += ["user", "add", "NAME", "--role", "teacher"]
+    parts += ["user", "add", "NAME", "--role", "admin"]
     if args.config:
         parts += ["--config", args.config]
     if args.database_url:
@@ -304,10 +312,15 @@ def _serve(args: argparse.Namespace) -> int:
             print(f"  warning: rig {rig_id}: {fault}", file=sys.stderr)
         if report.teachers == 0:
             print(
-                "  No teacher account yet. Create one (then log in at the address above) with:\n"
-                f"    {_teacher_hint(args)}\n"
-                "  and each student the same way with --role student (or, once logged in,\n"
-                "  upload a class list on a course's page).",
+                "  No teacher account yet. Create the lab's administrator (a teacher who also
+"
+                "  manages accounts and rigs; then log in at the address above) with:
+"
+                f"    {_teacher_hint(args)}
+"
+                "  then teachers with --role teacher and students with --role student (or,
+"
+                "  once logged in, upload a class list on a course's page).",
                 file=sys.stderr,
             )
         static = STATIC_DIR if (STATIC_DIR / "index.html").is_file() else None
@@ -471,6 +484,7 @@ def _run_server(
         # (uvicorn's default would trust any proxy on 127.0.0.1).
         proxy_headers=False,
         ws_per_message_deflate=False,
+        ws_max_size=WS_MAX_SIZE,
         http=_bounded_h11(request_timeout),
         ws=_framed_websockets(),
         h11_max_incomplete_event_size=HEAD_LIMIT,

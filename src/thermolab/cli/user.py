@@ -1,6 +1,8 @@
 """``thermolab user``: manage the lab's accounts.
 
-``add NAME --role student|teacher``, ``list``, ``passwd NAME``, ``remove NAME``.
+``add NAME --role student|teacher|admin``, ``list``, ``passwd NAME``, ``remove NAME``,
+``admin NAME [--revoke]`` (a lab administrator is a teacher who also manages
+accounts, rigs and LTI platforms; see ``thermolab.lab.accounts.policy``).
 Passwords are asked twice on the terminal, or read as one line from standard
 input with ``--password-stdin`` (scripts: ``printf '%s\\n' "$PW" | thermolab
 user add ana --role student --password-stdin``). The accounts live in the lab's
@@ -25,7 +27,9 @@ __all__ = ["register"]
 
 _EXAMPLES = """\
 examples:
+  thermolab user add root --role admin
   thermolab user add tina --role teacher
+  thermolab user admin tina
   printf '%s\\n' "$PASSWORD" | thermolab user add ana --role student --password-stdin
   thermolab user list
   thermolab user passwd ana
@@ -58,7 +62,11 @@ def register(subparsers: Any) -> None:
         metavar="NAME",
         help="login name (letters, digits, . _ @ -; stored without case or accents: João -> joao)",
     )
-    add.add_argument("--role", required=True, help="student or teacher")
+    add.add_argument(
+        "--role",
+        required=True,
+        help="student, teacher or admin (a teacher who also manages accounts, rigs and LTI)",
+    )
     add.add_argument(
         "--display-name",
         metavar="TEXT",
@@ -77,6 +85,14 @@ def register(subparsers: Any) -> None:
     _password_option(passwd)
     add_database_options(passwd)
     passwd.set_defaults(handler=_passwd)
+
+    admin = actions.add_parser(
+        "admin", help="make a teacher a lab administrator (or take it back with --revoke)"
+    )
+    admin.add_argument("name", metavar="NAME")
+    admin.add_argument("--revoke", action="store_true", help="take the administrator role back")
+    add_database_options(admin)
+    admin.set_defaults(handler=_admin)
 
     remove = actions.add_parser(
         "remove", help="remove an account with its logins, queue places and runs"
@@ -138,15 +154,31 @@ def _add(args: argparse.Namespace) -> int:
     name = normalize_username(args.name)
     if args.display_name is not None:
         normalize_display_name(args.display_name)  # refused before the password is asked
-    role = parse_role(args.role)
+    admin = args.role.strip().lower() == "admin"
+    role = parse_role("teacher" if admin else args.role)
     db, users = _users(args)
     try:
         password = _read_password(args, name)
-        user = users.add(name, password, role, args.display_name)
+        user = users.add(name, password, role, args.display_name, admin=admin)
     finally:
         db.close()
     shown = f" ({user.display_name})" if user.display_name else ""
-    print(f"added {user.role.value} {user.username!r}{shown}")
+    print(f"added {_kind(user.role.value, user.admin)} {user.username!r}{shown}")
+    return 0
+
+
+def _kind(role: str, admin: bool) -> str:
+    return "admin" if admin else role
+
+
+def _admin(args: argparse.Namespace) -> int:
+    db, users = _users(args)
+    try:
+        user = users.set_admin(args.name, not args.revoke)
+    finally:
+        db.close()
+    done = "is now a lab administrator" if user.admin else "is no longer a lab administrator"
+    print(f"{user.username!r} {done}")
     return 0
 
 
@@ -157,13 +189,13 @@ def _list(args: argparse.Namespace) -> int:
     finally:
         db.close()
     if not accounts:
-        print("no accounts yet; add one with: thermolab user add NAME --role teacher")
+        print("no accounts yet; add one with: thermolab user add NAME --role admin")
         return 0
     width = max(8, *(len(u.username) for u in accounts))
     print(f"{'username':<{width}}  {'role':<7}  created (UTC)")
     for user in accounts:
         created = user.created_at.strftime("%Y-%m-%d %H:%M")
-        print(f"{user.username:<{width}}  {user.role.value:<7}  {created}")
+        print(f"{user.username:<{width}}  {_kind(user.role.value, user.admin):<7}  {created}")
     return 0
 
 

@@ -106,6 +106,12 @@ ERROR_SENTENCES: Mapping[str, str] = {
         "Your browser blocks the lab's cookies inside the LMS: open the lab in a new window."
     ),
     "lti_returning": "Returning to the LMS with your choice.",
+    # LTI as the IMS certification checks it (issue #25).
+    "lti_claim_invalid": (
+        "The LMS's launch lacks information the lab needs (roles or the activity's link)."
+    ),
+    "lti_target_invalid": "This launch was meant for another tool's address.",
+    "lti_form_too_large": "The LMS sent too much data with this launch.",
     # Pictures of the guide pages (issue #10, item 1).
     "image_invalid": "The file is not a picture the lab can read, or it is damaged.",
     "image_type_unsupported": "Only PNG, JPEG, GIF and WebP pictures are accepted.",

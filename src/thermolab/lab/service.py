@@ -25,6 +25,8 @@ from thermolab.lab.accounts.users import LoginsEnded, Principal, UserInfo, UserS
 from thermolab.lab.agents import AgentHub, RemoteRuns
 from thermolab.lab.analytics import AnalyticsService, assignment_state
 from thermolab.lab.assignments import AssignmentService
+from thermolab.lab.audit.log import AuditLog
+from thermolab.lab.classes.authorize import Authorizer
 from thermolab.lab.classes.bookings import BookingService
 from thermolab.lab.classes.course_settings import CourseSettingsService
 from thermolab.lab.classes.courses import CourseService
@@ -212,6 +214,10 @@ class Lab:
             hasher or default_password_hasher(),
             logins_ended=self.logins_ended,
         )
+        # Who may act on which course or person (the policy table against the rosters),
+        # and the log of what they did.
+        self.authorize = Authorizer(self.db)
+        self.audit = AuditLog(self.db, self.clock)
         # Display names of the people the answers name (kept briefly).
         self.names = NameBook(self.db, self.clock)
         # Personal API tokens for scripts; revoked ones are announced like ended logins.

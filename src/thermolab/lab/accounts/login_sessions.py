@@ -78,6 +78,7 @@ class SessionService:
                 row.id,
                 row.expires_at,
                 must_change_password=user.must_change_password,
+                admin=bool(user.admin),
             )
 
     def resolve(self, token: str | None) -> Principal | None:
@@ -104,6 +105,7 @@ class SessionService:
                 login.id,
                 login.expires_at,
                 must_change_password=bool(user.must_change_password),
+                admin=bool(user.admin),
             )
         if expired:
             self.end(token)

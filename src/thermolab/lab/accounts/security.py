@@ -10,7 +10,10 @@
   30 000 most common breached passwords. That list is the ``passwords``
   frequency list shipped by the zxcvbn package (offline, from real breaches;
   zxcvbn is a well-kept port of Dropbox's estimator, and we only use its
-  list, not its score, which would refuse long passphrases ASVS allows).
+  list, not its score, which would refuse long passphrases ASVS allows), and
+  is not guessable in under a million tries by zxcvbn's estimate (keyboard
+  rows, sequences, repeats, dates, the lab's own name: ``123456789012``,
+  ``qwertyuiopas``, ``aaaaaaaaaaaa``, ``thermolab123``).
 * :class:`LoginThrottle` delays failed logins per (user name, client address)
   with a doubling, capped delay (never a lock-out: the right password from the
   teacher's own machine is never refused because someone else guessed), and
@@ -145,7 +148,26 @@ def validate_password(password: str, username: str | None = None) -> str:
         raise InvalidParameterError(
             "this password is in a list of breached passwords; choose another"
         )
+    if _is_guessable(password, username):
+        raise InvalidParameterError(
+            "this password is too easy to guess (a keyboard row, a sequence, a repeated "
+            "character or the lab's name, with little else); choose another"
+        )
     return password
+
+
+# Fewer estimated guesses than this (zxcvbn's score 0 or 1) is guessable online.
+_MIN_GUESSES_LOG10 = 6.0
+_ZXCVBN_CHARS = 100  # zxcvbn's cost grows with the length; its authors cap the input too
+_OWN_WORDS = ("thermolab", "thermo", "lab", "tclab")
+
+
+def _is_guessable(password: str, username: str | None) -> bool:
+    from zxcvbn import zxcvbn
+
+    words = [*_OWN_WORDS, *([username] if username else [])]
+    estimate = zxcvbn(password[:_ZXCVBN_CHARS], user_inputs=words)
+    return float(estimate["guesses_log10"]) < _MIN_GUESSES_LOG10
 
 
 def _core(text: str) -> str:

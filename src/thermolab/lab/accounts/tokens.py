@@ -219,6 +219,7 @@ class TokenService:
                 token.expires_at,
                 token_id=token.id,
                 read_only=token.read_only,
+                admin=bool(user.admin),
             )
         if stale:
             with self._db.write() as session:

@@ -65,7 +65,7 @@ def parse_role(role: str) -> Role:
         return Role(role)
     except ValueError:
         raise InvalidParameterError(
-            f"role {role!r} is not known; use 'student' or 'teacher'"
+            f"role {role!r} is not known; use 'student', 'teacher' or 'admin'"
         ) from None
 
 
@@ -83,6 +83,8 @@ class UserInfo:
         The name as the person writes it (``João da Silva``), if given.
     must_change_password : bool
         The password is a temporary one (a class list's or a teacher's reset).
+    admin : bool
+        A lab administrator (a teacher who also manages what spans courses).
     """
 
     id: int
@@ -91,6 +93,7 @@ class UserInfo:
     created_at: datetime
     display_name: str | None = None
     must_change_password: bool = False
+    admin: bool = False
 
     @classmethod
     def of(cls, user: User) -> UserInfo:
@@ -102,6 +105,7 @@ class UserInfo:
             user.created_at,
             user.display_name,
             bool(user.must_change_password),
+            bool(user.admin),
         )
 
 
@@ -125,6 +129,8 @@ class Principal:
         A read-only token: it may only read (GET), never change anything.
     must_change_password : bool
         The login was made with a temporary password: only changing it is allowed.
+    admin : bool
+        A lab administrator (see :mod:`thermolab.lab.accounts.policy`).
     """
 
     user_id: int
@@ -135,6 +141,7 @@ class Principal:
     token_id: int | None = None
     read_only: bool = False
     must_change_password: bool = False
+    admin: bool = False
 
     @property
     def login_key(self) -> tuple[str, int | None]:
@@ -145,8 +152,13 @@ class Principal:
 
     @property
     def is_teacher(self) -> bool:
-        """``True`` for a teacher."""
+        """``True`` for a teacher (an administrator is one too)."""
         return self.role is Role.TEACHER
+
+    @property
+    def is_admin(self) -> bool:
+        """``True`` for a lab administrator."""
+        return self.admin and self.role is Role.TEACHER
 
     def require_teacher(self, action: str) -> None:
         """Refuse ``action`` (words after "may") unless this is a teacher.
@@ -187,12 +199,19 @@ class UserService:
         self._hasher = hasher
 
     def add(
-        self, username: str, password: str, role: Role | str, display_name: str | None = None
+        self,
+        username: str,
+        password: str,
+        role: Role | str,
+        display_name: str | None = None,
+        *,
+        admin: bool = False,
     ) -> UserInfo:
         """Create an account.
 
         ``username`` is stored in its normal form (``joão`` and ``JOAO`` are
         both ``joao``); ``display_name`` as written (``João da Silva``).
+        ``admin`` makes a teacher a lab administrator.
 
         Raises
         ------
@@ -204,6 +223,8 @@ class UserService:
         name = normalize_username(username)
         shown = None if display_name is None else normalize_display_name(display_name)
         role = parse_role(role) if isinstance(role, str) else role
+        if admin and role is not Role.TEACHER:
+            raise InvalidParameterError("only a teacher can be a lab administrator")
         password_hash = self._hasher.hash(validate_password(password, name))
         now = self._clock.now()
         try:
@@ -217,6 +238,7 @@ class UserService:
                     password_hash=password_hash,
                     created_at=now,
                     password_changed_at=now,
+                    admin=admin,
                 )
                 session.add(user)
                 session.flush()
@@ -239,6 +261,34 @@ class UserService:
         """Return every account, by user name."""
         with self._db.read() as session:
             return [UserInfo.of(u) for u in session.scalars(select(User).order_by(User.username))]
+
+    def set_admin(self, username: str, admin: bool) -> UserInfo:
+        """Make a teacher a lab administrator (``admin``) or take it back.
+
+        Raises
+        ------
+        NotFoundError
+            If there is no such user.
+        InvalidParameterError
+            For a student, or taking back the last administrator.
+        """
+        with self._db.write() as session:
+            user = self._find(session, username)
+            if admin and user.role != Role.TEACHER.value:
+                raise InvalidParameterError("only a teacher can be a lab administrator")
+            if not admin and user.admin:
+                others = session.scalar(
+                    select(func.count())
+                    .select_from(User)
+                    .where(User.admin.is_(True), User.id != user.id)
+                )
+                if not others:
+                    raise InvalidParameterError(
+                        "this is the lab's last administrator; make another one first"
+                    )
+            user.admin = admin
+            session.flush()
+            return UserInfo.of(user)
 
     def count_teachers(self) -> int:
         """Return how many teacher accounts exist."""

@@ -9,6 +9,7 @@ is used (the migrations' environment, the schema test).
 from thermolab.lab.db import (  # noqa: F401
     agent_models,
     assignment_models,
+    audit_models,
     booking_models,
     course_settings_models,
     guide_image_models,

@@ -36,6 +36,7 @@ from sqlalchemy import (
     String,
     Text,
     UniqueConstraint,
+    false,
     text,
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
@@ -181,6 +182,9 @@ class User(Base):
     password_changed_at: Mapped[datetime] = mapped_column(UTCDateTime)
     # A teacher's reset gives a temporary password: its holder must choose a new one first.
     must_change_password: Mapped[bool] = mapped_column(Boolean, default=False)
+    # A lab administrator: a teacher who also manages what spans courses (accounts, rigs,
+    # LTI platforms, the audit log); see thermolab.lab.accounts.policy.
+    admin: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false())
 
 
 class Course(Base):

@@ -40,7 +40,7 @@ from thermolab.lab.http.limits import BodyLimit
 from thermolab.lab.http.live_socket import LiveEndpoint
 from thermolab.lab.http.routers import api_router
 from thermolab.lab.http.routers.guide_images import CACHEABLE_PREFIX, UPLOAD_ALLOWANCE
-from thermolab.lab.http.routers.lti import LTI_CROSS_SITE_PATHS
+from thermolab.lab.http.routers.lti import LTI_CROSS_SITE_PATHS, too_large_page
 from thermolab.lab.rigs.devices import device_opener
 from thermolab.lab.service import Lab
 
@@ -162,7 +162,10 @@ def create_app(
     if static_dir is not None:
         app.mount("/", StaticFiles(directory=static_dir, html=True), name="web")
     app.add_middleware(
-        BodyLimit, max_bytes=config.access.max_body_bytes, allowances=[UPLOAD_ALLOWANCE]
+        BodyLimit,
+        max_bytes=config.access.max_body_bytes,
+        allowances=[UPLOAD_ALLOWANCE],
+        pages=dict.fromkeys(LTI_CROSS_SITE_PATHS, too_large_page),
     )
     app.add_middleware(
         BrowserGuard,

@@ -14,6 +14,7 @@ from fastapi.security import APIKeyCookie, HTTPAuthorizationCredentials, HTTPBea
 from thermolab.errors import AccessDeniedError, PasswordChangeRequiredError
 from thermolab.lab.accounts.security import AuthenticationError
 from thermolab.lab.accounts.users import Principal
+from thermolab.lab.audit.log import AuditAction
 from thermolab.lab.config.model import RIG_ID
 from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.schemas import ErrorOut, ValidationErrorOut
@@ -30,6 +31,8 @@ __all__ = [
     "UserDep",
     "UserQuery",
     "Username",
+    "audit",
+    "client_address",
     "current_user",
     "documented_errors",
     "get_lab",
@@ -122,6 +125,25 @@ def _changes_password(request: Request) -> bool:
 
 
 UserDep = Annotated[Principal, Depends(current_user)]
+
+
+def client_address(request: Request) -> str:
+    """The client's address as the server saw it (``unknown`` without one)."""
+    return request.client.host if request.client is not None else "unknown"
+
+
+def audit(
+    lab: Lab,
+    who: Principal,
+    request: Request,
+    action: AuditAction,
+    target: str,
+    **detail: Any,
+) -> None:
+    """Write ``who`` did ``action`` on ``target`` to the audit log (no secret in ``detail``)."""
+    lab.audit.record(who.username, action, target, address=client_address(request), detail=detail)
+
+
 # Every path and query parameter is bounded in the schema (tests/lab/test_contract.py
 # walks /openapi.json): a rig id as the configuration allows it, a user name as
 # normalize_username accepts it (in any case: names are case-insensitive).

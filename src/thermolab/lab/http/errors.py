@@ -66,11 +66,15 @@ from thermolab.lab.http.deps import COOKIE_NAME
 from thermolab.lab.http.schemas import ValidationErrorOut
 from thermolab.lab.live.fanout import CLOSE_BAD_REQUEST, CLOSE_UNAUTHORIZED, MAX_SEQ
 from thermolab.lab.lti.errors import (
+    LtiClaimError,
     LtiError,
+    LtiFormTooLargeError,
     LtiJwksUnreachableError,
     LtiReplayError,
     LtiServiceError,
     LtiStateError,
+    LtiTargetError,
+    LtiThrottledError,
     LtiUnknownDeploymentError,
     LtiUnknownPlatformError,
 )
@@ -131,6 +135,10 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     # The LTI 1.3 tool (issue #12): a refused launch, or a platform that failed us.
     LtiError: HttpFault(400, "lti_invalid_token"),
     LtiReplayError: HttpFault(400, "lti_replayed"),
+    LtiClaimError: HttpFault(400, "lti_claim_invalid"),
+    LtiTargetError: HttpFault(400, "lti_target_invalid"),
+    LtiFormTooLargeError: HttpFault(413, "lti_form_too_large"),
+    LtiThrottledError: HttpFault(429, "rate_limited"),
     LtiStateError: HttpFault(400, "lti_state_invalid"),
     LtiUnknownPlatformError: HttpFault(400, "lti_unknown_platform"),
     LtiUnknownDeploymentError: HttpFault(400, "lti_unknown_deployment"),
@@ -376,7 +384,10 @@ def _describe_error(error: Any) -> str:
     message = error.get("msg", "invalid value")
     loc = error.get("loc", ())
     secret = bool(loc) and str(loc[-1]) in _SECRET_FIELDS
-    if "input" in error and kind != "missing" and not secret:
+    # Only a field's own scalar value is repeated: a whole body (a form, bytes, an
+    # object or a list) may carry a password in any field or encoding.
+    scalar = isinstance(error.get("input"), int | float | str) and where != "request body"
+    if "input" in error and kind != "missing" and not secret and scalar:
         shown = repr(error["input"])
         shown = shown if len(shown) <= 60 else shown[:57] + "..."
         return f"{where}: {message} (got {shown})"

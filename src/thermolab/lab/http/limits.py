@@ -7,22 +7,34 @@ its own (:class:`BodyAllowance`), refused with its own code.
 from __future__ import annotations
 
 import re
-from collections.abc import Awaitable, Callable, MutableMapping, Sequence
+from collections.abc import Awaitable, Callable, Mapping, MutableMapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from fastapi import HTTPException
 from starlette.requests import HTTPConnection
+from starlette.responses import Response
 
 from thermolab.lab.http.errors import error_response, request_language
 
-__all__ = ["ASGIApp", "BodyAllowance", "BodyLimit", "Message", "Receive", "Scope", "Send"]
+__all__ = [
+    "ASGIApp",
+    "BodyAllowance",
+    "BodyLimit",
+    "Message",
+    "Receive",
+    "Scope",
+    "Send",
+    "TooLargePage",
+]
 
 Scope = MutableMapping[str, Any]
 Message = MutableMapping[str, Any]
 Receive = Callable[[], Awaitable[Message]]
 Send = Callable[[Message], Awaitable[None]]
 ASGIApp = Callable[[Scope, Receive, Send], Awaitable[None]]
+# A path's own answer to a body over the limit: (connection, bytes seen, limit) -> response.
+TooLargePage = Callable[[HTTPConnection, int, int], Response]
 
 
 class _BodyTooLargeError(HTTPException):
@@ -52,15 +64,22 @@ class BodyAllowance:
 class BodyLimit:
     """Refuse request bodies over ``max_bytes`` with 413, without reading them in full.
 
-    ``allowances`` give some routes a limit of their own.
+    ``allowances`` give some routes a limit of their own; ``pages`` answer the
+    refusal on some paths with a page of their own instead of the JSON error
+    (an LTI launch's, which a browser shows inside the LMS).
     """
 
     def __init__(
-        self, app: ASGIApp, max_bytes: int, allowances: Sequence[BodyAllowance] = ()
+        self,
+        app: ASGIApp,
+        max_bytes: int,
+        allowances: Sequence[BodyAllowance] = (),
+        pages: Mapping[str, TooLargePage] | None = None,
     ) -> None:
         self.app = app
         self.max_bytes = max_bytes
         self.allowances = tuple(allowances)
+        self.pages = dict(pages or {})
 
     def _limit(self, scope: Scope) -> tuple[int, str]:
         method, path = str(scope.get("method", "")).upper(), str(scope.get("path", ""))
@@ -104,11 +123,16 @@ class BodyLimit:
 
     async def _refuse(self, scope: Scope, send: Send, size: int, limit: int, code: str) -> None:
         connection = HTTPConnection(scope)
-        response = error_response(
-            413,
-            f"request body too large: {size} bytes, at most {limit} are accepted",
-            code,
-            language=request_language(connection.headers, connection.cookies),
+        page = self.pages.get(str(scope.get("path", "")))
+        response = (
+            page(connection, size, limit)
+            if page is not None
+            else error_response(
+                413,
+                f"request body too large: {size} bytes, at most {limit} are accepted",
+                code,
+                language=request_language(connection.headers, connection.cookies),
+            )
         )
         await send(
             {

@@ -131,6 +131,7 @@ class SessionOut(_Out):
     role: Literal["student", "teacher"]
     expires_at: datetime | None
     must_change_password: bool = False
+    admin: bool = Field(default=False, description="a lab administrator (accounts, rigs, LTI)")
 
     @classmethod
     def of(cls, who: Principal, display_name: str | None = None) -> SessionOut:
@@ -141,6 +142,7 @@ class SessionOut(_Out):
             role=who.role.value,
             expires_at=who.expires_at,
             must_change_password=who.must_change_password,
+            admin=who.is_admin,
         )
 
 
@@ -151,6 +153,7 @@ class UserOut(_Out):
     display_name: str | None
     role: Literal["student", "teacher"]
     created_at: datetime
+    admin: bool = Field(default=False, description="a lab administrator (accounts, rigs, LTI)")
 
     @classmethod
     def of(cls, user: UserInfo) -> UserOut:
@@ -160,6 +163,7 @@ class UserOut(_Out):
             display_name=user.display_name,
             role=user.role.value,
             created_at=user.created_at,
+            admin=user.admin,
         )
 
 
@@ -170,6 +174,7 @@ class NewUserIn(_In):
     display_name: Annotated[str | None, Field(max_length=256)] = None
     password: Annotated[str, Field(min_length=MIN_PASSWORD_LENGTH, max_length=MAX_PASSWORD_LENGTH)]
     role: Literal["student", "teacher"]
+    admin: bool = Field(default=False, description="make this teacher a lab administrator")
 
 
 class PasswordIn(_In):

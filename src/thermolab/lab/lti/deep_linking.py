@@ -196,6 +196,11 @@ class DeepLinkRequests:
         chosen = [self._items.find(t, pending.course) for t in targets]
         if len(chosen) > 1 and pending.settings.get("accept_multiple") is False:
             raise InvalidParameterError("the LMS accepts one item here: choose one")
+        # Shown as the platform accepts it: in its frame if it may, else in a window.
+        shown = pending.settings.get("accept_presentation_document_targets") or ["iframe"]
+        presentation: dict[str, Any] = (
+            {"iframe": {}} if "iframe" in shown else {"window": {"targetName": "thermolab"}}
+        )
         now = int(time.time())
         claims: dict[str, Any] = {
             "iss": pending.platform.client_id,
@@ -212,6 +217,7 @@ class DeepLinkRequests:
                     "title": item.title,
                     "url": launch_url,
                     "custom": {TARGET_PARAMETER: item.target},
+                    **presentation,
                 }
                 for item in chosen
             ],

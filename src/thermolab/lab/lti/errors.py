@@ -5,12 +5,16 @@ from __future__ import annotations
 from thermolab.errors import ThermoLabError
 
 __all__ = [
+    "LtiClaimError",
     "LtiError",
+    "LtiFormTooLargeError",
     "LtiInvalidTokenError",
     "LtiJwksUnreachableError",
     "LtiReplayError",
     "LtiServiceError",
     "LtiStateError",
+    "LtiTargetError",
+    "LtiThrottledError",
     "LtiUnknownDeploymentError",
     "LtiUnknownPlatformError",
 ]
@@ -46,3 +50,19 @@ class LtiJwksUnreachableError(LtiError):
 
 class LtiServiceError(LtiError):
     """A platform service (token, roster, scores) failed or answered nonsense."""
+
+
+class LtiClaimError(LtiError):
+    """A required claim of the launch is missing or malformed (roles, resource link...)."""
+
+
+class LtiTargetError(LtiError):
+    """The launch's ``target_link_uri`` is not one of this tool's own URLs."""
+
+
+class LtiFormTooLargeError(LtiError):
+    """The LMS's login or launch form is over the size the tool reads (HTTP 413)."""
+
+
+class LtiThrottledError(LtiError):
+    """Too many login initiations from one address (HTTP 429)."""

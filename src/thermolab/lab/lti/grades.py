@@ -14,10 +14,11 @@ from __future__ import annotations
 import logging
 import math
 import threading
+from collections.abc import Collection
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 
-from sqlalchemy import select
+from sqlalchemy import Select, select
 
 from thermolab.errors import InvalidParameterError, NotFoundError
 from thermolab.lab.clock import LabClock
@@ -29,6 +30,7 @@ from thermolab.lab.db.lti_models import (
     LtiPlatform,
     LtiResourceLink,
 )
+from thermolab.lab.db.models import Course, CourseMember
 from thermolab.lab.lti.claims import AGS_SCOPES
 from thermolab.lab.lti.errors import LtiError
 from thermolab.lab.lti.platforms import PlatformInfo, check_url
@@ -200,22 +202,38 @@ class GradeOutbox:
             for platform_id, sub, url in pairs
         ]
 
-    def list(self, *, limit: int = 200) -> list[GradeInfo]:
-        """The newest queued scores first (failed and pending ones are what a teacher checks)."""
+    def list(self, *, limit: int = 200, courses: Collection[str] | None = None) -> list[GradeInfo]:
+        """The newest queued scores first (failed and pending ones are what a teacher checks).
+
+        ``courses``: only the scores of students of these lab courses (``None``: all).
+        """
+        query = (
+            select(LtiGrade, LtiPlatform.issuer)
+            .join(LtiPlatform, LtiPlatform.id == LtiGrade.platform_id)
+            .order_by(LtiGrade.id.desc())
+            .limit(limit)
+        )
+        if courses is not None:
+            query = query.where(LtiGrade.id.in_(_grades_of(courses)))
         with self._db.read() as session:
-            rows = session.execute(
-                select(LtiGrade, LtiPlatform.issuer)
-                .join(LtiPlatform, LtiPlatform.id == LtiGrade.platform_id)
-                .order_by(LtiGrade.id.desc())
-                .limit(limit)
-            ).all()
+            rows = session.execute(query).all()
             return [GradeInfo.of(row, issuer) for row, issuer in rows]
 
-    def retry(self, grade_id: int) -> GradeInfo:
-        """Make a failed (or pending) score due now, with a fresh count of attempts."""
+    def retry(self, grade_id: int, *, courses: Collection[str] | None = None) -> GradeInfo:
+        """Make a failed (or pending) score due now, with a fresh count of attempts.
+
+        ``courses``: refuse (as unknown) a score of a student of none of these courses.
+        """
         now = self._clock.now()
         with self._db.write() as session:
             row = session.get(LtiGrade, grade_id)
+            if row is not None and courses is not None:
+                visible = session.scalar(
+                    select(LtiGrade.id).where(
+                        LtiGrade.id == grade_id, LtiGrade.id.in_(_grades_of(courses))
+                    )
+                )
+                row = row if visible is not None else None
             if row is None:
                 raise NotFoundError(f"no queued grade number {grade_id}")
             if row.status != GradeStatus.SENT.value:
@@ -295,3 +313,17 @@ class GradeOutbox:
 
 def _iso(moment: datetime) -> str:
     return moment.isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def _grades_of(courses: Collection[str]) -> Select[int]:
+    """The ids of the scores whose LMS user is a lab account in one of ``courses``."""
+    return (
+        select(LtiGrade.id)
+        .join(
+            LtiIdentity,
+            (LtiIdentity.platform_id == LtiGrade.platform_id) & (LtiIdentity.sub == LtiGrade.sub),
+        )
+        .join(CourseMember, CourseMember.user_id == LtiIdentity.user_id)
+        .join(Course, Course.id == CourseMember.course_id)
+        .where(Course.name.in_(list(courses)))
+    )

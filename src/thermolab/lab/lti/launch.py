@@ -12,7 +12,10 @@
    token (:mod:`.tokens`), that the state is one it made, unexpired, unused,
    for this platform and the one in this browser's cookie, that the token's
    nonce is the state's, the deployment id is registered, the message type is
-   known and the version is 1.3.0. Only then, in one transaction, it marks the
+   known and the version is 1.3.0, and that every claim the IMS certification
+   requires is there (:func:`check_required_claims`: ``roles``, a resource
+   link's ``id``, a deep-linking request's settings the tool can honour, a
+   ``target_link_uri`` on the tool's own origin). Only then, in one transaction, it marks the
    state used (a replay fails), signs the person in and fills the course.
    Anything refused changes nothing and is logged.
 """
@@ -22,10 +25,11 @@ from __future__ import annotations
 import hashlib
 import logging
 import secrets
+import threading
 from dataclasses import dataclass, field
 from datetime import timedelta
 from typing import Any
-from urllib.parse import urlencode
+from urllib.parse import urlencode, urlsplit
 
 from argon2 import PasswordHasher
 from sqlalchemy import select, update
@@ -49,16 +53,27 @@ from thermolab.lab.lti.claims import (
     RESOURCE_LINK_REQUEST,
 )
 from thermolab.lab.lti.errors import (
+    LtiClaimError,
     LtiInvalidTokenError,
     LtiReplayError,
     LtiStateError,
+    LtiTargetError,
+    LtiThrottledError,
     LtiUnknownDeploymentError,
     LtiUnknownPlatformError,
 )
 from thermolab.lab.lti.platforms import PlatformInfo
 from thermolab.lab.lti.tokens import JwksCache, unverified_identity, verify_id_token
 
-__all__ = ["LaunchOutcome", "LoginRedirect", "LtiLaunches"]
+__all__ = [
+    "PRESENTATION_TARGETS",
+    "InitiationRate",
+    "LaunchOutcome",
+    "LoginRedirect",
+    "LtiLaunches",
+    "check_required_claims",
+    "check_target",
+]
 
 log = logging.getLogger(__name__)
 
@@ -86,6 +101,121 @@ class LaunchOutcome:
     deployment_id: str = ""
 
 
+# The content item the tool offers, and the ways it can be shown (Deep Linking 2.0).
+_OFFERED_TYPE = "ltiResourceLink"
+PRESENTATION_TARGETS = ("iframe", "window")
+
+
+def check_target(target: object, tool_origin: str) -> str:
+    """Refuse a ``target_link_uri`` that is not on the tool's own origin.
+
+    Examples
+    --------
+    >>> check_target("https://lab.example/api/lti/launch", "https://lab.example/")
+    'https://lab.example/api/lti/launch'
+    >>> check_target("https://evil.example/api/lti/launch", "https://lab.example/")
+    Traceback (most recent call last):
+    ...
+    thermolab.lab.lti.errors.LtiTargetError: the launch's target_link_uri is not this tool's ...
+    """
+    if not isinstance(target, str) or not target:
+        raise LtiClaimError("the launch has no target_link_uri")
+    got, own = urlsplit(target), urlsplit(tool_origin)
+    if (got.scheme.lower(), got.netloc.lower()) != (own.scheme.lower(), own.netloc.lower()):
+        raise LtiTargetError(
+            f"the launch's target_link_uri is not this tool's (it is on "
+            f"{got.scheme}://{got.netloc}, the tool is {own.scheme}://{own.netloc})"
+        )
+    return target
+
+
+def check_required_claims(claims: dict[str, Any], kind: str, tool_origin: str | None) -> None:
+    """Refuse a launch without a claim the IMS certification requires (see the module).
+
+    Raises
+    ------
+    LtiClaimError
+        Naming the claim.
+    LtiTargetError
+        A ``target_link_uri`` on another origin than ``tool_origin``.
+    """
+    roles = claims.get(CLAIM["roles"])
+    if not isinstance(roles, list) or not all(isinstance(r, str) for r in roles):
+        raise LtiClaimError("the launch has no roles claim (a list of role URIs, maybe empty)")
+    target = claims.get(CLAIM["target_link_uri"])
+    if tool_origin is not None:
+        check_target(target, tool_origin)
+    elif not isinstance(target, str) or not target:
+        raise LtiClaimError("the launch has no target_link_uri")
+    if kind == RESOURCE_LINK_REQUEST:
+        link = claims.get(CLAIM["resource_link"])
+        if not isinstance(link, dict):
+            raise LtiClaimError("a resource link launch has no resource_link claim")
+        link_id = link.get("id")
+        if not isinstance(link_id, str) or not 0 < len(link_id) <= 255:
+            raise LtiClaimError("the launch's resource_link has no id (1 to 255 characters)")
+        return
+    settings = claims.get(CLAIM["dl_settings"])
+    if not isinstance(settings, dict):
+        raise LtiClaimError("a deep linking request has no deep_linking_settings claim")
+    if not isinstance(settings.get("deep_link_return_url"), str):
+        raise LtiClaimError("the deep linking settings have no deep_link_return_url")
+    accepted = settings.get("accept_types")
+    if not isinstance(accepted, list) or _OFFERED_TYPE not in accepted:
+        raise LtiClaimError(
+            f"the platform accepts {accepted!r}; this tool offers only {_OFFERED_TYPE!r} items"
+        )
+    targets = settings.get("accept_presentation_document_targets")
+    if not isinstance(targets, list) or not set(targets) & set(PRESENTATION_TARGETS):
+        raise LtiClaimError(
+            f"the platform shows content as {targets!r}; this tool opens in an iframe or a window"
+        )
+    multiple = settings.get("accept_multiple", True)
+    if not isinstance(multiple, bool):
+        raise LtiClaimError("the deep linking settings' accept_multiple is not true or false")
+
+
+class InitiationRate:
+    """At most ``per_address`` login initiations per address in ``window`` (a sliding count).
+
+    Each initiation stores a state row, so an anonymous flood would fill the
+    table; past the limit the address is refused (HTTP 429) until its oldest
+    initiation leaves the window. Addresses are forgotten when idle.
+    """
+
+    def __init__(
+        self, clock: LabClock, *, per_address: int = 30, window: timedelta = timedelta(minutes=1)
+    ) -> None:
+        self._clock = clock
+        self._per_address = per_address
+        self._window = window
+        self._seen: dict[str, list[float]] = {}
+        self._lock = threading.Lock()
+
+    def check(self, address: str) -> None:
+        """Count one initiation from ``address``.
+
+        Raises
+        ------
+        LtiThrottledError
+            Past the limit.
+        """
+        now = self._clock.now().timestamp()
+        start = now - self._window.total_seconds()
+        with self._lock:
+            if len(self._seen) > 10_000:  # forget idle addresses
+                self._seen = {a: t for a, t in self._seen.items() if t and t[-1] > start}
+            times = [t for t in self._seen.get(address, []) if t > start]
+            if len(times) >= self._per_address:
+                self._seen[address] = times
+                raise LtiThrottledError(
+                    f"too many LTI logins from {address}: at most {self._per_address} per "
+                    f"{int(self._window.total_seconds())} s"
+                )
+            times.append(now)
+            self._seen[address] = times
+
+
 def _hash(text: str) -> str:
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
@@ -100,6 +230,7 @@ class LtiLaunches:
         self._clock = clock
         self._hasher = hasher
         self._keys = keys
+        self.initiations = InitiationRate(clock)
 
     def _platform(self, issuer: str, client_ids: list[str] | None) -> PlatformInfo:
         if len(issuer) > 255 or any(len(c) > 255 for c in client_ids or ()):
@@ -136,13 +267,19 @@ class LtiLaunches:
         redirect_uri: str,
         lti_message_hint: str | None = None,
         client_id: str | None = None,
+        tool_origin: str | None = None,
     ) -> LoginRedirect:
         """Start a login: store a state and nonce, return the platform's authorisation URL.
+
+        ``tool_origin``: the tool's own origin, which ``target_link_uri`` must be on.
 
         Raises
         ------
         LtiUnknownPlatformError
+        LtiTargetError
         """
+        if tool_origin is not None:
+            check_target(target_link_uri, tool_origin)
         platform = self._platform(issuer, [client_id] if client_id else None)
         state = secrets.token_urlsafe(32)
         nonce = secrets.token_urlsafe(32)
@@ -172,8 +309,17 @@ class LtiLaunches:
         separator = "&" if "?" in platform.auth_login_url else "?"
         return LoginRedirect(platform.auth_login_url + separator + urlencode(query), state)
 
-    def complete(self, id_token: str, state: str, browser_state: str | None) -> LaunchOutcome:
+    def complete(
+        self,
+        id_token: str,
+        state: str,
+        browser_state: str | None,
+        *,
+        tool_origin: str | None = None,
+    ) -> LaunchOutcome:
         """Check a launch and sign its person in (see the module's notes).
+
+        ``tool_origin``: the tool's own origin, which ``target_link_uri`` must be on.
 
         ``browser_state`` is the state cookie this browser sent (``None`` when
         its cookies were blocked: the launch is then bound by the single-use
@@ -214,6 +360,7 @@ class LtiLaunches:
         kind = claims.get(CLAIM["message_type"])
         if kind not in (RESOURCE_LINK_REQUEST, DEEP_LINKING_REQUEST):
             raise LtiInvalidTokenError(f"unknown LTI message type {kind!r}")
+        check_required_claims(claims, str(kind), tool_origin)
         person = person_of(claims)
         if not 0 < len(person.sub) <= 255 or not person.sub.isprintable():
             raise LtiInvalidTokenError("the launch names no user (sub), or not a printable one")

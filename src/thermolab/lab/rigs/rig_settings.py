@@ -32,6 +32,7 @@ from datetime import datetime
 from sqlalchemy.exc import IntegrityError
 
 from thermolab.errors import SettingNotForRigError, SettingsChangedError
+from thermolab.lab.accounts.policy import Action, require_lab
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config.model import LabConfig, RigConfig
@@ -214,7 +215,7 @@ class RigSettingsService:
         Raises
         ------
         AccessDeniedError
-            For a student.
+            For anyone but a lab administrator.
         SettingRangeError
             A changed value outside its range (the message names it); nothing is saved.
         SettingNotForRigError
@@ -222,7 +223,7 @@ class RigSettingsService:
         SettingsChangedError
             The settings were saved since ``version``.
         """
-        who.require_teacher("change a rig's settings")
+        require_lab(who, Action.RIG_SETTINGS_EDIT)
         rig = self._file_rig(rig_id)
         with self._lock:
             current = self._in_force(rig, self._row(rig))

@@ -11,6 +11,7 @@ from thermolab.lab.http.routers import (
     agents,
     analytics,
     assignments,
+    audit,
     bookings,
     control,
     course_settings,
@@ -54,5 +55,6 @@ for _resource in (
     lti_admin,
     agents,
     course_settings,
+    audit,
 ):
     api_router.include_router(_resource.router)

@@ -15,6 +15,7 @@ from fastapi.responses import Response
 from pydantic import Field
 
 from thermolab.errors import InvalidParameterError
+from thermolab.lab.accounts.policy import Action
 from thermolab.lab.analytics import CourseAnalytics, RigFigures, StudentFigures
 from thermolab.lab.analytics.export import rigs_csv, students_csv
 from thermolab.lab.http.bodies import Out
@@ -219,7 +220,7 @@ def course_analytics(
     course: CourseName, who: UserDep, lab: LabDep, start: From = None, end: To = None
 ) -> AnalyticsOut:
     """Per student and per rig figures over a window (teachers only)."""
-    who.require_teacher("see a course's analytics")
+    lab.authorize.require_course(who, Action.COURSE_ANALYTICS, course)
     return AnalyticsOut.of(_analytics(course, start, end, lab))
 
 
@@ -237,7 +238,7 @@ def students_table(
     course: CourseName, who: UserDep, lab: LabDep, start: From = None, end: To = None
 ) -> Response:
     """The students' table, one line per student (teachers only; formula-safe cells)."""
-    who.require_teacher("export a course's analytics")
+    lab.authorize.require_course(who, Action.COURSE_ANALYTICS, course)
     data = _analytics(course, start, end, lab)
     return _csv(students_csv(data), f"{data.course}-students.csv")
 
@@ -253,7 +254,7 @@ def rigs_table(
     course: CourseName, who: UserDep, lab: LabDep, start: From = None, end: To = None
 ) -> Response:
     """The rigs' table, one line per rig (teachers only; formula-safe cells)."""
-    who.require_teacher("export a course's analytics")
+    lab.authorize.require_course(who, Action.COURSE_ANALYTICS, course)
     data = _analytics(course, start, end, lab)
     return _csv(rigs_csv(data), f"{data.course}-rigs.csv")
 

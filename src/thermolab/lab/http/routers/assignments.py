@@ -11,7 +11,7 @@ from datetime import datetime
 from typing import Annotated, Any
 
 import anyio.to_thread
-from fastapi import APIRouter, Path, Response, status
+from fastapi import APIRouter, Path, Request, Response, status
 from pydantic import AwareDatetime, Field
 
 from thermolab.ident.registry import METHOD_NAMES
@@ -23,12 +23,14 @@ from thermolab.lab.assignments import (
     Tolerances,
     grades_csv,
 )
+from thermolab.lab.audit.log import AuditAction
 from thermolab.lab.http.bodies import In, Out
 from thermolab.lab.http.deps import (
     AUTHENTICATED,
     MAX_ROW_ID,
     LabDep,
     UserDep,
+    audit,
     documented_errors,
 )
 from thermolab.lab.http.routers.courses import CourseName
@@ -191,14 +193,16 @@ def list_assignments(who: UserDep, lab: LabDep) -> list[AssignmentOut]:
     responses=documented_errors(403, 404, 422),
 )
 def create_assignment(
-    course: CourseName, body: AssignmentIn, who: UserDep, lab: LabDep
+    course: CourseName, body: AssignmentIn, who: UserDep, lab: LabDep, request: Request
 ) -> AssignmentOut:
     """Set an experiment for a course: rig, methods and settings, deadline, tolerances.
 
     Teachers of the course only; methods and settings are checked by the
     method registry (422 ``invalid_parameter`` names what is allowed).
     """
-    return AssignmentOut.of(lab.assignments.create(course, who, body.draft()))
+    made = AssignmentOut.of(lab.assignments.create(course, who, body.draft()))
+    audit(lab, who, request, AuditAction.ASSIGNMENT_CHANGED, f"{course} #{made.id}")
+    return made
 
 
 @router.get(
@@ -221,10 +225,12 @@ def get_assignment(assignment_id: AssignmentId, who: UserDep, lab: LabDep) -> As
     responses=documented_errors(403, 404, 422),
 )
 def update_assignment(
-    assignment_id: AssignmentId, body: AssignmentIn, who: UserDep, lab: LabDep
+    assignment_id: AssignmentId, body: AssignmentIn, who: UserDep, lab: LabDep, request: Request
 ) -> AssignmentOut:
     """Change an assignment (teachers of its course); hand-ins keep the marks they got."""
-    return AssignmentOut.of(lab.assignments.update(assignment_id, who, body.draft()))
+    changed = AssignmentOut.of(lab.assignments.update(assignment_id, who, body.draft()))
+    audit(lab, who, request, AuditAction.ASSIGNMENT_CHANGED, f"{changed.course} #{assignment_id}")
+    return changed
 
 
 @router.post(

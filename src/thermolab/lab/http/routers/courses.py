@@ -16,16 +16,26 @@ from pydantic import Field
 
 from thermolab.errors import AccessDeniedError, ClassListError, WrongEnrolCodeError
 from thermolab.lab.accounts.names import MAX_DISPLAY_NAME
+from thermolab.lab.accounts.policy import Action
 from thermolab.lab.accounts.security import (
     MAX_PASSWORD_LENGTH,
     MIN_PASSWORD_LENGTH,
     AuthenticationError,
     normalize_username,
 )
+from thermolab.lab.audit.log import AuditAction
 from thermolab.lab.classes.class_list import MAX_CLASS_LIST_BYTES
 from thermolab.lab.classes.courses import CourseInfo, ImportReport
 from thermolab.lab.http.bodies import In, Out
-from thermolab.lab.http.deps import AUTHENTICATED, LabDep, UserDep, Username, documented_errors
+from thermolab.lab.http.deps import (
+    AUTHENTICATED,
+    LabDep,
+    UserDep,
+    Username,
+    audit,
+    client_address,
+    documented_errors,
+)
 
 __all__ = ["router"]
 
@@ -147,9 +157,10 @@ class ResetOut(Out):
     responses=documented_errors(403),
 )
 def list_courses(who: UserDep, lab: LabDep) -> list[CourseOut]:
-    """Every course with its code and rigs, without rosters (teachers only)."""
-    who.require_teacher("list courses")
-    return [CourseOut.of(c) for c in lab.courses.list()]
+    """The courses you teach (every course for an administrator), without rosters."""
+    lab.authorize.require(who, Action.COURSES_READ)
+    taught = lab.authorize.taught(who, Action.COURSES_READ)
+    return [CourseOut.of(c) for c in lab.courses.list() if taught is None or c.name in taught]
 
 
 @_teachers.post(
@@ -160,10 +171,12 @@ def list_courses(who: UserDep, lab: LabDep) -> list[CourseOut]:
     summary="Create a course",
     responses=documented_errors(403, 409, 422),
 )
-def create_course(body: NewCourseIn, who: UserDep, lab: LabDep) -> CourseOut:
+def create_course(body: NewCourseIn, who: UserDep, lab: LabDep, request: Request) -> CourseOut:
     """Create a course; its creator is its first teacher (teachers only)."""
-    who.require_teacher("create courses")
-    return CourseOut.of(lab.courses.create(body.name, body.title, who.username))
+    lab.authorize.require(who, Action.COURSE_CREATE)
+    created = CourseOut.of(lab.courses.create(body.name, body.title, who.username))
+    audit(lab, who, request, AuditAction.COURSE_CREATED, created.name)
+    return created
 
 
 @_teachers.get(
@@ -174,8 +187,8 @@ def create_course(body: NewCourseIn, who: UserDep, lab: LabDep) -> CourseOut:
     responses=documented_errors(403, 404, 422),
 )
 def get_course(course: CourseName, who: UserDep, lab: LabDep) -> CourseOut:
-    """A course with its teachers and students (teachers only)."""
-    who.require_teacher("see a course's roster")
+    """A course with its teachers and students (its teachers, administrators)."""
+    lab.authorize.require_course(who, Action.COURSE_READ, course)
     return CourseOut.of(lab.courses.get(course))
 
 
@@ -201,7 +214,7 @@ async def upload_roster(
     ``class_list_invalid`` lists each bad line in ``errors`` (``loc`` =
     ``["file", line]``) and nothing changes.
     """
-    who.require_teacher("upload class lists")
+    lab.authorize.require_course(who, Action.COURSE_ROSTER, course)
     data = b""
     async for chunk in request.stream():
         data += chunk
@@ -209,6 +222,15 @@ async def upload_roster(
             raise ClassListError([(0, f"the file is larger than {MAX_CLASS_LIST_BYTES} bytes")])
     report = await anyio.to_thread.run_sync(lab.courses.import_class_list, course, data)
     lab.names.forget()  # a re-upload may have renamed people
+    audit(
+        lab,
+        who,
+        request,
+        AuditAction.ROSTER_CHANGED,
+        course,
+        created=sorted(report.created),
+        updated=report.updated,
+    )
     return ImportOut.of(report)
 
 
@@ -219,10 +241,12 @@ async def upload_roster(
     summary="A new enrolment code",
     responses=documented_errors(403, 404, 422),
 )
-def rotate_code(course: CourseName, who: UserDep, lab: LabDep) -> EnrolCodeOut:
-    """Replace the course's enrolment code; the old one stops working (teachers only)."""
-    who.require_teacher("change enrolment codes")
-    return EnrolCodeOut(enrol_code=lab.courses.rotate_code(course))
+def rotate_code(course: CourseName, who: UserDep, lab: LabDep, request: Request) -> EnrolCodeOut:
+    """Replace the course's enrolment code; the old one stops working (its teachers)."""
+    lab.authorize.require_course(who, Action.COURSE_ENROL_CODE, course)
+    code = lab.courses.rotate_code(course)
+    audit(lab, who, request, AuditAction.ENROL_CODE_ROTATED, course)
+    return EnrolCodeOut(enrol_code=code)
 
 
 @_teachers.put(
@@ -232,11 +256,15 @@ def rotate_code(course: CourseName, who: UserDep, lab: LabDep) -> EnrolCodeOut:
     summary="The rigs a course may use",
     responses=documented_errors(403, 404, 422),
 )
-def set_rigs(course: CourseName, body: CourseRigsIn, who: UserDep, lab: LabDep) -> CourseOut:
+def set_rigs(
+    course: CourseName, body: CourseRigsIn, who: UserDep, lab: LabDep, request: Request
+) -> CourseOut:
     """Set the rigs the course's students may use; an empty list means every rig."""
-    who.require_teacher("choose a course's rigs")
+    lab.authorize.require_course(who, Action.COURSE_RIGS, course)
     known = {rig.id for rig in lab.config.rigs}
-    return CourseOut.of(lab.courses.set_rigs(course, body.rigs, known))
+    changed = CourseOut.of(lab.courses.set_rigs(course, body.rigs, known))
+    audit(lab, who, request, AuditAction.COURSE_RIGS_SET, course, rigs=changed.rigs)
+    return changed
 
 
 @router.post(
@@ -280,13 +308,17 @@ def reset_password(
     """Give a student a one-time password, shown once; they must change it at next login.
 
     The teacher re-authenticates with their own current password (as for a
-    password change); a script's API token cannot reset. The student's
-    logins end.
+    password change); a script's API token cannot reset. Only a teacher of
+    one of the student's courses, or an administrator, may reset (a teacher's
+    password: administrators only). The student's logins end; the audit log
+    records it.
     """
-    who.require_teacher("reset passwords")
+    lab.authorize.require(who, Action.PASSWORD_RESET)
     if who.token_id is not None:
         raise AccessDeniedError("an API token cannot reset passwords; log in with your password")
-    address = request.client.host if request.client is not None else "unknown"
+    if normalize_username(username) != who.username:
+        lab.authorize.require_person(who, Action.PASSWORD_RESET, username)
+    address = client_address(request)
     lab.throttle.check(who.username, address)
     try:
         lab.users.verify(who.username, body.current_password)
@@ -296,7 +328,9 @@ def reset_password(
     lab.throttle.record(who.username, address, success=True)
     if normalize_username(username) == who.username:
         raise AccessDeniedError("change your own password instead of resetting it")
-    return ResetOut(temporary_password=lab.courses.reset_password(username))
+    temporary = lab.courses.reset_password(username)
+    audit(lab, who, request, AuditAction.PASSWORD_RESET, normalize_username(username))
+    return ResetOut(temporary_password=temporary)
 
 
 router.include_router(_teachers)

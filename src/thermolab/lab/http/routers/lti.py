@@ -29,17 +29,18 @@ from urllib.parse import parse_qs
 import anyio.to_thread
 from fastapi import APIRouter, Query, Request, Response
 from fastapi.responses import JSONResponse, RedirectResponse
+from starlette.requests import HTTPConnection
 
-from thermolab.lab.http.deps import COOKIE_NAME, documented_errors
+from thermolab.lab.http.deps import COOKIE_NAME, client_address, documented_errors
 from thermolab.lab.http.errors import fault_of, request_language
 from thermolab.lab.http.lti_pages import error_page, handover_page
 from thermolab.lab.lti.claims import DEEP_LINKING_REQUEST
 from thermolab.lab.lti.deep_linking import TARGET_PARAMETER, target_path
-from thermolab.lab.lti.errors import LtiError, LtiStateError
+from thermolab.lab.lti.errors import LtiError, LtiFormTooLargeError, LtiStateError
 from thermolab.lab.lti.launch import LaunchOutcome
 from thermolab.lab.service import Lab
 
-__all__ = ["LTI_CROSS_SITE_PATHS", "STATE_COOKIE", "router"]
+__all__ = ["LTI_CROSS_SITE_PATHS", "STATE_COOKIE", "router", "too_large_page"]
 
 router = APIRouter(prefix="/lti", tags=["lti"])
 log = logging.getLogger(__name__)
@@ -70,7 +71,7 @@ async def _form(request: Request) -> dict[str, str]:
     if request.method == "POST":
         body = await request.body()
         if len(body) > _MAX_FORM:
-            raise LtiError("the LMS's form is too large")
+            raise LtiFormTooLargeError(f"the LMS's form is over {_MAX_FORM} bytes")
         try:
             text = body.decode("utf-8")
         except UnicodeDecodeError:
@@ -96,9 +97,20 @@ def _cookie(name: str, value: str, max_age: int, path: str) -> str:
 def _refused(request: Request, exc: LtiError) -> Response:
     fault = fault_of(exc)
     language = request_language(request.headers, request.cookies)
-    address = request.client.host if request.client is not None else "unknown"
+    address = client_address(request)
     log.warning("LTI %s refused (%s) from %s: %s", request.url.path, fault.code, address, exc)
     return error_page(fault.code, str(exc), fault.status, language)
+
+
+def too_large_page(connection: HTTPConnection, size: int, limit: int) -> Response:
+    """The LTI error page for a login or launch form over the body limit (logged as a refusal)."""
+    address = connection.client.host if connection.client is not None else "unknown"
+    detail = f"the LMS's form is over {limit} bytes (at least {size} sent)"
+    log.warning(
+        "LTI %s refused (lti_form_too_large) from %s: %s", connection.url.path, address, detail
+    )
+    language = request_language(connection.headers, connection.cookies)
+    return error_page("lti_form_too_large", detail, 413, language)
 
 
 def _need(fields: dict[str, str], name: str) -> str:
@@ -143,6 +155,7 @@ async def lti_login_form(request: Request) -> Response:
 async def _login(request: Request) -> Response:
     lab = _lab(request)
     try:
+        lab.lti.launches.initiations.check(client_address(request))
         fields = await _form(request)
         redirect = await anyio.to_thread.run_sync(
             lambda: lab.lti.launches.begin(
@@ -152,6 +165,7 @@ async def _login(request: Request) -> Response:
                 redirect_uri=str(request.url_for("lti_launch")),
                 lti_message_hint=fields.get("lti_message_hint"),
                 client_id=fields.get("client_id"),
+                tool_origin=str(request.base_url),
             )
         )
     except LtiError as exc:
@@ -181,7 +195,9 @@ async def lti_launch(request: Request) -> Response:
         fields = await _form(request)
         token, state = _need(fields, "id_token"), _need(fields, "state")
         outcome = await anyio.to_thread.run_sync(
-            lambda: lab.lti.launches.complete(token, state, browser_state)
+            lambda: lab.lti.launches.complete(
+                token, state, browser_state, tool_origin=str(request.base_url)
+            )
         )
     except LtiError as exc:
         return _refused(request, exc)

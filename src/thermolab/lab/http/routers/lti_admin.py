@@ -1,6 +1,9 @@
 """Teachers' routes of the LTI tool: platforms, keys, roster sync, grade outbox, deep links.
 
-Every route needs a login; all but the deep-link picker's need a teacher.
+Every route needs a login. Platforms and keys are a lab administrator's; a
+teacher synchronises and sees the grades of the courses they teach
+(:mod:`thermolab.lab.accounts.policy`); the deep-link picker is its
+launcher's.
 """
 
 from __future__ import annotations
@@ -14,8 +17,17 @@ from fastapi import APIRouter, Path, Request, Response, status
 from pydantic import Field
 
 from thermolab.errors import InvalidParameterError
+from thermolab.lab.accounts.policy import Action
+from thermolab.lab.audit.log import AuditAction
 from thermolab.lab.http.bodies import In, Out
-from thermolab.lab.http.deps import AUTHENTICATED, MAX_ROW_ID, LabDep, UserDep, documented_errors
+from thermolab.lab.http.deps import (
+    AUTHENTICATED,
+    MAX_ROW_ID,
+    LabDep,
+    UserDep,
+    audit,
+    documented_errors,
+)
 from thermolab.lab.http.errors import request_language
 from thermolab.lab.http.lti_pages import return_page
 from thermolab.lab.lti.grades import GradeInfo
@@ -147,7 +159,12 @@ class DeepLinkOut(Out):
     items: list[LinkItemOut]
 
 
-@router.get("/tool", response_model=ToolOut, summary="The tool's URLs for an LMS")
+@router.get(
+    "/tool",
+    response_model=ToolOut,
+    summary="The tool's URLs for an LMS",
+    responses=documented_errors(403),
+)
 def tool(request: Request, who: UserDep) -> ToolOut:
     """The URLs an LMS administrator enters when adding ThermoLab as an LTI 1.3 tool."""
     who.require_teacher("see the LTI settings")
@@ -158,10 +175,15 @@ def tool(request: Request, who: UserDep) -> ToolOut:
     )
 
 
-@router.get("/platforms", response_model=list[PlatformOut], summary="Registered platforms")
+@router.get(
+    "/platforms",
+    response_model=list[PlatformOut],
+    summary="Registered platforms",
+    responses=documented_errors(403),
+)
 def list_platforms(lab: LabDep, who: UserDep) -> list[PlatformOut]:
-    """Every registered LMS."""
-    who.require_teacher("see the LTI platforms")
+    """Every registered LMS (administrators)."""
+    lab.authorize.require_lab(who, Action.LTI_PLATFORMS)
     return [PlatformOut.of(p) for p in lab.lti.platforms.list()]
 
 
@@ -172,9 +194,9 @@ def list_platforms(lab: LabDep, who: UserDep) -> list[PlatformOut]:
     summary="Register a platform",
     responses=documented_errors(403, 409, 422),
 )
-def register_platform(body: PlatformIn, lab: LabDep, who: UserDep) -> PlatformOut:
-    """Register an LMS (https URLs; http only on this machine)."""
-    who.require_teacher("register an LTI platform")
+def register_platform(body: PlatformIn, lab: LabDep, who: UserDep, request: Request) -> PlatformOut:
+    """Register an LMS (https URLs; http only on this machine; administrators)."""
+    lab.authorize.require_lab(who, Action.LTI_PLATFORMS)
     info = lab.lti.platforms.register(
         issuer=body.issuer,
         client_id=body.client_id,
@@ -182,6 +204,14 @@ def register_platform(body: PlatformIn, lab: LabDep, who: UserDep) -> PlatformOu
         token_url=body.token_url,
         jwks_url=body.jwks_url,
         deployment_ids=body.deployment_ids,
+    )
+    audit(
+        lab,
+        who,
+        request,
+        AuditAction.LTI_PLATFORM_ADDED,
+        f"{info.issuer} {info.client_id}",
+        platform=info.id,
     )
     return PlatformOut.of(info)
 
@@ -192,10 +222,13 @@ def register_platform(body: PlatformIn, lab: LabDep, who: UserDep) -> PlatformOu
     summary="Remove a platform",
     responses=documented_errors(403, 404),
 )
-def remove_platform(platform_id: PlatformId, lab: LabDep, who: UserDep) -> Response:
+def remove_platform(
+    platform_id: PlatformId, lab: LabDep, who: UserDep, request: Request
+) -> Response:
     """Remove an LMS (its links to accounts and its queued grades go with it)."""
-    who.require_teacher("remove an LTI platform")
+    lab.authorize.require_lab(who, Action.LTI_PLATFORMS)
     lab.lti.platforms.remove(platform_id)
+    audit(lab, who, request, AuditAction.LTI_PLATFORM_REMOVED, str(platform_id))
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
@@ -205,10 +238,12 @@ def remove_platform(platform_id: PlatformId, lab: LabDep, who: UserDep) -> Respo
     summary="Rotate the tool's key",
     responses=documented_errors(403),
 )
-def rotate_key(lab: LabDep, who: UserDep) -> KeyOut:
-    """Make a new signing key; the old one stays published for 7 days."""
-    who.require_teacher("rotate the LTI key")
-    return KeyOut(kid=lab.lti.keys.rotate().kid)
+def rotate_key(lab: LabDep, who: UserDep, request: Request) -> KeyOut:
+    """Make a new signing key; the old one stays published for 7 days (administrators)."""
+    lab.authorize.require_lab(who, Action.LTI_PLATFORMS)
+    kid = lab.lti.keys.rotate().kid
+    audit(lab, who, request, AuditAction.LTI_KEY_ROTATED, kid)
+    return KeyOut(kid=kid)
 
 
 @router.post(
@@ -217,18 +252,33 @@ def rotate_key(lab: LabDep, who: UserDep) -> KeyOut:
     summary="Synchronise a course's roster from the LMS",
     responses=documented_errors(403, 404),
 )
-def sync_roster(course: CourseName, lab: LabDep, who: UserDep) -> RosterOut:
+def sync_roster(course: CourseName, lab: LabDep, who: UserDep, request: Request) -> RosterOut:
     """Add the LMS course's people to the lab course; remove those who left it."""
-    who.require_teacher("synchronise a roster")
+    lab.authorize.require_course(who, Action.COURSE_LMS_ROSTER, course)
     report = lab.lti.roster.sync(course)
+    audit(
+        lab,
+        who,
+        request,
+        AuditAction.LMS_ROSTER_SYNCED,
+        course,
+        added=list(report.added),
+        removed=list(report.removed),
+    )
     return RosterOut(added=report.added, removed=report.removed, kept=report.kept)
 
 
-@router.get("/grades", response_model=list[GradeOut], summary="The grade outbox")
+@router.get(
+    "/grades",
+    response_model=list[GradeOut],
+    summary="The grade outbox",
+    responses=documented_errors(403),
+)
 def list_grades(lab: LabDep, who: UserDep) -> list[GradeOut]:
-    """Scores queued for LMS gradebooks, newest first, with their state and last error."""
-    who.require_teacher("see the grade outbox")
-    return [GradeOut.of(g) for g in lab.lti.grades.list()]
+    """Scores queued for LMS gradebooks, newest first (your courses' students' only)."""
+    lab.authorize.require(who, Action.COURSE_LMS_GRADES)
+    courses = lab.authorize.taught(who, Action.COURSE_LMS_GRADES)
+    return [GradeOut.of(g) for g in lab.lti.grades.list(courses=courses)]
 
 
 @router.post(
@@ -237,10 +287,12 @@ def list_grades(lab: LabDep, who: UserDep) -> list[GradeOut]:
     summary="Try a queued score again now",
     responses=documented_errors(403, 404),
 )
-def retry_grade(grade_id: GradeId, lab: LabDep, who: UserDep) -> GradeOut:
+def retry_grade(grade_id: GradeId, lab: LabDep, who: UserDep, request: Request) -> GradeOut:
     """Make a failed score due again now (with a fresh count of attempts)."""
-    who.require_teacher("retry a grade")
-    info = GradeOut.of(lab.lti.grades.retry(grade_id))
+    lab.authorize.require(who, Action.COURSE_LMS_GRADES)
+    courses = lab.authorize.taught(who, Action.COURSE_LMS_GRADES)
+    info = GradeOut.of(lab.lti.grades.retry(grade_id, courses=courses))
+    audit(lab, who, request, AuditAction.GRADE_RETRIED, str(grade_id), sub=info.sub)
     lab.lti.kick()
     return info
 

@@ -12,12 +12,13 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Request
 from pydantic import BaseModel, ConfigDict, Field, create_model
 
+from thermolab.lab.audit.log import AuditAction
 from thermolab.lab.config.teacher_settings import TEACHER_SETTINGS, TeacherSetting
 from thermolab.lab.http.bodies import In, Out
-from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, UserDep, documented_errors
+from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, UserDep, audit, documented_errors
 from thermolab.lab.rigs.rig_settings import RigSettings
 from thermolab.lab.service import Lab
 
@@ -138,11 +139,15 @@ def get_settings(rig_id: RigId, who: UserDep, lab: LabDep) -> RigSettingsOut:
     summary="Change a rig's teacher settings",
     responses=documented_errors(403, 404, 409, 422),
 )
-def put_settings(rig_id: RigId, body: SettingsIn, who: UserDep, lab: LabDep) -> RigSettingsOut:
+def put_settings(
+    rig_id: RigId, body: SettingsIn, who: UserDep, lab: LabDep, request: Request
+) -> RigSettingsOut:
     """Save some or all settings over ``version`` (409 ``settings_changed`` if someone saved
     since). The turn limit applies from the next turn, the maximum run and the twin speed-up
     from the next run; the turn and the run going keep theirs. A setting the rig does not
     have is a 422 ``setting_not_for_rig``."""
     given: BaseModel = body.values
     values = {name: getattr(given, name) for name in given.model_fields_set}
-    return _out(lab, lab.settings.update(rig_id, who, values, body.version))
+    saved = _out(lab, lab.settings.update(rig_id, who, values, body.version))
+    audit(lab, who, request, AuditAction.RIG_SETTINGS_CHANGED, rig_id, **values)
+    return saved

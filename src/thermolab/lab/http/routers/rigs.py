@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Response
+from fastapi import APIRouter, Request, Response
 
 from thermolab.lab.access import RigView
-from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, UserDep, documented_errors
+from thermolab.lab.audit.log import AuditAction
+from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, UserDep, audit, documented_errors
 from thermolab.lab.http.schemas import (
     ControlSessionOut,
     ExtendIn,
@@ -136,9 +137,13 @@ def kick(rig_id: RigId, who: UserDep, lab: LabDep, body: KickIn | None = None) -
     summary="Take a rig in or out of service",
     responses=documented_errors(403, 404, 422),
 )
-def set_service(rig_id: RigId, body: ServiceIn, who: UserDep, lab: LabDep) -> RigOut:
+def set_service(
+    rig_id: RigId, body: ServiceIn, who: UserDep, lab: LabDep, request: Request
+) -> RigOut:
     """Out of service ends the turn and empties the queue; either way clears a fault."""
-    return _out(lab.set_service(rig_id, who, body.in_service), lab)
+    changed = _out(lab.set_service(rig_id, who, body.in_service), lab)
+    audit(lab, who, request, AuditAction.RIG_SERVICE, rig_id, in_service=body.in_service)
+    return changed
 
 
 @router.put(

@@ -131,6 +131,7 @@ export const api = {
   logout: () => request("DELETE", "/api/session", undefined, { quiet401: true }),
   rigs: (opts) => request("GET", "/api/rigs", undefined, opts),
   agents: (opts) => request("GET", "/api/agents", undefined, opts),
+  audit: (opts) => request("GET", "/api/audit", undefined, opts),
   rig: (rig, opts) => request("GET", `/api/rigs/${enc(rig)}`, undefined, opts),
   askControl: (rig) => request("POST", `/api/rigs/${enc(rig)}/control`),
   releaseControl: (rig) => request("DELETE", `/api/rigs/${enc(rig)}/control`),

@@ -22,6 +22,7 @@ const ROUTES = [
   { pattern: /^\/runs\/([^/]+)$/, view: () => import("./views/run.js"), title: "run.pageTitle", nav: "runs" },
   { pattern: /^\/teacher$/, view: () => import("./views/teacher.js"), title: "nav.teacher", nav: "teacher" },
   { pattern: /^\/hosts$/, view: () => import("./views/hosts.js"), title: "hosts.title", nav: "teacher" },
+  { pattern: /^\/audit$/, view: () => import("./views/audit.js"), title: "audit.title", nav: "teacher" },
   { pattern: /^\/account$/, view: () => import("./views/account.js"), title: "nav.account", nav: "account" },
   { pattern: /^\/courses$/, view: () => import("./views/courses.js"), title: "nav.courses", nav: "courses" },
   { pattern: /^\/assignments$/, view: () => import("./views/assignments.js"), title: "nav.assignments", nav: "assignments" },
@@ -36,7 +37,7 @@ const ROUTES = [
 
 /** Shared state handed to every view. */
 export const ctx = {
-  /** @type {{username: string, displayName?: string | null, role: string, mustChangePassword?: boolean} | null} */
+  /** @type {{username: string, displayName?: string | null, role: string, mustChangePassword?: boolean, admin?: boolean} | null} */
   user: null,
   navigate,
   afterLogin,

@@ -26,6 +26,7 @@ export function mount(main, _params, ctx) {
     h("h1", null, t("nav.teacher")),
     h("p", { class: "lede" }, t("teacher.lede")),
     h("p", null, h("a", { href: "#/hosts" }, t("teacher.hostsLink"))),
+    ctx.user.admin === true ? h("p", null, h("a", { href: "#/audit" }, t("teacher.auditLink"))) : null,
     status,
     list,
     h("section", { class: "card", "aria-labelledby": "all-runs" }, h("h2", { id: "all-runs" }, t("teacher.allRuns")), runsBox),

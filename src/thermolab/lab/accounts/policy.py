@@ -1,0 +1,160 @@
+"""Who may do what on which object: the lab's one policy table (issue #25).
+
+Every privileged action is an :class:`Action`; :data:`POLICY` says, for each
+kind of actor (:class:`Actor`), how far it reaches (:class:`Scope`). Routes,
+the command line and the live socket ask :func:`scope_of`; the check of a
+course-scoped action against the database (is this teacher in that course?)
+is :class:`thermolab.lab.classes.authorize.Authorizer`. The table is pure
+data, so a test can print it and the route matrix
+(``tests/lab/test_authorization_matrix.py``) can hold every route to it.
+
+Actors
+------
+``admin``
+    A lab administrator: a teacher with the ``admin`` flag. Reaches the whole
+    lab: accounts, rigs, LTI platforms, the audit log, and every course.
+``teacher``
+    Acts in the courses they teach only (``course_members.role = teacher``);
+    a course they create makes them its first teacher.
+``student``
+    Their own account, their courses' assignments and bookings.
+
+A user an LMS launched (LTI 1.3) is a ``teacher`` or a ``student`` of the
+course the launch's context is linked to — never an administrator, whatever
+roles the platform sends. A teaching assistant (LTI ``TeachingAssistant``)
+launches as a student for now.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping
+from types import MappingProxyType
+
+from thermolab.errors import AccessDeniedError
+from thermolab.lab.accounts.users import Principal
+
+__all__ = ["POLICY", "Action", "Actor", "Scope", "actor_of", "require_lab", "scope_of"]
+
+
+class Actor(enum.StrEnum):
+    """The kinds of people the policy tells apart."""
+
+    ADMIN = "admin"
+    TEACHER = "teacher"
+    STUDENT = "student"
+
+
+class Scope(enum.StrEnum):
+    """How far an actor reaches for an action.
+
+    ``lab``: every object; ``taught``: the courses the actor teaches (a
+    person: a student of such a course); ``self``: the actor's own account;
+    ``none``: refused.
+    """
+
+    LAB = "lab"
+    TAUGHT = "taught"
+    SELF = "self"
+    NONE = "none"
+
+
+class Action(enum.StrEnum):
+    """A privileged action; the value is the words after "may" in a refusal."""
+
+    ACCOUNTS_READ = "list accounts"
+    ACCOUNT_CREATE = "create accounts"
+    ACCOUNT_REMOVE = "remove accounts"
+    ACCOUNT_ROLE = "make or unmake lab administrators"
+    PASSWORD_SET = "set another person's password"
+    PASSWORD_RESET = "reset a password"
+    COURSES_READ = "list courses"
+    COURSE_CREATE = "create courses"
+    COURSE_READ = "see a course's roster"
+    COURSE_ROSTER = "upload class lists"
+    COURSE_ENROL_CODE = "change enrolment codes"
+    COURSE_RIGS = "choose a course's rigs"
+    COURSE_ANALYTICS = "see a course's analytics"
+    COURSE_LMS_ROSTER = "synchronise a course's roster with its LMS"
+    COURSE_LMS_GRADES = "see and retry a course's grades for its LMS"
+    RIG_SETTINGS_READ = "see a rig's settings"
+    RIG_SETTINGS_EDIT = "change a rig's settings"
+    RIG_SERVICE = "take rigs in or out of service"
+    RIG_HOSTS = "see the rig hosts"
+    LTI_PLATFORMS = "manage LTI platforms and keys"
+    AUDIT_READ = "read the audit log"
+
+
+_A, _T, _S, _N = Scope.LAB, Scope.TAUGHT, Scope.SELF, Scope.NONE
+
+# action: (admin, teacher, student)
+_TABLE: dict[Action, tuple[Scope, Scope, Scope]] = {
+    Action.ACCOUNTS_READ: (_A, _N, _N),
+    Action.ACCOUNT_CREATE: (_A, _N, _N),
+    Action.ACCOUNT_REMOVE: (_A, _N, _N),
+    Action.ACCOUNT_ROLE: (_A, _N, _N),
+    Action.PASSWORD_SET: (_A, _T, _S),
+    Action.PASSWORD_RESET: (_A, _T, _N),
+    Action.COURSES_READ: (_A, _T, _N),
+    Action.COURSE_CREATE: (_A, _A, _N),
+    Action.COURSE_READ: (_A, _T, _N),
+    Action.COURSE_ROSTER: (_A, _T, _N),
+    Action.COURSE_ENROL_CODE: (_A, _T, _N),
+    Action.COURSE_RIGS: (_A, _T, _N),
+    Action.COURSE_ANALYTICS: (_A, _T, _N),
+    Action.COURSE_LMS_ROSTER: (_A, _T, _N),
+    Action.COURSE_LMS_GRADES: (_A, _T, _N),
+    Action.RIG_SETTINGS_READ: (_A, _A, _N),
+    Action.RIG_SETTINGS_EDIT: (_A, _N, _N),
+    Action.RIG_SERVICE: (_A, _A, _N),
+    Action.RIG_HOSTS: (_A, _A, _N),
+    Action.LTI_PLATFORMS: (_A, _N, _N),
+    Action.AUDIT_READ: (_A, _N, _N),
+}
+
+POLICY: Mapping[Action, Mapping[Actor, Scope]] = MappingProxyType(
+    {
+        action: MappingProxyType(dict(zip(Actor, scopes, strict=True)))
+        for action, scopes in _TABLE.items()
+    }
+)
+"""For each action, each actor's reach; every :class:`Action` is a key."""
+
+
+def actor_of(who: Principal) -> Actor:
+    """Return the kind of actor ``who`` is."""
+    if who.is_admin:
+        return Actor.ADMIN
+    return Actor.TEACHER if who.is_teacher else Actor.STUDENT
+
+
+def scope_of(who: Principal, action: Action) -> Scope:
+    """Return how far ``who`` reaches for ``action``.
+
+    Examples
+    --------
+    >>> from thermolab.lab.db.models import Role
+    >>> tina = Principal(1, "tina", Role.TEACHER)
+    >>> scope_of(tina, Action.COURSE_ROSTER)
+    <Scope.TAUGHT: 'taught'>
+    >>> scope_of(tina, Action.ACCOUNT_CREATE)
+    <Scope.NONE: 'none'>
+    """
+    return POLICY[action][actor_of(who)]
+
+
+def require_lab(who: Principal, action: Action) -> None:
+    """Refuse ``action`` unless ``who`` reaches it lab-wide (no course to check).
+
+    Raises
+    ------
+    AccessDeniedError
+        Saying who may.
+    """
+    if scope_of(who, action) is not Scope.LAB:
+        whom = [actor.value for actor, scope in POLICY[action].items() if scope is Scope.LAB]
+        raise AccessDeniedError(f"only {' or '.join(_plural(w) for w in whom)} may {action}")
+
+
+def _plural(actor: str) -> str:
+    return "a lab administrator" if actor == "admin" else f"a {actor}"

@@ -1,0 +1,136 @@
+"""Write and read the audit log; its CSV export is formula-safe."""
+
+from __future__ import annotations
+
+import csv
+import enum
+import io
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import select
+
+from thermolab.lab.clock import LabClock
+from thermolab.lab.db import Database
+from thermolab.lab.db.audit_models import AuditEntry
+
+__all__ = ["AuditAction", "AuditLog", "AuditRecord"]
+
+MAX_ROWS = 5000
+
+
+class AuditAction(enum.StrEnum):
+    """The privileged actions the log records (stable names, shown as they are)."""
+
+    ACCOUNT_CREATED = "account.created"
+    ACCOUNT_REMOVED = "account.removed"
+    ACCOUNT_ADMIN = "account.admin"
+    PASSWORD_SET = "password.set"
+    PASSWORD_RESET = "password.reset"
+    COURSE_CREATED = "course.created"
+    ROSTER_CHANGED = "course.roster"
+    ENROL_CODE_ROTATED = "course.enrol_code"
+    COURSE_RIGS_SET = "course.rigs"
+    LMS_ROSTER_SYNCED = "course.lms_roster"
+    ASSIGNMENT_CHANGED = "assignment.changed"
+    GRADE_RETRIED = "grade.retry"
+    RIG_SETTINGS_CHANGED = "rig.settings"
+    RIG_SERVICE = "rig.service"
+    LTI_PLATFORM_ADDED = "lti.platform_added"
+    LTI_PLATFORM_REMOVED = "lti.platform_removed"
+    LTI_KEY_ROTATED = "lti.key_rotated"
+
+
+@dataclass(frozen=True, slots=True)
+class AuditRecord:
+    """One row of the log."""
+
+    id: int
+    at: datetime
+    actor: str
+    action: str
+    target: str
+    address: str | None
+    detail: Mapping[str, Any] = field(default_factory=dict)
+
+
+class AuditLog:
+    """Append privileged actions; list them for administrators.
+
+    Parameters
+    ----------
+    db : Database
+    clock : LabClock
+    """
+
+    def __init__(self, db: Database, clock: LabClock) -> None:
+        self._db = db
+        self._clock = clock
+
+    def record(
+        self,
+        actor: str,
+        action: AuditAction,
+        target: str,
+        *,
+        address: str | None = None,
+        detail: Mapping[str, Any] | None = None,
+    ) -> None:
+        """Append one row: ``actor`` did ``action`` on ``target`` from ``address``."""
+        with self._db.write() as session:
+            session.add(
+                AuditEntry(
+                    at=self._clock.now(),
+                    actor=actor[:64],
+                    action=action.value,
+                    target=target[:200],
+                    address=(address or None) and address[:64],
+                    detail=dict(detail or {}),
+                )
+            )
+
+    def list(
+        self,
+        *,
+        action: str | None = None,
+        actor: str | None = None,
+        since: datetime | None = None,
+        limit: int = 500,
+    ) -> list[AuditRecord]:
+        """Return the newest rows first, at most ``limit`` (capped at 5000)."""
+        query = select(AuditEntry).order_by(AuditEntry.id.desc()).limit(min(limit, MAX_ROWS))
+        if action is not None:
+            query = query.where(AuditEntry.action == action)
+        if actor is not None:
+            query = query.where(AuditEntry.actor == actor)
+        if since is not None:
+            query = query.where(AuditEntry.at >= since)
+        with self._db.read() as session:
+            return [
+                AuditRecord(e.id, e.at, e.actor, e.action, e.target, e.address, e.detail or {})
+                for e in session.scalars(query)
+            ]
+
+    @staticmethod
+    def to_csv(records: Iterable[AuditRecord]) -> str:
+        """The rows as CSV; a cell a spreadsheet would run as a formula is quoted with ``'``."""
+        out = io.StringIO()
+        writer = csv.writer(out, lineterminator="\r\n")
+        writer.writerow(["id", "at", "actor", "action", "target", "address", "detail"])
+        for r in records:
+            detail = "; ".join(f"{k}={v}" for k, v in sorted(r.detail.items()))
+            writer.writerow(
+                [
+                    r.id,
+                    r.at.isoformat(),
+                    *(_safe(v) for v in (r.actor, r.action, r.target, r.address or "", detail)),
+                ]
+            )
+        return out.getvalue()
+
+
+def _safe(cell: str) -> str:
+    # CSV injection: a leading = + - @ (or tab/CR) makes a spreadsheet run the cell.
+    return "'" + cell if cell[:1] in ("=", "+", "-", "@", "\t", "\r") else cell
