@@ -312,14 +312,10 @@ def _serve(args: argparse.Namespace) -> int:
             print(f"  warning: rig {rig_id}: {fault}", file=sys.stderr)
         if report.teachers == 0:
             print(
-                "  No teacher account yet. Create the lab's administrator (a teacher who also
-"
-                "  manages accounts and rigs; then log in at the address above) with:
-"
-                f"    {_teacher_hint(args)}
-"
-                "  then teachers with --role teacher and students with --role student (or,
-"
+                "  No teacher account yet. Create the lab's administrator (a teacher who also\n"
+                "  manages accounts and rigs; then log in at the address above) with:\n"
+                f"    {_teacher_hint(args)}\n"
+                "  then teachers with --role teacher and students with --role student (or,\n"
                 "  once logged in, upload a class list on a course's page).",
                 file=sys.stderr,
             )
