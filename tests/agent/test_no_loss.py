@@ -63,7 +63,7 @@ def _new_run(lab: Lab) -> int:
         run = Run(
             rig_id="box",
             user_id=user_id,
-            status="stopped",
+            status="running",
             dt=0.1,
             methods=[],
             meta={},
@@ -137,3 +137,43 @@ def test_every_sample_is_stored_once_whatever_the_link_does(
         count = session.scalar(select(Run.samples_stored).where(Run.id == run_id))
     assert stored == list(range(k))  # none lost, none twice, in order
     assert count == k
+
+
+def _sample(run_id: int, k: int, y: float = 20.0) -> SampleOut:
+    t = k * 0.1
+    return SampleOut(
+        seq=k + 1, run=run_id, k=k, t=t, u=1.0, y=y, t_read=t, jitter=0.0, lateness=0.0
+    )
+
+
+def test_a_host_cannot_write_past_the_samples_asked_for_nor_into_a_closed_run(
+    lab: Lab, caplog: pytest.LogCaptureFixture
+) -> None:
+    run_id = _new_run(lab)
+    with lab.db.write() as session:
+        run = session.get(Run, run_id)
+        assert run is not None
+        run.n_samples = 5
+    lab.agents._store("box", SampleBatch(samples=[_sample(run_id, k) for k in range(5)]))
+    # Past the 5 asked for: refused, and said (a negative number never decodes).
+    lab.agents._store("box", SampleBatch(samples=[_sample(run_id, 5, 999.0)]))
+    assert "refused 1 of 1 samples" in caplog.text
+    # Interrupted by the lab (a restart): the host may still upload what it took before.
+    with lab.db.write() as session:
+        run = session.get(Run, run_id)
+        assert run is not None
+        run.n_samples, run.status = 10, "interrupted"
+    lab.agents._store("box", SampleBatch(samples=[_sample(run_id, 5)]))
+    # Its own end stored: the run is closed for writing, whatever the host sends.
+    with lab.db.write() as session:
+        run = session.get(Run, run_id)
+        assert run is not None
+        run.status = "stopped"
+    lab.agents._store("box", SampleBatch(samples=[_sample(run_id, k, 999.0) for k in (6, 7)]))
+    with lab.db.read() as session:
+        rows = session.execute(select(Sample.k, Sample.y).where(Sample.run_id == run_id))
+        stored = dict(rows.all())
+        count = session.scalar(select(Run.samples_stored).where(Run.id == run_id))
+    assert sorted(stored) == [0, 1, 2, 3, 4, 5]
+    assert 999.0 not in stored.values()
+    assert count == 6
