@@ -45,6 +45,8 @@ MIGRATIONS_DIR = Path(__file__).with_name("migrations")
 # students all pressing "ask for control" at once queues behind one another.
 SQLITE_BUSY_TIMEOUT = 30.0
 _IMMEDIATE = "thermolab_immediate"
+# Seconds a process waits for another one's migrations (a large database's take minutes).
+UPGRADE_WAIT = 600.0
 
 
 def normalize_database_url(url: str) -> str:
@@ -203,10 +205,21 @@ class Database:
         """
         config = Config()
         config.set_main_option("script_location", str(MIGRATIONS_DIR))
+        # One migrator at a time: on SQLite the write lock is taken before the
+        # version is read (BEGIN IMMEDIATE), so a command started while the server
+        # makes or migrates the schema waits for it (up to UPGRADE_WAIT), then finds
+        # the schema at head, instead of failing either side with "database is
+        # locked". PostgreSQL's DDL takes its locks as it goes, in one transaction.
+        engine = self.engine.execution_options(**{_IMMEDIATE: True})
         try:
-            with self.engine.begin() as connection:
-                config.attributes["connection"] = connection
-                alembic.command.upgrade(config, "head")
+            with self._sqlite_writer, engine.connect() as connection:
+                _set_busy_timeout(connection, UPGRADE_WAIT)
+                try:
+                    with connection.begin():
+                        config.attributes["connection"] = connection
+                        alembic.command.upgrade(config, "head")
+                finally:
+                    _set_busy_timeout(connection, SQLITE_BUSY_TIMEOUT)
         except OperationalError as exc:
             raise ConfigError(
                 f"cannot open the database {self.display_url}: {_first_line(exc)}"
@@ -262,6 +275,13 @@ def _sqlite_on_connect(dbapi_connection: DBAPIConnection, record: ConnectionPool
         cursor.execute(f"PRAGMA busy_timeout={int(SQLITE_BUSY_TIMEOUT * 1000)}")
     finally:
         cursor.close()
+
+
+def _set_busy_timeout(connection: Connection, seconds: float) -> None:
+    # On the driver's connection: through SQLAlchemy the PRAGMA would begin a transaction.
+    raw = connection.connection.dbapi_connection
+    if isinstance(raw, sqlite3.Connection):
+        raw.execute(f"PRAGMA busy_timeout={int(seconds * 1000)}")
 
 
 def _sqlite_on_begin(connection: Connection) -> None:
