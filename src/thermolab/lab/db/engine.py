@@ -279,7 +279,7 @@ def _sqlite_on_connect(dbapi_connection: DBAPIConnection, record: ConnectionPool
 
 def _set_busy_timeout(connection: Connection, seconds: float) -> None:
     # On the driver's connection: through SQLAlchemy the PRAGMA would begin a transaction.
-    raw = connection.connection.dbapi_connection
+    raw = connection.connection.driver_connection
     if isinstance(raw, sqlite3.Connection):
         raw.execute(f"PRAGMA busy_timeout={int(seconds * 1000)}")
 
