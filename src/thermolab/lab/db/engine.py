@@ -213,13 +213,24 @@ class Database:
         engine = self.engine.execution_options(**{_IMMEDIATE: True})
         try:
             with self._sqlite_writer, engine.connect() as connection:
-                _set_busy_timeout(connection, UPGRADE_WAIT)
+                # SQLite alters a table by copying it and dropping the old one; with
+                # foreign keys on, that drop deleted or emptied the rows pointing at it
+                # (a user's tokens, the user of each turn). SQLite's own recipe: keys
+                # off for the change, then a check before the commit.
+                _sqlite_pragmas(connection, UPGRADE_WAIT, foreign_keys=False)
                 try:
                     with connection.begin():
                         config.attributes["connection"] = connection
                         alembic.command.upgrade(config, "head")
+                        if self.backend == "sqlite":
+                            broken = connection.exec_driver_sql("PRAGMA foreign_key_check").all()
+                            if broken:
+                                raise ConfigError(
+                                    f"the migrations left {len(broken)} rows pointing at "
+                                    f"nothing (first: {tuple(broken[0])}); nothing was changed"
+                                )
                 finally:
-                    _set_busy_timeout(connection, SQLITE_BUSY_TIMEOUT)
+                    _sqlite_pragmas(connection, SQLITE_BUSY_TIMEOUT, foreign_keys=True)
         except OperationalError as exc:
             raise ConfigError(
                 f"cannot open the database {self.display_url}: {_first_line(exc)}"
@@ -277,11 +288,13 @@ def _sqlite_on_connect(dbapi_connection: DBAPIConnection, record: ConnectionPool
         cursor.close()
 
 
-def _set_busy_timeout(connection: Connection, seconds: float) -> None:
-    # On the driver's connection: through SQLAlchemy the PRAGMA would begin a transaction.
+def _sqlite_pragmas(connection: Connection, busy_timeout: float, *, foreign_keys: bool) -> None:
+    # On the driver's connection: through SQLAlchemy the PRAGMA would begin a transaction
+    # (and foreign_keys cannot change inside one).
     raw = connection.connection.driver_connection
     if isinstance(raw, sqlite3.Connection):
-        raw.execute(f"PRAGMA busy_timeout={int(seconds * 1000)}")
+        raw.execute(f"PRAGMA busy_timeout={int(busy_timeout * 1000)}")
+        raw.execute(f"PRAGMA foreign_keys={'ON' if foreign_keys else 'OFF'}")
 
 
 def _sqlite_on_begin(connection: Connection) -> None:
