@@ -5,15 +5,22 @@ from __future__ import annotations
 import io
 import json
 import math
+import shutil
 import tarfile
+import uuid
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
+from sqlalchemy import create_engine, text
+from sqlalchemy.engine import make_url
 
 from thermolab.cli import main
+from thermolab.errors import ConfigError
+from thermolab.lab.accounts.users import UserService
 from thermolab.lab.backup import head_revision, make_backup, read_manifest, restore_backup
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import default_config
@@ -142,3 +149,37 @@ def test_restore_refuses_a_filled_target_a_newer_backup_and_a_damaged_one(
     assert (
         Database(default_config(tmp_path / "fresh").database).current_revision() == head_revision()
     )
+
+
+@pytest.mark.postgres
+def test_a_postgresql_lab_is_dumped_and_restored_into_an_empty_database(
+    postgres_url: str, postgres_server: str, tmp_path: Path
+) -> None:
+    if shutil.which("pg_dump") is None or shutil.which("psql") is None:
+        pytest.skip("PostgreSQL's client tools (pg_dump, psql) are not on PATH")
+    db = Database(postgres_url, pool_size=1, max_overflow=0)
+    db.upgrade()
+    UserService(db, ManualClock(), FAST_HASHER).add("tina", PASSWORD, "teacher")
+    db.close()
+    source = replace(default_config(tmp_path / "lab"), database_url=postgres_url)
+    manifest = make_backup(source, tmp_path / "lab.tar.gz")
+    assert (manifest.backend, list(manifest.files)) == ("postgresql", ["database/thermolab.sql"])
+
+    name = f"thermolab_restore_{uuid.uuid4().hex[:8]}"
+    admin = create_engine(postgres_server, isolation_level="AUTOCOMMIT")
+    with admin.connect() as connection:
+        connection.execute(text(f'CREATE DATABASE "{name}"'))
+    target_url = make_url(postgres_url).set(database=name).render_as_string(hide_password=False)
+    try:
+        target = replace(default_config(tmp_path / "new"), database_url=target_url)
+        restore_backup(tmp_path / "lab.tar.gz", target)
+        with pytest.raises(ConfigError, match="is not empty"):
+            restore_backup(tmp_path / "lab.tar.gz", replace(target, data_dir=tmp_path / "n2"))
+        restored = Database(target_url, pool_size=1, max_overflow=0)
+        users = UserService(restored, ManualClock(), FAST_HASHER).list()
+        restored.close()
+        assert [(u.username, u.role.value) for u in users] == [("tina", "teacher")]
+    finally:
+        with admin.connect() as connection:
+            connection.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
+        admin.dispose()

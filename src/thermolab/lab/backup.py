@@ -36,6 +36,7 @@ import hashlib
 import io
 import json
 import os
+import re
 import shutil
 import sqlite3
 import subprocess
@@ -69,6 +70,7 @@ _SQLITE_MEMBER = "database/thermolab.sqlite3"
 _POSTGRES_MEMBER = "database/thermolab.sql"
 _DATA_PREFIX = "data/"
 _SQLITE_SIDE_FILES = ("-wal", "-shm", "-journal")
+_CREATE_SCHEMA = re.compile(r"^CREATE SCHEMA (\S+);$")
 
 
 @dataclass(frozen=True, slots=True)
@@ -368,6 +370,15 @@ def _pg_dump(url: str, target: Path) -> None:
 
 
 def _psql(url: str, script: Path) -> None:
+    # pg_dump --schema writes CREATE SCHEMA; an empty database already has "public".
+    existing = _schemas(url)
+    fitted = script.with_suffix(".restore.sql")
+    with script.open(encoding="utf-8") as source, fitted.open("w", encoding="utf-8") as out:
+        for line in source:
+            created = _CREATE_SCHEMA.match(line)
+            if created is None or created.group(1).strip('"') not in existing:
+                out.write(line)
+    script = fitted
     command = [
         _postgres_tool("psql"),
         "--quiet",
@@ -378,6 +389,17 @@ def _psql(url: str, script: Path) -> None:
         f"--dbname={_libpq_url(url)}",
     ]
     _run(command, "psql")
+
+
+def _schemas(url: str) -> set[str]:
+    from sqlalchemy import text
+
+    db = Database(url, pool_size=1, max_overflow=0)
+    try:
+        with db.read() as session:
+            return set(session.scalars(text("SELECT nspname FROM pg_namespace")))
+    finally:
+        db.close()
 
 
 def _current_schema(url: str) -> str:
