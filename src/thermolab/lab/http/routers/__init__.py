@@ -19,6 +19,7 @@ from thermolab.lab.http.routers import (
     guides,
     lti,
     lti_admin,
+    me,
     methods,
     readings,
     rig_settings,
@@ -54,5 +55,6 @@ for _resource in (
     lti_admin,
     agents,
     course_settings,
+    me,
 ):
     api_router.include_router(_resource.router)
