@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import String, Text, select
@@ -94,3 +96,21 @@ def test_a_person_at_the_controls_is_removed_when_done(
     assert main(["user", "forget", "ana", "--runs", "delete", "--database-url", url]) == 0
     assert capsys.readouterr().out.strip() == "forgot 'ana': their runs deleted"
     assert main(["user", "forget", "ana", "--runs", "keep", "--database-url", url]) == 1
+
+
+@pytest.mark.parametrize("database_url", ["sqlite"], indirect=True)
+def test_a_teacher_forgets_a_student_through_the_api(
+    lab: Lab, app_client: Callable[..., TestClient]
+) -> None:
+    for name, role in (("ana", "student"), ("ben", "student"), ("tina", "teacher")):
+        lab.users.add(name, PASSWORD, role)
+    ben, tina = app_client("ben"), app_client("tina")
+    body = {"runs": "keep"}
+    assert ben.post("/api/users/ana/forget", json=body).status_code == 403
+    assert tina.post("/api/users/tina/forget", json=body).status_code == 403
+    assert tina.post("/api/users/ana/forget", json={"runs": "maybe"}).status_code == 422
+    answer = tina.post("/api/users/ana/forget", json=body)
+    assert answer.status_code == 200, answer.text
+    assert answer.json()["pseudonym"].startswith("removed-")
+    assert "ana" not in [u["username"] for u in tina.get("/api/users").json()]
+    assert tina.post("/api/users/ana/forget", json=body).status_code == 404

@@ -21,6 +21,7 @@ from thermolab.lab.http.routers import (
     lti_admin,
     me,
     methods,
+    people,
     readings,
     rig_settings,
     rigs,
@@ -56,5 +57,6 @@ for _resource in (
     agents,
     course_settings,
     me,
+    people,
 ):
     api_router.include_router(_resource.router)
