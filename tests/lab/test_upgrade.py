@@ -232,3 +232,24 @@ def _naive(row: dict[str, Any]) -> dict[str, Any]:
         else value
         for key, value in row.items()
     }
+
+
+def test_serve_says_which_migrations_it_runs_on_an_old_database(
+    tmp_path: Path, sqlite_at: dict[str, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    from thermolab.cli.serve import _announce_upgrade
+    from thermolab.lab.config import default_config
+
+    config = default_config(tmp_path)
+    shutil.copyfile(sqlite_at["0012"], tmp_path / "thermolab.sqlite3")
+    _announce_upgrade(config)
+    head = head_revision()
+    assert capsys.readouterr().err.strip() == (
+        f"database: upgrading its schema from revision 0012 to {head} "
+        f"({int(head) - 12} migrations, in one transaction; other commands wait for it)"
+    )
+    db = Database(config.database)
+    db.upgrade()
+    db.close()
+    _announce_upgrade(config)  # nothing to say at head
+    assert capsys.readouterr().err == ""

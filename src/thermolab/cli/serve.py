@@ -258,6 +258,7 @@ def _serve(args: argparse.Namespace) -> int:
     if args.standby and args.broker is None:
         raise CliError("--standby: a standby follows an owner; give --broker too", status=2)
     url = args.advertise or f"http://{args.host}:{args.port}"
+    _announce_upgrade(config)
     lab, fleet, report = start_worker(
         config,
         opener=device_opener(),
@@ -309,6 +310,30 @@ def _serve(args: argparse.Namespace) -> int:
     finally:
         lab.close()
     return 0
+
+
+def _announce_upgrade(config: LabConfig) -> None:
+    """Say which migrations the start will run on an existing database, before it does."""
+    from thermolab.lab.backup import known_revisions
+    from thermolab.lab.db import Database
+
+    db = Database(config.database, pool_size=1, max_overflow=0)
+    try:
+        tables = db.table_names()
+        current = db.current_revision() if tables else None
+    except Exception:  # unreachable: the start says so, with the reason
+        return
+    finally:
+        db.close()
+    revisions = known_revisions()
+    if current is None or current not in revisions or current == revisions[-1]:
+        return
+    pending = revisions[revisions.index(current) + 1 :]
+    print(
+        f"  database: upgrading its schema from revision {current} to {revisions[-1]} "
+        f"({len(pending)} migrations, in one transaction; other commands wait for it)",
+        file=sys.stderr,
+    )
 
 
 def _mailer(args: argparse.Namespace, title: str) -> Any:
