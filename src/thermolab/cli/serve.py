@@ -150,6 +150,12 @@ def register(subparsers: Any) -> None:
         metavar="N",
         help=f"open connections beyond which new requests get 503 ({CONNECTION_LIMIT})",
     )
+    parser.add_argument(
+        "--log-format",
+        choices=("text", "json"),
+        default="text",
+        help="the server's log on standard error: text, or one JSON object a line (text)",
+    )
     parser.set_defaults(handler=_serve)
 
 
@@ -306,6 +312,7 @@ def _serve(args: argparse.Namespace) -> int:
             request_timeout=args.request_timeout,
             tls=(args.ssl_certfile, args.ssl_keyfile),
             max_connections=args.max_connections,
+            log_format=args.log_format,
         )
     finally:
         lab.close()
@@ -462,8 +469,15 @@ def _run_server(
     request_timeout: float = 10.0,
     tls: tuple[str | None, str | None] = (None, None),
     max_connections: int = CONNECTION_LIMIT,
+    log_format: str = "text",
 ) -> None:
     import uvicorn
+
+    from thermolab.lab.logs import log_config
+
+    logging_config = log_config("json" if log_format == "json" else "text")
+    # uvicorn's default (its coloured text) unless JSON lines were asked for.
+    logging: Any = uvicorn.config.LOGGING_CONFIG if logging_config is None else logging_config
 
     # Live messages are small and go to many clients: compressing each one for each
     # client (permessage-deflate keeps a context per connection) cost the server more
@@ -473,6 +487,7 @@ def _run_server(
         host=host,
         port=port,
         log_level="info",
+        log_config=logging,
         # X-Forwarded-For is believed only from access.trusted_proxies, in the app itself
         # (uvicorn's default would trust any proxy on 127.0.0.1).
         proxy_headers=False,
