@@ -107,6 +107,9 @@ def test_restore_refuses_a_filled_target_a_newer_backup_and_a_damaged_one(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     lab_dir, archive = tmp_path / "lab", tmp_path / "lab.tar.gz"
+    assert main(["--data-dir", str(lab_dir), "backup", str(archive)]) == 1
+    assert "no lab database at" in capsys.readouterr().err
+    assert not (lab_dir / "thermolab.sqlite3").exists()
     Database(default_config(lab_dir).database).upgrade()
     assert main(["--data-dir", str(lab_dir), "backup", str(archive)]) == 0
     assert "backed up the lab" in capsys.readouterr().out

@@ -141,6 +141,11 @@ def make_backup(config: LabConfig, archive: Path) -> BackupManifest:
         not installed.
     """
     archive = Path(archive).resolve()
+    url = make_url(config.database)
+    if url.get_backend_name() == "sqlite" and not _sqlite_path(config.database).is_file():
+        raise ConfigError(
+            f"no lab database at {_sqlite_path(config.database)}; give the lab's --data-dir"
+        )
     db = Database(config.database, pool_size=1, max_overflow=0)
     try:
         revision = db.current_revision()
