@@ -33,7 +33,7 @@ __all__ = ["CliError", "main"]
 
 # Modules that contribute a subcommand, in the order ``--help`` lists them. A
 # module that does not exist yet is skipped, so the layers can land one by one.
-_SUBCOMMAND_MODULES = ("agent", "course", "identify", "reproduce", "run", "serve", "user")
+_SUBCOMMAND_MODULES = ("agent", "backup", "course", "identify", "reproduce", "run", "serve", "user")
 
 
 class CliError(Exception):

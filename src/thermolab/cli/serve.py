@@ -159,6 +159,12 @@ def register(subparsers: Any) -> None:
         metavar="N",
         help=f"open connections beyond which new requests get 503 ({CONNECTION_LIMIT})",
     )
+    parser.add_argument(
+        "--log-format",
+        choices=("text", "json"),
+        default="text",
+        help="the server's log on standard error: text, or one JSON object a line (text)",
+    )
     parser.set_defaults(handler=_serve)
 
 
@@ -283,6 +289,7 @@ def _serve(args: argparse.Namespace) -> int:
     if args.standby and args.broker is None:
         raise CliError("--standby: a standby follows an owner; give --broker too", status=2)
     url = args.advertise or f"http://{args.host}:{args.port}"
+    _announce_upgrade(config)
     lab, fleet, report = start_worker(
         config,
         opener=device_opener(),
@@ -333,10 +340,35 @@ def _serve(args: argparse.Namespace) -> int:
             request_timeout=args.request_timeout,
             tls=(args.ssl_certfile, args.ssl_keyfile),
             max_connections=args.max_connections,
+            log_format=args.log_format,
         )
     finally:
         lab.close()
     return 0
+
+
+def _announce_upgrade(config: LabConfig) -> None:
+    """Say which migrations the start will run on an existing database, before it does."""
+    from thermolab.lab.backup import known_revisions
+    from thermolab.lab.db import Database
+
+    db = Database(config.database, pool_size=1, max_overflow=0)
+    try:
+        tables = db.table_names()
+        current = db.current_revision() if tables else None
+    except Exception:  # unreachable: the start says so, with the reason
+        return
+    finally:
+        db.close()
+    revisions = known_revisions()
+    if current is None or current not in revisions or current == revisions[-1]:
+        return
+    pending = revisions[revisions.index(current) + 1 :]
+    print(
+        f"  database: upgrading its schema from revision {current} to {revisions[-1]} "
+        f"({len(pending)} migrations, in one transaction; other commands wait for it)",
+        file=sys.stderr,
+    )
 
 
 def _mailer(args: argparse.Namespace, title: str) -> Any:
@@ -465,8 +497,15 @@ def _run_server(
     request_timeout: float = 10.0,
     tls: tuple[str | None, str | None] = (None, None),
     max_connections: int = CONNECTION_LIMIT,
+    log_format: str = "text",
 ) -> None:
     import uvicorn
+
+    from thermolab.lab.logs import log_config
+
+    logging_config = log_config("json" if log_format == "json" else "text")
+    # uvicorn's default (its coloured text) unless JSON lines were asked for.
+    logging: Any = uvicorn.config.LOGGING_CONFIG if logging_config is None else logging_config
 
     # Live messages are small and go to many clients: compressing each one for each
     # client (permessage-deflate keeps a context per connection) cost the server more
@@ -476,6 +515,7 @@ def _run_server(
         host=host,
         port=port,
         log_level="info",
+        log_config=logging,
         # X-Forwarded-For is believed only from access.trusted_proxies, in the app itself
         # (uvicorn's default would trust any proxy on 127.0.0.1).
         proxy_headers=False,

@@ -2,7 +2,9 @@
 
 ``add NAME --role student|teacher|admin``, ``list``, ``passwd NAME``, ``remove NAME``,
 ``admin NAME [--revoke]`` (a lab administrator is a teacher who also manages
-accounts, rigs and LTI platforms; see ``thermolab.lab.accounts.policy``).
+accounts, rigs and LTI platforms; see ``thermolab.lab.accounts.policy``),
+``forget NAME --runs keep|delete`` (the person's name leaves every row; their
+runs stay under a pseudonym or go: :func:`thermolab.lab.personal_data.forget_person`).
 Passwords are asked twice on the terminal, or read as one line from standard
 input with ``--password-stdin`` (scripts: ``printf '%s\\n' "$PW" | thermolab
 user add ana --role student --password-stdin``). The accounts live in the lab's
@@ -34,6 +36,7 @@ examples:
   thermolab user list
   thermolab user passwd ana
   thermolab user remove ana
+  thermolab user forget ana --runs keep
 """
 
 
@@ -100,6 +103,22 @@ def register(subparsers: Any) -> None:
     remove.add_argument("name", metavar="NAME")
     add_database_options(remove)
     remove.set_defaults(handler=_remove)
+
+    forget = actions.add_parser(
+        "forget",
+        help="remove a person for good: their name leaves every row; runs kept under a "
+        "pseudonym or deleted",
+    )
+    forget.add_argument("name", metavar="NAME")
+    forget.add_argument(
+        "--runs",
+        required=True,
+        choices=("keep", "delete"),
+        help="keep: runs, turns and hand-ins stay for the class's statistics under a "
+        "pseudonym; delete: they go with the account",
+    )
+    add_database_options(forget)
+    forget.set_defaults(handler=_forget)
 
 
 def _password_option(parser: argparse.ArgumentParser) -> None:
@@ -218,4 +237,21 @@ def _remove(args: argparse.Namespace) -> int:
     finally:
         db.close()
     print(f"removed {user.role.value} {user.username!r}")
+    return 0
+
+
+def _forget(args: argparse.Namespace) -> int:
+    import secrets
+
+    from thermolab.lab.accounts.security import default_password_hasher
+    from thermolab.lab.personal_data import forget_person
+
+    db, _ = _users(args)
+    try:
+        unknown = default_password_hasher().hash(secrets.token_urlsafe(32))
+        pseudonym = forget_person(db, args.name, args.runs, unknown)
+    finally:
+        db.close()
+    kept = f"their runs kept as {pseudonym!r}" if args.runs == "keep" else "their runs deleted"
+    print(f"forgot {args.name!r}: {kept}")
     return 0

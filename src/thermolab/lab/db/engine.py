@@ -45,6 +45,8 @@ MIGRATIONS_DIR = Path(__file__).with_name("migrations")
 # students all pressing "ask for control" at once queues behind one another.
 SQLITE_BUSY_TIMEOUT = 30.0
 _IMMEDIATE = "thermolab_immediate"
+# Seconds a process waits for another one's migrations (a large database's take minutes).
+UPGRADE_WAIT = 600.0
 
 
 def normalize_database_url(url: str) -> str:
@@ -203,10 +205,32 @@ class Database:
         """
         config = Config()
         config.set_main_option("script_location", str(MIGRATIONS_DIR))
+        # One migrator at a time: on SQLite the write lock is taken before the
+        # version is read (BEGIN IMMEDIATE), so a command started while the server
+        # makes or migrates the schema waits for it (up to UPGRADE_WAIT), then finds
+        # the schema at head, instead of failing either side with "database is
+        # locked". PostgreSQL's DDL takes its locks as it goes, in one transaction.
+        engine = self.engine.execution_options(**{_IMMEDIATE: True})
         try:
-            with self.engine.begin() as connection:
-                config.attributes["connection"] = connection
-                alembic.command.upgrade(config, "head")
+            with self._sqlite_writer, engine.connect() as connection:
+                # SQLite alters a table by copying it and dropping the old one; with
+                # foreign keys on, that drop deleted or emptied the rows pointing at it
+                # (a user's tokens, the user of each turn). SQLite's own recipe: keys
+                # off for the change, then a check before the commit.
+                _sqlite_pragmas(connection, UPGRADE_WAIT, foreign_keys=False)
+                try:
+                    with connection.begin():
+                        config.attributes["connection"] = connection
+                        alembic.command.upgrade(config, "head")
+                        if self.backend == "sqlite":
+                            broken = connection.exec_driver_sql("PRAGMA foreign_key_check").all()
+                            if broken:
+                                raise ConfigError(
+                                    f"the migrations left {len(broken)} rows pointing at "
+                                    f"nothing (first: {tuple(broken[0])}); nothing was changed"
+                                )
+                finally:
+                    _sqlite_pragmas(connection, SQLITE_BUSY_TIMEOUT, foreign_keys=True)
         except OperationalError as exc:
             raise ConfigError(
                 f"cannot open the database {self.display_url}: {_first_line(exc)}"
@@ -262,6 +286,15 @@ def _sqlite_on_connect(dbapi_connection: DBAPIConnection, record: ConnectionPool
         cursor.execute(f"PRAGMA busy_timeout={int(SQLITE_BUSY_TIMEOUT * 1000)}")
     finally:
         cursor.close()
+
+
+def _sqlite_pragmas(connection: Connection, busy_timeout: float, *, foreign_keys: bool) -> None:
+    # On the driver's connection: through SQLAlchemy the PRAGMA would begin a transaction
+    # (and foreign_keys cannot change inside one).
+    raw = connection.connection.driver_connection
+    if isinstance(raw, sqlite3.Connection):
+        raw.execute(f"PRAGMA busy_timeout={int(busy_timeout * 1000)}")
+        raw.execute(f"PRAGMA foreign_keys={'ON' if foreign_keys else 'OFF'}")
 
 
 def _sqlite_on_begin(connection: Connection) -> None:

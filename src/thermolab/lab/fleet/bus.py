@@ -56,6 +56,9 @@ class Bus(Protocol):
     def close(self) -> None:
         """Stop delivering and let go of the broker."""
 
+    def ping(self) -> None:
+        """Return when the broker answers (``/readyz``); raise when it cannot be reached."""
+
 
 class LocalBus:
     """The in-process bus: subscribers are called at once, in the publisher's thread.
@@ -87,6 +90,9 @@ class LocalBus:
     def close(self) -> None:
         """Forget every subscriber."""
         self._handlers.clear()
+
+    def ping(self) -> None:
+        """Nothing to reach: the bus is this process."""
 
 
 _STOP = object()
@@ -143,6 +149,10 @@ class RedisBus:
                     target=self._listen_forever, name="bus-listen", daemon=True
                 )
                 self._listener.start()
+
+    def ping(self) -> None:
+        """One PING to the broker (raises redis-py's error when it does not answer)."""
+        self._redis.ping()
 
     def close(self) -> None:
         """Stop both threads and close the connections."""

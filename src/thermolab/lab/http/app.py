@@ -38,6 +38,7 @@ from thermolab.lab.http.errors import install_error_handlers
 from thermolab.lab.http.forward import ForwardToOwner, refuse_agent_link
 from thermolab.lab.http.limits import BodyLimit
 from thermolab.lab.http.live_socket import LiveEndpoint
+from thermolab.lab.http.observe import install_observability
 from thermolab.lab.http.routers import api_router
 from thermolab.lab.http.routers.guide_images import CACHEABLE_PREFIX, UPLOAD_ALLOWANCE
 from thermolab.lab.http.routers.lti import LTI_CROSS_SITE_PATHS, too_large_page
@@ -145,6 +146,7 @@ def create_app(
     app.state.lab = the_lab
     app.state.live = live
     app.include_router(api_router)
+    install_observability(app, the_lab, live, fleet)  # /healthz, /readyz, /metrics (before "/")
     app.add_api_websocket_route("/api/rigs/{rig_id}/live", live.endpoint, name="live")
 
     # Rig hosts dial in here (thermolab agent; docs/operator.md, "Rigs on their own computers").

@@ -20,7 +20,9 @@ from thermolab.lab.http.routers import (
     guides,
     lti,
     lti_admin,
+    me,
     methods,
+    people,
     readings,
     rig_settings,
     rigs,
@@ -56,5 +58,7 @@ for _resource in (
     agents,
     course_settings,
     audit,
+    me,
+    people,
 ):
     api_router.include_router(_resource.router)

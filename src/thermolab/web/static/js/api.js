@@ -149,6 +149,7 @@ export const api = {
   run: (id, opts) => request("GET", `/api/runs/${enc(id)}`, undefined, opts),
   csvUrl: (id) => `/api/runs/${enc(id)}/samples.csv`,
   exportUrl: (id) => `/api/runs/${enc(id)}/export.json`,
+  myDataUrl: () => "/api/me/export",
   /** Everything stored about a run: {run, channels: [{name, unit, role, description}], samples: {channel name: values}, methods: {label: {method, params, result}}}. */
   exportRun: (id, opts) => request("GET", `/api/runs/${enc(id)}/export.json`, undefined, opts),
   cameraUrl: (rig) => `/api/rigs/${enc(rig)}/camera`,

@@ -1,6 +1,6 @@
 // @ts-check
 // My account: personal API tokens for scripts and notebooks (thermolab.client,
-// thermolab.tclab). A token's secret is shown once, right after it is made;
+// thermolab.tclab), and the download of everything the lab keeps about me. A token's secret is shown once, right after it is made;
 // the list shows only its first characters.
 
 import { api } from "../api.js";
@@ -96,6 +96,9 @@ export function mount(main, _route, ctx) {
     secret,
     form,
     list,
+    h("h2", null, t("account.dataHeading")),
+    h("p", null, t("account.dataHelp")),
+    h("p", null, h("a", { class: "button", href: api.myDataUrl(), download: `thermolab-${ctx.user?.username ?? "me"}.json`, "data-testid": "my-data" }, t("account.dataDownload"))),
   );
   refresh().catch((err) => setText(error, err.message));
   return () => {

@@ -1,0 +1,60 @@
+"""A person removed for good: ``POST /api/users/{username}/forget`` (teachers only).
+
+Their logins, tokens and LMS identities go and their name leaves every row;
+their runs, turns and hand-ins stay under a pseudonym for the class's
+statistics (``runs: "keep"``) or go with them (``"delete"``). See
+:func:`thermolab.lab.personal_data.forget_person`.
+"""
+
+from __future__ import annotations
+
+import secrets
+from typing import Literal
+
+from fastapi import APIRouter
+from pydantic import Field
+
+from thermolab.errors import AccessDeniedError
+from thermolab.lab.accounts.names import username_form
+from thermolab.lab.accounts.security import default_password_hasher
+from thermolab.lab.http.bodies import In, Out
+from thermolab.lab.http.deps import AUTHENTICATED, LabDep, UserDep, Username, documented_errors
+from thermolab.lab.personal_data import forget_person
+
+__all__ = ["router"]
+
+router = APIRouter(**AUTHENTICATED)
+
+
+class ForgetIn(In):
+    """What happens to the person's runs."""
+
+    runs: Literal["keep", "delete"] = Field(
+        description="keep: under a pseudonym, for the class's statistics; delete: with them"
+    )
+
+
+class ForgottenOut(Out):
+    """The pseudonym the kept rows now carry."""
+
+    pseudonym: str = Field(description="removed-XXXXXXXX")
+
+
+@router.post(
+    "/users/{username}/forget",
+    response_model=ForgottenOut,
+    tags=["users"],
+    summary="Remove a person for good",
+    responses=documented_errors(403, 404, 409, 422),
+)
+def forget_user(username: Username, body: ForgetIn, who: UserDep, lab: LabDep) -> ForgottenOut:
+    """Remove a person and their name from every row; their runs kept under a pseudonym
+    or deleted (teachers only; not while they hold or wait for a rig).
+    """
+    who.require_teacher("remove people")
+    if username_form(username) == who.username:
+        raise AccessDeniedError("you cannot remove yourself; ask another teacher")
+    unknown = default_password_hasher().hash(secrets.token_urlsafe(32))
+    pseudonym = forget_person(lab.db, username, body.runs, unknown)
+    lab.names.forget()
+    return ForgottenOut(pseudonym=pseudonym)
