@@ -69,6 +69,7 @@ EXPECTED: dict[str, Kind] = {
     "POST /api/rigs/{rig_id}/runs/current/stop": K.ANYONE,
     "GET /api/runs": K.ANYONE,
     "GET /api/methods": K.ANYONE,
+    "GET /api/me/export": K.ANYONE,
     "GET /api/tokens": K.ANYONE,
     "POST /api/tokens": K.ANYONE,
     "GET /api/control": K.ANYONE,
@@ -101,6 +102,7 @@ EXPECTED: dict[str, Kind] = {
     "GET /api/users": K.ADMIN,
     "POST /api/users": K.ADMIN,
     "DELETE /api/users/{username}": K.ADMIN,
+    "POST /api/users/{username}/forget": K.ADMIN,
     "PUT /api/users/{username}/admin": K.ADMIN,
     "PUT /api/rigs/{rig_id}/settings": K.ADMIN,
     "GET /api/lti/platforms": K.ADMIN,
@@ -284,7 +286,7 @@ def _request(world: dict[str, Any], route: str, actor: str, side: str) -> dict[s
         # A token of one's own ("in"), or of someone else.
         "token_id": str(world["token_id"][actor if side == "in" else "olga"]),
     }
-    if route == "DELETE /api/users/{username}":
+    if route in ("DELETE /api/users/{username}", "POST /api/users/{username}/forget"):
         values["username"] = world["gone"][side]
     url = path.format(**values)
     body = _BODIES.get(route)
@@ -310,6 +312,7 @@ _PNG = bytes.fromhex(
 )
 
 _BODIES: dict[str, Any] = {
+    "POST /api/users/{username}/forget": {"runs": "keep"},
     "POST /api/rigs/{rig_id}/control/extend": {"seconds": 60},
     "POST /api/rigs/{rig_id}/control/kick": {},
     "PUT /api/rigs/{rig_id}/service": {"inService": True},

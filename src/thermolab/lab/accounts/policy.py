@@ -65,6 +65,7 @@ class Action(enum.StrEnum):
     ACCOUNTS_READ = "list accounts"
     ACCOUNT_CREATE = "create accounts"
     ACCOUNT_REMOVE = "remove accounts"
+    ACCOUNT_FORGET = "remove people and their names from every record"
     ACCOUNT_ROLE = "make or unmake lab administrators"
     PASSWORD_SET = "set another person's password"
     PASSWORD_RESET = "reset a password"
@@ -92,6 +93,7 @@ _TABLE: dict[Action, tuple[Scope, Scope, Scope]] = {
     Action.ACCOUNTS_READ: (_A, _N, _N),
     Action.ACCOUNT_CREATE: (_A, _N, _N),
     Action.ACCOUNT_REMOVE: (_A, _N, _N),
+    Action.ACCOUNT_FORGET: (_A, _N, _N),  # a person may be in several courses
     Action.ACCOUNT_ROLE: (_A, _N, _N),
     Action.PASSWORD_SET: (_A, _T, _S),
     Action.PASSWORD_RESET: (_A, _T, _N),

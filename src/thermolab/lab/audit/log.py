@@ -26,6 +26,7 @@ class AuditAction(enum.StrEnum):
 
     ACCOUNT_CREATED = "account.created"
     ACCOUNT_REMOVED = "account.removed"
+    ACCOUNT_FORGOTTEN = "account.forgotten"
     ACCOUNT_ADMIN = "account.admin"
     PASSWORD_SET = "password.set"
     PASSWORD_RESET = "password.reset"

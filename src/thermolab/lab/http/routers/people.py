@@ -1,4 +1,4 @@
-"""A person removed for good: ``POST /api/users/{username}/forget`` (teachers only).
+"""A person removed for good: ``POST /api/users/{username}/forget`` (administrators).
 
 Their logins, tokens and LMS identities go and their name leaves every row;
 their runs, turns and hand-ins stay under a pseudonym for the class's
@@ -11,14 +11,23 @@ from __future__ import annotations
 import secrets
 from typing import Literal
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Request
 from pydantic import Field
 
 from thermolab.errors import AccessDeniedError
 from thermolab.lab.accounts.names import username_form
+from thermolab.lab.accounts.policy import Action
 from thermolab.lab.accounts.security import default_password_hasher
+from thermolab.lab.audit.log import AuditAction
 from thermolab.lab.http.bodies import In, Out
-from thermolab.lab.http.deps import AUTHENTICATED, LabDep, UserDep, Username, documented_errors
+from thermolab.lab.http.deps import (
+    AUTHENTICATED,
+    LabDep,
+    UserDep,
+    Username,
+    audit,
+    documented_errors,
+)
 from thermolab.lab.personal_data import forget_person
 
 __all__ = ["router"]
@@ -47,14 +56,18 @@ class ForgottenOut(Out):
     summary="Remove a person for good",
     responses=documented_errors(403, 404, 409, 422),
 )
-def forget_user(username: Username, body: ForgetIn, who: UserDep, lab: LabDep) -> ForgottenOut:
+def forget_user(
+    username: Username, body: ForgetIn, who: UserDep, lab: LabDep, request: Request
+) -> ForgottenOut:
     """Remove a person and their name from every row; their runs kept under a pseudonym
-    or deleted (teachers only; not while they hold or wait for a rig).
+    or deleted (lab administrators: a person may be in several courses; not while they
+    hold or wait for a rig).
     """
-    who.require_teacher("remove people")
+    lab.authorize.require_lab(who, Action.ACCOUNT_FORGET)
     if username_form(username) == who.username:
-        raise AccessDeniedError("you cannot remove yourself; ask another teacher")
+        raise AccessDeniedError("you cannot remove yourself; ask another administrator")
     unknown = default_password_hasher().hash(secrets.token_urlsafe(32))
     pseudonym = forget_person(lab.db, username, body.runs, unknown)
     lab.names.forget()
+    audit(lab, who, request, AuditAction.ACCOUNT_FORGOTTEN, pseudonym, runs=body.runs)
     return ForgottenOut(pseudonym=pseudonym)
