@@ -122,9 +122,12 @@ def test_a_watcher_joining_a_long_run_is_told_the_chart_shows_its_last_part(
         # Walt saw the run from its first sample: nothing was skipped, nothing to say.
         assert points(early) > 0
         assert early.locator(NOTICE).is_hidden()
-        assert owner.evaluate(
-            "async () => (await fetch('/api/rigs/twin/runs/current/stop', {method: 'POST'})).ok"
+        # END the run, if Olga's turn has not already ended it: her page is the runs
+        # list, which sends no heartbeat, so on a loaded machine the turn may lapse first.
+        stopped = owner.evaluate(
+            "async () => (await fetch('/api/rigs/twin/runs/current/stop', {method: 'POST'})).status"
         )
+        assert stopped in (200, 409), stopped
         assert early_errors == []
         assert late_errors == []
     finally:
