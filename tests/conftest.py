@@ -36,13 +36,6 @@ os.environ.setdefault("THERMOLAB_TEST_REDIS_URL", "redis://127.0.0.1:6379/11")
 _RUN_DATABASE: list[str] = []
 
 
-def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
-    """``-n auto``: two workers per core. Most of the suite waits on real servers, rig
-    hosts and browsers rather than computing (one worker per core kept two cores ~60 %
-    busy on CI), so a second worker per core fills the waits."""
-    return 2 * (os.cpu_count() or 1)
-
-
 def pytest_configure(config: pytest.Config) -> None:
     """Make this process's PostgreSQL database (when the server answers) before collection."""
     if getattr(config.option, "numprocesses", None) and not hasattr(config, "workerinput"):

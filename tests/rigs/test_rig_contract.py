@@ -51,7 +51,7 @@ def _emulated_tclab_subject() -> Iterator[Subject]:
     clock = VirtualClock()
     with TCLabEmulator(clock=clock, seed=42) as emulator:
         rig = open_rig(
-            f"tclab:{emulator.port}", clock=clock, reset_wait=0.0, timeout=0.2, watchdog=None
+            f"tclab:{emulator.port}", clock=clock, reset_wait=0.0, timeout=2.0, watchdog=None
         )
 
         def break_it() -> None:

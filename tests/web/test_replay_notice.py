@@ -69,7 +69,9 @@ def test_a_watcher_joining_a_long_run_is_told_the_chart_shows_its_last_part(
         owner_ctx = context_for(replay_lab, "olga")
         contexts.append(owner_ctx)
         owner = owner_ctx.new_page()
-        owner.goto(f"{replay_lab.url}/#/runs")
+        # Her rig page keeps her turn (its heartbeats): a watcher may read the run's
+        # record only while it goes.
+        owner.goto(f"{replay_lab.url}/#/rig/twin")
         started = owner.evaluate(
             """async () => {
               const c = await fetch('/api/rigs/twin/control', {method: 'POST'});
@@ -122,8 +124,7 @@ def test_a_watcher_joining_a_long_run_is_told_the_chart_shows_its_last_part(
         # Walt saw the run from its first sample: nothing was skipped, nothing to say.
         assert points(early) > 0
         assert early.locator(NOTICE).is_hidden()
-        # END the run, if Olga's turn has not already ended it: her page is the runs
-        # list, which sends no heartbeat, so on a loaded machine the turn may lapse first.
+        # END the run, if it has not ended already (a loaded machine's 20000 samples).
         stopped = owner.evaluate(
             "async () => (await fetch('/api/rigs/twin/runs/current/stop', {method: 'POST'})).status"
         )
