@@ -21,11 +21,16 @@ from sqlalchemy.engine import make_url
 from thermolab.cli import main
 from thermolab.errors import ConfigError
 from thermolab.lab.accounts.users import UserService
-from thermolab.lab.backup import head_revision, make_backup, read_manifest, restore_backup
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import default_config
 from thermolab.lab.db import Database
 from thermolab.lab.http.app import create_app
+from thermolab.lab.operations.backup import (
+    head_revision,
+    make_backup,
+    read_manifest,
+    restore_backup,
+)
 from thermolab.lab.service import Lab
 
 from .conftest import FAST_HASHER, PASSWORD, LabFactory, make_config

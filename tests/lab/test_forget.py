@@ -10,10 +10,10 @@ from sqlalchemy import String, Text, select
 
 from thermolab.cli import main
 from thermolab.errors import ConflictError
+from thermolab.lab.accounts.personal_data import forget_person
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.db.models import Base, Run
 from thermolab.lab.http.app import create_app
-from thermolab.lab.personal_data import forget_person
 from thermolab.lab.service import Lab
 
 from .conftest import PASSWORD, LabFactory

@@ -30,9 +30,9 @@ from sqlalchemy import (
 )
 
 from thermolab.lab.accounts.users import UserService
-from thermolab.lab.backup import head_revision, known_revisions
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.db import MIGRATIONS_DIR, Database
+from thermolab.lab.operations.backup import head_revision, known_revisions
 
 from .conftest import FAST_HASHER, PASSWORD
 

@@ -2,7 +2,7 @@
 
 ``backup`` copies a running lab (its database, consistently, and its data
 folder) into one ``.tar.gz`` with a manifest of checksums
-(:mod:`thermolab.lab.backup`); ``restore`` brings it back into an empty data
+(:mod:`thermolab.lab.operations.backup`); ``restore`` brings it back into an empty data
 folder or database, refusing a damaged archive, a backup from a newer
 ThermoLab, or a target that is not empty, with one line and exit status 1.
 """
@@ -61,7 +61,7 @@ def register(subparsers: Any) -> None:
 
 def _backup(args: argparse.Namespace) -> int:
     from thermolab.cli.serve import make_private
-    from thermolab.lab.backup import make_backup
+    from thermolab.lab.operations.backup import make_backup
 
     config = lab_config_from_args(args)
     make_private(config)
@@ -77,7 +77,7 @@ def _backup(args: argparse.Namespace) -> int:
 def _restore(args: argparse.Namespace) -> int:
     from thermolab.cli import CliError
     from thermolab.cli.serve import make_private
-    from thermolab.lab.backup import restore_backup
+    from thermolab.lab.operations.backup import restore_backup
 
     archive = Path(args.archive)
     if not archive.is_file():

@@ -349,8 +349,8 @@ def _serve(args: argparse.Namespace) -> int:
 
 def _announce_upgrade(config: LabConfig) -> None:
     """Say which migrations the start will run on an existing database, before it does."""
-    from thermolab.lab.backup import known_revisions
     from thermolab.lab.db import Database
+    from thermolab.lab.operations.backup import known_revisions
 
     db = Database(config.database, pool_size=1, max_overflow=0)
     try:
@@ -501,7 +501,7 @@ def _run_server(
 ) -> None:
     import uvicorn
 
-    from thermolab.lab.logs import log_config
+    from thermolab.lab.operations.logs import log_config
 
     logging_config = log_config("json" if log_format == "json" else "text")
     # uvicorn's default (its coloured text) unless JSON lines were asked for.

@@ -4,7 +4,7 @@
 ``admin NAME [--revoke]`` (a lab administrator is a teacher who also manages
 accounts, rigs and LTI platforms; see ``thermolab.lab.accounts.policy``),
 ``forget NAME --runs keep|delete`` (the person's name leaves every row; their
-runs stay under a pseudonym or go: :func:`thermolab.lab.personal_data.forget_person`).
+runs stay under a pseudonym or go: :func:`thermolab.lab.accounts.personal_data.forget_person`).
 Passwords are asked twice on the terminal, or read as one line from standard
 input with ``--password-stdin`` (scripts: ``printf '%s\\n' "$PW" | thermolab
 user add ana --role student --password-stdin``). The accounts live in the lab's
@@ -243,8 +243,8 @@ def _remove(args: argparse.Namespace) -> int:
 def _forget(args: argparse.Namespace) -> int:
     import secrets
 
+    from thermolab.lab.accounts.personal_data import forget_person
     from thermolab.lab.accounts.security import default_password_hasher
-    from thermolab.lab.personal_data import forget_person
 
     db, _ = _users(args)
     try:

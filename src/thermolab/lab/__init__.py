@@ -15,6 +15,8 @@ One folder per domain:
 * :mod:`.live` — the live stream's per-rig channels and who watches;
 * :mod:`.fleet` — several web workers: the lease, the bus, followers, takeover;
 * :mod:`.lti` — LTI 1.3 launches, deep links, roster and grades;
+* :mod:`.operations` — backups and restores, the log's format;
+* :mod:`.audit` — the log of privileged actions (who did what to whom);
 * :mod:`.http` — the app factory, routers, schemas, errors and the live socket.
 
 At the top: :mod:`.service` (:class:`~thermolab.lab.service.Lab`, everything

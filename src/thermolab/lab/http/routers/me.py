@@ -6,8 +6,8 @@ import json
 
 from fastapi import APIRouter, Response
 
+from thermolab.lab.accounts.personal_data import personal_data
 from thermolab.lab.http.deps import AUTHENTICATED, LabDep, UserDep
-from thermolab.lab.personal_data import personal_data
 
 __all__ = ["router"]
 

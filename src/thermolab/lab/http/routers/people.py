@@ -3,7 +3,7 @@
 Their logins, tokens and LMS identities go and their name leaves every row;
 their runs, turns and hand-ins stay under a pseudonym for the class's
 statistics (``runs: "keep"``) or go with them (``"delete"``). See
-:func:`thermolab.lab.personal_data.forget_person`.
+:func:`thermolab.lab.accounts.personal_data.forget_person`.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from pydantic import Field
 
 from thermolab.errors import AccessDeniedError
 from thermolab.lab.accounts.names import username_form
+from thermolab.lab.accounts.personal_data import forget_person
 from thermolab.lab.accounts.policy import Action
 from thermolab.lab.accounts.security import default_password_hasher
 from thermolab.lab.audit.log import AuditAction
@@ -28,7 +29,6 @@ from thermolab.lab.http.deps import (
     audit,
     documented_errors,
 )
-from thermolab.lab.personal_data import forget_person
 
 __all__ = ["router"]
 

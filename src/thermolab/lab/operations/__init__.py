@@ -1,0 +1,9 @@
+"""Running the lab for a term: backups and restores, and the server's log format.
+
+* :mod:`.backup` — ``thermolab backup`` / ``restore``: one archive (manifest,
+  checksums) of the database and the data folder, restored into an empty one;
+* :mod:`.logs` — the log as text or as JSON lines (``--log-format``).
+
+Health and metrics are served by :mod:`thermolab.lab.http.observe`. Nothing
+here is on a request's path.
+"""
