@@ -16,6 +16,7 @@ from thermolab.control import (
     predict_closed_loop,
     predict_record_step,
     rest_warning,
+    settling_warning,
     step_metrics,
     to_control,
     tune,
@@ -143,3 +144,33 @@ def test_a_record_moving_at_its_step_is_flagged_not_at_rest() -> None:
     assert "does not describe this run" in moved
     # No dead time: nothing to look through.
     assert rest_warning((0.6, 140.0), step_metrics(run.t, r, warm), run.t, warm) is None
+
+
+def test_settling_times_either_side_of_the_band_are_said_not_comparable() -> None:
+    # The kit's twin, tuned (SIMC PI) from two LSM fits of its noisy step: dead times
+    # of 16 s (the usual one) and 18 s (a noise realisation that CI met).
+    twin = (0.6, 140.0, 15.9)
+    figures = {}
+    for fit in ((0.6, 138.5, 16.0), (0.593, 137.3, 18.0)):
+        gains = tune(fit, "simc", form="pi").gains
+        run = predict_closed_loop(
+            twin, gains, dt=1.0, samples=900, setpoint=45.0, y0=21.0, u_limits=(0.0, 100.0)
+        )
+        measured, predicted = predict_record_step(
+            fit, gains, run.t, run.r, run.y, run.u, dt=1.0, u_rest=0.0, u_limits=(0.0, 100.0)
+        )
+        figures[fit[2]] = (measured, predicted.metrics)
+    usual, edge = figures[16.0], figures[18.0]
+    # Peaks well beyond the band: the settling times agree, nothing to say.
+    assert abs(usual[0].settling_time - usual[1].settling_time) < 0.05 * usual[0].settling_time
+    assert settling_warning(*usual) is None
+    # A measured peak inside the 2 % band, a predicted one outside: the settling times
+    # are 25 % apart, the IAEs within 5 % -- and the warning says which to compare.
+    measured, predicted = edge
+    assert measured.overshoot < 2.0 < predicted.overshoot
+    assert abs(measured.settling_time - predicted.settling_time) > 0.25 * measured.settling_time
+    assert abs(measured.iae - predicted.iae) < 0.05 * measured.iae
+    note = settling_warning(measured, predicted)
+    assert note is not None
+    assert "(1.0 % measured, 2.3 % predicted)" in note
+    assert "compare the overshoot and the IAE" in note

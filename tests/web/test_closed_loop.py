@@ -4,7 +4,8 @@ A student identifies the kit's twin (a heater step, LSM finds the dead time),
 opens the tuning table of that run in the fourth panel, picks SIMC (the gains
 fill in), starts a closed-loop set-point step on the twin at the lab's
 speed-up, and sees the measured overshoot and settling time beside the
-predicted ones when the run ends — and they agree, on a box at rest: the
+predicted ones when the run ends — and they agree, on a box at rest (the
+settling times unless the page says an overshoot sits at the band's edge): the
 test lets the twin cool back to where the identification began (the
 heater is off between runs; at the lab's speed-up that takes seconds)
 before it closes the loop, because the prediction starts the model settled
@@ -91,18 +92,33 @@ def test_tune_from_an_identified_model_and_step_the_set_point(
         page.wait_for_selector("[data-testid=loop-status]:has-text('45')", timeout=30_000)
         # The run ends by itself; the measured figures appear beside the predicted ones.
         page.wait_for_selector("[data-figure='loop.measured-overshoot']", timeout=90_000)
-        measured = page.inner_text("[data-figure='loop.measured-settling']")
-        predicted = page.inner_text("[data-figure='loop.predicted-settling']")
-        assert measured not in ("", "–")
-        assert predicted not in ("", "–")
-        m, p = (float(x.replace(",", ".").replace("\u202f", "")) for x in (measured, predicted))
+        figures = {
+            (who, what): _number(page.inner_text(f"[data-figure='loop.{who}-{what}']"))
+            for who in ("measured", "predicted")
+            for what in ("settling", "iae")
+        }
+        note = page.locator("[data-testid=loop-note]")
+        note_text = note.inner_text() if note.count() else ""
         # The twin is the kit's two nodes with a quantised sensor, the model LSM's FOPDT
-        # fit of it: on a box at rest their 2 % settling times agree within 15 %.
+        # fit of it: on a box at rest the IAEs agree within 15 %, and so do the 2 %
+        # settling times unless an overshoot sits at the band's edge (LSM's dead time
+        # varies by a sample or two with the noise, and with it the tuned peak), where
+        # the settling time jumps and the page says to compare the IAE instead.
+        m_iae, p_iae = figures["measured", "iae"], figures["predicted", "iae"]
+        assert abs(m_iae - p_iae) <= 0.15 * m_iae, (figures, note_text)
+        m, p = figures["measured", "settling"], figures["predicted", "settling"]
         assert m > 0
         assert p > 0
-        assert abs(m - p) <= 0.15 * m, (measured, predicted)
+        if "settling band" not in note_text:
+            assert abs(m - p) <= 0.15 * m, (figures, note_text)
         panel.screenshot(path=str(artifacts / "closed-loop.png"))
         page.click("button[data-action=release]")
         assert errors == []
     finally:
         context.close()
+
+
+def _number(text: str) -> float:
+    """A figure as the page writes it in English (this browser's language): 1,331 or 1\u202f331."""
+    assert text not in ("", "\u2013"), "a figure is missing"
+    return float(text.replace("\u202f", "").replace(",", "").replace(" ", ""))

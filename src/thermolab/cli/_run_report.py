@@ -25,7 +25,12 @@ __all__ = [
 
 def closed_loop_figures(result: Any, loop: Any, model: Any) -> dict[str, Any]:
     """Measured (and, with a model, predicted) overshoot, settling time and IAE."""
-    from thermolab.control import predict_record_step, rest_warning, step_metrics
+    from thermolab.control import (
+        predict_record_step,
+        rest_warning,
+        settling_warning,
+        step_metrics,
+    )
     from thermolab.errors import InvalidDataError
 
     figures: dict[str, Any] = {"measured": None, "predicted": None, "note": None}
@@ -53,7 +58,11 @@ def closed_loop_figures(result: Any, loop: Any, model: Any) -> dict[str, Any]:
         return figures
     figures["measured"] = measured.to_dict()
     figures["predicted"] = predicted.metrics.to_dict()
-    figures["note"] = rest_warning(model, measured, result.t, result.y)
+    notes = (
+        rest_warning(model, measured, result.t, result.y),
+        settling_warning(measured, predicted.metrics),
+    )
+    figures["note"] = "; ".join(n for n in notes if n) or None
     return figures
 
 

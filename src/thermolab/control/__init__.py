@@ -40,6 +40,7 @@ if TYPE_CHECKING:
         predict_closed_loop,
         predict_record_step,
         rest_warning,
+        settling_warning,
         step_metrics,
     )
 
@@ -51,6 +52,7 @@ _LAZY = {
     "predict_closed_loop",
     "predict_record_step",
     "rest_warning",
+    "settling_warning",
     "step_metrics",
 }
 
@@ -87,6 +89,7 @@ __all__ = [
     "predict_closed_loop",
     "predict_record_step",
     "rest_warning",
+    "settling_warning",
     "step_metrics",
     "to_control",
     "tune",

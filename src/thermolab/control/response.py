@@ -35,6 +35,7 @@ __all__ = [
     "predict_closed_loop",
     "predict_record_step",
     "rest_warning",
+    "settling_warning",
     "step_metrics",
 ]
 
@@ -378,4 +379,45 @@ def rest_warning(
         f"the step, before the controller could act: the box was about {away:+.3g} from rest "
         "(still warm from an earlier run?), so the prediction, which starts it settled, does "
         "not describe this run; start from a box at rest"
+    )
+
+
+def settling_warning(
+    measured: StepMetrics, predicted: StepMetrics, *, spread: float = 0.25
+) -> str | None:
+    """Why two settling times may disagree: an overshoot at the edge of the settling band.
+
+    The settling time is discontinuous in the peak: an overshoot just inside
+    the band (1.7 % of the step for a 2 % band) settles when the output first
+    reaches the band, one just outside (2.3 %) only after the peak has come
+    back, tens of seconds later. A record and its prediction with peaks on
+    either side of the edge disagree by that jump however good the model is.
+    When either overshoot lies within ``spread`` of the band (1.5 % to 2.5 %
+    for 2 %), the settling times are not comparable and this says so, naming
+    the figures that are: the overshoot and the IAE. ``None`` otherwise.
+
+    Examples
+    --------
+    >>> near = StepMetrics(1.7, 98.0, 1294.0, 0.0, 24.0, 0.02)
+    >>> far = StepMetrics(3.4, 139.0, 1250.0, 0.0, 24.0, 0.02)
+    >>> settling_warning(far, far) is None
+    True
+    >>> print(settling_warning(near, far))  # doctest: +NORMALIZE_WHITESPACE
+    the overshoot (1.7 % measured, 3.4 % predicted) is near the 2 % settling band, where the
+    settling time jumps between reaching the band and leaving the peak: compare the
+    overshoot and the IAE instead
+    """
+    edge = measured.band * 100.0
+    near = [
+        m.overshoot
+        for m in (measured, predicted)
+        if math.isfinite(m.overshoot) and abs(m.overshoot - edge) <= spread * edge
+    ]
+    if not near:
+        return None
+    return (
+        f"the overshoot ({measured.overshoot:.1f} % measured, {predicted.overshoot:.1f} % "
+        f"predicted) is near the {edge:g} % settling band, where the settling time jumps "
+        "between reaching the band and leaving the peak: compare the overshoot and the IAE "
+        "instead"
     )

@@ -29,6 +29,7 @@ from thermolab.control import (
     predict_closed_loop,
     predict_record_step,
     rest_warning,
+    settling_warning,
     step_metrics,
     tune,
 )
@@ -190,5 +191,6 @@ def closed_loop_figures(
     )
     out["predicted"] = predicted.metrics.to_dict()
     out["response"] = {"t": _thin(predicted.t), "y": _thin(predicted.y)}
-    out["note"] = rest_warning(fopdt, measured, t, y)
+    notes = (rest_warning(fopdt, measured, t, y), settling_warning(measured, predicted.metrics))
+    out["note"] = "; ".join(n for n in notes if n) or None
     return out

@@ -304,7 +304,8 @@ export class ClosedLoopPanel {
       if (!cl) return;
       const row = (key, m) => h("tr", {}, h("th", { scope: "row" }, t(key)),
         h("td", { "data-figure": `${key}-overshoot` }, num(m?.overshoot, 3)),
-        h("td", { "data-figure": `${key}-settling` }, num(m?.settling_time, 4)), h("td", {}, num(m?.iae)));
+        h("td", { "data-figure": `${key}-settling` }, num(m?.settling_time, 4)),
+        h("td", { "data-figure": `${key}-iae` }, num(m?.iae)));
       replaceChildren(this.figures, h("table", {}, h("thead", {}, h("tr", {}, h("th", {}, ""),
         h("th", { scope: "col" }, t("loop.overshoot")), h("th", { scope: "col" }, t("loop.settling")), h("th", { scope: "col" }, t("loop.iae")))),
       h("tbody", {}, row("loop.measured", cl.measured), row("loop.predicted", cl.predicted))));
