@@ -26,8 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.signal import lfilter, lfiltic
 
+# SciPy is imported inside the functions that use it: at import, scipy.signal and
+# scipy.optimize cost every lab, rig host and command 0.8 s of start-up.
 from thermolab.errors import InvalidDataError, InvalidParameterError
 
 __all__ = [
@@ -213,6 +214,8 @@ def simulate_first_order(
         return _simulate_delayed(u_arr, K, tau, dt, theta_v, x0) + ambient_v
     b = -math.expm1(-dt / tau) * K
     # y[k] = b u[k-1] + a y[k-1] with the filter's single state holding y[0].
+    from scipy.signal import lfilter
+
     deviation: FloatArray = lfilter([0.0, b], [1.0, -a], u_arr, zi=[x0])[0]
     return deviation + ambient_v
 
@@ -292,6 +295,8 @@ def simulate_arx(
     num = np.concatenate([np.zeros(int(delay)), b_arr])
     den = np.concatenate([[1.0], -a_arr])
     past_w = np.full(max(a_arr.size, 1), x0)
+    from scipy.signal import lfilter, lfiltic
+
     zi = lfiltic(num, den, past_w, np.zeros(max(num.size - 1, 1)))
     w: FloatArray = lfilter(num, den, u_arr[: n - 1], zi=zi)[0] if n > 1 else np.empty(0)
     return np.concatenate([[x0], w]) + ambient_v
@@ -313,6 +318,8 @@ def _simulate_delayed(
     drive = b1 * held[1:n] + b2 * held[: n - 1]
     if n == 1:
         return np.array([x0])
+    from scipy.signal import lfilter
+
     rest_of: FloatArray = lfilter([1.0], [1.0, -a], drive, zi=[a * x0])[0]
     return np.concatenate([[x0], rest_of])
 

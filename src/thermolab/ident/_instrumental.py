@@ -23,8 +23,9 @@ from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
-from scipy.signal import lfilter
 
+# SciPy is imported inside the functions that use it: at import, scipy.signal and
+# scipy.optimize cost every lab, rig host and command 0.8 s of start-up.
 from . import _regression as _reg
 from .deadtime import SEARCH_SAMPLES
 from .models import ArxOrder
@@ -69,6 +70,8 @@ def instrumental_ambient(u: FloatArray, y: FloatArray, delay: int) -> Instrument
     for _ in range(_PASSES):
         if not 0.0 < a < 1.0:
             return None
+        from scipy.signal import lfilter
+
         free = lfilter([1.0], [1.0, -a], b * drive_u + c)
         x = np.empty(n)
         x[0] = y[0]

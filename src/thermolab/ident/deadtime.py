@@ -34,8 +34,9 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from scipy.signal import lfilter
 
+# SciPy is imported inside the functions that use it: at import, scipy.signal and
+# scipy.optimize cost every lab, rig host and command 0.8 s of start-up.
 from thermolab.errors import InvalidParameterError
 from thermolab.jsonsafe import finite_or_none
 
@@ -323,6 +324,8 @@ def search_delay(
             if constant:
                 drive[: d[k]] += W[k, 3]
             with np.errstate(all="ignore"):
+                from scipy.signal import lfilter
+
                 out = lfilter([1.0], [1.0, -W[k, 0]], drive, zi=[W[k, 0] * ys[0]])[0]
                 err = float(np.sum((Y - out) ** 2))
         else:

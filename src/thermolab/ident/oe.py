@@ -35,9 +35,9 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import least_squares as _scipy_least_squares
-from scipy.signal import lfilter
 
+# SciPy is imported inside the functions that use it: at import, scipy.signal and
+# scipy.optimize cost every lab, rig host and command 0.8 s of start-up.
 from thermolab.errors import InsufficientExcitationError, InvalidParameterError
 from thermolab.jsonsafe import finite_or_none
 
@@ -92,6 +92,8 @@ def simulate_fopdt(
     out: FloatArray = np.empty(n)
     out[0] = x0
     if n > 1:
+        from scipy.signal import lfilter
+
         out[1:] = lfilter([1.0], [1.0, -a], drive, zi=[a * x0])[0]
     return out
 
@@ -429,6 +431,8 @@ def _fit(
     lo = [lower.get(k, -np.inf) for k in names]
     hi = [upper.get(k, np.inf) for k in names]
     x_scale = [widths[k] for k in names]
+    from scipy.optimize import least_squares as _scipy_least_squares
+
     best = _scipy_least_squares(
         residual,
         np.array(p0),

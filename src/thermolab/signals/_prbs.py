@@ -10,8 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from scipy.signal import max_len_seq
 
+# SciPy is imported inside the functions that use it: at import, scipy.signal and
+# scipy.optimize cost every lab, rig host and command 0.8 s of start-up.
 from thermolab.errors import InvalidParameterError
 
 from ._base import FloatArray, Signal, check_level, check_number, edge_index, fmt
@@ -101,6 +102,8 @@ class PRBS(Signal):
 def _mls_bits(seed: int) -> npt.NDArray[np.bool_]:
     state = _splitmix64(seed) & ((1 << _PRBS_BITS) - 1) or 1
     register = np.array([(state >> i) & 1 for i in range(_PRBS_BITS)], dtype=np.int8)
+    from scipy.signal import max_len_seq
+
     seq, _ = max_len_seq(_PRBS_BITS, state=register)
     bits = np.asarray(seq, dtype=bool)
     bits.setflags(write=False)
