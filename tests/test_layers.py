@@ -66,3 +66,17 @@ def test_the_clients_import_no_server_database_or_device_code() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert json.loads(out.stdout) == []
+
+
+def test_a_lab_and_a_rig_host_start_without_scipy() -> None:
+    # SciPy's signal and optimize packages cost 0.8 s at import; the lab's and the host's
+    # processes import them when a run first needs them, not at start.
+    code = textwrap.dedent(
+        """
+        import json, sys
+        import thermolab.lab.http.app, thermolab.agent.host, thermolab.cli.serve
+        print(json.dumps(sorted(m for m in sys.modules if m.split(".")[0] == "scipy")))
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert json.loads(out.stdout) == []
