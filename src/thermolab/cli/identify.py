@@ -11,23 +11,17 @@ with the file is reported as one line naming the line and column.
 from __future__ import annotations
 
 import argparse
-import inspect
 import json
 import math
 import re
 import sys
-import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from thermolab.cli import CliError
 from thermolab.cli._settings import add_setting_options, given_settings, option, settings_of
 from thermolab.ident.advice import advice
 from thermolab.ident.registry import METHOD_NAMES, get_method, owners
-
-if TYPE_CHECKING:  # the records module loads NumPy; `thermolab --help` should not
-    from thermolab.ident.verdict import Verdict
-    from thermolab.records import Record
 
 __all__ = ["register", "run"]
 
@@ -114,8 +108,8 @@ def run(args: argparse.Namespace) -> int:
     units = record.units
     u_unit, y_unit = units["u"], units["y"]
     dt = args.dt if args.dt is not None else record.median_dt
-    from thermolab.errors import InsufficientExcitationError, ThermoLabError
-    from thermolab.ident.verdict import check_identifiable
+    from thermolab.errors import ThermoLabError
+    from thermolab.ident.assess import assess
 
     merged = []
     if record.merged_times is not None:
@@ -125,27 +119,22 @@ def run(args: argparse.Namespace) -> int:
             f"next (first at t = {first:g} s); the last reading at each time was kept"
         )
     try:
-        check_identifiable(record.u, record.y, y_unit, u_unit)  # one refusal for every method
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            result = _identify(method, record, dt, args)
-        summary = _summary(method, result, dt, args)
-        if summary.get("K") is None or summary.get("tau") is None or summary.get("valid") is False:
-            # Never a null model with exit status 0.
-            why = summary.get("reason") or "the estimate has no first-order meaning"
-            raise InsufficientExcitationError(f"no first-order model from {method}: {why}")
+        assessment = assess(
+            method,
+            record.t,
+            record.u,
+            record.y,
+            dt,
+            given_settings(args, get_method(method).settings),
+            units=(u_unit, y_unit),
+            notes=merged,
+        )
     except ThermoLabError as exc:
         if merged:  # the refusal may come from the rows merged: say so on the same line
             exc.args = (f"{exc}; {merged[0]}",)
         raise _in_units_error(exc, u_unit, y_unit) from None
-    from thermolab.ident.diagnostics import timing_warnings
-
-    notes = list(summary.get("warnings", []))
-    # The same jitter and gap warnings whichever method is asked.
-    for text in merged + [str(w.message) for w in caught] + timing_warnings(record.t):
-        if text not in notes:
-            notes.append(text)
-    verdict = _verdict(method, {**summary, "warnings": notes}, record, dt)
+    result, summary, verdict = assessment.result, assessment.summary, assessment.verdict
+    notes = list(summary["warnings"])
     summary["warnings"] = [in_units(note, u_unit, y_unit) for note in notes]
     summary["advice"] = [in_units(advice(note), u_unit, y_unit) for note in notes]
     summary["trusted"] = verdict.trusted
@@ -216,123 +205,6 @@ def _in_units_error(exc: Exception, u_unit: str, y_unit: str) -> Exception:
         return type(exc)(text)
     except TypeError:
         return exc
-
-
-_ON_TIME_STAMPS = ("srm", "oe")
-"""Methods that use the recorded time stamps (interpolated crossing; simulation at the stamps)."""
-
-
-def _verdict(method: str, s: dict[str, Any], record: Record, dt: float) -> Verdict:
-    """Judge the model on the record (:func:`thermolab.ident.verdict.judge`).
-
-    Every method but oe is compared with the output-error fit of the same record
-    (the unbiased whole-record estimate, which simulates at the time stamps).
-    """
-    import numpy as np
-
-    from thermolab.ident.verdict import judge
-
-    peer = None if method == "oe" else _peer_estimate(record.t, record.u, record.y, dt)
-    at_rest = None
-    if record.u[0] != 0.0:
-        # What the record would say had the kit been at rest, input off, before it.
-        t0 = float(record.t[0]) - dt
-        rest = _peer_estimate(
-            np.r_[t0, record.t], np.r_[0.0, record.u], np.r_[record.y[0], record.y], dt, "rest"
-        )
-        at_rest = {**rest, "u0": float(record.u[0])}
-    after = s.get("after_convergence")
-    converged = None if after is None else bool(after.get("converged"))
-    valid = s.get("valid", True) is not False
-    return judge(
-        s.get("K") if valid else None,
-        s.get("tau") if valid else None,
-        s.get("theta"),
-        s["warnings"],
-        record.t,
-        record.u,
-        record.y,
-        honours_time=method in _ON_TIME_STAMPS,
-        peer=peer,
-        converged=converged,
-        reason=s.get("reason"),
-        at_rest=at_rest,
-    )
-
-
-def _peer_estimate(t: Any, u: Any, y: Any, dt: float, start: str = "auto") -> dict[str, Any]:
-    """The output-error fit of a record with its defaults, or no model (and why)."""
-    from thermolab.errors import ThermoLabError
-    from thermolab.ident.oe import output_error, output_error_at_rest
-
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            if start == "rest":
-                r = output_error_at_rest(u, y, dt, t=t)
-            else:
-                r = output_error(u, y, dt, t=t)
-    except ThermoLabError as exc:
-        return {"method": "oe", "K": None, "tau": None, "theta": None, "reason": str(exc)}
-    if not r.model.valid:
-        return {"method": "oe", "K": None, "tau": None, "theta": None, "reason": r.model.reason}
-    return {"method": "oe", "K": r.K, "tau": r.tau, "theta": r.theta}
-
-
-def _identify(method: str, record: Record, dt: float, args: argparse.Namespace) -> Any:
-    m = get_method(method)
-    data = {"t": record.t, "u": record.u, "y": record.y, "dt": dt}
-    settings = given_settings(args, m.settings)
-    identify = {k: v for k, v in settings.items() if k in m.setting_names("identify")}
-    function = m.batch_function()
-    if "t" not in m.data and "t" in inspect.signature(function).parameters:
-        identify["t"] = record.t  # the sample times: jitter and gaps are flagged
-    return function(*(data[name] for name in m.data), **identify)
-
-
-def _summary(method: str, result: Any, dt: float, args: argparse.Namespace) -> dict[str, Any]:
-    m = get_method(method)
-    if "trajectory" not in m.returns:
-        d: dict[str, Any] = result.to_dict()
-        out = {"method": method, "dt": dt, "K": d.pop("K"), "tau": d.pop("tau")}
-        d.pop("method", None)
-        d.pop("dt", None)
-        out.update(d)
-        return out
-    stats = m.defaults("statistics")
-    stats.update(given_settings(args, m.settings))
-    stats = {k: v for k, v in stats.items() if k in m.setting_names("statistics")}
-    d = result.to_dict(arrays=False, **stats)
-    final = d.pop("final")
-    at, last = result.last_estimate
-    if at is not None and at != result.n_samples - 1:
-        # A complete record: its answer is the last estimate made, not "not yet".
-        final = {"K": last.K if last.valid else None, "tau": last.tau if last.valid else None,
-                 "theta": last.theta if last.valid else None, "valid": last.valid,
-                 "reason": last.reason}  # fmt: skip
-    out = {
-        "method": method,
-        "dt": dt,
-        "K": final["K"],
-        "tau": final["tau"],
-        "theta": final["theta"],
-        "valid": final["valid"],
-        "reason": final["reason"],
-        "estimate_at": at,
-        "stats": d.pop("stats"),
-        # The paper's count (statistics after convergence) unless --last asks
-        # for the last N samples.
-        "stats_over": "last" if args.last is not None else "after_convergence",
-    }
-    converged = d.pop("converged_at")
-    if "tol" in stats:
-        out["converged_at"] = converged
-        out["tol"] = stats["tol"]
-    out["last"] = stats["last"]
-    d.pop("method", None)
-    d.pop("dt", None)
-    out.update(d)
-    return out
 
 
 def _table(s: dict[str, Any]) -> str:

@@ -2,24 +2,21 @@
 
 Each method is the registry's batch function (:mod:`thermolab.ident.registry`)
 run over the stored record with the assignment's settings, exactly as
-``thermolab identify`` runs it on an exported file. The library's verdict is
-kept as it is: a result is trusted when its model is valid and it carries no
-warning (including the warnings the functions raise while they work, as the
-command line counts them), and its simulation fit % is reported where the
+``thermolab identify`` runs it on an exported file (:func:`thermolab.ident.assess.assess`,
+one function for both): the library's verdict is kept as it is (the free-run fit,
+agreement with the output-error fit, convergence: not a warning-free result,
+which real kits never give), and its simulation fit % is reported where the
 method computes one. No database here: the caller hands in the samples.
 """
 
 from __future__ import annotations
 
-import inspect
 import math
-import warnings
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-import numpy as np
-
 from thermolab.errors import ThermoLabError
+from thermolab.ident.assess import assess
 from thermolab.ident.registry import check_settings, get_method
 from thermolab.lab.assignments.marking import Identified
 
@@ -72,39 +69,21 @@ def identify_run(
     -------
     Identified
     """
-    m = get_method(method)
     given = dict(settings or {})
     check_settings(method, given)
-    identify = {k: v for k, v in given.items() if k in m.setting_names("identify")}
-    data = {
-        "t": np.asarray(t, float),
-        "u": np.asarray(u, float),
-        "y": np.asarray(y, float),
-        "dt": float(dt),
-    }
-    function = m.batch_function()
-    if "t" not in m.data and "t" in inspect.signature(function).parameters:
-        identify["t"] = data["t"]  # the sample times: jitter and gaps are flagged
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            result = function(*(data[name] for name in m.data), **identify)
-        except (ThermoLabError, ValueError) as exc:
-            return Identified(method, None, None, None, None, False, (str(exc),))
-    notes = [str(w) for w in getattr(result, "warnings", ())]
-    for w in caught:
-        if str(w.message) not in notes:
-            notes.append(str(w.message))
-    model = result.final if "trajectory" in m.returns else result.model
-    fit = getattr(result, "fit_simulation", None)
+    try:
+        assessment = assess(method, t, u, y, float(dt), given)
+    except (ThermoLabError, ValueError) as exc:
+        return Identified(method, None, None, None, None, False, (str(exc),))
+    s, verdict = assessment.summary, assessment.verdict
     return Identified(
         method,
-        _finite(model.K),
-        _finite(model.tau),
-        _finite(getattr(model, "theta", None)),
-        _finite(fit),
-        bool(model.valid) and not notes,
-        tuple(notes),
+        _finite(s.get("K")),
+        _finite(s.get("tau")),
+        _finite(s.get("theta")),
+        _finite(getattr(assessment.result, "fit_simulation", None)),
+        verdict.trusted,
+        verdict.reasons + verdict.notes,
     )
 
 

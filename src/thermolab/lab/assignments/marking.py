@@ -147,9 +147,9 @@ class Identified:
     fit : float or None
         The simulation's NRMSE fit %, where the method computes one.
     trusted : bool
-        The library's verdict (a valid model and no warning).
+        The library's verdict (:func:`thermolab.ident.assess.assess`).
     warnings : tuple of str
-        Why it is not trusted, in the library's words.
+        Why it is not trusted, then the notes, in the library's words.
     """
 
     method: str
