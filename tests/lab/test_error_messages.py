@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -10,6 +11,7 @@ from babel.messages.pofile import read_po
 from fastapi.testclient import TestClient
 
 from thermolab.cli import main
+from thermolab.errors import CLASS_LIST_PROBLEMS
 from thermolab.lab import error_messages
 from thermolab.lab.error_messages import (
     ERROR_SENTENCES,
@@ -25,6 +27,9 @@ from .conftest import PASSWORD
 
 Client = Callable[..., TestClient]
 TRANSLATED = [language for language in LANGUAGES if language != "en"]
+#: Every msgid the server's catalogue holds: error sentences, class-list problems,
+#: and the command line's prefix.
+MSGIDS = {*ERROR_SENTENCES.values(), *CLASS_LIST_PROBLEMS.values(), "error"}
 
 
 @pytest.fixture
@@ -51,11 +56,23 @@ def test_every_sentence_is_translated_in_every_language(language: str) -> None:
         assert catalogue.get(sentence), f"{language}: {code} ({sentence!r}) is not translated"
         assert catalogue[sentence] != sentence, f"{language}: {code} is still English"
         assert error_message(code, language) == catalogue[sentence]
-    assert set(catalogue) <= {*ERROR_SENTENCES.values(), "error"}, "stale entries"
+    assert set(catalogue) <= MSGIDS, "stale entries"
+
+
+@pytest.mark.parametrize("language", TRANSLATED)
+def test_class_list_problems_are_translated(language: str) -> None:
+    catalogue = _catalogue(language)
+    for msgid in CLASS_LIST_PROBLEMS.values():
+        assert catalogue.get(msgid), f"{language}: {msgid!r} is not translated"
+        assert catalogue[msgid] != msgid, f"{language}: {msgid!r} is still English"
+        # A translation fills the same values.
+        assert set(re.findall(r"\{(\w+)\}", catalogue[msgid])) == set(
+            re.findall(r"\{(\w+)\}", msgid)
+        ), msgid
 
 
 def test_the_english_catalogue_is_the_template() -> None:
-    assert set(_catalogue("en")) == {*ERROR_SENTENCES.values(), "error"}
+    assert set(_catalogue("en")) == MSGIDS
     assert error_message("not_found", "en") == ERROR_SENTENCES["not_found"]
 
 

@@ -1,9 +1,10 @@
 """``thermolab course``: courses and class lists from the shell.
 
 ``create NAME --title TEXT --teacher NAME``, ``list``, ``import COURSE FILE``.
-An import adds or updates the students of a CSV class list (columns
-``username`` and ``display_name``) all or nothing; a bad file is one line
-naming each bad line, exit 1, and nothing changes. The new accounts' one-time
+An import adds or updates the students of a CSV class list (a login and a
+name column, headed in English, Portuguese or Spanish: ``username;display_name``,
+``matrícula;nome``, ``usuario;nombre``; UTF-8 or Windows-1252) all or nothing;
+a bad file is one line naming each bad line, exit 1, and nothing changes. The new accounts' one-time
 passwords are printed once, as CSV on standard output (``username,password``),
 so they can be redirected to a file and handed out.
 """
@@ -59,7 +60,12 @@ def register(subparsers: Any) -> None:
         "import", help="add or update a course's students from a CSV class list"
     )
     load.add_argument("course", metavar="COURSE")
-    load.add_argument("file", metavar="FILE", type=Path, help="CSV: username,display_name")
+    load.add_argument(
+        "file",
+        metavar="FILE",
+        type=Path,
+        help="CSV: username,display_name (or matrícula;nome, usuario;nombre)",
+    )
     add_database_options(load)
     load.set_defaults(handler=_import)
 
@@ -119,7 +125,7 @@ def _import(args: argparse.Namespace) -> int:
         db.close()
     print(
         f"{args.course}: {len(report.created)} created, {len(report.updated)} updated, "
-        f"{len(report.unchanged)} unchanged",
+        f"{len(report.unchanged)} unchanged (read as {report.encoding})",
         file=sys.stderr,
     )
     if report.created:
