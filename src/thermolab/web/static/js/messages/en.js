@@ -366,6 +366,7 @@ export const messages = {
   "crumbs.separator": " › ",
   "csv.empty": "the CSV file is empty",
   "csv.noColumn": "the CSV file has no column {column} (it has {columns})",
+  "csv.spreadsheet": "For a spreadsheet (Excel, LibreOffice)",
   "deeplink.assignment": "Assignment: {title}",
   "deeplink.choose": "Choose what to link",
   "deeplink.chooseFor": "Choose what to link in {platform}",

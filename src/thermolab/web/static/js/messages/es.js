@@ -366,6 +366,7 @@ export const messages = {
   "crumbs.separator": " › ",
   "csv.empty": "el archivo CSV está vacío",
   "csv.noColumn": "el archivo CSV no tiene la columna {column} (tiene {columns})",
+  "csv.spreadsheet": "Para hoja de cálculo (Excel, LibreOffice)",
   "deeplink.assignment": "Tarea: {title}",
   "deeplink.choose": "Elige qué enlazar",
   "deeplink.chooseFor": "Elige qué enlazar en {platform}",

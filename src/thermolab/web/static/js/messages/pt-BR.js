@@ -366,6 +366,7 @@ export const messages = {
   "crumbs.separator": " › ",
   "csv.empty": "o arquivo CSV está vazio",
   "csv.noColumn": "o arquivo CSV não tem a coluna {column} (tem {columns})",
+  "csv.spreadsheet": "Para planilha (Excel, LibreOffice)",
   "deeplink.assignment": "Atividade: {title}",
   "deeplink.choose": "Escolha o que vincular",
   "deeplink.chooseFor": "Escolha o que vincular em {platform}",
