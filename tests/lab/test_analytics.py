@@ -537,7 +537,7 @@ def test_the_assignment_state_reaches_the_api_and_the_csv(
     text = sheet.content.decode("utf-8-sig")
     people = {r["Nome de login"]: r for r in csv.DictReader(io.StringIO(text), delimiter=";")}
     assert people["ana"]["Nota média (% da máxima)"] == "62,5"
-    assert (people["bia"]["Tarefas propostas"], people["bia"]["Nota média (% da máxima)"]) == (
+    assert (people["bia"]["Atividades propostas"], people["bia"]["Nota média (% da máxima)"]) == (
         "2",
         "",
     )

@@ -38,9 +38,9 @@ from .test_class_list import IBERIAN
 
 SAO_PAULO = "America/Sao_Paulo"
 PT_BR_GRADES = [
-    "Turma",
-    "Nº da tarefa",
-    "Tarefa",
+    "Disciplina",
+    "Nº da atividade",
+    "Atividade",
     "Nome de login",
     "Nome",
     "Situação",
