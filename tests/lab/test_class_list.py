@@ -25,6 +25,7 @@ from thermolab.lab.classes.class_list import (
     header_column,
     read_class_list,
 )
+from thermolab.lab.classes.courses import temporary_password
 from thermolab.lab.service import Lab
 from thermolab.web import STATIC_DIR
 
@@ -128,6 +129,15 @@ def test_the_command_line_says_a_class_lists_problems_in_portuguese(
     assert status == 0
     assert "(read as Windows-1252)" in err
     assert out.splitlines()[0] == "username,password"
+    # The one-time passwords for a Brazilian spreadsheet.
+    roster.write_bytes("matrícula;nome\n2;Zé\n".encode("cp1252"))
+    command = [*base, "course", "import", "c1", str(roster), "--dialect", "pt-BR"]
+    status, out, err = run(command, capsys, monkeypatch)
+    assert status == 0
+    lines = out.splitlines()
+    assert lines[0] == "\ufeffNome de login;Senha provisória"
+    assert lines[1].startswith("2;")
+    assert lines[1][2].isalnum()  # never a leading "-" that a spreadsheet takes for a formula
 
 
 iberian_names = st.lists(
@@ -197,3 +207,7 @@ def test_the_pages_catalogue_words_each_problem_as_the_server_does() -> None:
     for code, sentence in CLASS_LIST_PROBLEMS.items():
         if code not in frames:
             assert body[f"error.{code}"] == sentence, code
+
+
+def test_a_one_time_password_never_starts_as_a_formula() -> None:
+    assert all(temporary_password()[0].isalnum() for _ in range(300))

@@ -120,6 +120,8 @@ SHEET_WORDS: tuple[str, ...] = (
     "About",
     "From where",
     "Detail",
+    # the one-time passwords of a class list (thermolab course import --dialect)
+    "One-time password",
 )
 _WORDS = frozenset(SHEET_WORDS)
 _COMMA_DECIMAL = frozenset({"pt-BR", "es"})

@@ -61,9 +61,15 @@ def new_enrol_code() -> str:
 
 
 def temporary_password() -> str:
-    """A random one-time password (about 96 bits) that meets the password rules."""
+    """A random one-time password (about 96 bits) that meets the password rules.
+
+    It starts with a letter or digit: a spreadsheet would take a leading ``-`` for
+    a formula (``#NAME?``) when a teacher opens the list of passwords.
+    """
     while True:
         password = secrets.token_urlsafe(12)
+        if not password[0].isalnum():
+            continue
         try:
             return validate_password(password)
         except ValueError:  # pragma: no cover - a random 16-character string is never listed
