@@ -14,6 +14,9 @@ from __future__ import annotations
 import csv
 import io
 import math
+import shutil
+import subprocess
+import xml.etree.ElementTree as ET
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
@@ -121,6 +124,88 @@ def test_the_grades_open_in_a_pt_br_spreadsheet_as_columns_with_accents_and_numb
         refused = tina.get("/api/courses/ctrl1/grades.csv", params=bad)
         assert refused.status_code == 422, bad
         assert refused.json()["code"] in ("invalid_request", "invalid_parameter")
+
+
+_ODF = {
+    "office": "urn:oasis:names:tc:opendocument:xmlns:office:1.0",
+    "table": "urn:oasis:names:tc:opendocument:xmlns:table:1.0",
+}
+
+
+def _calc_cells(csv_file: Path, work: Path) -> list[list[tuple[str | None, str]]]:
+    """The cells LibreOffice Calc makes of ``csv_file`` as a Brazilian user opens it.
+
+    The import options a pt-BR Calc offers: separator ``;``, UTF-8, language
+    pt-BR (1046, which reads ``0,14`` and ``24/11/2026`` as a number and a date).
+    Each cell is (value type, value): ``("float", "0.14009")``, ``("date", ...)``,
+    ``("string", "João")``, ``(None, "")`` for an empty one.
+    """
+    subprocess.run(
+        [
+            "soffice",
+            f"-env:UserInstallation={(work / 'profile').as_uri()}",
+            "--headless",
+            "--infilter=CSV:59,34,76,1,,1046",
+            "--convert-to",
+            "fods",
+            "--outdir",
+            str(work),
+            str(csv_file),
+        ],
+        check=True,
+        capture_output=True,
+        timeout=120,
+    )
+    root = ET.parse(work / f"{csv_file.stem}.fods").getroot()
+    office, table = (f"{{{_ODF[p]}}}" for p in ("office", "table"))
+    rows = []
+    for row in root.iter(f"{table}table-row"):
+        cells: list[tuple[str | None, str]] = []
+        for cell in row.iter(f"{table}table-cell"):
+            repeated = int(cell.get(f"{table}number-columns-repeated", "1"))
+            if repeated > 100:  # the sheet's empty tail
+                break
+            kind = cell.get(f"{office}value-type")
+            value = cell.get(f"{office}value") or cell.get(f"{office}date-value")
+            cells += [(kind, value or "".join(cell.itertext()).strip())] * repeated
+        rows.append(cells)
+    return rows
+
+
+@pytest.mark.skipif(
+    shutil.which("soffice") is None, reason="LibreOffice (soffice) is not installed"
+)
+def test_libreoffice_calc_in_pt_br_opens_the_grades_as_typed_columns(tmp_path: Path) -> None:
+    at = datetime(2026, 11, 24, 17, 5, 9, 123456, tzinfo=UTC)
+    row = GradeRow(
+        *("ctrl1", 1, "Degrau", "joao", "João Gonçalves", "marked", 10.0, 10.0, at, at, False, 3),
+        *(0.14009, 250.126233, 0.0, "Ks ≈ 0,14; ação ok"),
+    )
+    people = tmp_path / "notas.csv"
+    people.write_text(grades_csv([row], SheetDialect("pt-BR", SAO_PAULO)), encoding="utf-8")
+    header, cells = _calc_cells(people, tmp_path)
+    assert [value for _, value in header] == PT_BR_GRADES
+    assert cells[4:9] == [
+        ("string", "João Gonçalves"),
+        ("string", "corrigida"),
+        ("float", "10"),
+        ("float", "10"),
+        ("string", "não"),
+    ]
+    assert cells[9] == ("date", "2026-11-24T14:05:09")
+    assert cells[12:16] == [
+        ("float", "0.14009"),
+        ("float", "250.126233"),
+        ("float", "0"),
+        ("string", "Ks ≈ 0,14; ação ok"),
+    ]
+    # The machine form, opened the same way, is text in a column or two (split at the
+    # conclusion's ";"), no number or date: why the spreadsheet links exist.
+    machine = tmp_path / "grades.csv"
+    machine.write_text(grades_csv([row]), encoding="utf-8")
+    garbled = _calc_cells(machine, tmp_path)
+    assert garbled[0][0] == ("string", ",".join(GRADE_COLUMNS))
+    assert {kind for r in garbled for kind, _ in r} <= {"string", None}
 
 
 def test_a_runs_samples_in_a_pt_br_spreadsheet_read_back_as_the_same_record(
