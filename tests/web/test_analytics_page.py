@@ -162,6 +162,9 @@ def test_the_teacher_sees_the_classs_figures_charts_and_csv(
             ).inner_text()
             assert text.startswith(f"{student['assignments']['submitted']} ")
             assert str(student["assignments"]["assigned"]) in text
+        # The mean mark is a percentage of the maximum, as the spreadsheet's heading says.
+        mean = page.locator('tr[data-student="ana.an"] [data-field="assignments"]').inner_text()
+        assert f"{by['ana.an']['assignments']['meanMark']:.0f}%" in mean.replace("\u00a0", "")
         (rig,) = api["rigs"]
         assert (rig["rig"], rig["runs"], rig["students"], rig["turns"]) == ("twin-a", 3, 2, 2)
         assert rig["waits"]["count"] == 2  # ana got the rig at once, bruno after ana's turn

@@ -70,7 +70,7 @@ export const messages = {
   "account.usage": "In a script: set THERMOLAB_URL to this lab's address and THERMOLAB_TOKEN to the token, then use thermolab.client or thermolab.tclab.",
   "account.who": "Signed in as {user}.",
   "analytics.apply": "Show",
-  "analytics.assignments": "{submitted} of {assigned} handed in, {late} late; mean mark {mark}",
+  "analytics.assignments": "{submitted} of {assigned} handed in, {late} late; mean mark {mark} of the maximum",
   "analytics.backToCourse": "Back to the course",
   "analytics.chartRuns": "Runs per student",
   "analytics.chartTime": "Time at the controls per student",

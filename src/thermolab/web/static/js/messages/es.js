@@ -70,7 +70,7 @@ export const messages = {
   "account.usage": "En un script: ponga en THERMOLAB_URL la dirección de este laboratorio y en THERMOLAB_TOKEN el token, y use thermolab.client o thermolab.tclab.",
   "account.who": "Sesión iniciada como {user}.",
   "analytics.apply": "Mostrar",
-  "analytics.assignments": "{submitted} de {assigned} entregadas, {late} con retraso; nota media {mark}",
+  "analytics.assignments": "{submitted} de {assigned} entregadas, {late} con retraso; nota media {mark} de la máxima",
   "analytics.backToCourse": "Volver al curso",
   "analytics.chartRuns": "Ensayos por estudiante",
   "analytics.chartTime": "Tiempo en el control por estudiante",

@@ -70,7 +70,7 @@ export const messages = {
   "account.usage": "Num script: defina THERMOLAB_URL com o endereço deste laboratório e THERMOLAB_TOKEN com o token, e use thermolab.client ou thermolab.tclab.",
   "account.who": "Conectado como {user}.",
   "analytics.apply": "Mostrar",
-  "analytics.assignments": "{submitted} de {assigned} entregues, {late} com atraso; nota média {mark}",
+  "analytics.assignments": "{submitted} de {assigned} entregues, {late} com atraso; nota média {mark} da máxima",
   "analytics.backToCourse": "Voltar à turma",
   "analytics.chartRuns": "Ensaios por aluno",
   "analytics.chartTime": "Tempo no controle por aluno",

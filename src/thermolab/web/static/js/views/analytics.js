@@ -248,7 +248,8 @@ function assignmentsText(a) {
     submitted: a.submitted,
     assigned: a.assigned,
     late: a.late,
-    mark: a.meanMark === null ? "–" : formatNumber(a.meanMark, { maximumFractionDigits: 1 }),
+    // A percentage of each assignment's maximum ("100 %" where the marks read "10 de 10").
+    mark: a.meanMark === null ? "–" : formatNumber(a.meanMark / 100, { style: "percent", maximumFractionDigits: 1 }),
   });
 }
 
