@@ -9,10 +9,15 @@ it as one line, the server returns it as the reason of a 4xx answer.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+
 __all__ = [
+    "CLASS_LIST_PROBLEMS",
     "AccessDeniedError",
     "BookingClashError",
     "ClassListError",
+    "ClassListProblem",
     "ConfigError",
     "ConflictError",
     "GainRangeError",
@@ -165,19 +170,102 @@ class NotClosedLoopError(ConflictError):
 # -- courses and people (issue #10) -------------------------------------------------------
 
 
-class ClassListError(InvalidParameterError):
-    """A class list (CSV) with bad lines; ``problems`` holds ``(line, reason)`` for each.
+#: What can be wrong with a class list, by stable code: an English sentence with
+#: named ``{placeholders}``, the gettext msgid that ``lab/locale`` translates, so a
+#: problem reaches the page (``error.<code>`` in the browser's catalogue) and the
+#: command line in the reader's language. ``class_list.line`` frames one problem
+#: and ``class_list.not_imported`` the whole list.
+CLASS_LIST_PROBLEMS: Mapping[str, str] = {
+    "class_list.not_imported": "the class list was not imported (nothing changed): {problems}",
+    "class_list.line": "line {line}: {reason}",
+    "class_list.more": "and {count} more",
+    "class_list.too_large": "the file is larger than {limit} bytes",
+    "class_list.workbook": (
+        "the file is a spreadsheet workbook, not CSV text; in the spreadsheet choose "
+        "'Save as' > 'CSV' and upload that file"
+    ),
+    "class_list.not_text": (
+        "the file is not text in UTF-8 or Windows-1252 (byte {byte} of the line); save it as "
+        "'CSV UTF-8' and upload it again"
+    ),
+    "class_list.empty": "the file is empty; the first line must be the header",
+    "class_list.not_csv": "not readable as CSV ({reason})",
+    "class_list.header": (
+        "the header has columns {columns}; it must have one login column ({logins}) and "
+        "one name column ({names})"
+    ),
+    "class_list.too_many": "more than {limit} students in one list",
+    "class_list.cells": "{cells} cells where the header has {columns}",
+    "class_list.username": (
+        "user name {value} is not valid: use 1 to {limit} letters, digits, '.', '_', '@' or '-', "
+        "starting with a letter or digit (no spaces; a full name with spaces is a display name)"
+    ),
+    "class_list.display_name": (
+        "display name {value} is not valid: use 1 to {limit} letters, digits, spaces and ' . , -"
+    ),
+    "class_list.duplicate": "login name {value} is already on line {first}",
+    "class_list.no_student": "the list has a header but no student",
+    "class_list.teacher": "{value} is a teacher's account, not a student's",
+}
 
-    The message lists every bad line, so the CLI's one line and the API's
-    ``detail`` say the same; nothing was changed.
+
+@dataclass(frozen=True, slots=True)
+class ClassListProblem:
+    """One bad line of a class list: where, which problem (a key of ``CLASS_LIST_PROBLEMS``), and
+    the values its sentence names.
+
+    Examples
+    --------
+    >>> ClassListProblem.of(3, "class_list.duplicate", value="'ana'", first=2).reason
+    "login name 'ana' is already on line 2"
     """
 
-    def __init__(self, problems: list[tuple[int, str]]) -> None:
+    line: int
+    code: str
+    params: Mapping[str, str | int] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, line: int, code: str, **params: str | int) -> ClassListProblem:
+        """The problem ``code`` on ``line``, with its sentence's values."""
+        if code not in CLASS_LIST_PROBLEMS:
+            raise KeyError(code)
+        return cls(line, code, params)
+
+    def sentence(self, translate: Callable[[str], str] = str) -> str:
+        """The problem in words, each sentence passed through ``translate`` (English by default)."""
+        return translate(CLASS_LIST_PROBLEMS[self.code]).format(**self.params)
+
+    @property
+    def reason(self) -> str:
+        """The problem in English."""
+        return self.sentence()
+
+
+class ClassListError(InvalidParameterError):
+    """A class list (CSV) with bad lines; ``problems`` holds a :class:`ClassListProblem` for each.
+
+    The message lists every bad line, so the CLI's one line and the API's
+    ``detail`` say the same; nothing was changed. :meth:`describe` says it in
+    another language.
+    """
+
+    def __init__(self, problems: Iterable[ClassListProblem]) -> None:
         self.problems = list(problems)
-        listed = "; ".join(f"line {line}: {reason}" for line, reason in self.problems[:20])
-        more = len(self.problems) - 20
-        tail = f"; and {more} more" if more > 0 else ""
-        super().__init__(f"the class list was not imported (nothing changed): {listed}{tail}")
+        super().__init__(self.describe())
+
+    def describe(self, translate: Callable[[str], str] = str) -> str:
+        """The message with every sentence passed through ``translate`` (a gettext function)."""
+
+        def say(code: str, **params: str | int) -> str:
+            return translate(CLASS_LIST_PROBLEMS[code]).format(**params)
+
+        listed = [
+            say("class_list.line", line=p.line, reason=p.sentence(translate))
+            for p in self.problems[:20]
+        ]
+        if len(self.problems) > 20:
+            listed.append(say("class_list.more", count=len(self.problems) - 20))
+        return say("class_list.not_imported", problems="; ".join(listed))
 
 
 class WrongEnrolCodeError(AccessDeniedError):

@@ -366,6 +366,26 @@ def test_both_tables_download_as_formula_safe_csv(
     assert float(rigs[0]["wait_median_seconds"]) == pytest.approx(30.0, abs=1e-3)
     assert float(rigs[0]["powered_seconds"]) == pytest.approx(2100.0, abs=1e-3)
     assert rigs[1]["wait_p90_seconds"] == "7.0"
+    # The spreadsheet form of both: headings in Portuguese, decimal commas, yes/no in words.
+    sheet = {**window, "dialect": "pt-BR", "tz": "America/Sao_Paulo"}
+    people = teacher.get("/api/courses/ctrl1/analytics/students.csv", params=sheet)
+    text = people.content.decode("utf-8-sig")
+    ana = next(csv.DictReader(io.StringIO(text), delimiter=";"))
+    assert (ana["Nome de login"], ana["Tempo no controle (s)"], ana["Ensaios parados"]) == (
+        "ana",
+        "800",
+        "1",
+    )
+    assert (ana["LSM: Ks"], ana["LSM: confiável"], ana["SRM: confiável"]) == ("0,15", "não", "sim")
+    machines = teacher.get("/api/courses/ctrl1/analytics/rigs.csv", params=sheet)
+    text = machines.content.decode("utf-8-sig")
+    twin = next(csv.DictReader(io.StringIO(text), delimiter=";"))
+    assert (twin["Bancada"], twin["Espera mediana (s)"], twin["Tempo ligada (s)"]) == (
+        "twin",
+        "30",
+        "2100",
+    )
+    assert "Energia registrada desde (America/Sao_Paulo)" in twin
 
 
 @pytest.fixture
@@ -510,6 +530,17 @@ def test_the_assignment_state_reaches_the_api_and_the_csv(
     assert got == ["2", "1", "1", "0"]
     assert rows["bia"]["assignments_mean_mark"] == ""
     assert float(rows["ana"]["assignments_mean_mark"]) == pytest.approx(62.5)
+    # The spreadsheet form: the mean mark says it is a percentage, to one decimal as shown.
+    sheet = teacher.get(
+        "/api/courses/ctrl1/analytics/students.csv", params={**window, "dialect": "pt-BR"}
+    )
+    text = sheet.content.decode("utf-8-sig")
+    people = {r["Nome de login"]: r for r in csv.DictReader(io.StringIO(text), delimiter=";")}
+    assert people["ana"]["Nota média (% da máxima)"] == "62,5"
+    assert (people["bia"]["Atividades propostas"], people["bia"]["Nota média (% da máxima)"]) == (
+        "2",
+        "",
+    )
 
 
 @pytest.mark.parametrize("text", ["=1+1", "+1", "-1", "@SUM(A1)", "\tx", "\rx"])

@@ -8,8 +8,9 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import func, select
 
-from thermolab.errors import AccessDeniedError, ClassListError
+from thermolab.errors import CLASS_LIST_PROBLEMS, AccessDeniedError, ClassListError
 from thermolab.lab.db.models import CourseMember, User
+from thermolab.lab.error_messages import translate
 from thermolab.lab.service import Lab
 
 from .conftest import PASSWORD
@@ -80,11 +81,12 @@ def test_a_class_list_creates_students_and_a_reupload_updates_them(
 @pytest.mark.parametrize(
     ("data", "lines", "reason"),
     [
-        (b"login,full name\nana,Ana\n", [1], "must have exactly 'username'"),
-        (b"username,display_name,email\nana,Ana,a@x\n", [1], "must have exactly"),
+        (b"login,turma\nana,A\n", [1], "must have one login column"),
+        (b"username,display_name,email\nana,Ana,a@x\n", [1], "must have one login column"),
         (b"username,display_name\nana,Ana\nbia,Bia,extra\nana,Ana B\n", [3, 4], "cells"),
         (b"username,display_name\nana,Ana\nANA,Ana\n", [3], "already on line 2"),
-        (b"username,display_name\nana,Ana\nJo\xe3o,Jo\xe3o\n", [3], "not UTF-8"),
+        (b"username,display_name\nana,Ana\nJo\x81o,Jo\x81o\n", [3], "not text in UTF-8"),
+        (b"PK\x03\x04\x14\x00\x06\x00", [1], "spreadsheet workbook"),
         (b"username,display_name\na b,Ana\nbia,<script>\n", [2, 3], "not valid"),
         (b"username,display_name\n", [2], "no student"),
         (b"", [1], "empty"),
@@ -106,6 +108,15 @@ def test_a_malformed_class_list_reports_each_bad_line_and_changes_nothing(
     assert body["message"] == "A lista da turma tem linhas com erro; nada foi alterado."
     assert [int(e["loc"][1]) for e in body["errors"]] == lines
     assert any(reason in e["msg"] for e in body["errors"])
+    # Each problem has a stable code, its values and its sentence in the reader's language.
+    for problem in body["errors"]:
+        assert problem["type"] in CLASS_LIST_PROBLEMS
+        english = CLASS_LIST_PROBLEMS[problem["type"]].format(**problem["params"])
+        assert problem["msg"] == english
+        assert problem["message"] == translate(
+            CLASS_LIST_PROBLEMS[problem["type"]], "pt-BR"
+        ).format(**problem["params"])
+        assert problem["message"] != english
     assert _counts(lab) == before
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -10,6 +11,7 @@ from babel.messages.pofile import read_po
 from fastapi.testclient import TestClient
 
 from thermolab.cli import main
+from thermolab.errors import CLASS_LIST_PROBLEMS
 from thermolab.lab import error_messages
 from thermolab.lab.error_messages import (
     ERROR_SENTENCES,
@@ -20,11 +22,17 @@ from thermolab.lab.error_messages import (
 )
 from thermolab.lab.http.errors import all_error_codes
 from thermolab.lab.service import Lab
+from thermolab.lab.spreadsheets import SHEET_WORDS
 
 from .conftest import PASSWORD
 
 Client = Callable[..., TestClient]
 TRANSLATED = [language for language in LANGUAGES if language != "en"]
+#: Every msgid the server's catalogue holds: error sentences, class-list problems,
+#: the spreadsheet forms' words, and the command line's prefix.
+MSGIDS = {*ERROR_SENTENCES.values(), *CLASS_LIST_PROBLEMS.values(), *SHEET_WORDS, "error"}
+#: Words the same in a language by chance (checked one by one).
+SAME_BY_CHANCE = {("es", "no")}
 
 
 @pytest.fixture
@@ -51,11 +59,24 @@ def test_every_sentence_is_translated_in_every_language(language: str) -> None:
         assert catalogue.get(sentence), f"{language}: {code} ({sentence!r}) is not translated"
         assert catalogue[sentence] != sentence, f"{language}: {code} is still English"
         assert error_message(code, language) == catalogue[sentence]
-    assert set(catalogue) <= {*ERROR_SENTENCES.values(), "error"}, "stale entries"
+    assert set(catalogue) <= MSGIDS, "stale entries"
+
+
+@pytest.mark.parametrize("language", TRANSLATED)
+def test_class_list_problems_and_spreadsheet_words_are_translated(language: str) -> None:
+    catalogue = _catalogue(language)
+    for msgid in [*CLASS_LIST_PROBLEMS.values(), *SHEET_WORDS]:
+        assert catalogue.get(msgid), f"{language}: {msgid!r} is not translated"
+        if (language, msgid) not in SAME_BY_CHANCE:
+            assert catalogue[msgid] != msgid, f"{language}: {msgid!r} is still English"
+        # A translation fills the same values.
+        assert set(re.findall(r"\{(\w+)\}", catalogue[msgid])) == set(
+            re.findall(r"\{(\w+)\}", msgid)
+        ), msgid
 
 
 def test_the_english_catalogue_is_the_template() -> None:
-    assert set(_catalogue("en")) == {*ERROR_SENTENCES.values(), "error"}
+    assert set(_catalogue("en")) == MSGIDS
     assert error_message("not_found", "en") == ERROR_SENTENCES["not_found"]
 
 

@@ -162,6 +162,9 @@ def test_the_teacher_sees_the_classs_figures_charts_and_csv(
             ).inner_text()
             assert text.startswith(f"{student['assignments']['submitted']} ")
             assert str(student["assignments"]["assigned"]) in text
+        # The mean mark is a percentage of the maximum, as the spreadsheet's heading says.
+        mean = page.locator('tr[data-student="ana.an"] [data-field="assignments"]').inner_text()
+        assert f"{by['ana.an']['assignments']['meanMark']:.0f}%" in mean.replace("\u00a0", "")
         (rig,) = api["rigs"]
         assert (rig["rig"], rig["runs"], rig["students"], rig["turns"]) == ("twin-a", 3, 2, 2)
         assert rig["waits"]["count"] == 2  # ana got the rig at once, bruno after ana's turn
@@ -198,6 +201,18 @@ def test_the_teacher_sees_the_classs_figures_charts_and_csv(
             page.click("#analytics-rigs-csv")
         rigs = list(csv.DictReader(io.StringIO(Path(rigs_file.value.path()).read_text("utf-8"))))
         assert [(r["rig"], r["runs"], r["waits"]) for r in rigs] == [("twin-a", "3", "2")]
+        # Beside it, the spreadsheet form in the page's language (";" where "," is decimal).
+        with page.expect_download() as sheet_file:
+            page.click("#analytics-students-csv-sheet")
+        sheet = Path(sheet_file.value.path()).read_text("utf-8")
+        assert sheet.startswith("\ufeff")
+        separator = ";" if words["mark"] == "," else ","
+        people = list(csv.reader(io.StringIO(sheet.removeprefix("\ufeff")), delimiter=separator))
+        assert people[0][0] == {"pt-BR": "Nome de login", "en": "Login name"}[language]
+        assert [(r[0], r[1]) for r in people[1:]] == [
+            ("ana.an", "Ana Análise"),
+            ("bruno.an", "Bruno Brandão"),
+        ]
 
         # A 375-px phone: the page does not scroll sideways (the tables scroll in their regions).
         page.set_viewport_size({"width": 375, "height": 812})

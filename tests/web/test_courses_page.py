@@ -19,8 +19,20 @@ from .axe import serious_violations
 pytestmark = pytest.mark.browser
 
 WORDS = {
-    "pt-BR": {"locale": "pt-BR", "courses": "Disciplinas", "line": "Linha 3:", "rigs": "Bancadas"},
-    "en": {"locale": "en-GB", "courses": "Courses", "line": "Line 3:", "rigs": "Rigs"},
+    "pt-BR": {
+        "locale": "pt-BR",
+        "courses": "Disciplinas",
+        "line": "Linha 3: o arquivo não é texto em UTF-8 nem em Windows-1252 (byte 3 da linha)",
+        "rigs": "Bancadas",
+        "read": "Lido como Windows-1252.",
+    },
+    "en": {
+        "locale": "en-GB",
+        "courses": "Courses",
+        "line": "Line 3: the file is not text in UTF-8 or Windows-1252 (byte 3 of the line)",
+        "rigs": "Rigs",
+        "read": "Read as Windows-1252.",
+    },
 }
 
 
@@ -45,8 +57,9 @@ def test_a_teacher_uploads_a_class_list_and_a_student_enrols_with_the_code(
         code = page.inner_text("#course-code")
         assert len(code) == 10
 
-        # A list that is not UTF-8 on line 3: every bad line reported, nobody added.
-        bad = b"username,display_name\nana.m,Ana\nJo\xe3o,Jo\xe3o\n"
+        # A list that is not text on line 3: every bad line reported in the page's
+        # language, nobody added.
+        bad = b"username,display_name\nana.m,Ana\nJo\x81o,Jo\x81o\n"
         page.set_input_files("#roster-file", files=[_csv("bad.csv", bad)])
         page.click("#roster-upload")
         page.wait_for_selector("#roster-errors li")
@@ -54,13 +67,15 @@ def test_a_teacher_uploads_a_class_list_and_a_student_enrols_with_the_code(
         assert page.locator("tr[data-member]").count() == 1  # the teacher alone
 
         first, second = f"joao.{suffix}", f"maria.{suffix}"
-        good = f"username;name\nJoão.{suffix};João Gonçalves\n{second};Maria Álvares\n"
-        page.set_input_files("#roster-file", files=[_csv("turma.csv", good.encode())])
+        # A Brazilian spreadsheet's own CSV: Portuguese headings, Windows-1252.
+        good = f"Matrícula;Nome completo\nJoão.{suffix};João Gonçalves\n{second};Maria Álvares\n"
+        page.set_input_files("#roster-file", files=[_csv("turma.csv", good.encode("cp1252"))])
         page.click("#roster-upload")
         page.wait_for_selector("#roster-passwords")
         cells = page.locator("#roster-passwords tbody tr").all_inner_texts()
         one_time = dict(cell.split("\t") for cell in cells)
         assert sorted(one_time) == [first, second]
+        assert page.inner_text("#roster-encoding") == words["read"]
         page.wait_for_selector(f'tr[data-member="{first}"]')
         assert "João Gonçalves" in page.inner_text(f'tr[data-member="{first}"]')
         assert serious_violations(page) == []

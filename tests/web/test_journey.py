@@ -150,7 +150,12 @@ def teacher_uploads_a_class_list(j: Journey) -> None:
     page.click("#course-form button[type=submit]")
     page.wait_for_selector("#course-code")
     j.login = f"joao.{j.suffix}"
-    data = f"username;name\nJoão.{j.suffix};João Gonçalves\n".encode()
+    # As a Brazilian spreadsheet saves it in pt-BR (Portuguese headings, Windows-1252).
+    data = (
+        f"Matrícula;Nome completo\nJoão.{j.suffix};João Gonçalves\n".encode("cp1252")
+        if j.language == "pt-BR"
+        else f"username;name\nJoão.{j.suffix};João Gonçalves\n".encode()
+    )
     page.set_input_files(
         "#roster-file", files=[{"name": "turma.csv", "mimeType": "text/csv", "buffer": data}]
     )
@@ -332,6 +337,14 @@ def teacher_sees_the_hand_in_and_exports_grades(j: Journey) -> None:
     assert (mine[0]["state"], mine[0]["mark"], mine[0]["max"]) == ("marked", "10.0", "10.0")
     assert mine[0]["late"] == "no"
     assert mine[0]["course"] == j.course
+    # Beside it, the grades as a spreadsheet in the page's language opens them.
+    with page.expect_download() as download:
+        page.click("#grades-sheet-link")
+    sheet = Path(download.value.path()).read_text(encoding="utf-8-sig")
+    separator, no = (";", "não") if j.language == "pt-BR" else (",", "no")
+    table = list(csv.reader(io.StringIO(sheet), delimiter=separator))
+    (line,) = [r for r in table[1:] if r[3] == j.login]
+    assert line[4:9] == ["João Gonçalves", j.words["state"], "10", "10", no]
 
 
 #: The journey, in order (the booking after the guide, before the run inside the slot).

@@ -27,7 +27,7 @@ import sys
 from collections.abc import Callable, Sequence
 
 from thermolab import __version__
-from thermolab.errors import ThermoLabError
+from thermolab.errors import ClassListError, ThermoLabError
 
 __all__ = ["CliError", "main"]
 
@@ -122,7 +122,11 @@ def _error_line(exc: ThermoLabError) -> str:
     from thermolab.lab.http.errors import fault_of
 
     sentence = error_message(fault_of(exc).code, language)
-    return f"{translate('error', language)}: {sentence} ({exc})"
+    detail = str(exc)
+    if isinstance(exc, ClassListError):
+        # A class list's problems have sentences of their own in the catalogue.
+        detail = exc.describe(lambda text: translate(text, language))
+    return f"{translate('error', language)}: {sentence} ({detail})"
 
 
 if __name__ == "__main__":  # pragma: no cover

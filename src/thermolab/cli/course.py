@@ -1,11 +1,14 @@
 """``thermolab course``: courses and class lists from the shell.
 
 ``create NAME --title TEXT --teacher NAME``, ``list``, ``import COURSE FILE``.
-An import adds or updates the students of a CSV class list (columns
-``username`` and ``display_name``) all or nothing; a bad file is one line
-naming each bad line, exit 1, and nothing changes. The new accounts' one-time
-passwords are printed once, as CSV on standard output (``username,password``),
-so they can be redirected to a file and handed out.
+An import adds or updates the students of a CSV class list (a login and a
+name column, headed in English, Portuguese or Spanish: ``username;display_name``,
+``matrícula;nome``, ``usuario;nombre``; UTF-8 or Windows-1252) all or nothing;
+a bad file is one line naming each bad line, exit 1, and nothing changes. The
+new accounts' one-time passwords are printed once, as CSV on standard output
+(``username,password``), so they can be redirected to a file and handed out;
+``--dialect pt-BR`` (or ``es``, ``en``) writes them for a spreadsheet in that
+language.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ _EXAMPLES = """\
 examples:
   thermolab course create ctrl1 --title "Controle I" --teacher tina
   thermolab course import ctrl1 turma.csv > passwords.csv
+  thermolab course import ctrl1 turma.csv --dialect pt-BR > senhas.csv
   thermolab course list
 """
 
@@ -59,7 +63,18 @@ def register(subparsers: Any) -> None:
         "import", help="add or update a course's students from a CSV class list"
     )
     load.add_argument("course", metavar="COURSE")
-    load.add_argument("file", metavar="FILE", type=Path, help="CSV: username,display_name")
+    load.add_argument(
+        "--dialect",
+        choices=("pt-BR", "es", "en"),
+        help="write the one-time passwords for a spreadsheet in this language (pt-BR and es: "
+        "';' separated, with a BOM and translated headings); default: plain CSV",
+    )
+    load.add_argument(
+        "file",
+        metavar="FILE",
+        type=Path,
+        help="CSV: username,display_name (or matrícula;nome, usuario;nombre)",
+    )
     add_database_options(load)
     load.set_defaults(handler=_import)
 
@@ -119,13 +134,20 @@ def _import(args: argparse.Namespace) -> int:
         db.close()
     print(
         f"{args.course}: {len(report.created)} created, {len(report.updated)} updated, "
-        f"{len(report.unchanged)} unchanged",
+        f"{len(report.unchanged)} unchanged (read as {report.encoding})",
         file=sys.stderr,
     )
     if report.created:
         print(
             "one-time passwords (shown once; each must be changed at first login):", file=sys.stderr
         )
+        if args.dialect:
+            from thermolab.lab.spreadsheets import SheetDialect
+
+            sheet = SheetDialect(args.dialect)
+            header = [sheet.word("Login name"), sheet.word("One-time password")]
+            sys.stdout.write(sheet.document(header, report.created.items()))
+            return 0
         writer = csv.writer(sys.stdout, lineterminator="\n")
         writer.writerow(["username", "password"])
         for username, password in report.created.items():

@@ -5,7 +5,10 @@ analytics) read: one row per (course, assignment, student), the student's
 current hand-in's mark or none. :func:`grades_csv` writes them; a text cell
 that a spreadsheet would run as a formula (starting with ``= + - @``, a tab or
 a carriage return) is prefixed with an apostrophe (OWASP's advice for CSV
-injection), so a display name like ``=HYPERLINK(...)`` stays text.
+injection), so a display name like ``=HYPERLINK(...)`` stays text. Given a
+:class:`~thermolab.lab.spreadsheets.SheetDialect`, it writes the spreadsheet
+form instead: headings and states in the language, marks as the page shows
+them, local times.
 """
 
 from __future__ import annotations
@@ -15,6 +18,8 @@ import io
 from collections.abc import Iterable
 from dataclasses import dataclass
 from datetime import datetime
+
+from thermolab.lab.spreadsheets import SheetDialect
 
 __all__ = ["GRADE_COLUMNS", "GradeRow", "grades_csv", "safe_cell"]
 
@@ -39,6 +44,22 @@ GRADE_COLUMNS: tuple[str, ...] = (
 )
 
 _FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+#: The spreadsheet form's headings (an English msgid of ``SHEET_WORDS`` per column;
+#: the instants' columns also name the time zone).
+_HEADINGS = dict(
+    zip(
+        GRADE_COLUMNS,
+        (
+            *("Course", "Assignment no.", "Assignment", "Login name", "Name", "State", "Mark"),
+            *("Out of", "Late", "Handed in at", "Marked at", "Run", "Answer Ks", "Answer Ts"),
+            *("Answer θ", "Conclusion"),
+        ),
+        strict=True,
+    )
+)
+_TIMED = frozenset({"submitted_at", "marked_at"})
+#: A row's state in words (the words the assignments page uses).
+_STATES = {"marked": "marked", "review": "to review", "missing": "not handed in"}
 
 
 @dataclass(frozen=True, slots=True)
@@ -108,8 +129,14 @@ def safe_cell(value: object) -> str:
     return "'" + text if text.startswith(_FORMULA_START) else text
 
 
-def grades_csv(rows: Iterable[GradeRow]) -> str:
+def grades_csv(rows: Iterable[GradeRow], dialect: SheetDialect | None = None) -> str:
     r"""The grades as CSV text (a header, then one line per row).
+
+    Parameters
+    ----------
+    rows : iterable of GradeRow
+    dialect : SheetDialect, optional
+        The spreadsheet form to write; the machine form (below) without it.
 
     Examples
     --------
@@ -119,6 +146,8 @@ def grades_csv(rows: Iterable[GradeRow]) -> str:
     >>> print(grades_csv([row]).splitlines()[1])
     c1,1,Step,ana,'=cmd,marked,7.5,10.0,no,2026-11-24T00:00:00+00:00,2026-11-24T00:00:00+00:00,3,,,,
     """
+    if dialect is not None:
+        return _grades_sheet(rows, dialect)
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(GRADE_COLUMNS)
@@ -144,3 +173,23 @@ def grades_csv(rows: Iterable[GradeRow]) -> str:
             ]
         )
     return out.getvalue()
+
+
+def _grades_sheet(rows: Iterable[GradeRow], dialect: SheetDialect) -> str:
+    header = [
+        dialect.timed(_HEADINGS[c]) if c in _TIMED else dialect.word(_HEADINGS[c])
+        for c in GRADE_COLUMNS
+    ]
+    state = {code: dialect.word(word) for code, word in _STATES.items()}
+    return dialect.document(
+        header,
+        (
+            [
+                *(row.course, row.assignment_id, row.assignment, row.student, row.display_name),
+                state.get(row.state, row.state),
+                *(row.mark, row.max, row.late, row.submitted_at, row.marked_at, row.run_id),
+                *(row.answer_K, row.answer_tau, row.answer_theta, row.conclusion),
+            ]
+            for row in rows
+        ),
+    )

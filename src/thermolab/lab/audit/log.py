@@ -15,6 +15,7 @@ from sqlalchemy import select
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
 from thermolab.lab.db.audit_models import AuditEntry
+from thermolab.lab.spreadsheets import SheetDialect
 
 __all__ = ["AuditAction", "AuditLog", "AuditRecord"]
 
@@ -115,13 +116,27 @@ class AuditLog:
             ]
 
     @staticmethod
-    def to_csv(records: Iterable[AuditRecord]) -> str:
-        """The rows as CSV; a cell a spreadsheet would run as a formula is quoted with ``'``."""
+    def to_csv(records: Iterable[AuditRecord], dialect: SheetDialect | None = None) -> str:
+        """The rows as CSV; a cell a spreadsheet would run as a formula is quoted with ``'``.
+
+        With ``dialect``, the spreadsheet form: headings in the language, local
+        times; the actions stay the stable names the audit page shows.
+        """
+        if dialect is not None:
+            header = [dialect.word("No."), dialect.timed("When")]
+            header += [dialect.word(w) for w in ("Who", "Action", "About", "From where", "Detail")]
+            return dialect.document(
+                header,
+                (
+                    [r.id, r.at, r.actor, r.action, r.target, r.address, _detail(r.detail)]
+                    for r in records
+                ),
+            )
         out = io.StringIO()
         writer = csv.writer(out, lineterminator="\r\n")
         writer.writerow(["id", "at", "actor", "action", "target", "address", "detail"])
         for r in records:
-            detail = "; ".join(f"{k}={v}" for k, v in sorted(r.detail.items()))
+            detail = _detail(r.detail)
             writer.writerow(
                 [
                     r.id,
@@ -130,6 +145,10 @@ class AuditLog:
                 ]
             )
         return out.getvalue()
+
+
+def _detail(detail: Mapping[str, Any]) -> str:
+    return "; ".join(f"{k}={v}" for k, v in sorted(detail.items()))
 
 
 def _safe(cell: str) -> str:

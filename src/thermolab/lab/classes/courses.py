@@ -25,6 +25,7 @@ from sqlalchemy.orm import Session
 from thermolab.errors import (
     AccessDeniedError,
     ClassListError,
+    ClassListProblem,
     ConflictError,
     NotFoundError,
     WrongEnrolCodeError,
@@ -32,7 +33,7 @@ from thermolab.errors import (
 from thermolab.lab.accounts.names import normalize_display_name, normalize_username
 from thermolab.lab.accounts.security import validate_password
 from thermolab.lab.accounts.users import LoginsEnded, Principal, UserInfo
-from thermolab.lab.classes.class_list import parse_class_list
+from thermolab.lab.classes.class_list import read_class_list
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Course, CourseMember, CourseRig, LoginSession, Role, User
@@ -60,9 +61,15 @@ def new_enrol_code() -> str:
 
 
 def temporary_password() -> str:
-    """A random one-time password (about 96 bits) that meets the password rules."""
+    """A random one-time password (about 96 bits) that meets the password rules.
+
+    It starts with a letter or digit: a spreadsheet would take a leading ``-`` for
+    a formula (``#NAME?``) when a teacher opens the list of passwords.
+    """
     while True:
         password = secrets.token_urlsafe(12)
+        if not password[0].isalnum():
+            continue
         try:
             return validate_password(password)
         except ValueError:  # pragma: no cover - a random 16-character string is never listed
@@ -98,6 +105,8 @@ class ImportReport:
     created: dict[str, str] = field(default_factory=dict)
     updated: list[str] = field(default_factory=list)
     unchanged: list[str] = field(default_factory=list)
+    #: How the file's bytes were read (``"UTF-8"``, ``"Windows-1252"``...).
+    encoding: str = "UTF-8"
 
 
 class CourseService:
@@ -244,7 +253,8 @@ class CourseService:
         NotFoundError
             For an unknown course.
         """
-        entries = parse_class_list(data)
+        read = read_class_list(data)
+        entries = read.entries
         # Hashing is slow on purpose: done before the transaction, for the new names only.
         with self._db.read() as session:
             course_id = _course(session, name).id
@@ -255,13 +265,13 @@ class CourseService:
                 )
             }
             teachers = [
-                (e.line, f"{e.username!r} is a teacher's account, not a student's")
+                ClassListProblem.of(e.line, "class_list.teacher", value=repr(e.username))
                 for e in entries
                 if e.username in known and known[e.username].role == Role.TEACHER.value
             ]
         if teachers:
             raise ClassListError(teachers)
-        report = ImportReport()
+        report = ImportReport(encoding=read.encoding)
         hashes = {}
         for entry in entries:
             if entry.username not in known:

@@ -6,7 +6,7 @@ opens its own short database transactions.
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from fastapi import Depends, Path, Query, Request, Security
 from fastapi.security import APIKeyCookie, HTTPAuthorizationCredentials, HTTPBearer
@@ -19,6 +19,7 @@ from thermolab.lab.config.model import RIG_ID
 from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.schemas import ErrorOut, ValidationErrorOut
 from thermolab.lab.service import Lab
+from thermolab.lab.spreadsheets import SheetDialect, sheet_dialect
 
 __all__ = [
     "AUTHENTICATED",
@@ -28,6 +29,7 @@ __all__ = [
     "RigId",
     "RigQuery",
     "RunId",
+    "SheetDep",
     "UserDep",
     "UserQuery",
     "Username",
@@ -179,3 +181,30 @@ AUTHENTICATED: dict[str, Any] = {
     "responses": documented_errors(401),
 }
 """Keyword arguments of an ``APIRouter`` whose every route needs a logged-in user."""
+
+
+def spreadsheet_form(
+    dialect: Annotated[
+        Literal["pt-BR", "en", "es"] | None,
+        Query(
+            description="the spreadsheet form for this language (';' and decimal comma in pt-BR "
+            "and es, a BOM, local times, words in the language); left out: the machine form"
+        ),
+    ] = None,
+    tz: Annotated[
+        str | None,
+        Query(
+            min_length=1,
+            max_length=64,
+            pattern=r"^[A-Za-z][A-Za-z0-9_+\-]*(/[A-Za-z0-9_+\-]+){0,2}$",
+            description="the spreadsheet form's time zone (IANA, e.g. America/Sao_Paulo; UTC "
+            "when left out)",
+        ),
+    ] = None,
+) -> SheetDialect | None:
+    """The CSV form a download asks for (``None``: the machine form)."""
+    return sheet_dialect(dialect, tz)
+
+
+#: A CSV route's ``?dialect=pt-BR&tz=America/Sao_Paulo`` (:mod:`thermolab.lab.spreadsheets`).
+SheetDep = Annotated[SheetDialect | None, Depends(spreadsheet_form)]

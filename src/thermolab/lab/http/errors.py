@@ -54,7 +54,12 @@ from thermolab.errors import (
     WrongEnrolCodeError,
 )
 from thermolab.lab.accounts.security import AuthenticationError, RateLimitedError
-from thermolab.lab.error_messages import LANGUAGE_COOKIE, error_message, negotiate_language
+from thermolab.lab.error_messages import (
+    LANGUAGE_COOKIE,
+    error_message,
+    negotiate_language,
+    translate,
+)
 from thermolab.lab.guides.images import (
     ImageInvalidError,
     ImagePixelsError,
@@ -217,10 +222,21 @@ def install_error_handlers(app: FastAPI) -> None:
             headers["Retry-After"] = str(max(1, math.ceil(exc.retry_after)))
         language = request_language(request.headers, request.cookies)
         if isinstance(exc, ClassListError):
-            # One problem per bad line of the file, so a page can list them.
+            # One problem per bad line of the file, so a page can list them: its stable
+            # code and values (the browser's catalogue words them), its sentence in the
+            # reader's language, and the English one.
+            def say(sentence: str) -> str:
+                return translate(sentence, language)
+
             problems = [
-                {"loc": ["file", str(line)], "type": fault.code, "msg": reason}
-                for line, reason in exc.problems
+                {
+                    "loc": ["file", str(p.line)],
+                    "type": p.code,
+                    "msg": p.reason,
+                    "params": dict(p.params),
+                    "message": p.sentence(say),
+                }
+                for p in exc.problems
             ]
             return invalid_response(str(exc), fault.code, problems, language=language)
         if fault.status == 422:

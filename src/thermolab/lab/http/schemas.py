@@ -78,6 +78,10 @@ class ProblemOut(_Out):
     )
     type: str = Field(description="pydantic's error type, or the error's code")
     msg: str
+    params: dict[str, str | int] | None = Field(
+        None, description="a class list's problem: the values its sentence names"
+    )
+    message: str | None = Field(None, description="a class list's problem in the reader's language")
 
 
 class ValidationErrorOut(_Out):

@@ -19,6 +19,7 @@ from thermolab.jsonsafe import json_safe
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Run, Sample
 from thermolab.lab.runs.store import channel_specs
+from thermolab.lab.spreadsheets import SheetDialect
 from thermolab.records import RUN_CHANNELS, ChannelSpec, RecordWriter
 
 __all__ = ["RunExport", "StoredSample", "samples_csv"]
@@ -28,14 +29,23 @@ StoredSample = tuple[int, float, float, float]
 
 #: The channels of a sample stored before revision 0004 (no timing, no extras).
 _EARLY_CHANNELS: tuple[ChannelSpec, ...] = RUN_CHANNELS[:4]
+#: Units as people write them in a heading (records spell degrees ``degC``).
+_SHOWN_UNITS = {"degC": "°C"}
 #: The standard channels, each a column of ``samples``.
 _COLUMNS = {c.name: getattr(Sample, c.name) for c in RUN_CHANNELS}
 
 
-def samples_csv(channels: Sequence[ChannelSpec], rows: Iterable[Sequence[float]]) -> Iterator[str]:
+def samples_csv(
+    channels: Sequence[ChannelSpec],
+    rows: Iterable[Sequence[float]],
+    dialect: SheetDialect | None = None,
+) -> Iterator[str]:
     r"""The CSV text of a run's record, in chunks, in the one record format.
 
-    Written by :class:`thermolab.records.RecordWriter`.
+    Written by :class:`thermolab.records.RecordWriter`. With ``dialect``, the
+    spreadsheet form instead: each heading the channel's name and unit
+    (``y (V)``), the dialect's separator and decimal mark, 10 significant
+    digits; :func:`thermolab.records.read_record` reads that form too.
 
     Columns ``t,u,y`` first, then the other channels: the file feeds straight
     into ``thermolab identify`` and :func:`thermolab.records.read_record`.
@@ -46,6 +56,9 @@ def samples_csv(channels: Sequence[ChannelSpec], rows: Iterable[Sequence[float]]
     >>> "".join(samples_csv(RUN_CHANNELS[:4], [(0.0, 1.0, 0.5, 0), (1.0, 1.0, 0.625, 1)]))
     't,u,y,k\n0,1.0,0.5,0\n1,1.0,0.625,1\n'
     """
+    if dialect is not None:
+        yield from _samples_sheet(channels, rows, dialect)
+        return
     buffer = io.StringIO()
     writer = RecordWriter(buffer, channels)
     writer.write_header()
@@ -56,6 +69,23 @@ def samples_csv(channels: Sequence[ChannelSpec], rows: Iterable[Sequence[float]]
             buffer.seek(0)
             buffer.truncate()
     yield buffer.getvalue()
+
+
+def _samples_sheet(
+    channels: Sequence[ChannelSpec], rows: Iterable[Sequence[float]], dialect: SheetDialect
+) -> Iterator[str]:
+    header = [
+        f"{c.name} ({_SHOWN_UNITS.get(c.unit, c.unit)})" if c.unit else c.name for c in channels
+    ]
+    integer = [c.integer for c in channels]
+
+    def cells(row: Sequence[float]) -> list[float | int]:
+        return [
+            int(v) if whole and math.isfinite(v) else v
+            for v, whole in zip(row, integer, strict=True)
+        ]
+
+    return dialect.lines(header, (cells(row) for row in rows))
 
 
 class RunExport:

@@ -19,7 +19,7 @@ from thermolab.lab.accounts.policy import Action
 from thermolab.lab.analytics import CourseAnalytics, RigFigures, StudentFigures
 from thermolab.lab.analytics.export import rigs_csv, students_csv
 from thermolab.lab.http.bodies import Out
-from thermolab.lab.http.deps import AUTHENTICATED, LabDep, UserDep, documented_errors
+from thermolab.lab.http.deps import AUTHENTICATED, LabDep, SheetDep, UserDep, documented_errors
 from thermolab.lab.http.routers.courses import CourseName
 
 __all__ = ["router"]
@@ -235,12 +235,20 @@ _CSV = {200: {"content": {"text/csv": {}}}, **documented_errors(403, 404, 422)}
     responses=_CSV,
 )
 def students_table(
-    course: CourseName, who: UserDep, lab: LabDep, start: From = None, end: To = None
+    course: CourseName,
+    who: UserDep,
+    lab: LabDep,
+    sheet: SheetDep,
+    start: From = None,
+    end: To = None,
 ) -> Response:
-    """The students' table, one line per student (teachers only; formula-safe cells)."""
+    """The students' table, one line per student (teachers only; formula-safe cells).
+
+    ``?dialect=pt-BR`` (or ``en``, ``es``) and ``tz``: the spreadsheet form.
+    """
     lab.authorize.require_course(who, Action.COURSE_ANALYTICS, course)
     data = _analytics(course, start, end, lab)
-    return _csv(students_csv(data), f"{data.course}-students.csv")
+    return _csv(students_csv(data, sheet), f"{data.course}-students.csv")
 
 
 @router.get(
@@ -251,12 +259,20 @@ def students_table(
     responses=_CSV,
 )
 def rigs_table(
-    course: CourseName, who: UserDep, lab: LabDep, start: From = None, end: To = None
+    course: CourseName,
+    who: UserDep,
+    lab: LabDep,
+    sheet: SheetDep,
+    start: From = None,
+    end: To = None,
 ) -> Response:
-    """The rigs' table, one line per rig (teachers only; formula-safe cells)."""
+    """The rigs' table, one line per rig (teachers only; formula-safe cells).
+
+    ``?dialect=pt-BR`` (or ``en``, ``es``) and ``tz``: the spreadsheet form.
+    """
     lab.authorize.require_course(who, Action.COURSE_ANALYTICS, course)
     data = _analytics(course, start, end, lab)
-    return _csv(rigs_csv(data), f"{data.course}-rigs.csv")
+    return _csv(rigs_csv(data, sheet), f"{data.course}-rigs.csv")
 
 
 def _csv(text: str, filename: str) -> Response:

@@ -29,6 +29,7 @@ from thermolab.lab.http.deps import (
     AUTHENTICATED,
     MAX_ROW_ID,
     LabDep,
+    SheetDep,
     UserDep,
     audit,
     documented_errors,
@@ -277,11 +278,15 @@ def list_submissions(assignment_id: AssignmentId, who: UserDep, lab: LabDep) -> 
     response_class=Response,
     responses={200: {"content": {"text/csv": {}}}, **documented_errors(403, 404, 422)},
 )
-def grades(course: CourseName, who: UserDep, lab: LabDep) -> Response:
-    """One row per student × assignment of the course (teachers of the course only)."""
+def grades(course: CourseName, who: UserDep, lab: LabDep, sheet: SheetDep) -> Response:
+    """One row per student × assignment of the course (teachers of the course only).
+
+    ``?dialect=pt-BR`` (or ``en``, ``es``) and ``tz``: the spreadsheet form
+    (:mod:`thermolab.lab.spreadsheets`); without them the machine form.
+    """
     rows = lab.assignments.grade_rows(course, who)
     return Response(
-        grades_csv(rows),
-        media_type="text/csv",
+        grades_csv(rows, sheet),
+        media_type="text/csv" if sheet is None else "text/csv; charset=utf-8",
         headers={"Content-Disposition": f'attachment; filename="grades-{course}.csv"'},
     )

@@ -14,6 +14,7 @@ from thermolab.lab.http.deps import (
     AUTHENTICATED,
     USERNAME_PATTERN,
     LabDep,
+    SheetDep,
     UserDep,
     documented_errors,
 )
@@ -85,15 +86,19 @@ def audit_log(
 def audit_csv(
     who: UserDep,
     lab: LabDep,
+    sheet: SheetDep,
     action: ActionQuery = None,
     actor: ActorQuery = None,
     limit: LimitQuery = MAX_ROWS,
 ) -> Response:
-    """The same rows as CSV, formula-safe (lab administrators only)."""
+    """The same rows as CSV, formula-safe (lab administrators only).
+
+    ``?dialect=pt-BR`` (or ``en``, ``es``) and ``tz``: the spreadsheet form.
+    """
     lab.authorize.require_lab(who, Action.AUDIT_READ)
     rows = lab.audit.list(action=action, actor=actor, limit=limit)
     return Response(
-        AuditLog.to_csv(rows),
+        AuditLog.to_csv(rows, sheet),
         media_type="text/csv; charset=utf-8",
         headers={"Content-Disposition": 'attachment; filename="thermolab-audit.csv"'},
     )

@@ -14,7 +14,12 @@ import anyio.to_thread
 from fastapi import APIRouter, Path, Request, status
 from pydantic import Field
 
-from thermolab.errors import AccessDeniedError, ClassListError, WrongEnrolCodeError
+from thermolab.errors import (
+    AccessDeniedError,
+    ClassListError,
+    ClassListProblem,
+    WrongEnrolCodeError,
+)
 from thermolab.lab.accounts.names import MAX_DISPLAY_NAME
 from thermolab.lab.accounts.policy import Action
 from thermolab.lab.accounts.security import (
@@ -108,11 +113,20 @@ class ImportOut(Out):
     created: dict[str, str]
     updated: list[str]
     unchanged: list[str]
+    encoding: str = Field(
+        "UTF-8",
+        description="how the file's bytes were read: UTF-8, UTF-8 with BOM, UTF-16 or Windows-1252",
+    )
 
     @classmethod
     def of(cls, report: ImportReport) -> ImportOut:
         """Build from an :class:`~thermolab.lab.classes.courses.ImportReport`."""
-        return cls(created=report.created, updated=report.updated, unchanged=report.unchanged)
+        return cls(
+            created=report.created,
+            updated=report.updated,
+            unchanged=report.unchanged,
+            encoding=report.encoding,
+        )
 
 
 class EnrolCodeOut(Out):
@@ -210,16 +224,22 @@ async def upload_roster(
 ) -> ImportOut:
     """Add or update a course's students from a CSV class list, all or nothing.
 
-    Columns ``username`` and ``display_name`` (or ``name``); a 422
-    ``class_list_invalid`` lists each bad line in ``errors`` (``loc`` =
-    ``["file", line]``) and nothing changes.
+    A login column and a name column, headed in English, Portuguese or
+    Spanish (``username;display_name``, ``matrícula;nome``, ``usuario;nombre``);
+    UTF-8 (with or without BOM), UTF-16 with BOM or Windows-1252; the answer's
+    ``encoding`` says which was read. A 422 ``class_list_invalid`` lists each bad
+    line in ``errors`` (``loc`` = ``["file", line]``, ``type`` its stable code,
+    ``params`` its values, ``message`` its sentence in the reader's language) and
+    nothing changes.
     """
     lab.authorize.require_course(who, Action.COURSE_ROSTER, course)
     data = b""
     async for chunk in request.stream():
         data += chunk
         if len(data) > MAX_CLASS_LIST_BYTES:
-            raise ClassListError([(0, f"the file is larger than {MAX_CLASS_LIST_BYTES} bytes")])
+            raise ClassListError(
+                [ClassListProblem.of(0, "class_list.too_large", limit=MAX_CLASS_LIST_BYTES)]
+            )
     report = await anyio.to_thread.run_sync(lab.courses.import_class_list, course, data)
     lab.names.forget()  # a re-upload may have renamed people
     audit(

@@ -28,6 +28,7 @@ from thermolab.lab.http.deps import (
     RigId,
     RigQuery,
     RunId,
+    SheetDep,
     UserDep,
     UserQuery,
     documented_errors,
@@ -334,15 +335,18 @@ def get_run(run_id: RunId, who: UserDep, lab: LabDep) -> RunOut:
     response_class=StreamingResponse,
     responses={200: {"content": {"text/csv": {}}}, **documented_errors(403, 404)},
 )
-def run_samples_csv(run_id: RunId, who: UserDep, lab: LabDep) -> StreamingResponse:
+def run_samples_csv(run_id: RunId, who: UserDep, lab: LabDep, sheet: SheetDep) -> StreamingResponse:
     """Columns ``t,u,y`` first, then every other channel of the run by name (``k``,
     ``t_read``, ``jitter``, ``lateness``, and any a rig adds): the file feeds straight
     into ``thermolab identify`` (format: :mod:`thermolab.records`).
+
+    ``?dialect=pt-BR`` (or ``en``, ``es``): the spreadsheet form (``;`` and a decimal
+    comma in pt-BR and es, units in the headings), which ``thermolab identify`` reads too.
     """
     channels, rows = lab.runs.record_rows(run_id, who)
     return StreamingResponse(
-        samples_csv(channels, rows),
-        media_type="text/csv",
+        samples_csv(channels, rows, sheet),
+        media_type="text/csv" if sheet is None else "text/csv; charset=utf-8",
         headers={"Content-Disposition": f'attachment; filename="run-{run_id}.csv"'},
     )
 

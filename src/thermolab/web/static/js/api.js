@@ -70,6 +70,21 @@ function slotParams(body) {
   return { start: at(slot.startsAt), end: at(slot.endsAt), course: String(slot.course ?? ""), rigs };
 }
 
+/**
+ * The spreadsheet form of a CSV download: the page's language and the browser's
+ * time zone (?dialect=pt-BR&tz=America/Sao_Paulo), so that Excel or LibreOffice
+ * opens it as columns, with accents, the language's decimal mark and local times.
+ * Without them a route answers the plain machine form.
+ * @param {string} url  a CSV route, with or without a query
+ * @returns {string}
+ */
+export function spreadsheetUrl(url) {
+  // No zone known: the server writes UTC and names it in the headings.
+  const zone = Intl.DateTimeFormat().resolvedOptions().timeZone;
+  const tz = zone ? `&tz=${encodeURIComponent(zone)}` : "";
+  return `${url}${url.includes("?") ? "&" : "?"}dialect=${encodeURIComponent(language())}${tz}`;
+}
+
 /** Called on any 401, so that the app can go back to the login page. */
 let onUnauthorized = () => {};
 

@@ -7,7 +7,7 @@
 // Every figure comes from GET /api/courses/{course}/analytics; the page only
 // writes it in the reader's language (decimal comma in pt-BR, local dates).
 
-import { api } from "../api.js";
+import { api, spreadsheetUrl } from "../api.js";
 import { Chart } from "../charts.js";
 import { duration, h, setText, when } from "../dom.js";
 import { formatNumber, t } from "../i18n.js";
@@ -122,8 +122,11 @@ function render(body, data, course, q) {
   const rigs = data.rigs;
   const studentBox = h("section", { class: "card", id: "analytics-students", "aria-labelledby": "analytics-students-h" });
   const rigBox = h("section", { class: "card", id: "analytics-rigs", "aria-labelledby": "analytics-rigs-h" });
-  const download = (table, key, id) =>
-    h("a", { href: api.analyticsCsvUrl(course, table, q), download: "", class: "button", id }, t(key));
+  const download = (table, key, id) => [
+    h("a", { href: api.analyticsCsvUrl(course, table, q), download: "", class: "button", id }, t(key)),
+    " ",
+    h("a", { href: spreadsheetUrl(api.analyticsCsvUrl(course, table, q)), download: "", class: "button", id: `${id}-sheet` }, t("csv.spreadsheet")),
+  ];
   studentBox.append(
     h("h2", { id: "analytics-students-h" }, t("analytics.students")),
     h("p", null, download("students", "analytics.csvStudents", "analytics-students-csv")),
@@ -245,7 +248,8 @@ function assignmentsText(a) {
     submitted: a.submitted,
     assigned: a.assigned,
     late: a.late,
-    mark: a.meanMark === null ? "–" : formatNumber(a.meanMark, { maximumFractionDigits: 1 }),
+    // A percentage of each assignment's maximum ("100 %" where the marks read "10 de 10").
+    mark: a.meanMark === null ? "–" : formatNumber(a.meanMark / 100, { style: "percent", maximumFractionDigits: 1 }),
   });
 }
 

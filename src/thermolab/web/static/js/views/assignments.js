@@ -5,7 +5,7 @@
 // hands in one of their finished runs on its rig with their Ks, Ts and θ,
 // and reads the mark and the feedback, check by check, in their language.
 
-import { api } from "../api.js";
+import { api, spreadsheetUrl } from "../api.js";
 import { announce, h, setText, when } from "../dom.js";
 import { formatDecimal, formatNumber, t } from "../i18n.js";
 import { methods } from "../methods.js";
@@ -237,9 +237,10 @@ async function showOne(main, id, ctx, error, alive) {
     const rigs = await api.rigs();
     const hand = h("div", { class: "table-wrap", id: "submissions", tabindex: "0", role: "region", "aria-label": t("assign.submissions") });
     const grades = h("a", { id: "grades-link", href: api.gradesUrl(a.course), download: `grades-${a.course}.csv` }, t("assign.grades"));
+    const sheet = h("a", { id: "grades-sheet-link", href: spreadsheetUrl(api.gradesUrl(a.course)), download: `grades-${a.course}.csv` }, t("csv.spreadsheet"));
     main.append(
       h("h2", null, t("assign.submissions")),
-      h("p", null, grades),
+      h("p", null, grades, " · ", sheet),
       hand,
       assignmentForm(a, [], rigs, async (_course, body) => {
         await api.updateAssignment(a.id, body);

@@ -2,7 +2,7 @@
 // The audit log (lab administrators): who did which privileged action, on
 // what, when and from where (GET /api/audit), newest first, and its CSV export.
 
-import { api } from "../api.js";
+import { api, spreadsheetUrl } from "../api.js";
 import { h, serverText, setText, when } from "../dom.js";
 import { t } from "../i18n.js";
 
@@ -55,7 +55,13 @@ export function mount(main, _params, ctx) {
   main.append(
     h("h1", null, t("audit.title")),
     h("p", { class: "lede" }, t("audit.lede")),
-    h("p", null, h("a", { href: "/api/audit.csv", download: "thermolab-audit.csv" }, t("audit.csv"))),
+    h(
+      "p",
+      null,
+      h("a", { href: "/api/audit.csv", download: "thermolab-audit.csv" }, t("audit.csv")),
+      " · ",
+      h("a", { href: spreadsheetUrl("/api/audit.csv"), download: "thermolab-audit.csv", id: "audit-sheet-link" }, t("csv.spreadsheet")),
+    ),
     status,
     box,
   );

@@ -5,7 +5,7 @@
 
 import { api } from "../api.js";
 import { announce, h, setText } from "../dom.js";
-import { t } from "../i18n.js";
+import { serverMessage, t } from "../i18n.js";
 import { courseLimitsSection } from "./courselimits.js";
 
 /**
@@ -200,13 +200,15 @@ async function courseRigs(name, chosen) {
   return form;
 }
 
-/** @param {{created: Record<string, string>, updated: string[], unchanged: string[]}} done */
+/** @param {{created: Record<string, string>, updated: string[], unchanged: string[], encoding?: string}} done */
 function importReport(done) {
   const created = Object.entries(done.created);
   const summary = h(
     "p",
     { id: "roster-summary" },
     t("courses.imported", { created: created.length, updated: done.updated.length, unchanged: done.unchanged.length }),
+    " ",
+    h("span", { id: "roster-encoding" }, t("courses.readAs", { encoding: done.encoding ?? "UTF-8" })),
   );
   if (created.length === 0) return summary;
   const rows = created.map(([user, pw]) => h("tr", null, h("td", null, user), h("td", null, h("code", null, pw))));
@@ -235,9 +237,21 @@ function badLines(err) {
     h(
       "ul",
       { id: "roster-errors" },
-      errors.map((e) => h("li", null, t("courses.badLine", { line: Number(e.loc?.[1] ?? 0), reason: String(e.msg) }))),
+      errors.map((e) => h("li", null, t("courses.badLine", { line: Number(e.loc?.[1] ?? 0), reason: problemText(e) }))),
     ),
   );
+}
+
+/**
+ * One bad line's reason in the page's language: the catalogue's sentence for its
+ * stable code ("error.class_list.header"), else the server's own sentence in the
+ * reader's language, else its English text.
+ * @param {any} problem  one of a 422 class_list_invalid's `errors`
+ */
+function problemText(problem) {
+  const server = typeof problem.message === "string" && problem.message ? problem.message : String(problem.msg);
+  const params = problem.params && typeof problem.params === "object" ? problem.params : {};
+  return serverMessage(problem.type, server, params);
 }
 
 /**

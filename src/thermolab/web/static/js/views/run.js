@@ -2,7 +2,7 @@
 // One run: what was asked, its charts (output with the model, input, and the
 // convergence of the recursive methods), every method's results, the CSV.
 
-import { api } from "../api.js";
+import { api, spreadsheetUrl } from "../api.js";
 import { Chart } from "../charts.js";
 import { h, serverText, setText, tParts, when } from "../dom.js";
 import { fmt, fmtFigure, predict, predictionBase } from "../model.js";
@@ -106,6 +106,7 @@ function render(main, exported, charts) {
         "div",
         { class: "buttons" },
         h("a", { class: "button primary", href: api.csvUrl(run.id), download: `run-${run.id}.csv`, "data-testid": "csv-link" }, t("run.csv")),
+        h("a", { class: "button", href: spreadsheetUrl(api.csvUrl(run.id)), download: `run-${run.id}.csv`, "data-testid": "csv-sheet-link" }, t("csv.spreadsheet")),
         h("a", { class: "button", href: api.exportUrl(run.id), download: `run-${run.id}.json` }, t("run.json")),
       ),
     ),
