@@ -217,17 +217,15 @@ def test_a_hand_in_is_refused_for_a_run_that_is_not_the_students_or_not_on_the_r
     assert tina.get(url).json() == []
 
 
-def test_an_untrustworthy_identification_gives_no_mark(school: Any) -> None:
-    lab: Lab = school["lab"]
+def _hand_in_an_srm_step(school: Any, samples: int) -> dict[str, Any]:
+    """ana hands in a step run of ``samples`` for an SRM assignment, with the true answers."""
     made = (
         school["tina"]
         .post("/api/courses/ctrl1/assignments", json=_assignment(methods=["srm"], settings={}))
         .json()
     )
-    # 145 s of a 250 s time constant: the output never covers 63.2 % of its change, so
-    # SRM's tau is extrapolated, and the library's verdict does not trust it.
-    run_id = _run(lab, school["ana_p"], samples=150)
-    answer = (
+    run_id = _run(school["lab"], school["ana_p"], samples=samples)
+    answer: dict[str, Any] = (
         school["ana"]
         .post(
             f"/api/assignments/{made['id']}/submissions",
@@ -235,6 +233,13 @@ def test_an_untrustworthy_identification_gives_no_mark(school: Any) -> None:
         )
         .json()
     )
+    return answer
+
+
+def test_an_untrustworthy_identification_gives_no_mark(school: Any) -> None:
+    # 145 s of a 250 s time constant: the output never covers 63.2 % of its change, so
+    # SRM's tau is extrapolated, and the library's verdict does not trust it.
+    answer = _hand_in_an_srm_step(school, samples=150)
     assert (answer["state"], answer["mark"]) == ("review", None)
     assert any("not trustworthy" in n for n in answer["assessment"]["notes"])
     grades = school["tina"].get("/api/courses/ctrl1/grades.csv").text
@@ -246,21 +251,7 @@ def test_a_record_shorter_than_the_papers_count_is_marked_when_its_model_is_righ
 ) -> None:
     # 600 samples, not the paper's 2000: a note, not a reason (issue #21); the model
     # follows the record and agrees with the output-error fit, so the mark is given.
-    lab: Lab = school["lab"]
-    made = (
-        school["tina"]
-        .post("/api/courses/ctrl1/assignments", json=_assignment(methods=["srm"], settings={}))
-        .json()
-    )
-    run_id = _run(lab, school["ana_p"], samples=600)
-    answer = (
-        school["ana"]
-        .post(
-            f"/api/assignments/{made['id']}/submissions",
-            json={"runId": run_id, "K": TRUE_K, "tau": TRUE_TAU, "theta": 0.0},
-        )
-        .json()
-    )
+    answer = _hand_in_an_srm_step(school, samples=600)
     assert (answer["state"], answer["mark"]) == ("marked", 10.0)
     (srm,) = answer["assessment"]["identified"]
     assert srm["trusted"] is True
