@@ -137,3 +137,36 @@ def test_output_error_can_take_the_kit_at_rest_before_the_record() -> None:
         warnings.simplefilter("ignore")
         r = output_error_at_rest(u, y, 1.0, t=t)
     assert_allclose([r.K, r.tau, r.theta], [0.6, 140.0, 15.0], rtol=0.02, atol=0.5)
+
+
+def test_assess_speaks_the_records_units_in_every_word_it_gives() -> None:
+    from thermolab.errors import InvalidDataError
+    from thermolab.ident.assess import assess
+
+    t, u, y = kit(3)
+    u = np.where(t >= 20.0, 0.5, 0.0)  # a small step: the warning names the input twice
+    y = 21.0 + simulate_fopdt_at(t, u, 0.6, 140.0, 15.0)
+    plain = assess("srm", t, u, y, 1.0)
+    assert any(" V" in w for w in plain.summary["warnings"])  # the methods speak of volts
+    said = assess("srm", t, u, y, 1.0, units=("%", "°C"))
+    words = [*said.summary["warnings"], *said.verdict.reasons, *said.verdict.notes]
+    assert words
+    assert not [w for w in words if " V" in w]
+    (small,) = [w for w in said.summary["warnings"] if w.startswith("small step")]
+    assert "by 0.5 %, under 1 %" in small
+    assert small.endswith("a step of at least 1 %")
+    # The verdict is judged on the kinds, not the words: the same either way.
+    assert said.trusted == plain.trusted
+    # A refusal too, as the same type of error.
+    with pytest.raises(InvalidDataError, match="too few samples"):
+        assess("srm", t[:5], u[:5], y[:5], 1.0, units=("%", "°C"))
+
+
+def test_a_whole_record_model_that_is_right_is_trusted_and_says_so() -> None:
+    from thermolab.ident.assess import assess
+
+    t, u, y = kit(4)
+    for method in ("srm", "lsm", "oe"):
+        a = assess(method, t, u, y, 1.0, units=("%", "°C"))
+        assert a.trusted, (method, a.verdict.reasons)
+        assert_allclose([a.summary["K"], a.summary["tau"]], [0.6, 140.0], rtol=0.1)

@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -22,6 +21,7 @@ from thermolab.cli import CliError
 from thermolab.cli._settings import add_setting_options, given_settings, option, settings_of
 from thermolab.ident.advice import advice
 from thermolab.ident.registry import METHOD_NAMES, get_method, owners
+from thermolab.ident.units import in_units
 
 __all__ = ["register", "run"]
 
@@ -132,22 +132,12 @@ def run(args: argparse.Namespace) -> int:
     except ThermoLabError as exc:
         if merged:  # the refusal may come from the rows merged: say so on the same line
             exc.args = (f"{exc}; {merged[0]}",)
-        raise _in_units_error(exc, u_unit, y_unit) from None
+        raise
     result, summary, verdict = assessment.result, assessment.summary, assessment.verdict
     notes = list(summary["warnings"])
-    summary["warnings"] = [in_units(note, u_unit, y_unit) for note in notes]
     summary["advice"] = [in_units(advice(note), u_unit, y_unit) for note in notes]
     summary["trusted"] = verdict.trusted
     summary["verdict"] = verdict.to_dict()
-    summary["verdict"]["reasons"] = [in_units(r, u_unit, y_unit) for r in verdict.reasons]
-    summary["verdict"]["notes"] = [in_units(r, u_unit, y_unit) for r in verdict.notes]
-    if summary.get("reason"):
-        summary["reason"] = in_units(summary["reason"], u_unit, y_unit)
-    op = summary.get("operating_point")
-    if isinstance(op, dict):
-        for key in ("reason", "start"):
-            if isinstance(op.get(key), str):
-                op[key] = in_units(op[key], u_unit, y_unit)
     k_unit = (
         f"{y_unit}/{u_unit}" if y_unit and u_unit else y_unit or (f"1/{u_unit}" if u_unit else "")
     )
@@ -163,48 +153,6 @@ def run(args: argparse.Namespace) -> int:
         for note, what in zip(notes, summary["advice"], strict=True):
             print(f"warning: {note}\n  what it means, what to do: {what}", file=sys.stderr)
     return 0
-
-
-_INPUT_WORDS = ("input", "under", "kept at", "stays at", "u[0]", "held")
-_OUTPUT_WORDS = ("output", "ambient", "y[0]", "noise", "rms", "±", "it changes", "changed by")
-_VOLTS = re.compile(r"(?P<num>[-+]?\d[\d.]*(?:e[-+]?\d+)?) V\b")
-
-
-def in_units(text: str, u_unit: str, y_unit: str) -> str:
-    """A method's message with its volts in the record's units (input or output, by context).
-
-    The methods speak of volts (the paper's rig); a record in % and °C should
-    not read "V". Each number followed by ``V`` takes the unit of the signal
-    named nearest before it.
-
-    Examples
-    --------
-    >>> in_units("small step: the input changes by 0.5 V; the output moves 2 V", "%", "°C")
-    'small step: the input changes by 0.5 %; the output moves 2 °C'
-    """
-    if u_unit == "V" and y_unit == "V":
-        return text
-
-    def unit(m: re.Match[str]) -> str:
-        before = text[: m.start()].lower()
-        last_in = max(before.rfind(w) for w in _INPUT_WORDS)
-        last_out = max(before.rfind(w) for w in _OUTPUT_WORDS)
-        chosen = u_unit if last_in > last_out else y_unit
-        return m.group("num") + (f" {chosen}" if chosen else "")
-
-    out = _VOLTS.sub(unit, text)
-    return out.replace("in volts", "in the record's units").replace("of volts", "")
-
-
-def _in_units_error(exc: Exception, u_unit: str, y_unit: str) -> Exception:
-    """``exc`` again, its message in the record's units (the same type, for the exit status)."""
-    text = in_units(str(exc), u_unit, y_unit)
-    if text == str(exc):
-        return exc
-    try:
-        return type(exc)(text)
-    except TypeError:
-        return exc
 
 
 def _table(s: dict[str, Any]) -> str:

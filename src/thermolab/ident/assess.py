@@ -26,6 +26,7 @@ Examples
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 import warnings
 from collections.abc import Mapping, Sequence
@@ -39,6 +40,7 @@ from thermolab.errors import InsufficientExcitationError, ThermoLabError
 
 from .diagnostics import timing_warnings
 from .registry import get_method
+from .units import error_in_units, in_units
 from .verdict import Verdict, check_identifiable, judge
 
 __all__ = ["ON_TIME_STAMPS", "Assessment", "assess", "peer_estimate"]
@@ -85,7 +87,7 @@ def assess(
     dt: float,
     settings: Mapping[str, Any] | None = None,
     *,
-    units: tuple[str, str] = ("", ""),
+    units: tuple[str, str] | None = None,
     notes: Sequence[str] = (),
 ) -> Assessment:
     """Identify a whole record with one method and judge the model on it.
@@ -103,7 +105,9 @@ def assess(
         recursive or windowed method's statistics cover the samples after
         convergence (the paper's count) unless ``last`` is given.
     units : (str, str), optional
-        The input's and the output's units, for the refusals' wording.
+        The input's and the output's units: every warning, reason and refusal
+        then speaks of them, not of the volts the methods' own messages use
+        (:func:`~thermolab.ident.units.in_units`).
     notes : sequence of str, optional
         Warnings the caller met reading the record (rows merged...), judged
         with the method's.
@@ -121,18 +125,35 @@ def assess(
         An unknown method or a setting it does not take.
     """
     ta, ua, ya = (np.asarray(a, dtype=np.float64) for a in (t, u, y))
+    try:
+        assessment = _assess(method, ta, ua, ya, float(dt), dict(settings or {}), units, notes)
+    except ThermoLabError as exc:
+        raise (exc if units is None else error_in_units(exc, *units)) from None
+    return assessment if units is None else _in_units(assessment, *units)
+
+
+def _assess(
+    method: str,
+    ta: npt.NDArray[np.float64],
+    ua: npt.NDArray[np.float64],
+    ya: npt.NDArray[np.float64],
+    dt: float,
+    given: dict[str, Any],
+    units: tuple[str, str] | None,
+    notes: Sequence[str],
+) -> Assessment:
     m = get_method(method)
-    given = dict(settings or {})
-    check_identifiable(ua, ya, units[1], units[0])
+    u_unit, y_unit = units or ("", "")
+    check_identifiable(ua, ya, y_unit, u_unit)
     identify = {k: v for k, v in given.items() if k in m.setting_names("identify")}
-    data = {"t": ta, "u": ua, "y": ya, "dt": float(dt)}
+    data = {"t": ta, "u": ua, "y": ya, "dt": dt}
     function = m.batch_function()
     if "t" not in m.data and "t" in inspect.signature(function).parameters:
         identify["t"] = ta  # the sample times: jitter and gaps are flagged
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = function(*(data[name] for name in m.data), **identify)
-    summary = _summary(method, result, float(dt), given)
+    summary = _summary(method, result, dt, given)
     if summary.get("K") is None or summary.get("tau") is None or summary.get("valid") is False:
         why = summary.get("reason") or "the estimate has no first-order meaning"
         raise InsufficientExcitationError(f"no first-order model from {method}: {why}")
@@ -142,7 +163,31 @@ def assess(
         if text not in found:
             found.append(text)
     summary["warnings"] = found
-    return Assessment(method, result, summary, _judge(method, summary, ta, ua, ya, float(dt)))
+    return Assessment(method, result, summary, _judge(method, summary, ta, ua, ya, dt))
+
+
+def _in_units(a: Assessment, u_unit: str, y_unit: str) -> Assessment:
+    """The assessment's words in the record's units (judged before: the checks read the kinds)."""
+
+    def said(text: str) -> str:
+        return in_units(text, u_unit, y_unit)
+
+    summary = dict(a.summary)
+    summary["warnings"] = [said(w) for w in summary["warnings"]]
+    if isinstance(summary.get("reason"), str):
+        summary["reason"] = said(summary["reason"])
+    op = summary.get("operating_point")
+    if isinstance(op, dict):
+        summary["operating_point"] = {
+            k: said(v) if k in ("reason", "start") and isinstance(v, str) else v
+            for k, v in op.items()
+        }
+    verdict = dataclasses.replace(
+        a.verdict,
+        reasons=tuple(said(r) for r in a.verdict.reasons),
+        notes=tuple(said(n) for n in a.verdict.notes),
+    )
+    return dataclasses.replace(a, summary=summary, verdict=verdict)
 
 
 def _summary(method: str, result: Any, dt: float, settings: Mapping[str, Any]) -> dict[str, Any]:

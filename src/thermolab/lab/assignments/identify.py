@@ -51,6 +51,7 @@ def identify_run(
     y: Sequence[float],
     dt: float,
     settings: Mapping[str, Any] | None = None,
+    units: tuple[str, str] | None = None,
 ) -> Identified:
     """Identify a record with one method; a failure is an untrusted result saying why.
 
@@ -64,6 +65,8 @@ def identify_run(
         The run's sample time.
     settings : mapping, optional
         The method's settings as the teacher set them (checked by the registry).
+    units : (str, str), optional
+        The rig's input and output units: the library's words speak of them.
 
     Returns
     -------
@@ -72,7 +75,7 @@ def identify_run(
     given = dict(settings or {})
     check_settings(method, given)
     try:
-        assessment = assess(method, t, u, y, float(dt), given)
+        assessment = assess(method, t, u, y, float(dt), given, units=units)
     except (ThermoLabError, ValueError) as exc:
         return Identified(method, None, None, None, None, False, (str(exc),))
     s, verdict = assessment.summary, assessment.verdict

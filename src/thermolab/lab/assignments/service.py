@@ -41,6 +41,7 @@ from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.assignment_models import Assignment, Submission
 from thermolab.lab.db.models import Course, CourseMember, Role, Run, RunStatus, Sample, User
+from thermolab.rigs.spec import RigSpec
 
 __all__ = [
     "MIN_SAMPLES",
@@ -296,7 +297,8 @@ class AssignmentService:
             tolerances = _tolerances(row)
             dt, deadline, rig = run.dt, row.deadline, row.rig_id
         t, u, y = (list(c) for c in zip(*samples, strict=True))
-        identified = [identify_run(m, t, u, y, dt, settings.get(m)) for m in methods]
+        units = self._units(rig)
+        identified = [identify_run(m, t, u, y, dt, settings.get(m), units) for m in methods]
         result = assess(answers, tolerances, self._reference(rig), identified)
         now = self._clock.now()
         try:
@@ -343,6 +345,14 @@ class AssignmentService:
         return info
 
     # -- helpers -------------------------------------------------------------------------
+
+    def _units(self, rig: str) -> tuple[str, str] | None:
+        """The rig's input and output units, which the library's words then speak of."""
+        for r in self._config.rigs:
+            if r.id == rig:
+                info = RigSpec.parse(r.spec).describe()
+                return info.input_unit, info.output_unit
+        return None
 
     def _reference(self, rig: str) -> Any:
         for r in self._config.rigs:
