@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import math
+import re
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -666,3 +668,17 @@ def test_an_invalid_estimate_handed_to_the_live_stream_carries_its_reason(
     invalid = [e for e in heard if not e.estimate.valid]
     assert invalid
     assert all(e.estimate.extras["reason"].startswith("not excited") for e in invalid)
+
+
+def test_a_kits_run_speaks_of_percent_and_degrees_not_volts(make_lab: LabFactory) -> None:
+    # The methods write their warnings in volts (the paper's box); on the kit's twin
+    # (% in, degC out) the stored results say % and °C.
+    lab = twin_lab(make_lab)
+    ana = person(lab, "ana")
+    lab.access.request_control("other", ana)
+    request = RunRequest(dt=1.0, samples=300, signal="step:0:0.5@10", methods=("srm",))
+    run = lab.runs.start("other", ana, request)
+    lab.runs.wait("other", timeout=60)
+    words = json.dumps(lab.runs.get(run.id, ana).results["srm"])
+    assert "small step: the input changes by 0.5 %, under 1 %" in words, words
+    assert not re.search(r"\d V\b", words), words

@@ -9,11 +9,14 @@ refusal it gives for a record whose units it is told.
 from __future__ import annotations
 
 import re
+from typing import Any
 
-__all__ = ["error_in_units", "in_units"]
+__all__ = ["error_in_units", "in_units", "in_units_everywhere"]
 
 _INPUT_WORDS = ("input", "under", "kept at", "stays at", "u[0]", "held", "step of")
 _OUTPUT_WORDS = ("output", "ambient", "y[0]", "noise", "rms", "±", "it changes", "changed by")
+_SHOWN = {"degC": "°C"}
+"""Units as a rig declares them -> as a person reads them."""
 _VOLTS = re.compile(r"(?P<num>[-+]?\d[\d.]*(?:e[-+]?\d+)?) V\b")
 
 
@@ -31,6 +34,7 @@ def in_units(text: str, u_unit: str, y_unit: str) -> str:
     """
     if u_unit == "V" and y_unit == "V":
         return text
+    u_unit, y_unit = _SHOWN.get(u_unit, u_unit), _SHOWN.get(y_unit, y_unit)
 
     def unit(m: re.Match[str]) -> str:
         before = text[: m.start()].lower()
@@ -52,3 +56,24 @@ def error_in_units(exc: Exception, u_unit: str, y_unit: str) -> Exception:
         return type(exc)(text)
     except TypeError:
         return exc
+
+
+def in_units_everywhere(value: Any, u_unit: str, y_unit: str) -> Any:
+    """``value`` with every string in it (in dicts and lists, at any depth) :func:`in_units`.
+
+    For a result as it is stored or sent (its warnings, reasons, operating
+    point), whose words the methods wrote in volts.
+
+    Examples
+    --------
+    >>> in_units_everywhere({"warnings": ["small step: the input changes by 0.5 V"],
+    ...                      "K": 0.6}, "%", "°C")
+    {'warnings': ['small step: the input changes by 0.5 %'], 'K': 0.6}
+    """
+    if isinstance(value, str):
+        return in_units(value, u_unit, y_unit)
+    if isinstance(value, dict):
+        return {k: in_units_everywhere(v, u_unit, y_unit) for k, v in value.items()}
+    if isinstance(value, list):
+        return [in_units_everywhere(v, u_unit, y_unit) for v in value]
+    return value

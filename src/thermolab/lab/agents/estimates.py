@@ -34,10 +34,15 @@ class RemoteIdentification:
     ----------
     identifiers : dict
         Method name -> online identifier (``plan_run(...).identifiers``).
+    units : (str, str), optional
+        The rig's input and output units, which the stored results speak of.
     """
 
-    def __init__(self, identifiers: dict[str, OnlineIdentifier]) -> None:
+    def __init__(
+        self, identifiers: dict[str, OnlineIdentifier], units: tuple[str, str] | None = None
+    ) -> None:
         self._identifiers = identifiers
+        self._units = units
         self._tracks = {name: MethodTrack() for name in identifiers}
         self._errors: dict[str, str] = {}
         self._final: dict[str, Any] = {}
@@ -93,4 +98,4 @@ class RemoteIdentification:
             name: self._tracks[name].result(name, self._final.get(name), self._errors.get(name))
             for name in self._identifiers
         }
-        return method_results(run_id, methods, self._identifiers)
+        return method_results(run_id, methods, self._identifiers, self._units)

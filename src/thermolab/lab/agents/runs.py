@@ -162,7 +162,9 @@ class RemoteRuns:
             run_id, control_id = store_start(
                 self._config, self._access, rig_id, who, start, channels
             )
-            identification = RemoteIdentification(start.plan.identifiers)
+            identification = RemoteIdentification(
+                start.plan.identifiers, (info.input_unit, info.output_unit)
+            )
             commands = RemoteLoop(run_id, loop, info, fan, lambda c: self._agents.send(rig_id, c))
             self._remote[rig_id] = _RemoteRun(run_id, control_id, identification, commands)
             self._hub.claim(rig_id)
@@ -440,10 +442,11 @@ class RemoteRuns:
                 **tuned,
             )
             plan, _ = plan_on_rig(self._config, self._hub, run.rig_id, request)
+            info, _ = self._rig(run.rig_id)
         except (ThermoLabError, KeyError, TypeError) as exc:
             log.warning("run %s: its methods cannot be rebuilt to identify it: %r", run.id, exc)
             return None
-        identification = RemoteIdentification(plan.identifiers)
+        identification = RemoteIdentification(plan.identifiers, (info.input_unit, info.output_unit))
         for k, _, u, y in RunExport(self._db).samples(run.id):
             identification.feed(k, u, y)
         return identification

@@ -27,6 +27,7 @@ from sqlalchemy import func, select, update
 
 from thermolab.errors import ThermoLabError
 from thermolab.ident.online import OnlineIdentifier
+from thermolab.ident.units import in_units_everywhere
 from thermolab.jsonsafe import json_safe
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import MethodResultRow, Run, RunStatus, Sample
@@ -91,7 +92,8 @@ def end_of_run(active: ActiveRun, result: RunResult, *, simulated: bool) -> RunE
         reason = f"{reason}: {result.message}"
     if result.end_reason is EndReason.ENDED and active.stopped_by:
         reason = f"ended by {active.stopped_by}"
-    results = method_results(active.run_id, result.methods, active.identifiers)
+    units = (result.rig.input_unit, result.rig.output_unit)
+    results = method_results(active.run_id, result.methods, active.identifiers, units)
     timing = timing_summary(result.t_read, result.lateness, result.dt, simulated=simulated)
     control = None if result.control is None else json_safe(result.control)
     return RunEnd(status, reason, results, timing, control)
@@ -101,13 +103,15 @@ def method_results(
     run_id: int,
     methods: Mapping[str, MethodResult],
     identifiers: Mapping[str, OnlineIdentifier],
+    units: tuple[str, str] | None = None,
 ) -> dict[str, tuple[dict[str, Any], dict[str, Any]]]:
     """Each method's ``(settings, result)`` as a run stores them, the result with its figures.
 
     The one place a run's results are made, in-process (:func:`end_of_run`) or
     on a rig host's samples (:mod:`thermolab.lab.agents.estimates`). A method
     whose statistics fail keeps its result without them (logged): the figures
-    are a summary and never cost the run.
+    are a summary and never cost the run. ``units``, the rig's input and output
+    units: the methods' words (written in volts) then speak of them.
     """
     results: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {}
     for name, method in methods.items():
@@ -117,6 +121,8 @@ def method_results(
             data["stats"] = method_statistics(name, identifier, data.get("latest"))
         except (ThermoLabError, ArithmeticError, ValueError) as exc:
             log.warning("run %s: statistics of %s failed: %s", run_id, name, exc)
+        if units is not None:
+            data = in_units_everywhere(data, *units)
         results[name] = (dict(identifier.params) if identifier is not None else {}, data)
     return results
 
