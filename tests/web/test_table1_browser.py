@@ -297,8 +297,9 @@ def _one(rows: list[dict[str, Any]], method: str) -> dict[str, Any]:
 def test_the_paper_practical_twin_scatters_and_the_page_says_why(
     student: Any, fast_lab: Any, table1: dict[str, RowResult], artifacts: Path
 ) -> None:
-    """Table II's lesson: with noise, quantisation and jitter, short windows scatter and
-    the equation-error fit is biased; the page says why and never shows them as final."""
+    """Table II's lesson: with noise, quantisation and jitter, short windows scatter (the
+    page says why and never shows them as final) and the equation-error fit's residuals
+    are not white (a note: the whole-record verdict trusts a model that is right)."""
     page = student
     # Panel 2: MALSM's 100-sample windows scatter (the paper's Ts 224-597 s).
     malsm = table1["MALSM"]
@@ -325,8 +326,10 @@ def test_the_paper_practical_twin_scatters_and_the_page_says_why(
     page.locator(".panels").screenshot(path=str(artifacts / "practical-panel-2.png"))
     release(page)
 
-    # Panel 1 on a cold practical twin: LSM's residuals are not white (noise biases
-    # the equation-error fit): not trusted, and the page says to compare with OE.
+    # Panel 1 on a cold practical twin: LSM's residuals are not white (noise), which no
+    # real kit's record passes either; judged as a whole record (issue #21: it follows
+    # the record and agrees with the output-error fit), the model is trusted, and the
+    # residual test is listed as a note, saying to compare with OE.
     srm = table1["SRM"]
     low, high, at = re.fullmatch(r"step:([-\d.]+):([-\d.]+)@([\d.]+)", srm.row.signal).groups()
     take_control(page, fast_lab, RIGS["practical-2"])
@@ -338,16 +341,13 @@ def test_the_paper_practical_twin_scatters_and_the_page_says_why(
         planned=True,
     )
     lsm_row = "[data-testid=results-srm-lsm] [data-method=lsm]"
-    page.wait_for_selector(f"{lsm_row}[data-trusted=false]")
-    assert cell(page, lsm_row, "status") == "not trusted: see the warnings"
-    # Every warning of LSM (one item each): noise shows in the residual test, and with
-    # the paper's step one sample in, the operating point cannot be told from the data.
+    page.wait_for_selector(f"{lsm_row}[data-trusted=true]")
     warnings = " ".join(
         page.locator(
             "[data-testid=results-srm-lsm] [data-testid=estimate-warnings] li[data-method=lsm]"
         ).all_inner_texts()
     )
-    assert "residual test failed" in warnings or "operating point undetermined" in warnings
+    assert "residual test failed" in warnings
     assert "measurement noise" in warnings
     page.locator(".panels").screenshot(path=str(artifacts / "practical-panel-1.png"))
     release(page)

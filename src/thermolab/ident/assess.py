@@ -43,7 +43,7 @@ from .registry import get_method
 from .units import error_in_units, in_units
 from .verdict import Verdict, check_identifiable, judge
 
-__all__ = ["ON_TIME_STAMPS", "Assessment", "assess", "peer_estimate"]
+__all__ = ["ON_TIME_STAMPS", "Assessment", "assess", "judge_model", "peer_estimate"]
 
 ON_TIME_STAMPS = ("srm", "oe")
 """Methods that use the recorded time stamps (interpolated crossing; simulation at the stamps)."""
@@ -238,30 +238,93 @@ def _summary(method: str, result: Any, dt: float, settings: Mapping[str, Any]) -
 def _judge(
     method: str, s: Mapping[str, Any], t: npt.NDArray[np.float64], u: Any, y: Any, dt: float
 ) -> Verdict:
-    """Every method but oe is compared with the output-error fit of the same record
-    (the unbiased whole-record estimate, which simulates at the time stamps)."""
-    peer = None if method == "oe" else peer_estimate(t, u, y, dt)
-    at_rest = None
-    if u[0] != 0.0:
-        # What the record would say had the kit been at rest, input off, before it.
-        t0 = float(t[0]) - dt
-        rest = peer_estimate(np.r_[t0, t], np.r_[0.0, u], np.r_[y[0], y], dt, "rest")
-        at_rest = {**rest, "u0": float(u[0])}
     after = s.get("after_convergence")
-    converged = None if after is None else bool(after.get("converged"))
     valid = s.get("valid", True) is not False
-    return judge(
-        s.get("K") if valid else None,
-        s.get("tau") if valid else None,
-        s.get("theta"),
-        s["warnings"],
+    return judge_model(
+        method,
         t,
         u,
         y,
+        dt,
+        K=s.get("K") if valid else None,
+        tau=s.get("tau") if valid else None,
+        theta=s.get("theta"),
+        warnings=s["warnings"],
+        converged=None if after is None else bool(after.get("converged")),
+        reason=s.get("reason"),
+    )
+
+
+def judge_model(
+    method: str,
+    t: npt.ArrayLike,
+    u: npt.ArrayLike,
+    y: npt.ArrayLike,
+    dt: float,
+    *,
+    K: float | None,
+    tau: float | None,
+    theta: float | None,
+    warnings: Sequence[str],
+    converged: bool | None = None,
+    reason: str | None = None,
+    peers: dict[str, dict[str, Any]] | None = None,
+) -> Verdict:
+    """The verdict on a model ``method`` gave of a whole record, however it was made.
+
+    :func:`assess` judges the batch function's model; the lab judges a run's
+    live estimate at its end the same way. Every method but oe is compared
+    with the output-error fit of the same record (the unbiased whole-record
+    estimate, which simulates at the time stamps); a record whose input is on
+    from its first row also with the fit that takes the kit at rest before it.
+
+    Parameters
+    ----------
+    method : str
+        The registry's name (``srm`` and ``oe`` use the time stamps).
+    t, u, y : array_like
+        The record.
+    dt : float
+        Its sample period (s).
+    K, tau, theta : float or None
+        The model (``None``: no model).
+    warnings : sequence of str
+        The method's warnings.
+    converged : bool, optional
+        A recursive or windowed estimate: whether it converged.
+    reason : str, optional
+        Why there is no model.
+    peers : dict, optional
+        A cache of the output-error fits for several methods of one record
+        (filled here; pass the same dict for each).
+    """
+    ta, ua, ya = (np.asarray(a, dtype=np.float64) for a in (t, u, y))
+    cache = {} if peers is None else peers
+    peer = None
+    if method != "oe":
+        if "auto" not in cache:
+            cache["auto"] = peer_estimate(ta, ua, ya, dt)
+        peer = cache["auto"]
+    at_rest = None
+    if ua[0] != 0.0:
+        # What the record would say had the kit been at rest, input off, before it.
+        if "rest" not in cache:
+            t0 = float(ta[0]) - dt
+            rest = peer_estimate(np.r_[t0, ta], np.r_[0.0, ua], np.r_[ya[0], ya], dt, "rest")
+            cache["rest"] = {**rest, "u0": float(ua[0])}
+        at_rest = cache["rest"]
+    return judge(
+        K,
+        tau,
+        theta,
+        warnings,
+        ta,
+        ua,
+        ya,
         honours_time=method in ON_TIME_STAMPS,
         peer=peer,
         converged=converged,
-        reason=s.get("reason"),
+        reason=reason,
         at_rest=at_rest,
     )
 

@@ -18,7 +18,7 @@ from typing import Any
 
 from thermolab.errors import ThermoLabError
 from thermolab.ident.online import OnlineIdentifier
-from thermolab.lab.runs.ending import method_results
+from thermolab.lab.runs.ending import Record, method_results
 from thermolab.runner import EstimateEvent
 from thermolab.runner.results import MethodTrack
 
@@ -91,11 +91,14 @@ class RemoteIdentification:
                 events.append(EstimateEvent(k, k, name, estimate, True))
         return events
 
-    def results(self, run_id: int) -> dict[str, tuple[dict[str, Any], dict[str, Any]]]:
+    def results(
+        self, run_id: int, record: Record | None = None
+    ) -> dict[str, tuple[dict[str, Any], dict[str, Any]]]:
         """Each method's ``(settings, result)`` as the run stores them, with its figures
-        (:func:`~thermolab.lab.runs.ending.method_results`, as an in-process run's)."""
+        (:func:`~thermolab.lab.runs.ending.method_results`, as an in-process run's),
+        each final model judged on the run's stored ``record`` where it is given."""
         methods = {
             name: self._tracks[name].result(name, self._final.get(name), self._errors.get(name))
             for name in self._identifiers
         }
-        return method_results(run_id, methods, self._identifiers, self._units)
+        return method_results(run_id, methods, self._identifiers, self._units, record)

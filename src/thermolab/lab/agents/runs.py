@@ -58,7 +58,7 @@ from thermolab.lab.rigs.devices import DeviceHub
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.runs.commands import loop_state, send_command
 from thermolab.lab.runs.control import ControlRequest, build_control_loop
-from thermolab.lab.runs.ending import RunEnd, save_end, status_of, stored_timing
+from thermolab.lab.runs.ending import Record, RunEnd, save_end, status_of, stored_timing
 from thermolab.lab.runs.export import RunExport
 from thermolab.lab.runs.request import RUN_SETTINGS, RunRequest
 from thermolab.lab.runs.service import plan_on_rig, plan_start, store_start
@@ -323,6 +323,13 @@ class RemoteRuns:
             )
             return [(kind, payload) for kind, payload in rows]
 
+    def _record(self, run_id: int, dt: float) -> Record:
+        """The run's stored samples (all of them by its end: the host sends its outbox in
+        order), as the verdict on its models reads them."""
+        rows = list(RunExport(self._db).samples(run_id))
+        t, u, y = ([row[i] for row in rows] for i in (1, 2, 3))
+        return (t, u, y, dt)
+
     def _identification_of(self, run_id: int) -> RemoteIdentification:
         try:
             run, _ = self._store.read(run_id)
@@ -391,7 +398,7 @@ class RemoteRuns:
         results: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {}
         if remote is not None and remote.run_id == ended.run:
             finals = remote.identification.finish()
-            results = remote.identification.results(ended.run)
+            results = remote.identification.results(ended.run, self._record(ended.run, run.dt))
             if self._on_event is not None:
                 for event in finals:
                     self._on_event(rig_id, ended.run, event)
@@ -401,7 +408,7 @@ class RemoteRuns:
             late = self._identify_stored(run)
             if late is not None:
                 late.finish()
-                results = late.results(ended.run)
+                results = late.results(ended.run, self._record(ended.run, run.dt))
         # Judged on the stored samples: all of them are stored by now (the host sends its
         # outbox in order), also for a late end, whose run's samples came before a restart.
         simulated = self._config.rig(rig_id).kind == "sim"

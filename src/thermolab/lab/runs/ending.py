@@ -26,8 +26,10 @@ from typing import Any
 from sqlalchemy import func, select, update
 
 from thermolab.errors import ThermoLabError
+from thermolab.ident.assess import judge_model
 from thermolab.ident.online import OnlineIdentifier
 from thermolab.ident.units import in_units_everywhere
+from thermolab.ident.verdict import MIN_SAMPLES
 from thermolab.jsonsafe import json_safe
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import MethodResultRow, Run, RunStatus, Sample
@@ -93,10 +95,15 @@ def end_of_run(active: ActiveRun, result: RunResult, *, simulated: bool) -> RunE
     if result.end_reason is EndReason.ENDED and active.stopped_by:
         reason = f"ended by {active.stopped_by}"
     units = (result.rig.input_unit, result.rig.output_unit)
-    results = method_results(active.run_id, result.methods, active.identifiers, units)
+    record = (result.t, result.u, result.y, result.dt)
+    results = method_results(active.run_id, result.methods, active.identifiers, units, record)
     timing = timing_summary(result.t_read, result.lateness, result.dt, simulated=simulated)
     control = None if result.control is None else json_safe(result.control)
     return RunEnd(status, reason, results, timing, control)
+
+
+Record = tuple[Any, Any, Any, float]
+"""A run's record as the verdict reads it: times, inputs, outputs and the sample period."""
 
 
 def method_results(
@@ -104,6 +111,7 @@ def method_results(
     methods: Mapping[str, MethodResult],
     identifiers: Mapping[str, OnlineIdentifier],
     units: tuple[str, str] | None = None,
+    record: Record | None = None,
 ) -> dict[str, tuple[dict[str, Any], dict[str, Any]]]:
     """Each method's ``(settings, result)`` as a run stores them, the result with its figures.
 
@@ -111,9 +119,13 @@ def method_results(
     on a rig host's samples (:mod:`thermolab.lab.agents.estimates`). A method
     whose statistics fail keeps its result without them (logged): the figures
     are a summary and never cost the run. ``units``, the rig's input and output
-    units: the methods' words (written in volts) then speak of them.
+    units: the methods' words (written in volts) then speak of them. With the
+    run's ``record``, each final model is judged on it as ``thermolab identify``
+    judges a file (:func:`thermolab.ident.assess.judge_model`): its ``trusted``
+    is the verdict's, and a reason not to trust it is listed with its warnings.
     """
     results: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {}
+    peers: dict[str, dict[str, Any]] = {}  # one output-error fit of the record for all
     for name, method in methods.items():
         identifier = identifiers.get(name)
         data = method.to_dict(trajectory=True)
@@ -121,10 +133,46 @@ def method_results(
             data["stats"] = method_statistics(name, identifier, data.get("latest"))
         except (ThermoLabError, ArithmeticError, ValueError) as exc:
             log.warning("run %s: statistics of %s failed: %s", run_id, name, exc)
+        if record is not None and data.get("latest") is not None:
+            try:
+                _judge_latest(name, data, record, peers)
+            except (ThermoLabError, ArithmeticError, ValueError) as exc:
+                log.warning("run %s: the verdict on %s failed: %s", run_id, name, exc)
         if units is not None:
             data = in_units_everywhere(data, *units)
         results[name] = (dict(identifier.params) if identifier is not None else {}, data)
     return results
+
+
+def _judge_latest(
+    name: str, data: dict[str, Any], record: Record, peers: dict[str, dict[str, Any]]
+) -> None:
+    """The verdict on a method's last estimate, written into its stored result."""
+    latest = data["latest"]
+    extras = latest.setdefault("extras", {})
+    if len(record[0]) < MIN_SAMPLES:
+        return  # too short to judge: the warning-free rule stands
+    valid = bool(latest.get("valid"))
+    stats = data.get("stats") or {}
+    t, u, y, dt = record
+    verdict = judge_model(
+        name,
+        t,
+        u,
+        y,
+        dt,
+        K=latest.get("K") if valid else None,
+        tau=latest.get("tau") if valid else None,
+        theta=extras.get("theta"),
+        warnings=list(extras.get("warnings") or []),
+        converged=stats.get("converged"),
+        reason=extras.get("reason"),
+        peers=peers,
+    )
+    extras["trusted"] = verdict.trusted
+    said = list(extras.get("warnings") or [])
+    extras["warnings"] = [*(r for r in verdict.reasons if r not in said), *said]
+    data["verdict"] = verdict.to_dict()
 
 
 def stored_timing(db: Database, run_id: int, dt: float, *, simulated: bool) -> dict[str, Any]:
