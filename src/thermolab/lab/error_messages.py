@@ -51,6 +51,9 @@ ERROR_SENTENCES: Mapping[str, str] = {
     "camera_unavailable": "The rig's image is not available now.",
     "conflict": "This clashes with the lab's current state.",
     "cross_origin": "Requests that change something must come from the lab's own pages.",
+    "database_unavailable": (
+        "The lab cannot reach its database just now; try again in a few seconds."
+    ),
     "extend_refused": "Your turn cannot be extended now.",
     "http_error": "The request could not be handled.",
     "invalid_parameter": "A value is not allowed.",

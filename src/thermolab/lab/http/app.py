@@ -39,6 +39,7 @@ from thermolab.lab.http.forward import ForwardToOwner, refuse_agent_link
 from thermolab.lab.http.limits import BodyLimit
 from thermolab.lab.http.live_socket import LiveEndpoint
 from thermolab.lab.http.observe import install_observability
+from thermolab.lab.http.outage import install_outage_handler
 from thermolab.lab.http.routers import api_router
 from thermolab.lab.http.routers.guide_images import CACHEABLE_PREFIX, UPLOAD_ALLOWANCE
 from thermolab.lab.http.routers.lti import LTI_CROSS_SITE_PATHS, too_large_page
@@ -160,6 +161,7 @@ def create_app(
 
     app.add_api_websocket_route(AGENT_LINK_PATH, agent_link, name="agent_link")
     install_error_handlers(app)
+    app.state.database_outage = install_outage_handler(app)  # 503, logged once per outage
     install_api_docs(app)
     if static_dir is not None:
         app.mount("/", StaticFiles(directory=static_dir, html=True), name="web")

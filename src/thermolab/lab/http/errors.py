@@ -205,6 +205,7 @@ def all_error_codes() -> frozenset[str]:
         {fault.code for fault in _FAULTS.values()}
         | {_OTHER.code, "http_error", "invalid_request", "cross_origin"}
         | {"lti_cookies_blocked", "lti_returning"}  # the LTI pages' sentences
+        | {"database_unavailable"}  # http/outage.py's
         | set(_HTTP_CODES.values())
     )
 
