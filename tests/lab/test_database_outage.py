@@ -11,6 +11,8 @@ and nothing recorded before is lost.
 from __future__ import annotations
 
 import logging
+import math
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -23,9 +25,13 @@ from thermolab.lab.clock import ManualClock
 from thermolab.lab.db import Database
 from thermolab.lab.http.app import create_app
 from thermolab.lab.http.outage import RETRY_AFTER
+from thermolab.lab.runs import RunRequest
+from thermolab.lab.runs.export import RunExport
 from thermolab.lab.service import Lab
+from thermolab.rigs import TwinRig
 
 from .conftest import FAST_HASHER, PASSWORD, make_config
+from .test_runs import StepClock, person, until
 
 pytestmark = pytest.mark.postgres
 
@@ -33,8 +39,16 @@ APP_NAME = "thermolab-outage-test"
 
 
 @pytest.fixture
-def lab_on_postgres(migrated_postgres: str, tmp_path: Path) -> Iterator[Lab]:
-    """A lab whose connections say who they are, so that only they are cut."""
+def rig_clock() -> Iterator[StepClock]:
+    clock = StepClock()
+    yield clock
+    clock.allow(math.inf)  # never leave a run blocked behind a test
+
+
+@pytest.fixture
+def lab_on_postgres(migrated_postgres: str, tmp_path: Path, rig_clock: StepClock) -> Iterator[Lab]:
+    """A lab whose connections say who they are, so that only they are cut; its twins'
+    time passes only as far as the test allows."""
     url = make_url(migrated_postgres).update_query_dict({"application_name": APP_NAME})
     engine = create_engine(migrated_postgres)
     with engine.begin() as connection:  # an empty lab (the schema is shared by the run)
@@ -49,6 +63,7 @@ def lab_on_postgres(migrated_postgres: str, tmp_path: Path) -> Iterator[Lab]:
         make_config(tmp_path, rendered),
         clock=ManualClock(),
         hasher=FAST_HASHER,
+        opener=lambda rig: TwinRig("paper", clock=rig_clock),
         database=Database(rendered, pool_size=2, max_overflow=2),
     )
     lab.start()
@@ -116,3 +131,31 @@ def test_requests_get_503_with_retry_after_while_the_database_is_away(
         after = client.get("/api/session")
         assert after.status_code == 200, after.text
         assert after.json()["username"] == before.json()["username"] == "ana"
+
+
+def test_a_run_rides_out_the_database_going_away_and_keeps_every_sample(
+    lab_on_postgres: Lab, rig_clock: StepClock
+) -> None:
+    lab = lab_on_postgres
+    ana = person(lab, "ana")
+    lab.access.request_control("twin", ana)
+    run = lab.runs.start("twin", ana, RunRequest(dt=1.0, samples=300, signal="step:0:10@5"))
+    rig_clock.allow(99)
+    until(lambda: lab.runs.get(run.id, ana).samples_stored >= 100)
+    outage = Outage(lab.config.database)
+    try:
+        outage.begin()
+        rig_clock.allow(199)  # 100 samples taken while nothing can be stored
+        time.sleep(1.5)  # the writer tries and fails about three times (every 0.5 s)
+    finally:
+        outage.end()
+    # The run went on through the outage, and what it took is being stored now.
+    until(lambda: lab.runs.get(run.id, ana).samples_stored >= 200)
+    going = lab.runs.get(run.id, ana)
+    assert (going.status, going.samples_taken) == ("running", 200)
+    rig_clock.allow(math.inf)
+    lab.runs.wait("twin", timeout=60)
+    done = lab.runs.get(run.id, ana)
+    assert (done.status, done.samples_stored) == ("finished", 300)
+    ks = [k for k, *_ in RunExport(lab.db).samples(run.id)]
+    assert ks == list(range(300)), "a sample is missing, doubled or out of order"

@@ -24,7 +24,8 @@ from thermolab.lab.config import RigConfig
 from thermolab.lab.http.app import create_app
 from thermolab.lab.http.routers.runs import RunOut
 from thermolab.lab.runs import samples_csv
-from thermolab.lab.runs.store import DatabaseRecorder, add_run, run_channels
+from thermolab.lab.runs.recorder import DatabaseRecorder
+from thermolab.lab.runs.store import add_run, run_channels
 from thermolab.lab.service import Lab
 from thermolab.records import RUN_CHANNELS, ChannelSpec, read_record
 from thermolab.rigs import Rig, TwinRig, VirtualClock

@@ -20,6 +20,7 @@
 
 from thermolab.jsonsafe import json_safe
 from thermolab.lab.runs.export import RunExport, samples_csv
+from thermolab.lab.runs.recorder import DatabaseRecorder
 from thermolab.lab.runs.request import (
     MAX_DT,
     MAX_SAMPLES,
@@ -32,7 +33,7 @@ from thermolab.lab.runs.request import (
 )
 from thermolab.lab.runs.service import RunService
 from thermolab.lab.runs.statistics import CONVERGENCE_TOL, STATS_LAST, method_statistics
-from thermolab.lab.runs.store import DatabaseRecorder, RunRecord, RunStore
+from thermolab.lab.runs.store import RunRecord, RunStore
 
 __all__ = [
     "CONVERGENCE_TOL",

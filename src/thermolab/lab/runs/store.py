@@ -19,13 +19,12 @@ the exports are :mod:`thermolab.lab.runs.export`.
 from __future__ import annotations
 
 import logging
-import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import insert, select, update
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from thermolab.errors import (
@@ -33,9 +32,8 @@ from thermolab.errors import (
     NotFoundError,
     PreviousRunEndingError,
     RunInProgressError,
-    ThermoLabError,
 )
-from thermolab.jsonsafe import finite_or_none, json_safe
+from thermolab.jsonsafe import json_safe
 from thermolab.lab.accounts.security import normalize_username
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.db import Database
@@ -45,13 +43,11 @@ from thermolab.lab.db.models import (
     MethodResultRow,
     Run,
     RunStatus,
-    Sample,
     User,
 )
 from thermolab.records import INPUT, OUTPUT, RUN_CHANNELS, ChannelSpec
 
 __all__ = [
-    "DatabaseRecorder",
     "RunRecord",
     "RunStore",
     "add_run",
@@ -105,129 +101,6 @@ class RunRecord:
     # A closed-loop run's controller: the loop's state (mode, set point, gains,
     # adaptive), live while it runs, as it ended afterwards; None for an open loop.
     control: dict[str, Any] | None = None
-
-
-class DatabaseRecorder:
-    """A runner :class:`~thermolab.runner.Recorder` that stores samples in the database.
-
-    ``write`` (called by the sampling loop) appends to a buffer under a lock;
-    a writer thread inserts the buffer every ``interval`` seconds of real
-    time; ``close`` inserts the rest before returning.
-
-    Parameters
-    ----------
-    db : Database
-    run_id : int
-    interval : float
-        Longest time (seconds) a sample waits in memory.
-    on_sample : callable, optional
-        Called with each sample's ``(u, y)`` (keeps the lab's view of the rig fresh).
-    channels : sequence of ChannelSpec, optional
-        The run's channels (``Experiment.channels``): :data:`~thermolab.records.RUN_CHANNELS`
-        (the default), then any extra channels, whose values ``write`` takes
-        after the standard ones.
-    """
-
-    def __init__(
-        self,
-        db: Database,
-        run_id: int,
-        *,
-        interval: float = 0.5,
-        on_sample: Callable[[float, float], None] | None = None,
-        channels: Sequence[ChannelSpec] = RUN_CHANNELS,
-    ) -> None:
-        # The standard channels by name: their units are the rig's (see run_channels).
-        if [c.name for c in channels[: len(RUN_CHANNELS)]] != [c.name for c in RUN_CHANNELS]:
-            raise ThermoLabError("a run's channels start with thermolab.records.RUN_CHANNELS")
-        self.channels = tuple(channels)
-        self._extra = tuple(c.name for c in channels[len(RUN_CHANNELS) :])
-        self._db = db
-        self.run_id = run_id
-        self._interval = interval
-        self._on_sample = on_sample
-        self._buffer: list[dict[str, Any]] = []
-        self._lock = threading.Lock()
-        self._flush_lock = threading.Lock()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-        self.stored = 0
-        self.error: BaseException | None = None
-
-    def open(self) -> None:
-        """Start the writer thread."""
-        self._thread = threading.Thread(
-            target=self._loop, name=f"thermolab-run-{self.run_id}-writer", daemon=True
-        )
-        self._thread.start()
-
-    def write(
-        self,
-        k: int,
-        t: float,
-        u: float,
-        y: float,
-        t_read: float,
-        jitter: float,
-        lateness: float,
-        *extra: float,
-    ) -> None:
-        """Queue one sample, every channel, for the database (never blocks on it)."""
-        if self.error is not None:
-            # The store failed: stop the run rather than lose samples silently.
-            raise ThermoLabError(f"cannot store the run's samples: {self.error}")
-        row = {
-            "run_id": self.run_id,
-            "k": k,
-            "t": t,
-            "u": u,
-            "y": y,
-            "t_read": t_read,
-            "jitter": jitter,
-            "lateness": lateness,
-            # JSON has no NaN (PostgreSQL refuses it): a missing value is null.
-            "extra": {n: finite_or_none(v) for n, v in zip(self._extra, extra, strict=True)}
-            if self._extra
-            else None,
-        }
-        with self._lock:
-            self._buffer.append(row)
-        if self._on_sample is not None:
-            self._on_sample(u, y)
-
-    def flush(self) -> int:
-        """Insert the buffered samples now; return how many."""
-        with self._flush_lock:
-            with self._lock:
-                rows, self._buffer = self._buffer, []
-            if not rows:
-                return 0
-            with self._db.write() as session:
-                session.execute(insert(Sample), rows)
-                session.execute(
-                    update(Run)
-                    .where(Run.id == self.run_id)
-                    .values(samples_stored=Run.samples_stored + len(rows))
-                )
-            self.stored += len(rows)
-            return len(rows)
-
-    def close(self) -> None:
-        """Stop the writer and store what is left (idempotent)."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join()
-            self._thread = None
-        self.flush()
-
-    def _loop(self) -> None:
-        while not self._stop.wait(self._interval):
-            try:
-                self.flush()
-            except Exception as exc:  # kept, and raised in the sampling loop by write()
-                self.error = exc
-                log.exception("run %s: storing samples failed", self.run_id)
-                return
 
 
 class RunStore:
