@@ -79,10 +79,27 @@ def lab(tmp_path: Path) -> Iterator[Lab]:
     the_lab.close()
 
 
-def _hello(secret: str) -> str:
-    return encode(
-        Hello(rig="box", secret=secret, protocol=PROTOCOL_VERSION, version="t", spec="sim:tclab")
+def _hello(secret: str, host: str = "") -> str:
+    """The first message of a host of ``box`` (``host``: which process, Hello.host)."""
+    hello = Hello(
+        rig="box",
+        secret=secret,
+        protocol=PROTOCOL_VERSION,
+        version="t",
+        spec="sim:tclab",
+        host=host,
     )
+    return encode(hello)
+
+
+def _closed(ws: Any) -> WebSocketDisconnect:
+    """How the lab closed a host's link (read past what it sent before: Power, SetFan...)."""
+    for _ in range(100):
+        try:
+            ws.receive_text()
+        except WebSocketDisconnect as exc:
+            return exc
+    raise AssertionError("the link stayed open")
 
 
 def _wait(predicate: Any, timeout: float = 10) -> None:
@@ -199,3 +216,41 @@ def test_a_host_that_redials_within_the_timeout_keeps_the_rig_and_the_turn(lab: 
         lab.sweep()
         assert lab.access.snapshot("box").fault == "rig host: offline (not connected)"
         assert lab.access.snapshot("box").controller is None
+
+
+def test_a_second_host_for_a_linked_rig_is_refused_and_the_same_one_redials(
+    lab: Lab, caplog: pytest.LogCaptureFixture
+) -> None:
+    secret = issue_secret(lab.db, lab.config, lab.clock, "box")
+    app = create_app(lab.config, lab=lab, close_lab=False, sweep_interval=None)
+    with TestClient(app) as client, client.websocket_connect("/api/agents/link") as first:
+        first.send_text(_hello(secret, "bench-1:100:aa"))
+        assert isinstance(decode_lab(first.receive_text()), Welcome)
+        # Another machine with the same secret (a copied config): refused, said and logged.
+        with client.websocket_connect("/api/agents/link") as second:
+            second.send_text(_hello(secret, "bench-2:200:bb"))
+            refused = _closed(second)
+        assert refused.code == CLOSE_REFUSED
+        assert "served by another host (bench-1)" in refused.reason
+        assert "one host per rig" in refused.reason
+        assert any("refused a second host" in r.getMessage() for r in caplog.records)
+        assert lab.agents.online("box")
+        # The first host's own redial (its old link half-open) replaces its link.
+        with client.websocket_connect("/api/agents/link") as again:
+            again.send_text(_hello(secret, "bench-1:100:aa"))
+            assert isinstance(decode_lab(again.receive_text()), Welcome)
+            assert _closed(first).reason == "replaced or silent"
+
+
+def test_a_rotated_secret_drops_the_link_made_with_the_old_one(lab: Lab) -> None:
+    old = issue_secret(lab.db, lab.config, lab.clock, "box")
+    app = create_app(lab.config, lab=lab, close_lab=False, sweep_interval=None)
+    with TestClient(app) as client, client.websocket_connect("/api/agents/link") as ws:
+        ws.send_text(_hello(old, "bench-1:100:aa"))
+        assert isinstance(decode_lab(ws.receive_text()), Welcome)
+        lab.sweep()
+        assert lab.agents.online("box")  # the secret still holds: nothing happens
+        issue_secret(lab.db, lab.config, lab.clock, "box")  # rotated (thermolab agent secret)
+        lab.sweep()
+        _wait(lambda: not lab.agents.online("box"))  # fails in 10 s, rather than hang below
+        assert _closed(ws).reason == "replaced or silent"

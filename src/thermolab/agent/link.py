@@ -28,7 +28,10 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import os
 import random
+import secrets
+import socket
 import ssl
 from dataclasses import dataclass
 
@@ -121,6 +124,9 @@ class AgentLink:
         self._wake = asyncio.Event()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._turn = 0  # which of the lab's addresses is dialled next
+        # Who this process is, the same on every redial: the lab refuses a second host
+        # for a rig it already has, and lets this one replace a link it lost.
+        self.host_id = f"{socket.gethostname()}:{os.getpid()}:{secrets.token_hex(4)}"
 
     @property
     def url(self) -> str:
@@ -184,6 +190,7 @@ class AgentLink:
                 version=__version__,
                 spec=s.spec,
                 speedup=s.speedup,
+                host=self.host_id,
             )
             await ws.send(encode(hello))
             try:

@@ -95,6 +95,14 @@ class Hello(_Message):
         gt=0,
         description="times real time the host's rig runs (--speedup of a twin; 1 for hardware)",
     )
+    host: str = Field(
+        default="",
+        max_length=200,
+        description=(
+            "this host process (machine:pid:tag): a second one for a rig already linked is "
+            "refused; the same one redialling replaces its old link"
+        ),
+    )
 
 
 class Heartbeat(_Message):

@@ -3,7 +3,9 @@
 :class:`AgentHub` serves the WebSocket ``/api/agents/link``
 (:data:`~thermolab.agent.protocol.AGENT_LINK_PATH`) that ``thermolab agent``
 dials. A host proves it is its rig's with the secret the lab issued
-(:mod:`.secrets`); a second connection for the same rig replaces the first.
+(:mod:`.secrets`); one host serves a rig: a second host process is refused
+while the first is linked and talking, the same process redialling replaces
+its old link, and a rotated secret drops the link made with the old one.
 
 Samples are stored idempotently (``INSERT ... ON CONFLICT DO NOTHING`` on
 the samples' key ``(run_id, k)``) and acknowledged by their ``seq`` only
@@ -107,6 +109,8 @@ class _Link:
     ws: WebSocket
     loop: asyncio.AbstractEventLoop
     status: HostStatus
+    host: str = ""  # Hello.host: which host process (empty from hosts before it)
+    secret: str = ""  # the secret it proved, checked again at every sweep (rotation)
     closed: asyncio.Event = field(default_factory=asyncio.Event)
 
 
@@ -230,8 +234,32 @@ class AgentHub:
 
     # -- the monitor ---------------------------------------------------------------------
 
+    def _another_host(self, old: _Link, host: str) -> bool:
+        """Whether a hello from ``host`` comes from a second host while ``old`` serves.
+
+        The same process redialling (its old link half-open after a blip) replaces
+        its link; so does anyone once the old link has been silent past the timeout,
+        and a host that does not say who it is (an older version).
+        """
+        if not (old.host and host) or old.host == host:
+            return False
+        heard = old.status.last_contact
+        return heard is not None and self._clock.now() - heard <= timedelta(
+            seconds=self.heartbeat_timeout
+        )
+
     def check(self, now: datetime) -> None:
-        """Judge every host's health; fault or heal its rig (called by the lab's sweep)."""
+        """Judge every host's health; fault or heal its rig (called by the lab's sweep).
+
+        A link whose secret was rotated since it dialled in (``thermolab agent
+        secret``) is dropped here: the host must dial again with the new one.
+        """
+        with self._lock:
+            links = list(self._links.items())
+        for rig_id, linked in links:
+            if linked.secret and not check_secret(self._db, rig_id, linked.secret):
+                log.warning("rig host %s: its secret was rotated; its link is dropped", rig_id)
+                linked.loop.call_soon_threadsafe(linked.closed.set)
         for rig_id, status in self._status.items():
             problem = self._problem(rig_id, status, now)
             if problem is None:
@@ -293,10 +321,27 @@ class AgentHub:
             return
         rig_id = first.rig
         status = self._status[rig_id]
-        link = _Link(ws, asyncio.get_running_loop(), status)
+        link = _Link(ws, asyncio.get_running_loop(), status, first.host, first.secret)
         with self._lock:
             old = self._links.get(rig_id)
-            self._links[rig_id] = link
+            other = old is not None and self._another_host(old, first.host)
+            if not other:
+                self._links[rig_id] = link
+        if other:
+            assert old is not None
+            machine = old.host.split(":")[0]
+            log.warning(
+                "rig host %s: refused a second host (%s) while %s serves it",
+                rig_id,
+                first.host,
+                old.host,
+            )
+            await _close(
+                ws,
+                f"rig {rig_id!r} is served by another host ({machine}): one host per rig; "
+                "stop that one first",
+            )
+            return
         if old is not None:
             old.closed.set()
         status.online, status.version, status.spec = True, first.version, first.spec
