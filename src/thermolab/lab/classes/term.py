@@ -101,8 +101,10 @@ class TermService:
         self._clock = clock
         self._bookings = bookings
 
-    def close(self, name: str, who: Principal) -> None:
+    def close(self, name: str, by: str) -> None:
         """Close ``name`` for the term: from now on it is read, exported, never changed.
+
+        ``by`` is the login name of whoever closes it (kept beside the time).
 
         Raises
         ------
@@ -114,7 +116,7 @@ class TermService:
             course = _course(session, name)
             require_open(course, "close it again")
             course.closed_at = self._clock.now()
-            course.closed_by = who.username
+            course.closed_by = by
 
     def reopen(self, name: str) -> None:
         """Open a closed course again (an administrator's decision, checked by the route).

@@ -106,7 +106,7 @@ def close_course(course: CourseName, who: UserDep, lab: LabDep, request: Request
     Its teachers or an administrator; only an administrator reopens it.
     """
     lab.authorize.require_course(who, Action.COURSE_CLOSE, course)
-    lab.term.close(course, who)
+    lab.term.close(course, who.username)
     audit(lab, who, request, AuditAction.COURSE_CLOSED, course)
     return CourseOut.of(lab.courses.get(course))
 
