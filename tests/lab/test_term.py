@@ -249,3 +249,26 @@ def test_last_terms_students_are_removed_in_one_action(world: Any) -> None:
     assert [p["detail"]["removed"] for p in purges] == [[pseudonym]]
     assert any(e["action"] == "account.forgotten" and e["target"] == pseudonym for e in entries)
     assert not any(e["target"] == "ana" for e in entries)
+
+
+def test_removal_with_their_runs_and_a_closing_teachers_name_replaced(world: Any) -> None:
+    lab, login, tina = world["lab"], world["login"], world["tina"]
+    root = login("root")
+    assert tina.post("/api/courses/ctrl1/close").is_success
+    purged = root.post(
+        "/api/courses/ctrl1/purge-students", json={"students": ["ana"], "runs": "delete"}
+    )
+    assert purged.status_code == 200, purged.text
+    with lab.db.read() as session:
+        assert session.get(Run, world["run"]) is None  # her run went with her
+    # The teacher who closed the course is later removed: "closed by" is their pseudonym.
+    tina.close()
+    forgotten = root.post("/api/users/tina/forget", json={"runs": "keep"})
+    assert forgotten.status_code == 200, forgotten.text
+    closed = root.get("/api/courses/ctrl1").json()
+    assert closed["closedBy"] == forgotten.json()["pseudonym"]
+    # Bad bodies are 422 with a reason, never a 500.
+    for body in ({"students": ["ana"]}, {"students": "ana", "runs": "keep"}, {"runs": "both"}):
+        answer = root.post("/api/courses/ctrl1/purge-students", json=body)
+        assert (answer.status_code, answer.json()["code"]) == (422, "invalid_request")
+    assert root.post("/api/courses/nope/close").status_code == 404
