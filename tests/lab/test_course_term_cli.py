@@ -56,6 +56,11 @@ def test_a_term_closed_copied_and_its_students_removed_from_the_shell(
         1,
         "error: course 'ctrl1-b' already exists; choose another name",
     )
+    status, _, err = shell("course", "copy", "nope", "x", "--shift-days", "7")
+    assert (status, err.strip()) == (1, "error: no course called 'nope'")
+    status, _, err = shell("course", "copy", "ctrl1", "x", "--shift-days", "9000")
+    assert status == 1
+    assert err.strip() == "error: a copy moves its dates by at most 800 days, not 9000"
     status, _, err = shell("course", "copy", "ctrl1", "x", "--starts", "31/08/2026")
     assert status == 2
     assert "'31/08/2026' is not a day written YYYY-MM-DD" in err

@@ -84,6 +84,11 @@ def test_a_teacher_closes_a_course_and_copies_it_to_the_next_term_in_portuguese(
             "Copiada. Atividades em rascunho: 1. Reservas: 1. Dias deslocados: 182."
         )
         assert page.inner_text("#copy-link") == "Controle I 2027/2"
+        page.wait_for_selector(f'#course-list li[data-course="{course}"]')
+        page.reload()
+        closed = page.locator(f'#course-list li[data-course="{course}"] [data-closed]')
+        closed.wait_for()
+        assert closed.inner_text() == "encerrada"
         assert serious_violations(page) == []
 
         # The copy's assignment is a draft, its deadline moved by the same 182 days.

@@ -209,6 +209,8 @@ def _teacher(db: Database, course: str, name: str | None) -> Principal:
     from thermolab.lab.db.models import Course, CourseMember, Role, User
 
     with db.read() as session:
+        if session.scalar(select(Course.id).where(Course.name == course.strip().lower())) is None:
+            raise NotFoundError(f"no course called {course!r}")
         query = select(User).where(User.role == Role.TEACHER.value)
         if name is not None:
             query = query.where(User.username == username_form(name))

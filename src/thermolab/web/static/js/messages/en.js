@@ -328,6 +328,7 @@ export const messages = {
   "courseLimits.value": "Value",
   "courses.analytics": "Analytics of this course",
   "courses.badLine": "Line {line}: {reason}",
+  "courses.closedMark": "closed",
   "courses.code": "Enrolment code:",
   "courses.codeHelp": "A student enrols with this code on the login page. Renew it to stop an old code from working.",
   "courses.colActions": "Actions",

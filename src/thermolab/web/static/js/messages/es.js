@@ -328,6 +328,7 @@ export const messages = {
   "courseLimits.value": "Valor",
   "courses.analytics": "Análisis de este curso",
   "courses.badLine": "Línea {line}: {reason}",
+  "courses.closedMark": "cerrado",
   "courses.code": "Código de inscripción:",
   "courses.codeHelp": "Un estudiante se inscribe con este código en la página de ingreso. Renuévelo para que el anterior deje de funcionar.",
   "courses.colActions": "Acciones",

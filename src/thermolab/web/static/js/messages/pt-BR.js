@@ -328,6 +328,7 @@ export const messages = {
   "courseLimits.value": "Valor",
   "courses.analytics": "Análise desta turma",
   "courses.badLine": "Linha {line}: {reason}",
+  "courses.closedMark": "encerrada",
   "courses.code": "Código de inscrição:",
   "courses.codeHelp": "O aluno se inscreve com este código na página de entrada. Gere outro para que o antigo deixe de valer.",
   "courses.colActions": "Ações",

@@ -44,7 +44,15 @@ export function mount(main, { query }, ctx) {
     list.replaceChildren(
       ...(courses.length === 0
         ? [h("li", { class: "muted" }, t("courses.none"))]
-        : courses.map((c) => h("li", null, h("a", { href: `#/courses?course=${encodeURIComponent(c.name)}` }, `${c.title} (${c.name})`)))),
+        : courses.map((c) =>
+            h(
+              "li",
+              { "data-course": c.name },
+              h("a", { href: `#/courses?course=${encodeURIComponent(c.name)}` }, `${c.title} (${c.name})`),
+              c.closedAt ? " " : "",
+              c.closedAt ? h("span", { class: "badge", "data-closed": "true" }, t("courses.closedMark")) : "",
+            ),
+          )),
     );
   }
 
