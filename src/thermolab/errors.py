@@ -136,6 +136,10 @@ class TurnExtensionRefusedError(ConflictError):
     """A controller may not extend the turn now (someone waits, too early, or no room left)."""
 
 
+class CourseClosedError(ConflictError):
+    """The course is closed for the term: it is read and exported, never changed."""
+
+
 class AccessDeniedError(ThermoLabError, PermissionError):
     """The caller is known but not allowed to do this (a student acting on another's control)."""
 

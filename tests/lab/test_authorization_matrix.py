@@ -133,6 +133,12 @@ EXPECTED: dict[str, Kind] = {
     "GET /api/courses/{course}/settings": K.COURSE_TEACHER,
     "GET /api/assignments/{assignment_id}": K.COURSE_MEMBER,
     "POST /api/assignments/{assignment_id}/submissions": K.STUDENT_OF_COURSE,
+    "POST /api/courses/{course}/close": K.COURSE_TEACHER,
+    "POST /api/courses/{course}/copy": K.COURSE_TEACHER,
+    "POST /api/assignments/{assignment_id}/publish": K.COURSE_TEACHER,
+    "POST /api/courses/{course}/reopen": K.ADMIN,
+    "GET /api/courses/{course}/leavers": K.ADMIN,
+    "POST /api/courses/{course}/purge-students": K.ADMIN,
     "GET /api/runs/{run_id}": K.OWN_OR_TEACHER,
     "GET /api/runs/{run_id}/samples.csv": K.OWN_OR_TEACHER,
     "GET /api/runs/{run_id}/export.json": K.OWN_OR_TEACHER,
@@ -347,6 +353,9 @@ _BODIES: dict[str, Any] = {
         **_slot(0 if side == "in" else 2),
     },
     "PUT /api/courses/{course}/settings": {"version": 0, "values": {}},
+    "POST /api/courses/{course}/copy": {"name": "next-term", "shiftDays": 182},
+    # Not the list of leavers: refused as stale (409), so nobody the other tries need goes.
+    "POST /api/courses/{course}/purge-students": {"students": ["nobody"], "runs": "keep"},
     "POST /api/assignments/{assignment_id}/submissions": lambda world, side: {
         "runId": world["run_id"]["in"],
         "K": 0.14,

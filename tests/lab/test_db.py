@@ -75,7 +75,7 @@ def test_migrations_create_the_schema_of_the_models(fresh_url: str) -> None:
         assert db.current_revision() is None
         db.upgrade()
         db.upgrade()  # idempotent
-        assert db.current_revision() == "0018"
+        assert db.current_revision() == "0019"
         assert set(db.table_names()) == TABLES | {"alembic_version"}
         with db.engine.connect() as connection:
             context = MigrationContext.configure(connection, opts={"compare_type": True})

@@ -192,7 +192,7 @@ def test_migration_0007_normalises_names_and_refuses_collisions(fresh_url: str) 
             assert sorted(names) == ["ANA", "Zoë", "ana", "bea"]  # nothing changed
             connection.execute(text("DELETE FROM users WHERE username = 'ANA'"))
         db.upgrade()
-        assert db.current_revision() == "0018"
+        assert db.current_revision() == "0019"
         with db.engine.connect() as connection:
             names = connection.execute(text("SELECT username FROM users")).scalars().all()
         assert sorted(names) == ["ana", "bea", "zoe"]

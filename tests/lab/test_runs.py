@@ -595,8 +595,8 @@ def test_runs_stored_without_statistics_get_them_from_the_migration(
         config.attributes["connection"] = connection
         alembic.command.upgrade(config, "0003")
         # Back at the head (the later revisions' tables are there): the schema is shared.
-        connection.execute(text("UPDATE alembic_version SET version_num = '0018'"))
-    assert lab.db.current_revision() == "0018"
+        connection.execute(text("UPDATE alembic_version SET version_num = '0019'"))
+    assert lab.db.current_revision() == "0019"
     again = lab.runs.get(run.id, ana).results
     for method in ("lsm", "malsm", "wlsm"):
         assert again[method]["stats"] == fresh[method]["stats"]

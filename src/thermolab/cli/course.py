@@ -1,6 +1,8 @@
 """``thermolab course``: courses and class lists from the shell.
 
-``create NAME --title TEXT --teacher NAME``, ``list``, ``import COURSE FILE``.
+``create NAME --title TEXT --teacher NAME``, ``list``, ``import COURSE FILE``; the
+end of a term's ``close``, ``reopen``, ``copy`` and ``purge-students``
+(:mod:`thermolab.cli.course_term`).
 An import adds or updates the students of a CSV class list (a login and a
 name column, headed in English, Portuguese or Spanish: ``username;display_name``,
 ``matrícula;nome``, ``usuario;nombre``; UTF-8 or Windows-1252) all or nothing;
@@ -33,6 +35,10 @@ examples:
   thermolab course import ctrl1 turma.csv > passwords.csv
   thermolab course import ctrl1 turma.csv --dialect pt-BR > senhas.csv
   thermolab course list
+  thermolab course close ctrl1
+  thermolab course copy ctrl1 ctrl1-2027-1 --starts 2027-03-01
+  thermolab course purge-students ctrl1            # who would go (nothing changes)
+  thermolab course purge-students ctrl1 --yes      # remove them; runs kept under a pseudonym
 """
 
 
@@ -40,7 +46,8 @@ def register(subparsers: Any) -> None:
     """Add the ``course`` subcommand to the ``thermolab`` parser."""
     parser = subparsers.add_parser(
         "course",
-        help="manage courses and import class lists (create, list, import)",
+        help="manage courses, class lists and the end of a term (create, list, import, close, "
+        "reopen, copy, purge-students)",
         description="Manage the lab's courses and their students.",
         epilog=_EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -77,6 +84,10 @@ def register(subparsers: Any) -> None:
     )
     add_database_options(load)
     load.set_defaults(handler=_import)
+
+    from thermolab.cli.course_term import add_actions
+
+    add_actions(actions)
 
 
 def _courses(args: argparse.Namespace) -> tuple[Database, CourseService]:

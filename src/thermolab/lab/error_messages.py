@@ -68,6 +68,7 @@ ERROR_SENTENCES: Mapping[str, str] = {
     # Courses and people (issue #10).
     "class_list_invalid": "The class list has bad lines; nothing was changed.",
     "enrol_code_wrong": "No course has this enrolment code.",
+    "course_closed": "This course is closed for the term: it can be read, not changed.",
     "password_change_required": "Choose a new password before going on.",
     "setting_out_of_range": "A setting is outside the range this rig allows.",
     "setting_not_for_rig": "This rig does not have that setting.",

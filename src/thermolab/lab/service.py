@@ -30,6 +30,7 @@ from thermolab.lab.classes.authorize import Authorizer
 from thermolab.lab.classes.bookings import BookingService
 from thermolab.lab.classes.course_settings import CourseSettingsService
 from thermolab.lab.classes.courses import CourseService
+from thermolab.lab.classes.term import TermService
 from thermolab.lab.clock import LabClock, SystemClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
@@ -226,6 +227,8 @@ class Lab:
         self.course_settings = CourseSettingsService(self.db, self.clock)
         # Courses' booked slots on rigs (the turn rules apply them).
         self.bookings = BookingService(self.db, self.clock, config)
+        # The end of a term: closing, copying to the next, removing last term's students.
+        self.term = TermService(self.db, self.clock, self.bookings)
         # Each rig's guide pages: shipped defaults, teachers' revisions.
         self.guides = GuideService(self.db, self.clock, config)
         self.guide_images = GuideImageService(self.db, self.clock, config)

@@ -26,7 +26,17 @@ from thermolab.lab.accounts.names import username_form
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Base
 
-__all__ = ["EXPORT_FORMAT", "NAME_COLUMNS", "RunsChoice", "forget_person", "personal_data"]
+__all__ = [
+    "EXPORT_FORMAT",
+    "NAME_COLUMNS",
+    "PSEUDONYM_PREFIX",
+    "RunsChoice",
+    "forget_person",
+    "personal_data",
+]
+
+PSEUDONYM_PREFIX = "removed-"
+"""How a removed person's kept rows are named: the prefix, then 8 hexadecimal digits."""
 
 RunsChoice = Literal["keep", "delete"]
 """What :func:`forget_person` does with a person's runs."""
@@ -45,6 +55,7 @@ NAME_COLUMNS: tuple[tuple[str, str], ...] = (
     ("rig_settings", "updated_by"),
     ("guide_images", "uploaded_by"),
     ("guide_revisions", "author"),
+    ("courses", "closed_by"),
 )
 """Columns that hold a login name as text rather than a key to ``users``."""
 
@@ -161,7 +172,7 @@ def forget_person(db: Database, username: str, runs: RunsChoice, password_hash: 
     """
     tables = Base.metadata.tables
     users, runs_table = tables["users"], tables["runs"]
-    pseudonym = f"removed-{secrets.token_hex(4)}"
+    pseudonym = f"{PSEUDONYM_PREFIX}{secrets.token_hex(4)}"
     with db.write() as session:
         user_id = session.scalar(
             select(users.c.id).where(users.c.username == username_form(username))

@@ -78,6 +78,10 @@ class Action(enum.StrEnum):
     COURSE_ANALYTICS = "see a course's analytics"
     COURSE_LMS_ROSTER = "synchronise a course's roster with its LMS"
     COURSE_LMS_GRADES = "see and retry a course's grades for its LMS"
+    COURSE_CLOSE = "close a course at the end of its term"
+    COURSE_REOPEN = "reopen a closed course"
+    COURSE_COPY = "copy a course to the next term"
+    COURSE_PURGE_STUDENTS = "remove a closed course's students"
     RIG_SETTINGS_READ = "see a rig's settings"
     RIG_SETTINGS_EDIT = "change a rig's settings"
     RIG_SERVICE = "take rigs in or out of service"
@@ -106,6 +110,10 @@ _TABLE: dict[Action, tuple[Scope, Scope, Scope]] = {
     Action.COURSE_ANALYTICS: (_A, _T, _N),
     Action.COURSE_LMS_ROSTER: (_A, _T, _N),
     Action.COURSE_LMS_GRADES: (_A, _T, _N),
+    Action.COURSE_CLOSE: (_A, _T, _N),
+    Action.COURSE_REOPEN: (_A, _N, _N),  # a closed term's marks are settled: not its teacher's
+    Action.COURSE_COPY: (_A, _T, _N),
+    Action.COURSE_PURGE_STUDENTS: (_A, _N, _N),  # removing people is the lab's (ACCOUNT_FORGET)
     Action.RIG_SETTINGS_READ: (_A, _A, _N),
     Action.RIG_SETTINGS_EDIT: (_A, _N, _N),
     Action.RIG_SERVICE: (_A, _A, _N),

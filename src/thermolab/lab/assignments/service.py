@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import select, update
+from sqlalchemy import or_, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
@@ -35,6 +35,7 @@ from thermolab.lab.assignments.grades import GradeRow
 from thermolab.lab.assignments.identify import check_methods, identify_run
 from thermolab.lab.assignments.marking import MARK_MAX, Answers, Tolerances, assess
 from thermolab.lab.assignments.reference import reference_model
+from thermolab.lab.classes.closed import require_open
 from thermolab.lab.classes.courses import require_member
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
@@ -113,6 +114,8 @@ class AssignmentInfo:
     created_at: datetime
     updated_at: datetime
     mine: tuple[SubmissionInfo, ...] = ()
+    #: Copied from last term's course and not yet published: its teachers' only.
+    draft: bool = False
 
 
 class AssignmentService:
@@ -151,6 +154,7 @@ class AssignmentService:
         with self._db.write() as session:
             found = _course(session, course)
             require_member(session, found, who, Role.TEACHER, "set assignments")
+            require_open(found, "set assignments")
             row = Assignment(course_id=found.id, created_by=who.username, created_at=now)
             _fill(row, draft, now)
             session.add(row)
@@ -164,6 +168,7 @@ class AssignmentService:
         with self._db.write() as session:
             row, found = _assignment(session, assignment_id)
             require_member(session, found, who, Role.TEACHER, "edit its assignments")
+            require_open(found, "edit its assignments")
             _fill(row, draft, now)
             session.flush()
             return _info(row, found)
@@ -195,7 +200,7 @@ class AssignmentService:
             assignments = list(
                 session.scalars(
                     select(Assignment)
-                    .where(Assignment.course_id == found.id)
+                    .where(Assignment.course_id == found.id, Assignment.draft.is_(False))
                     .order_by(Assignment.deadline, Assignment.id)
                 )
             )
@@ -233,7 +238,11 @@ class AssignmentService:
                 select(Assignment, Course)
                 .join(Course, Course.id == Assignment.course_id)
                 .join(CourseMember, CourseMember.course_id == Course.id)
-                .where(CourseMember.user_id == who.user_id)
+                .where(
+                    CourseMember.user_id == who.user_id,
+                    # A draft is its teachers' until they publish it.
+                    or_(Assignment.draft.is_(False), CourseMember.role == Role.TEACHER.value),
+                )
                 .order_by(Assignment.deadline, Assignment.id)
             ).all()
             return [_info(a, c, _mine(session, a.id, who.user_id)) for a, c in rows]
@@ -243,6 +252,8 @@ class AssignmentService:
         with self._db.read() as session:
             row, found = _assignment(session, assignment_id)
             require_member(session, found, who, None, "see its assignments")
+            if row.draft:
+                require_member(session, found, who, Role.TEACHER, "see its draft assignments")
             return _info(row, found, _mine(session, row.id, who.user_id))
 
     def hand_in(
@@ -269,6 +280,9 @@ class AssignmentService:
         with self._db.read() as session:
             row, found = _assignment(session, assignment_id)
             require_member(session, found, who, Role.STUDENT, "hand in")
+            require_open(found, "hand in")
+            if row.draft:
+                raise NotFoundError(f"no assignment {assignment_id}")
             run = session.get(Run, run_id)
             if run is None:
                 raise NotFoundError(f"no run {run_id}")
@@ -304,6 +318,7 @@ class AssignmentService:
         try:
             with self._db.write() as session:
                 row, found = _assignment(session, assignment_id)
+                require_open(found, "hand in")
                 session.execute(
                     update(Submission)
                     .where(
@@ -453,6 +468,7 @@ def _info(row: Assignment, course: Course, mine: Sequence[SubmissionInfo] = ()) 
         created_at=row.created_at,
         updated_at=row.updated_at,
         mine=tuple(mine),
+        draft=bool(row.draft),
     )
 
 

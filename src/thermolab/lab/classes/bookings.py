@@ -32,6 +32,7 @@ from sqlalchemy.orm import Session
 
 from thermolab.errors import BookingClashError, InvalidParameterError, NotFoundError
 from thermolab.lab.accounts.users import Principal
+from thermolab.lab.classes.closed import require_open
 from thermolab.lab.classes.courses import require_member
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
@@ -134,6 +135,7 @@ class BookingService:
         with self._db.write() as session:
             course_row = _course(session, course)
             require_member(session, course_row, who, Role.TEACHER, "book rigs for it")
+            require_open(course_row, "book rigs for it")
             self._lock(session, wanted)
             _refuse_clash(session, wanted, starts_at, ends_at, exclude=None)
             booking = Booking(
@@ -391,3 +393,4 @@ def _require_course_teacher(
     course = session.get(Course, booking.course_id)
     assert course is not None  # a course's bookings go with it (ON DELETE CASCADE)
     require_member(session, course, who, Role.TEACHER, action)
+    require_open(course, action)

@@ -27,6 +27,7 @@ from sqlalchemy.orm import Session
 
 from thermolab.errors import NotFoundError, SettingsChangedError
 from thermolab.lab.accounts.users import Principal
+from thermolab.lab.classes.closed import require_open
 from thermolab.lab.classes.courses import require_member
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config.teacher_settings import (
@@ -124,6 +125,7 @@ class CourseSettingsService:
         checked = {n: check_value(_NAMES[n], v, bounds[n]) for n, v in values.items()}
         with self._lock, self._db.write() as session:
             course = self._course(session, name, who, "change a course's limits")
+            require_open(course, "change its limits")
             row = session.get(CourseSettingsRow, course.id, with_for_update=True)
             current = 0 if row is None else row.version
             if version != current:

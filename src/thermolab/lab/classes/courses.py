@@ -34,6 +34,7 @@ from thermolab.lab.accounts.names import normalize_display_name, normalize_usern
 from thermolab.lab.accounts.security import validate_password
 from thermolab.lab.accounts.users import LoginsEnded, Principal, UserInfo
 from thermolab.lab.classes.class_list import read_class_list
+from thermolab.lab.classes.closed import require_open
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Course, CourseMember, CourseRig, LoginSession, Role, User
@@ -96,6 +97,9 @@ class CourseInfo:
     created_at: datetime
     rigs: tuple[str, ...]
     members: tuple[Member, ...] = ()
+    #: When the course was closed for the term (``None``: open), and by whom.
+    closed_at: datetime | None = None
+    closed_by: str | None = None
 
 
 @dataclass(slots=True)
@@ -189,6 +193,7 @@ class CourseService:
         """Give the course a new enrolment code (the old one stops working); return it."""
         with self._db.write() as session:
             course = _course(session, name)
+            require_open(course, "change its enrolment code")
             course.enrol_code = new_enrol_code()
             return course.enrol_code
 
@@ -205,6 +210,7 @@ class CourseService:
             raise NotFoundError(f"no rig called {unknown[0]!r}; rigs: {', '.join(sorted(known))}")
         with self._db.write() as session:
             course = _course(session, name)
+            require_open(course, "change its rigs")
             session.execute(delete(CourseRig).where(CourseRig.course_id == course.id))
             for rig in sorted(set(rigs)):
                 session.add(CourseRig(course_id=course.id, rig_id=rig))
@@ -257,7 +263,9 @@ class CourseService:
         entries = read.entries
         # Hashing is slow on purpose: done before the transaction, for the new names only.
         with self._db.read() as session:
-            course_id = _course(session, name).id
+            course = _course(session, name)
+            require_open(course, "upload a class list")
+            course_id = course.id
             known = {
                 u.username: u
                 for u in session.scalars(
@@ -281,6 +289,7 @@ class CourseService:
         now = self._clock.now()
         try:
             with self._db.write() as session:
+                require_open(_course(session, name), "upload a class list")
                 members = set(
                     session.scalars(
                         select(CourseMember.user_id).where(CourseMember.course_id == course_id)
@@ -348,6 +357,7 @@ class CourseService:
                 ).one_or_none()
                 if course is None:
                     raise WrongEnrolCodeError("no course has this enrolment code; ask your teacher")
+                require_open(course, "enrol")
                 if session.scalar(select(User.id).where(User.username == name)) is not None:
                     raise ConflictError(f"user {name!r} already exists; choose another login name")
                 user = User(
@@ -454,7 +464,14 @@ def _info(session: Session, course: Course, *, roster: bool) -> CourseInfo:
             for u, role in rows
         )
     return CourseInfo(
-        course.name, course.title, course.enrol_code, course.created_at, rigs, members
+        course.name,
+        course.title,
+        course.enrol_code,
+        course.created_at,
+        rigs,
+        members,
+        course.closed_at,
+        course.closed_by,
     )
 
 

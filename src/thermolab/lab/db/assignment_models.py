@@ -15,7 +15,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import JSON, Boolean, Float, ForeignKey, Index, Integer, String, Text, text
+from sqlalchemy import JSON, Boolean, Float, ForeignKey, Index, Integer, String, Text, false, text
 from sqlalchemy.orm import Mapped, mapped_column
 
 from thermolab.lab.db.models import Base, UTCDateTime
@@ -29,7 +29,8 @@ class Assignment(Base):
     ``methods`` lists registry names (:mod:`thermolab.ident.registry`);
     ``settings`` maps a method to the settings the teacher gave it (checked by
     the registry). Tolerances are relative on Ks and Ts, absolute (seconds) on
-    θ; ``tol_theta`` null: θ is not asked.
+    θ; ``tol_theta`` null: θ is not asked. A ``draft`` (copied from last term's
+    course) is its teachers' only until they publish it.
     """
 
     __tablename__ = "assignments"
@@ -48,6 +49,7 @@ class Assignment(Base):
     created_by: Mapped[str] = mapped_column(String(64))
     created_at: Mapped[datetime] = mapped_column(UTCDateTime)
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime)
+    draft: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false())
 
 
 class Submission(Base):

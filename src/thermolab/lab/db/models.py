@@ -191,7 +191,9 @@ class Course(Base):
     """A course: its teachers and students are :class:`CourseMember` rows.
 
     ``enrol_code`` is what a student types to join (``thermolab.lab.classes.courses``);
-    a teacher rotates it to close the door on an old one.
+    a teacher rotates it to close the door on an old one. A course closed at the
+    end of its term (``closed_at`` and the login name ``closed_by``) is read and
+    exported, never changed (``thermolab.lab.classes.term``).
     """
 
     __tablename__ = "courses"
@@ -201,6 +203,8 @@ class Course(Base):
     title: Mapped[str] = mapped_column(String(200))
     enrol_code: Mapped[str] = mapped_column(String(32), unique=True)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime)
+    closed_at: Mapped[datetime | None] = mapped_column(UTCDateTime, default=None)
+    closed_by: Mapped[str | None] = mapped_column(String(64), default=None)
 
 
 class CourseMember(Base):

@@ -34,6 +34,7 @@ from thermolab.errors import (
     BookingClashError,
     ClassListError,
     ConflictError,
+    CourseClosedError,
     GainRangeError,
     NoOutputUnitError,
     NoRunError,
@@ -129,6 +130,7 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     # Courses and people (issue #10).
     ClassListError: HttpFault(422, "class_list_invalid"),
     WrongEnrolCodeError: HttpFault(403, "enrol_code_wrong"),
+    CourseClosedError: HttpFault(409, "course_closed"),
     PasswordChangeRequiredError: HttpFault(403, "password_change_required"),
     # Teacher settings (issue #10).
     SettingRangeError: HttpFault(422, "setting_out_of_range"),

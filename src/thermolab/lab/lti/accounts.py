@@ -190,7 +190,13 @@ def join_course(
 
 
 def add_member(session: Session, course_id: int, user: User, role: Role, now: datetime) -> None:
-    """Put ``user`` in the course (once) with ``role``."""
+    """Put ``user`` in the course (once) with ``role``; a closed course takes nobody new.
+
+    A launch into a closed course still signs its members in (they read it).
+    """
+    course = session.get(Course, course_id)
+    if course is not None and course.closed_at is not None:
+        return
     member = session.scalar(
         select(CourseMember).where(
             CourseMember.course_id == course_id, CourseMember.user_id == user.id

@@ -17,6 +17,7 @@ from argon2 import PasswordHasher
 from sqlalchemy import delete, select
 
 from thermolab.errors import NotFoundError
+from thermolab.lab.classes.closed import require_open
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
 from thermolab.lab.db.lti_models import LtiContext, LtiIdentity, LtiPlatform
@@ -61,7 +62,7 @@ class RosterSync:
         """
         with self._db.read() as session:
             found = session.execute(
-                select(LtiContext, LtiPlatform)
+                select(LtiContext, LtiPlatform, Course)
                 .join(Course, Course.id == LtiContext.course_id)
                 .join(LtiPlatform, LtiPlatform.id == LtiContext.platform_id)
                 .where(Course.name == course_name.strip().lower())
@@ -70,7 +71,8 @@ class RosterSync:
                 raise NotFoundError(
                     f"course {course_name!r} has no LMS roster (launch it from the LMS first)"
                 )
-            context, platform_row = found
+            context, platform_row, course = found
+            require_open(course, "synchronise its roster")
             course_id, url = context.course_id, str(context.memberships_url)
             platform = PlatformInfo.of(platform_row)
         members = self._client.memberships(platform, url, NRPS_SCOPE)
@@ -82,6 +84,9 @@ class RosterSync:
         report = RosterReport()
         now = self._clock.now()
         with self._db.write() as session:
+            closing = session.get(Course, course_id)
+            if closing is not None:  # closed while the LMS was asked
+                require_open(closing, "synchronise its roster")
             before = set(
                 session.scalars(
                     select(CourseMember.user_id).where(CourseMember.course_id == course_id)

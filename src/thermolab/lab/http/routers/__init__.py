@@ -28,6 +28,7 @@ from thermolab.lab.http.routers import (
     rigs,
     runs,
     session,
+    term,
     tokens,
     users,
     version,
@@ -60,5 +61,6 @@ for _resource in (
     audit,
     me,
     people,
+    term,
 ):
     api_router.include_router(_resource.router)

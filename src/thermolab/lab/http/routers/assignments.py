@@ -152,6 +152,7 @@ class AssignmentOut(Out):
     created_at: datetime
     updated_at: datetime
     mine: list[SubmissionOut]
+    draft: bool = Field(False, description="copied from last term, not yet published")
 
     @classmethod
     def of(cls, a: AssignmentInfo) -> AssignmentOut:
@@ -171,6 +172,7 @@ class AssignmentOut(Out):
             created_at=a.created_at,
             updated_at=a.updated_at,
             mine=[SubmissionOut.of(s) for s in a.mine],
+            draft=a.draft,
         )
 
 

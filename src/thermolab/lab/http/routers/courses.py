@@ -85,6 +85,10 @@ class CourseOut(Out):
     created_at: datetime
     rigs: list[str]
     members: list[MemberOut]
+    closed_at: datetime | None = Field(
+        None, description="when the course was closed for the term (null: open)"
+    )
+    closed_by: str | None = Field(None, description="who closed it")
 
     @classmethod
     def of(cls, course: CourseInfo) -> CourseOut:
@@ -104,6 +108,8 @@ class CourseOut(Out):
                 )
                 for m in course.members
             ],
+            closed_at=course.closed_at,
+            closed_by=course.closed_by,
         )
 
 

@@ -185,6 +185,10 @@ export const api = {
     request("POST", `/api/users/${enc(user)}/password-reset`, { currentPassword }),
   enrol: (spec) => request("POST", "/api/enrol", spec, { quiet401: true }),
   setCourseRigs: (name, rigs) => request("PUT", `/api/courses/${enc(name)}/rigs`, { rigs }),
+  /** Close a course for the term (read-only from then on). */
+  closeCourse: (name) => request("POST", `/api/courses/${enc(name)}/close`),
+  /** The next term's course: spec {name, title?, starts: "YYYY-MM-DD"} or {name, shiftDays}. */
+  copyCourse: (name, spec) => request("POST", `/api/courses/${enc(name)}/copy`, spec),
   /** A course's limits during its slots: {version, rule, updatedBy, settings: [{name, minimum, maximum, nullable, overridden, value}]}. */
   courseSettings: (name, opts) => request("GET", `/api/courses/${enc(name)}/settings`, undefined, opts),
   saveCourseSettings: (name, change) => request("PUT", `/api/courses/${enc(name)}/settings`, change),
@@ -195,6 +199,7 @@ export const api = {
   assignment: (id, opts) => request("GET", `/api/assignments/${enc(id)}`, undefined, opts),
   createAssignment: (course, spec) => request("POST", `/api/courses/${enc(course)}/assignments`, spec),
   updateAssignment: (id, spec) => request("PUT", `/api/assignments/${enc(id)}`, spec),
+  publishAssignment: (id) => request("POST", `/api/assignments/${enc(id)}/publish`),
   /** A hand-in: {runId, K, tau, theta, conclusion}; the answer carries the mark and the feedback. */
   handIn: (id, spec) => request("POST", `/api/assignments/${enc(id)}/submissions`, spec),
   submissions: (id, opts) => request("GET", `/api/assignments/${enc(id)}/submissions`, undefined, opts),

@@ -29,6 +29,7 @@ const ROUTES = [
   { pattern: /^\/assignments\/(\d+)$/, view: () => import("./views/assignments.js"), title: "nav.assignments", nav: "assignments" },
   { pattern: /^\/analytics$/, view: () => import("./views/analytics.js"), title: "analytics.title", nav: "courses" },
   { pattern: /^\/enrol$/, view: () => import("./views/enrol.js"), title: "enrol.title", open: true },
+  { pattern: /^\/privacy$/, view: () => import("./views/privacy.js"), title: "privacy.heading", open: true },
   { pattern: /^\/bookings$/, view: () => import("./views/bookings.js"), title: "nav.bookings", nav: "bookings" },
   { pattern: /^\/lti$/, view: () => import("./views/lti.js"), title: "lti.heading", nav: "lti" },
   { pattern: /^\/lti\/deep-link\/([A-Za-z0-9_-]+)$/, view: () => import("./views/deeplink.js"), title: "deeplink.heading", nav: "lti" },

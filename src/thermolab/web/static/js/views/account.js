@@ -99,6 +99,7 @@ export function mount(main, _route, ctx) {
     h("h2", null, t("account.dataHeading")),
     h("p", null, t("account.dataHelp")),
     h("p", null, h("a", { class: "button", href: api.myDataUrl(), download: `thermolab-${ctx.user?.username ?? "me"}.json`, "data-testid": "my-data" }, t("account.dataDownload"))),
+    h("p", null, h("a", { href: "#/privacy", id: "account-privacy" }, t("privacy.heading"))),
   );
   refresh().catch((err) => setText(error, err.message));
   return () => {

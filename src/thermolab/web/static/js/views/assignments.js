@@ -89,6 +89,8 @@ async function showList(main, ctx, error, alive) {
             null,
             h("a", { href: `#/assignments/${enc(a.id)}`, "data-assignment": a.id }, a.title),
             " ",
+            a.draft ? h("span", { class: "badge", "data-draft": a.id }, t("assign.draft")) : "",
+            a.draft ? " " : "",
             h("span", { class: "muted" }, t("assign.due", { course: a.courseTitle, deadline: when(a.deadline) })),
           ),
         )),
@@ -234,6 +236,7 @@ async function showOne(main, id, ctx, error, alive) {
     h("p", { class: "instructions", id: "assign-instructions-text" }, a.instructions),
   );
   if (ctx.user?.role === "teacher") {
+    if (a.draft) main.append(publishBox(a, ctx));
     const rigs = await api.rigs();
     const hand = h("div", { class: "table-wrap", id: "submissions", tabindex: "0", role: "region", "aria-label": t("assign.submissions") });
     const grades = h("a", { id: "grades-link", href: api.gradesUrl(a.course), download: `grades-${a.course}.csv` }, t("assign.grades"));
@@ -392,4 +395,26 @@ function submissionsTable(all) {
     ),
   );
   return h("table", { class: "runs" }, h("caption", { class: "visually-hidden" }, t("assign.submissions")), h("thead", null, h("tr", null, head)), h("tbody", null, rows));
+}
+
+/**
+ * A draft (copied from last term): its students do not see it until it is published.
+ * @param {any} a
+ * @param {any} ctx
+ */
+function publishBox(a, ctx) {
+  const out = h("p", { role: "status", id: "assign-publish-result" });
+  const publish = h("button", { type: "button", class: "primary", id: "assign-publish" }, t("assign.publish"));
+  publish.addEventListener("click", async () => {
+    publish.disabled = true;
+    try {
+      await api.publishAssignment(a.id);
+      announce(t("assign.published"));
+      ctx.navigate(`/assignments/${a.id}`);
+    } catch (err) {
+      setText(out, err.message);
+      publish.disabled = false;
+    }
+  });
+  return h("section", { class: "card", id: "assign-draft" }, h("p", null, t("assign.draftHelp")), publish, out);
 }

@@ -1,12 +1,15 @@
 // @ts-check
 // A teacher's courses: create one, upload its class list (CSV) and read the
 // report (each new student's one-time password, or every bad line), see the
-// roster, show or renew the enrolment code, reset a student's password.
+// roster, show or renew the enrolment code, reset a student's password; at
+// the end of the term, close the course and copy it to the next one
+// (endOfTermSection in term.js).
 
 import { api } from "../api.js";
 import { announce, h, setText } from "../dom.js";
 import { serverMessage, t } from "../i18n.js";
 import { courseLimitsSection } from "./courselimits.js";
+import { endOfTermSection } from "./term.js";
 
 /**
  * @param {HTMLElement} main
@@ -41,7 +44,15 @@ export function mount(main, { query }, ctx) {
     list.replaceChildren(
       ...(courses.length === 0
         ? [h("li", { class: "muted" }, t("courses.none"))]
-        : courses.map((c) => h("li", null, h("a", { href: `#/courses?course=${encodeURIComponent(c.name)}` }, `${c.title} (${c.name})`)))),
+        : courses.map((c) =>
+            h(
+              "li",
+              { "data-course": c.name },
+              h("a", { href: `#/courses?course=${encodeURIComponent(c.name)}` }, `${c.title} (${c.name})`),
+              c.closedAt ? " " : "",
+              c.closedAt ? h("span", { class: "badge", "data-closed": "true" }, t("courses.closedMark")) : "",
+            ),
+          )),
     );
   }
 
@@ -69,7 +80,7 @@ export function mount(main, { query }, ctx) {
   main.append(h("h1", null, t("nav.courses")), h("p", { class: "lede" }, t("courses.lede")), list, form, detail);
   refresh().catch((err) => setText(error, err.message));
   const chosen = query.get("course");
-  if (chosen) showCourse(detail, chosen, () => alive).catch((err) => setText(error, err.message));
+  if (chosen) showCourse(detail, chosen, () => alive, ctx).catch((err) => setText(error, err.message));
   return () => {
     alive = false;
   };
@@ -80,8 +91,9 @@ export function mount(main, { query }, ctx) {
  * @param {HTMLElement} box
  * @param {string} name
  * @param {() => boolean} alive
+ * @param {any} ctx
  */
-async function showCourse(box, name, alive) {
+async function showCourse(box, name, alive, ctx) {
   const course = await api.course(name);
   if (!alive()) return;
   const code = h("code", { id: "course-code" }, course.enrolCode);
@@ -159,6 +171,7 @@ async function showCourse(box, name, alive) {
     h("div", { class: "field" }, h("label", { for: "reset-current" }, t("courses.resetCurrent")), teacherPassword),
     resetOut,
     roster,
+    endOfTermSection(course, ctx),
   );
   box.hidden = false;
   roster.replaceChildren(rosterTable(course.members, reset));

@@ -67,6 +67,7 @@ export function mount(main, { query }, ctx) {
     ),
     form,
     h("p", null, h("a", { href: "#/enrol", id: "login-enrol" }, t("login.enrol"))),
+    h("p", null, h("a", { href: "#/privacy", id: "login-privacy" }, t("privacy.heading"))),
   );
   return null;
 }

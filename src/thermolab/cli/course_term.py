@@ -1,0 +1,232 @@
+"""``thermolab course close|reopen|copy|purge-students``: the end of a term from the shell.
+
+The command line is the operator's: it acts as a lab administrator would
+(:mod:`thermolab.lab.classes.term` does the work, as for the API).
+
+* ``close COURSE [--by NAME]``: read-only from now on; ``reopen COURSE`` undoes it.
+* ``copy OLD NEW (--shift-days N | --starts YYYY-MM-DD) [--title T] [--teacher NAME]``:
+  the next term's course, its only teacher ``--teacher`` (default: the old
+  course's first teacher by name); the slots left out are listed.
+* ``purge-students COURSE [--delete-runs] [--yes]``: without ``--yes`` only lists
+  who would go (a dry run); with it, removes them (runs kept under a pseudonym
+  unless ``--delete-runs``), each removal written to the audit log.
+"""
+
+from __future__ import annotations
+
+import argparse
+import secrets
+import sys
+from datetime import date
+from typing import TYPE_CHECKING, Any
+
+from thermolab.cli.serve import add_database_options, lab_config_from_args, make_private
+
+if TYPE_CHECKING:
+    from thermolab.lab.accounts.users import Principal
+    from thermolab.lab.classes.term import TermService
+    from thermolab.lab.clock import LabClock
+    from thermolab.lab.db import Database
+
+__all__ = ["add_actions"]
+
+#: Who the audit log and ``closed_by`` name when the operator acts from the shell.
+OPERATOR = "(command line)"
+
+
+def add_actions(actions: Any) -> None:
+    """Add the end-of-term actions to ``thermolab course``'s subparsers."""
+    close = actions.add_parser("close", help="close a course at the end of its term (read-only)")
+    close.add_argument("course", metavar="COURSE")
+    close.add_argument("--by", metavar="NAME", help="whose decision it was (a login name)")
+    add_database_options(close)
+    close.set_defaults(handler=_close)
+
+    reopen = actions.add_parser("reopen", help="open a closed course again")
+    reopen.add_argument("course", metavar="COURSE")
+    add_database_options(reopen)
+    reopen.set_defaults(handler=_reopen)
+
+    copy = actions.add_parser(
+        "copy",
+        help="make the next term's course from one (rigs, limits, draft assignments, bookings)",
+    )
+    copy.add_argument("old", metavar="OLD")
+    copy.add_argument("new", metavar="NEW", help="the new course's short name")
+    when = copy.add_mutually_exclusive_group(required=True)
+    when.add_argument("--shift-days", type=int, metavar="N", help="move every date by N days")
+    when.add_argument(
+        "--starts",
+        type=_day,
+        metavar="YYYY-MM-DD",
+        help="the new term's first day: OLD's first booked day (else its creation) moves there",
+    )
+    copy.add_argument("--title", help="the new title (default: OLD's)")
+    copy.add_argument(
+        "--teacher", metavar="NAME", help="the copy's teacher (default: OLD's first teacher)"
+    )
+    add_database_options(copy)
+    copy.set_defaults(handler=_copy)
+
+    purge = actions.add_parser(
+        "purge-students",
+        help="remove a closed course's students who are in no open course (dry run without --yes)",
+    )
+    purge.add_argument("course", metavar="COURSE")
+    purge.add_argument(
+        "--delete-runs",
+        action="store_true",
+        help="delete their runs too (default: kept under a pseudonym for the class's statistics)",
+    )
+    purge.add_argument("--yes", action="store_true", help="remove them (without it: only list)")
+    add_database_options(purge)
+    purge.set_defaults(handler=_purge)
+
+
+def _day(text: str) -> date:
+    try:
+        return date.fromisoformat(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a day written YYYY-MM-DD") from None
+
+
+def _term(args: argparse.Namespace) -> tuple[Database, TermService, LabClock]:
+    from thermolab.lab.classes.bookings import BookingService
+    from thermolab.lab.classes.term import TermService
+    from thermolab.lab.clock import SystemClock
+    from thermolab.lab.db import Database
+
+    config = lab_config_from_args(args)
+    for path in make_private(config):
+        print(f"warning: tightened permissions of {path} to this user only", file=sys.stderr)
+    db = Database(config.database, pool_size=1, max_overflow=1)
+    db.upgrade()
+    clock = SystemClock()
+    return db, TermService(db, clock, BookingService(db, clock, config)), clock
+
+
+def _close(args: argparse.Namespace) -> int:
+    from thermolab.lab.audit.log import AuditAction, AuditLog
+
+    db, term, clock = _term(args)
+    try:
+        term.close(args.course, args.by or OPERATOR)
+        AuditLog(db, clock).record(OPERATOR, AuditAction.COURSE_CLOSED, args.course)
+    finally:
+        db.close()
+    print(f"closed course {args.course!r}: it can be read and exported, not changed")
+    return 0
+
+
+def _reopen(args: argparse.Namespace) -> int:
+    from thermolab.lab.audit.log import AuditAction, AuditLog
+
+    db, term, clock = _term(args)
+    try:
+        term.reopen(args.course)
+        AuditLog(db, clock).record(OPERATOR, AuditAction.COURSE_REOPENED, args.course)
+    finally:
+        db.close()
+    print(f"reopened course {args.course!r}")
+    return 0
+
+
+def _copy(args: argparse.Namespace) -> int:
+    from thermolab.lab.audit.log import AuditAction, AuditLog
+
+    db, term, clock = _term(args)
+    try:
+        teacher = _teacher(db, args.old, args.teacher)
+        shift = args.shift_days
+        if shift is None:
+            shift = term.shift_for(args.old, args.starts)
+        report = term.copy(args.old, args.new, args.title, teacher, shift)
+        AuditLog(db, clock).record(
+            OPERATOR,
+            AuditAction.COURSE_COPIED,
+            report.course,
+            detail={"source": args.old, "shift_days": shift, "teacher": teacher.username},
+        )
+    finally:
+        db.close()
+    print(
+        f"copied {args.old!r} to {report.course!r} (teacher {teacher.username}, dates moved "
+        f"{report.shift_days} days): {report.assignments} draft assignments, "
+        f"{report.bookings} bookings"
+    )
+    for slot in report.skipped:
+        print(
+            f"  left out the slot {slot.starts_at:%Y-%m-%d %H:%M}-{slot.ends_at:%H:%M} UTC: "
+            f"{slot.reason}"
+        )
+    return 0
+
+
+def _purge(args: argparse.Namespace) -> int:
+    from thermolab.lab.accounts.personal_data import RunsChoice
+    from thermolab.lab.accounts.security import default_password_hasher
+    from thermolab.lab.audit.log import AuditAction, AuditLog
+
+    runs: RunsChoice = "delete" if args.delete_runs else "keep"
+    db, term, clock = _term(args)
+    try:
+        leavers = term.leavers(args.course)
+        if not args.yes or not leavers:
+            for person in leavers:
+                print(f"{person.username}\t{person.display_name or ''}")
+            what = "deleted" if runs == "delete" else "kept under a pseudonym"
+            print(
+                f"{len(leavers)} students of {args.course!r} are in no open course"
+                + (f"; to remove them (runs {what}), add --yes" if leavers else ""),
+                file=sys.stderr,
+            )
+            return 0
+        unknown = default_password_hasher().hash(secrets.token_urlsafe(32))
+        report = term.purge(args.course, [p.username for p in leavers], runs, unknown)
+        audit = AuditLog(db, clock)
+        for pseudonym in report.removed:
+            audit.record(OPERATOR, AuditAction.ACCOUNT_FORGOTTEN, pseudonym, detail={"runs": runs})
+        audit.record(
+            OPERATOR,
+            AuditAction.COURSE_STUDENTS_PURGED,
+            args.course,
+            detail={"runs": runs, "removed": report.removed, "skipped": len(report.skipped)},
+        )
+    finally:
+        db.close()
+    print(f"removed {len(report.removed)} students of {args.course!r} (runs {runs})")
+    for username, reason in report.skipped.items():
+        print(f"  left {username}: {reason}", file=sys.stderr)
+    return 1 if report.skipped else 0
+
+
+def _teacher(db: Database, course: str, name: str | None) -> Principal:
+    from sqlalchemy import select
+
+    from thermolab.errors import NotFoundError
+    from thermolab.lab.accounts.names import username_form
+    from thermolab.lab.accounts.users import Principal
+    from thermolab.lab.db.models import Course, CourseMember, Role, User
+
+    with db.read() as session:
+        if session.scalar(select(Course.id).where(Course.name == course.strip().lower())) is None:
+            raise NotFoundError(f"no course called {course!r}")
+        query = select(User).where(User.role == Role.TEACHER.value)
+        if name is not None:
+            query = query.where(User.username == username_form(name))
+        else:
+            query = (
+                query.join(CourseMember, CourseMember.user_id == User.id)
+                .join(Course, Course.id == CourseMember.course_id)
+                .where(Course.name == course.strip().lower())
+                .where(CourseMember.role == Role.TEACHER.value)
+                .order_by(User.username)
+            )
+        user = session.scalars(query.limit(1)).one_or_none()
+        if user is None:
+            raise NotFoundError(
+                f"no teacher called {name!r}"
+                if name
+                else f"course {course!r} has no teacher; name the copy's teacher with --teacher"
+            )
+        return Principal(user.id, user.username, Role(user.role), admin=user.admin)

@@ -1,0 +1,377 @@
+"""The end of a term and the next one: close a course, copy it, remove last term's students.
+
+* :meth:`TermService.close` makes a course read-only (when and by whom are
+  kept); every change to it is then a 409 ``course_closed``
+  (:func:`thermolab.lab.classes.closed.require_open`). An administrator
+  :meth:`~TermService.reopen`\\ s it.
+* :meth:`TermService.copy` makes the next term's course from it: the rigs it
+  may use, its limits, its assignments as drafts (deadlines shifted), its
+  booking pattern shifted to the new dates; no students, runs, hand-ins or
+  marks. Guide pages and their pictures belong to the rigs, not the course, so
+  the copy shows the same ones.
+* :meth:`TermService.leavers` and :meth:`TermService.purge` remove, in one
+  action, the students of a closed course who are in no open course, each
+  through :func:`thermolab.lab.accounts.personal_data.forget_person`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from datetime import date, datetime, timedelta
+
+from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+from thermolab.errors import (
+    AccessDeniedError,
+    BookingClashError,
+    ConflictError,
+    InvalidParameterError,
+    NotFoundError,
+    RigBookedError,
+)
+from thermolab.lab.accounts.personal_data import PSEUDONYM_PREFIX, RunsChoice, forget_person
+from thermolab.lab.accounts.users import Principal
+from thermolab.lab.classes.bookings import BookingService
+from thermolab.lab.classes.closed import require_open
+from thermolab.lab.classes.courses import COURSE_NAME, new_enrol_code, require_member
+from thermolab.lab.clock import LabClock
+from thermolab.lab.db import Database
+from thermolab.lab.db.assignment_models import Assignment
+from thermolab.lab.db.booking_models import Booking, BookingRig
+from thermolab.lab.db.course_settings_models import CourseSettingsRow
+from thermolab.lab.db.models import Course, CourseMember, CourseRig, Role, User
+
+__all__ = ["CopyReport", "Leaver", "PurgeReport", "SkippedSlot", "TermService"]
+
+#: The farthest a copy moves its dates (about two years either way).
+MAX_SHIFT_DAYS = 800
+
+
+@dataclass(frozen=True, slots=True)
+class SkippedSlot:
+    """A booking of the old course not made for the copy, and why (a sentence)."""
+
+    starts_at: datetime
+    ends_at: datetime
+    reason: str
+
+
+@dataclass(slots=True)
+class CopyReport:
+    """What a copy made: the new course's name, the offset, counts, and the slots left out."""
+
+    course: str
+    shift_days: int
+    assignments: int = 0
+    bookings: int = 0
+    skipped: list[SkippedSlot] = field(default_factory=list)
+
+
+@dataclass(frozen=True, slots=True)
+class Leaver:
+    """A student of a closed course who is in no open course."""
+
+    username: str
+    display_name: str | None
+
+
+@dataclass(slots=True)
+class PurgeReport:
+    """Who was removed (their pseudonyms) and who could not be (name and reason)."""
+
+    removed: list[str] = field(default_factory=list)
+    skipped: dict[str, str] = field(default_factory=dict)
+
+
+class TermService:
+    """Close, reopen and copy courses; remove a closed course's leaving students.
+
+    Parameters
+    ----------
+    db : Database
+    clock : LabClock
+    bookings : BookingService
+        Makes the copy's bookings, with the same checks and rig locks as a teacher's.
+    """
+
+    def __init__(self, db: Database, clock: LabClock, bookings: BookingService) -> None:
+        self._db = db
+        self._clock = clock
+        self._bookings = bookings
+
+    def close(self, name: str, by: str) -> None:
+        """Close ``name`` for the term: from now on it is read, exported, never changed.
+
+        ``by`` is the login name of whoever closes it (kept beside the time).
+
+        Raises
+        ------
+        NotFoundError
+        CourseClosedError
+            If it is closed already.
+        """
+        with self._db.write() as session:
+            course = _course(session, name)
+            require_open(course, "close it again")
+            course.closed_at = self._clock.now()
+            course.closed_by = by
+
+    def reopen(self, name: str) -> None:
+        """Open a closed course again (an administrator's decision, checked by the route).
+
+        Raises
+        ------
+        NotFoundError
+        ConflictError
+            If it is open.
+        """
+        with self._db.write() as session:
+            course = _course(session, name)
+            if course.closed_at is None:
+                raise ConflictError(f"course {course.name!r} is open; only a closed one reopens")
+            course.closed_at = None
+            course.closed_by = None
+
+    def shift_for(self, name: str, starts: date) -> int:
+        """The days from ``name``'s first day (first booking, else creation) to ``starts``."""
+        with self._db.read() as session:
+            course = _course(session, name)
+            first = session.scalar(
+                select(Booking.starts_at)
+                .where(Booking.course_id == course.id)
+                .order_by(Booking.starts_at)
+                .limit(1)
+            )
+            began = (first or course.created_at).date()
+        return (starts - began).days
+
+    def copy(
+        self, old: str, new: str, title: str | None, who: Principal, shift_days: int
+    ) -> CopyReport:
+        """Make the next term's course ``new`` from ``old``, its dates moved by ``shift_days``.
+
+        The copy is ``who``'s (its only teacher). Rigs, limits and assignments
+        (as drafts, deadlines shifted) are made in one transaction; then each
+        booking, shifted, through :class:`BookingService` — one that is over,
+        clashes with another course's or names a rig the lab no longer has is
+        left out and reported.
+
+        Raises
+        ------
+        InvalidParameterError
+            A bad name or title, or a shift beyond :data:`MAX_SHIFT_DAYS`.
+        NotFoundError
+            No course ``old``.
+        ConflictError
+            ``new`` exists.
+        AccessDeniedError
+            ``who`` is a student.
+        """
+        cleaned = new.strip().lower()
+        if not COURSE_NAME.fullmatch(cleaned):
+            raise InvalidParameterError(
+                f"course name {new!r} is not valid: use 1 to 64 letters, digits, '.', '_' or '-'"
+            )
+        if abs(shift_days) > MAX_SHIFT_DAYS:
+            raise InvalidParameterError(
+                f"a copy moves its dates by at most {MAX_SHIFT_DAYS} days, not {shift_days}"
+            )
+        if not who.is_teacher:
+            raise AccessDeniedError("only a teacher may copy a course; the copy is theirs")
+        shift = timedelta(days=shift_days)
+        now = self._clock.now()
+        report = CopyReport(cleaned, shift_days)
+        try:
+            with self._db.write() as session:
+                source = _course(session, old)
+                if session.scalar(select(Course.id).where(Course.name == cleaned)) is not None:
+                    raise ConflictError(f"course {cleaned!r} already exists; choose another name")
+                shown = " ".join((title if title is not None else source.title).split())
+                if not 0 < len(shown) <= 200:
+                    raise InvalidParameterError("a course title must have 1 to 200 characters")
+                copy = Course(
+                    name=cleaned, title=shown, enrol_code=new_enrol_code(), created_at=now
+                )
+                session.add(copy)
+                session.flush()
+                session.add(
+                    CourseMember(
+                        course_id=copy.id,
+                        user_id=who.user_id,
+                        role=Role.TEACHER.value,
+                        joined_at=now,
+                    )
+                )
+                for rig in session.scalars(
+                    select(CourseRig.rig_id).where(CourseRig.course_id == source.id)
+                ):
+                    session.add(CourseRig(course_id=copy.id, rig_id=rig))
+                limits = session.get(CourseSettingsRow, source.id)
+                if limits is not None:
+                    session.add(
+                        CourseSettingsRow(
+                            course_id=copy.id,
+                            values=dict(limits.values),
+                            version=1,
+                            updated_at=now,
+                            updated_by=who.username,
+                        )
+                    )
+                for a in session.scalars(
+                    select(Assignment)
+                    .where(Assignment.course_id == source.id)
+                    .order_by(Assignment.id)
+                ):
+                    session.add(_draft_of(a, copy.id, who.username, now, shift))
+                    report.assignments += 1
+                slots = [
+                    (b.starts_at + shift, b.ends_at + shift, b.note, b.id)
+                    for b in session.scalars(
+                        select(Booking)
+                        .where(Booking.course_id == source.id)
+                        .order_by(Booking.starts_at)
+                    )
+                ]
+                rigs = {
+                    booking: sorted(
+                        session.scalars(
+                            select(BookingRig.rig_id).where(BookingRig.booking_id == booking)
+                        )
+                    )
+                    for *_, booking in slots
+                }
+        except IntegrityError:
+            raise ConflictError(f"course {cleaned!r} already exists; choose another name") from None
+        for starts_at, ends_at, note, booking in slots:
+            try:
+                self._bookings.create(who, cleaned, rigs[booking], starts_at, ends_at, note)
+                report.bookings += 1
+            except (BookingClashError, RigBookedError, InvalidParameterError, NotFoundError) as exc:
+                report.skipped.append(SkippedSlot(starts_at, ends_at, str(exc)))
+        return report
+
+    def publish(self, assignment_id: int, who: Principal) -> None:
+        """Publish a draft assignment: its course's students see it and may hand in.
+
+        Raises
+        ------
+        NotFoundError, AccessDeniedError, CourseClosedError
+        """
+        with self._db.write() as session:
+            found = session.execute(
+                select(Assignment, Course)
+                .join(Course, Course.id == Assignment.course_id)
+                .where(Assignment.id == assignment_id)
+            ).one_or_none()
+            if found is None:
+                raise NotFoundError(f"no assignment {assignment_id}")
+            row, course = found
+            require_member(session, course, who, Role.TEACHER, "publish its assignments")
+            require_open(course, "publish its assignments")
+            row.draft = False
+            row.updated_at = self._clock.now()
+
+    def leavers(self, name: str) -> list[Leaver]:
+        """The students of the closed course ``name`` who are in no open course, by name.
+
+        Raises
+        ------
+        NotFoundError
+        ConflictError
+            If the course is open (close it first: its students are this term's).
+        """
+        with self._db.read() as session:
+            return _leavers(session, _closed(session, name))
+
+    def purge(
+        self, name: str, expected: list[str], runs: RunsChoice, password_hash: str
+    ) -> PurgeReport:
+        """Remove the leavers of the closed course ``name``, each as an administrator's removal.
+
+        ``expected`` is the list the administrator was shown (:meth:`leavers`):
+        if it is not today's list nobody is removed, so no one leaves unseen.
+        A person at a rig's controls or waiting for one is left (and named in
+        ``skipped``); the others are removed one by one.
+
+        Raises
+        ------
+        NotFoundError
+        ConflictError
+            An open course, or a list that changed since it was shown.
+        """
+        with self._db.read() as session:
+            found = [p.username for p in _leavers(session, _closed(session, name))]
+        if sorted(set(expected)) != found:
+            raise ConflictError(
+                f"the students to remove from {name!r} changed since the list was shown "
+                f"({len(found)} now); look at the list again"
+            )
+        report = PurgeReport()
+        for username in found:
+            try:
+                report.removed.append(forget_person(self._db, username, runs, password_hash))
+            except (ConflictError, NotFoundError) as exc:
+                report.skipped[username] = str(exc)
+        return report
+
+
+def _course(session: Session, name: str) -> Course:
+    found = session.scalars(select(Course).where(Course.name == name.strip().lower()))
+    course = found.one_or_none()
+    if course is None:
+        raise NotFoundError(f"no course called {name!r}")
+    return course
+
+
+def _closed(session: Session, name: str) -> Course:
+    course = _course(session, name)
+    if course.closed_at is None:
+        raise ConflictError(
+            f"course {course.name!r} is open: close it before removing its students"
+        )
+    return course
+
+
+def _leavers(session: Session, course: Course) -> list[Leaver]:
+    open_places = (
+        select(CourseMember.user_id)
+        .join(Course, Course.id == CourseMember.course_id)
+        .where(Course.closed_at.is_(None))
+    )
+    rows = session.execute(
+        select(User.username, User.display_name)
+        .join(CourseMember, CourseMember.user_id == User.id)
+        .where(
+            CourseMember.course_id == course.id,
+            CourseMember.role == Role.STUDENT.value,
+            User.role == Role.STUDENT.value,
+            User.id.not_in(open_places),
+            # Someone removed already, whose runs stay under a pseudonym (forget_person's).
+            ~(User.username.like(f"{PSEUDONYM_PREFIX}________") & User.display_name.is_(None)),
+        )
+        .order_by(User.username)
+    ).all()
+    return [Leaver(username, display) for username, display in rows]
+
+
+def _draft_of(
+    a: Assignment, course_id: int, by: str, now: datetime, shift: timedelta
+) -> Assignment:
+    return Assignment(
+        course_id=course_id,
+        title=a.title,
+        instructions=a.instructions,
+        rig_id=a.rig_id,
+        methods=list(a.methods),
+        settings=dict(a.settings),
+        tol_k=a.tol_k,
+        tol_tau=a.tol_tau,
+        tol_theta=a.tol_theta,
+        deadline=a.deadline + shift,
+        created_by=by,
+        created_at=now,
+        updated_at=now,
+        draft=True,
+    )
