@@ -104,7 +104,7 @@ class Experiment:
             self.plotter = Plotter(self.historian, twindow=self.twindow)
         return self
 
-    def __exit__(self, *exc: object) -> None:
+    def __exit__(self, exc_type: object, exc_value: object, traceback: object) -> None:
         if self.lab is not None:
             self.lab.close()
         if self.historian is not None:

@@ -107,7 +107,7 @@ class TCLabModel:
     def __enter__(self) -> TCLabModel:
         return self
 
-    def __exit__(self, *exc: object) -> None:
+    def __exit__(self, exc_type: object, exc_value: object, traceback: object) -> None:
         self.close()
 
     def close(self) -> None:

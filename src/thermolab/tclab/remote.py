@@ -130,7 +130,7 @@ def _describe(info: dict[str, Any]) -> str:
     inp = info["input"]
     return (
         f"rig {info['id']!r} ({info.get('title') or info['kind']}) has one input "
-        f"({inp['min']:g}–{inp['max']:g} {inp['unit']}) and one output "
+        f"(from {inp['min']:g} to {inp['max']:g} {inp['unit']}) and one output "
         f"(in {info.get('outputUnit') or '?'})"
     )
 
@@ -422,5 +422,5 @@ class TCLab:
     def __enter__(self) -> TCLab:
         return self
 
-    def __exit__(self, *exc: object) -> None:
+    def __exit__(self, exc_type: object, exc_value: object, traceback: object) -> None:
         self.close()
