@@ -24,6 +24,7 @@ from thermolab.tclab import (
     SecondHeaterError,
     TCLab,
     clock,
+    diagnose,
     labtime,
 )
 
@@ -153,3 +154,52 @@ def test_a_turn_ended_from_outside_raises_naming_why(served_lab: ServedLab) -> N
     finally:
         lab.close()
     assert labtime.held_by is None
+
+
+def test_diagnose_checks_the_lab_the_rig_and_its_heater(
+    served_lab: ServedLab, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _, token = served_lab.token("ana")
+    assert diagnose(url=served_lab.url, token=token, rig="kit", heat=60.0) is True
+    report = capsys.readouterr().out
+    assert "rig 'kit' (sim): input 0–100 %, output in degC" in report
+    assert "We wrote Q1 = 0.5 % and read back Q1 = 0.5 %" in report
+    assert "T1 reads per second" in report
+    assert report.rstrip().endswith("Diagnostics complete")
+    assert _teacher(served_lab, "/api/rigs/kit/reading")["u"] == 0.0
+
+
+class _FakeLab:
+    """What a turn's heartbeat thread asks of the lab, answered from a script."""
+
+    def __init__(self) -> None:
+        self.requests: list[str] = []
+
+    def request(self, method: str, path: str, **kwargs: object) -> dict[str, Any]:
+        self.requests.append(f"{method} {path}")
+        return {}
+
+
+def test_a_turn_is_extended_while_nobody_waits_and_says_when_someone_queues(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from thermolab.client import Turn
+
+    fake = _FakeLab()
+    rig = {"id": "kit", "limits": {"clientTimeout": 3600.0}}
+    turn = Turn(fake, rig)  # type: ignore[arg-type]
+    try:
+        turn._watch_queue({"queueSize": 0, "timeLeft": 50.0, "canExtend": True})
+        assert fake.requests == ["POST /api/rigs/kit/control/more-time"]
+        turn._watch_queue({"queueSize": 0, "timeLeft": 150.0, "canExtend": False})
+        for _ in range(2):  # said once, not at every heartbeat
+            turn._watch_queue({"queueSize": 2, "timeLeft": 42.0, "canExtend": False})
+        assert len(fake.requests) == 1
+        said = capsys.readouterr().err
+        assert said.count("waiting") == 1
+        assert "rig 'kit': 2 waiting in the queue; this script's turn ends in 42 s" in said
+        turn.lost = "a teacher ended the turn"
+        with pytest.raises(TurnEndedError, match="ended: a teacher ended the turn"):
+            turn.check()
+    finally:
+        turn._released.set()

@@ -274,3 +274,25 @@ def test_historian_sessions_in_memory_as_tclabs() -> None:
     # (tclab's load_session logs into the loaded session but leaves h.session at the newest;
     # ours names the session it logs into.)
     assert h.session == 1
+
+
+def test_the_tag_database_answers_as_tclabs() -> None:
+    from tclab.historian import TagDB as TheirTagDB
+
+    from thermolab.tclab import TagDB
+
+    answers = []
+    for cls in (TheirTagDB, TagDB):
+        db = cls()
+        first = db.session
+        db.record(0, "T1", 21.0)
+        db.record(1, "T1", 22.5)
+        db.new_session()
+        db.record(0, "T1", 30.0)
+        counts = [(i, n) for i, _, n in db.get_sessions()]
+        answers.append((first, counts, db.get("T1"), db.get("T1", session=1), db.get("T1", 1, 1)))
+        db.delete_session(1)
+        answers.append([i for i, _, _ in db.get_sessions()])
+        db.close()
+    assert answers[0] == answers[2]
+    assert answers[1] == answers[3] == [2]

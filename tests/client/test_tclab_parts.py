@@ -78,6 +78,17 @@ def test_a_slow_body_slows_lab_time_or_fails_beyond_its_tolerance() -> None:
         next(clock(5, 0))
 
 
+@pytest.mark.usefixtures("fast_labtime")
+def test_the_clock_never_yields_one_time_twice(monkeypatch: pytest.MonkeyPatch) -> None:
+    # A timer that wakes a hair early (a loaded machine) must not give a step again: a PID
+    # dividing by t - t_prev would divide by zero (tclab's own clock does that).
+    real = labtime.sleep
+    monkeypatch.setattr(labtime, "sleep", lambda delay: real(max(delay - 0.004, 0.0)))
+    ticks = list(clock(6, 1))
+    assert len(set(ticks)) == len(ticks)
+    assert [round(t) for t in ticks][:6] == [0, 1, 2, 3, 4, 5]
+
+
 def test_labtime_pauses_and_refuses_a_bad_rate() -> None:
     lab = LabTime()
     lab.stop()
@@ -139,10 +150,12 @@ def test_historian_logs_sessions_to_an_sqlite_file(tmp_path: Path) -> None:
     assert math.isnan(later.log[0][1])  # NaN comes back as NaN
     later.update(1.0)  # logging goes on into the loaded session
     assert later.get_sessions()[1][2] == 2
-    # The file is plain SQL: one value per row and column.
+    # The file is plain SQL: one value per time and tag (Time is the key, not a tag).
     with contextlib.closing(sqlite3.connect(db)) as plain:
         (count,) = plain.execute("SELECT COUNT(*) FROM log WHERE session = 1").fetchone()
-    assert count == 9
+        names = plain.execute("SELECT DISTINCT name FROM log ORDER BY name").fetchall()
+    assert count == 6
+    assert names == [("Q1",), ("T1",)]
     with pytest.raises(ValueError, match=r"no session 7 .*sessions: \[1, 2, 3\]"):
         later.load_session(7)
     # A session of other sources can be read, not logged into by these.

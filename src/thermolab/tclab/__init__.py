@@ -30,6 +30,7 @@ from thermolab.tclab.remote import (
     TCLab,
 )
 from thermolab.tclab.switch import setup, speedup_note
+from thermolab.tclab.tagdb import TagDB
 
 __version__ = "1.0.0"
 """The ``tclab`` version whose interface this gives (ThermoLab's: ``thermolab.__version__``)."""
@@ -49,6 +50,7 @@ __all__ = [
     "SecondHeaterError",
     "TCLab",
     "TCLabModel",
+    "TagDB",
     "__version__",
     "clock",
     "diagnose",

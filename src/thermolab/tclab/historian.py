@@ -6,51 +6,32 @@ its columns from them: ``Time`` first, then the names. A function may give
 several values at once (a tuple): the names after it, paired with ``None``,
 take the next values, so one call reads several channels.
 
-As in the ``tclab`` package every historian logs to an SQLite database —
-in memory by default (``dbfile=":memory:"``), or a file, so a notebook that
-crashed, or a later one, finds its data. Each historian (and each
-:meth:`Historian.new_session`) is a new *session*; :meth:`Historian.get_sessions`
-lists them and :meth:`Historian.load_session` reads one back.
-``dbfile=None`` keeps the log in memory without sessions. The file's layout
-is ours (standard-library :mod:`sqlite3`): ``sessions(id, started,
-columns)`` — ``started`` an ISO 8601 UTC time, ``columns`` a JSON list —
-and ``log(session, row, name, value)``, one value per column and row
-(``Time`` included), easy to query with plain SQL.
+As in the ``tclab`` package every historian logs to an SQLite database
+(a :class:`~thermolab.tclab.tagdb.TagDB`) — in memory by default
+(``dbfile=":memory:"``), or a file, so a notebook that crashed, or a later
+one, finds its data. Each historian (and each :meth:`Historian.new_session`)
+is a new *session*; :meth:`Historian.get_sessions` lists them and
+:meth:`Historian.load_session` reads one back (rows by time: two updates at
+the same time come back as one, as in ``tclab``). ``dbfile=None`` keeps the
+log in memory without sessions.
 """
 
 from __future__ import annotations
 
 import bisect
 import csv
-import datetime
-import json
 import math
-import sqlite3
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 from thermolab.tclab.labtime import labtime
+from thermolab.tclab.tagdb import TagDB
 
-__all__ = ["Historian", "NoDatabaseError", "Source"]
+__all__ = ["Historian", "NoDatabaseError", "Source", "TagDB"]
 
 Source = tuple[str, Callable[[], Any] | None]
 """A column's name and the function that gives its value (``None``: the previous one's next)."""
-
-_SCHEMA = """
-CREATE TABLE IF NOT EXISTS sessions (
-    id INTEGER PRIMARY KEY AUTOINCREMENT,
-    started TEXT NOT NULL,
-    columns TEXT NOT NULL
-);
-CREATE TABLE IF NOT EXISTS log (
-    session INTEGER NOT NULL REFERENCES sessions (id),
-    row INTEGER NOT NULL,
-    name TEXT NOT NULL,
-    value,
-    PRIMARY KEY (session, row, name)
-);
-"""
 
 
 class NoDatabaseError(NotImplementedError):
@@ -112,14 +93,13 @@ class Historian:
         self.dbfile = None if not dbfile else str(dbfile)
         self.session = 1
         self.tnow = 0.0
-        self._db: sqlite3.Connection | None = None
+        self.db: TagDB | None = None
+        """The database (``None`` without one, or once closed)."""
         if self.dbfile is not None:
-            try:
-                self._db = sqlite3.connect(self.dbfile, check_same_thread=False)
-                self._db.executescript(_SCHEMA)
-            except sqlite3.Error as exc:
-                raise ValueError(f"cannot log to {self.dbfile!r}: {exc}") from None
-            self._new_db_session()
+            self.db = TagDB(self.dbfile)
+            self.db.new_session(self.columns)
+            assert self.db.session is not None
+            self.session = self.db.session
         self.tstart = labtime.time()
         self._build_fields(self.columns)
 
@@ -129,25 +109,14 @@ class Historian:
         self.logdict: dict[str, list[Any]] = dict(zip(columns, self.fields, strict=True))
         self.t: list[Any] = self.logdict["Time"]
 
-    def _new_db_session(self) -> None:
-        assert self._db is not None
-        started = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
-        with self._db:
-            cursor = self._db.execute(
-                "INSERT INTO sessions (started, columns) VALUES (?, ?)",
-                (started, json.dumps(self.columns)),
-            )
-        assert cursor.lastrowid is not None
-        self.session = int(cursor.lastrowid)
-
-    def _database(self, what: str) -> sqlite3.Connection:
-        if self._db is None:
+    def _database(self, what: str) -> TagDB:
+        if self.db is None:
             state = "closed its database" if self.dbfile is not None else "has no database"
             raise NoDatabaseError(
                 f"{what} needs the historian's database, and this historian {state} "
                 "(Historian(sources, dbfile=':memory:' or a file) keeps sessions)"
             )
-        return self._db
+        return self.db
 
     # -- sessions ---------------------------------------------------------------------------
 
@@ -159,9 +128,11 @@ class Historian:
         NoDatabaseError
             Without a database (``dbfile=None``).
         """
-        self._database("new_session")
+        db = self._database("new_session")
         self._build_fields(["Time", *(name for name, _ in self.sources)])
-        self._new_db_session()
+        db.new_session(self.columns)
+        assert db.session is not None
+        self.session = db.session
         self.tstart = labtime.time()
 
     def get_sessions(self) -> list[tuple[int, str, int]]:
@@ -172,14 +143,7 @@ class Historian:
         NoDatabaseError
             Without a database.
         """
-        db = self._database("get_sessions")
-        return [
-            (int(i), str(started), int(rows))
-            for i, started, rows in db.execute(
-                "SELECT s.id, s.started, COUNT(DISTINCT l.row) FROM sessions s "
-                "LEFT JOIN log l ON l.session = s.id GROUP BY s.id ORDER BY s.id"
-            )
-        ]
+        return self._database("get_sessions").get_sessions()
 
     def load_session(self, session: int) -> None:
         """Replace the log (and its columns) with a stored session's rows.
@@ -195,28 +159,24 @@ class Historian:
             If the database has no such session.
         """
         db = self._database("load_session")
-        found = db.execute("SELECT columns FROM sessions WHERE id = ?", (session,)).fetchone()
-        if found is None:
-            ids = [s[0] for s in self.get_sessions()]
+        columns = db.columns(session)
+        if columns is None:
+            ids = [s[0] for s in db.get_sessions()]
             raise ValueError(f"no session {session!r} in {self.dbfile!r}; sessions: {ids}")
-        self._build_fields(list(json.loads(found[0])))
-        rows: dict[int, dict[str, Any]] = {}
-        for row, name, value in db.execute(
-            "SELECT row, name, value FROM log WHERE session = ? ORDER BY row", (session,)
-        ):
-            rows.setdefault(int(row), {})[str(name)] = math.nan if value is None else value
-        for values in rows.values():
-            for name, column in zip(self.columns, self.fields, strict=True):
+        self._build_fields(columns)
+        for t, values in db.rows(session).items():
+            self.t.append(t)
+            for name, column in zip(self.columns[1:], self.fields[1:], strict=True):
                 column.append(values.get(name, math.nan))
-        self.session = int(session)
+        db.session = self.session = int(session)
         self.tnow = self.t[-1] if self.t else 0.0
         self.tstart = labtime.time() - self.tnow
 
     def close(self) -> None:
-        """Close the database (the log in memory stays readable)."""
-        if self._db is not None:
-            self._db.close()
-            self._db = None
+        """Close the database (its empty sessions deleted); the log in memory stays readable."""
+        if self.db is not None:
+            self.db.close()
+            self.db = None
 
     # -- logging ----------------------------------------------------------------------------
 
@@ -257,15 +217,8 @@ class Historian:
             )
         self.tnow = labtime.time() - self.tstart if tnow is None else tnow
         row = [self.tnow, *self._values()]
-        if self._db is not None:
-            with self._db:
-                self._db.executemany(
-                    "INSERT INTO log (session, row, name, value) VALUES (?, ?, ?, ?)",
-                    [
-                        (self.session, len(self.t), c, _storable(v))
-                        for c, v in zip(self.columns, row, strict=True)
-                    ],
-                )
+        if self.db is not None:
+            self.db.record_row(self.tnow, dict(zip(self.columns[1:], row[1:], strict=True)))
         for column, value in zip(self.fields, row, strict=True):
             column.append(value)
 
@@ -320,13 +273,3 @@ class Historian:
             writer = csv.writer(stream)
             writer.writerow(self.columns)
             writer.writerows(self.log)
-
-
-def _storable(value: Any) -> Any:
-    # SQLite stores numbers and text; anything else (a NumPy scalar) as its float or text.
-    if value is None or isinstance(value, int | float | str | bytes):
-        return value
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        return str(value)

@@ -189,6 +189,7 @@ def clock(
         yield from _held_clock(start, period, step)
         return
     now = 0.0
+    k = 0  # the step yielded last
     while round(now) <= period:
         yield round(now, 2)
         if round(now) >= period:
@@ -206,7 +207,10 @@ def clock(
                 f"{elapsed:.2f} s passed ({elapsed - step:.2f} s more; tol = {tol:g} s). "
                 "Make the step larger or the loop's body faster"
             )
-        labtime.sleep(step - (labtime.time() - start) % step)
+        # To the next multiple of step (skipping those missed), and never the same one twice:
+        # a sleep that wakes a hair early would otherwise yield one time twice (tclab does).
+        k = max(k + 1, math.floor((labtime.time() - start) / step + 1e-9) + 1)
+        labtime.sleep(k * step - (labtime.time() - start))
         now = labtime.time() - start
 
 
