@@ -134,10 +134,16 @@ def _to_lab(source: str) -> str:
 def _preamble(side: str, speedup: float, real_sleep: bool) -> str:
     lines = ["import matplotlib", "matplotlib.use('Agg')"]
     if not real_sleep:
+        # The notebook's own time.sleep only: tclab's and thermolab's lab time sleep for real.
         lines += [
-            "import time as _time",
+            "import sys as _sys, time as _time",
             "_real_sleep = _time.sleep",
-            f"_time.sleep = lambda seconds: _real_sleep(seconds / {speedup!r})",
+            "def _scaled_sleep(seconds):",
+            "    caller = _sys._getframe(1).f_globals.get('__name__', '')",
+            "    if caller.startswith(('tclab', 'thermolab')):",
+            "        return _real_sleep(seconds)",
+            f"    return _real_sleep(seconds / {speedup!r})",
+            "_time.sleep = _scaled_sleep",
         ]
     if side == "lab":  # lab time as fast as the model's until a TCLab holds the twin's
         lines += ["import thermolab.tclab as _tclab", f"_tclab.labtime.set_rate({speedup!r})"]

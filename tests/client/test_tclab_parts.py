@@ -89,6 +89,21 @@ def test_the_clock_never_yields_one_time_twice(monkeypatch: pytest.MonkeyPatch) 
     assert [round(t) for t in ticks][:6] == [0, 1, 2, 3, 4, 5]
 
 
+def test_a_lab_twins_clock_never_runs_ahead_of_the_twin(monkeypatch: pytest.MonkeyPatch) -> None:
+    labtime.hold(50.0, "rig 'kit' of the lab at http://lab runs at 50x")
+    try:
+        real = labtime.sleep
+        monkeypatch.setattr(labtime, "sleep", lambda delay: real(max(delay - 0.3, 0.0)))
+        start = labtime.time()
+        seen = [(t, labtime.time() - start) for t in clock(5, 1)]
+    finally:
+        labtime.hold(1.0, None)
+        labtime.set_rate(1.0)
+    assert len(seen) == 6
+    assert all(now >= k for k, (_, now) in enumerate(seen))  # a step waits for its time
+    assert all(abs(t - now) < 0.5 for t, now in seen)  # and gives the twin's time
+
+
 def test_labtime_pauses_and_refuses_a_bad_rate() -> None:
     lab = LabTime()
     lab.stop()

@@ -210,8 +210,8 @@ def clock(
         # To the next multiple of step (skipping those missed), and never the same one twice:
         # a sleep that wakes a hair early would otherwise yield one time twice (tclab does).
         k = max(k + 1, math.floor((labtime.time() - start) / step + 1e-9) + 1)
-        labtime.sleep(k * step - (labtime.time() - start))
-        now = labtime.time() - start
+        while (now := labtime.time() - start) < k * step:
+            labtime.sleep(k * step - now)
 
 
 def _held_clock(start: float, period: float, step: float) -> Iterator[float]:
@@ -219,7 +219,7 @@ def _held_clock(start: float, period: float, step: float) -> Iterator[float]:
     k = 0
     warned = False
     while True:
-        yield round(max(labtime.time() - start, k * step), 2) if k else 0.0
+        yield round(labtime.time() - start, 2) if k else 0.0
         k += 1
         if k * step > period + 1e-9:
             return
@@ -227,5 +227,6 @@ def _held_clock(start: float, period: float, step: float) -> Iterator[float]:
         if late > step and not warned:
             print(_late_note(late, step), file=sys.stderr)
             warned = True
-        if late < 0:
+        while late < 0:  # a timer may wake a hair early: the step's time is not yet there
             labtime.sleep(-late)
+            late = labtime.time() - start - k * step
