@@ -2,16 +2,15 @@
 
 The kit has two heaters (transistors) each glued to a temperature sensor
 (a TMP36) on one board. Each heater loses heat to the room and exchanges
-heat with the other; each sensor lags behind its heater. With temperatures
-measured from the ambient :math:`T_a`, heater power :math:`P_i Q_i` (the
-PWM limit :math:`P_i` in counts of 255, the heater :math:`Q_i` in %):
+heat with the other; each sensor lags behind its heater. With ``TH1``,
+``TH2`` the heaters' and ``TS1``, ``TS2`` the sensors' temperatures, ``Ta``
+the room's, and heater power ``P_i Q_i`` (the PWM limit ``P_i`` in counts
+of 255, the heater ``Q_i`` in %)::
 
-.. math::
-
-    \\dot T_{H1} &= k P_1 Q_1 + (T_a - T_{H1}) / \\tau_a - (T_{H1} - T_{H2}) / \\tau_x \\\\
-    \\dot T_{H2} &= k P_2 Q_2 + (T_a - T_{H2}) / \\tau_a + (T_{H1} - T_{H2}) / \\tau_x \\\\
-    \\dot T_{S1} &= (T_{H1} - T_{S1}) / \\tau_s, \\qquad
-    \\dot T_{S2} = (T_{H2} - T_{S2}) / \\tau_s
+    dTH1/dt = k P1 Q1 + (Ta - TH1) / tau_a - (TH1 - TH2) / tau_x
+    dTH2/dt = k P2 Q2 + (Ta - TH2) / tau_a + (TH1 - TH2) / tau_x
+    dTS1/dt = (TH1 - TS1) / tau_s
+    dTS2/dt = (TH2 - TS2) / tau_s
 
 A sensor reading adds Gaussian noise and is quantised the way the kit's
 10-bit converter quantises a TMP36 (3.3 V / 1024 counts at 10 mV/°C: about
@@ -26,11 +25,11 @@ offline :class:`thermolab.tclab.TCLabModel` and a twin can use it.
 
 References
 ----------
-.. [1] J. C. Kantor, "Modeling and Control of the Temperature Control
+1. J. C. Kantor, "Modeling and Control of the Temperature Control
    Laboratory", CBE 30338 course notes, University of Notre Dame
    (github.com/jckantor/CBE30338, chapters 2–4): the four-state structure
    of two heater–sensor pairs.
-.. [2] The ``tclab`` package 1.0.0 (github.com/jckantor/TCLab), whose
+2. The ``tclab`` package 1.0.0 (github.com/jckantor/TCLab), whose
    ``TCLabModel`` publishes the per-unit constants used here as defaults:
    ``k`` = 1/5720 K/(s·%·count), ``tau_a`` = 20 s, ``tau_x`` = 100 s,
    ``tau_s`` = 140 s, ambient 21 °C, P1 = 200, P2 = 100, noise 0.043 °C,
