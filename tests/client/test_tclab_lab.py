@@ -203,3 +203,13 @@ def test_a_turn_is_extended_while_nobody_waits_and_says_when_someone_queues(
             turn.check()
     finally:
         turn._released.set()
+
+
+def test_closing_gives_lab_time_back_at_the_notebooks_pace(served_lab: ServedLab) -> None:
+    _, token = served_lab.token("ben")
+    labtime.set_rate(3)
+    with TCLab(url=served_lab.url, token=token, rig="kit"):
+        assert labtime.get_rate() == SPEEDUP
+        assert labtime.held_by == f"rig 'kit' of the lab at {served_lab.url} runs at 20x"
+    assert labtime.held_by is None
+    assert labtime.get_rate() == 3.0

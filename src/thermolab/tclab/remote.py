@@ -237,6 +237,7 @@ class TCLab:
             _install_exit_hooks()
             self._turn = self.lab.control(self.rig_id, timeout=wait)
             held = f"rig {self.rig_id!r} of the lab at {self.lab.url} runs at {self.speedup:g}x"
+            self._rate_before = labtime.get_rate()  # the notebook's pace comes back at close()
             labtime.hold(self.speedup, held if self.speedup != 1 else None)
             if self.speedup == 1:
                 labtime.set_rate(1)
@@ -407,6 +408,7 @@ class TCLab:
         _open.discard(self)
         if labtime.held_by is not None and f"rig {self.rig_id!r}" in labtime.held_by:
             labtime.hold(self.speedup, None)
+            labtime.set_rate(self._rate_before)
         turn, self._turn = self._turn, None
         try:
             if turn is not None and turn.held:
