@@ -196,7 +196,10 @@ def test_a_lab_of_another_api_version_is_refused_clearly(
 def test_a_server_that_is_not_a_lab_and_a_lab_that_is_not_there(served_lab: ServedLab) -> None:
     with pytest.raises(IncompatibleLabError, match="not a ThermoLab lab"):
         Lab(served_lab.url + "/nowhere", "tlab_x")
-    with pytest.raises(LabRequestError, match="unreachable"):
-        Lab(f"http://127.0.0.1:{free_port()}", "tlab_x")
+    nowhere = f"http://127.0.0.1:{free_port()}"
+    with pytest.raises(LabRequestError, match=f"^cannot reach the lab at {nowhere} ") as gone:
+        Lab(nowhere, "tlab_x")
+    assert gone.value.code == "unreachable"
+    assert gone.value.status is None
     with pytest.raises(InvalidParameterError, match="THERMOLAB_URL"):
         Lab(None, "tlab_x")

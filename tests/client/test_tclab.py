@@ -86,14 +86,15 @@ def test_a_kit_notebook_runs_against_the_lab_with_only_its_import_changed(
     assert "TCLab disconnected successfully." in stderr
     with out.open(encoding="utf-8") as stream:
         rows = list(csv.reader(stream))
-    assert rows[0] == ["Time", "T1", "Q1"]
+    assert rows[0] == ["Time", "T1", "T2", "Q1", "Q2"]  # the kit's columns, as in tclab
     log = [[float(v) for v in row] for row in rows[1:]]
     times = [r[0] for r in log]
     assert times[0] == 0.0
-    assert 145.0 <= times[-1] < 160.0  # clock(150): 150 lab seconds
-    assert len(log) >= 50  # one row per lab second (steps missed on a busy machine skipped)
+    assert 150.0 <= times[-1] < 160.0  # clock(150): 150 lab seconds
+    assert len(log) == 151  # one row per lab second: none skipped on a busy machine
     assert times == sorted(times)
-    assert [r[2] for r in log if r[0] >= 11] == [50.0] * sum(r[0] >= 11 for r in log)
+    assert all(r[2] != r[2] and r[4] != r[4] for r in log)  # T2, Q2: NaN on one heater
+    assert [r[3] for r in log if r[0] >= 11] == [50.0] * sum(r[0] >= 11 for r in log)
     # The kit's twin: 0.6 degC/% over 140 s behind a 16 s delay: the heater step shows.
     assert 18.0 < log[0][1] < 25.0
     assert log[-1][1] > log[0][1] + 8.0
@@ -136,7 +137,7 @@ def test_the_twin_at_the_labs_speedup_one_heater_and_the_kits_other_names(
     served_lab: ServedLab, capsys: pytest.CaptureFixture[str]
 ) -> None:
     _, token = served_lab.token("ben")
-    TwinLab = setup(connected=False, speedup=10)
+    TwinLab = setup(connected=False, speedup=10, twin=True)  # no $THERMOLAB_URL here
     with TwinLab(url=served_lab.url, token=token) as lab:
         note = capsys.readouterr().out
         assert "the lab's twin runs at 20x real time, not the 10x asked for" in note
@@ -144,7 +145,7 @@ def test_the_twin_at_the_labs_speedup_one_heater_and_the_kits_other_names(
         assert lab.speedup == SPEEDUP
         assert lab.rig_id == "kit"  # the simulated rig with a heater (%)
         assert labtime.rate == SPEEDUP
-        with pytest.raises(SecondHeaterError, match="one heater and one sensor: Q2"):
+        with pytest.raises(SecondHeaterError, match=r"rig 'kit' .*one heater .*so Q2 does not"):
             lab.Q2(10)
         with pytest.raises(SecondHeaterError, match="T2"):
             _ = lab.T2
@@ -165,8 +166,8 @@ def test_the_twin_at_the_labs_speedup_one_heater_and_the_kits_other_names(
         assert time.monotonic() - start < 10.0 / SPEEDUP * 5  # lab seconds at the lab's pace
         assert ticks[0] == 0.0
         assert len(ticks) == 6
-        assert h.columns == ["Time", "T1", "Q1"]
-        assert h.at(0.0)[2] == 20.0
+        assert h.columns == ["Time", "T1", "T2", "Q1", "Q2"]
+        assert h.at(0.0)[3] == 20.0
     with pytest.raises(RuntimeError, match="closed"):
         lab.Q1(10)
     with pytest.raises(ValueError, match="speedup must be 1"):

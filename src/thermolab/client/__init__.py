@@ -10,7 +10,7 @@ version (or an older minor) with one clear message. It imports nothing of
 the lab's server side (a contract in ``pyproject.toml`` checks it).
 """
 
-from thermolab.client.errors import LabRequestError
+from thermolab.client.errors import LabRequestError, TurnEndedError
 from thermolab.client.lab import ENV_TOKEN, ENV_URL, Lab, Reading, Turn, print_place
 from thermolab.client.live import follow_run
 from thermolab.client.runs import RunData
@@ -23,6 +23,7 @@ __all__ = [
     "Reading",
     "RunData",
     "Turn",
+    "TurnEndedError",
     "follow_run",
     "print_place",
 ]

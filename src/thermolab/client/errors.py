@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from thermolab.errors import ThermoLabError
 
-__all__ = ["LabRequestError"]
+__all__ = ["LabRequestError", "TurnEndedError"]
 
 
 class LabRequestError(ThermoLabError, RuntimeError):
@@ -21,10 +21,43 @@ class LabRequestError(ThermoLabError, RuntimeError):
         The lab's reason, one line.
     """
 
-    def __init__(self, method: str, path: str, status: int | None, code: str, detail: str):
+    def __init__(
+        self,
+        method: str,
+        path: str,
+        status: int | None,
+        code: str,
+        detail: str,
+        *,
+        url: str | None = None,
+    ):
         where = f"{method} {path}"
-        shown = f"{status} {code}" if status is not None else code
-        super().__init__(f"the lab refused {where}: {detail} ({shown})")
+        if code == "unreachable":
+            # No answer at all: nothing was refused, and the address is what to check.
+            super().__init__(f"cannot reach the lab at {url or '?'} ({where}): {detail}")
+        else:
+            shown = f"{status} {code}" if status is not None else code
+            super().__init__(f"the lab refused {where}: {detail} ({shown})")
         self.status = status
         self.code = code
         self.detail = detail
+
+
+class TurnEndedError(ThermoLabError, RuntimeError):
+    """This script's turn at a rig ended while it ran (time limit, a teacher, a revoked token...).
+
+    Attributes
+    ----------
+    rig : str
+        The rig.
+    reason : str
+        Why, as the lab said it.
+    """
+
+    def __init__(self, rig: str, reason: str):
+        super().__init__(
+            f"the turn at rig {rig!r} ended: {reason}. The lab put the rig at its safe input; "
+            "ask for control again (a new TCLab() or Lab.control) to go on"
+        )
+        self.rig = rig
+        self.reason = reason

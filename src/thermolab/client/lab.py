@@ -22,7 +22,7 @@ import httpx
 
 from thermolab import __version__
 from thermolab.api_version import API_VERSION, is_compatible, parse_api_version
-from thermolab.client.errors import LabRequestError
+from thermolab.client.errors import LabRequestError, TurnEndedError
 from thermolab.client.live import follow_run
 from thermolab.client.runs import RunData
 from thermolab.errors import IncompatibleLabError, InvalidParameterError
@@ -127,8 +127,8 @@ class Lab:
         try:
             answer = self._http.request(method, path, **kwargs)
         except httpx.HTTPError as exc:
-            detail = f"{exc} at {self.url}"
-            raise LabRequestError(method, path, None, "unreachable", detail) from exc
+            reason = str(exc) or type(exc).__name__
+            raise LabRequestError(method, path, None, "unreachable", reason, url=self.url) from exc
         if answer.status_code >= 400:
             try:
                 body = answer.json()
@@ -328,16 +328,29 @@ class Turn:
     """This script's turn at a rig: commands, readings, runs; released on exit.
 
     While it is held a thread keeps it alive (a heartbeat each third of the
-    lab's client timeout). :meth:`release` (or leaving the ``with`` block,
-    normally or by an exception) ends it, and the lab puts the rig's input at
-    its safe value for the next user.
+    lab's client timeout). While nobody waits, the turn is extended in its
+    last minute as far as the lab allows (``POST .../control/more-time``);
+    once someone queues, the script is told on standard error how long it
+    has left. :meth:`release` (or leaving the ``with`` block, normally or by
+    an exception) ends it, and the lab puts the rig's input at its safe value
+    for the next user.
+
+    Parameters
+    ----------
+    lab : Lab
+    rig : dict
+        The rig as the lab answered when control was granted.
+    extend : bool
+        Extend the turn while nobody waits (default ``True``).
     """
 
-    def __init__(self, lab: Lab, rig: dict[str, Any]) -> None:
+    def __init__(self, lab: Lab, rig: dict[str, Any], *, extend: bool = True) -> None:
         self.lab = lab
         self.rig = rig
         self.rig_id: str = rig["id"]
         self.lost: str | None = None
+        self.extend = extend
+        self._told_queue = False
         self._released = threading.Event()
         interval = max(0.5, float(rig["limits"]["clientTimeout"]) / 3.0)
         self._beat = threading.Thread(
@@ -350,6 +363,11 @@ class Turn:
         """Whether the turn is (as far as the client knows) still this script's."""
         return not self._released.is_set() and self.lost is None
 
+    def check(self) -> None:
+        """Raise :class:`TurnEndedError` (naming why) if the lab ended the turn."""
+        if self.lost is not None:
+            raise TurnEndedError(self.rig_id, self.lost)
+
     def _keep_alive(self, interval: float) -> None:
         while not self._released.wait(interval):
             try:
@@ -359,9 +377,28 @@ class Turn:
                     self.lost = exc.detail
                     return
                 continue  # a network blip: try again next time
-            if rig["access"]["role"] != "controller":
+            access = rig["access"]
+            if access["role"] != "controller":
                 self.lost = "the turn ended (time limit, a teacher, or the rig's fault)"
                 return
+            self._watch_queue(access)
+
+    def _watch_queue(self, access: dict[str, Any]) -> None:
+        waiting = int(access.get("queueSize") or 0)
+        left = access.get("timeLeft")
+        if waiting and not self._told_queue:
+            about = f" ends in {left:.0f} s" if isinstance(left, int | float) else " is limited"
+            print(
+                f"rig {self.rig_id!r}: {waiting} waiting in the queue; this script's turn{about} "
+                "(no more extensions while someone waits)",
+                file=sys.stderr,
+                flush=True,
+            )
+        self._told_queue = bool(waiting)
+        if self.extend and not waiting and access.get("canExtend"):
+            # Refused (the lab's limit of extensions, someone just queued): the turn ends on time.
+            with contextlib.suppress(LabRequestError):
+                self.lab.request("POST", f"/api/rigs/{self.rig_id}/control/more-time")
 
     def set_input(self, u: float) -> float | None:
         """Set the rig's input; return the value the device applied (``None``: none)."""

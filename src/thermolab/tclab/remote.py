@@ -29,17 +29,48 @@ from collections.abc import Callable
 from types import FrameType
 from typing import Any, ClassVar
 
-from thermolab.client import Lab, LabRequestError, Turn
+from thermolab.client import Lab, LabRequestError, Reading, Turn
 from thermolab.tclab.labtime import labtime
 
-__all__ = ["ENV_RIG", "SecondHeaterError", "TCLab"]
+__all__ = [
+    "ENV_RIG",
+    "KIT_P1",
+    "AlreadyConnectedError",
+    "NotAKitError",
+    "NotOnThisRigError",
+    "PortError",
+    "SecondHeaterError",
+    "TCLab",
+]
 
 ENV_RIG = "THERMOLAB_RIG"
 
 
-class SecondHeaterError(NotImplementedError):
-    """The rig has one heater and one sensor: ``Q2``/``T2`` do not exist there."""
+class NotOnThisRigError(NotImplementedError):
+    """What the ``tclab`` package does on a kit, this lab rig cannot (the message says why)."""
 
+
+class SecondHeaterError(NotOnThisRigError):
+    """The rig has one heater and one sensor: ``Q2``/``T2``/``U2``/``P2`` do not exist there."""
+
+
+class NotAKitError(ValueError):
+    """The rig is not a heater (%) and a temperature sensor (°C): ``TCLab`` cannot drive it."""
+
+
+class AlreadyConnectedError(RuntimeError):
+    """This process already has an open ``TCLab`` on that rig (close it first), as in ``tclab``."""
+
+
+class PortError(RuntimeError):
+    """``TCLab(port=...)``: a lab rig has no serial port (the ``tclab`` package's RuntimeError)."""
+
+
+KIT_P1 = 200.0
+"""Heater 1's PWM limit (counts of 255) at which a kit's 100 % is a lab rig's 100 %."""
+
+TEMPERATURE_UNITS = frozenset({"°C", "degC", "C", "ºC"})
+"""Output units ``T1`` reads as a temperature in °C."""
 
 _open: weakref.WeakSet[TCLab] = weakref.WeakSet()
 _guard = threading.Lock()
@@ -70,12 +101,16 @@ def _install_exit_hooks() -> None:
                     signal.signal(number, _exit_on_signal)
 
 
+def _kit_like(rig: dict[str, Any]) -> bool:
+    return bool(rig["input"]["unit"] == "%" and rig.get("outputUnit") in TEMPERATURE_UNITS)
+
+
 def _pick_rig(rigs: list[dict[str, Any]], simulated: bool | None) -> str:
     if not rigs:
         raise LabRequestError("GET", "/api/rigs", None, "no_rigs", "the lab has no rigs")
     if simulated is True:
         twins = [r for r in rigs if r["kind"] == "sim"]
-        heated = [r for r in twins if r["input"]["unit"] == "%"]
+        heated = [r for r in twins if _kit_like(r)]
         if not twins:
             raise LabRequestError(
                 "GET",
@@ -86,16 +121,38 @@ def _pick_rig(rigs: list[dict[str, Any]], simulated: bool | None) -> str:
             )
         return str((heated or twins)[0]["id"])
     kits = [r for r in rigs if r["kind"] == "tclab"]
-    return str((kits or rigs)[0]["id"])
+    alike = [r for r in rigs if _kit_like(r)]
+    return str((kits or alike or rigs)[0]["id"])
+
+
+def _describe(info: dict[str, Any]) -> str:
+    """What a rig has, in a user's words: ``rig 'box' (The box): input u 0–10 V, output y in V``."""
+    inp = info["input"]
+    return (
+        f"rig {info['id']!r} ({info.get('title') or info['kind']}) has one input "
+        f"(from {inp['min']:g} to {inp['max']:g} {inp['unit']}) and one output "
+        f"(in {info.get('outputUnit') or '?'})"
+    )
+
+
+def _check_kit(info: dict[str, Any]) -> None:
+    unit_in, unit_out = info["input"]["unit"], info.get("outputUnit")
+    if not _kit_like(info):
+        raise NotAKitError(
+            f"{_describe(info)}: TCLab needs a heater in % and a temperature sensor in °C, so "
+            f"T1 would read {unit_out} as °C and Q1 would set {unit_in} as %. Use a TCLab rig "
+            "(or the kit's twin, spec sim:tclab), or drive this rig with thermolab.client.Lab"
+        )
 
 
 class TCLab:
-    """The TCLab kit's interface on a lab rig: ``T1``, ``Q1``, ``LED``, ``close``...
+    """The TCLab kit's interface on a lab rig: ``T1``, ``Q1``, ``LED``, ``scan``, ``close``...
 
     Parameters
     ----------
     port : str
-        Ignored (the kit's serial port); kept so that ``TCLab()`` calls run unchanged.
+        The kit's serial port: a lab rig has none, so only the default ``""``
+        is accepted (:class:`PortError`, a ``RuntimeError`` as in ``tclab``).
     debug : bool
         Print each command.
     url, token, rig : str, optional
@@ -108,6 +165,21 @@ class TCLab:
     speedup : float
         The rig's speed-up when it connected (``labtime`` follows it): 1 for
         hardware, a twin's teacher setting (1 when the lab does not know it).
+    sources : list of (name, callable or None)
+        ``T1``, ``T2``, ``Q1``, ``Q2`` from one :meth:`scan`, for a
+        :class:`~thermolab.tclab.Historian` (on a one-heater rig ``T2`` and
+        ``Q2`` are NaN, so the record has the kit's columns).
+
+    Raises
+    ------
+    PortError
+        For a ``port``.
+    NotAKitError
+        For a rig that is not a heater in % and a sensor in °C (naming what it has).
+    AlreadyConnectedError
+        If this process already holds the rig through another open ``TCLab``.
+    thermolab.client.LabRequestError
+        If the lab cannot be reached ("cannot reach the lab at ...") or refuses.
     """
 
     _simulated: ClassVar[bool | None] = None  # set by ``setup(connected=...)``
@@ -124,11 +196,17 @@ class TCLab:
         rig: str | None = None,
         wait: float | None = None,
     ) -> None:
+        self.connected = False
+        if port:
+            raise PortError(
+                f"TCLab(port={port!r}): a lab rig has no serial port. Leave port out; the rig "
+                f"comes from rig= or ${ENV_RIG} (and the lab from url= or $THERMOLAB_URL)"
+            )
         self.debug = debug
         self._turn: Turn | None = None
-        self._q1 = 0.0
         self._led = 0.0
-        self.connected = False
+        self._p1 = KIT_P1
+        self._q1 = 0.0  # the last Q1 set, for reading it back under P1 = 0
         self.lab = Lab(url, token)
         try:
             rigs = self.lab.rigs()
@@ -144,19 +222,39 @@ class TCLab:
                     f"no rig {self.rig_id!r}; the lab has {known}",
                 )
             self.info = info
+            _check_kit(info)
+            self._key = (self.lab.url, self.rig_id)
+            with _guard:
+                if any(kit._key == self._key for kit in _open):
+                    raise AlreadyConnectedError(
+                        f"this process already has an open TCLab on rig {self.rig_id!r} of "
+                        f"the lab at {self.lab.url}: close() it (or leave its with-block) first"
+                    )
             self._low = float(info["input"]["min"])
             self._high = float(info["input"]["max"])
             # The rig's own speed-up (a twin's: its teacher's setting; unknown on a rig host: 1).
             self.speedup = float(info.get("speedup") or 1.0)
-            labtime.set_rate(self.speedup)
             _install_exit_hooks()
             self._turn = self.lab.control(self.rig_id, timeout=wait)
+            held = f"rig {self.rig_id!r} of the lab at {self.lab.url} runs at {self.speedup:g}x"
+            self._rate_before = labtime.get_rate()  # the notebook's pace comes back at close()
+            labtime.hold(self.speedup, held if self.speedup != 1 else None)
+            if self.speedup == 1:
+                labtime.set_rate(1)
         except BaseException:
+            if self._turn is not None:
+                self._turn.release()
             self.lab.close()
             raise
         _open.add(self)
         self.connected = True
         self.version = f"ThermoLab {self.lab.info.get('version')} (API {self.lab.info.get('api')})"
+        self.sources: list[tuple[str, Callable[[], Any] | None]] = [
+            ("T1", self.scan),
+            ("T2", None),
+            ("Q1", None),
+            ("Q2", None),
+        ]
         speed = f" at {self.speedup:g}x" if self.speedup != 1 else ""
         print(f"TCLab connected to rig {self.rig_id!r}{speed} of the lab at {self.lab.url}.")
 
@@ -165,53 +263,87 @@ class TCLab:
     def _held(self) -> Turn:
         if self._turn is None or not self.connected:
             raise RuntimeError("this TCLab is closed; make a new one (TCLab()) to use the rig")
-        if self._turn.lost is not None:
-            raise RuntimeError(f"the turn at rig {self.rig_id!r} ended: {self._turn.lost}")
+        self._turn.check()
         return self._turn
 
-    def _second(self, name: str) -> SecondHeaterError:
+    def _request(self, call: Callable[[Turn], Any]) -> Any:
+        turn = self._held()
+        try:
+            return call(turn)
+        except LabRequestError as exc:
+            # A refusal because the turn just ended says so, by its reason.
+            if exc.status in (401, 403, 409):
+                turn.lost = turn.lost or exc.detail
+                turn.check()
+            raise
+
+    def _missing(self, name: str) -> SecondHeaterError:
         return SecondHeaterError(
-            f"rig {self.rig_id!r} has one heater and one sensor: {name} does not exist "
-            "there (use Q1 and T1)"
+            f"{_describe(self.info)}: one heater (Q1, U1, P1) and one sensor (T1), so {name} "
+            "does not exist there. The kit's second heater and sensor need a two-heater rig; "
+            "scan() and sources give NaN for T2 and Q2 here"
         )
+
+    def _reading(self) -> Reading:
+        reading: Reading = self._request(lambda turn: turn.read())
+        if reading.y is None:
+            raise RuntimeError(f"rig {self.rig_id!r} gave no reading (is it powered?)")
+        return reading
 
     @property
     def T1(self) -> float:
-        """Temperature of sensor 1 (the rig's output, in its unit), read now."""
-        reading = self._held().read()
-        if reading.y is None:
-            raise RuntimeError(f"rig {self.rig_id!r} gave no reading (is it powered?)")
+        """Temperature of sensor 1 in °C, read now."""
+        value = float(self._reading().y or 0.0)
         if self.debug:
-            print(f"T1 -> {reading.y}")
-        return float(reading.y)
+            print(f"T1 -> {value}")
+        return value
 
     @property
     def T2(self) -> float:
-        """Sensor 2: not on the lab's rigs (:class:`SecondHeaterError`)."""
-        raise self._second("T2")
+        """Sensor 2: not on a one-heater rig (:class:`SecondHeaterError`)."""
+        raise self._missing("T2")
+
+    def _q1_of(self, applied: float | None) -> float:
+        # The rig's input is the heater's share of its full power; Q1 is that share under P1.
+        if applied is None or self._p1 == 0:
+            return self._q1
+        return round(float(applied) * KIT_P1 / self._p1, 9)
 
     def Q1(self, val: float | None = None) -> float:
-        """Set heater 1 to ``val`` (clipped to the rig's range, as the kit clips); return it."""
+        """Heater 1 in %: set it to ``val`` clipped to 0–100 (if given); return it, read now.
+
+        Under a ``P1`` below the kit's 200, the rig receives ``Q1 × P1 / 200``
+        % of its full heater, as the kit's PWM limit scales its heater.
+
+        Raises
+        ------
+        ValueError
+            For a value that is not a finite number.
+        """
         if val is None:
-            return self._q1
+            value = self._q1_of(self._reading().u)
+            if self.debug:
+                print(f"Q1 -> {value}")
+            return value
         value = float(val)
         if not math.isfinite(value):
-            raise ValueError(f"Q1 must be a finite number; got {val!r}")
+            raise ValueError(f"Q1 must be a finite number of %; got {val!r}")
         value = min(max(value, self._low), self._high)
-        self._held().set_input(value)
+        applied = value * self._p1 / KIT_P1
+        self._request(lambda turn: turn.set_input(applied))
+        self._q1 = value
         if self.debug:
             print(f"Q1 <- {value}")
-        self._q1 = value
         return value
 
     def Q2(self, val: float | None = None) -> float:
-        """Heater 2: not on the lab's rigs (:class:`SecondHeaterError`)."""
-        raise self._second("Q2")
+        """Heater 2: not on a one-heater rig (:class:`SecondHeaterError`)."""
+        raise self._missing("Q2")
 
     @property
     def U1(self) -> float:
-        """Heater 1, as a property."""
-        return self._q1
+        """Heater 1 in %, as a property (read now)."""
+        return self.Q1()
 
     @U1.setter
     def U1(self, val: float) -> None:
@@ -219,26 +351,54 @@ class TCLab:
 
     @property
     def U2(self) -> float:
-        """Heater 2: not on the lab's rigs."""
-        raise self._second("U2")
+        """Heater 2: not on a one-heater rig."""
+        raise self._missing("U2")
 
     @U2.setter
     def U2(self, val: float) -> None:
-        raise self._second("U2")
+        raise self._missing("U2")
+
+    @property
+    def P1(self) -> float:
+        """Heater 1's PWM limit in counts of 255 (the kit's 200 at the start).
+
+        Setting it clips to 0–255 as the kit does; the lab's rig at 100 % is
+        the kit at ``P1 = 200``, so limits up to 200 are applied by scaling
+        the heater, and above 200 are refused (:class:`NotOnThisRigError`).
+        """
+        return self._p1
+
+    @P1.setter
+    def P1(self, val: float) -> None:
+        limit = min(max(float(val), 0.0), 255.0)
+        if limit > KIT_P1:
+            raise NotOnThisRigError(
+                f"rig {self.rig_id!r}: its full heater is the kit's P1 = {KIT_P1:g} (of 255), "
+                f"so P1 = {val!r} (more power than that) cannot be applied; use P1 <= {KIT_P1:g}"
+            )
+        q1 = self._q1
+        self._p1 = limit
+        if self.connected:
+            self.Q1(q1)  # the heater's power follows its new limit now, as on the kit
+
+    @property
+    def P2(self) -> float:
+        """Heater 2's PWM limit: not on a one-heater rig."""
+        raise self._missing("P2")
+
+    @P2.setter
+    def P2(self, val: float) -> None:
+        raise self._missing("P2")
 
     def LED(self, val: float = 100) -> float:
-        """The kit's LED: the lab's rigs have none; the value is kept and returned."""
+        """The kit's LED in %: the lab's rigs have none; ``val`` is clipped to 0–100, returned."""
         self._led = min(max(float(val), 0.0), 100.0)
         return self._led
 
     def scan(self) -> tuple[float, float, float, float]:
-        """``(T1, T2, Q1, Q2)``; the channels a one-heater rig lacks are NaN."""
-        return (self.T1, math.nan, self._q1, math.nan)
-
-    @property
-    def sources(self) -> list[tuple[str, Callable[[], float]]]:
-        """``(name, function)`` pairs for a :class:`~thermolab.tclab.Historian`."""
-        return [("T1", lambda: self.T1), ("Q1", self.Q1)]
+        """``(T1, T2, Q1, Q2)`` from one reading; a one-heater rig's T2 and Q2 are NaN."""
+        reading = self._reading()
+        return (float(reading.y or 0.0), math.nan, self._q1_of(reading.u), math.nan)
 
     def close(self) -> None:
         """Heater off, turn released (the lab makes the rig safe); idempotent."""
@@ -246,6 +406,9 @@ class TCLab:
             return
         self.connected = False
         _open.discard(self)
+        if labtime.held_by is not None and f"rig {self.rig_id!r}" in labtime.held_by:
+            labtime.hold(self.speedup, None)
+            labtime.set_rate(self._rate_before)
         turn, self._turn = self._turn, None
         try:
             if turn is not None and turn.held:
@@ -261,5 +424,5 @@ class TCLab:
     def __enter__(self) -> TCLab:
         return self
 
-    def __exit__(self, *exc: object) -> None:
+    def __exit__(self, exc_type: object, exc_value: object, traceback: object) -> None:
         self.close()
