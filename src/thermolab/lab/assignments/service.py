@@ -51,6 +51,7 @@ __all__ = [
     "AssignmentService",
     "MarkedListener",
     "SubmissionInfo",
+    "assignment_with_course",
 ]
 
 log = logging.getLogger(__name__)
@@ -166,7 +167,7 @@ class AssignmentService:
         self._check_draft(draft)
         now = self._clock.now()
         with self._db.write() as session:
-            row, found = _assignment(session, assignment_id)
+            row, found = assignment_with_course(session, assignment_id)
             require_member(session, found, who, Role.TEACHER, "edit its assignments")
             require_open(found, "edit its assignments")
             _fill(row, draft, now)
@@ -176,7 +177,7 @@ class AssignmentService:
     def submissions(self, assignment_id: int, who: Principal) -> list[SubmissionInfo]:
         """Every hand-in of an assignment, current ones first then by student (its teachers)."""
         with self._db.read() as session:
-            row, found = _assignment(session, assignment_id)
+            row, found = assignment_with_course(session, assignment_id)
             require_member(session, found, who, Role.TEACHER, "see the hand-ins")
             rows = session.execute(
                 select(Submission, User.display_name)
@@ -250,7 +251,7 @@ class AssignmentService:
     def get(self, assignment_id: int, who: Principal) -> AssignmentInfo:
         """One assignment, for a member of its course (a student sees their own hand-ins)."""
         with self._db.read() as session:
-            row, found = _assignment(session, assignment_id)
+            row, found = assignment_with_course(session, assignment_id)
             require_member(session, found, who, None, "see its assignments")
             if row.draft:
                 require_member(session, found, who, Role.TEACHER, "see its draft assignments")
@@ -278,7 +279,7 @@ class AssignmentService:
         """
         _check_answers(answers)
         with self._db.read() as session:
-            row, found = _assignment(session, assignment_id)
+            row, found = assignment_with_course(session, assignment_id)
             require_member(session, found, who, Role.STUDENT, "hand in")
             require_open(found, "hand in")
             if row.draft:
@@ -317,7 +318,7 @@ class AssignmentService:
         now = self._clock.now()
         try:
             with self._db.write() as session:
-                row, found = _assignment(session, assignment_id)
+                row, found = assignment_with_course(session, assignment_id)
                 require_open(found, "hand in")
                 session.execute(
                     update(Submission)
@@ -431,7 +432,8 @@ def _course(session: Session, name: str) -> Course:
     return found
 
 
-def _assignment(session: Session, assignment_id: int) -> tuple[Assignment, Course]:
+def assignment_with_course(session: Session, assignment_id: int) -> tuple[Assignment, Course]:
+    """The assignment and its course (``NotFoundError`` if there is none)."""
     found = session.execute(
         select(Assignment, Course)
         .join(Course, Course.id == Assignment.course_id)

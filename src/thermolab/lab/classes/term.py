@@ -33,6 +33,7 @@ from thermolab.errors import (
 )
 from thermolab.lab.accounts.personal_data import PSEUDONYM_PREFIX, RunsChoice, forget_person
 from thermolab.lab.accounts.users import Principal
+from thermolab.lab.assignments.service import assignment_with_course
 from thermolab.lab.classes.bookings import BookingService
 from thermolab.lab.classes.closed import require_open
 from thermolab.lab.classes.courses import COURSE_NAME, new_enrol_code, require_member
@@ -260,14 +261,7 @@ class TermService:
         NotFoundError, AccessDeniedError, CourseClosedError
         """
         with self._db.write() as session:
-            found = session.execute(
-                select(Assignment, Course)
-                .join(Course, Course.id == Assignment.course_id)
-                .where(Assignment.id == assignment_id)
-            ).one_or_none()
-            if found is None:
-                raise NotFoundError(f"no assignment {assignment_id}")
-            row, course = found
+            row, course = assignment_with_course(session, assignment_id)
             require_member(session, course, who, Role.TEACHER, "publish its assignments")
             require_open(course, "publish its assignments")
             row.draft = False
