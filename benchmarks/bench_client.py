@@ -54,11 +54,17 @@ def _free_port() -> int:
 
 
 @contextlib.contextmanager
-def served_lab() -> Iterator[tuple[str, str]]:
-    """A lab in a child process; yields its URL and an API token of a teacher."""
+def served_lab(
+    config: str = CONFIG, serve_options: tuple[str, ...] = ()
+) -> Iterator[tuple[str, str]]:
+    """A lab in a child process; yields its URL and an API token of a teacher.
+
+    ``config``: its ``lab.toml``; ``serve_options``: more ``thermolab serve``
+    options (``--speedup 20``...). Also used by ``bench_tclab_notebooks.py``.
+    """
     with tempfile.TemporaryDirectory() as tmp:
         data = Path(tmp)
-        (data / "lab.toml").write_text(CONFIG, encoding="utf-8")
+        (data / "lab.toml").write_text(config, encoding="utf-8")
         base = [sys.executable, "-m", "thermolab", "--data-dir", str(data)]
         subprocess.run(
             [*base, "user", "add", "bench", "--role", "teacher", "--password-stdin"],
@@ -68,11 +74,10 @@ def served_lab() -> Iterator[tuple[str, str]]:
             capture_output=True,
         )
         port = _free_port()
+        serve = [*base, "serve", "--port", str(port), "--config", str(data / "lab.toml")]
         with (data / "server.log").open("wb") as log:
             server = subprocess.Popen(
-                [*base, "serve", "--port", str(port), "--config", str(data / "lab.toml")],
-                stdout=log,
-                stderr=subprocess.STDOUT,
+                [*serve, *serve_options], stdout=log, stderr=subprocess.STDOUT
             )
             url = f"http://127.0.0.1:{port}"
             try:

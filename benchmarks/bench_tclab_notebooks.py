@@ -37,8 +37,6 @@ import contextlib
 import json
 import os
 import re
-import socket
-import subprocess
 import sys
 import tempfile
 import time
@@ -46,12 +44,12 @@ from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-import httpx
 import nbformat
 from nbclient import NotebookClient
 from nbclient.exceptions import CellTimeoutError, DeadKernelError
 
-PASSWORD = "benchmark password 2026"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_client
 
 
 @dataclass
@@ -65,13 +63,6 @@ class Outcome:
     seconds: float = 0.0
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port: int = probe.getsockname()[1]
-        return port
-
-
 @contextlib.contextmanager
 def served_lab(speedup: float) -> Iterator[tuple[str, str]]:
     """A lab with the kit's twin at ``speedup`` in a child process: (URL, a teacher's token)."""
@@ -79,42 +70,8 @@ def served_lab(speedup: float) -> Iterator[tuple[str, str]]:
         "[rig_defaults]\npower_off_grace = 600\ncontrol_time_limit = 3600\n\n"
         '[[rigs]]\nid = "kit"\ntitle = "TCLab kit\'s twin"\nspec = "sim:tclab"\n'
     )
-    with tempfile.TemporaryDirectory() as tmp:
-        data = Path(tmp)
-        (data / "lab.toml").write_text(config, encoding="utf-8")
-        base = [sys.executable, "-m", "thermolab", "--data-dir", str(data)]
-        subprocess.run(
-            [*base, "user", "add", "bench", "--role", "teacher", "--password-stdin"],
-            input=PASSWORD + "\n",
-            text=True,
-            check=True,
-            capture_output=True,
-        )
-        port = _free_port()
-        serve = [*base, "serve", "--port", str(port), "--config", str(data / "lab.toml")]
-        with (data / "server.log").open("wb") as log:
-            server = subprocess.Popen(
-                [*serve, "--speedup", f"{speedup:g}"], stdout=log, stderr=subprocess.STDOUT
-            )
-            url = f"http://127.0.0.1:{port}"
-            try:
-                deadline = time.monotonic() + 60
-                while True:
-                    with contextlib.suppress(httpx.HTTPError):
-                        if httpx.get(f"{url}/api/version", timeout=1).status_code == 200:
-                            break
-                    if server.poll() is not None or time.monotonic() > deadline:
-                        raise SystemExit(f"the lab did not start: {data / 'server.log'}")
-                    time.sleep(0.2)
-                with httpx.Client(base_url=url) as browser:
-                    login = {"username": "bench", "password": PASSWORD}
-                    browser.post("/api/session", json=login).raise_for_status()
-                    made = browser.post("/api/tokens", json={"name": "bench"})
-                    made.raise_for_status()
-                yield url, made.json()["token"]
-            finally:
-                server.terminate()
-                server.wait(timeout=30)
+    with bench_client.served_lab(config, ("--speedup", f"{speedup:g}")) as served:
+        yield served
 
 
 _IMPORTS = [
