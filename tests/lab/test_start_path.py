@@ -37,11 +37,12 @@ START_PATH = (
     "runs.service",  # RunService.start: plan_start, then store_start in the turn's transaction
     "rigs.devices",  # the rig's published range and driver, the hub's lock
     "runs.request",  # plan_run: the one check, the operating point, the identifiers
-    "runs.store",  # run_channels, add_run, DatabaseRecorder, read
+    "runs.store",  # run_channels, add_run, read
     "access.transactions",  # caller_turn (a lost race is told apart), controlled()
     "db.engine",  # the transactions
     "access.queries",  # their SQL (read_slots: a course's limits during its slot)
     "access.rules",  # current_slot; next_state: the limits applied
+    "runs.recorder",  # DatabaseRecorder: the samples' way to the database
 )
 #: Values every part of the lab reads (the rig's config, the clock, the column
 #: types, the watchers a request touches), not steps of START.

@@ -179,7 +179,7 @@ spec = "sim"
 
 [[rigs]]
 id = "twin-loop"
-title = "Kit twin for the closed-loop test"
+title = "Kit twin for the PID test"
 spec = "sim:tclab"
 """
 
