@@ -89,6 +89,7 @@ def assess(
     *,
     units: tuple[str, str] | None = None,
     notes: Sequence[str] = (),
+    peers: dict[str, dict[str, Any]] | None = None,
 ) -> Assessment:
     """Identify a whole record with one method and judge the model on it.
 
@@ -111,6 +112,9 @@ def assess(
     notes : sequence of str, optional
         Warnings the caller met reading the record (rows merged...), judged
         with the method's.
+    peers : dict, optional
+        The output-error fits of this record, shared by several methods'
+        verdicts (:func:`judge_model`): pass the same dict for each.
 
     Returns
     -------
@@ -126,7 +130,8 @@ def assess(
     """
     ta, ua, ya = (np.asarray(a, dtype=np.float64) for a in (t, u, y))
     try:
-        assessment = _assess(method, ta, ua, ya, float(dt), dict(settings or {}), units, notes)
+        given = dict(settings or {})
+        assessment = _assess(method, ta, ua, ya, float(dt), given, units, notes, peers)
     except ThermoLabError as exc:
         raise (exc if units is None else error_in_units(exc, *units)) from None
     return assessment if units is None else _in_units(assessment, *units)
@@ -141,6 +146,7 @@ def _assess(
     given: dict[str, Any],
     units: tuple[str, str] | None,
     notes: Sequence[str],
+    peers: dict[str, dict[str, Any]] | None,
 ) -> Assessment:
     m = get_method(method)
     u_unit, y_unit = units or ("", "")
@@ -163,7 +169,22 @@ def _assess(
         if text not in found:
             found.append(text)
     summary["warnings"] = found
-    return Assessment(method, result, summary, _judge(method, summary, ta, ua, ya, dt))
+    after = summary.get("after_convergence")
+    verdict = judge_model(
+        method,
+        ta,
+        ua,
+        ya,
+        dt,
+        K=summary["K"],
+        tau=summary["tau"],
+        theta=summary.get("theta"),
+        warnings=found,
+        converged=None if after is None else bool(after.get("converged")),
+        reason=summary.get("reason"),
+        peers=peers,
+    )
+    return Assessment(method, result, summary, verdict)
 
 
 def _in_units(a: Assessment, u_unit: str, y_unit: str) -> Assessment:
@@ -233,26 +254,6 @@ def _summary(method: str, result: Any, dt: float, settings: Mapping[str, Any]) -
     d.pop("dt", None)
     out.update(d)
     return out
-
-
-def _judge(
-    method: str, s: Mapping[str, Any], t: npt.NDArray[np.float64], u: Any, y: Any, dt: float
-) -> Verdict:
-    after = s.get("after_convergence")
-    valid = s.get("valid", True) is not False
-    return judge_model(
-        method,
-        t,
-        u,
-        y,
-        dt,
-        K=s.get("K") if valid else None,
-        tau=s.get("tau") if valid else None,
-        theta=s.get("theta"),
-        warnings=s["warnings"],
-        converged=None if after is None else bool(after.get("converged")),
-        reason=s.get("reason"),
-    )
 
 
 def judge_model(

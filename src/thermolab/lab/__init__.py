@@ -20,6 +20,9 @@ One folder per domain:
 * :mod:`.http` — the app factory, routers, schemas, errors and the live socket.
 
 At the top: :mod:`.service` (:class:`~thermolab.lab.service.Lab`, everything
-wired together), :mod:`.clock` (the injected clock) and :mod:`.error_messages`
-(the server's words in each language).
+wired together), :mod:`.clock` (the injected clock), :mod:`.error_messages`
+(the server's words in each language) and :mod:`.spreadsheets` (every CSV for
+people in the reader's spreadsheet form; a leaf that analytics, assignments,
+audit and runs share, worded through :mod:`.error_messages`, so no one domain
+owns it).
 """

@@ -35,7 +35,11 @@ Source = tuple[str, Callable[[], Any] | None]
 
 
 class NoDatabaseError(NotImplementedError):
-    """Sessions need the historian's database (``dbfile``); this one has none, or closed it."""
+    """Sessions need the historian's database (``dbfile``); this one has none, or closed it.
+
+    A ``NotImplementedError``, as tclab's ``Historian`` raises in the same case
+    ("Sessions not supported without dbfile"): a notebook's ``except`` still catches it.
+    """
 
 
 class Historian:

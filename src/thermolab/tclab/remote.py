@@ -47,7 +47,11 @@ ENV_RIG = "THERMOLAB_RIG"
 
 
 class NotOnThisRigError(NotImplementedError):
-    """What the ``tclab`` package does on a kit, this lab rig cannot (the message says why)."""
+    """What the ``tclab`` package does on a kit, this lab rig cannot (the message says why).
+
+    A ``NotImplementedError`` (as :class:`SecondHeaterError` always was): the name
+    exists and works on a kit; it is this rig that lacks it, not the call that is wrong.
+    """
 
 
 class SecondHeaterError(NotOnThisRigError):

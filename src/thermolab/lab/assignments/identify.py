@@ -52,6 +52,7 @@ def identify_run(
     dt: float,
     settings: Mapping[str, Any] | None = None,
     units: tuple[str, str] | None = None,
+    peers: dict[str, dict[str, Any]] | None = None,
 ) -> Identified:
     """Identify a record with one method; a failure is an untrusted result saying why.
 
@@ -67,6 +68,8 @@ def identify_run(
         The method's settings as the teacher set them (checked by the registry).
     units : (str, str), optional
         The rig's input and output units: the library's words speak of them.
+    peers : dict, optional
+        The run's output-error fits, shared by its methods' verdicts (one per run).
 
     Returns
     -------
@@ -75,7 +78,7 @@ def identify_run(
     given = dict(settings or {})
     check_settings(method, given)
     try:
-        assessment = assess(method, t, u, y, float(dt), given, units=units)
+        assessment = assess(method, t, u, y, float(dt), given, units=units, peers=peers)
     except (ThermoLabError, ValueError) as exc:
         return Identified(method, None, None, None, None, False, (str(exc),))
     s, verdict = assessment.summary, assessment.verdict

@@ -313,7 +313,8 @@ class AssignmentService:
             dt, deadline, rig = run.dt, row.deadline, row.rig_id
         t, u, y = (list(c) for c in zip(*samples, strict=True))
         units = self._units(rig)
-        identified = [identify_run(m, t, u, y, dt, settings.get(m), units) for m in methods]
+        peers: dict[str, dict[str, Any]] = {}  # one output-error fit of the run for all
+        identified = [identify_run(m, t, u, y, dt, settings.get(m), units, peers) for m in methods]
         result = assess(answers, tolerances, self._reference(rig), identified)
         now = self._clock.now()
         try:

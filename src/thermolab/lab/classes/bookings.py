@@ -33,7 +33,7 @@ from sqlalchemy.orm import Session
 from thermolab.errors import BookingClashError, InvalidParameterError, NotFoundError
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.classes.closed import require_open
-from thermolab.lab.classes.courses import require_member
+from thermolab.lab.classes.courses import course_named, require_member
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
@@ -133,7 +133,7 @@ class BookingService:
         starts_at, ends_at = starts_at.astimezone(UTC), ends_at.astimezone(UTC)
         now = self._clock.now()
         with self._db.write() as session:
-            course_row = _course(session, course)
+            course_row = course_named(session, course)
             require_member(session, course_row, who, Role.TEACHER, "book rigs for it")
             require_open(course_row, "book rigs for it")
             self._lock(session, wanted)
@@ -299,14 +299,6 @@ def _aware(t: datetime, name: str) -> None:
 
 def _of(booking_id: int) -> ColumnElement[bool]:
     return BookingRig.booking_id == booking_id
-
-
-def _course(session: Session, name: str) -> Course:
-    found = session.scalars(select(Course).where(Course.name == name.strip().lower()))
-    course = found.one_or_none()
-    if course is None:
-        raise NotFoundError(f"no course called {name!r}")
-    return course
 
 
 def _booking(session: Session, booking_id: int) -> Booking:

@@ -21,14 +21,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import datetime
 
-from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from thermolab.errors import NotFoundError, SettingsChangedError
+from thermolab.errors import SettingsChangedError
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.classes.closed import require_open
-from thermolab.lab.classes.courses import require_member
+from thermolab.lab.classes.courses import course_named, require_member
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config.teacher_settings import (
     COURSE_SETTINGS,
@@ -82,11 +81,7 @@ class CourseSettingsService:
 
     def _course(self, session: Session, name: str, who: Principal, action: str) -> Course:
         who.require_teacher(action)
-        course = session.scalars(
-            select(Course).where(Course.name == name.strip().lower())
-        ).one_or_none()
-        if course is None:
-            raise NotFoundError(f"no course called {name!r}")
+        course = course_named(session, name)
         require_member(session, course, who, Role.TEACHER, action)
         return course
 

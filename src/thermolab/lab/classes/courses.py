@@ -45,6 +45,7 @@ __all__ = [
     "CourseService",
     "ImportReport",
     "Member",
+    "course_named",
     "new_enrol_code",
     "require_member",
     "temporary_password",
@@ -187,12 +188,12 @@ class CourseService:
         NotFoundError
         """
         with self._db.read() as session:
-            return _info(session, _course(session, name), roster=True)
+            return _info(session, course_named(session, name), roster=True)
 
     def rotate_code(self, name: str) -> str:
         """Give the course a new enrolment code (the old one stops working); return it."""
         with self._db.write() as session:
-            course = _course(session, name)
+            course = course_named(session, name)
             require_open(course, "change its enrolment code")
             course.enrol_code = new_enrol_code()
             return course.enrol_code
@@ -209,7 +210,7 @@ class CourseService:
         if unknown:
             raise NotFoundError(f"no rig called {unknown[0]!r}; rigs: {', '.join(sorted(known))}")
         with self._db.write() as session:
-            course = _course(session, name)
+            course = course_named(session, name)
             require_open(course, "change its rigs")
             session.execute(delete(CourseRig).where(CourseRig.course_id == course.id))
             for rig in sorted(set(rigs)):
@@ -263,7 +264,7 @@ class CourseService:
         entries = read.entries
         # Hashing is slow on purpose: done before the transaction, for the new names only.
         with self._db.read() as session:
-            course = _course(session, name)
+            course = course_named(session, name)
             require_open(course, "upload a class list")
             course_id = course.id
             known = {
@@ -289,7 +290,7 @@ class CourseService:
         now = self._clock.now()
         try:
             with self._db.write() as session:
-                require_open(_course(session, name), "upload a class list")
+                require_open(course_named(session, name), "upload a class list")
                 members = set(
                     session.scalars(
                         select(CourseMember.user_id).where(CourseMember.course_id == course_id)
@@ -426,7 +427,8 @@ def _title(title: str) -> str:
     return cleaned
 
 
-def _course(session: Session, name: str) -> Course:
+def course_named(session: Session, name: str) -> Course:
+    """The course called ``name`` (names are lower case; ``NotFoundError`` if none)."""
     course = session.scalars(select(Course).where(Course.name == name.strip().lower()))
     found = course.one_or_none()
     if found is None:

@@ -36,7 +36,12 @@ from thermolab.lab.accounts.users import Principal
 from thermolab.lab.assignments.service import assignment_with_course
 from thermolab.lab.classes.bookings import BookingService
 from thermolab.lab.classes.closed import require_open
-from thermolab.lab.classes.courses import COURSE_NAME, new_enrol_code, require_member
+from thermolab.lab.classes.courses import (
+    COURSE_NAME,
+    course_named,
+    new_enrol_code,
+    require_member,
+)
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
 from thermolab.lab.db.assignment_models import Assignment
@@ -114,7 +119,7 @@ class TermService:
             If it is closed already.
         """
         with self._db.write() as session:
-            course = _course(session, name)
+            course = course_named(session, name)
             require_open(course, "close it again")
             course.closed_at = self._clock.now()
             course.closed_by = by
@@ -129,7 +134,7 @@ class TermService:
             If it is open.
         """
         with self._db.write() as session:
-            course = _course(session, name)
+            course = course_named(session, name)
             if course.closed_at is None:
                 raise ConflictError(f"course {course.name!r} is open; only a closed one reopens")
             course.closed_at = None
@@ -138,7 +143,7 @@ class TermService:
     def shift_for(self, name: str, starts: date) -> int:
         """The days from ``name``'s first day (first booking, else creation) to ``starts``."""
         with self._db.read() as session:
-            course = _course(session, name)
+            course = course_named(session, name)
             first = session.scalar(
                 select(Booking.starts_at)
                 .where(Booking.course_id == course.id)
@@ -186,7 +191,7 @@ class TermService:
         report = CopyReport(cleaned, shift_days)
         try:
             with self._db.write() as session:
-                source = _course(session, old)
+                source = course_named(session, old)
                 if session.scalar(select(Course.id).where(Course.name == cleaned)) is not None:
                     raise ConflictError(f"course {cleaned!r} already exists; choose another name")
                 shown = " ".join((title if title is not None else source.title).split())
@@ -311,16 +316,8 @@ class TermService:
         return report
 
 
-def _course(session: Session, name: str) -> Course:
-    found = session.scalars(select(Course).where(Course.name == name.strip().lower()))
-    course = found.one_or_none()
-    if course is None:
-        raise NotFoundError(f"no course called {name!r}")
-    return course
-
-
 def _closed(session: Session, name: str) -> Course:
-    course = _course(session, name)
+    course = course_named(session, name)
     if course.closed_at is None:
         raise ConflictError(
             f"course {course.name!r} is open: close it before removing its students"

@@ -19,6 +19,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections.abc import Callable
 
 from fastapi import FastAPI, Request
 from fastapi.responses import JSONResponse
@@ -56,8 +57,8 @@ class DatabaseOutage:
     True
     """
 
-    def __init__(self, clock: object = None) -> None:
-        self._clock = clock if callable(clock) else time.monotonic
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        self._clock = clock
         self._lock = threading.Lock()
         self._last: float | None = None
         self.count = 0
@@ -65,7 +66,7 @@ class DatabaseOutage:
     def refused(self, cause: str) -> bool:
         """Count a refused request; ``True`` (and logged) when it begins an outage."""
         with self._lock:
-            now = float(self._clock())
+            now = self._clock()
             new = self._last is None or now - self._last > QUIET
             if new and self._last is not None:
                 log.warning("the database outage ended; it refused %d requests", self.count)

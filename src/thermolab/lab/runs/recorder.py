@@ -11,9 +11,10 @@ import logging
 import threading
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 from sqlalchemy import insert, update
+from sqlalchemy.exc import SQLAlchemyError
 
 from thermolab.errors import ThermoLabError
 from thermolab.jsonsafe import finite_or_none
@@ -21,13 +22,35 @@ from thermolab.lab.db import Database
 from thermolab.lab.db.models import Run, Sample
 from thermolab.records import RUN_CHANNELS, ChannelSpec
 
-__all__ = ["STORE_GRACE", "DatabaseRecorder"]
+__all__ = ["STORE_GRACE", "DatabaseRecorder", "ride_out"]
 
 log = logging.getLogger(__name__)
+
+T = TypeVar("T")
 
 
 STORE_GRACE = 30.0
 """Seconds a run rides out a database that does not answer (its samples kept in memory)."""
+
+
+def ride_out(action: Callable[[], T], what: str, interval: float, grace: float = STORE_GRACE) -> T:
+    """``action()``, tried again every ``interval`` s while the database fails, for ``grace`` s.
+
+    The one way a run's storage outlasts an outage (its last samples, its end);
+    the first failure is logged once, and the last one is raised.
+    """
+    began = time.monotonic()
+    while True:
+        try:
+            return action()
+        except SQLAlchemyError as exc:
+            if time.monotonic() - began > grace:
+                raise
+            if time.monotonic() - began < interval:
+                log.warning(
+                    "%s failed (%s); trying again for %g s", what, type(exc).__name__, grace
+                )
+            time.sleep(interval)
 
 
 class DatabaseRecorder:
@@ -161,15 +184,9 @@ class DatabaseRecorder:
         if self._thread is not None:
             self._thread.join()
             self._thread = None
-        began = time.monotonic()
-        while True:
-            try:
-                self.flush()
-                return
-            except Exception:
-                if time.monotonic() - began > self._grace:
-                    raise
-                time.sleep(self._interval)
+        ride_out(
+            self.flush, f"run {self.run_id}: storing its last samples", self._interval, self._grace
+        )
 
     def _loop(self) -> None:
         while not self._stop.wait(self._interval):

@@ -22,14 +22,12 @@ from __future__ import annotations
 
 import logging
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import timedelta
 from typing import Any
 
 import numpy as np
-from sqlalchemy.exc import SQLAlchemyError
 
 from thermolab.errors import (
     AccessDeniedError,
@@ -51,7 +49,7 @@ from thermolab.lab.runs.control import build_control_loop
 from thermolab.lab.runs.ending import SERVER_STOPPED, end_of_run, save_end
 from thermolab.lab.runs.export import RunExport
 from thermolab.lab.runs.reading import RunReading
-from thermolab.lab.runs.recorder import STORE_GRACE, DatabaseRecorder
+from thermolab.lab.runs.recorder import DatabaseRecorder, ride_out
 from thermolab.lab.runs.request import RunPlan, RunRequest, check_run_length, plan_run
 from thermolab.lab.runs.store import (
     RunRecord,
@@ -489,16 +487,11 @@ class RunService(RunReading):
         end = end_of_run(active, result, simulated=self._config.rig(active.rig_id).kind == "sim")
         # A database away at the end (a restart, a failover) must not leave the run
         # "running": try again for as long as a run rides out an outage.
-        began = time.monotonic()
-        while True:
-            try:
-                save_end(self._db, active.run_id, end, self._clock.now())
-                return
-            except SQLAlchemyError:
-                if time.monotonic() - began > STORE_GRACE:
-                    raise
-                log.warning("run %s: storing its end failed; trying again", active.run_id)
-                time.sleep(1.0)
+        ride_out(
+            lambda: save_end(self._db, active.run_id, end, self._clock.now()),
+            f"run {active.run_id}: storing its end",
+            1.0,
+        )
 
     def _record(self, run: Run, stored: dict[str, Any] | None) -> RunRecord:
         active = self._going(run.rig_id)
