@@ -37,7 +37,9 @@ _RUN_DATABASE: list[str] = []
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """Make this process's PostgreSQL database (when the server answers) before collection."""
+    """Compile the source once; make this process's PostgreSQL database before collection."""
+    if not hasattr(config, "workerinput"):
+        _compile_source()
     if getattr(config.option, "numprocesses", None) and not hasattr(config, "workerinput"):
         return  # the xdist controller runs no test: its workers make their own
     from sqlalchemy import create_engine, text
@@ -58,6 +60,19 @@ def pytest_configure(config: pytest.Config) -> None:
     _RUN_DATABASE.append(name)
     url = make_url(POSTGRES_SERVER_URL).set(database=name)
     os.environ["THERMOLAB_TEST_POSTGRES_URL"] = url.render_as_string(hide_password=False)
+
+
+def _compile_source() -> None:
+    # The package is installed editable, so its installer compiled none of it, and where
+    # PYTHONDONTWRITEBYTECODE is set (CI's machine) no process caches what it compiles:
+    # each server, rig host and CLI process the tests start compiled the ~300 modules
+    # anew. py_compile writes the bytecode whatever that variable says (0.6 s, once).
+    import compileall
+    from pathlib import Path
+
+    import thermolab
+
+    compileall.compile_dir(Path(thermolab.__file__).parent, quiet=2)
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

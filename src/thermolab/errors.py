@@ -14,23 +14,30 @@ from dataclasses import dataclass, field
 
 __all__ = [
     "CLASS_LIST_PROBLEMS",
+    "PASSWORD_PROBLEMS",
+    "TAKEN_NAMES",
     "AccessDeniedError",
     "BookingClashError",
+    "BookingQuotaError",
+    "BookingSeriesClashError",
     "ClassListError",
     "ClassListProblem",
     "ConfigError",
     "ConflictError",
+    "CourseNameTakenError",
     "GainRangeError",
     "IdentifierStateError",
     "IncompatibleLabError",
     "InsufficientExcitationError",
     "InvalidDataError",
     "InvalidParameterError",
+    "NameTakenError",
     "NoOutputUnitError",
     "NoRunError",
     "NotClosedLoopError",
     "NotFoundError",
     "PasswordChangeRequiredError",
+    "PasswordRejectedError",
     "PreviousRunEndingError",
     "RecordFormatError",
     "RigBookedError",
@@ -38,15 +45,23 @@ __all__ = [
     "RigFaultError",
     "RigStateError",
     "RigTimeoutError",
+    "RuleNotApplicableError",
     "RunInProgressError",
     "RunStateError",
+    "SetpointNoStepError",
     "SetpointRangeError",
     "SettingNotForRigError",
     "SettingRangeError",
     "SettingsChangedError",
     "SignalSpecError",
+    "SlotReversedError",
+    "SlotTimeError",
+    "SlotTooLongError",
+    "SlotZoneError",
+    "SpeedupRefusedError",
     "SubscriberCutError",
     "ThermoLabError",
+    "TimeZoneError",
     "TurnEndedError",
     "TurnExtensionRefusedError",
     "WrongEnrolCodeError",
@@ -120,6 +135,48 @@ class ConflictError(ThermoLabError, RuntimeError):
     """The request clashes with the current state (duplicate user, rig out of service)."""
 
 
+#: A name already taken, by stable code: an English sentence with ``{name}``, the
+#: gettext msgid that ``lab/locale`` translates (the command line's detail).
+TAKEN_NAMES: Mapping[str, str] = {
+    "taken.user": "user {name} already exists",
+    "taken.user_choose": "user {name} already exists; choose another login name",
+    "taken.course": "course {name} already exists",
+    "taken.course_choose": "course {name} already exists; choose another name",
+}
+
+
+class _TakenError(ConflictError):
+    """A name already taken: ``sentence`` (a key of ``TAKEN_NAMES``) and the ``name``."""
+
+    def __init__(self, sentence: str, name: str) -> None:
+        if sentence not in TAKEN_NAMES:
+            raise KeyError(sentence)
+        self.sentence = sentence
+        self.name = name
+        super().__init__(self.describe())
+
+    def __reduce__(self) -> tuple[type[_TakenError], tuple[str, str]]:
+        return type(self), (self.sentence, self.name)
+
+    def describe(self, translate: Callable[[str], str] = str) -> str:
+        """The refusal with its sentence passed through ``translate`` (a gettext function)."""
+        return translate(TAKEN_NAMES[self.sentence]).format(name=repr(self.name))
+
+
+class NameTakenError(_TakenError):
+    """A login name that someone already has.
+
+    Examples
+    --------
+    >>> str(NameTakenError("taken.user", "ana"))
+    "user 'ana' already exists"
+    """
+
+
+class CourseNameTakenError(_TakenError):
+    """A course name that another course already has."""
+
+
 class TurnEndedError(ConflictError):
     """The turn at the controls ended while the request was being decided (it lost the race)."""
 
@@ -151,12 +208,39 @@ class IncompatibleLabError(ThermoLabError, RuntimeError):
 # -- the closed loop (issue #11) ----------------------------------------------------------
 
 
-class GainRangeError(InvalidParameterError):
+class _WordedParameterError(InvalidParameterError):
+    """An error whose sentence is declared by code (``thermolab.control.words.LOOP_WORDS``).
+
+    ``word_code`` and ``word_params`` name it and its values, so a page can say
+    it in its reader's language; the message is the English sentence.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        word_code: str | None = None,
+        word_params: Mapping[str, float | str] | None = None,
+    ) -> None:
+        super().__init__(message)
+        self.word_code = word_code
+        self.word_params: Mapping[str, float | str] = dict(word_params or {})
+
+
+class GainRangeError(_WordedParameterError):
     """A PID gain or loop parameter not finite or outside its published range."""
+
+
+class RuleNotApplicableError(_WordedParameterError):
+    """A tuning rule that cannot tune this model (one needing a dead time, on a model without)."""
 
 
 class SetpointRangeError(InvalidParameterError):
     """A set point outside the rig's output range (its output limit and interlocks)."""
+
+
+class SetpointNoStepError(SetpointRangeError):
+    """A tuning step to the output the loop starts from: there is no step to tune for."""
 
 
 class NoOutputUnitError(InvalidParameterError):
@@ -307,6 +391,10 @@ class SettingNotForRigError(InvalidParameterError):
         super().__init__(message)
 
 
+class SpeedupRefusedError(InvalidParameterError):
+    """A speed-up a rig does not allow for a turn (the message names the rig and what it allows)."""
+
+
 class SettingsChangedError(ConflictError):
     """Someone saved a rig's settings since the version the change was based on."""
 
@@ -332,3 +420,87 @@ class RigBookedError(ConflictError):
     def __init__(self, message: str, slot: dict[str, object]) -> None:
         super().__init__(message)
         self.slot = slot
+
+
+#: Why a new password is refused, by stable code: an English sentence with named
+#: ``{placeholders}``, the gettext msgid ``lab/locale`` translates, so the refusal
+#: reaches the command line and the page in the reader's language.
+PASSWORD_PROBLEMS: Mapping[str, str] = {
+    "password.too_short": "password too short: at least {limit} characters are needed",
+    "password.too_long": "password too long: at most {limit} characters are allowed",
+    "password.blank": "the password may not be only whitespace",
+    "password.user_name": "the password may not be the user name or a variant of it",
+    "password.breached": "this password is in a list of breached passwords; choose another",
+    "password.guessable": (
+        "this password is too easy to guess (a keyboard row, a sequence, a repeated "
+        "character or the lab's name, with little else); choose another"
+    ),
+}
+
+
+class PasswordRejectedError(InvalidParameterError):
+    """A new password the lab refuses: ``problem`` (a key of ``PASSWORD_PROBLEMS``) and its values.
+
+    Examples
+    --------
+    >>> str(PasswordRejectedError("password.too_short", limit=12))
+    'password too short: at least 12 characters are needed'
+    """
+
+    def __init__(self, problem: str, **params: str | int) -> None:
+        if problem not in PASSWORD_PROBLEMS:
+            raise KeyError(problem)
+        self.problem = problem
+        self.params: Mapping[str, str | int] = dict(params)
+        super().__init__(self.describe())
+
+    def describe(self, translate: Callable[[str], str] = str) -> str:
+        """The refusal with its sentence passed through ``translate`` (a gettext function)."""
+        return translate(PASSWORD_PROBLEMS[self.problem]).format(**self.params)
+
+
+# -- slot times and booking tools (issue #24, item 7) --------------------------------------
+
+
+class SlotTimeError(InvalidParameterError):
+    """A slot's times are not a slot: see the subclasses (each has its stable code)."""
+
+
+class SlotReversedError(SlotTimeError):
+    """A slot that ends at or before it starts (start and end swapped, say)."""
+
+
+class SlotTooLongError(SlotTimeError):
+    """A slot longer than a day that was not said to be longer, or longer than the longest."""
+
+
+class SlotZoneError(SlotTimeError):
+    """A slot's time given without its time zone (a naive date and time)."""
+
+
+class TimeZoneError(InvalidParameterError):
+    """A time zone name that is not an IANA zone the lab knows (``Mars/Olympus``, ``GMT+25``)."""
+
+
+class BookingQuotaError(ConflictError):
+    """A student's own booking past their course's weekly quota; ``quota`` says how much is left.
+
+    ``quota`` holds ``minutesPerWeek``, ``usedMinutes`` (in that week, before this
+    booking) and ``weekStartsAt`` (ISO 8601, UTC).
+    """
+
+    def __init__(self, message: str, quota: dict[str, object]) -> None:
+        super().__init__(message)
+        self.quota = quota
+
+
+class BookingSeriesClashError(ConflictError):
+    """Occurrences of a weekly series overlap other bookings; ``clashes`` lists each one.
+
+    Each item holds the occurrence's ``startsAt``, ``endsAt`` and the ``slot`` in
+    the way (as :class:`BookingClashError`'s). Nothing was booked.
+    """
+
+    def __init__(self, message: str, clashes: list[dict[str, object]]) -> None:
+        super().__init__(message)
+        self.clashes = clashes

@@ -29,6 +29,7 @@ from thermolab.agent.protocol import (
     Heartbeat,
     Hello,
     Power,
+    RunEnded,
     SampleBatch,
     SampleOut,
     Welcome,
@@ -41,6 +42,7 @@ from thermolab.lab.agents.notify import Mailer
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import RigConfig, default_config
 from thermolab.lab.http.app import create_app
+from thermolab.lab.runs.request import RunRequest
 from thermolab.lab.service import Lab
 
 from .fleet import free_port
@@ -151,7 +153,7 @@ def test_health_faults_and_heals_the_rig_and_mails_the_teachers(
             answer = decode_lab(ws.receive_text())
         assert answer == Ack(seq=7)
         # Silence: the host is dropped and the rig taken out of service.
-        clock.advance(lab.agents.heartbeat_timeout + 1)
+        clock.advance(lab.agents.grace + 1)
         lab.sweep()
         assert "stopped answering" in str(lab.access.snapshot("box").fault)
     _wait(lambda: len(handler.messages) >= 6)  # back, range, back, fault, back, silent
@@ -182,6 +184,19 @@ def test_a_wrong_secret_or_a_rotated_one_is_refused(lab: Lab) -> None:
         _wait(lambda: not lab.agents.online("box"))  # gone with its socket
 
 
+def _beating(lab: Lab, who: Principal, seconds: float) -> None:
+    """Let ``seconds`` pass on the lab's clock, ``who``'s page beating meanwhile; sweep."""
+    clock = lab.clock
+    assert isinstance(clock, ManualClock)
+    left = seconds
+    while left > 0:
+        step = min(5.0, left)
+        clock.advance(step)
+        left -= step
+        lab.access.heartbeat("box", who)
+    lab.sweep()
+
+
 def test_a_host_that_redials_within_the_timeout_keeps_the_rig_and_the_turn(lab: Lab) -> None:
     clock = lab.clock
     assert isinstance(clock, ManualClock)
@@ -197,22 +212,49 @@ def test_a_host_that_redials_within_the_timeout_keeps_the_rig_and_the_turn(lab: 
             lab.access.request_control("box", ana)
         # The link closed: offline at once, but the rig stays in service for the timeout.
         _wait(lambda: not lab.agents.online("box"))
-        clock.advance(lab.agents.heartbeat_timeout - 1)
-        lab.sweep()
+        _beating(lab, ana, lab.agents.grace - 1)
         assert lab.access.snapshot("box").fault is None
         with client.websocket_connect("/api/agents/link") as ws:  # the host redials
             ws.send_text(_hello(secret))
             assert isinstance(decode_lab(ws.receive_text()), Welcome)
             _wait(lambda: lab.agents.online("box"))
-            clock.advance(2.0)  # past the first loss's timeout: it no longer counts
-            lab.sweep()
+            _beating(lab, ana, 2.0)  # past the first loss's timeout: it no longer counts
             assert lab.access.snapshot("box").fault is None
             controller = lab.access.snapshot("box").controller
             assert controller is not None
             assert controller.user_id == ana.user_id
         # Away for longer than a silent host may be: out of service, the turn ended.
         _wait(lambda: not lab.agents.online("box"))
-        clock.advance(lab.agents.heartbeat_timeout + 1)
+        clock.advance(lab.agents.grace + 1)
+        lab.sweep()
+        assert lab.access.snapshot("box").fault == "rig host: offline (not connected)"
+        assert lab.access.snapshot("box").controller is None
+
+
+def test_a_cut_cable_inside_the_grace_keeps_the_turn_and_past_it_ends_it(lab: Lab) -> None:
+    """One rule: the lab keeps the rig in service as long as the host keeps its run."""
+    clock = lab.clock
+    assert isinstance(clock, ManualClock)
+    secret = issue_secret(lab.db, lab.config, clock, "box")
+    info = lab.users.add("ana", "correct horse battery", "student")
+    ana = Principal(info.id, info.username, info.role)
+    app = create_app(lab.config, lab=lab, close_lab=False, sweep_interval=None)
+    with TestClient(app) as client, client.websocket_connect("/api/agents/link") as ws:
+        ws.send_text(_hello(secret))
+        assert isinstance(decode_lab(ws.receive_text()), Welcome)
+        _wait(lambda: lab.access.snapshot("box").fault is None)
+        lab.access.request_control("box", ana)
+        # The cable cut: the link stays open and silent. 20 s is more than the silence
+        # that dropped a turn before (5 s), and inside the host's grace.
+        _beating(lab, ana, 20.0)
+        _wait(lambda: not lab.agents.online("box"))  # offline: its silent link dropped
+        lab.sweep()
+        snapshot = lab.access.snapshot("box")
+        assert snapshot.fault is None
+        assert snapshot.controller is not None
+        assert snapshot.controller.user_id == ana.user_id
+        # Past the grace the host has ENDed its run: out of service, the turn over.
+        clock.advance(lab.agents.grace - 20.0 + 1)
         lab.sweep()
         assert lab.access.snapshot("box").fault == "rig host: offline (not connected)"
         assert lab.access.snapshot("box").controller is None
@@ -254,3 +296,39 @@ def test_a_rotated_secret_drops_the_link_made_with_the_old_one(lab: Lab) -> None
         lab.sweep()
         _wait(lambda: not lab.agents.online("box"))  # fails in 10 s, rather than hang below
         assert _closed(ws).reason == "replaced or silent"
+
+
+@pytest.mark.parametrize(
+    ("message", "stored"),
+    [
+        # The host's grace ran out first: it ENDed the run itself and says why.
+        (
+            "link to the lab lost for over 30 s",
+            "ended: link to the lab lost for over 30 s",
+        ),
+        # The host came back in time to hear the END the lab sent when its turn ended.
+        ("ended by request", "ended by its host being away (offline (not connected))"),
+    ],
+)
+def test_a_run_ended_by_its_hosts_absence_says_so(lab: Lab, message: str, stored: str) -> None:
+    """The stored end names the real cause, never "the end of the turn" alone."""
+    secret = issue_secret(lab.db, lab.config, lab.clock, "box")
+    info = lab.users.add("ana", "correct horse battery", "student")
+    ana = Principal(info.id, info.username, info.role)
+    app = create_app(lab.config, lab=lab, close_lab=False, sweep_interval=None)
+    with TestClient(app) as client:
+        with client.websocket_connect("/api/agents/link") as ws:
+            ws.send_text(_hello(secret))
+            assert isinstance(decode_lab(ws.receive_text()), Welcome)
+            _wait(lambda: lab.access.snapshot("box").fault is None)
+            lab.access.request_control("box", ana)
+            request = RunRequest(dt=1.0, samples=100, signal="step:0:10@1", methods=("srm",))
+            run_id = lab.remote_runs.start("box", ana, request).id
+        _wait(lambda: not lab.agents.online("box"))
+        _beating(lab, ana, lab.agents.grace + 1)  # away past its grace: the turn ends
+        assert lab.access.snapshot("box").controller is None
+        lab.agents.on_run_ended(
+            "box", RunEnded(seq=1, run=run_id, reason="ended", message=message, samples=0)
+        )
+    record = lab.runs.record(run_id)
+    assert (record.status, record.end_reason) == ("stopped", stored)

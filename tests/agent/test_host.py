@@ -50,6 +50,8 @@ def test_a_lost_link_ends_the_run_after_the_grace_and_the_heater_goes_safe() -> 
         assert ks == list(range(len(ks)))
         assert json.loads(rows[-1][2])["reason"] == "ended"
         assert json.loads(rows[-1][2])["samples"] == len(ks)
+        # The lab stores why: the lost link, not an END someone asked for.
+        assert json.loads(rows[-1][2])["message"] == "link to the lab lost for over 1 s"
     finally:
         host.close()
 

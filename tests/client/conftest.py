@@ -1,4 +1,4 @@
-"""A real ``thermolab serve`` for the client tests: a kit's twin and the paper's box at 50×.
+"""A real ``thermolab serve`` for the client tests: kits' twins and the paper's box at 20×.
 
 Accounts are made with ``thermolab user add`` and tokens through the HTTP API
 (a password login, as in the browser), so every test talks to the lab the way
@@ -34,6 +34,11 @@ spec = "sim:tclab"
 id = "box"
 title = "The paper's box"
 spec = "sim"
+
+[[rigs]]
+id = "kit2"
+title = "Another kit's twin (heated by the turn tests, so the kit starts cool elsewhere)"
+spec = "sim:tclab"
 """
 
 
@@ -78,6 +83,14 @@ def _thermolab(data_dir: Path, *args: str, stdin: str | None = None) -> None:
 
 @pytest.fixture(scope="session")
 def served_lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServedLab]:
+    """One lab for this worker's client tests."""
+    with serve_lab(tmp_path_factory) as served:
+        yield served
+
+
+@contextlib.contextmanager
+def serve_lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServedLab]:
+    """Start a lab (users tina, an administrator, and students ana, ben, carl); stop it after."""
     data_dir = tmp_path_factory.mktemp("client-lab")
     config = data_dir / "lab.toml"
     config.write_text(LAB_TOML, encoding="utf-8")

@@ -23,7 +23,6 @@ from thermolab.tclab import (
     Plotter,
     clock,
     labtime,
-    speedup_note,
 )
 
 matplotlib.use("Agg")
@@ -236,13 +235,3 @@ def test_run_data_without_pandas_says_how_to_get_it(monkeypatch: pytest.MonkeyPa
     monkeypatch.setitem(sys.modules, "pandas", None)
     with pytest.raises(ImportError, match="pip install pandas"):
         data.to_pandas()
-
-
-def test_the_speedup_note_says_which_is_in_force_and_why() -> None:
-    assert speedup_note(50, 50) is None
-    note = speedup_note(1, 200)
-    assert note is not None
-    assert note.startswith("note: the lab's twin runs at 200x real time, not the real time (1x)")
-    assert "a client cannot change it" in note
-    assert "a teacher sets each twin's speed-up in the rig's settings" in note
-    assert note.endswith("clock() and labtime follow 200x")

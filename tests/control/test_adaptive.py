@@ -120,12 +120,20 @@ def test_untrusted_unsettled_or_unexcited_estimates_hold_the_gains() -> None:
     )  # fmt: skip
     assert tuner.update(0.0, 0.0, g) is None
     assert tuner.last_reason == "estimate not trusted: implausible time constant"
+    # ... and by code, for a page in another language (issue #24).
+    assert tuner.to_dict()["last_word"] == {
+        "code": "hold.not_trusted", "params": {"warning": "implausible time constant"},
+    }  # fmt: skip
     # Not settled: tau jumped by half within the interval.
     tuner = AdaptiveTuner(Scripted(Est(1.0, 10.0), Est(1.0, 15.0)), every=2, theta=1.0,
                           excitation=0)  # fmt: skip
     assert tuner.update(0.0, 0.0, g) is None
     assert tuner.update(0.0, 0.0, g) is None
     assert tuner.last_reason.startswith("estimate not settled: tau moved from 10 to 15")
+    assert tuner.last_word is not None
+    assert tuner.last_word.code == "hold.unsettled_moved"
+    assert tuner.last_word.params["name"] == "tau"
+    assert (tuner.last_word.params["low"], tuner.last_word.params["high"]) == (10.0, 15.0)
     # Not excited: the input stayed within 5 % of its range.
     tuner = AdaptiveTuner(Scripted(Est(1.0, 10.0), Est(1.0, 10.0)), every=2, theta=1.0)
     tuner.set_input_range(0.0, 100.0)
@@ -143,3 +151,4 @@ def test_untrusted_unsettled_or_unexcited_estimates_hold_the_gains() -> None:
     tuner.update(50.0, 0.0, g)
     assert tuner.update(50.0, 0.0, g) is not None, tuner.last_reason
     assert tuner.to_dict()["last_reason"] == ""
+    assert tuner.to_dict()["last_word"] is None

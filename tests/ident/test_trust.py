@@ -351,7 +351,7 @@ def test_wlsm_on_the_papers_2000_samples_reports_convergence() -> None:
     assert_allclose(after["stats"]["tau"]["mean"], TAU_REF, rtol=1e-3)
     assert after["stats"]["tau"]["min"] > 0.99 * TAU_REF
     d = tr.to_dict(arrays=False)
-    assert d["after_convergence"]["samples_after"] == 2000 - 87
+    assert d["after_convergence"]["samples_after"] == 2000 - 88
 
 
 # -- bad input ----------------------------------------------------------------------------

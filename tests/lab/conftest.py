@@ -24,12 +24,13 @@ from sqlalchemy.engine import make_url
 from sqlalchemy.exc import OperationalError
 
 from thermolab.lab.clock import ManualClock
-from thermolab.lab.config import LabConfig, RigConfig
+from thermolab.lab.config import AccessPolicy, LabConfig, RetentionPolicy, RigConfig
+from thermolab.lab.config.smtp import SmtpConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Base
 from thermolab.lab.fleet.worker_hashes import figures_client
 from thermolab.lab.http.app import create_app
-from thermolab.lab.rigs.devices import RigOpener
+from thermolab.lab.rigs.opener import RigOpener
 from thermolab.lab.service import Lab
 
 # Argon2 at its cheapest: the tests create many accounts; production uses the defaults.
@@ -147,12 +148,34 @@ def database_url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
         shutil.copyfile(request.getfixturevalue("migrated_sqlite"), path)
         return f"sqlite:///{path}"
     url: str = request.getfixturevalue("migrated_postgres")
-    engine = create_engine(url)
-    tables = ", ".join(table.name for table in Base.metadata.sorted_tables)
-    with engine.begin() as connection:
-        connection.execute(text(f"TRUNCATE {tables} RESTART IDENTITY CASCADE"))
-    engine.dispose()
+    empty_postgres(url)
     return url
+
+
+def empty_postgres(url: str) -> None:
+    """Delete every row of the lab's tables in ``url``'s schema and restart their ids.
+
+    DELETE, not TRUNCATE: on tables of a few rows TRUNCATE costs about 0.3 s (new files
+    for 34 tables) and DELETE about 25 ms, and some 300 tests a run empty the schema.
+    Foreign keys are not checked meanwhile (``session_replication_role``, the test
+    server's superuser may set it), so the order of the deletes does not matter.
+    """
+    engine = create_engine(url)
+    try:
+        with engine.begin() as connection:
+            connection.execute(text("SET LOCAL session_replication_role = replica"))
+            for table in Base.metadata.sorted_tables:
+                connection.execute(table.delete())
+            sequences = connection.execute(
+                text(
+                    "SELECT sequence_name FROM information_schema.sequences"
+                    " WHERE sequence_schema = current_schema()"
+                )
+            ).scalars()
+            for sequence in list(sequences):
+                connection.execute(text(f'ALTER SEQUENCE "{sequence}" RESTART'))
+    finally:
+        engine.dispose()
 
 
 @pytest.fixture
@@ -185,9 +208,21 @@ def make_lab(tmp_path: Path, database_url: str, clock: ManualClock) -> Iterator[
         opener: RigOpener | None = None,
         pool_size: int = 5,
         max_overflow: int = 5,
+        retention: RetentionPolicy | None = None,
+        access: AccessPolicy | None = None,
+        smtp: SmtpConfig | None = None,
+        time_zone: str | None = None,
         **rig_options: Any,
     ) -> Lab:
         config = make_config(tmp_path, database_url, **rig_options)
+        if retention is not None:
+            config = replace(config, retention=retention)
+        if access is not None:
+            config = replace(config, access=access)
+        if smtp is not None:
+            config = replace(config, smtp=smtp)
+        if time_zone is not None:
+            config = replace(config, time_zone=time_zone)
         lab = Lab(
             config,
             clock=clock,

@@ -547,7 +547,8 @@ def test_the_assignment_state_reaches_the_api_and_the_csv(
 def test_text_that_looks_like_a_formula_is_defused(text: str) -> None:
     assert safe_cell(text) == "'" + text
     assert safe_cell("Ana -1") == "Ana -1"
-    assert safe_cell(-1.0) == -1.0
+    assert safe_cell(-1.0) == "-1.0"  # a number: not defused
+    assert safe_cell(250.12623300000004) == "250.126233"  # and without float noise
 
 
 @settings(

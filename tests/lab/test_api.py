@@ -42,7 +42,7 @@ def _concrete(path: str) -> str:
 
 
 @pytest.mark.usefixtures("people")
-def test_every_route_but_login_version_and_enrol_needs_a_session(
+def test_every_route_but_login_version_privacy_and_enrol_needs_a_session(
     lab: Lab, app_client: Client
 ) -> None:
     client = app_client()
@@ -57,8 +57,18 @@ def test_every_route_but_login_version_and_enrol_needs_a_session(
             if (method, path) == ("get", "/api/version"):
                 assert response.status_code == 200  # what a client reads before logging in
                 continue
+            if (method, path) == ("get", "/api/privacy"):
+                assert response.status_code == 200  # what the lab keeps: the public privacy page
+                continue
             if (method, path) == ("post", "/api/enrol"):
                 assert response.status_code == 422  # self-enrolment: a code, not a login
+                continue
+            if (method, path) == ("get", "/api/calendar/{token}"):
+                # A calendar app reads a feed with no login: its secret address is the key,
+                # and an address that is no feed's is not found (this one is too short).
+                assert response.status_code == 422, response.text
+                unknown = client.get("/api/calendar/" + "x" * 43 + ".ics")
+                assert unknown.status_code == 404, unknown.text
                 continue
             if path == "/api/lti/jwks":
                 assert response.status_code == 200  # the tool's public keys, for any LMS

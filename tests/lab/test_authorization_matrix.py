@@ -3,7 +3,8 @@
 The route table is the app's own ``/openapi.json``: a route missing from
 :data:`EXPECTED` fails the test, so a new route must say who may use it. Each
 route is tried by an administrator (``root``), a teacher (``tina``, who
-teaches ``mine``) and a student (``ana``, in ``mine``), on an object of
+teaches ``mine``), a teaching assistant (``tara``, a student's account that
+assists ``mine``) and a student (``ana``, in ``mine``), on an object of
 ``mine`` ("in") and of ``theirs`` (taught by ``otto``, with student ``olga``;
 "out"). A try the table does not allow must be refused with 403 or 404 — not
 a 422, so every body below is one the route would accept — and a try it
@@ -21,6 +22,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from thermolab.lab.accounts.users import Principal
+from thermolab.lab.db.assignment_models import Assignment
 from thermolab.lab.db.lti_models import LtiIdentity
 from thermolab.lab.http.app import create_app
 from thermolab.lab.runs.request import RunRequest
@@ -37,9 +39,12 @@ class Kind(enum.Enum):
     TEACHER = "any teacher, lab-wide (rigs in class, guides, creating a course)"
     ADMIN = "lab administrators only"
     COURSE_TEACHER = "the object's course's teachers, and administrators"
+    COURSE_STAFF = "the object's course's teachers and assistants, and administrators"
     COURSE_MEMBER = "the object's course's members, and administrators"
     STUDENT_OF_COURSE = "the object's course's students only (handing in)"
-    OWN_OR_TEACHER = "the object's owner; any teacher (runs)"
+    OWN_OR_TEACHER = (
+        "the object's owner (and, read only, their lab group mates); any teacher (runs)"
+    )
     OWN = "the object's owner only"
 
 
@@ -49,6 +54,7 @@ EXPECTED: dict[str, Kind] = {
     "POST /api/session": K.PUBLIC,
     "DELETE /api/session": K.PUBLIC,
     "GET /api/version": K.PUBLIC,
+    "GET /api/privacy": K.PUBLIC,
     "POST /api/enrol": K.PUBLIC,
     "GET /api/lti/login": K.PUBLIC,
     "POST /api/lti/login": K.PUBLIC,
@@ -61,6 +67,7 @@ EXPECTED: dict[str, Kind] = {
     "DELETE /api/rigs/{rig_id}/control": K.ANYONE,
     "POST /api/rigs/{rig_id}/heartbeat": K.ANYONE,
     "POST /api/rigs/{rig_id}/control/more-time": K.ANYONE,
+    "PUT /api/rigs/{rig_id}/control/speedup": K.ANYONE,
     "PUT /api/rigs/{rig_id}/input": K.ANYONE,
     "GET /api/rigs/{rig_id}/control-sessions": K.ANYONE,
     "GET /api/rigs/{rig_id}/camera": K.ANYONE,
@@ -113,20 +120,43 @@ EXPECTED: dict[str, Kind] = {
     "GET /api/audit.csv": K.ADMIN,
     "PUT /api/users/{username}/password": K.COURSE_TEACHER,
     "POST /api/users/{username}/password-reset": K.COURSE_TEACHER,
-    "GET /api/courses/{course}": K.COURSE_TEACHER,
+    "GET /api/courses/{course}": K.COURSE_STAFF,
     "PUT /api/courses/{course}/roster": K.COURSE_TEACHER,
     "POST /api/courses/{course}/enrol-code": K.COURSE_TEACHER,
     "PUT /api/courses/{course}/rigs": K.COURSE_TEACHER,
+    "PUT /api/courses/{course}/assistants/{username}": K.COURSE_TEACHER,
+    "DELETE /api/courses/{course}/assistants/{username}": K.COURSE_TEACHER,
     "POST /api/courses/{course}/assignments": K.COURSE_TEACHER,
     "PUT /api/assignments/{assignment_id}": K.COURSE_TEACHER,
-    "GET /api/assignments/{assignment_id}/submissions": K.COURSE_TEACHER,
-    "GET /api/courses/{course}/grades.csv": K.COURSE_TEACHER,
+    "GET /api/assignments/{assignment_id}/submissions": K.COURSE_STAFF,
+    "GET /api/courses/{course}/grades.csv": K.COURSE_STAFF,
+    "GET /api/assignments/{assignment_id}/standings": K.COURSE_STAFF,
+    "PUT /api/assignments/{assignment_id}/overrides/{username}": K.COURSE_TEACHER,
+    "DELETE /api/assignments/{assignment_id}/overrides/{username}": K.COURSE_TEACHER,
+    "PUT /api/assignments/{assignment_id}/extensions/{username}": K.COURSE_TEACHER,
+    "DELETE /api/assignments/{assignment_id}/extensions/{username}": K.COURSE_TEACHER,
+    "GET /api/courses/{course}/groups": K.COURSE_STAFF,
+    "POST /api/courses/{course}/groups": K.COURSE_TEACHER,
+    "DELETE /api/courses/{course}/groups/{group_id}": K.COURSE_TEACHER,
     "POST /api/bookings": K.COURSE_TEACHER,
     "PUT /api/bookings/{booking}": K.COURSE_TEACHER,
     "DELETE /api/bookings/{booking}": K.COURSE_TEACHER,
-    "GET /api/courses/{course}/analytics": K.COURSE_TEACHER,
-    "GET /api/courses/{course}/analytics/students.csv": K.COURSE_TEACHER,
-    "GET /api/courses/{course}/analytics/rigs.csv": K.COURSE_TEACHER,
+    # The booking tools (issue #24, item 7).
+    "GET /api/courses/{course}/booking-quota": K.COURSE_TEACHER,
+    "PUT /api/courses/{course}/booking-quota": K.COURSE_TEACHER,
+    "POST /api/courses/{course}/own-bookings": K.STUDENT_OF_COURSE,
+    "POST /api/booking-series": K.COURSE_TEACHER,
+    "GET /api/own-bookings": K.ANYONE,  # the reader's own courses
+    "GET /api/calendar-feeds": K.ANYONE,  # the reader's own
+    "POST /api/calendar-feeds": K.ANYONE,  # of the reader's courses (checked in its test)
+    "DELETE /api/calendar-feeds/{feed_id}": K.ANYONE,  # another's is a 404 (its test)
+    "GET /api/calendar/{token}": K.PUBLIC,  # the address is the secret
+    "GET /api/reminders": K.ANYONE,
+    "PUT /api/reminders": K.ANYONE,
+    "DELETE /api/reminders": K.ANYONE,
+    "GET /api/courses/{course}/analytics": K.COURSE_STAFF,
+    "GET /api/courses/{course}/analytics/students.csv": K.COURSE_STAFF,
+    "GET /api/courses/{course}/analytics/rigs.csv": K.COURSE_STAFF,
     "POST /api/lti/courses/{course}/roster": K.COURSE_TEACHER,
     "POST /api/lti/grades/{grade_id}/retry": K.COURSE_TEACHER,
     "PUT /api/courses/{course}/settings": K.COURSE_TEACHER,
@@ -148,7 +178,7 @@ EXPECTED: dict[str, Kind] = {
     "POST /api/lti/deep-links/{key}": K.OWN,
 }
 
-ACTORS = ("root", "tina", "ana")
+ACTORS = ("root", "tina", "tara", "ana")
 SIDES = ("in", "out")
 
 
@@ -161,9 +191,10 @@ def allowed(kind: Kind, actor: str, side: str) -> bool:
         K.TEACHER: teacher,
         K.ADMIN: admin,
         K.COURSE_TEACHER: admin or (teacher and inside),
+        K.COURSE_STAFF: admin or (actor in ("tina", "tara") and inside),
         K.COURSE_MEMBER: admin or inside,
         K.STUDENT_OF_COURSE: actor == "ana" and inside,
-        K.OWN_OR_TEACHER: teacher or inside,
+        K.OWN_OR_TEACHER: teacher or (actor == "ana" and inside),  # the "in" run is ana's
         K.OWN: inside,
     }[kind]
 
@@ -198,7 +229,7 @@ def world(make_lab: LabFactory) -> Iterator[dict[str, Any]]:
     root = add("root", PASSWORD, "teacher", admin=True)
     tina, otto = add("tina", PASSWORD, "teacher"), add("otto", PASSWORD, "teacher")
     people = {"root": root, "tina": tina, "otto": otto}
-    for name in ("ana", "olga", "pw_in", "pw_out", "gone_in", "gone_out"):
+    for name in ("ana", "olga", "tara", "helper", "pw_in", "pw_out", "gone_in", "gone_out"):
         people[name] = add(name, PASSWORD, "student")
     lab.courses.create("mine", "Mine", "tina")
     lab.courses.create("theirs", "Theirs", "otto")
@@ -206,6 +237,7 @@ def world(make_lab: LabFactory) -> Iterator[dict[str, Any]]:
     lab.courses.import_class_list(
         "theirs", b"username,display_name\nolga,O\npw_out,P\ngone_out,G\n"
     )
+    lab.assistants.add("mine", "tara")
     principal = {n: Principal(u.id, u.username, u.role, admin=u.admin) for n, u in people.items()}
     runs = {}
     for who in ("ana", "olga"):
@@ -215,7 +247,8 @@ def world(make_lab: LabFactory) -> Iterator[dict[str, Any]]:
         lab.runs.wait("twin", timeout=60)
         lab.access.release("twin", principal[who])
     tokens = {
-        n: lab.tokens.create(principal[n], "t").info.id for n in ("root", "tina", "ana", "olga")
+        n: lab.tokens.create(principal[n], "t").info.id
+        for n in ("root", "tina", "tara", "ana", "olga")
     }
     platform = lab.lti.platforms.register(
         issuer="http://127.0.0.1:9",
@@ -241,7 +274,7 @@ def world(make_lab: LabFactory) -> Iterator[dict[str, Any]]:
     draft = _assignment_body()
     app = create_app(lab.config, lab=lab, sweep_interval=None)
     clients: dict[str, TestClient] = {}
-    for name in ("root", "tina", "otto", "ana"):
+    for name in ("root", "tina", "otto", "tara", "ana"):
         client = TestClient(app)
         answer = client.post("/api/session", json={"username": name, "password": PASSWORD})
         assert answer.status_code == 200, answer.text
@@ -256,8 +289,20 @@ def world(make_lab: LabFactory) -> Iterator[dict[str, Any]]:
         .json()["id"]
         for side, teacher, course, hour in (("in", "tina", "mine", 0), ("out", "otto", "theirs", 2))
     }
+    groups = {
+        side: lab.assignments.groups.create(course, principal[teacher], "bench 1", students).id
+        for side, teacher, course, students in (
+            ("in", "tina", "mine", ["ana", "pw_in"]),
+            ("out", "otto", "theirs", ["olga", "pw_out"]),
+        )
+    }
+    # Students may book for themselves in both courses (the quota is not what is tried).
+    for teacher, course in (("tina", "mine"), ("otto", "theirs")):
+        quota = {"minutesPerWeek": 600}
+        assert clients[teacher].put(f"/api/courses/{course}/booking-quota", json=quota).is_success
     yield {
         "lab": lab,
+        "group_id": groups,
         "clients": clients,
         "course": {"in": "mine", "out": "theirs"},
         "username": {"in": "pw_in", "out": "pw_out"},
@@ -289,11 +334,14 @@ def _request(world: dict[str, Any], route: str, actor: str, side: str) -> dict[s
         "assignment_id": str(world["assignment_id"][side]),
         "booking": str(world["booking"][side]),
         "grade_id": str(world["grade_id"][side]),
+        "group_id": str(world["group_id"][side]),
         # A token of one's own ("in"), or of someone else.
         "token_id": str(world["token_id"][actor if side == "in" else "olga"]),
     }
     if route in ("DELETE /api/users/{username}", "POST /api/users/{username}/forget"):
         values["username"] = world["gone"][side]
+    if "/assistants/" in route:  # made an assistant, then removed (deletions come last)
+        values["username"] = "helper"
     url = path.format(**values)
     body = _BODIES.get(route)
     if callable(body):
@@ -352,10 +400,26 @@ _BODIES: dict[str, Any] = {
         "rigs": ["other"],
         **_slot(0 if side == "in" else 2),
     },
+    "PUT /api/courses/{course}/booking-quota": {"minutesPerWeek": 600},
+    "POST /api/courses/{course}/own-bookings": {"rig": "twin", **_slot(30)},
+    "POST /api/booking-series": lambda world, side: {
+        "course": world["course"][side],
+        "rigs": ["other"],
+        **_slot(20 if side == "in" else 22),
+        "until": "2031-01-01",
+    },
     "PUT /api/courses/{course}/settings": {"version": 0, "values": {}},
     "POST /api/courses/{course}/copy": {"name": "next-term", "shiftDays": 182},
     # Not the list of leavers: refused as stale (409), so nobody the other tries need goes.
     "POST /api/courses/{course}/purge-students": {"students": ["nobody"], "runs": "keep"},
+    "PUT /api/assignments/{assignment_id}/overrides/{username}": {"mark": 9.5, "comment": "ok"},
+    "PUT /api/assignments/{assignment_id}/extensions/{username}": {
+        "deadline": "2030-02-01T12:00:00+00:00"
+    },
+    "POST /api/courses/{course}/groups": lambda world, side: {
+        "name": "bench 2",
+        "members": [world["gone"][side], world["username"][side]],
+    },
     "POST /api/assignments/{assignment_id}/submissions": lambda world, side: {
         "runId": world["run_id"]["in"],
         "K": 0.14,
@@ -413,3 +477,34 @@ def test_teachers_see_only_their_courses_and_their_students_grades(
     assert [g["sub"] for g in tina.get("/api/lti/grades").json()] == ["ana"]
     assert sorted(g["sub"] for g in root.get("/api/lti/grades").json()) == ["ana", "olga"]
     assert world["clients"]["ana"].get("/api/courses").status_code == 403
+    # An assistant lists the course they assist, and no LMS grades.
+    tara = world["clients"]["tara"]
+    assert [c["name"] for c in tara.get("/api/courses").json()] == ["mine"]
+    assert tara.get("/api/lti/grades").status_code == 403
+
+
+def test_an_assistant_reads_their_course_and_changes_nothing_in_it(
+    world: dict[str, Any],
+) -> None:
+    tara, tina = world["clients"]["tara"], world["clients"]["tina"]
+    roster = tara.get("/api/courses/mine").json()["members"]
+    assert {m["username"]: m["role"] for m in roster}["tara"] == "assistant"
+    assert "ana" in tara.get("/api/courses/mine/grades.csv").text
+    # A draft is seen by the course's teachers and assistants, not its students.
+    draft = {**_assignment_body(), "title": "Draft"}
+    made = tina.post("/api/courses/mine/assignments", json=draft).json()["id"]
+    with world["lab"].db.write() as session:
+        session.get(Assignment, made).draft = True
+    assert tara.get(f"/api/assignments/{made}").status_code == 200
+    assert world["clients"]["ana"].get(f"/api/assignments/{made}").status_code == 403
+    # What makes the course is its teachers': each refused with the policy's words.
+    refused = tara.put("/api/courses/mine/rigs", json={"rigs": ["twin"]})
+    assert refused.status_code == 403
+    assert "only a teacher of course 'mine'" in refused.json()["detail"]
+    assert tara.put("/api/courses/mine/assistants/helper").status_code == 403
+    assert tara.post("/api/courses/mine/assignments", json=draft).status_code == 403
+    # Someone already in the course is not made its assistant; a removed one reads nothing.
+    assert tina.put("/api/courses/mine/assistants/ana").status_code == 409
+    assert tina.delete("/api/courses/mine/assistants/tara").status_code == 200
+    assert tara.get("/api/courses/mine").status_code == 403
+    assert tara.get("/api/courses").status_code == 403

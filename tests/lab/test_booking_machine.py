@@ -21,6 +21,7 @@ from sqlalchemy import func, select
 from thermolab.errors import BookingClashError, InvalidParameterError, RigBookedError
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import ManualClock
+from thermolab.lab.config import AccessPolicy
 from thermolab.lab.db.models import ControlSession
 
 from .conftest import PASSWORD, LabFactory
@@ -33,7 +34,11 @@ OUTSIDERS = ("carla", "dan")
 def test_no_outsider_controls_or_waits_during_a_slot_whatever_happens(
     make_lab: LabFactory, clock: ManualClock
 ) -> None:
-    lab = make_lab(control_time_limit=600.0, idle_limit=None)
+    # Clients count as gone after 120 s without contact (15 s by default), so time can
+    # pass in steps of 100 s: a few transactions a wait instead of 35 rounds of heartbeats.
+    lab = make_lab(
+        control_time_limit=600.0, idle_limit=None, access=AccessPolicy(client_timeout=120.0)
+    )
     people = {}
     for name, role in [("tina", "teacher"), *((n, "student") for n in MEMBERS + OUTSIDERS)]:
         info = lab.users.add(name, PASSWORD, role)
@@ -96,10 +101,10 @@ def test_no_outsider_controls_or_waits_during_a_slot_whatever_happens(
 
         @rule(seconds=st.integers(1, 420))
         def wait(self, seconds: int) -> None:
-            # The clients keep in touch (every 12 s, under the 15-s timeout) as time passes;
-            # 420 s reaches past every slot's start (at most 300 s ahead).
+            # The clients keep in touch (every 100 s, under the 120-s timeout) as time
+            # passes; 420 s reaches past every slot's start (at most 300 s ahead).
             while seconds > 0:
-                step = min(seconds, 12)
+                step = min(seconds, 100)
                 clock.advance(float(step))
                 seconds -= step
                 for name in MEMBERS + OUTSIDERS:
@@ -126,7 +131,7 @@ def test_no_outsider_controls_or_waits_during_a_slot_whatever_happens(
     run_state_machine_as_test(
         Machine,
         settings=settings(
-            # Each step is several transactions (a wait: up to 35 heartbeats of 4 people);
+            # Each step is several transactions (a wait: up to 5 heartbeats of 4 people);
             # the ci profile draws the same examples every run. 12 x 10 steps reach every
             # rule in and out of slots; 20 x 12 took 169 s on PostgreSQL on CI.
             max_examples=12,

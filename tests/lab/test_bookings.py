@@ -150,8 +150,8 @@ def test_only_the_courses_teachers_book_move_or_cancel_its_slots(
     ("changes", "code"),
     [
         ({"startsAt": "2026-01-01T02:00:00"}, "invalid_request"),  # no zone
-        ({"endsAt": iso(30)}, "invalid_parameter"),  # before the start
-        ({"endsAt": iso(60 + 25 * 60)}, "invalid_parameter"),  # longer than a day
+        ({"endsAt": iso(30)}, "slot_ends_before_start"),
+        ({"endsAt": iso(60 + 25 * 60)}, "slot_too_long"),  # longer than a day, not said
         ({"startsAt": iso(-120), "endsAt": iso(-60)}, "invalid_parameter"),  # over already
         ({"rigs": []}, "invalid_request"),
         ({"rigs": ["nope"]}, "not_found"),

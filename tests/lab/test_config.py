@@ -9,15 +9,18 @@ import pytest
 from thermolab.errors import ConfigError, NotFoundError
 from thermolab.lab.config import (
     CooldownPolicy,
+    RetentionPolicy,
     default_config,
     load_config,
     parse_rig_spec,
     resolve_data_dir,
 )
+from thermolab.lab.config.model import QUICK_START_SPEEDUP
 from thermolab.lab.rigs.devices import published_defaults
 
 FULL = """
 title = "Room 2.14"
+time_zone = "America/Sao_Paulo"
 database_url = "postgresql://lab@db/thermolab"
 speedup = 20
 
@@ -61,11 +64,13 @@ def test_without_a_file_the_lab_has_one_twin_and_sqlite_in_the_data_dir(tmp_path
     assert (rig.id, rig.spec, rig.control_time_limit, rig.idle_limit) == ("twin", "sim", 300, 120)
     assert config.database == f"sqlite:///{tmp_path / 'thermolab.sqlite3'}"
     assert config.access.client_timeout == 15.0
+    assert config.time_zone == "UTC"
 
 
 def test_a_full_file(tmp_path: Path) -> None:
     config = load_config(write(tmp_path, FULL), tmp_path)
     assert config.title == "Room 2.14"
+    assert config.time_zone == "America/Sao_Paulo"
     assert {rig.twin_speedup for rig in config.rigs} == {20.0}  # the twins' first speed-up
     assert config.database == "postgresql://lab@db/thermolab"
     assert (config.access.client_timeout, config.access.session_lifetime) == (20.0, 3600.0)
@@ -151,6 +156,23 @@ A = "[[rigs]]\nid='a'\nspec='sim'\n"  # the smallest valid file
             r"rig_defaults\.cooldown\.speed: unknown key",
         ),
         ("speedup=0\n" + A, "speedup: expected a finite number > 0"),
+        ("[retention]\nmonths=0\n", r"retention\.months: expected a finite number >= 1, got 0"),
+        ("[retention]\nmonths=2000\n", r"retention\.months: expected at most 1200, got 2000"),
+        ("[retention]\nmonths=1.5\n", r"retention\.months: expected a whole number"),
+        (
+            "[retention]\naction='archive'\n",
+            r"retention\.action: expected one of 'pseudonymise', 'delete', got 'archive'",
+        ),
+        (
+            "[retention]\ndays=30\n",
+            r"retention\.days: unknown key \(allowed here: months, action\)",
+        ),
+        (
+            "time_zone = 'Mars/Olympus'\n",
+            r"time_zone: 'Mars/Olympus' is not a known IANA time zone \(like America/Sao_Paulo",
+        ),
+        ("time_zone = 'America/Sao Paulo'\n", r"time_zone: 'America/Sao Paulo' is not a known"),
+        ("time_zone = -3\n", "time_zone: expected a non-empty string, got -3"),
         ("rigs = 3\n", "rigs: expected one or more"),
         ("[[rigs]\n", "not valid TOML"),
     ],
@@ -271,3 +293,40 @@ def test_the_live_socket_limits_are_access_keys(tmp_path: Path) -> None:
     default = default_config(tmp_path).access
     assert (default.live_sockets_per_login, default.live_sockets_per_rig) == (4, 500)
     assert default.live_replay_samples == 20_000
+
+
+def test_the_retention_period_from_the_file_then_the_environment(tmp_path: Path) -> None:
+    assert default_config(tmp_path).retention == RetentionPolicy(None, "pseudonymise")
+    config = load_config(write(tmp_path, "[retention]\nmonths = 24\n"), tmp_path)
+    assert config.retention == RetentionPolicy(24, "pseudonymise")
+    environ = {"THERMOLAB_RETENTION_MONTHS": " 18 ", "THERMOLAB_RETENTION_ACTION": "delete"}
+    assert config.retention.with_environment(environ) == RetentionPolicy(18, "delete")
+    empty = {"THERMOLAB_RETENTION_MONTHS": "", "THERMOLAB_RETENTION_ACTION": ""}
+    assert config.retention.with_environment(empty) == config.retention  # empty is unset
+    for name, value, message in (
+        ("THERMOLAB_RETENTION_MONTHS", "two years", "expected a whole number of months"),
+        (
+            "THERMOLAB_RETENTION_MONTHS",
+            "0",
+            "expected a whole number of months from 1 to 1200, got 0",
+        ),
+        ("THERMOLAB_RETENTION_ACTION", "archive", "expected pseudonymise or delete"),
+    ):
+        with pytest.raises(ConfigError, match=f"^{name}: {message}"):
+            config.retention.with_environment({name: value})
+
+
+def test_the_quick_start_twin_runs_the_papers_first_experiment_within_a_minute(
+    tmp_path: Path,
+) -> None:
+    # No file (the README's quick start): one twin whose pace fits the paper's first
+    # experiment, 2000 samples at T = 1 s, in under a minute of wall time (issue #24).
+    (quick,) = default_config(tmp_path).rigs
+    assert (quick.lab_twin, quick.speedup) == (True, QUICK_START_SPEEDUP)
+    assert 2000 * 1.0 / QUICK_START_SPEEDUP < 60.0
+    # A lab's file keeps its own pace: real time unless it says, with or without [[rigs]].
+    assert load_config(write(tmp_path, 'title = "Lab"\n'), tmp_path).rigs[0].twin_speedup == 1.0
+    declared = "[[rigs]]\nid = 'twin'\nspec = 'sim'\n[[rigs]]\nid = 'kit'\nspec = 'tclab'\n"
+    declared += "[[rigs]]\nid = 'host'\nspec = 'sim'\nagent = true\n"
+    paces = [rig.speedup for rig in load_config(write(tmp_path, declared), tmp_path).rigs]
+    assert paces == [1.0, 1.0, None]  # hardware in real time; a host's twin: its host's

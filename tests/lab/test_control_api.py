@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from thermolab.control import tune
+from thermolab.control import LoopWord, tune
 from thermolab.lab.config import RigConfig
 from thermolab.lab.service import Lab
 from thermolab.rigs import Rig, TwinRig, VirtualClock
@@ -52,7 +52,9 @@ def controller(lab: Lab, rig: str = "twin", name: str = "ana") -> TestClient:
     return client
 
 
-def start(client: TestClient, rig: str, samples: int, control: dict[str, Any], **run: Any) -> int:
+def start(
+    client: TestClient, rig: str, samples: int, control: dict[str, Any] | None, **run: Any
+) -> int:
     body = {"dt": 1.0, "samples": samples, "methods": ["lsm"], "control": control, **run}
     response = client.post(f"/api/rigs/{rig}/runs", json=body)
     assert response.status_code == 201, response.text
@@ -252,6 +254,10 @@ def test_pid_on_the_emulated_kit_and_bad_input_codes(kit_lab: Lab) -> None:
     table = client.get(f"/api/runs/{run_id}/tuning").json()
     assert table["closedLoop"]["measured"]["overshoot"] is not None
     assert table["closedLoop"]["predicted"]["overshoot"] is not None
+    # Each note by code beside the English ``note``: the same sentences.
+    notes = table["closedLoop"]["notes"]
+    said = "; ".join(LoopWord.of(n["code"], **n["params"]).text for n in notes)
+    assert said == (table["closedLoop"]["note"] or "")
     # A rig without an output unit cannot be controlled.
     client.delete("/api/rigs/other/control")
     twin = controller(lab, "twin", "cai")
@@ -299,3 +305,41 @@ def test_the_tuning_table_from_an_identified_model(make_lab: LabFactory) -> None
         answer = client.get(f"/api/runs/{run_id}/tuning", params={"tauC": tiny})
         assert (answer.status_code, answer.json()["code"]) == (422, "invalid_request")
         assert answer.json()["errors"][0]["loc"] == ["query", "tauC"]
+
+
+def test_the_tuning_table_steps_from_rest_by_the_rigs_own_ranges(make_lab: LabFactory) -> None:
+    """Issue #24: on the ±10 V box at rest at 0 V the middle of the range is no step."""
+    lab = closed_loop_lab(make_lab, VirtualClock())
+    box = controller(lab, "twin")
+    # The quick start's first lesson: panel 3, WLSM on the Automatic square wave.
+    run_id = start(box, "twin", 2000, None, signal="square:0:4:0.1", methods=["wlsm"])
+    lab.runs.wait("twin", timeout=60)
+    body = box.get(f"/api/runs/{run_id}/tuning").json()
+    table = body["table"]
+    assert table["method"] == "wlsm"
+    assert table["model"]["K"] == pytest.approx(PAPER[0], rel=1e-3)
+    # 0 V to 5 V of input (half the way to the range's end): 0.7 V of output, below 5 V.
+    assert (table["y0"], table["u0"], table["setpoint"]) == (0.0, 0.0, 0.7)
+    rows = {(r["rule"], r["form"]): r for r in table["rows"]}
+    for rule in (("imc", "pid"), ("imc", "pi"), ("simc", "pi")):
+        assert rows[rule]["predicted"]["settling_time"] > 0
+        assert rows[rule]["response"]["y"][-1] == pytest.approx(0.7, abs=0.01)
+    # Ziegler-Nichols and Cohen-Coon need a dead time, which WLSM's model has not: said why.
+    assert "dead time" in rows[("zn", "pid")]["error"]
+    # ... and by code, for a page to say it in its reader's language (issue #24).
+    assert rows[("zn", "pid")]["why"] == {"code": "needs_dead_time", "params": {"rule": "zn"}}
+    # The student's own set point; none at the start nor at the output limit.
+    chosen = box.get(f"/api/runs/{run_id}/tuning", params={"setpoint": -0.5}).json()["table"]
+    assert chosen["setpoint"] == -0.5
+    assert chosen["rows"][0]["response"]["y"][-1] == pytest.approx(-0.5, abs=0.01)
+    for setpoint, code in ((0.0, "setpoint_no_step"), (5.0, "setpoint_out_of_range")):
+        answer = box.get(f"/api/runs/{run_id}/tuning", params={"setpoint": setpoint})
+        assert (answer.status_code, answer.json()["code"]) == (422, code)
+    # The kit twin: 0 % to 50 % of heater from the run's first output, about 30 degC up.
+    kit = controller(lab, "other", "bea")
+    run_id = start(kit, "other", 600, None, signal="step:0:50@0", methods=["lsm"])
+    lab.runs.wait("other", timeout=60)
+    table = kit.get(f"/api/runs/{run_id}/tuning").json()["table"]
+    step = table["setpoint"] - table["y0"]
+    assert step == pytest.approx(0.5 * 100 * table["model"]["K"], abs=0.6)
+    assert table["setpoint"] == round(table["setpoint"])

@@ -1,4 +1,4 @@
-"""``thermolab course``: create, import a class list, one-line errors on a bad file."""
+"""``thermolab course``: create, import a class list, one-line errors on a bad file, assistants."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from thermolab.lab.accounts.users import UserService
+from thermolab.lab.audit.log import AuditLog
 from thermolab.lab.clock import SystemClock
 from thermolab.lab.db import Database
 
@@ -104,3 +105,35 @@ def test_a_bad_class_list_is_one_line_and_changes_nothing(
     )
     assert status == 1
     assert err.strip() == "error: no user called 'nobody'"
+
+
+def test_an_assistant_is_added_and_removed_from_the_shell(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    base = ["--data-dir", str(tmp_path / "data")]
+    for name, role in (("tina", "teacher"), ("rafa", "student")):
+        command = [*base, "user", "add", name, "--role", role, "--password-stdin"]
+        assert run(command, capsys, monkeypatch, PASSWORD + "\n")[0] == 0
+    create = [*base, "course", "create", "ctrl1", "--title", "C", "--teacher", "tina"]
+    assert run(create, capsys, monkeypatch)[0] == 0
+    status, out, err = run([*base, "course", "assistant", "ctrl1", "Rafa"], capsys, monkeypatch)
+    assert (status, out) == (0, "rafa assists course 'ctrl1'\n"), err
+    # A teacher of the course is not made its assistant: one line, exit 1.
+    status, out, err = run([*base, "course", "assistant", "ctrl1", "tina"], capsys, monkeypatch)
+    assert status == 1
+    assert len(err.strip().splitlines()) == 1
+    assert "tina is a teacher of course 'ctrl1'" in err
+    remove = [*base, "course", "assistant", "ctrl1", "rafa", "--remove"]
+    assert run(remove, capsys, monkeypatch)[:2] == (0, "rafa no longer assists course 'ctrl1'\n")
+    status, _, err = run(remove, capsys, monkeypatch)
+    assert status == 1
+    assert "rafa does not assist course 'ctrl1'" in err
+    db = Database(f"sqlite:///{tmp_path / 'data' / 'thermolab.sqlite3'}")
+    try:
+        logged = [(r.action, r.target) for r in AuditLog(db, SystemClock()).list()]
+    finally:
+        db.close()
+    assert logged[:2] == [
+        ("course.assistant_removed", "ctrl1"),
+        ("course.assistant_added", "ctrl1"),
+    ]

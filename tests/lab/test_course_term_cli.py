@@ -42,7 +42,10 @@ def test_a_term_closed_copied_and_its_students_removed_from_the_shell(
 
     status, out, err = shell("course", "close", "ctrl1", "--by", "tina")
     assert status == 0, err
-    assert out.strip() == "closed course 'ctrl1': it can be read and exported, not changed"
+    assert out.strip() == (
+        "closed course 'ctrl1': it can be read and exported, not changed; "
+        "0 bookings that had not begun were cancelled, freeing their rigs"
+    )
     status, _, err = shell("course", "import", "ctrl1", str(roster))
     assert status == 1
     assert err.startswith("error: course 'ctrl1' was closed on ")

@@ -77,7 +77,7 @@ def test_a_killed_server_loses_at_most_a_second_of_the_run(tmp_path: Path) -> No
     )
     try:
         base = f"http://127.0.0.1:{port}"
-        deadline = time.monotonic() + 30
+        deadline = time.monotonic() + 60
         while True:
             with contextlib.suppress(httpx.HTTPError):
                 httpx.get(base + "/openapi.json", timeout=1)
@@ -86,7 +86,8 @@ def test_a_killed_server_loses_at_most_a_second_of_the_run(tmp_path: Path) -> No
             time.sleep(0.1)
         url = f"ws://127.0.0.1:{port}/api/rigs/twin/live"
         seen: list[int] = []
-        with httpx.Client(base_url=base) as http:
+        # A loaded CI machine answered a request after more than httpx's default 5 s.
+        with httpx.Client(base_url=base, timeout=30) as http:
             login = http.post("/api/session", json={"username": "ana", "password": PASSWORD})
             login.raise_for_status()
             cookie = f"thermolab_session={http.cookies['thermolab_session']}"

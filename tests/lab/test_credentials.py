@@ -69,9 +69,9 @@ def test_the_server_refuses_websocket_frames_over_its_limit_from_the_header(
 ) -> None:
     import uvicorn
 
-    from thermolab.cli import serve
+    from thermolab.cli import http_server
 
     given: dict[str, Any] = {}
     monkeypatch.setattr(uvicorn, "run", lambda app, **options: given.update(options))
-    serve._run_server(object(), "127.0.0.1", 8000)
-    assert given["ws_max_size"] == serve.WS_MAX_SIZE == 2**20
+    http_server.run_server(object(), "127.0.0.1", 8000)
+    assert given["ws_max_size"] == http_server.WS_MAX_SIZE == 2**20

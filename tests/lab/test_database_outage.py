@@ -30,7 +30,7 @@ from thermolab.lab.runs.export import RunExport
 from thermolab.lab.service import Lab
 from thermolab.rigs import TwinRig
 
-from .conftest import FAST_HASHER, PASSWORD, make_config
+from .conftest import FAST_HASHER, PASSWORD, empty_postgres, make_config
 from .test_runs import StepClock, person, until
 
 pytestmark = pytest.mark.postgres
@@ -50,14 +50,7 @@ def lab_on_postgres(migrated_postgres: str, tmp_path: Path, rig_clock: StepClock
     """A lab whose connections say who they are, so that only they are cut; its twins'
     time passes only as far as the test allows."""
     url = make_url(migrated_postgres).update_query_dict({"application_name": APP_NAME})
-    engine = create_engine(migrated_postgres)
-    with engine.begin() as connection:  # an empty lab (the schema is shared by the run)
-        tables = connection.execute(
-            text("SELECT tablename FROM pg_tables WHERE schemaname = current_schema()")
-        ).scalars()
-        names = ", ".join(f'"{t}"' for t in tables if t != "alembic_version")
-        connection.execute(text(f"TRUNCATE {names} RESTART IDENTITY CASCADE"))
-    engine.dispose()
+    empty_postgres(migrated_postgres)  # an empty lab (the schema is shared by the run)
     rendered = url.render_as_string(hide_password=False)
     lab = Lab(
         make_config(tmp_path, rendered),

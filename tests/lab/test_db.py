@@ -19,6 +19,11 @@ from thermolab.lab.db import Database, normalize_database_url
 from thermolab.lab.db.models import Base, ControlSession, QueueEntry, RigRow, User, UTCDateTime
 
 TABLES = {
+    # issue #24, item 7: the booking tools (thermolab.lab.db.booking_tool_models)
+    "course_booking_quotas",
+    "calendar_feeds",
+    "reminder_addresses",
+    "reminders_sent",
     "audit_log",  # issue #25: privileged actions (thermolab.lab.db.audit_models)
     "agent_hosts",  # issue #14: rig hosts (thermolab.lab.db.agent_models)
     "users",
@@ -40,6 +45,11 @@ TABLES = {
     "rig_settings",
     "assignments",
     "submissions",
+    # Grading tools (issue #24 item 7): overrides, extensions, lab groups.
+    "grade_overrides",
+    "deadline_extensions",
+    "lab_groups",
+    "lab_group_members",
     "bookings",
     "booking_rigs",
     "rig_power_changes",
@@ -51,6 +61,7 @@ TABLES = {
     "lti_contexts",
     "lti_resource_links",
     "lti_grades",
+    "lti_handoffs",
     # Limits per course (issue #10, item 3).
     "course_settings",
     # Pictures of the guide pages (issue #10, item 1).
@@ -75,7 +86,7 @@ def test_migrations_create_the_schema_of_the_models(fresh_url: str) -> None:
         assert db.current_revision() is None
         db.upgrade()
         db.upgrade()  # idempotent
-        assert db.current_revision() == "0019"
+        assert db.current_revision() == "0023"
         assert set(db.table_names()) == TABLES | {"alembic_version"}
         with db.engine.connect() as connection:
             context = MigrationContext.configure(connection, opts={"compare_type": True})

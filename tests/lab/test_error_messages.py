@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import re
 from collections.abc import Callable
 from pathlib import Path
@@ -11,8 +12,9 @@ from babel.messages.pofile import read_po
 from fastapi.testclient import TestClient
 
 from thermolab.cli import main
-from thermolab.errors import CLASS_LIST_PROBLEMS
+from thermolab.errors import CLASS_LIST_PROBLEMS, PASSWORD_PROBLEMS, TAKEN_NAMES
 from thermolab.lab import error_messages
+from thermolab.lab.classes.reminders import REMINDER_WORDS
 from thermolab.lab.error_messages import (
     ERROR_SENTENCES,
     LANGUAGES,
@@ -21,6 +23,7 @@ from thermolab.lab.error_messages import (
     negotiate_language,
 )
 from thermolab.lab.http.errors import all_error_codes
+from thermolab.lab.rigs.camera import CAMERA_WORDS
 from thermolab.lab.service import Lab
 from thermolab.lab.spreadsheets import SHEET_WORDS
 
@@ -29,8 +32,17 @@ from .conftest import PASSWORD
 Client = Callable[..., TestClient]
 TRANSLATED = [language for language in LANGUAGES if language != "en"]
 #: Every msgid the server's catalogue holds: error sentences, class-list problems,
-#: the spreadsheet forms' words, and the command line's prefix.
-MSGIDS = {*ERROR_SENTENCES.values(), *CLASS_LIST_PROBLEMS.values(), *SHEET_WORDS, "error"}
+#: the spreadsheet forms' words, a password's refusals, the camera picture's words,
+#: the booking reminders' words and the command line's prefix.
+SERVER_WORDS = [
+    *CLASS_LIST_PROBLEMS.values(),
+    *SHEET_WORDS,
+    *PASSWORD_PROBLEMS.values(),
+    *CAMERA_WORDS.values(),
+    *REMINDER_WORDS,
+    *TAKEN_NAMES.values(),
+]
+MSGIDS = {*ERROR_SENTENCES.values(), *SERVER_WORDS, "error"}
 #: Words the same in a language by chance (checked one by one).
 SAME_BY_CHANCE = {("es", "no")}
 
@@ -65,7 +77,7 @@ def test_every_sentence_is_translated_in_every_language(language: str) -> None:
 @pytest.mark.parametrize("language", TRANSLATED)
 def test_class_list_problems_and_spreadsheet_words_are_translated(language: str) -> None:
     catalogue = _catalogue(language)
-    for msgid in [*CLASS_LIST_PROBLEMS.values(), *SHEET_WORDS]:
+    for msgid in SERVER_WORDS:
         assert catalogue.get(msgid), f"{language}: {msgid!r} is not translated"
         if (language, msgid) not in SAME_BY_CHANCE:
             assert catalogue[msgid] != msgid, f"{language}: {msgid!r} is still English"
@@ -146,3 +158,63 @@ def test_the_command_line_says_errors_in_the_users_language(
     monkeypatch.setenv("LANG", "en_US.UTF-8")
     assert main(["identify", str(record), "--method", "lsm"]) == 1
     assert capsys.readouterr().err.startswith("error: ")
+
+
+def test_a_refused_password_is_said_in_the_users_language(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The teacher who met "erro: Um valor não é permitido. (password too short ...)".
+    for name in ("LANGUAGE", "LC_ALL", "LC_MESSAGES"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv("LANG", "pt_BR.UTF-8")
+    monkeypatch.setattr("sys.stdin", io.StringIO("curta\n"))
+    command = ["--data-dir", str(tmp_path), "user", "add", "bia", "--role", "student"]
+    assert main([*command, "--password-stdin"]) == 1
+    line = capsys.readouterr().err.strip()
+    assert line == (
+        "erro: Um valor não é permitido. "
+        "(senha curta demais: são necessários pelo menos 12 caracteres)"
+    )
+
+
+def test_a_taken_name_is_said_in_the_users_language(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Issue #24: "erro: Isto conflita com ... (user 'bia' already exists)" was half English.
+    for name in ("LANGUAGE", "LC_ALL", "LC_MESSAGES"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv("LANG", "pt_BR.UTF-8")
+    command = ["--data-dir", str(tmp_path), "user", "add", "bia", "--role", "student"]
+    for status in (0, 1):
+        monkeypatch.setattr("sys.stdin", io.StringIO(PASSWORD + "\n"))
+        assert main([*command, "--password-stdin"]) == status
+    line = capsys.readouterr().err.strip()
+    assert line == "erro: Este nome de usuário já está em uso. (o usuário 'bia' já existe)"
+    monkeypatch.setenv("LANG", "es_ES.UTF-8")
+    teacher = ["--data-dir", str(tmp_path), "user", "add", "tina", "--role", "teacher"]
+    monkeypatch.setattr("sys.stdin", io.StringIO(PASSWORD + "\n"))
+    assert main([*teacher, "--password-stdin"]) == 0
+    course = ["--data-dir", str(tmp_path), "course", "create", "ctrl", "--title", "Controle"]
+    for status in (0, 1):
+        assert main([*course, "--teacher", "tina"]) == status
+    line = capsys.readouterr().err.strip()
+    assert line == "error: Otro curso ya tiene este nombre: elige otro. (el curso 'ctrl' ya existe)"
+
+
+def test_the_api_says_why_a_password_is_refused_in_the_readers_language(
+    lab: Lab, app_client: Client
+) -> None:
+    lab.users.add("ana", PASSWORD, "student")
+    ana = app_client("ana")
+    answer = ana.put(
+        "/api/users/ana/password",
+        json={"currentPassword": PASSWORD, "password": "password1234"},
+        headers={"Accept-Language": "es"},
+    )
+    assert answer.status_code == 422, answer.text
+    body = answer.json()
+    assert body["message"] == (
+        "esta contraseña está en una lista de contraseñas filtradas; elige otra"
+    )
+    assert body["errors"][0]["type"] == "password.breached"
+    assert body["detail"] == "this password is in a list of breached passwords; choose another"

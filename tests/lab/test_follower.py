@@ -22,7 +22,7 @@ from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.fleet.follower import FollowerLab
 from thermolab.lab.fleet.lease import LEASE_TTL
-from thermolab.lab.rigs.devices import device_opener
+from thermolab.lab.rigs.opener import device_opener
 from thermolab.lab.service import Lab
 
 from .conftest import FAST_HASHER, PASSWORD, make_config

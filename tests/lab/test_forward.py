@@ -8,16 +8,21 @@ once; one that never appears gets a 503 ``rig_unavailable`` with
 ``Retry-After`` after the (short) wait; a request the owner took and did not
 answer is not sent again; a request waiting when its worker is promoted is
 answered by that worker, body and all; a request whose client hung up while
-it waited is never sent.
+it waited is never sent. An owner on a private CA is reached with that CA.
+A rig host that dials a standby while no owner is heard is held until the
+takeover is decided (served, or refused once an owner is heard).
 """
 
 from __future__ import annotations
 
 import contextlib
+import logging
 import socket
+import ssl
 import threading
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 import httpx
@@ -26,18 +31,35 @@ import uvicorn
 from starlette.applications import Starlette
 from starlette.requests import Request
 from starlette.responses import JSONResponse
-from starlette.routing import Route
+from starlette.routing import Route, WebSocketRoute
+from starlette.websockets import WebSocket
+from websockets.exceptions import ConnectionClosed
+from websockets.sync.client import connect as ws_connect
 
+from thermolab.agent.protocol import CLOSE_NOT_OWNER
 from thermolab.lab.http import forward
-from thermolab.lab.http.forward import ForwardToOwner
+from thermolab.lab.http.forward import ForwardToOwner, owner_tls
+
+from ..agent.fleet import make_ca
 
 WAIT = 3.0
 """The tests' wait for an owner (the fleet's covers a takeover: ~17 s)."""
 
 
 @contextlib.contextmanager
-def _serve(app: Any) -> Iterator[str]:
-    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=0, log_level="error"))
+def _serve(app: Any, tls: tuple[Path, Path] | None = None) -> Iterator[str]:
+    """Serve ``app`` on the loopback (HTTPS with ``tls``: a certificate and its key)."""
+    cert, key = (str(tls[0]), str(tls[1])) if tls is not None else (None, None)
+    server = uvicorn.Server(
+        uvicorn.Config(
+            app,
+            host="127.0.0.1",
+            port=0,
+            log_level="error",
+            ssl_certfile=cert,
+            ssl_keyfile=key,
+        )
+    )
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()
     deadline = time.monotonic() + 10
@@ -46,7 +68,7 @@ def _serve(app: Any) -> Iterator[str]:
         time.sleep(0.02)
     port = server.servers[0].sockets[0].getsockname()[1]
     try:
-        yield f"http://127.0.0.1:{port}"
+        yield f"{'https' if tls else 'http'}://127.0.0.1:{port}"
     finally:
         server.should_exit = True
         thread.join(timeout=10)
@@ -82,6 +104,7 @@ def _follower(
     here: Callable[[], bool] = lambda: False,
     on_owner: Callable[[Callable[[], None]], None] | None = None,
     local: list[bytes] | None = None,
+    tls: ssl.SSLContext | None = None,
 ) -> Any:
     return ForwardToOwner(
         _local_app([] if local is None else local),
@@ -89,6 +112,7 @@ def _follower(
         here=here,
         wait=WAIT,
         on_owner=on_owner,
+        tls=tls,
     )
 
 
@@ -235,3 +259,78 @@ def test_a_request_whose_client_hung_up_while_it_waited_is_never_sent() -> None:
             # The next request goes through (the owner heard and answering).
             assert httpx.get(base + "/api/rigs/twin", timeout=30).status_code == 200
     assert owner.got == [("GET", b"")]
+
+
+def test_an_owner_on_the_fleets_private_ca_is_reached_and_an_untrusted_one_is_logged(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The owner serves HTTPS with a certificate of a private CA (``--ca``)."""
+    ca, cert, key = make_ca(tmp_path)
+    owner = Owner()
+    with _serve(owner.app, tls=(cert, key)) as owner_base:
+        trusting = _follower(lambda: owner_base, tls=owner_tls(str(ca)))
+        with _serve(trusting) as base:
+            answer = httpx.post(base + "/api/rigs/twin/control", content=b"take", timeout=30)
+        assert answer.status_code == 200, answer.text
+        assert answer.json() == {"by": "owner", "body": "take"}
+        # The system's CAs alone do not know this one: held, then 503 — and said in the log,
+        # once, however many tries the wait made.
+        with _serve(_follower(lambda: owner_base)) as base, caplog.at_level(logging.WARNING):
+            answer = httpx.post(base + "/api/rigs/twin/control", content=b"take", timeout=30)
+        assert answer.status_code == 503, answer.text
+    assert owner.got == [("POST", b"take")]
+    said = [r.getMessage() for r in caplog.records if r.name == forward.__name__]
+    assert len(said) == 1, said
+    assert owner_base in said[0], said
+    assert "CERTIFICATE_VERIFY_FAILED" in said[0], said
+
+
+class _Takeover:
+    """What a held host's standby sees: announcements of an owner, and whether it owns."""
+
+    def __init__(self) -> None:
+        self.heard = 0
+        self.owning = False
+
+    def app(self, wait: float) -> Any:
+        async def link(ws: WebSocket) -> None:
+            if await forward.hold_agent_link(
+                ws, owns=lambda: self.owning, announcements=lambda: self.heard, wait=wait
+            ):
+                await ws.send_text("welcome")  # served here, as the promoted owner would
+                await ws.close()
+
+        return Starlette(routes=[WebSocketRoute("/api/agents/link", link)])
+
+
+def _dial(base: str) -> tuple[str | int, float]:
+    """Dial as a host does: what the worker answered (a text, or a close code), and when."""
+    began = time.monotonic()
+    with ws_connect(base.replace("http", "ws") + "/api/agents/link", open_timeout=10) as ws:
+        try:
+            return ws.recv(timeout=30), time.monotonic() - began
+        except ConnectionClosed as closed:
+            code = -1 if closed.rcvd is None else closed.rcvd.code
+            return code, time.monotonic() - began
+
+
+def test_a_standby_holds_a_host_through_a_takeover_and_serves_it_once_it_owns() -> None:
+    takeover = _Takeover()
+    with _serve(takeover.app(wait=WAIT)) as base:
+        threading.Timer(1.0, lambda: setattr(takeover, "owning", True)).start()
+        answer, took = _dial(base)
+    assert answer == "welcome"  # held, not refused (4409), then served
+    assert 0.9 < took < WAIT, took
+
+
+def test_a_standby_refuses_a_host_once_an_owner_is_heard_or_after_its_wait() -> None:
+    takeover = _Takeover()
+    with _serve(takeover.app(wait=WAIT)) as base:
+        threading.Timer(0.5, lambda: setattr(takeover, "heard", 1)).start()
+        answer, took = _dial(base)
+    assert answer == CLOSE_NOT_OWNER  # the owner lives: dial it
+    assert 0.4 < took < WAIT, took
+    with _serve(_Takeover().app(wait=1.0)) as base:
+        answer, took = _dial(base)
+    assert answer == CLOSE_NOT_OWNER  # no one decided in time: dial on
+    assert 0.9 < took < WAIT, took

@@ -2,15 +2,26 @@
 
 from __future__ import annotations
 
+import json
 import re
 
 import pytest
 
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.guides import SECTIONS, default_markdown, render_markdown
+from thermolab.web import STATIC_DIR
 
 from .conftest import LabFactory
 from .test_live import login, make
+
+
+def catalogue(lang: str) -> dict[str, object]:
+    """The interface's messages in ``lang`` (js/messages/<lang>.js holds a JSON object)."""
+    text = (STATIC_DIR / "js" / "messages" / f"{lang}.js").read_text(encoding="utf-8")
+    data = json.loads(text[text.index("{", text.index("export const")) : text.rindex("}") + 1])
+    assert isinstance(data, dict)
+    return data
+
 
 HOSTILE = """# Welcome
 
@@ -46,8 +57,8 @@ def test_hostile_markdown_renders_no_script_no_handler_no_javascript_url() -> No
     assert "<mfrac>" in html
 
 
-def test_every_shipped_section_exists_in_both_languages_and_renders_its_maths() -> None:
-    for lang in ("pt-BR", "en"):
+def test_every_shipped_section_exists_in_every_language_and_renders_its_maths() -> None:
+    for lang in ("pt-BR", "en", "es"):
         for section in SECTIONS:
             text = default_markdown(lang, section)
             assert text is not None, (lang, section)
@@ -55,7 +66,21 @@ def test_every_shipped_section_exists_in_both_languages_and_renders_its_maths() 
             assert "math-error" not in render_markdown(text), (lang, section)
     theory = render_markdown(default_markdown("en", "theory") or "")
     assert theory.count("<math") >= 10  # eq. 1-4, the LS solution, the WLSM update
-    assert default_markdown("es", "theory") is None
+
+
+@pytest.mark.parametrize("lang", ["pt-BR", "en", "es"])
+def test_the_shipped_steps_name_the_buttons_as_the_page_labels_them(lang: str) -> None:
+    # The pt-BR guide said START and END where the buttons read INICIAR and ENCERRAR.
+    labels = {
+        str(catalogue(lang)[key])
+        for key in ("panel.start", "panel.end", "loop.start", "loop.end", "loop.use")
+    }
+    labels.add(str(catalogue(lang)["panel.automatic"]))
+    for number in range(1, 5):
+        text = default_markdown(lang, f"panel-{number}") or ""
+        pressed = re.findall(r"\*\*([^*]+)\*\*", text)
+        assert pressed, (lang, number)
+        assert set(pressed) <= labels, (lang, number, set(pressed) - labels)
 
 
 @pytest.mark.parametrize("lang", ["pt-BR", "en"])
@@ -142,7 +167,7 @@ def test_revisions_are_kept_with_author_and_time_and_an_older_one_is_restored(
         assert wrong.json()["code"] == "not_found"
 
 
-def test_spanish_falls_back_to_english_marked_so(make_lab: LabFactory) -> None:
+def test_spanish_reads_its_own_text_and_a_teachers_spanish_revision(make_lab: LabFactory) -> None:
     lab, client, _ = make(make_lab)
     with client:
         teacher = login(lab, "tina")
@@ -152,9 +177,11 @@ def test_spanish_falls_back_to_english_marked_so(make_lab: LabFactory) -> None:
         by_section = {s["section"]: s for s in body["sections"]}
         assert body["lang"] == "es"
         assert (by_section["theory"]["lang"], by_section["theory"]["markdown"]) == ("es", "ES")
-        assert (by_section["school"]["lang"], by_section["school"]["markdown"]) == ("en", "EN")
-        assert by_section["introduction"]["lang"] == "en"
-        assert by_section["introduction"]["markdown"] == default_markdown("en", "introduction")
+        # An English revision is not Spanish: the shipped Spanish text stays.
+        school = by_section["school"]
+        assert (school["lang"], school["markdown"]) == ("es", default_markdown("es", "school"))
+        assert by_section["introduction"]["lang"] == "es"
+        assert by_section["introduction"]["markdown"].startswith("# Introducción")
 
 
 def test_bad_requests_are_4xx_with_a_code(make_lab: LabFactory) -> None:

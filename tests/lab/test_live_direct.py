@@ -23,7 +23,7 @@ import pytest
 import uvicorn
 from websockets.sync.client import ClientConnection, connect
 
-from thermolab.cli.serve import _framed_websockets
+from thermolab.cli.http_server import _framed_websockets
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.http.app import create_app

@@ -132,6 +132,21 @@ def test_a_learner_and_an_instructor_launch_and_are_signed_in(
     assert _counts(lab)["users"] == after["users"]
 
 
+def test_a_teaching_assistant_launches_as_the_courses_assistant(
+    lab: Lab, app_client: Client, platform: Platform, registered: int
+) -> None:
+    assistant = "http://purl.imsglobal.org/vocab/lis/v2/membership/Instructor#TeachingAssistant"
+    platform.expect("h-tea", PendingLaunch(Person("sub-tea", "Tea", [assistant])))
+    tea = app_client(base_url=TOOL)
+    assert _launch(tea, platform, "h-tea").status_code == 303
+    assert tea.get("/api/session").json()["role"] == "student"  # the account: never a teacher's
+    course = tea.get("/api/courses").json()
+    assert len(course) == 1  # the LMS course's, which they assist
+    members = tea.get(f"/api/courses/{course[0]['name']}").json()["members"]
+    assert [m["role"] for m in members] == ["assistant"]
+    assert tea.put(f"/api/courses/{course[0]['name']}/rigs", json={"rigs": []}).status_code == 403
+
+
 def _digest(platform_id: int, sub: str) -> str:
     import hashlib
 

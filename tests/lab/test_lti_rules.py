@@ -5,8 +5,8 @@ from __future__ import annotations
 from hypothesis import given
 from hypothesis import strategies as st
 
-from thermolab.lab.db.models import Role
-from thermolab.lab.lti.claims import lab_role
+from thermolab.lab.db.models import MemberRole, Role
+from thermolab.lab.lti.claims import course_role, lab_role
 from thermolab.lab.lti.deep_linking import target_path
 from thermolab.lab.lti.grades import retry_delay
 
@@ -33,6 +33,19 @@ def test_only_an_instructor_or_administrator_is_a_teacher(given_roles: list[obje
         for r in given_roles
     )
     assert (lab_role(given_roles) is Role.TEACHER) == teaching
+
+
+@given(roles)
+def test_a_teaching_assistant_assists_unless_also_a_teacher(given_roles: list[object]) -> None:
+    names = {r.rsplit("#", 1)[-1].rsplit("/", 1)[-1] for r in given_roles if isinstance(r, str)}
+    expected = (
+        MemberRole.TEACHER
+        if names & {"Instructor", "Administrator"}
+        else MemberRole.ASSISTANT
+        if "TeachingAssistant" in names
+        else MemberRole.STUDENT
+    )
+    assert course_role(given_roles) is expected
 
 
 @given(st.one_of(st.text(max_size=300), st.none(), st.integers()))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import pytest
 from hypothesis import given, settings
@@ -132,4 +133,8 @@ def test_no_text_cell_starts_like_a_formula(text: str) -> None:
 def test_the_grades_csv_keeps_a_hostile_name_as_text() -> None:
     row = GradeRow("c", 1, "+SUM(A1)", "ana", "@cmd", "missing", None, 10.0, None, None, True, None)
     line = grades_csv([row]).splitlines()[1]
-    assert line == "c,1,'+SUM(A1),ana,'@cmd,missing,,10.0,yes,,,,,,,"
+    assert line == "c,1,'+SUM(A1),ana,'@cmd,missing,,10.0,yes,,,,,,,,,"
+    # A teacher's comment on an overridden mark is text too.
+    commented = replace(row, state="marked", mark=9.0, automatic_mark=6.5, comment="=1+1 ok")
+    line = grades_csv([commented]).splitlines()[1]
+    assert line.endswith(",6.5,'=1+1 ok")

@@ -27,7 +27,7 @@ import collections
 import math
 import os
 import shutil
-from collections.abc import Awaitable, Callable, Iterator, MutableMapping
+from collections.abc import Awaitable, Callable, Iterable, Iterator, MutableMapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -42,17 +42,15 @@ from schemathesis import GenerationMode
 from schemathesis.checks import not_a_server_error
 from schemathesis.core.failures import Failure, FailureGroup
 from schemathesis.specs.openapi.checks import response_schema_conformance
-from sqlalchemy import create_engine, text
 
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import RigConfig
 from thermolab.lab.db import Database
-from thermolab.lab.db.models import Base
 from thermolab.lab.http.app import create_app
 from thermolab.lab.service import Lab
 from thermolab.rigs import Rig, TwinRig
 
-from .conftest import FAST_HASHER, PASSWORD, make_config
+from .conftest import FAST_HASHER, PASSWORD, empty_postgres, make_config
 from .test_runs import StepClock
 
 Message = MutableMapping[str, Any]
@@ -203,7 +201,7 @@ def _rig_ids(
     return st.one_of(real, st.just(path_parameters))
 
 
-def run_stateful(labs: FreshLabs) -> Tally:
+def run_stateful(labs: FreshLabs, seeds: Iterable[int] = SEEDS) -> Tally:
     labs.open()
     schema = schemathesis.openapi.from_asgi("/openapi.json", labs.current)
     # Logging out would leave the rest of a scenario at 401.
@@ -227,7 +225,7 @@ def run_stateful(labs: FreshLabs) -> Tally:
         ) -> None:
             tally.checked(response, case)
 
-    for number in SEEDS:  # a run that ends as Flaky ends early; the next seed goes on
+    for number in seeds:  # a run that ends as Flaky ends early; the next seed goes on
         try:
             hypothesis_seed(number)(Machine).run(
                 settings=settings(
@@ -295,16 +293,12 @@ def empty_database(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[C
         yield sqlite
         return
     url: str = request.getfixturevalue("migrated_postgres")
-    engine = create_engine(url)
-    tables = ", ".join(table.name for table in Base.metadata.sorted_tables)
 
     def postgres() -> str:
-        with engine.begin() as connection:
-            connection.execute(text(f"TRUNCATE {tables} RESTART IDENTITY CASCADE"))
+        empty_postgres(url)
         return url
 
     yield postgres
-    engine.dispose()
 
 
 @pytest.mark.slow
@@ -313,8 +307,12 @@ def test_schemathesis_stateful_finds_no_server_error(
     empty_database: Callable[[], str], tmp_path: Path, role: str, request: pytest.FixtureRequest
 ) -> None:
     labs = FreshLabs(tmp_path, empty_database, role)
+    # PostgreSQL draws the first seed's sequences only: what differs there is the
+    # database's types, constraints and locks, which the first seed's calls all reach;
+    # the logic is the same on both, and SQLite explores it with every seed.
+    on_sqlite = "sqlite" in request.node.callspec.id
     try:
-        tally = run_stateful(labs)
+        tally = run_stateful(labs, SEEDS if on_sqlite else SEEDS[:1])
     finally:
         labs.close()
     print("\n" + tally.report(f"{request.node.callspec.id}"))

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from thermolab.cli.serve import HEAD_LIMIT
+from thermolab.cli.http_server import HEAD_LIMIT
 
 
 def _free_port() -> int:

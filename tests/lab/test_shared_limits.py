@@ -5,8 +5,10 @@ Two throttles on one real Redis stand for two web workers: failures on one
 delay logins on the other, an address's attempts on both count together, the
 waits end when the rules say (the same as the in-memory throttle's, checked
 step by step against it), and a throttle whose Redis is unreachable falls
-back to its own worker's counts. Two workers' socket counts see each other's
-and stop counting when one closes or stops refreshing. Skipped, with the
+back to its own worker's counts. The LTI login initiations alike: 30 a
+minute per address over both workers, one's own count without Redis. Two
+workers' socket counts see each other's and stop counting when one closes or
+stops refreshing. Skipped, with the
 reason, without Redis.
 """
 
@@ -21,10 +23,13 @@ import pytest
 from thermolab.lab.accounts.security import LoginThrottle, RateLimitedError
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.fleet.shared_limits import (
+    SharedInitiationRate,
     SharedLiveSocketCounts,
     SharedLoginThrottle,
 )
 from thermolab.lab.fleet.worker_hashes import figures_client
+from thermolab.lab.lti.errors import LtiThrottledError
+from thermolab.lab.lti.launch import InitiationRate
 
 pytestmark = pytest.mark.redis
 
@@ -157,6 +162,37 @@ def test_without_redis_each_worker_throttles_on_its_own_counts() -> None:
     throttle.check("ana", "10.0.0.3")  # nor everyone locked out
     clock.advance(1)
     throttle.check("tina", "10.0.0.1")
+
+
+def test_lti_login_initiations_count_on_every_worker_until_the_window_has_passed(
+    redis: Any, prefix: str
+) -> None:
+    clock = ManualClock()
+    lone = InitiationRate(clock)
+    first, second = (SharedInitiationRate.like(lone, redis, prefix) for _ in range(2))
+    for i in range(30):  # thirty initiations, alternately on each worker
+        (first, second)[i % 2].check("10.0.0.9")
+        clock.advance(1)
+    for worker in (first, second):
+        with pytest.raises(LtiThrottledError, match=r"too many LTI logins from 10\.0\.0\.9"):
+            worker.check("10.0.0.9")
+    first.check("10.0.0.8")  # another address has its own count
+    lone.check("10.0.0.9")  # a lone server's count is its own (another lab's here)
+    clock.advance(30)  # the first initiation leaves the window: one place, for one worker
+    second.check("10.0.0.9")
+    with pytest.raises(LtiThrottledError):
+        first.check("10.0.0.9")
+
+
+def test_without_redis_each_worker_counts_its_own_lti_login_initiations() -> None:
+    clock = ManualClock()
+    unreachable = figures_client("redis://127.0.0.1:1/0")
+    rate = SharedInitiationRate(unreachable, "thermolab.nowhere.", clock, per_address=3)
+    for _ in range(3):
+        rate.check("10.0.0.1")
+    with pytest.raises(LtiThrottledError):
+        rate.check("10.0.0.1")  # not unlimited
+    rate.check("10.0.0.2")  # nor everyone refused
 
 
 def until(condition: Any, within: float) -> float:

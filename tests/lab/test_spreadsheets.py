@@ -57,6 +57,8 @@ PT_BR_GRADES = [
     "Resposta Ts",
     "Resposta θ",
     "Conclusão",
+    "Nota automática",
+    "Comentário do professor",
 ]
 
 

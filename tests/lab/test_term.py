@@ -6,16 +6,17 @@ bookings and deadlines are in March, the next term's 26 weeks later.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from datetime import UTC, datetime, timedelta
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
-from sqlalchemy import func, select
+from sqlalchemy import func, select, update
 
 from thermolab.lab.accounts.users import Principal
-from thermolab.lab.db.models import Run, User
+from thermolab.lab.db.models import Course, Run, User
 from thermolab.lab.http.app import create_app
 from thermolab.lab.runs.request import RunRequest
 
@@ -102,6 +103,9 @@ def world(make_lab: LabFactory) -> Any:
 def test_a_closed_course_is_read_and_exported_never_changed(world: Any) -> None:
     lab, login, tina = world["lab"], world["login"], world["tina"]
     ana = login("ana")
+    # A slot under way stays when the course closes (those to come are cancelled).
+    under_way = tina.post("/api/bookings", json=_slot(lab.clock.now() - timedelta(minutes=30)))
+    assert under_way.status_code == 201, under_way.text
     closed = tina.post("/api/courses/ctrl1/close")
     assert closed.status_code == 200, closed.text
     assert closed.json()["closedBy"] == "tina"
@@ -120,9 +124,7 @@ def test_a_closed_course_is_read_and_exported_never_changed(world: Any) -> None:
         ),
         tina.post("/api/courses/ctrl1/close"),
     ]
-    day = {"from": MARCH.isoformat(), "to": (MARCH + timedelta(days=1)).isoformat()}
-    [booking] = tina.get("/api/bookings", params=day).json()
-    refusals.append(tina.delete(f"/api/bookings/{booking['id']}"))
+    refusals.append(tina.delete(f"/api/bookings/{under_way.json()['id']}"))
     code = lab.courses.get("ctrl1").enrol_code
     refusals.append(
         login("root").post(
@@ -156,8 +158,13 @@ def test_a_closed_course_is_read_and_exported_never_changed(world: Any) -> None:
 
 
 def test_a_course_copies_to_the_next_term_without_its_people(world: Any) -> None:
-    lab, login, tina = world["lab"], world["login"], world["tina"]
-    assert tina.post("/api/courses/ctrl1/close").is_success  # a closed course copies too
+    lab, login = world["lab"], world["login"]
+    # The term is over (its slots past, so the close cancels none); a closed course copies.
+    lab.clock.advance((MARCH + timedelta(weeks=4) - lab.clock.now()).total_seconds())
+    tina = login("tina")  # the fixture's login has expired meanwhile
+    closed = tina.post("/api/courses/ctrl1/close")
+    assert closed.status_code == 200, closed.text
+    assert closed.json()["releasedBookings"] == 0
     otto = login("otto")
     copied = otto.post("/api/courses/ctrl1/copy", json={"name": "ctrl1-2026-2", "shiftDays": 182})
     assert copied.status_code == 403  # not otto's course
@@ -190,7 +197,7 @@ def test_a_course_copies_to_the_next_term_without_its_people(world: Any) -> None
     assert all(s["course"] == "ctrl1-2026-2" and s["note"] == "turma A" for s in slots)
     # A name clash is a 409; neither way to date, or both, a 422.
     again = tina.post("/api/courses/ctrl1/copy", json={"name": "ctrl1-2026-2", "shiftDays": 1})
-    assert (again.status_code, again.json()["code"]) == (409, "conflict")
+    assert (again.status_code, again.json()["code"]) == (409, "course_name_taken")
     for body in ({"name": "x"}, {"name": "x", "shiftDays": 1, "starts": "2026-08-31"}):
         assert tina.post("/api/courses/ctrl1/copy", json=body).status_code == 422
     bad = tina.post("/api/courses/ctrl1/copy", json={"name": "no spaces", "shiftDays": 1})
@@ -272,3 +279,65 @@ def test_removal_with_their_runs_and_a_closing_teachers_name_replaced(world: Any
         answer = root.post("/api/courses/ctrl1/purge-students", json=body)
         assert (answer.status_code, answer.json()["code"]) == (422, "invalid_request")
     assert root.post("/api/courses/nope/close").status_code == 404
+
+
+def test_closing_a_course_frees_the_rigs_of_its_bookings_to_come(world: Any) -> None:
+    lab, login, tina = world["lab"], world["login"], world["tina"]
+    otto, root = login("otto"), login("root")
+    # A slot under way when the course closes (the clock is at 2026-01-01 00:00).
+    now = lab.clock.now()
+    under_way = tina.post("/api/bookings", json=_slot(now - timedelta(minutes=30)))
+    assert under_way.status_code == 201, under_way.text
+    # Before the close, ctrl1's March slots keep the twin from otto's course.
+    before = otto.post("/api/bookings", json=_slot(MARCH, course="ctrl2"))
+    assert (before.status_code, before.json()["code"]) == (409, "booking_clash")
+    closed = tina.post("/api/courses/ctrl1/close")
+    assert closed.status_code == 200, closed.text
+    assert closed.json()["releasedBookings"] == 3
+
+    # Its three March slots are gone; the one under way stays to its end.
+    def calendar() -> list[tuple[str, str]]:
+        slots = []
+        for start in (now - timedelta(days=1), MARCH - timedelta(days=7)):
+            window = {"from": start.isoformat(), "to": (start + timedelta(days=60)).isoformat()}
+            answer = tina.get("/api/bookings", params=window)
+            assert answer.status_code == 200, answer.text
+            slots += [(b["course"], b["startsAt"]) for b in answer.json()]
+        return sorted(set(slots), key=lambda slot: slot[1])
+
+    assert calendar() == [("ctrl1", under_way.json()["startsAt"])]
+    # Another course books the freed slot; a reopen does not bring the old ones back.
+    after = otto.post("/api/bookings", json=_slot(MARCH, course="ctrl2"))
+    assert after.status_code == 201, after.text
+    assert root.post("/api/courses/ctrl1/reopen").is_success
+    assert calendar() == [
+        ("ctrl1", under_way.json()["startsAt"]),
+        ("ctrl2", after.json()["startsAt"]),
+    ]
+    [entry] = [e for e in root.get("/api/audit").json() if e["action"] == "course.closed"]
+    assert entry["detail"] == {"released_bookings": 3}
+
+
+def test_a_booking_made_while_the_course_closes_waits_for_the_close_and_is_refused(
+    world: Any,
+) -> None:
+    lab, tina = world["lab"], world["tina"]
+    answers: list[Any] = []
+    later = MARCH + timedelta(weeks=8)
+    booking = threading.Thread(
+        target=lambda: answers.append(tina.post("/api/bookings", json=_slot(later)))
+    )
+    # A close under way: the course's row changed, not yet committed.
+    with lab.db.write() as session:
+        session.execute(
+            update(Course)
+            .where(Course.name == "ctrl1")
+            .values(closed_at=lab.clock.now(), closed_by="root")
+        )
+        session.flush()
+        booking.start()
+        booking.join(timeout=0.5)
+        assert booking.is_alive()  # the booking waits for the close
+    booking.join(timeout=60)
+    [answer] = answers
+    assert (answer.status_code, answer.json()["code"]) == (409, "course_closed"), answer.text

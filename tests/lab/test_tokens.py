@@ -199,3 +199,47 @@ def test_the_controllers_reading_is_fresh_and_keeps_its_turn_past_the_idle_limit
         lab.sweep()
         assert client.get("/api/rigs/twin", headers=ana).json()["access"]["role"] != "controller"
         assert client.get("/api/rigs/nothing/reading", headers=ana).status_code == 404
+
+
+def test_revoking_a_token_ends_the_turn_and_queue_place_it_asked_for_and_nothing_else(
+    make_lab: LabFactory,
+) -> None:
+    lab, client, _ = make(make_lab)
+    safe = lab.hub.published("twin").safe_input
+    with client:
+        ana, ben = login(lab, "ana"), login(lab, "ben")
+
+        def role(who: dict[str, str]) -> str:
+            return str(client.get("/api/rigs/twin", headers=who).json()["access"]["role"])
+
+        def revoke(who: dict[str, str], token: dict[str, str]) -> None:
+            assert client.delete(f"/api/tokens/{token['id']}", headers=who).status_code == 204
+
+        def new_token(who: dict[str, str]) -> dict[str, str]:
+            made = client.post("/api/tokens", headers=who, json={"name": "script"})
+            assert made.status_code == 201
+            return dict(made.json())
+
+        # A login's turn is not a token's: revoking ana's token leaves her browser's turn.
+        assert client.post("/api/rigs/twin/control", headers=ana).status_code == 200
+        revoke(ana, new_token(ana))
+        assert role(ana) == "controller"
+        # A script waiting in the queue leaves it when its token is revoked.
+        waiting = new_token(ben)
+        asked = client.post("/api/rigs/twin/control", headers=bearer(waiting["token"]))
+        assert asked.json()["access"]["role"] == "queued"
+        revoke(ben, waiting)
+        assert role(ben) == "watcher"
+        # A script promoted from the queue holds its turn by its token, passed on with its place.
+        script = new_token(ben)
+        asked = client.post("/api/rigs/twin/control", headers=bearer(script["token"]))
+        assert asked.status_code == 200
+        assert client.delete("/api/rigs/twin/control", headers=ana).status_code == 200
+        assert role(ben) == "controller"
+        put = client.put("/api/rigs/twin/input", headers=bearer(script["token"]), json={"u": 7.0})
+        assert put.status_code == 200
+        assert lab.hub.applied("twin") == 7.0
+        revoke(ben, script)  # at once: no sweep, no clock moved past the client timeout
+        assert lab.hub.applied("twin") == safe
+        assert role(ben) == "watcher"
+        assert role(ana) == "watcher"

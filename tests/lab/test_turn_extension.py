@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from datetime import timedelta
 
 import pytest
 from fastapi.testclient import TestClient
@@ -56,6 +57,32 @@ def test_the_controller_extends_in_the_last_minute_at_most_twice(
         lab.access.extend_own("twin", ana)
     _wait(lab, clock, ana, 60)
     assert lab.access.view("twin", ana).access.role == "watcher"  # the turn ended on time
+
+
+def test_a_scripts_turn_is_extended_for_as_long_as_nobody_waits(
+    make_lab: LabFactory, clock: ManualClock
+) -> None:
+    lab = make_lab(control_time_limit=300, idle_limit=None)
+    ana, ben = _person(lab, "ana"), _person(lab, "ben")
+    script = lab.tokens.resolve(lab.tokens.create(ana, "step test").secret)
+    assert script is not None
+    lab.access.request_control("twin", script)
+    started = clock.now()
+    # A 20-minute step test: the client extends in each last minute, as far as it must.
+    extensions = 0
+    while clock.now() - started < timedelta(minutes=20):
+        left = lab.access.view("twin", script).access.time_left
+        assert left is not None, f"the turn was cut after {clock.now() - started}"
+        _wait(lab, clock, script, max(left - EXTEND_WINDOW + 10, 0))
+        lab.access.extend_own("twin", script)
+        extensions += 1
+    assert extensions > MAX_TURN_EXTENSIONS  # a browser's turn would have ended long ago
+    assert lab.access.view("twin", script).access.role == "controller"
+    # Once someone waits, the script's turn is bounded as anyone's.
+    lab.access.request_control("twin", ben)
+    assert lab.access.view("twin", script).access.can_extend is False
+    with pytest.raises(TurnExtensionRefusedError, match="someone is waiting"):
+        lab.access.extend_own("twin", script)
 
 
 def test_nobody_extends_while_someone_waits_or_without_control(

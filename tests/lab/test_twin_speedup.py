@@ -11,11 +11,17 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
 
-from thermolab.errors import InvalidParameterError, SettingNotForRigError, SettingRangeError
+from thermolab.errors import (
+    InvalidParameterError,
+    SettingNotForRigError,
+    SettingRangeError,
+    SpeedupRefusedError,
+)
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.config import LabConfig, RigConfig
 from thermolab.lab.db import Database
@@ -209,3 +215,57 @@ def test_serve_speedup_is_saved_as_every_lab_twins_speedup(
     finally:
         for lab in labs:
             lab.close()
+
+
+def test_a_controller_paces_the_twin_for_their_turn_within_what_it_allows(
+    make_lab: LabFactory,
+) -> None:
+    source = StepClock()
+    try:
+        lab = make_lab(opener=_gated_twin(source), twin_speedup=50.0)
+        ana, _ = person(lab, "ana"), person(lab, "ben")
+        app = create_app(lab.config, lab=lab, sweep_interval=None)
+        with TestClient(app) as client, TestClient(app) as other:
+            for who, name in ((client, "ana"), (other, "ben")):
+                login = who.post("/api/session", json={"username": name, "password": PASSWORD})
+                assert login.status_code == 200
+
+            def pace(who: TestClient, speedup: float) -> Any:
+                return who.put("/api/rigs/twin/control/speedup", json={"speedup": speedup})
+
+            assert pace(client, 10.0).status_code == 403  # only the controller's turn
+            assert client.post("/api/rigs/twin/control").status_code == 200
+            answer = pace(client, 10.0)
+            assert answer.status_code == 200, answer.text
+            assert answer.json()["speedup"] == 10.0
+            assert lab.hub.clock_rate("twin") == 10.0
+            assert other.get("/api/rigs/twin").json()["speedup"] == 10.0  # what the twin does
+            for refused in (80.0, 0.5):
+                answer = pace(client, refused)
+                assert answer.status_code == 422
+                assert answer.json()["code"] == "speedup_refused"
+                assert (
+                    "rig 'twin' (a twin) allows speed-ups from 1x to 50x"
+                    in (answer.json()["detail"])
+                )
+            assert pace(client, 0.0).status_code == 422  # not a speed-up at all
+            assert lab.hub.clock_rate("twin") == 10.0
+            # A run keeps the pace it started with.
+            lab.runs.start("twin", ana, RunRequest(dt=1.0, samples=100, signal="step:0:4@1"))
+            answer = pace(client, 5.0)
+            assert answer.status_code == 409
+            assert "keeps the pace it started with" in answer.json()["detail"]
+            # The turn's end (the run's with it) gives the twin the teacher's pace back.
+            assert client.delete("/api/rigs/twin/control").status_code == 200
+            source.allow(math.inf)
+            lab.runs.wait("twin", timeout=60)
+            until(lambda: lab.hub.clock_rate("twin") == 50.0)
+            assert other.get("/api/rigs/twin").json()["speedup"] == 50.0
+    finally:
+        source.allow(math.inf)
+
+
+def test_hardware_and_a_hosts_twin_refuse_a_turns_speedup_naming_why(mixed_lab: Lab) -> None:
+    for rig, spec in (("kit", "tclab"), ("host", "sim")):
+        with pytest.raises(SpeedupRefusedError, match=rf"rig '{rig}' \({spec}\) runs at its own"):
+            mixed_lab.hub.pace_turn(rig, 2.0, controller_session=1)

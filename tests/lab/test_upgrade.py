@@ -2,14 +2,20 @@
 
 from __future__ import annotations
 
+import contextlib
 import shutil
+import socket
 import sqlite3
+import subprocess
+import sys
 import threading
+import time
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import alembic.command
+import httpx
 import pytest
 from alembic.config import Config
 from sqlalchemy import (
@@ -71,6 +77,58 @@ def test_commands_run_while_the_server_makes_the_schema_wait_for_it(tmp_path: Pa
     check.close()
 
 
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port: int = probe.getsockname()[1]
+        return port
+
+
+@pytest.mark.slow
+def test_serve_and_user_add_started_together_on_a_new_database_both_succeed(
+    tmp_path: Path,
+) -> None:
+    # The report of issue #26: `thermolab serve` exited with "database is locked" when
+    # `thermolab user add` ran as it made a new SQLite database's schema. Real processes,
+    # started together on a data folder with no database yet.
+    thermolab = (sys.executable, "-m", "thermolab", "--data-dir", str(tmp_path / "data"))
+    port = _free_port()
+    server = subprocess.Popen(
+        [*thermolab, "serve", "--port", str(port)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        adds = [
+            subprocess.Popen(
+                [*thermolab, "user", "add", name, "--role", role, "--password-stdin"],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+            for name, role in (("root", "admin"), ("ana", "student"))
+        ]
+        answers = [add.communicate(PASSWORD, timeout=120) for add in adds]
+        assert [add.returncode for add in adds] == [0, 0], answers
+        deadline = time.monotonic() + 60
+        while True:
+            assert server.poll() is None, server.communicate()[1]
+            with contextlib.suppress(httpx.HTTPError):
+                if httpx.get(f"http://127.0.0.1:{port}/readyz", timeout=2).status_code == 200:
+                    break
+            assert time.monotonic() < deadline, "the server did not become ready"
+            time.sleep(0.1)
+        login = {"username": "ana", "password": PASSWORD}
+        answer = httpx.post(f"http://127.0.0.1:{port}/api/session", json=login, timeout=10)
+        assert answer.status_code == 200, answer.text
+    finally:
+        server.terminate()
+        _, err = server.communicate(timeout=60)
+    assert "locked" not in err, err
+
+
 # -- the ladder: a database at every earlier revision, with rows, upgraded to head ---------
 
 # Values for columns whose CHECK constraints or migrations want a real one; every other
@@ -91,6 +149,7 @@ _TABLE_VALUES: dict[tuple[str, str], Any] = {
     ("rigs", "id"): "twin",
     ("bookings", "ends_at"): datetime(2026, 3, 2, 14, 0),
     ("lti_grades", "status"): "pending",
+    ("lti_handoffs", "kind"): "window",
     ("rig_power_changes", "state"): "on",
 }
 

@@ -1,11 +1,12 @@
 """The login throttle and the live-socket limits hold across real web workers (issue #14).
 
 Two ``thermolab serve --broker redis://...`` processes on one PostgreSQL
-schema (:mod:`thermolab.lab.fleet.workers`), real HTTP and WebSockets: failed logins
-on one worker delay the next on the other; a rig limited to 3 live sockets
-refuses a 4th on the other worker with 4503 and a login limited to 2 a 3rd
-with 4429; a killed worker's sockets stop counting once its published counts
-expire. Skipped, with the reason, where PostgreSQL or Redis is absent.
+schema (:mod:`thermolab.lab.fleet.workers`), real HTTP and WebSockets: failed
+logins on one worker delay the next on the other, and LTI login initiations
+count on both; a rig limited to 3 live sockets refuses a 4th on the other
+worker with 4503 and a login limited to 2 a 3rd with 4429; a killed worker's
+sockets stop counting once its published counts expire. Skipped, with the
+reason, where PostgreSQL or Redis is absent.
 """
 
 from __future__ import annotations
@@ -88,7 +89,7 @@ def until_accepted(worker: Worker, name: str, within: float) -> float:
     return time.monotonic() - start
 
 
-def test_failed_logins_on_one_worker_delay_the_next_on_the_other(
+def test_failed_logins_and_lti_initiations_on_one_worker_count_on_the_other(
     workers: dict[str, Worker],
 ) -> None:
     wrong = {"username": "ana", "password": "not the password"}
@@ -100,6 +101,13 @@ def test_failed_logins_on_one_worker_delay_the_next_on_the_other(
     time.sleep(1.1)
     right = {"username": "ana", "password": PASSWORD}
     assert httpx.post(workers["follower"].base + "/api/session", json=right).status_code == 200
+    # LTI login initiations: 30 a minute per address, on both workers together (each
+    # refused for its unknown platform, after it was counted).
+    bases = (workers["owner"].base, workers["follower"].base)
+    for i in range(30):
+        assert httpx.get(bases[i % 2] + "/api/lti/login", timeout=30).status_code == 400
+    for base in bases:
+        assert httpx.get(base + "/api/lti/login", timeout=30).status_code == 429
 
 
 def test_a_rigs_and_a_logins_sockets_count_on_every_worker_until_a_dead_ones_expire(

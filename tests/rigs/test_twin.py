@@ -337,3 +337,25 @@ def test_presets_round_trip_through_dict() -> None:
             if data[key] is not None:
                 data[key] = tuple(data[key])
         assert TwinParams(**data) == params
+
+
+@pytest.mark.parametrize("leave", ["power_off", "fault", "close"])
+def test_every_way_to_rest_puts_the_fan_back_at_its_declared_default(leave: str) -> None:
+    # Issue #23: a closed loop's fan left at 50 % changed every later run's plant
+    # (Ks 0.112 instead of 0.140). Resting is the declaration's state, fan included.
+    from thermolab.rigs import RigSpec
+
+    rig, clock = _twin("paper", realism=False)
+    rig.set_fan(50.0)
+    rig.apply(10.0)
+    clock.advance(10.0)
+    if leave == "fault":
+        rig.inject_fault("over-temperature")
+        with pytest.raises(RigFaultError):
+            rig.read()
+    else:
+        getattr(rig, leave)()
+    fan = RigSpec.parse("sim").fan
+    assert fan is not None
+    assert rig.fan == fan.default == 0.0
+    assert rig.applied_input == rig.describe().safe_input

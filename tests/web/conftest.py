@@ -148,6 +148,7 @@ USERS = {
     "carol": "student",
     "dave": "student",
     "erin": "student",
+    "fran": "student",
     "lucia": "student",
     "pia": "student",
     "tess": "teacher",
@@ -181,6 +182,11 @@ spec = "sim"
 id = "twin-loop"
 title = "Kit twin for the PID test"
 spec = "sim:tclab"
+
+[[rigs]]
+id = "twin-fan"
+title = "Twin for the hand-over test"
+spec = "sim"
 """
 
 
@@ -193,9 +199,15 @@ class LabServer:
     """A running ``thermolab serve``: its URL and data folder; it can be restarted."""
 
     def __init__(
-        self, data_dir: Path, port: int, env: dict[str, str], speedup: float = SPEEDUP
+        self,
+        data_dir: Path,
+        port: int,
+        env: dict[str, str],
+        speedup: float = SPEEDUP,
+        serve_options: tuple[str, ...] = (),
     ) -> None:
         self.data_dir = data_dir
+        self.serve_options = serve_options
         self.port = port
         self.speedup = speedup
         self.url = f"http://127.0.0.1:{port}"
@@ -220,6 +232,7 @@ class LabServer:
                     str(self.port),
                     "--speedup",
                     str(self.speedup),
+                    *self.serve_options,
                 ),
                 stdout=out,
                 stderr=subprocess.STDOUT,
@@ -270,15 +283,17 @@ def running_lab(
     *,
     config: str = CONFIG,
     speedup: float = SPEEDUP,
+    serve_options: tuple[str, ...] = (),
 ) -> Iterator[LabServer]:
     """Create the users, start ``thermolab serve``, wait until it answers; stop it after.
 
-    ``config`` is the lab's TOML file and ``speedup`` its ``--speedup`` (twins only).
+    ``config`` is the lab's TOML file, ``speedup`` its ``--speedup`` (twins only) and
+    ``serve_options`` further options of ``thermolab serve``.
     """
     (data_dir / "lab.toml").write_text(config, encoding="utf-8")
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     add_accounts(data_dir, users)
-    server = LabServer(data_dir, _free_port(), env, speedup)
+    server = LabServer(data_dir, _free_port(), env, speedup, serve_options)
     server.start()
     try:
         server.wait_until_up()
@@ -332,6 +347,20 @@ def _wait_until_up(url: str, proc: subprocess.Popen[bytes], log: Path) -> None:
 _LOGINS: dict[str, Any] = {}
 
 
+def audited(page: Any, actor: str) -> set[tuple[str, str]]:
+    """(action, target) of ``actor``'s rows of the audit log, read by ``page`` (an
+    administrator's) with one request: what a journey's privileged actions left."""
+    status, rows = page.evaluate(
+        """async (actor) => {
+          const answer = await fetch(`/api/audit?actor=${encodeURIComponent(actor)}`);
+          return [answer.status, await answer.json()];
+        }""",
+        actor,
+    )
+    assert status == 200, rows
+    return {(row["action"], row["target"]) for row in rows}
+
+
 def logged_in_context(browser: Any, lab: LabServer, user: str, **options: Any) -> Any:
     """A new browser context already logged in as ``user``.
 
@@ -374,7 +403,8 @@ def own_lab(tmp_path: Path, browser: Any) -> Iterator[LabServer]:
 
 @pytest.fixture(scope="session")
 def start_lab() -> Any:
-    """``start_lab(data_dir, users, config=..., speedup=...)``: a lab of a test's own making.
+    """``start_lab(data_dir, users, config=..., speedup=..., serve_options=...)``: a lab of a
+    test's own making.
 
     The context manager of :func:`running_lab`, for a module that needs another
     configuration (its own rigs, another speed-up).

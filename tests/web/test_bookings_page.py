@@ -111,10 +111,12 @@ def test_a_teacher_books_a_slot_its_course_takes_the_rig_and_an_outsider_is_refu
         tess.select_option("#booking-course", "inside")
         tess.check(f"#booking-rig-{rig}")
         tess.fill("#booking-date", start.strftime("%Y-%m-%d"))
+        tess.fill("#booking-end-date", end.strftime("%Y-%m-%d"))  # past midnight: the next day
         tess.fill("#booking-start", start.strftime("%H:%M"))
         tess.fill("#booking-end", end.strftime("%H:%M"))
         tess.click("#booking-submit")
-        slot = tess.locator("[data-testid=slot]", has_text="Course inside")
+        # This language's rig: the module's other language books the same course.
+        slot = tess.locator("[data-testid=slot]", has_text="Course inside").filter(has_text=rig)
         slot.first.wait_for()
         assert rig in slot.first.inner_text()
         assert serious_violations(tess) == []

@@ -4,7 +4,8 @@ Run in Brazilian Portuguese and English: the page speaks the browser's
 language, a malformed list is reported line by line in it, the new students'
 one-time passwords are shown once and force a new password at the first
 login, and a student who enrols with the course's code is logged in and can
-log in again.
+log in again. The teacher adds a teaching assistant by login name, shown in
+the roster as one; the audit log has it.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from typing import Any
 import pytest
 
 from .axe import serious_violations
+from .conftest import audited
 
 pytestmark = pytest.mark.browser
 
@@ -25,6 +27,7 @@ WORDS = {
         "line": "Linha 3: o arquivo não é texto em UTF-8 nem em Windows-1252 (byte 3 da linha)",
         "rigs": "Bancadas",
         "read": "Lido como Windows-1252.",
+        "assistant": "monitor",
     },
     "en": {
         "locale": "en-GB",
@@ -32,6 +35,7 @@ WORDS = {
         "line": "Line 3: the file is not text in UTF-8 or Windows-1252 (byte 3 of the line)",
         "rigs": "Rigs",
         "read": "Read as Windows-1252.",
+        "assistant": "teaching assistant",
     },
 }
 
@@ -80,6 +84,25 @@ def test_a_teacher_uploads_a_class_list_and_a_student_enrols_with_the_code(
         assert "João Gonçalves" in page.inner_text(f'tr[data-member="{first}"]')
         assert serious_violations(page) == []
         page.screenshot(path=str(artifacts / f"courses-{suffix}.png"), full_page=True)
+
+        # A teaching assistant, added by login name (an account the administrator made).
+        helper = f"tutor.{suffix}"
+        account = {"username": helper, "password": "a long secret for the tutor", "role": "student"}
+        status = page.evaluate(
+            """async (body) => (await fetch("/api/users", {
+                 method: "POST",
+                 headers: {"Content-Type": "application/json"},
+                 body: JSON.stringify(body),
+               })).status""",
+            account,
+        )
+        assert status == 201
+        page.fill("#assistant-name", helper)
+        page.click("#assistant-add")
+        row = page.locator(f'tr[data-member="{helper}"]')
+        row.wait_for()
+        assert words["assistant"] in row.inner_text()
+        assert ("course.assistant_added", course) in audited(page, "tess")
 
         # A student enrols with the code from the login page and is logged in.
         own = student.new_page()

@@ -32,8 +32,8 @@ def test_figures_print_the_papers_six_decimals(module_page: Any) -> None:
         "0.140042",
         "0.000000",
         "-3.500000",
-        "1.00000e-6",
-        "2.50000e+7",
+        "0.000001",
+        "25000000",
         "–",
         "–",
     ]

@@ -24,7 +24,10 @@ agent = true
 def test_the_hosts_page_shows_a_host_online_then_offline(
     tmp_path: Path, start_lab: Any, context_for: Any, artifacts: Path
 ) -> None:
-    with start_lab(tmp_path, {"hedda": "teacher"}, config=CONFIG) as lab:
+    # A host away longer than its grace is a fault: 3 s here, not the default 30 s.
+    with start_lab(
+        tmp_path, {"hedda": "teacher"}, config=CONFIG, serve_options=("--agent-grace", "3")
+    ) as lab:
         context = context_for(lab, "hedda")
         agent = None
         try:

@@ -1,4 +1,4 @@
-"""The class's journey in a real Chromium (#10): teacher and student, end to end, in pt-BR and en.
+"""The class's journey in a real Chromium (#10): teacher and student, end to end, in 3 languages.
 
 Against ``thermolab serve`` on SQLite and on PostgreSQL (skipped, saying why,
 where the server is unreachable), with the paper's twin at the e2e speed-up:
@@ -12,7 +12,12 @@ where the server is unreachable), with the paper's twin at the e2e speed-up:
 6. runs the experiment on the twin inside the course's slot (the rig page says so):
    a step of the set point, 0 to 10 V;
 7. hands in the run with the Ks, Ts and θ the page showed, and reads the mark and feedback;
-8. the teacher sees the hand-in and downloads the grades: the CSV has the student's row.
+8. the teacher sees the hand-in and downloads the grades: the CSV has the student's row;
+9. the audit log (the teacher is the lab's administrator) lists the teacher's privileged
+   actions: the course made, its class list, its assignment.
+
+In pt-BR and es every step ends by reading both pages as a person meets them
+(tests/web/test_no_english.py's reader): no English word on them (#24).
 
 The steps are functions in :data:`STEPS`, in order, sharing one
 :class:`Journey`: a new step goes in the list where it belongs.
@@ -32,26 +37,53 @@ from typing import Any
 import pytest
 
 from .axe import serious_violations
+from .conftest import audited
+from .test_language_pages import visible_text
 from .test_messages import catalogue
+from .test_no_english import ENGLISH, MACHINE_NAMES, english_words, words
 
 pytestmark = pytest.mark.browser
 
 WORDS = {
     "pt-BR": {"locale": "pt-BR", "mark": "Nota: 10 de 10", "state": "corrigida", "theta": "2,5"},
+    "es": {"locale": "es-MX", "mark": "Nota: 10 sobre 10", "state": "corregida", "theta": "2,5"},
     "en": {"locale": "en-GB", "mark": "Mark: 10 out of 10", "state": "marked", "theta": "2.5"},
 }
-RIGS = {"pt-BR": "twin-ptbr", "en": "twin-en"}
+RIGS = {"pt-BR": "caixa-1", "es": "caja-2", "en": "tclab-3"}
+#: What the teacher types, in the class's language.
+TYPED = {
+    "pt-BR": (
+        "Degrau de 0 a 10 V; dê Ks, Ts e θ.",
+        "O sistema é de primeira ordem.",
+        "Um degrau de $u$ de 0 a 10 V.",
+    ),
+    "es": (
+        "Escalón de 0 a 10 V; dé Ks, Ts y θ.",
+        "El sistema es de primer orden.",
+        "Un escalón de $u$ de 0 a 10 V.",
+    ),
+    "en": (
+        "Step 0 → 10 V; give Ks, Ts and θ.",
+        "The system is first order.",
+        "A step of $u$ from 0 to 10 V.",
+    ),
+}
 CONFIG = """\
 title = "ThermoLab journey"
 {database}
 [[rigs]]
-id = "twin-ptbr"
+id = "caixa-1"
 title = "Gêmeo digital da caixa"
 spec = "sim"
 
 [[rigs]]
-id = "twin-en"
-title = "Digital twin of the box"
+id = "caja-2"
+title = "Gemelo digital de la caja"
+spec = "sim"
+
+[[rigs]]
+id = "tclab-3"
+title = "TCLab 3"
 spec = "sim"
 """
 POSTGRES = os.environ["THERMOLAB_TEST_POSTGRES_URL"]  # the test run's own (tests/conftest.py)
@@ -173,7 +205,7 @@ def teacher_writes_a_guide_page(j: Journey) -> None:
     page.locator("#panel-srm-lsm button[data-guide=panel-1]").click()
     page.locator("[data-testid=guide-text] h1").wait_for()  # the guide is loaded
     page.click("[data-testid=guide-edit]")
-    page.fill("[data-testid=guide-source]", f"## {j.course}\n\nA step of $u$ from 0 to 10 V.")
+    page.fill("[data-testid=guide-source]", f"## {j.course}\n\n{TYPED[j.language][2]}")
     page.locator(".guide-editor button").first.click()  # preview, rendered by the server
     page.locator("[data-testid=guide-preview] h2").wait_for()
     page.locator(".guide-editor button.primary").click()  # save
@@ -215,7 +247,7 @@ def teacher_sets_an_assignment(j: Journey) -> None:
     page.wait_for_selector("#assign-form")
     page.select_option("#assign-course", j.course)
     page.fill("#assign-title", f"Degrau {j.suffix}")
-    page.fill("#assign-instructions", "Step 0 → 10 V; give Ks, Ts and θ.")
+    page.fill("#assign-instructions", TYPED[j.language][0])
     page.select_option("#assign-rig", j.rig)
     page.fill("#assign-deadline", "2099-12-31T23:00")
     page.fill("#assign-tol-k", "5")
@@ -304,7 +336,7 @@ def student_hands_in_and_reads_the_mark(j: Journey) -> None:
     page.fill("#handin-k", j.run_text["K"])
     page.fill("#handin-tau", j.run_text["tau"])
     page.fill("#handin-theta", "0")
-    page.fill("#handin-conclusion", "O sistema é de primeira ordem.")
+    page.fill("#handin-conclusion", TYPED[j.language][1])
     page.click("#handin-form button[type=submit]")
     page.wait_for_selector("[data-testid=mark]")
     assert page.inner_text("[data-testid=mark]") == j.words["mark"]
@@ -341,10 +373,19 @@ def teacher_sees_the_hand_in_and_exports_grades(j: Journey) -> None:
     with page.expect_download() as download:
         page.click("#grades-sheet-link")
     sheet = Path(download.value.path()).read_text(encoding="utf-8-sig")
-    separator, no = (";", "não") if j.language == "pt-BR" else (",", "no")
+    separator, no = {"pt-BR": (";", "não"), "es": (";", "no"), "en": (",", "no")}[j.language]
     table = list(csv.reader(io.StringIO(sheet), delimiter=separator))
     (line,) = [r for r in table[1:] if r[3] == j.login]
     assert line[4:9] == ["João Gonçalves", j.words["state"], "10", "10", no]
+
+
+def teacher_finds_the_journey_in_the_audit_log(j: Journey) -> None:
+    done = {(a, target) for a, target in audited(j.teacher, "tess") if target.startswith(j.course)}
+    assert done == {
+        ("course.created", j.course),
+        ("course.roster", j.course),
+        ("assignment.changed", f"{j.course} #{j.assignment}"),
+    }
 
 
 #: The journey, in order (the booking after the guide, before the run inside the slot).
@@ -358,6 +399,7 @@ STEPS: list[Callable[[Journey], None]] = [
     student_runs_the_experiment,
     student_hands_in_and_reads_the_mark,
     teacher_sees_the_hand_in_and_exports_grades,
+    teacher_finds_the_journey_in_the_audit_log,
 ]
 
 
@@ -387,15 +429,32 @@ def test_a_teacher_and_a_student_go_from_class_list_to_grades(
         j.teacher.fill("#login-password", journey_lab.password("tess"))
         j.teacher.click("form button[type=submit]")
         j.teacher.wait_for_selector("#nav:not([hidden])")
+        english = ENGLISH if language == "pt-BR" else english_words(language) | MACHINE_NAMES
+        met: list[str] = []
         for step in STEPS:
             try:
                 step(j)
+                if language != "en":
+                    for who, page in (("teacher", j.teacher), ("student", j.student)):
+                        met += _english_on(page, english, f"{step.__name__}, {who}")
             except Exception:
                 for who, page in (("teacher", j.teacher), ("student", j.student)):
                     shot = artifacts / f"journey-failed-{step.__name__}-{who}-{j.suffix}.png"
                     page.screenshot(path=str(shot), full_page=True)
                 raise
         assert errors == []
+        assert met == [], "\n".join(met)
     finally:
         student.close()
         teacher.close()
+
+
+def _english_on(page: Any, english: set[str], where: str) -> list[str]:
+    """The English words a reader of ``page`` meets (none on a page not yet opened)."""
+    if page.url in ("", "about:blank"):
+        return []
+    page.wait_for_load_state("networkidle")
+    text = visible_text(page)
+    found = sorted(words(text) & english)
+    lines = [line for line in text.splitlines() if words(line) & set(found)]
+    return [f"{where}: {found} in {lines[:6]}"] if found else []

@@ -34,7 +34,7 @@ LANGUAGES = {
     "en": {"locale": "en-GB", "lang": "en", "rigs": "Rigs", "mark": "."},
 }
 #: Text the lab's configuration and data bring, not the interface (rig titles).
-NOT_INTERFACE = re.compile(r"Twin for the \w+ tests?|Digital twin of the paper's box")
+NOT_INTERFACE = re.compile(r"Twin for the \w+ tests?")
 
 
 def english_pieces(language: str) -> list[str]:

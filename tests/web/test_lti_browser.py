@@ -3,7 +3,8 @@
 A test platform (``tests/lab/lti_platform.py``: its own RSA keys, JWKS over
 HTTP, signed id_tokens) runs on another port of 127.0.0.1; Chromium goes
 through every redirect and auto-posted form of the flow, from the LMS's page
-to the lab's, inside the LMS's iframe too.
+to the lab's, inside the LMS's iframe too. The registration, a roster sync
+and a grade retry are in the audit log afterwards.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from typing import Any
 import pytest
 
 from .axe import serious_violations
+from .conftest import audited
 
 pytestmark = pytest.mark.browser
 
@@ -71,6 +73,8 @@ def registered(logged_in: Any, lab: Any, platform: Any) -> Any:
         page.click("#lti-form button[type=submit]")
         page.wait_for_selector(f'li[data-platform="{platform.url}"]')
         assert serious_violations(page) == []
+        added = ("lti.platform_added", f"{body['issuer']} {body['clientId']}")
+        assert added in audited(page, "tess")
     finally:
         context.close()
     return platform
@@ -219,6 +223,7 @@ def test_a_teacher_sees_a_mark_the_lms_refused_and_retries_it(
             page.reload()
         print(f"the retried mark was sent after {time.monotonic() - started:.1f} s")
         assert sent.count() == 1
+        assert "grade.retry" in {action for action, _ in audited(page, "tess")}
     finally:
         context.close()
     assert registered.gradebook[("/lineitems/7", "sub-grade")]["scoreGiven"] == 6.5
@@ -269,6 +274,7 @@ def test_a_teacher_synchronises_the_roster_from_the_lms(
         page.click("#lti-sync")
         page.wait_for_selector("#lti-sync-report:has-text('removidos: 1')")
         assert "adicionados: 0" in page.inner_text("#lti-sync-report")
+        assert ("course.lms_roster", course) in audited(page, "tess")
     finally:
         context.close()
 

@@ -291,3 +291,45 @@ def test_a_translation_writes_numbers_with_its_decimal_comma(language: str) -> N
         if re.search(r"(?<![\w.])\d+\.\d+", form)
     ]
     assert slips == []
+
+
+#: Words a language's messages do not use, each with the glossary term that says it
+#: (js/glossary.js): one word per concept, so a student never wonders whether the
+#: "bancada" and the "equipamento" are two things.
+NOT_THE_TERM = {
+    "pt-BR": {
+        r"\bequipamentos?\b": "glossary.rig",
+        # The closed loop's is "referência", an open loop's input "entrada".
+        r"\bset ?points?\b": "glossary.setpoint",
+    },
+    "es": {
+        r"\bbancos?\b": "glossary.rig",
+        r"\bconsignas?\b": "glossary.setpoint",
+        r"\bset ?points?\b": "glossary.setpoint",
+    },
+    "en": {r"\bbench(es)?\b": "glossary.rig", r"\bsetpoints?\b": "glossary.setpoint"},
+}
+
+
+@pytest.mark.parametrize("language", ["en", *TRANSLATIONS])
+def test_each_concept_has_one_word_the_glossarys(language: str) -> None:
+    messages = catalogue(language)
+    wrong = [
+        f"{key}: {pattern} (say {messages[term]!r})"
+        for key, message in messages.items()
+        for form in forms(message)
+        for pattern, term in NOT_THE_TERM[language].items()
+        if re.search(pattern, re.sub(r"\{[A-Za-z0-9]+\}", " ", form), re.IGNORECASE)
+    ]
+    assert wrong == []
+    # The role labels are the glossary's words, which fit a woman and a man alike.
+    assert messages["role.teacher"] == messages["glossary.teacher"]
+    assert messages["role.student"] == messages["glossary.student"] or language == "pt-BR"
+
+
+def test_the_default_rigs_title_is_the_lab_s_own_words() -> None:
+    # The browser translates the shipped default rig's title (shapes.js rigTitle):
+    # the English catalogue holds it as the configuration writes it.
+    from thermolab.lab.config.model import DEFAULT_RIG
+
+    assert catalogue()["rig.defaultTitle"] == DEFAULT_RIG.title

@@ -310,8 +310,18 @@ def test_number_checks_refuse_bad_values_with_the_allowed_range(module_page: Any
                        ['abc', u], ['0x10', u], ['NaN', u], ['Infinity', u], ['2000', n],
                        ['2000.5', n], ['5', n], ['0.96', g], ['1', g], ['0', g], ['3,5', u]];
         return { results: cases.map(([t, s]) => checkNumber(t, s)),
-                 range: rangeText(u), grange: rangeText(g) };
+                 range: rangeText(u), grange: rangeText(g),
+                 // A set point below the output limit, a gain with no bounds: never "−Infinity".
+                 below: rangeText({ label: 'r', min: -Infinity, max: 5, exclusiveMax: true,
+                                    unit: 'V' }),
+                 any: rangeText({ label: 'x', min: -Infinity, max: Infinity }),
+                 runs: rangeText({ label: 'run', min: 1, max: Infinity, integer: true }) };
         """,
+    )
+    assert (r["below"], r["any"], r["runs"]) == (
+        "less than 5 V",
+        "any number",
+        "an integer at least 1",
     )
     res = r["results"]
     assert res[0] == {"ok": True, "value": 5}
@@ -542,7 +552,9 @@ def test_table_figures_are_the_servers_own(module_page: Any) -> None:
         assert r[name] == stats[name]
     assert r["conv"] == stats["converged_at"]
     assert r["conv"]["K"] is not None
-    assert (r["converges"], r["valid"], r["last"], r["points"]) == (True, True, 2000, 50)
+    # The statistics cover the samples after convergence (thermolab identify's rule).
+    assert stats["last"] == 3000 - 1 - max(stats["converged_at"].values())
+    assert (r["converges"], r["valid"], r["last"], r["points"]) == (True, True, stats["last"], 50)
     assert r["W"] == list(latest.W)
     # A run still going: only its latest estimate, no statistics, no convergence yet.
     assert r["running"]["K"] == {"mean": 0.14, "max": 0.14, "min": 0.14}
@@ -722,3 +734,56 @@ def test_panels_take_their_methods_from_get_api_methods(module_page: Any) -> Non
         "title": "Recursive LS",
         "trajectory": True,
     }
+
+
+def test_the_librarys_warnings_and_reasons_read_in_the_pages_language(module_page: Any) -> None:
+    r = run_js(
+        module_page,
+        """
+        const i18n = await import('/js/i18n.js');
+        const { identReason, identWarning } = await import('/js/identwords.js');
+        const said = (node) => typeof node === 'string' ? { text: node, english: [] }
+          : { text: node.textContent,
+              english: [...node.querySelectorAll('[lang=en]')].map((el) => el.textContent),
+              marked: node.getAttribute('lang') };
+        const show = () => ({
+          warning: said(identWarning(
+            'final estimate: implausible gain: K = -1 has the wrong sign')),
+          timing: said(identWarning(
+            'timing jitter: the sample period spreads 12 % around its median')),
+          unknown: said(identWarning('something new: details')),
+          reason: said(identReason('no step: the input stays at 2.5 V for the whole record')),
+          pole: said(identReason(
+            'dominant pole <= 0: a sampled first-order lag has 0 < a < 1')),
+          other: said(identReason('a = 1.2 >= 1: the identified model is unstable')),
+        });
+        const en = show();
+        i18n.setLanguage('pt-BR', (await import('/js/messages/pt-BR.js')).messages);
+        const pt = show();
+        i18n.setLanguage('en', (await import('/js/messages/en.js')).messages);
+        return { en, pt };
+        """,
+    )
+    en, pt = r["en"], r["pt"]
+    # English: the kind, ADVICE's line, then the library's detail.
+    assert en["timing"]["text"] == (
+        "timing jitter: samples were not evenly spaced, which biases methods that assume one "
+        "period; unload the machine or take a longer sample period, and re-record (the sample "
+        "period spreads 12 % around its median)"
+    )
+    assert en["warning"]["text"].startswith("final estimate: implausible gain: the gain has")
+    assert en["warning"]["english"] == []
+    assert en["unknown"]["text"] == "something new: details"
+    assert en["reason"]["text"] == "no step: the input stays at 2.5 V for the whole record"
+    # Portuguese: the kind and the advice translated, only the detail marked as English.
+    assert pt["warning"]["text"].startswith("estimativa final: ganho implausível: o ganho tem")
+    assert pt["warning"]["english"] == ["K = -1 has the wrong sign"]
+    assert pt["warning"]["text"].endswith("(K = -1 has the wrong sign)")
+    assert pt["timing"]["text"].startswith("variação no período de amostragem: as amostras")
+    assert pt["timing"]["english"] == ["the sample period spreads 12 % around its median"]
+    assert pt["reason"]["text"] == "sem degrau: the input stays at 2.5 V for the whole record"
+    assert pt["reason"]["english"] == ["the input stays at 2.5 V for the whole record"]
+    assert pt["pole"]["text"].startswith("polo dominante ≤ 0: a sampled")
+    # A kind the page does not know is shown as the server wrote it, marked as English.
+    assert pt["unknown"] == {"text": "something new: details", "english": [], "marked": "en"}
+    assert pt["other"]["marked"] == "en"

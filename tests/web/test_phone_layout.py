@@ -1,9 +1,13 @@
 """A phone doing the experiment, the charts' data tables, and axe-core on every page.
 
-On 375 x 812 the output chart, the set point and START/END are on the first
-screen together, the results right below them; each chart can show its newest
-samples as a table; axe-core finds no serious or critical violation on any
-page, in English and in Portuguese.
+On 375 x 812 the first screen holds the access card (the role, the time left,
+ASK or RELEASE), the output chart, the set point, START/END and the panel's
+instruction, for a watcher and for the controller, with no empty notice bar;
+the results come right below. Every table fits the screen or scrolls inside
+its own box (every column reachable, never the page); the live charts show the
+last 100 s or 500 s of a long run on request (finger or keyboard); each chart
+can show its newest samples as a table; axe-core finds no serious or critical
+violation on any page, in English and in Portuguese.
 """
 
 from __future__ import annotations
@@ -21,6 +25,8 @@ from .conftest import LabServer, running_lab
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 ROLE = "[data-testid=access-role]"
+#: How much wider than the screen the page is (> 0: it scrolls sideways).
+OVERFLOW = "() => document.documentElement.scrollWidth - window.innerWidth"
 MESSAGES = Path(__file__).parents[2] / "src/thermolab/web/static/js/messages"
 CONFIG = """\
 title = "ThermoLab phones"
@@ -34,8 +40,13 @@ spec = "sim"
 id = "phone-pt"
 title = "Phone twin (pt-BR)"
 spec = "sim"
+
+[[rigs]]
+id = "phone-wide"
+title = "Phone twin (tables)"
+spec = "sim"
 """
-USERS = {"pia": "student", "rui": "student", "tom": "teacher"}
+USERS = {"pia": "student", "rui": "student", "ada": "student", "tom": "teacher"}
 LOCALES = {"en-US": ("en", "phone-en", "pia"), "pt-BR": ("pt-BR", "phone-pt", "rui")}
 
 
@@ -74,6 +85,29 @@ def boxes(page: Any, selectors: dict[str, str]) -> dict[str, dict[str, float]]:
     return found
 
 
+def on_first_screen(page: Any, found: dict[str, dict[str, float] | None], *names: str) -> None:
+    """Each named box lies whole within the first screen (375 px wide)."""
+    height = page.evaluate("() => window.innerHeight")
+    for name in names:
+        box = found[name]
+        assert box is not None, name
+        assert box["top"] >= 0, (name, box)
+        assert box["bottom"] <= height, (name, box, height)
+        assert box["left"] >= 0, (name, box)
+        assert box["right"] <= 375, (name, box)
+
+
+def empty_bars(page: Any) -> list[str]:
+    """Notice bars shown with nothing in them (the yellow bar under the title)."""
+    found: list[str] = page.evaluate(
+        """() => [...document.querySelectorAll(
+                 '.notice, .lock-notice, .conn, .time-warning, .error')]
+             .filter((e) => e.getBoundingClientRect().height > 0 && !e.textContent.trim())
+             .map((e) => e.outerHTML.slice(0, 120))"""
+    )
+    return found
+
+
 @pytest.mark.parametrize("locale", sorted(LOCALES))
 def test_a_phone_shows_the_chart_the_set_point_and_start_end_together(
     browser: Any, phone_lab: LabServer, locale: str, artifacts: Path
@@ -81,11 +115,28 @@ def test_a_phone_shows_the_chart_the_set_point_and_start_end_together(
     language, rig, user = LOCALES[locale]
     messages = catalogue(language)
     page = log_in(browser, phone_lab, user, locale, viewport={"width": 375, "height": 812})
+    view = "[data-panel-view]:not([hidden])"
+    card = {
+        "ask": "button[data-action=ask]",
+        "release": "button[data-action=release]",
+        "role": ROLE,
+        "timeLeft": "section.access dd[data-field=timeLeft]",
+        "instruction": f"{view} .panel-intro",
+    }
     try:
         page.goto(f"{phone_lab.url}/#/rig/{rig}")
+        # A watcher: the access card with ASK and the panel's instruction on the first screen.
+        page.wait_for_selector(f"{ROLE}[data-role=watcher]")
+        page.wait_for_selector(f"{view} .panel-intro")
+        found = boxes(page, card)
+        on_first_screen(page, found, "ask", "role", "timeLeft", "instruction")
+        assert page.text_content(card["instruction"]) == messages["panel.srmLsm.intro"]
+        assert empty_bars(page) == []
         page.click("button[data-action=ask]")
         page.wait_for_selector(f"{ROLE}[data-role=controller]")
-        view = "[data-panel-view]:not([hidden])"
+        # The role can show (from the rig's live status) before ASK's answer; its
+        # handler then moves focus to RELEASE, down the page, which scrolls it.
+        page.wait_for_selector("button[data-action=release]:focus")
         parts = {
             "chart": f"figure.chart[aria-label='{messages['charts.output']}'] .chart-plot",
             "setpoint": f"{view} input[name=setpoint-live]",
@@ -93,19 +144,27 @@ def test_a_phone_shows_the_chart_the_set_point_and_start_end_together(
             "end": f"{view} button[data-action=end]",
             "results": f"{view} .panel-results",
         }
-        page.evaluate("() => window.scrollTo(0, 0)")
-        found = boxes(page, parts)
+        # RELEASE is near the top: putting focus on it did not scroll the page away.
+        assert page.evaluate("() => window.scrollY") == 0
+        found = boxes(page, {**parts, **card})
         height = page.evaluate("() => window.innerHeight")
-        for name in ("chart", "setpoint", "start", "end"):
-            box = found[name]
-            assert box is not None, name
-            assert box["top"] >= 0, (name, box)
-            assert box["bottom"] <= height, (name, box, height)
-            assert box["left"] >= 0, (name, box)
-            assert box["right"] <= 375, (name, box)
+        on_first_screen(
+            page,
+            found,
+            "chart",
+            "setpoint",
+            "start",
+            "end",
+            "release",
+            "role",
+            "timeLeft",
+            "instruction",
+        )
+        assert page.get_attribute(ROLE, "data-role") == "controller"
+        assert empty_bars(page) == []
         # The results come next: right below the set point and START/END.
         assert found["results"]["top"] >= max(found[n]["bottom"] for n in ("setpoint", "end"))
-        assert page.evaluate("() => document.documentElement.scrollWidth - window.innerWidth") <= 0
+        assert page.evaluate(OVERFLOW) <= 0
         # A run: END becomes usable where it is, with the chart still in sight.
         page.click(parts["start"])
         page.wait_for_selector(f"{parts['end']}:enabled", timeout=15_000)
@@ -136,6 +195,123 @@ def test_a_phone_shows_the_chart_the_set_point_and_start_end_together(
         page.click(toggle)
         assert page.is_hidden(table)
         page.click(f"{view} button[data-action=end]")
+    finally:
+        page.context.close()
+
+
+def unreachable_columns(page: Any) -> list[str]:
+    """Headers of shown tables that cannot be brought into sight on the screen.
+
+    A table fits, or scrolls inside its own box (overflow-x auto); each header is
+    scrolled to inside that box and must then lie within it and within the screen.
+    """
+    found: list[str] = page.evaluate(
+        """() => {
+             const bad = [];
+             for (const table of document.querySelectorAll('main table')) {
+               if (table.offsetParent === null) continue;
+               const wrap = table.closest('.table-wrap');
+               const own = wrap && getComputedStyle(wrap).overflowX === 'auto';
+               const fits = table.getBoundingClientRect().right <= window.innerWidth;
+               if (!own && !fits) bad.push('no box: ' + table.textContent.slice(0, 40));
+               for (const th of table.querySelectorAll('thead th')) {
+                 if (wrap) wrap.scrollLeft = th.offsetLeft - 8;
+                 const r = th.getBoundingClientRect();
+                 const box = (wrap ?? table).getBoundingClientRect();
+                 // Its start in sight (a column wider than the box: its first 200 px).
+                 const end = Math.min(r.right, box.left + 200);
+                 const inside = r.left >= box.left - 1 && end <= box.right + 1;
+                 const seen = r.left >= -1 && r.left <= window.innerWidth - 20;
+                 if (!inside || !seen) bad.push(th.textContent);
+               }
+               if (wrap) wrap.scrollLeft = 0;
+             }
+             return bad;
+           }"""
+    )
+    return found
+
+
+def test_a_phone_reaches_every_column_and_windows_a_long_run(
+    browser: Any, phone_lab: LabServer, artifacts: Path
+) -> None:
+    messages = catalogue("en")
+    page = log_in(browser, phone_lab, "ada", "en-US", viewport={"width": 375, "height": 812})
+    view = "[data-panel-view]:not([hidden])"
+    output = f"figure.chart[aria-label='{messages['charts.output']}']"
+    inp = f"figure.chart[aria-label='{messages['charts.input']}']"
+    try:
+        page.goto(f"{phone_lab.url}/#/rig/phone-wide")
+        page.click("button[data-action=ask]")
+        page.wait_for_selector("button[data-action=release]:focus")
+        # A run of 400 s (2 s at the twin's speed-up): longer than the windows.
+        page.fill(f"{view} input[name=n]", "400")
+        page.click(f"{view} button[data-action=start]")
+        page.wait_for_selector(f"{view} button[data-action=end]:enabled", timeout=15_000)
+        page.wait_for_selector(f"{view} button[data-action=end]:disabled", timeout=60_000)
+        page.wait_for_function(
+            "(sel) => document.querySelector(sel).dataset.points === '400'", arg=output
+        )
+
+        def x_span(chart: str) -> float:
+            low, high = page.get_attribute(chart, "data-x-range").split(",")
+            return float(high) - float(low)
+
+        assert page.get_attribute(f"{output} [data-window=all]", "aria-pressed") == "true"
+        assert x_span(output) > 390
+        # The last 100 s, by finger: both charts follow, the newest samples stay in.
+        page.click(f"{output} [data-window='100']")
+        page.wait_for_function(
+            "(sel) => document.querySelector(sel).dataset.window === '100'", arg=inp
+        )
+        page.wait_for_function(
+            "(sel) => Number(document.querySelector(sel).dataset.points) <= 101", arg=output
+        )
+        assert page.get_attribute(f"{output} [data-window='100']", "aria-pressed") == "true"
+        assert page.get_attribute(f"{output} [data-window=all]", "aria-pressed") == "false"
+        assert 95 <= x_span(output) <= 100
+        assert 95 <= x_span(inp) <= 100
+        page.screenshot(path=str(artifacts / "phone-window-100.png"))
+        # All again, by keyboard.
+        page.focus(f"{output} [data-window=all]")
+        page.keyboard.press("Enter")
+        page.wait_for_function(
+            "(sel) => document.querySelector(sel).dataset.points === '400'", arg=output
+        )
+        assert x_span(output) > 390
+
+        # The results: θ and the verdict reachable, the page never wider than the screen.
+        headers = page.eval_on_selector_all(
+            f"{view} .panel-results thead th", "ths => ths.map((t) => t.textContent)"
+        )
+        assert messages["table.theta"] in headers
+        assert messages["table.status"] in headers
+        # The panel's own results fit the screen: nothing to scroll for.
+        wrap = f"{view} .panel-results .table-wrap"
+        assert page.eval_on_selector(wrap, "(w) => w.scrollWidth - w.clientWidth") <= 0
+        assert unreachable_columns(page) == []
+        assert page.evaluate(OVERFLOW) <= 0
+        page.click("button[data-action=release]")
+        run = page.evaluate("async () => (await (await fetch('/api/runs')).json())[0].id")
+        for path, heading in ((f"#/runs/{run}", messages["run.notes"]), ("#/runs", None)):
+            page.goto(f"{phone_lab.url}/{path}")
+            page.wait_for_selector("main table thead th")
+            if heading:
+                page.wait_for_selector(f"main th:text-is('{heading}')")
+                # The run's page offers the same time window over the whole record.
+                windowed = "main figure.chart[data-window]"
+                page.wait_for_function(
+                    "(sel) => document.querySelector(sel).dataset.points === '400'", arg=windowed
+                )
+                page.click(f"{windowed} [data-window='500']")
+                page.click(f"{windowed} [data-window='100']")
+                page.wait_for_function(
+                    "(sel) => Number(document.querySelector(sel).dataset.points) <= 101",
+                    arg=windowed,
+                )
+                assert 95 <= x_span(windowed) <= 100
+            assert unreachable_columns(page) == [], path
+            assert page.evaluate(OVERFLOW) <= 0, path
     finally:
         page.context.close()
 

@@ -5,7 +5,9 @@ Brazilian Portuguese and English: the form is the server's declarations in
 the page's language (the twin's speed-up among them, the lab's
 ``--speedup``), a value out of range is refused beside its field with the
 range, a saved value is the one in force, and the student's rig page shows
-the new turn length. The teacher's view passes axe with the form.
+the new turn length and, under the rig's name, the twin's pace. The teacher's
+view passes axe with the form. The audit log lists the teacher's changes (rig
+settings; a course, its list, its rigs).
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from typing import Any
 import pytest
 
 from .axe import serious_violations
-from .conftest import LabServer
+from .conftest import LabServer, audited
 
 pytestmark = pytest.mark.browser
 
@@ -34,11 +36,14 @@ caps = { max_run_seconds = 7200 }
 CASES = {
     "pt-BR": {
         "locale": "pt-BR",
-        "heading": "Configurações deste equipamento",
+        "heading": "Configurações desta bancada",
         "typed": "150",
         "shown": "2 minutos 30 segundos",
         "range": "Limite do turno deve ser",
         "speedup": "Aceleração do gêmeo",
+        "pace": "Gêmeo digital 200× mais rápido que o tempo real: o primeiro ensaio do artigo "
+        "(2.000 s) leva 10 segundos. Um turno dura 2 minutos 30 segundos; um ensaio em andamento "
+        "no fim do turno vai até o fim.",
     },
     "en": {
         "locale": "en-GB",
@@ -47,6 +52,8 @@ CASES = {
         "shown": "1 minute 30 seconds",
         "range": "Turn limit must be",
         "speedup": "Twin speed-up",
+        "pace": "Digital twin at 200× real time: the paper's first experiment (2,000 s) takes "
+        "10 seconds. A turn lasts 1 minute 30 seconds; a run going at its end goes on to its end.",
     },
 }
 
@@ -111,15 +118,19 @@ def test_a_teacher_changes_the_turn_limit_and_the_student_page_shows_it(
         )
         assert page.input_value(field) == case["typed"]
         assert "tess" in page.inner_text('[data-settings="twin"]')
+        assert ("rig.settings", "twin") in audited(page, "tess")
         page.screenshot(path=str(artifacts / f"settings-{language}.png"), full_page=True)
 
-        # The student's rig page says how long a turn now lasts.
+        # The student's rig page says how long a turn now lasts, and under the rig's name how
+        # fast the twin runs (the lab's --speedup) with the turn (issue #24).
         own = student.new_page()
         own.goto(f"{settings_lab.url}/#/rig/twin")
         own.wait_for_function(
             "text => document.querySelector('[data-field=\"turnLength\"]')?.textContent === text",
             arg=case["shown"],
         )
+        assert settings_lab.speedup == 200.0  # the pace the sentence states
+        assert own.inner_text('[data-testid="rig-pace"]') == case["pace"]
         assert serious_violations(own) == []
     finally:
         student.close()
@@ -164,6 +175,9 @@ def test_people_are_shown_by_name_and_a_teacher_chooses_a_courses_rigs(
         )
         assert serious_violations(page) == []
         page.screenshot(path=str(artifacts / f"course-rigs-{suffix}.png"), full_page=True)
+        course = f"fis-{suffix}"
+        made = {("course.created", course), ("course.roster", course), ("course.rigs", course)}
+        assert made <= audited(page, "tess")
 
         own = student.new_page()
         own.goto(f"{settings_lab.url}/#/rig/twin")

@@ -1,9 +1,11 @@
 """The end of a term in the browser (#26 item 5), in Brazilian Portuguese.
 
-A teacher closes a course on its page (it then refuses changes with the
-catalogue's sentence), copies it to the next term by choosing the new term's
-first day, and finds the copy's assignment among the assignments as a draft
-("rascunho") that the students do not see until it is published.
+A teacher copies a course to the next term by choosing the new term's first
+day, closes it on its page (it then refuses changes with the catalogue's
+sentence; its bookings to come are cancelled, which is why the copy comes
+first here, the term's one class being still ahead), and finds the copy's
+assignment among the assignments as a draft ("rascunho") that the students do
+not see until it is published.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from typing import Any
 import pytest
 
 from .axe import serious_violations
+from .conftest import audited
 
 pytestmark = pytest.mark.browser
 
@@ -27,9 +30,10 @@ _POST = """async ([url, body]) => {
     Accept: "application/json"}, body: JSON.stringify(body)});
   return [r.status, await r.text()];
 }"""
+_GET = """async (url) => (await fetch(url, {headers: {Accept: "application/json"}})).json()"""
 
 
-def test_a_teacher_closes_a_course_and_copies_it_to_the_next_term_in_portuguese(
+def test_a_teacher_copies_a_course_to_the_next_term_and_closes_it_in_portuguese(
     logged_in: Any, lab: Any
 ) -> None:
     course, copy = "term-old", "term-new"
@@ -54,26 +58,7 @@ def test_a_teacher_closes_a_course_and_copies_it_to_the_next_term_in_portuguese(
         status, text = page.evaluate(_POST, ["/api/bookings", booking])
         assert status == 201, text
 
-        # Close it: two steps, then the page says when and by whom, in Portuguese.
-        assert page.inner_text("#term h3") == "Fim do semestre"
-        assert page.inner_text("#term-state") == "A disciplina está aberta."
-        page.click("#term-close")
-        page.click("#term-close-confirm")
-        page.wait_for_selector('#term-state[data-closed="true"]')
-        state = page.inner_text("#term-state")
-        assert state.startswith("Encerrada em ")
-        assert "por tess: pode ser consultada e exportada, mas não alterada." in state
-        assert page.is_hidden("#term-close")
-        # A change is refused with the catalogue's sentence (409 course_closed).
-        page.click("#course-rotate")
-        page.wait_for_function(
-            "() => document.querySelector('#roster-report').textContent.length > 0"
-        )
-        assert page.inner_text("#roster-report") == (
-            "Esta disciplina está encerrada: pode ser consultada, mas não alterada."
-        )
-
-        # Copy it to the next term.
+        # Copy it to the next term first: a close cancels the bookings still to come.
         page.fill("#copy-name", copy)
         page.fill("#copy-title", "Controle I 2027/2")
         page.fill("#copy-starts", NEXT_TERM)
@@ -84,6 +69,36 @@ def test_a_teacher_closes_a_course_and_copies_it_to_the_next_term_in_portuguese(
             "Copiada. Atividades em rascunho: 1. Reservas: 1. Dias deslocados: 182."
         )
         assert page.inner_text("#copy-link") == "Controle I 2027/2"
+
+        # Close it: two steps (the warning says its bookings to come are cancelled), then the
+        # page says when and by whom, in Portuguese.
+        assert page.inner_text("#term h3") == "Fim do semestre"
+        assert page.inner_text("#term-state") == "A disciplina está aberta."
+        page.click("#term-close")
+        assert "as reservas da disciplina que ainda não começaram são canceladas" in (
+            page.inner_text("#term-result")
+        )
+        page.click("#term-close-confirm")
+        page.wait_for_selector('#term-state[data-closed="true"]')
+        state = page.inner_text("#term-state")
+        assert state.startswith("Encerrada em ")
+        assert "por tess: pode ser consultada e exportada, mas não alterada." in state
+        assert page.is_hidden("#term-close")
+        # Its class to come was cancelled, freeing the rig; the copy's stays.
+        window = "from=2027-02-01T00:00:00Z&to=2027-04-01T00:00:00Z"
+        assert page.evaluate(_GET, f"/api/bookings?{window}") == []
+        window = "from=2027-08-01T00:00:00Z&to=2027-10-01T00:00:00Z"
+        assert [b["course"] for b in page.evaluate(_GET, f"/api/bookings?{window}")] == [copy]
+        # A change is refused with the catalogue's sentence (409 course_closed).
+        page.click("#course-rotate")
+        page.wait_for_function(
+            "() => document.querySelector('#roster-report').textContent.length > 0"
+        )
+        assert page.inner_text("#roster-report") == (
+            "Esta disciplina está encerrada: pode ser consultada, mas não alterada."
+        )
+
+        assert {("course.closed", course), ("course.copied", copy)} <= audited(page, "tess")
         page.wait_for_selector(f'#course-list li[data-course="{course}"]')
         page.reload()
         closed = page.locator(f'#course-list li[data-course="{course}"] [data-closed]')
@@ -114,6 +129,12 @@ PRIVACY = {
     "en": ("Privacy: what the lab keeps about you", "Until an administrator removes it."),
     "es": ("Privacidad: lo que el laboratorio guarda sobre usted", "Hasta que un administrador"),
 }
+# The test lab sets no retention period: the page says nothing goes automatically.
+NO_RETENTION = {
+    "pt-BR": "Nada é removido automaticamente",
+    "en": "Nothing is removed automatically",
+    "es": "Nada se elimina automáticamente",
+}
 
 
 @pytest.mark.parametrize("language", list(PRIVACY))
@@ -132,6 +153,8 @@ def test_the_privacy_page_is_reached_from_the_login_page_in_each_language(
         assert page.inner_text("#privacy h1") == heading
         assert page.locator("#privacy-kept li").count() == 6
         assert page.inner_text("#privacy-retention").startswith(retention)
+        page.wait_for_function("document.querySelector('#privacy-automatic')?.textContent")
+        assert page.inner_text("#privacy-automatic").startswith(NO_RETENTION[language])
         assert page.is_visible("#privacy-login")  # not logged in: log in to download
         if language != "en":
             assert "account" not in page.inner_text("#privacy").lower()

@@ -110,6 +110,18 @@ def test_warnings_before_the_end_and_extend_while_nobody_waits(
         page.wait_for_function("(m) => window.__said.includes(m)", arg=expected, timeout=30_000)
         warning = page.text_content(WARNING) or ""
         assert "Ninguém está esperando" in warning
+        # On a phone the warning and EXTEND take the facts' place in the access card, so
+        # the chart, START/END and the panel's instruction stay on the first screen.
+        page.set_viewport_size({"width": 375, "height": 812})
+        page.evaluate("() => window.scrollTo(0, 0)")
+        first_screen = page.evaluate(
+            """() => ['[data-testid=time-warning]', 'button[data-action=extend]',
+                      '[data-panel-view]:not([hidden]) .panel-intro',
+                      '[data-panel-view]:not([hidden]) button[data-action=end]']
+                .map((s) => document.querySelector(s).getBoundingClientRect().bottom)"""
+        )
+        assert max(first_screen) <= 812, first_screen
+        page.set_viewport_size({"width": 1000, "height": 900})
         page.click(EXTEND)
         page.wait_for_selector(WARNING, state="hidden")
         page.wait_for_function(

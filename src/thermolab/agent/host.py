@@ -26,6 +26,7 @@ from collections.abc import Callable
 
 from thermolab.agent.outbox import Outbox
 from thermolab.agent.protocol import (
+    LINK_LOST,
     Heartbeat,
     LoopCommand,
     RunEnded,
@@ -118,7 +119,7 @@ class RigHost:
         rig: Rig,
         outbox: Outbox,
         *,
-        grace: float = 10.0,
+        grace: float = 30.0,
         on_outbox: Callable[[], None] | None = None,
     ) -> None:
         self.rig = rig
@@ -130,6 +131,8 @@ class RigHost:
         self._run: Experiment | None = None
         self._run_id: int | None = None
         self._grace_timer: threading.Timer | None = None
+        # Why the host ENDed the run going, if it did (told in its RunEnded).
+        self._ended_for: str | None = None
         self._u: float | None = None
         self._y: float | None = None
         self.fault: str | None = None
@@ -287,6 +290,7 @@ class RigHost:
             self._grace_timer = None
             if self._run is not None:
                 log.warning("link lost for %.3g s: ENDing run %s", self.grace, self._run_id)
+                self._ended_for = f"{LINK_LOST} for over {self.grace:g} s"
                 self._run.end()
 
     def _await_end(self, experiment: Experiment, run_id: int) -> None:
@@ -298,6 +302,9 @@ class RigHost:
                 self._grace_timer = None
             reason = "error" if result is None else result.end_reason.value
             message = "" if result is None else (result.message or "")
+            if reason == "ended" and self._ended_for is not None:
+                message = self._ended_for  # the host's END: why (the lab stores it)
+            self._ended_for = None
             samples = 0 if result is None else len(result.t)
             control = None if result is None else result.control
             body = RunEnded(

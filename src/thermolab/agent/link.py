@@ -11,9 +11,26 @@ live-stream dependency): TLS with the lab's CA (``ssl`` from the standard
 library), and its own ping every ``ping`` seconds, so that a lab that stops
 answering (a paused process, a cut cable: TCP would wait for minutes) is
 noticed within ``ping`` + ``ping_timeout`` seconds. Then the host is told
-(:meth:`RigHost.link_lost`) and the agent dials again with exponential
-backoff (0.5 s doubling up to ``max_backoff``, with jitter) until the lab
-answers; nothing listens on the rig host.
+(:meth:`RigHost.link_lost`) and the agent dials again; nothing listens on
+the rig host.
+
+How soon it dials again depends on why the link failed, which a bare TCP
+connection to each of the lab's addresses (a *probe*: no TLS, no request) tells:
+
+* an address **answers** (the lab is there, and refused or broke the link):
+  exponential back-off (0.5 s doubling up to ``max_backoff``, with jitter),
+  so that a lab in trouble is not hammered by its hosts;
+* **no address answers** (the network is away, or the lab is down): the
+  agent probes them all every :data:`PROBE_EVERY` seconds, each probe given
+  :data:`PROBE_TIMEOUT` and overlapping the next, and dials the first that
+  connects at once — the back-off starts again from 0.5 s, since the network came
+  back. A probe that goes nowhere costs the lab nothing, and one that a
+  stopped lab's machine refuses costs it only a TCP reset; a dial, by
+  contrast, can hang for seconds on a dropped SYN after the cable is back.
+  The host is thus linked again within about a second of its network (or
+  lab) returning, however long it was away. A probe goes where a dial's
+  first step goes: the lab's address, or the proxy a dial would use
+  (``HTTPS_PROXY`` and the like, as the ``websockets`` client reads them).
 
 A lab of several web workers (docs/fleet.md) is given as several addresses
 (``url`` and ``others``): the agent dials them in turn. A worker that does
@@ -21,29 +38,36 @@ not own the rigs closes the link with
 :data:`~thermolab.agent.protocol.CLOSE_NOT_OWNER`, and so does one that has
 just lost the lease; the agent then dials the next address at once, so it
 finds the owner — the first one, or the follower that took over — within a
-round of its list.
+round of its list. A standby dialled while no owner is heard (a takeover)
+holds the link instead, up to :data:`~thermolab.agent.protocol.HELLO_HOLD`,
+and answers it as the new owner once it has taken over.
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import os
 import random
 import secrets
 import socket
 import ssl
+from asyncio import FIRST_COMPLETED
 from dataclasses import dataclass
 
 import websockets
 from pydantic import ValidationError
 from websockets.asyncio.client import ClientConnection, connect
+from websockets.proxy import get_proxy, parse_proxy
+from websockets.uri import parse_uri
 
 from thermolab import __version__
 from thermolab.agent.host import RigHost
 from thermolab.agent.protocol import (
     CLOSE_NOT_OWNER,
     CLOSE_REFUSED,
+    HELLO_HOLD,
     PROTOCOL_VERSION,
     Ack,
     EndRun,
@@ -61,11 +85,24 @@ from thermolab.agent.protocol import (
 )
 from thermolab.errors import ThermoLabError
 
-__all__ = ["AgentLink", "LinkSettings", "RefusedError", "outbox_frames"]
+__all__ = [
+    "PROBE_EVERY",
+    "PROBE_TIMEOUT",
+    "AgentLink",
+    "LinkSettings",
+    "RefusedError",
+    "outbox_frames",
+]
 
 log = logging.getLogger(__name__)
 
 _BATCH = 500
+
+PROBE_EVERY = 0.25
+"""Seconds between probes of a lab's address that did not answer."""
+
+PROBE_TIMEOUT = 1.5
+"""Seconds a probe waits for the lab's address to accept a TCP connection."""
 
 
 class RefusedError(ThermoLabError):
@@ -162,9 +199,56 @@ class AgentLink:
                 if self.connected.is_set():
                     self.connected.clear()
                     self.host.link_lost()
-            delay = backoff * (0.5 + random.random() / 2)
-            await asyncio.sleep(delay)
-            backoff = min(backoff * 2, self.settings.max_backoff)
+            if await self._answering(once=True) is not None:
+                # The lab is there and the link failed anyway: back off for the lab's sake.
+                await asyncio.sleep(backoff * (0.5 + random.random() / 2))
+                backoff = min(backoff * 2, self.settings.max_backoff)
+                continue
+            # No address answers: the network (or the lab) is away. Dial the first to return.
+            self._turn = await self._answering(once=False) or 0
+            log.info("%s answers again: dialling it", self.url)
+            backoff = 0.5  # the network came back: what failed before says nothing now
+            # A little jitter: every host of a lab whose network came back would dial at once.
+            await asyncio.sleep(random.random() * PROBE_EVERY)
+
+    async def _answering(self, *, once: bool) -> int | None:
+        """Which lab address accepts a TCP connection: one round of probes, or until one does.
+
+        Every address is probed at once; ``once=False`` starts a round every
+        :data:`PROBE_EVERY` seconds, each overlapping the next, until a probe
+        connects. Returns that address's index (``None`` if one round found none).
+        """
+        hops = [_first_hop(url) for url in (self.settings.url, *self.settings.others)]
+        answered: asyncio.Future[int] = asyncio.get_running_loop().create_future()
+
+        async def probe(index: int) -> None:
+            try:
+                _, writer = await asyncio.wait_for(
+                    asyncio.open_connection(*hops[index]), PROBE_TIMEOUT
+                )
+            except (OSError, TimeoutError):
+                return
+            writer.close()
+            if not answered.done():
+                answered.set_result(index)
+
+        probes: set[asyncio.Task[None]] = set()
+        try:
+            while not answered.done():
+                probes = {task for task in probes if not task.done()}
+                probes |= {asyncio.create_task(probe(i)) for i in range(len(hops))}
+                if once:
+                    pending = set(probes)
+                    while pending and not answered.done():
+                        _, pending = await asyncio.wait(pending, return_when=FIRST_COMPLETED)
+                    break
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(asyncio.shield(answered), PROBE_EVERY)
+            return answered.result() if answered.done() else None
+        finally:
+            for task in probes:
+                task.cancel()
+            await asyncio.gather(*probes, return_exceptions=True)
 
     def _ssl(self) -> ssl.SSLContext | None:
         if not self.url.startswith("wss://"):
@@ -194,7 +278,9 @@ class AgentLink:
             )
             await ws.send(encode(hello))
             try:
-                first = decode_lab(await asyncio.wait_for(ws.recv(), 10))
+                # A standby may hold the Hello through a takeover (HELLO_HOLD); the pings
+                # meanwhile tell a dead worker from a holding one.
+                first = decode_lab(await asyncio.wait_for(ws.recv(), HELLO_HOLD + 10))
             except websockets.exceptions.ConnectionClosed as exc:
                 if exc.rcvd is not None and exc.rcvd.code == CLOSE_REFUSED:
                     raise RefusedError(
@@ -268,6 +354,16 @@ class AgentLink:
                     await asyncio.to_thread(self.host.command, message)
             except ThermoLabError as exc:
                 log.warning("%s refused: %s", message.type, exc)
+
+
+def _first_hop(url: str) -> tuple[str, int]:
+    """Where a dial of ``url`` opens its TCP connection: the lab, or the proxy to it."""
+    uri = parse_uri(url)
+    proxy = get_proxy(uri)
+    if proxy is None:
+        return uri.host, uri.port
+    hop = parse_proxy(proxy)
+    return hop.host, hop.port
 
 
 def outbox_frames(rows: list[tuple[int, str, str]]) -> list[str]:

@@ -38,6 +38,8 @@ __all__ = [
     "AGENT_LINK_PATH",
     "CLOSE_NOT_OWNER",
     "CLOSE_REFUSED",
+    "HELLO_HOLD",
+    "LINK_LOST",
     "PROTOCOL_VERSION",
     "Ack",
     "AgentMessage",
@@ -70,6 +72,16 @@ CLOSE_REFUSED = 4401
 """WebSocket close code: unknown rig, wrong secret or protocol version."""
 CLOSE_NOT_OWNER = 4409
 """WebSocket close code: this web worker does not own the rigs (a follower); dial another."""
+LINK_LOST = "link to the lab lost"
+"""How a ``RunEnded.message`` begins when the host ENDed the run for its lost link (its grace)."""
+HELLO_HOLD = 20.0
+"""Seconds a lab worker may hold a host's ``Hello`` unanswered; the host waits longer.
+
+A standby worker holds a host that dials it while no owner is heard (a
+takeover: at most the lease's 15 s and two announcements) and answers once
+the new owner is decided: ``Welcome`` if it took the rigs over,
+:data:`CLOSE_NOT_OWNER` otherwise.
+"""
 
 _Finite = Annotated[float, Field(allow_inf_nan=False)]
 

@@ -27,13 +27,29 @@ import sys
 from collections.abc import Callable, Sequence
 
 from thermolab import __version__
-from thermolab.errors import ClassListError, ThermoLabError
+from thermolab.errors import (
+    ClassListError,
+    CourseNameTakenError,
+    NameTakenError,
+    PasswordRejectedError,
+    ThermoLabError,
+)
 
 __all__ = ["CliError", "main"]
 
 # Modules that contribute a subcommand, in the order ``--help`` lists them. A
 # module that does not exist yet is skipped, so the layers can land one by one.
-_SUBCOMMAND_MODULES = ("agent", "backup", "course", "identify", "reproduce", "run", "serve", "user")
+_SUBCOMMAND_MODULES = (
+    "agent",
+    "backup",
+    "course",
+    "identify",
+    "reproduce",
+    "retention",
+    "run",
+    "serve",
+    "user",
+)
 
 
 class CliError(Exception):
@@ -123,8 +139,11 @@ def _error_line(exc: ThermoLabError) -> str:
 
     sentence = error_message(fault_of(exc).code, language)
     detail = str(exc)
-    if isinstance(exc, ClassListError):
-        # A class list's problems have sentences of their own in the catalogue.
+    if isinstance(
+        exc, ClassListError | PasswordRejectedError | NameTakenError | CourseNameTakenError
+    ):
+        # A class list's problems, a password's refusal and a taken name have sentences of
+        # their own in the catalogue.
         detail = exc.describe(lambda text: translate(text, language))
     return f"{translate('error', language)}: {sentence} ({detail})"
 

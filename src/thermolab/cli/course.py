@@ -1,6 +1,7 @@
 """``thermolab course``: courses and class lists from the shell.
 
-``create NAME --title TEXT --teacher NAME``, ``list``, ``import COURSE FILE``; the
+``create NAME --title TEXT --teacher NAME``, ``list``, ``import COURSE FILE``,
+``assistant COURSE NAME [--remove]`` (a teaching assistant, audited); the
 end of a term's ``close``, ``reopen``, ``copy`` and ``purge-students``
 (:mod:`thermolab.cli.course_term`).
 An import adds or updates the students of a CSV class list (a login and a
@@ -35,6 +36,8 @@ examples:
   thermolab course import ctrl1 turma.csv > passwords.csv
   thermolab course import ctrl1 turma.csv --dialect pt-BR > senhas.csv
   thermolab course list
+  thermolab course assistant ctrl1 rafa            # rafa assists ctrl1 (reads, changes nothing)
+  thermolab course assistant ctrl1 rafa --remove
   thermolab course close ctrl1
   thermolab course copy ctrl1 ctrl1-2027-1 --starts 2027-03-01
   thermolab course purge-students ctrl1            # who would go (nothing changes)
@@ -46,8 +49,8 @@ def register(subparsers: Any) -> None:
     """Add the ``course`` subcommand to the ``thermolab`` parser."""
     parser = subparsers.add_parser(
         "course",
-        help="manage courses, class lists and the end of a term (create, list, import, close, "
-        "reopen, copy, purge-students)",
+        help="manage courses, class lists and the end of a term (create, list, import, "
+        "assistant, close, reopen, copy, purge-students)",
         description="Manage the lab's courses and their students.",
         epilog=_EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -84,6 +87,15 @@ def register(subparsers: Any) -> None:
     )
     add_database_options(load)
     load.set_defaults(handler=_import)
+
+    helper = actions.add_parser(
+        "assistant", help="make someone a teaching assistant of a course (or --remove them)"
+    )
+    helper.add_argument("course", metavar="COURSE")
+    helper.add_argument("username", metavar="NAME", help="the login name of an existing account")
+    helper.add_argument("--remove", action="store_true", help="take the assistant's place away")
+    add_database_options(helper)
+    helper.set_defaults(handler=_assistant)
 
     from thermolab.cli.course_term import add_actions
 
@@ -163,4 +175,28 @@ def _import(args: argparse.Namespace) -> int:
         writer.writerow(["username", "password"])
         for username, password in report.created.items():
             writer.writerow([username, password])
+    return 0
+
+
+def _assistant(args: argparse.Namespace) -> int:
+    from thermolab.cli.course_term import OPERATOR
+    from thermolab.lab.audit.log import AuditAction, AuditLog
+    from thermolab.lab.classes.assistants import AssistantService
+    from thermolab.lab.clock import SystemClock
+
+    db, _ = _courses(args)
+    clock = SystemClock()
+    try:
+        assistants = AssistantService(db, clock)
+        if args.remove:
+            name = assistants.remove(args.course, args.username)
+            action = AuditAction.ASSISTANT_REMOVED
+        else:
+            name = assistants.add(args.course, args.username)
+            action = AuditAction.ASSISTANT_ADDED
+        AuditLog(db, clock).record(OPERATOR, action, args.course, detail={"username": name})
+    finally:
+        db.close()
+    done = "no longer assists" if args.remove else "assists"
+    print(f"{name} {done} course {args.course!r}")
     return 0

@@ -3,7 +3,8 @@
 The command line is the operator's: it acts as a lab administrator would
 (:mod:`thermolab.lab.classes.term` does the work, as for the API).
 
-* ``close COURSE [--by NAME]``: read-only from now on; ``reopen COURSE`` undoes it.
+* ``close COURSE [--by NAME]``: read-only from now on, its bookings that have not
+  begun cancelled; ``reopen COURSE`` undoes the close (not the cancellations).
 * ``copy OLD NEW (--shift-days N | --starts YYYY-MM-DD) [--title T] [--teacher NAME]``:
   the next term's course, its only teacher ``--teacher`` (default: the old
   course's first teacher by name); the slots left out are listed.
@@ -110,11 +111,19 @@ def _close(args: argparse.Namespace) -> int:
 
     db, term, clock = _term(args)
     try:
-        term.close(args.course, args.by or OPERATOR)
-        AuditLog(db, clock).record(OPERATOR, AuditAction.COURSE_CLOSED, args.course)
+        released = term.close(args.course, args.by or OPERATOR)
+        AuditLog(db, clock).record(
+            OPERATOR,
+            AuditAction.COURSE_CLOSED,
+            args.course,
+            detail={"released_bookings": released},
+        )
     finally:
         db.close()
-    print(f"closed course {args.course!r}: it can be read and exported, not changed")
+    print(
+        f"closed course {args.course!r}: it can be read and exported, not changed; "
+        f"{released} bookings that had not begun were cancelled, freeing their rigs"
+    )
     return 0
 
 

@@ -211,19 +211,22 @@ def _table(s: dict[str, Any]) -> str:
 
 
 def _trajectory_table(s: dict[str, Any]) -> list[str]:
-    after = s["after_convergence"]
-    if s["stats_over"] == "after_convergence":
-        stats, conv = after["stats"], after["converged_at"] if after["converged"] else None
-        basis = (
-            f"(statistics over the {after['samples_after']} samples after convergence, "
-            f"±{100 * s.get('tol', 0.01):g} %)"
-            if after["converged"]
-            else "(no convergence within the record: the estimates never stay within "
-            f"±{100 * s.get('tol', 0.01):g} %; statistics not shown)"
-        )
+    # The figures the lab's run page shows for the same record (thermolab.ident.table_figures).
+    figures = s["figures"]
+    tol = f"±{100 * figures['tol']:g} %"
+    conv: dict[str, int | None] | None = figures["converged_at"]
+    if figures["over"] == "after_convergence":
+        basis = f"(statistics over the {figures['last']} samples after convergence, {tol})"
+    elif s["stats_over"] == "last":
+        basis = f"(statistics over the last {figures['last']} samples)"
     else:
-        stats, conv = s["stats"], s.get("converged_at")
-        basis = f"(statistics over the last {s['last']} samples)"
+        basis = (
+            f"(no convergence within the record: the estimates never stay within {tol}; "
+            f"mean, max and min of the last {figures['last']} samples show their scatter)"
+        )
+        conv = None
+    nan = {"mean": math.nan, "max": math.nan, "min": math.nan}
+    stats = {name: figures[name] or nan for name in ("K", "tau")}
     head = f"{'':10} {'final':>14} {'mean':>14} {'max':>14} {'min':>14}"
     if conv is not None:
         head += f" {'converged at':>13}"

@@ -1,62 +1,44 @@
 """``thermolab serve``: run the remote laboratory.
 
-With no options it serves one digital twin at http://127.0.0.1:8000 with a
-SQLite database in the data folder (``--data-dir``, ``$THERMOLAB_DATA_DIR``
-or a per-user folder): nothing else to install. ``--config FILE.toml`` declares
+With no options it serves one digital twin (at
+:data:`~thermolab.lab.config.model.QUICK_START_SPEEDUP` times real time) on
+http://127.0.0.1:8000 with a SQLite database in the data folder
+(``--data-dir``, ``$THERMOLAB_DATA_DIR`` or a per-user folder): nothing else
+to install. ``--config FILE.toml`` declares
 more rigs and the access policy (see :mod:`thermolab.lab.config`);
 ``--database-url`` uses PostgreSQL instead.
 
-Server limits (issue #13): uvicorn runs the pure-Python h11 parser, whose
-incomplete-event bound refuses request heads over 16 KiB (httptools, which
-uvicorn picks by default, has none), a client has ``--request-timeout``
-seconds to send a whole request (a slow or silent client is cut), a WebSocket
-frame over 1 MiB is refused from its header (``WS_MAX_SIZE``), an idle
-keep-alive connection is closed after 5 s, and beyond 1000 open connections
-(``--max-connections``) new requests get 503. Files: the process's umask is 077, so the data folder,
-the SQLite database (and its journal) and the run records are the server
-user's only (0700/0600); looser modes found at start are tightened, with a
-warning.
+The HTTP server and its limits (request heads, slow clients, frames,
+connections) are :mod:`thermolab.cli.http_server`'s. Files: the process's
+umask is 077, so the data folder, the SQLite database (and its journal) and
+the run records are the server user's only (0700/0600); looser modes found
+at start are tightened, with a warning.
 """
 
 from __future__ import annotations
 
 import argparse
-import asyncio
 import gc
 import os
-import shutil
 import socket
 import stat
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+from thermolab.cli.http_server import CONNECTION_LIMIT, run_server
 
 if TYPE_CHECKING:
     from thermolab.lab.config import LabConfig
 
 __all__ = [
-    "CONNECTION_LIMIT",
-    "HEAD_LIMIT",
-    "KEEP_ALIVE_TIMEOUT",
-    "WS_MAX_SIZE",
     "add_database_options",
     "lab_config_from_args",
     "make_private",
     "register",
 ]
 
-HEAD_LIMIT = 16 * 1024
-"""Largest request head (request line and headers) in bytes; larger ones are refused."""
-KEEP_ALIVE_TIMEOUT = 5
-"""Seconds an idle keep-alive connection stays open."""
-CONNECTION_LIMIT = 1000
-"""Open connections (HTTP and WebSocket) beyond which new requests get 503."""
-WS_MAX_SIZE = 2**20
-"""Largest WebSocket message read: a bigger frame is refused from its header (close 1009).
-
-A live client's messages are refused over 4 KiB by the lab itself; rig hosts'
-messages, on the same server, stay under the 1 MiB their own end accepts.
-"""
 
 _EXAMPLES = """\
 examples:
@@ -120,11 +102,18 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("--ssl-keyfile", metavar="FILE.pem", help="the certificate's private key")
     parser.add_argument(
+        "--ca",
+        metavar="FILE.pem",
+        help="CA certificate(s) to trust, besides the system's, for the owner worker's "
+        "https:// address (a follower forwards rig requests there; the rig hosts' --ca)",
+    )
+    parser.add_argument(
         "--agent-grace",
         type=float,
-        default=10.0,
         metavar="S",
-        help="seconds a remote rig's run outlives a lost link before its host ENDs it (10)",
+        help="seconds a rig host may be away: its run goes on and the controller keeps the "
+        "turn for that long after a lost link; then the host ENDs the run and the rig is out "
+        "of service (default 30: longer than a takeover)",
     )
     parser.add_argument(
         "--smtp", metavar="HOST:PORT", help="mail server for the rig-health alerts (none: no mail)"
@@ -165,6 +154,9 @@ def register(subparsers: Any) -> None:
         default="text",
         help="the server's log on standard error: text, or one JSON object a line (text)",
     )
+    from thermolab.cli.retention import add_retention_options
+
+    add_retention_options(parser)
     parser.set_defaults(handler=_serve)
 
 
@@ -185,35 +177,11 @@ def lab_config_from_args(args: argparse.Namespace) -> LabConfig:
         database_url=args.database_url, speedup=getattr(args, "speedup", None)
     )
     normalize_database_url(config.database)
-    return config
-
-
-def command_name() -> str:
-    """``thermolab`` as the user can type it here: the quick start's ``.venv/bin/thermolab``
-    is not on PATH (its venv is not activated), so a hint naming plain ``thermolab``
-    would fail as printed."""
-    script = Path(sys.argv[0])
-    if script.name != "thermolab":  # python -m thermolab, or an embedding program
-        return "thermolab"
-    found = shutil.which("thermolab")
-    if found and Path(found).resolve() == script.resolve():
-        return "thermolab"
-    try:
-        return str(Path(".") / script.resolve().relative_to(Path.cwd().resolve()))
-    except ValueError:
-        return str(script.resolve())
-
-
-def _teacher_hint(args: argparse.Namespace) -> str:
-    parts = [command_name()]
-    if args.data_dir:
-        parts += ["--data-dir", args.data_dir]
-    parts += ["user", "add", "NAME", "--role", "admin"]
-    if args.config:
-        parts += ["--config", args.config]
-    if args.database_url:
-        parts += ["--database-url", args.database_url]
-    return " ".join(parts)
+    # The retention period: the file's, then the environment's, then the options'.
+    retention = config.retention.with_environment().over(
+        getattr(args, "retention_months", None), getattr(args, "retention_action", None)
+    )
+    return replace(config, retention=retention)
 
 
 def _check_port_free(host: str, port: int) -> None:
@@ -269,9 +237,11 @@ def make_private(config: LabConfig) -> list[str]:
 
 def _serve(args: argparse.Namespace) -> int:
     from thermolab.cli import CliError
+    from thermolab.cli.first_start import first_start_message
+    from thermolab.cli.retention import retention_line
     from thermolab.lab.fleet.workers import start_worker
     from thermolab.lab.http.app import create_app
-    from thermolab.lab.rigs.devices import device_opener
+    from thermolab.lab.rigs.opener import device_opener
     from thermolab.web import STATIC_DIR
 
     config = lab_config_from_args(args)
@@ -284,10 +254,16 @@ def _serve(args: argparse.Namespace) -> int:
         print(
             f"warning: tightened permissions of {path} to the server's user only", file=sys.stderr
         )
+    if args.agent_grace is None:
+        from thermolab.lab.agents.hub import DEFAULT_GRACE
+
+        args.agent_grace = DEFAULT_GRACE
     if not 0 < args.agent_grace <= 3600:
         raise CliError(f"--agent-grace {args.agent_grace:g}: use 0 < S <= 3600", status=2)
     if args.standby and args.broker is None:
         raise CliError("--standby: a standby follows an owner; give --broker too", status=2)
+    if args.ca is not None:
+        _check_ca(args.ca)
     url = args.advertise or f"http://{args.host}:{args.port}"
     _announce_upgrade(config)
     lab, fleet, report = start_worker(
@@ -315,25 +291,20 @@ def _serve(args: argparse.Namespace) -> int:
         ):
             given = " (--speedup)" if config.speedup_override is not None else ""
             print(f"  twin speed-ups{given}: {paces}", file=sys.stderr)
+        if config.retention.months is not None:
+            print(f"  retention: {retention_line(config)}", file=sys.stderr)
         for rig_id, fault in report.faults.items():
             print(f"  warning: rig {rig_id}: {fault}", file=sys.stderr)
         if report.teachers == 0:
-            print(
-                "  No teacher account yet. Create the lab's administrator (a teacher who also\n"
-                "  manages accounts and rigs; then log in at the address above) with:\n"
-                f"    {_teacher_hint(args)}\n"
-                "  then teachers with --role teacher and students with --role student (or,\n"
-                "  once logged in, upload a class list on a course's page).",
-                file=sys.stderr,
-            )
+            print(first_start_message(args, config), file=sys.stderr)
         static = STATIC_DIR if (STATIC_DIR / "index.html").is_file() else None
-        app = create_app(config, static, lab=lab, close_lab=True, fleet=fleet)
+        app = create_app(config, static, lab=lab, close_lab=True, fleet=fleet, owner_ca=args.ca)
         # What exists now (the imported libraries, the lab, the app) lives as long as the
         # server: keep it out of the collector's full passes, which otherwise stop every
         # thread, the live stream's included, for 0.1-0.2 s each (benchmarks/bench_live.py).
         gc.collect()
         gc.freeze()
-        _run_server(
+        run_server(
             app,
             args.host,
             args.port,
@@ -345,6 +316,19 @@ def _serve(args: argparse.Namespace) -> int:
     finally:
         lab.close()
     return 0
+
+
+def _check_ca(cafile: str) -> None:
+    """Refuse, in one line, a ``--ca`` that cannot be read or holds no certificate."""
+    import ssl
+
+    from thermolab.cli import CliError
+    from thermolab.lab.http.forward import owner_tls
+
+    try:
+        owner_tls(cafile)
+    except (OSError, ssl.SSLError) as exc:
+        raise CliError(f"--ca {cafile}: not a CA certificate file ({exc})", status=2) from None
 
 
 def _announce_upgrade(config: LabConfig) -> None:
@@ -381,152 +365,3 @@ def _mailer(args: argparse.Namespace, title: str) -> Any:
     if not host or not port.isdigit() or not 0 < int(port) < 65536 or not args.alert_to:
         raise CliError(f"--smtp {args.smtp!r}: use HOST:PORT with --alert-to ADDRESS", status=2)
     return Mailer(host, int(port), tuple(args.alert_to), lab_title=title)
-
-
-def _bounded_h11(request_timeout: float) -> type[asyncio.Protocol]:
-    """uvicorn's h11 protocol, cutting a client that takes too long to send a request.
-
-    uvicorn bounds the wait between requests (keep-alive) but not the wait for
-    a request: a client that sends a head byte by byte (slowloris), a body
-    slowly, or nothing at all would hold its connection forever. The timer
-    runs from the connection (or the first byte of the next request) until the
-    whole request is in.
-    """
-    import h11
-    from uvicorn.protocols.http.h11_impl import H11Protocol
-
-    class BoundedH11Protocol(H11Protocol):
-        _request_timer: asyncio.TimerHandle | None = None
-        _upgraded = False
-
-        def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
-            super().connection_made(transport)
-            self._arm()
-
-        def data_received(self, data: bytes) -> None:
-            super().data_received(data)
-            if self._upgraded:
-                # The WebSocket protocol owns the connection now; h11 still reads the
-                # upgrade request as SEND_BODY, and a timer armed here cut every live
-                # socket after request_timeout seconds.
-                return
-            if self.conn.their_state in (h11.IDLE, h11.SEND_BODY):
-                self._arm(only_if_unarmed=True)  # a request has begun: it must end in time
-            else:
-                self._disarm()
-
-        def connection_lost(self, exc: Exception | None) -> None:
-            self._disarm()
-            super().connection_lost(exc)
-
-        def handle_websocket_upgrade(self, event: h11.Request) -> None:
-            self._upgraded = True
-            self._disarm()
-            super().handle_websocket_upgrade(event)
-
-        def _arm(self, *, only_if_unarmed: bool = False) -> None:
-            if only_if_unarmed and self._request_timer is not None:
-                return
-            self._disarm()
-            self._request_timer = self.loop.call_later(request_timeout, self._too_slow)
-
-        def _disarm(self) -> None:
-            if self._request_timer is not None:
-                self._request_timer.cancel()
-                self._request_timer = None
-
-        def _too_slow(self) -> None:
-            self._request_timer = None
-            if (
-                self.conn.their_state in (h11.IDLE, h11.SEND_BODY)
-                and not self.transport.is_closing()
-            ):
-                self.logger.info("closed a connection that was too slow to send its request")
-                self.transport.close()
-
-    return BoundedH11Protocol
-
-
-def _framed_websockets() -> type[asyncio.Protocol]:
-    """uvicorn's WebSocket protocol, offering the live stream direct writes to its socket.
-
-    The ASGI scope gets :data:`~thermolab.lab.live.fanout.FRAMES_EXTENSION`: a
-    writer that puts a whole, ready-made frame on the connection's transport
-    (the frame the channel built once for every client). The protocol's own
-    frames (pings, close) go to the same transport from the same thread, so
-    frames never interleave; nothing is written once a close is sent.
-    """
-    from uvicorn.protocols.websockets.websockets_sansio_impl import WebSocketsSansIOProtocol
-    from websockets.http11 import Request
-
-    from thermolab.lab.live.fanout import FRAMES_EXTENSION
-
-    class Frames:
-        __slots__ = ("protocol",)
-
-        def __init__(self, protocol: WebSocketsSansIOProtocol) -> None:
-            self.protocol = protocol
-
-        def write(self, frame: bytes) -> bool:
-            protocol = self.protocol
-            transport = protocol.transport
-            if protocol.close_sent or transport.is_closing():
-                return False
-            transport.write(frame)
-            return True
-
-        def buffered(self) -> int:
-            size: int = self.protocol.transport.get_write_buffer_size()
-            return size
-
-    class FramedWebSockets(WebSocketsSansIOProtocol):
-        def handle_connect(self, event: Request) -> None:
-            super().handle_connect(event)
-            scope = getattr(self, "scope", None)  # none when the handshake was refused
-            if scope is not None:
-                scope["extensions"][FRAMES_EXTENSION] = Frames(self)
-
-    return FramedWebSockets
-
-
-def _run_server(
-    app: Any,
-    host: str,
-    port: int,
-    *,
-    request_timeout: float = 10.0,
-    tls: tuple[str | None, str | None] = (None, None),
-    max_connections: int = CONNECTION_LIMIT,
-    log_format: str = "text",
-) -> None:
-    import uvicorn
-
-    from thermolab.lab.operations.logs import log_config
-
-    logging_config = log_config("json" if log_format == "json" else "text")
-    # uvicorn's default (its coloured text) unless JSON lines were asked for.
-    logging: Any = uvicorn.config.LOGGING_CONFIG if logging_config is None else logging_config
-
-    # Live messages are small and go to many clients: compressing each one for each
-    # client (permessage-deflate keeps a context per connection) cost the server more
-    # than everything else in sending them (benchmarks/bench_live.py).
-    uvicorn.run(
-        app,
-        host=host,
-        port=port,
-        log_level="info",
-        log_config=logging,
-        # X-Forwarded-For is believed only from access.trusted_proxies, in the app itself
-        # (uvicorn's default would trust any proxy on 127.0.0.1).
-        proxy_headers=False,
-        ws_per_message_deflate=False,
-        ws_max_size=WS_MAX_SIZE,
-        http=_bounded_h11(request_timeout),
-        ws=_framed_websockets(),
-        h11_max_incomplete_event_size=HEAD_LIMIT,
-        timeout_keep_alive=KEEP_ALIVE_TIMEOUT,
-        limit_concurrency=max_connections,
-        # TLS (wss:// for rig hosts): uvicorn's own, with the certificate given.
-        ssl_certfile=tls[0],
-        ssl_keyfile=tls[1],
-    )

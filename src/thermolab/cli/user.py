@@ -208,7 +208,12 @@ def _list(args: argparse.Namespace) -> int:
     finally:
         db.close()
     if not accounts:
-        print("no accounts yet; add one with: thermolab user add NAME --role admin")
+        from thermolab.cli.first_start import command_line
+
+        admin = command_line(
+            args, lab_config_from_args(args), "user", "add", "NAME", "--role", "admin"
+        )
+        print(f"no accounts yet; add the lab's administrator with: {admin}")
         return 0
     width = max(8, *(len(u.username) for u in accounts))
     print(f"{'username':<{width}}  {'role':<7}  created (UTC)")

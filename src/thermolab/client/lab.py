@@ -406,6 +406,20 @@ class Turn:
         applied = answer.get("applied")
         return None if applied is None else float(applied)
 
+    def pace(self, speedup: float) -> float:
+        """Run the rig (a twin) at ``speedup`` until this turn ends; return the speed-up in force.
+
+        Raises
+        ------
+        LabRequestError
+            422 ``speedup_refused`` naming the rig and what it allows (hardware
+            runs in real time; a twin allows 1 up to its teacher's ``twin_speedup``),
+            409 while a run is going.
+        """
+        body = {"speedup": float(speedup)}
+        rig = self.lab.request("PUT", f"/api/rigs/{self.rig_id}/control/speedup", json=body)
+        return float(rig.get("speedup") or speedup)
+
     def read(self) -> Reading:
         """Read the rig's output now."""
         body = self.lab.request("GET", f"/api/rigs/{self.rig_id}/reading")

@@ -28,10 +28,13 @@ from thermolab.control.tuning import (
     RULE_FORMS,
     RULES,
     SPEED_RULES,
+    STEP_FRACTION,
     Tuning,
     as_fopdt,
+    step_setpoint,
     tune,
 )
+from thermolab.control.words import LOOP_WORDS, LoopWord, word_of
 
 if TYPE_CHECKING:
     from thermolab.control.response import (
@@ -40,7 +43,9 @@ if TYPE_CHECKING:
         predict_closed_loop,
         predict_record_step,
         rest_warning,
+        rest_word,
         settling_warning,
+        settling_word,
         step_metrics,
     )
 
@@ -52,7 +57,9 @@ _LAZY = {
     "predict_closed_loop",
     "predict_record_step",
     "rest_warning",
+    "rest_word",
     "settling_warning",
+    "settling_word",
     "step_metrics",
 }
 
@@ -72,15 +79,18 @@ def __dir__() -> list[str]:
 __all__ = [
     "FOPDT",
     "GAIN_LIMITS",
+    "LOOP_WORDS",
     "PARAMETERS",
     "PID",
     "RULES",
     "RULE_FORMS",
     "SPEED_RULES",
+    "STEP_FRACTION",
     "AdaptiveTuner",
     "ClosedLoopResponse",
     "ControlParameter",
     "GainBounds",
+    "LoopWord",
     "PIDGains",
     "StepMetrics",
     "Tuning",
@@ -89,8 +99,12 @@ __all__ = [
     "predict_closed_loop",
     "predict_record_step",
     "rest_warning",
+    "rest_word",
     "settling_warning",
+    "settling_word",
     "step_metrics",
+    "step_setpoint",
     "to_control",
     "tune",
+    "word_of",
 ]

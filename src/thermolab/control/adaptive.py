@@ -33,6 +33,7 @@ from typing import Any
 from thermolab.control.parameters import PARAMETERS
 from thermolab.control.pid import GAIN_LIMITS, PIDGains
 from thermolab.control.tuning import FOPDT, RULES, tune
+from thermolab.control.words import LoopWord
 from thermolab.errors import InvalidParameterError
 
 __all__ = ["AdaptiveTuner", "GainBounds"]
@@ -175,6 +176,8 @@ class AdaptiveTuner:
         self._trust = trust
         self.input_span = math.nan
         self.last_reason = ""
+        #: ``last_reason`` by its code and values (thermolab.control.words), for a page.
+        self.last_word: LoopWord | None = None
         self._latest: Any = None
         self._reset_interval()
 
@@ -232,14 +235,18 @@ class AdaptiveTuner:
             self.retunes += 1
         return gains
 
+    def _hold(self, word: LoopWord | None) -> None:
+        self.last_word = word
+        self.last_reason = "" if word is None else word.text
+
     def _retune(self, current: PIDGains) -> PIDGains | None:
         est = self._latest
         if est is None or not bool(getattr(est, "valid", True)):
-            self.last_reason = "no valid estimate yet"
+            self._hold(LoopWord.of("hold.no_estimate"))
             return None
         held = self._untrusted(est)
         if held is not None:
-            self.last_reason = held
+            self._hold(held)
             return None
         try:
             theta = getattr(est, "theta", None)
@@ -248,10 +255,10 @@ class AdaptiveTuner:
             )
             target = tune(model, self.rule, form=self.form, tau_c=self.tau_c).gains
         except (InvalidParameterError, AttributeError, TypeError, ValueError) as exc:
-            self.last_reason = f"estimate not tunable: {exc}"
+            self._hold(LoopWord.of("hold.not_tunable", reason=str(exc)))
             return None
         if math.copysign(1.0, target.Kp) != math.copysign(1.0, current.Kp):
-            self.last_reason = "the estimate's gain has the wrong sign"
+            self._hold(LoopWord.of("hold.wrong_sign"))
             return None
         c = self.max_change
         b = self.bounds
@@ -260,35 +267,32 @@ class AdaptiveTuner:
         ti = _clip(target.Ti, current.Ti / (1 + c), current.Ti * (1 + c))
         td_step = c * max(current.Td, current.Ti / 4)
         td = _clip(target.Td, current.Td - td_step, current.Td + td_step)
-        self.last_reason = ""
+        self._hold(None)
         return PIDGains(sign * _clip(kp, *b.kp), _clip(ti, *b.ti), _clip(td, *b.td))
 
-    def _untrusted(self, est: Any) -> str | None:
+    def _untrusted(self, est: Any) -> LoopWord | None:
         """Why the latest estimate must not retune the PID, or ``None``."""
         if self._trust is not None:
             reason = self._trust(est)
             if reason:
-                return f"estimate not trusted: {reason}"
+                return LoopWord.of("hold.not_trusted", warning=str(reason))
         K, tau = float(est.K), float(est.tau)
         tol = self.settle_tol
         if self._unsettled:
-            return (
-                f"estimate not settled: some estimates of the last {self.every} samples are invalid"
-            )
+            return LoopWord.of("hold.unsettled_invalid", every=self.every)
         for name, value, (low, high) in (("K", K, self._k_range), ("tau", tau, self._tau_range)):
             if low <= high and (high - value > tol * abs(value) or value - low > tol * abs(value)):
-                return (
-                    f"estimate not settled: {name} moved from {low:.4g} to {high:.4g} over the "
-                    f"last {self.every} samples (more than ±{100 * tol:g} % of {value:.4g})"
-                )
+                return LoopWord.of(
+                    "hold.unsettled_moved", name=name, low=low, high=high, every=self.every,
+                    tolerance=100 * tol, value=value,
+                )  # fmt: skip
         span = self.input_span
         moved = self._u_range[1] - self._u_range[0]
         if self.excitation > 0 and math.isfinite(span) and moved < self.excitation * span:
-            return (
-                f"too little excitation: the input moved {moved:.3g} over the last {self.every} "
-                f"samples (less than {100 * self.excitation:g} % of its range); a set-point "
-                "step gives the estimator something to learn from"
-            )
+            return LoopWord.of(
+                "hold.little_excitation", moved=moved, every=self.every,
+                share=100 * self.excitation,
+            )  # fmt: skip
         return None
 
     def to_dict(self) -> dict[str, Any]:
@@ -306,4 +310,5 @@ class AdaptiveTuner:
             "retunes": self.retunes,
             "skipped": self.skipped,
             "last_reason": self.last_reason,
+            "last_word": None if self.last_word is None else self.last_word.to_dict(),
         }

@@ -25,6 +25,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from thermolab.control.words import LoopWord
 from thermolab.errors import GainRangeError, InvalidParameterError
 
 __all__ = ["GAIN_LIMITS", "PID", "GainRangeError", "PIDGains"]
@@ -48,10 +49,11 @@ def _checked(name: str, value: object, *, magnitude: bool = False) -> float:
         raise GainRangeError(f"{name} must be a number, got {value!r}") from None
     size = abs(x) if magnitude else x
     if not (math.isfinite(x) and low <= size <= high):
-        allowed = (
-            f"|{name}| in [{low:g}, {high:g}]" if magnitude else f"{name} in [{low:g}, {high:g}]"
-        )
-        raise GainRangeError(f"{name} must be finite with {allowed}, got {value!r}")
+        word = LoopWord.of(
+            "gain_size_out_of_range" if magnitude else "gain_out_of_range",
+            gain=name, low=low, high=high, value=x,
+        )  # fmt: skip
+        raise GainRangeError(word.text, word_code=word.code, word_params=word.params)
     return x
 
 
@@ -237,7 +239,10 @@ class PID:
         # dt/Tt is capped at 1: a tracking time shorter than the period would overshoot the
         # reset (and a vanishing Td would make it infinite); at 1 the integral is reset so
         # that the demand equals the limit.
-        self.integral += g.Kp * dt / g.Ti * e + min(1.0, dt / self.tracking_time) * (u - demand)
+        # sqrt(Ti*Td) of a subnormal Td underflows to 0: that is a tracking time under dt too.
+        tracking = self.tracking_time
+        reset = 1.0 if tracking <= dt else dt / tracking
+        self.integral += g.Kp * dt / g.Ti * e + reset * (u - demand)
         self.output = u
         return u
 

@@ -26,6 +26,7 @@ import numpy.typing as npt
 
 from thermolab.control.pid import PID, PIDGains
 from thermolab.control.tuning import as_fopdt
+from thermolab.control.words import LoopWord
 from thermolab.errors import InvalidDataError, InvalidParameterError
 from thermolab.jsonsafe import finite_or_none
 
@@ -35,7 +36,9 @@ __all__ = [
     "predict_closed_loop",
     "predict_record_step",
     "rest_warning",
+    "rest_word",
     "settling_warning",
+    "settling_word",
     "step_metrics",
 ]
 
@@ -125,10 +128,7 @@ def step_metrics(
     i0 = int(changes[-1]) + 1 if len(changes) else 0
     step = float(ra[i0] - (ra[i0 - 1] if i0 else ya[0]))
     if step == 0 or len(ta) - i0 < 2:
-        raise InvalidDataError(
-            "no set-point step to measure: the set point never moves away from the output, "
-            "or the last step leaves fewer than 2 samples"
-        )
+        raise InvalidDataError(LoopWord.of("no_measured_step").text)
     target = float(ra[-1])
     direction = math.copysign(1.0, step)
     after_t, after_y = ta[i0:], ya[i0:]
@@ -364,6 +364,14 @@ def rest_warning(
     does not describe this run. ``None`` when it was, or the model's dead time
     spans fewer than 3 samples.
     """
+    word = rest_word(model, measured, t, y, limit=limit)
+    return None if word is None else word.text
+
+
+def rest_word(
+    model: Any, measured: StepMetrics, t: npt.ArrayLike, y: npt.ArrayLike, *, limit: float = 0.1
+) -> LoopWord | None:
+    """:func:`rest_warning` by its code and values (``output_drifted``), for a page to say."""
     m = as_fopdt(model)
     ta, ya = np.asarray(t, dtype=np.float64), np.asarray(y, dtype=np.float64)
     i0 = int(np.searchsorted(ta, measured.step_time))
@@ -374,12 +382,7 @@ def rest_warning(
     away = -slope * m.tau
     if abs(away) <= limit * abs(measured.step):
         return None
-    return (
-        f"the output drifted at {slope:+.3g}/s in the model's dead time ({m.theta:g} s) after "
-        f"the step, before the controller could act: the box was about {away:+.3g} from rest "
-        "(still warm from an earlier run?), so the prediction, which starts it settled, does "
-        "not describe this run; start from a box at rest"
-    )
+    return LoopWord.of("output_drifted", slope=slope, theta=m.theta, away=away)
 
 
 def settling_warning(
@@ -407,6 +410,14 @@ def settling_warning(
     settling time jumps between reaching the band and leaving the peak: compare the
     overshoot and the IAE instead
     """
+    word = settling_word(measured, predicted, spread=spread)
+    return None if word is None else word.text
+
+
+def settling_word(
+    measured: StepMetrics, predicted: StepMetrics, *, spread: float = 0.25
+) -> LoopWord | None:
+    """:func:`settling_warning` by its code and values (``settling_near_band``), for a page."""
     edge = measured.band * 100.0
     near = [
         m.overshoot
@@ -415,9 +426,7 @@ def settling_warning(
     ]
     if not near:
         return None
-    return (
-        f"the overshoot ({measured.overshoot:.1f} % measured, {predicted.overshoot:.1f} % "
-        f"predicted) is near the {edge:g} % settling band, where the settling time jumps "
-        "between reaching the band and leaving the peak: compare the overshoot and the IAE "
-        "instead"
-    )
+    return LoopWord.of(
+        "settling_near_band",
+        measured=measured.overshoot, predicted=predicted.overshoot, band=edge,
+    )  # fmt: skip

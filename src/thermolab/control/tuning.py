@@ -41,9 +41,20 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from thermolab.control.pid import PIDGains
-from thermolab.errors import InvalidParameterError
+from thermolab.control.words import LoopWord
+from thermolab.errors import InvalidParameterError, RuleNotApplicableError
 
-__all__ = ["FOPDT", "RULES", "RULE_FORMS", "SPEED_RULES", "Tuning", "as_fopdt", "tune"]
+__all__ = [
+    "FOPDT",
+    "RULES",
+    "RULE_FORMS",
+    "SPEED_RULES",
+    "STEP_FRACTION",
+    "Tuning",
+    "as_fopdt",
+    "step_setpoint",
+    "tune",
+]
 
 Rule = Literal["imc", "simc", "zn", "cc"]
 Form = Literal["pi", "pid"]
@@ -64,6 +75,11 @@ RULE_FORMS: dict[str, tuple[str, ...]] = {
 }
 #: The rules that take a closed-loop speed (``tau_c``, λ for IMC).
 SPEED_RULES: tuple[str, ...] = ("imc", "simc")
+
+
+#: A tuning step's input, as a fraction of the way from the rest input to the farther
+#: end of the input's range (:func:`step_setpoint`).
+STEP_FRACTION = 0.5
 
 
 @dataclass(frozen=True, slots=True)
@@ -260,9 +276,8 @@ def tune(
     elif tau_c is not None:
         raise InvalidParameterError(f"rule {rule!r} has no closed-loop speed; drop tau_c")
     elif theta <= 0:
-        raise InvalidParameterError(
-            f"rule {rule!r} needs a dead time theta > 0; use imc or simc for a model without"
-        )
+        word = LoopWord.of("needs_dead_time", rule=rule)
+        raise RuleNotApplicableError(word.text, word_code=word.code, word_params=word.params)
     Td = 0.0
     if rule == "imc":
         assert speed is not None
@@ -290,3 +305,51 @@ def tune(
             Ti = theta * (32 + 6 * r) / (13 + 8 * r)
             Td = 4 * theta / (11 + 2 * r)
     return Tuning(PIDGains(Kp, Ti, Td), rule, chosen, speed, m)
+
+
+def step_setpoint(
+    model: FOPDT,
+    *,
+    y0: float,
+    u_rest: float,
+    u_limits: tuple[float, float],
+    output_limit: float | None = None,
+    fraction: float = STEP_FRACTION,
+) -> float:
+    """A set point for a tuning step that a rig's own ranges make sensible.
+
+    The output ``model`` settles at when the input steps from ``u_rest`` a
+    ``fraction`` of the way to the farther end of ``u_limits`` (the paper's
+    ±10 V box at rest at 0 V: to 5 V, 0.7 V up; a TCLab kit: to 50 %, about
+    30 °C up), kept below ``output_limit`` (halfway from ``y0`` to it if the
+    step would reach it), rounded to two significant digits of the step. The
+    middle of the range is no default: on a range centred on the rest input
+    it is no step at all.
+
+    Raises
+    ------
+    InvalidParameterError
+        If ``fraction`` is not in (0, 1] or the range holds no step from ``u_rest``.
+
+    Examples
+    --------
+    >>> step_setpoint(FOPDT(0.14009, 250.0), y0=0.0, u_rest=0.0, u_limits=(-10.0, 10.0))
+    0.7
+    >>> step_setpoint(FOPDT(0.6, 140.0, 16.0), y0=21.3, u_rest=0.0, u_limits=(0.0, 100.0))
+    51.0
+    >>> step_setpoint(FOPDT(0.14, 250.0), y0=4.5, u_rest=0.0, u_limits=(-10.0, 10.0),
+    ...               output_limit=5.0)
+    4.75
+    """
+    if not 0.0 < fraction <= 1.0:
+        raise InvalidParameterError(f"fraction must be in (0, 1], got {fraction!r}")
+    low, high = u_limits
+    far = high if high - u_rest >= u_rest - low else low
+    if far == u_rest:
+        raise InvalidParameterError(f"the input range {low:g} to {high:g} holds no step")
+    target = y0 + model.K * fraction * (far - u_rest)
+    if output_limit is not None and target >= output_limit > y0:
+        target = y0 + 0.5 * (output_limit - y0)
+    step = target - y0
+    digits = 1 - math.floor(math.log10(abs(step)))
+    return round(y0 + round(step, digits), max(digits, 0))

@@ -40,6 +40,7 @@ from thermolab.errors import InsufficientExcitationError, ThermoLabError
 
 from .diagnostics import timing_warnings
 from .registry import get_method
+from .table_figures import table_figures
 from .units import error_in_units, in_units
 from .verdict import Verdict, check_identifiable, judge
 
@@ -245,6 +246,8 @@ def _summary(method: str, result: Any, dt: float, settings: Mapping[str, Any]) -
         # The paper's count (statistics after convergence) unless the last N are asked for.
         "stats_over": "last" if settings.get("last") is not None else "after_convergence",
     }
+    # The figures a table shows, by the one rule the lab's run pages use too.
+    out["figures"] = table_figures(result, tol=stats.get("tol", 0.01), last=settings.get("last"))
     converged = d.pop("converged_at")
     if "tol" in stats:
         out["converged_at"] = converged

@@ -286,7 +286,7 @@ class Trajectory:
         >>> W = np.column_stack([a, 0.2 * (1 - a)])
         >>> r = Trajectory("wlsm", 1.0, W, ArxOrder(), "initial", ("a", "b")).after_convergence()
         >>> r["converged"], r["converged_at"], r["samples_after"]
-        (True, {'K': 0, 'tau': 49}, 101)
+        (True, {'K': 0, 'tau': 49}, 100)
         """
         _check_tol_last(tol, 1)
         n = self.n_samples
@@ -315,7 +315,9 @@ class Trajectory:
         converged = at["K"] is not None and at["tau"] is not None
         stats: dict[str, dict[str, float]] = {}
         for name, x in series.items():
-            tail = x[max(start, 0) :] if converged else x[:0]
+            # The samples after the convergence sample, as the paper's "2000 samples after
+            # convergence" (thermolab reproduce table1's rows) count them.
+            tail = x[start + 1 :] if converged else x[:0]
             tail = tail[np.isfinite(tail)]
             stats[name] = (
                 {"mean": float(tail.mean()), "max": float(tail.max()), "min": float(tail.min())}
@@ -325,7 +327,7 @@ class Trajectory:
         return {
             "converged": converged,
             "converged_at": at if converged else {"K": None, "tau": None},
-            "samples_after": n - start if converged else 0,
+            "samples_after": n - start - 1 if converged else 0,
             "stats": stats,
         }
 

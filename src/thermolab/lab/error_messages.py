@@ -24,12 +24,14 @@ from pathlib import Path
 
 from babel.messages.mofile import write_mo
 from babel.messages.pofile import read_po
+from babel.numbers import get_decimal_symbol
 
 __all__ = [
     "DEFAULT_LANGUAGE",
     "ERROR_SENTENCES",
     "LANGUAGES",
     "LANGUAGE_COOKIE",
+    "decimal_mark",
     "error_message",
     "language_from_environment",
     "negotiate_language",
@@ -69,9 +71,11 @@ ERROR_SENTENCES: Mapping[str, str] = {
     "class_list_invalid": "The class list has bad lines; nothing was changed.",
     "enrol_code_wrong": "No course has this enrolment code.",
     "course_closed": "This course is closed for the term: it can be read, not changed.",
+    "course_name_taken": "Another course already has this name: choose another one.",
     "password_change_required": "Choose a new password before going on.",
     "setting_out_of_range": "A setting is outside the range this rig allows.",
     "setting_not_for_rig": "This rig does not have that setting.",
+    "speedup_refused": "This rig does not allow that speed-up.",
     "settings_changed": "Someone changed these settings meanwhile: load them again.",
     # The closed loop and the runs' precise conflicts.
     "gain_out_of_range": "A controller setting is not a finite number within its published range.",
@@ -81,9 +85,26 @@ ERROR_SENTENCES: Mapping[str, str] = {
     "previous_run_ending": "The previous turn's run is still ending: try again in a few seconds.",
     "run_in_progress": "A run of your turn is already going: END it first.",
     "setpoint_out_of_range": "The set point is outside the rig's output range.",
+    "setpoint_no_step": (
+        "The set point is the output the step starts from: there is no step to tune for. "
+        "Choose a set point away from it."
+    ),
     # Bookings (issue #10, item 5).
     "booking_clash": "This slot overlaps another booking of the same rig.",
     "rig_booked": "The rig is booked for another course's slot now.",
+    # Slot times and the booking tools (issue #24, item 7).
+    "slot_ends_before_start": (
+        "The slot ends before it starts: check the start and end times (and the day)."
+    ),
+    "slot_too_long": (
+        "The slot is longer than a day: say that it is longer on purpose, or shorten it."
+    ),
+    "slot_zone_missing": "The slot's times must carry their time zone.",
+    "time_zone_unknown": "The time zone is not a known IANA time zone (like America/Sao_Paulo).",
+    "booking_quota_exceeded": "This booking would pass your course's weekly booking quota.",
+    "booking_series_clash": (
+        "Some weeks of this series overlap other bookings; nothing was booked."
+    ),
     # The LTI 1.3 tool (issue #12).
     "lti_invalid_token": (
         "The LMS's sign-in could not be verified (forged, expired or meant for another tool)."
@@ -146,6 +167,17 @@ def _translations(language: str) -> gettext.NullTranslations:
 def translate(message: str, language: str) -> str:
     """``message`` (an English msgid) in ``language``; English when it has no translation."""
     return _translations(language).gettext(message)
+
+
+def decimal_mark(language: str) -> str:
+    """The decimal mark of ``language`` ("," in pt-BR and es), for numbers the server writes.
+
+    Examples
+    --------
+    >>> decimal_mark("pt-BR"), decimal_mark("en")
+    (',', '.')
+    """
+    return str(get_decimal_symbol(language.replace("-", "_")))
 
 
 def error_message(code: str, language: str = DEFAULT_LANGUAGE) -> str:

@@ -26,21 +26,28 @@ from thermolab.lab.agents import AgentHub, RemoteRuns
 from thermolab.lab.analytics import AnalyticsService, assignment_state
 from thermolab.lab.assignments import AssignmentService
 from thermolab.lab.audit.log import AuditLog
+from thermolab.lab.classes.assistants import AssistantService
 from thermolab.lab.classes.authorize import Authorizer
+from thermolab.lab.classes.booking_tools import BookingTools
 from thermolab.lab.classes.bookings import BookingService
+from thermolab.lab.classes.calendar_feeds import CalendarFeedService
 from thermolab.lab.classes.course_settings import CourseSettingsService
 from thermolab.lab.classes.courses import CourseService
+from thermolab.lab.classes.reminders import ReminderService
+from thermolab.lab.classes.retention import RetentionService
 from thermolab.lab.classes.term import TermService
 from thermolab.lab.clock import LabClock, SystemClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Role
+from thermolab.lab.error_messages import DEFAULT_LANGUAGE, decimal_mark, translate
 from thermolab.lab.fleet.lease import DatabaseLease
 from thermolab.lab.guides import SECTIONS, GuideImageService, GuideService
 from thermolab.lab.live.presence import Presence
 from thermolab.lab.lti import LtiService
 from thermolab.lab.rigs.camera import Picture, PictureCache, draw_twin, fetch_camera
-from thermolab.lab.rigs.devices import DesiredState, DeviceHub, RigOpener
+from thermolab.lab.rigs.devices import DesiredState, DeviceHub
+from thermolab.lab.rigs.opener import RigOpener
 from thermolab.lab.rigs.rig_settings import RigSettingsService
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.runs.where import RunsByRig
@@ -219,6 +226,8 @@ class Lab:
         # and the log of what they did.
         self.authorize = Authorizer(self.db)
         self.audit = AuditLog(self.db, self.clock)
+        # Courses' teaching assistants (what they may do is the policy table's).
+        self.assistants = AssistantService(self.db, self.clock)
         # Display names of the people the answers name (kept briefly).
         self.names = NameBook(self.db, self.clock)
         # Personal API tokens for scripts; revoked ones are announced like ended logins.
@@ -227,8 +236,17 @@ class Lab:
         self.course_settings = CourseSettingsService(self.db, self.clock)
         # Courses' booked slots on rigs (the turn rules apply them).
         self.bookings = BookingService(self.db, self.clock, config)
+        # Students' own bookings, weekly series, calendar feeds, reminders (issue #24, item 7).
+        self.booking_tools = BookingTools(self.db, self.clock, config, self.bookings)
+        self.calendar_feeds = CalendarFeedService(self.db, self.clock, config.title)
+        self.reminders = ReminderService(
+            self.db, self.clock, config.smtp, config.title, config.time_zone
+        )
         # The end of a term: closing, copying to the next, removing last term's students.
         self.term = TermService(self.db, self.clock, self.bookings)
+        self.retention = RetentionService(
+            self.db, self.clock, config.retention, self.audit, hasher or default_password_hasher()
+        )
         # Each rig's guide pages: shipped defaults, teachers' revisions.
         self.guides = GuideService(self.db, self.clock, config)
         self.guide_images = GuideImageService(self.db, self.clock, config)
@@ -251,6 +269,8 @@ class Lab:
         self.access = AccessService(
             self.db, config, self.clock, self.hub, self.presence, on_change=self._reconcile
         )
+        # A revoked (or expired) token's script is cut off: its turn ends and the rig is safe now.
+        self.tokens.revoked.subscribe(self.end_token_turns)
         self.listeners: list[LabListener] = []
         # Remote rigs' hosts (thermolab agent); the run service sends their runs to them.
         self.agents = AgentHub(
@@ -338,6 +358,7 @@ class Lab:
                 self.tokens.purge_expired()
                 self.lti.launches.purge_expired()
             self.lti.kick()  # the grade outbox, in its own thread
+            self.reminders.kick()  # booking reminders due, in their own thread
             return changed
 
     def apply_input(self, rig_id: str, who: Principal, u: float) -> InputResult:
@@ -416,8 +437,9 @@ class Lab:
             self.hub.clear_fault(rig_id)
         return self.access.set_service(rig_id, who, in_service)
 
-    def camera(self, rig_id: str) -> bytes:
-        """Return the rig's live image (JPEG): its camera, or a twin's state drawn.
+    def camera(self, rig_id: str, language: str = DEFAULT_LANGUAGE) -> bytes:
+        """Return the rig's live image (JPEG): its camera, or a twin's state drawn
+        with its words in ``language``.
 
         Raises
         ------
@@ -446,10 +468,12 @@ class Lab:
                     input_max=published.input_max,
                     input_unit=published.input_unit,
                     output_unit=published.output_unit,
+                    say=lambda text: translate(text, language),
+                    decimal_mark=decimal_mark(language),
                 )
             )
 
-        return self._pictures.get(rig_id, draw)
+        return self._pictures.get(f"{rig_id}\n{language}", draw)
 
     def remove_user(self, username: str) -> UserInfo:
         """Remove an account; rigs it controlled go to the next in their queues."""
@@ -460,6 +484,10 @@ class Lab:
         for rig in self.config.rigs:
             self._reconcile(rig.id)
         return info
+
+    def end_token_turns(self, token_ids: frozenset[int]) -> None:
+        """End the turns and queue places of revoked tokens (``AccessService.end_token_turns``)."""
+        self.access.end_token_turns(token_ids)
 
     def close(self) -> None:
         """End every run, leave every rig safe and close the database connections."""
@@ -500,9 +528,9 @@ class Lab:
             # A run belongs to a turn: when the turn is over, so is the run.
             self.rig_runs.control_changed(rig_id, controller)
             desired = DesiredState(power=power, controller_session=controller)
-            self.hub.reconcile(rig_id, desired, cfg.cooldown.input)
+            handed_over = self.hub.reconcile(rig_id, desired, cfg.cooldown.input)
             if rig_id in self.remote_rigs:
-                self.agents.sync_power(rig_id)
+                self.agents.sync_power(rig_id, hand_over=handed_over)
         for listener in self.listeners:
             listener.access_changed(rig_id)
 

@@ -12,7 +12,11 @@ Lifecycle (:class:`RigState`)::
     IDLE/POWERED --fault--> FAULTED --clear_fault()--> IDLE
     any --close()--> CLOSED   (terminal)
 
-In every state but POWERED the actuator is at the rig's safe input value.
+In every state but POWERED the actuator is at the rig's safe input value, and
+every further actuator the rig's kind declares (a twin's disturbance fan:
+:class:`FanSpec`) is at its declared ``default``: powering off, a fault and
+closing put them all there, so a rig powered off and on again is the rig its
+declaration describes, whatever a run or a user set before (issue #23).
 An operation that is not allowed in the current state raises
 :class:`~thermolab.errors.RigStateError` naming the state and what to do;
 ``power_off()`` and ``close()`` are always allowed and idempotent.
@@ -27,7 +31,7 @@ from typing import Any, Protocol, Self, runtime_checkable
 
 from thermolab.rigs.clock import Clock
 
-__all__ = ["Reading", "Rig", "RigInfo", "RigState"]
+__all__ = ["FanSpec", "Reading", "Rig", "RigInfo", "RigState"]
 
 
 class RigState(enum.Enum):
@@ -104,6 +108,41 @@ class RigInfo:
 
     def to_dict(self) -> dict[str, Any]:
         """Return the fields as a JSON-ready dictionary."""
+        return asdict(self)
+
+
+@dataclass(frozen=True, slots=True)
+class FanSpec:
+    """A rig's disturbance fan: a second actuator, apart from the controlled input.
+
+    A rig kind that has one opens rigs with ``set_fan(percent, *, at=None)``
+    and a ``fan`` property (the twin: :meth:`thermolab.rigs.twin.TwinRig.set_fan`),
+    and puts the fan at ``default`` in its safe state (see the module's notes).
+
+    Attributes
+    ----------
+    unit : str
+    minimum, maximum : float
+        The levels ``set_fan`` accepts, inclusive.
+    default : float
+        The level the rig rests at: where powering off, a fault and closing
+        put the fan, and so where every run and every turn starts from.
+    description : str
+
+    Examples
+    --------
+    >>> FanSpec().default
+    0.0
+    """
+
+    unit: str = "%"
+    minimum: float = 0.0
+    maximum: float = 100.0
+    default: float = 0.0
+    description: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return ``{"unit", "minimum", "maximum", "default", "description"}``."""
         return asdict(self)
 
 

@@ -27,35 +27,11 @@ from typing import Any
 
 from thermolab.errors import InvalidParameterError
 from thermolab.rigs.clock import Clock
-from thermolab.rigs.contract import Rig, RigInfo
+from thermolab.rigs.contract import FanSpec, Rig, RigInfo
 from thermolab.rigs.tclab import TCLabRig, tclab_info
-from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_info, twin_params
+from thermolab.rigs.twin import PRESETS, TWIN_FAN, TwinParams, TwinRig, twin_info, twin_params
 
 __all__ = ["RIG_KINDS", "RIG_SPECS", "FanSpec", "RigKind", "RigSpec"]
-
-
-@dataclass(frozen=True, slots=True)
-class FanSpec:
-    """A rig's disturbance fan: a second actuator, apart from the controlled input.
-
-    A rig kind that has one opens rigs with ``set_fan(percent, *, at=None)``
-    and a ``fan`` property (the twin: :meth:`thermolab.rigs.twin.TwinRig.set_fan`).
-    """
-
-    unit: str = "%"
-    minimum: float = 0.0
-    maximum: float = 100.0
-    description: str = ""
-
-    def to_dict(self) -> dict[str, Any]:
-        """Return ``{"unit", "minimum", "maximum", "description"}``."""
-        return dataclasses.asdict(self)
-
-
-_TWIN_FAN = FanSpec(
-    description="a fan blowing room air over the box: it raises the heat-loss rate "
-    "(by half at 100 %), a disturbance for a closed loop to reject"
-)
 
 
 @dataclass(frozen=True, slots=True)
@@ -112,6 +88,15 @@ class RigKind:
         repr=False
     )
     fan: FanSpec | None = None
+
+    @property
+    def actuators(self) -> Mapping[str, FanSpec]:
+        """Every actuator besides the input, by the name of the rig's property that reads it.
+
+        Each has a declared ``default``, where the rig's safe state puts it
+        (:mod:`thermolab.rigs.contract`); a lab shows them and checks a hand-over by them.
+        """
+        return MappingProxyType({} if self.fan is None else {"fan": self.fan})
 
     @property
     def forms(self) -> tuple[str, ...]:
@@ -200,7 +185,7 @@ RIG_KINDS: Mapping[str, RigKind] = MappingProxyType(
             _defaults=_twin_defaults,
             _describe=lambda preset, options: twin_info(twin_params(preset or "paper", **options)),
             _open=_open_twin,
-            fan=_TWIN_FAN,
+            fan=TWIN_FAN,
         ),
         "tclab": RigKind(
             name="tclab",
@@ -351,6 +336,26 @@ class RigSpec:
     def fan(self) -> FanSpec | None:
         """The disturbance fan of this kind of rig, or ``None``."""
         return self.rig_kind.fan
+
+    @property
+    def actuators(self) -> Mapping[str, FanSpec]:
+        """Every actuator besides the input, by name (:attr:`RigKind.actuators`)."""
+        return self.rig_kind.actuators
+
+    def rest_state(self, **options: Any) -> dict[str, float]:
+        """Every actuator's declared default: where the rig rests, and each turn and run starts.
+
+        ``u`` is the input's safe value; the others are :attr:`actuators`'.
+
+        Examples
+        --------
+        >>> RigSpec.parse("sim").rest_state()
+        {'u': 0.0, 'fan': 0.0}
+        >>> RigSpec.parse("tclab").rest_state()
+        {'u': 0.0}
+        """
+        rest = {"u": self.describe(**options).safe_input}
+        return rest | {name: spec.default for name, spec in self.actuators.items()}
 
     def describe(self, **options: Any) -> RigInfo:
         """Return what the rig will report once open, without opening it.

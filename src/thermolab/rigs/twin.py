@@ -57,7 +57,7 @@ from thermolab.errors import (
 from thermolab.rigs._thermal import ThermalModel
 from thermolab.rigs.base import BaseRig
 from thermolab.rigs.clock import Clock, RealClock
-from thermolab.rigs.contract import Reading, RigState
+from thermolab.rigs.contract import FanSpec, Reading, RigState
 from thermolab.rigs.twin_params import (
     DAQ16_STEP,
     PRESETS,
@@ -72,12 +72,21 @@ __all__ = [
     "DAQ16_STEP",
     "PRESETS",
     "TCLAB_STEP",
+    "TWIN_FAN",
     "TwinParams",
     "TwinRig",
     "twin_info",
     "twin_params",
     "twin_preset",
 ]
+
+
+#: Every twin's disturbance fan, as its kind declares it (:data:`thermolab.rigs.RIG_KINDS`):
+#: off when the twin rests.
+TWIN_FAN = FanSpec(
+    description="a fan blowing room air over the box: it raises the heat-loss rate "
+    "(by half at 100 %), a disturbance for a closed loop to reject"
+)
 
 
 class _NormalStream:
@@ -286,7 +295,12 @@ class TwinRig(BaseRig):
         return self._colored_value
 
     def _make_safe(self) -> None:
-        self._drive(self._instant(), self.params.safe_input)
+        # Every actuator to its declared default: the input, and the fan (a fan left
+        # running would change the next run's plant: issue #23).
+        t = self._instant()
+        self._drive(t, self.params.safe_input)
+        self._output_at(t)  # inputs in transit up to t act before the fan changes
+        self._model.set_fan(t, TWIN_FAN.default / 100.0)
 
     def _release(self) -> None:
         pass

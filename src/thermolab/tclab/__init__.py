@@ -29,7 +29,7 @@ from thermolab.tclab.remote import (
     SecondHeaterError,
     TCLab,
 )
-from thermolab.tclab.switch import setup, speedup_note
+from thermolab.tclab.switch import SpeedupRefusedError, setup
 from thermolab.tclab.tagdb import TagDB
 
 __version__ = "1.0.0"
@@ -48,6 +48,7 @@ __all__ = [
     "Plotter",
     "PortError",
     "SecondHeaterError",
+    "SpeedupRefusedError",
     "TCLab",
     "TCLabModel",
     "TagDB",
@@ -58,5 +59,4 @@ __all__ = [
     "runexperiment",
     "setnow",
     "setup",
-    "speedup_note",
 ]

@@ -30,7 +30,7 @@ class LabTime:
     --------
     >>> fast = LabTime()
     >>> fast.set_rate(1000.0)
-    >>> start = fast.time(); fast.sleep(5.0); 4.9 < fast.time() - start < 60.0
+    >>> start = fast.time(); fast.sleep(5.0); fast.time() - start >= 4.9  # 5 ms of real time
     True
     >>> fast.get_rate()
     1000.0

@@ -12,12 +12,12 @@ from __future__ import annotations
 import math
 import os
 
-from thermolab.client import ENV_URL
+from thermolab.client import ENV_URL, LabRequestError
 from thermolab.tclab.labtime import labtime
 from thermolab.tclab.model import TCLabModel
 from thermolab.tclab.remote import TCLab
 
-__all__ = ["setup", "speedup_note", "uses_lab_twin"]
+__all__ = ["SpeedupRefusedError", "setup", "uses_lab_twin"]
 
 
 def uses_lab_twin(twin: bool | None = None) -> bool:
@@ -25,31 +25,31 @@ def uses_lab_twin(twin: bool | None = None) -> bool:
     return bool(os.environ.get(ENV_URL)) if twin is None else twin
 
 
-def speedup_note(asked: float, in_force: float) -> str | None:
-    """What ``setup(connected=False, speedup=asked)`` tells when the lab's twin runs otherwise.
+class SpeedupRefusedError(ValueError):
+    """The lab's twin does not allow the speed-up ``setup(connected=False, speedup=...)`` asked for.
 
-    A teacher sets each twin's speed-up in the rig's settings (``twin_speedup``,
-    on the lab's Teacher page); a client cannot change it, because the twin is
-    shared — its clock is the lab's, the same for every user and the lab's own
-    runs. ``None`` when they agree.
-
-    Examples
-    --------
-    >>> speedup_note(20, 20) is None
-    True
-    >>> print(speedup_note(10, 50))  # doctest: +NORMALIZE_WHITESPACE
-    note: the lab's twin runs at 50x real time, not the 10x asked for: a teacher sets each
-    twin's speed-up in the rig's settings (twin_speedup) and a client cannot change it;
-    clock() and labtime follow 50x
+    The message names the rig and what it allows: a twin the lab runs allows
+    1 up to its teacher's ``twin_speedup``; hardware, or a twin on a rig host,
+    only its own pace.
     """
-    if asked == in_force:
-        return None
-    wanted = "real time (1x)" if asked == 1 else f"{asked:g}x"
-    return (
-        f"note: the lab's twin runs at {in_force:g}x real time, not the {wanted} asked for: "
-        "a teacher sets each twin's speed-up in the rig's settings (twin_speedup) and a "
-        f"client cannot change it; clock() and labtime follow {in_force:g}x"
-    )
+
+
+def _pace_turn(kit: TCLab, asked: float) -> None:
+    """Run the twin at ``asked`` for this turn (the lab resets it at the turn's end)."""
+    if asked == kit.speedup or kit._turn is None:
+        return
+    try:
+        in_force = kit._turn.pace(asked)
+    except LabRequestError as exc:
+        kit.close()
+        raise SpeedupRefusedError(
+            f"setup(connected=False, speedup={asked:g}): {exc.detail}"
+        ) from exc
+    kit.speedup = in_force
+    held = f"rig {kit.rig_id!r} of the lab at {kit.lab.url} runs at {in_force:g}x"
+    labtime.hold(in_force, held if in_force != 1 else None)
+    if in_force == 1:
+        labtime.set_rate(1)
 
 
 def setup(
@@ -64,10 +64,10 @@ def setup(
         simulated kit — the lab's twin or the offline :class:`TCLabModel`.
     speedup : float
         Only with ``connected=False``: lab time's pace. :class:`TCLabModel`
-        runs at it (``labtime.set_rate(speedup)``). The lab's twin runs at its
-        own speed-up, which a teacher sets per twin (``twin_speedup``) and a
-        client cannot change: connecting then prints which is in force
-        (:func:`speedup_note`), and ``clock``/``labtime`` follow it.
+        runs at it (``labtime.set_rate(speedup)``). The lab's twin runs at it
+        for this script's turn if it allows it — from 1 up to the speed-up its
+        teacher set (``twin_speedup``) — and goes back to the teacher's at the
+        turn's end; ``clock``/``labtime`` follow it.
     twin : bool, optional
         With ``connected=False``: the lab's twin (``True``) or the offline
         model (``False``); default: the twin when ``$THERMOLAB_URL`` names a lab.
@@ -76,7 +76,8 @@ def setup(
     ------
     ValueError
         For a speed-up with ``connected=True`` (a real rig runs in real
-        time), or one that is not a positive number.
+        time), or one that is not a positive number; when the class connects,
+        :class:`SpeedupRefusedError` for one the lab's rig does not allow.
     """
     if connected and speedup != 1:
         raise ValueError("setup(connected=True) runs a real rig in real time: speedup must be 1")
@@ -96,9 +97,7 @@ def setup(
 
         def __init__(self, *args: object, **kwargs: object) -> None:
             super().__init__(*args, **kwargs)  # type: ignore[arg-type]
-            note = speedup_note(asked, self.speedup)
-            if note is not None:
-                print(note)
+            _pace_turn(self, asked)
 
     RemoteTCLab.__name__ = RemoteTCLab.__qualname__ = "TCLab"
     if labtime.held_by is None:

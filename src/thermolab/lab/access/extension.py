@@ -10,7 +10,10 @@ such a case, so the student may extend only while **nobody waits**:
   deadline never passes the turn's start + the rig's time limit +
   ``MAX_TURN_EXTENSIONS`` × ``TURN_EXTENSION`` — two extensions per turn, with
   no counter to keep, since the bound is read from the turn itself (a
-  teacher's extension uses the same room).
+  teacher's extension uses the same room). A **script's** turn (asked for
+  with a personal API token) has no such bound: a 20-minute step test on a
+  kit must not be cut while nobody waits, and a script gone silent still
+  loses the turn at the client timeout.
 
 A teacher moves the limit freely (``POST .../control/extend``). The rules are
 pure functions of the turn, so the access service applies them inside the rig's
@@ -41,8 +44,11 @@ def extension_refusal(
     deadline: datetime,
     time_limit: float,
     now: datetime,
+    script: bool = False,
 ) -> str | None:
     """Why the controller may not extend the turn now; ``None`` if they may.
+
+    ``script``: the turn was asked for with an API token (no ceiling).
 
     Examples
     --------
@@ -63,6 +69,8 @@ def extension_refusal(
         return (
             f"the turn can be extended in its last {EXTEND_WINDOW:g} s only ({left:.0f} s are left)"
         )
+    if script:
+        return None
     ceiling = started_at + timedelta(seconds=time_limit + MAX_TURN_EXTENSIONS * TURN_EXTENSION)
     if deadline + timedelta(seconds=TURN_EXTENSION) > ceiling + timedelta(seconds=1e-3):
         return (

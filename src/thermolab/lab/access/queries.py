@@ -205,6 +205,7 @@ def read_snapshot(session: Session, rig_id: str, now: datetime) -> RigSnapshot:
             control.deadline,
             control.last_heartbeat_at,
             control.last_activity_at,
+            script=control.token_id is not None,
         ),
         queue=slots,
         run_active=run_active(session, rig_id),
@@ -287,6 +288,7 @@ def write_transition(
                 deadline=after.turn.deadline,
                 last_heartbeat_at=after.turn.last_heartbeat_at,
                 last_activity_at=after.turn.last_activity_at,
+                token_id=head.token_id,
             )
         )
     if rig.power_state != after.power.value:

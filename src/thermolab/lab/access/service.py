@@ -82,6 +82,8 @@ class AccessService(RigTransactions):
                 )
             control = q.active(session, rig.id)
             if control is not None and control.user_id == who.user_id:
+                if who.token_id is not None:
+                    control.token_id = who.token_id  # a script took over the user's turn
                 return
             if q.waiting(session, rig.id, who.user_id) is not None:
                 return
@@ -95,6 +97,7 @@ class AccessService(RigTransactions):
                     ticket=ticket,
                     joined_at=now,
                     last_heartbeat_at=now,
+                    token_id=who.token_id,
                 )
             )
             session.flush()
@@ -191,6 +194,7 @@ class AccessService(RigTransactions):
                 deadline=control.deadline,
                 time_limit=turn_limit(snap, self._config.rig(rig.id), now),
                 now=now,
+                script=control.token_id is not None,
             )
             if refusal is not None:
                 raise TurnExtensionRefusedError(refusal)
@@ -298,6 +302,46 @@ class AccessService(RigTransactions):
             query = query.where(ControlSession.user_id == user_id)
         with self._db.read() as session:
             return list(session.scalars(query.limit(1000)))
+
+    def end_token_turns(self, token_ids: frozenset[int]) -> None:
+        """End the turns and queue places asked for with ``token_ids`` (revoked or expired).
+
+        The script behind such a token can no longer reach the lab, so its turn
+        ends as a silent client's does (reason ``client_gone``), but at once:
+        the rig goes to its safe state now, not at the client timeout.
+        """
+        ids = list(token_ids)
+        with self._db.read() as session:
+            rigs = set(
+                session.scalars(
+                    select(ControlSession.rig_id).where(
+                        ControlSession.token_id.in_(ids), ControlSession.ended_at.is_(None)
+                    )
+                )
+            ) | set(
+                session.scalars(
+                    select(QueueEntry.rig_id).where(
+                        QueueEntry.token_id.in_(ids), QueueEntry.left_at.is_(None)
+                    )
+                )
+            )
+
+        def act(session: Session, rig: RigRow, now: datetime) -> None:
+            control = q.active(session, rig.id)
+            if control is not None and control.token_id in token_ids:
+                self._end(session, rig, TurnEndReason.CLIENT_GONE, now, now)
+            for entry in session.scalars(
+                select(QueueEntry).where(
+                    QueueEntry.rig_id == rig.id,
+                    QueueEntry.token_id.in_(ids),
+                    QueueEntry.left_at.is_(None),
+                )
+            ):
+                entry.left_at = now
+                entry.leave_reason = LeaveReason.CLIENT_GONE.value
+
+        for rig_id in sorted(rigs):
+            self._write(rig_id, None, act, heartbeat=False)
 
     # -- the rig's side -------------------------------------------------------------------
 

@@ -69,6 +69,7 @@ class ControlRecord:
     deadline: datetime
     last_heartbeat_at: datetime
     last_activity_at: datetime
+    script: bool = False  # asked for with an API token: extended without a ceiling
 
 
 @dataclass(frozen=True, slots=True)
@@ -253,6 +254,7 @@ def render_access(
                 deadline=c.deadline,
                 time_limit=rules.control_time_limit,
                 now=now,
+                script=c.script,
             )
             is None,
         )

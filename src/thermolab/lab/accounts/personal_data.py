@@ -18,7 +18,7 @@ import datetime as dt
 import secrets
 from typing import Any, Literal
 
-from sqlalchemy import Column, Table, delete, or_, select, update
+from sqlalchemy import Column, ColumnElement, Table, delete, or_, select, update
 
 from thermolab import __version__
 from thermolab.errors import ConflictError, NotFoundError
@@ -33,6 +33,7 @@ __all__ = [
     "RunsChoice",
     "forget_person",
     "personal_data",
+    "removed_already",
 ]
 
 PSEUDONYM_PREFIX = "removed-"
@@ -49,6 +50,10 @@ NAME_COLUMNS: tuple[tuple[str, str], ...] = (
     ("control_sessions", "ended_by"),
     ("commands", "username"),
     ("submissions", "username"),
+    ("submissions", "handed_in_by"),
+    ("grade_overrides", "set_by"),
+    ("deadline_extensions", "set_by"),
+    ("lab_groups", "created_by"),
     ("assignments", "created_by"),
     ("bookings", "created_by"),
     ("course_settings", "updated_by"),
@@ -60,6 +65,15 @@ NAME_COLUMNS: tuple[tuple[str, str], ...] = (
 """Columns that hold a login name as text rather than a key to ``users``."""
 
 _SECRET_MARKS = ("hash", "secret", "private")
+
+
+def removed_already() -> ColumnElement[bool]:
+    """True of a ``users`` row that is a removed person's, kept under its pseudonym for their runs.
+
+    (:func:`forget_person` with ``runs="keep"``: the pseudonym and no display name.)
+    """
+    users = Base.metadata.tables["users"]
+    return users.c.username.like(f"{PSEUDONYM_PREFIX}________") & users.c.display_name.is_(None)
 
 
 def personal_data(db: Database, user_id: int, username: str) -> dict[str, Any]:
@@ -138,9 +152,18 @@ def _json(value: Any) -> Any:
 
 
 # Rows that identify a person and serve nothing once they are gone: their logins,
-# tokens, LMS identities and waiting places. Runs, turns, course places and hand-ins
-# stay (under the pseudonym) when runs are kept: a course's statistics count them.
-_PERSONAL_TABLES = ("sessions", "api_tokens", "lti_identities", "queue_entries")
+# tokens, LMS identities, pending LMS launches, waiting places, calendar feeds and the
+# reminder address. Runs, turns, course places and hand-ins stay (under the pseudonym)
+# when runs are kept: a course's statistics count them.
+_PERSONAL_TABLES = (
+    "sessions",
+    "api_tokens",
+    "lti_identities",
+    "lti_handoffs",
+    "queue_entries",
+    "calendar_feeds",
+    "reminder_addresses",
+)
 
 
 def forget_person(db: Database, username: str, runs: RunsChoice, password_hash: str) -> str:

@@ -33,7 +33,7 @@ from functools import cache
 
 from argon2 import PasswordHasher
 
-from thermolab.errors import InvalidParameterError, ThermoLabError
+from thermolab.errors import PasswordRejectedError, ThermoLabError
 from thermolab.lab.accounts.names import normalize_username
 from thermolab.lab.clock import LabClock
 
@@ -113,7 +113,7 @@ def validate_password(password: str, username: str | None = None) -> str:
 
     Raises
     ------
-    InvalidParameterError
+    PasswordRejectedError (an InvalidParameterError)
         If it has fewer than 12 or more than 1024 characters, is only
         whitespace, is the user name (in any case, reversed, or with digits
         and punctuation around it), or is a commonly breached password. The
@@ -126,33 +126,24 @@ def validate_password(password: str, username: str | None = None) -> str:
     >>> validate_password("password1234")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    thermolab.errors.InvalidParameterError: this password is in a list of breached ...
+    thermolab.errors.PasswordRejectedError: this password is in a list of breached ...
     >>> validate_password("Alice.Smith2024!", "alice.smith")
     Traceback (most recent call last):
     ...
-    thermolab.errors.InvalidParameterError: the password may not be the user name or a variant of it
+    thermolab.errors.PasswordRejectedError: the password may not be the user name or a variant of it
     """
     if len(password) < MIN_PASSWORD_LENGTH:
-        raise InvalidParameterError(
-            f"password too short: at least {MIN_PASSWORD_LENGTH} characters are needed"
-        )
+        raise PasswordRejectedError("password.too_short", limit=MIN_PASSWORD_LENGTH)
     if len(password) > MAX_PASSWORD_LENGTH:
-        raise InvalidParameterError(
-            f"password too long: at most {MAX_PASSWORD_LENGTH} characters are allowed"
-        )
+        raise PasswordRejectedError("password.too_long", limit=MAX_PASSWORD_LENGTH)
     if not password.strip():
-        raise InvalidParameterError("the password may not be only whitespace")
+        raise PasswordRejectedError("password.blank")
     if username is not None and _is_name_variant(password, username):
-        raise InvalidParameterError("the password may not be the user name or a variant of it")
+        raise PasswordRejectedError("password.user_name")
     if _is_breached(password):
-        raise InvalidParameterError(
-            "this password is in a list of breached passwords; choose another"
-        )
+        raise PasswordRejectedError("password.breached")
     if _is_guessable(password, username):
-        raise InvalidParameterError(
-            "this password is too easy to guess (a keyboard row, a sequence, a repeated "
-            "character or the lab's name, with little else); choose another"
-        )
+        raise PasswordRejectedError("password.guessable")
     return password
 
 

@@ -20,7 +20,12 @@ from sqlalchemy import delete, func, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from thermolab.errors import AccessDeniedError, ConflictError, InvalidParameterError, NotFoundError
+from thermolab.errors import (
+    AccessDeniedError,
+    InvalidParameterError,
+    NameTakenError,
+    NotFoundError,
+)
 from thermolab.lab.accounts.names import normalize_display_name
 from thermolab.lab.accounts.security import (
     MAX_PASSWORD_LENGTH,
@@ -45,6 +50,7 @@ __all__ = [
     "UserInfo",
     "UserService",
     "parse_role",
+    "user_named",
 ]
 
 
@@ -217,8 +223,8 @@ class UserService:
         ------
         InvalidParameterError
             For a bad user name, display name, password or role.
-        ConflictError
-            If the user name, in its normal form, is taken.
+        NameTakenError
+            If the user name, in its normal form, is taken (409 ``name_taken``).
         """
         name = normalize_username(username)
         shown = None if display_name is None else normalize_display_name(display_name)
@@ -230,7 +236,7 @@ class UserService:
         try:
             with self._db.write() as session:
                 if session.scalar(select(User.id).where(User.username == name)) is not None:
-                    raise ConflictError(f"user {name!r} already exists")
+                    raise NameTakenError("taken.user", name)
                 user = User(
                     username=name,
                     display_name=shown,
@@ -244,7 +250,7 @@ class UserService:
                 session.flush()
                 return UserInfo.of(user)
         except IntegrityError:
-            raise ConflictError(f"user {name!r} already exists") from None
+            raise NameTakenError("taken.user", name) from None
 
     def get(self, username: str) -> UserInfo:
         """Return the account called ``username``.
@@ -255,7 +261,7 @@ class UserService:
             If there is none.
         """
         with self._db.read() as session:
-            return UserInfo.of(self._find(session, username))
+            return UserInfo.of(user_named(session, username))
 
     def list(self) -> list[UserInfo]:
         """Return every account, by user name."""
@@ -273,7 +279,7 @@ class UserService:
             For a student, or taking back the last administrator.
         """
         with self._db.write() as session:
-            user = self._find(session, username)
+            user = user_named(session, username)
             if admin and user.role != Role.TEACHER.value:
                 raise InvalidParameterError("only a teacher can be a lab administrator")
             if not admin and user.admin:
@@ -315,7 +321,7 @@ class UserService:
         """
         password_hash = self._hasher.hash(validate_password(password, username))
         with self._db.write() as session:
-            user = self._find(session, username)
+            user = user_named(session, username)
             user.password_hash = password_hash
             user.password_changed_at = self._clock.now()
             user.must_change_password = False
@@ -339,7 +345,7 @@ class UserService:
         """
         now = self._clock.now()
         with self._db.write() as session:
-            user = self._find(session, username)
+            user = user_named(session, username)
             rig_ids = set(
                 session.scalars(
                     select(ControlSession.rig_id).where(
@@ -407,17 +413,6 @@ class UserService:
                     row.password_hash = self._hasher.hash(password)
         return UserInfo.of(user)
 
-    @staticmethod
-    def _find(session: Session, username: str) -> User:
-        try:
-            name = normalize_username(username)
-        except InvalidParameterError:
-            name = username
-        user = session.scalars(select(User).where(User.username == name)).one_or_none()
-        if user is None:
-            raise NotFoundError(f"no user called {username!r}")
-        return user
-
 
 class _DummyHashes:
     """One throw-away hash per hasher, verified against when the user is unknown."""
@@ -466,3 +461,21 @@ class LoginsEnded:
         if ended:
             for listener in list(self._listeners):
                 listener(ended)
+
+
+def user_named(session: Session, username: str) -> User:
+    """The account called ``username`` (as typed: normalised when it can be).
+
+    Raises
+    ------
+    NotFoundError
+        No such account.
+    """
+    try:
+        name = normalize_username(username)
+    except InvalidParameterError:
+        name = username
+    user = session.scalars(select(User).where(User.username == name)).one_or_none()
+    if user is None:
+        raise NotFoundError(f"no user called {username!r}")
+    return user

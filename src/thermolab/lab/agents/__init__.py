@@ -17,13 +17,14 @@ samples in ``k`` order; a closed loop runs on the host, its commands checked her
 first (:mod:`.loop`). A run's end on the host leaves the rig off; the lab powers
 it on again at its safe input.
 
-Health (:meth:`AgentHub.check`, every sweep): a host not connected and not heard
-from for over 5 s, silent for 5 s, reporting a fault, or reading outside the
+Health (:meth:`AgentHub.check`, every sweep): a host away (not connected, or
+silent) for longer than its grace (``--agent-grace``, 30 s: the same grace its
+run has on the host — one rule), reporting a fault, or reading outside the
 rig's output limit puts a fault beginning ``rig host:`` on its rig through the
 access model (the turn ends, control is refused, teachers see it, a mail goes
 out when configured); the same check clears that fault when the host is healthy
-again. A host that redials within the 5 s keeps its rig and the controller's
-turn. Secrets are 256 random bits stored as SHA-256 and compared with
+again. A host that redials within its grace keeps its rig, the controller's
+turn and its run. Secrets are 256 random bits stored as SHA-256 and compared with
 ``hmac.compare_digest``; a wrong or rotated secret, an unknown rig or another
 protocol version is closed with 4401, and a second host for a rig replaces the
 first. User-facing set-up: ``docs/operator.md``, "Rigs on their own computers".

@@ -13,12 +13,21 @@ once committed, so a backlog sent again after a link loss, or an Ack lost
 with the link, never stores a sample twice nor loses one.
 
 Health (the monitor, :meth:`AgentHub.check`, once a sweep): a rig whose host
-is not connected, has not spoken for ``heartbeat_timeout`` seconds, reports
-a fault, or reads outside its safe range gets a fault that starts with
+has been away (not connected, or linked and silent) for longer than its
+``grace``, reports a fault, or reads outside its safe range gets a fault that starts with
 :data:`HEALTH_FAULT` — control ends and none is granted (the access model's
 rule for a faulted rig), the teachers' page shows it, an e-mail goes out
 where SMTP is configured (:mod:`.notify`) — and the fault clears by itself
 when the host is healthy again.
+
+**One rule for a lost link**: the ``grace`` the lab gives a host (sent in
+``Welcome``) is both how long the host's run outlives a lost link and how
+long the lab keeps the rig in service — and so the controller's turn —
+while the host is away, counted from the last message heard. A link loss
+inside the grace thus keeps the turn and the run; a longer one ends both,
+the run's end naming the lost link (the host's ``RunEnded`` says so). A
+link silent for :data:`LINK_SILENCE` is dropped (the host is shown offline
+at once and redials), which is not yet out of service.
 """
 
 from __future__ import annotations
@@ -69,6 +78,20 @@ log = logging.getLogger(__name__)
 
 HEALTH_FAULT = "rig host: "
 """How the monitor's faults begin (they clear by themselves; others wait for a teacher)."""
+
+LINK_SILENCE = 5.0
+"""Seconds without a message (a host beats every second) after which its link is dropped.
+
+The host is offline from then on (it redials); its rig stays in service
+until it has been away for the grace.
+"""
+
+DEFAULT_GRACE = 30.0
+"""Seconds a host may be away before its run ends and its rig goes out of service.
+
+Above a takeover's longest gap (the lease's 15 s and two announcements), so
+that a run on a rig host outlives its owner's death on another machine.
+"""
 
 
 @dataclass
@@ -123,9 +146,8 @@ class AgentHub:
     on_online : callable
         Called (in a worker thread) with a rig id when its host comes or goes.
     grace : float
-        Seconds a run outlives a lost link on the host (sent in ``Welcome``).
-    heartbeat_timeout : float
-        Seconds of silence after which a host counts as gone.
+        Seconds a host may be away — its run outlives a lost link on the host
+        (sent in ``Welcome``), and its rig stays in service, the turn with it.
     notify : callable, optional
         Told ``(rig_id, what)`` when a rig goes out of service or comes back.
     """
@@ -139,8 +161,7 @@ class AgentHub:
         devices: DeviceHub,
         *,
         on_online: Callable[[str], None],
-        grace: float = 10.0,
-        heartbeat_timeout: float = 5.0,
+        grace: float = DEFAULT_GRACE,
         notify: Callable[[str, str], None] | None = None,
     ) -> None:
         self._db = db
@@ -150,7 +171,6 @@ class AgentHub:
         self._devices = devices
         self._on_online = on_online
         self.grace = grace
-        self.heartbeat_timeout = heartbeat_timeout
         #: Told ``(rig_id, what)`` when a rig goes out of service or back (e-mail: :mod:`.notify`).
         self.notify = notify
         self._lock = threading.Lock()
@@ -214,14 +234,22 @@ class AgentHub:
         link.loop.call_soon_threadsafe(lambda: link.loop.create_task(_send(link, text)))
         return True
 
-    def sync_power(self, rig_id: str) -> None:
-        """Tell the host the power and idle input the device hub holds for the rig."""
+    def sync_power(self, rig_id: str, *, hand_over: bool = False) -> None:
+        """Tell the host the power the device hub holds for the rig.
+
+        ``hand_over``: the turn changed, so the host rests its rig first (powered
+        off: every actuator at its declared default, as ``DeviceHub`` does
+        in-process) and powers it again at its safe input. The idle input is
+        never re-sent from here: the hub knows it from the host's heartbeats,
+        and a heartbeat of the last turn arriving after a hand-over would give
+        the next controller the last one's heater (issue #23).
+        """
         if not self.serves(rig_id):
             return
-        self.send(rig_id, Power(on=self._devices.powered(rig_id)))
-        applied = self._devices.applied(rig_id)
-        if self._devices.powered(rig_id) and applied is not None:
-            self.send(rig_id, SetInput(u=applied))
+        powered = self._devices.powered(rig_id)
+        if hand_over:
+            self.send(rig_id, Power(on=False))
+        self.send(rig_id, Power(on=powered))
 
     def apply(self, rig_id: str, u: float) -> bool:
         """Send a controller's input to the idle powered remote rig; whether it was sent."""
@@ -243,9 +271,7 @@ class AgentHub:
         if not (old.host and host) or old.host == host:
             return False
         heard = old.status.last_contact
-        return heard is not None and self._clock.now() - heard <= timedelta(
-            seconds=self.heartbeat_timeout
-        )
+        return heard is not None and self._clock.now() - heard <= timedelta(seconds=LINK_SILENCE)
 
     def check(self, now: datetime) -> None:
         """Judge every host's health; fault or heal its rig (called by the lab's sweep).
@@ -270,11 +296,12 @@ class AgentHub:
                 self._access.report_fault(rig_id, HEALTH_FAULT + problem)
                 if self.notify is not None:
                     self.notify(rig_id, "out of service: " + problem)
-            if problem.startswith("stopped answering"):
-                with self._lock:
-                    link = self._links.get(rig_id)
-                if link is not None:  # drop it (after the fault is stored): the host redials
-                    link.loop.call_soon_threadsafe(link.closed.set)
+        for rig_id, linked in links:  # after the faults are stored, which name the silence
+            heard = linked.status.last_contact
+            if heard is not None and now - heard > timedelta(seconds=LINK_SILENCE):
+                # Gone quiet (a cut cable): offline now, out of service only after the grace.
+                log.warning("rig host %s: silent for over %g s; link dropped", rig_id, LINK_SILENCE)
+                linked.loop.call_soon_threadsafe(linked.closed.set)
 
     def _problem(self, rig_id: str, status: HostStatus, now: datetime) -> str | None:
         with self._lock:
@@ -283,19 +310,18 @@ class AgentHub:
             expected = self._expected_until
             if expected is not None and now < expected:
                 return None
-            # A link that closed while its host was talking is a host redialling (a Wi-Fi
-            # blip, a lab worker restarted): offline at once, but out of service — which
-            # ends the turn — only once it has been away as long as a silent host may be,
-            # counted from its last message (a host dropped for silence is away already).
-            # The host keeps its rig safe meanwhile (an idle rig off, a run within its grace).
+            # A host redialling (a Wi-Fi blip, a cut cable, a lab worker restarted): offline
+            # at once, but out of service — which ends the turn — only once it has been away
+            # for the grace its run has on the host, counted from its last message. The host
+            # keeps its rig safe meanwhile (an idle rig off, a run within its grace).
             heard = status.last_contact
-            if heard is not None and now - heard <= timedelta(seconds=self.heartbeat_timeout):
+            if heard is not None and now - heard <= timedelta(seconds=self.grace):
                 return None
             return "offline (not connected)"
         if status.last_contact is not None and now - status.last_contact > timedelta(
-            seconds=self.heartbeat_timeout
+            seconds=self.grace
         ):
-            return f"stopped answering (silent for over {self.heartbeat_timeout:g} s)"
+            return f"stopped answering (silent for over {self.grace:g} s)"
         if status.fault is not None:
             return f"reports a fault: {status.fault}"
         limit = self._limits[rig_id]
@@ -307,9 +333,10 @@ class AgentHub:
 
     # -- the WebSocket ---------------------------------------------------------------------
 
-    async def endpoint(self, ws: WebSocket) -> None:
-        """Serve one rig host's connection until it closes."""
-        await ws.accept()
+    async def endpoint(self, ws: WebSocket, *, accepted: bool = False) -> None:
+        """Serve one rig host's connection until it closes (``accepted``: already, by a hold)."""
+        if not accepted:
+            await ws.accept()
         try:
             first = decode_agent(await asyncio.wait_for(ws.receive_text(), 10))
         except (ValidationError, TimeoutError, WebSocketDisconnect):

@@ -37,7 +37,14 @@ from typing import Any
 
 from sqlalchemy import select
 
-from thermolab.agent.protocol import EndRun, RunEnded, SampleBatch, SetInput, StartRun
+from thermolab.agent.protocol import (
+    LINK_LOST,
+    EndRun,
+    RunEnded,
+    SampleBatch,
+    SetInput,
+    StartRun,
+)
 from thermolab.errors import (
     AccessDeniedError,
     ConflictError,
@@ -48,7 +55,7 @@ from thermolab.errors import (
 from thermolab.lab.access import AccessService
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.agents.estimates import RemoteIdentification
-from thermolab.lab.agents.hub import AgentHub
+from thermolab.lab.agents.hub import HEALTH_FAULT, AgentHub
 from thermolab.lab.agents.loop import RemoteLoop, commanded_request
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
@@ -256,7 +263,13 @@ class RemoteRuns:
         """END the rig's run when its turn is over (the host ENDs it anyway if unreachable)."""
         remote = self._remote.get(rig_id)
         if remote is not None and remote.control_session != controller_session:
-            remote.stopped_by = remote.stopped_by or "end of the turn at the controls"
+            fault = self._access.snapshot(rig_id).fault
+            cause = (
+                f"its host being away ({fault.removeprefix(HEALTH_FAULT)})"
+                if fault is not None and fault.startswith(HEALTH_FAULT)
+                else "end of the turn at the controls"
+            )
+            remote.stopped_by = remote.stopped_by or cause
             self._agents.send(rig_id, EndRun(run=remote.run_id))
 
     def adopt(self, rig_id: str, run_id: int, control_session: int) -> None:
@@ -353,7 +366,7 @@ class RemoteRuns:
 
     def _samples(self, rig_id: str, batch: SampleBatch) -> None:
         last = batch.samples[-1]
-        self._hub.note_sample(rig_id, last.u, last.y, of_run=True)
+        self._hub.note_sample(rig_id, last.u, last.y, of_run=True, channels=last.extra)
         remote = self._remote.get(rig_id)
         on_event = self._on_event
         for s in batch.samples:
@@ -384,7 +397,10 @@ class RemoteRuns:
         except ValueError:
             reason = EndReason.ERROR
         words = reason.value + (f": {ended.message}" if ended.message else "")
-        if reason is EndReason.ENDED and remote is not None and remote.stopped_by:
+        # The host's own END says why (its link lost past the grace): the real cause, even
+        # when the lab also asked for the END meanwhile (the turn ended while it was away).
+        lost = ended.message.startswith(LINK_LOST)
+        if reason is EndReason.ENDED and not lost and remote is not None and remote.stopped_by:
             words = f"ended by {remote.stopped_by}"
         try:
             run, stored = self._store.read(ended.run)

@@ -14,7 +14,9 @@ course that set no assignment open in the window.
 Which assignments count: those *open during the window*, set before its end
 and due at or after its start (an assignment still open now counts in the
 default window, which ends now). Their state is today's: each student's
-``current`` hand-in (the newest), whenever it was handed in.
+``current`` hand-in (the newest), whenever it was handed in, with its final
+mark: a teacher's override (:mod:`thermolab.lab.assignments.overrides`) where
+there is one, else the automatic mark.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from sqlalchemy.orm import Session
 
 from thermolab.lab.analytics.sql import at
 from thermolab.lab.db.assignment_models import Assignment, Submission
+from thermolab.lab.db.grading_models import GradeOverride
 
 __all__ = ["AssignmentSource", "AssignmentSummary", "assignment_state", "no_assignments"]
 
@@ -45,9 +48,10 @@ class AssignmentSummary:
     late : int
         Handed in after the deadline.
     marked : int
-        Marked by the lab.
+        Marked (by the lab, or by a teacher's override).
     mean_mark : float or None
-        Mean of the marks as percentages of their maximum, 0-100 (``None``: nothing marked).
+        Mean of the final marks (a teacher's override, else the lab's) as
+        percentages of their maximum, 0-100 (``None``: nothing marked).
     """
 
     assigned: int
@@ -94,10 +98,11 @@ def assignment_state(
     assigned = session.scalar(select(func.count()).select_from(counted.subquery())) or 0
     if assigned == 0 or not student_ids:
         return {}
+    final = func.coalesce(GradeOverride.mark, Submission.mark)
     percent = case(
         (
-            and_(Submission.mark.is_not(None), Submission.max_mark > 0),
-            100.0 * cast(Submission.mark, Float) / Submission.max_mark,
+            and_(final.is_not(None), Submission.max_mark > 0),
+            100.0 * cast(final, Float) / Submission.max_mark,
         ),
     )
     rows = session.execute(
@@ -107,6 +112,14 @@ def assignment_state(
             func.count(case((Submission.late, 1))),
             func.count(percent),
             func.avg(percent),
+        )
+        .select_from(Submission)
+        .outerjoin(
+            GradeOverride,
+            and_(
+                GradeOverride.assignment_id == Submission.assignment_id,
+                GradeOverride.user_id == Submission.user_id,
+            ),
         )
         .where(
             Submission.current,

@@ -20,7 +20,7 @@ from datetime import datetime
 from thermolab.ident.registry import METHOD_NAMES
 from thermolab.lab.analytics.service import CourseAnalytics
 from thermolab.lab.db.models import RunStatus
-from thermolab.lab.spreadsheets import SheetDialect
+from thermolab.lab.spreadsheets import SheetDialect, machine_number
 
 __all__ = ["rigs_csv", "safe_cell", "students_csv"]
 
@@ -60,22 +60,24 @@ _RIG_HEADINGS = {
 }
 
 
-def safe_cell(value: object) -> str | int | float:
+def safe_cell(value: object) -> str | int:
     """A CSV cell: numbers as they are, ``None`` empty, text defused if it could be a formula.
 
     Examples
     --------
     >>> safe_cell("=HYPERLINK(\\"http://x\\")")
     '\\'=HYPERLINK("http://x")'
-    >>> safe_cell(-1.5), safe_cell(None), safe_cell(True)
-    (-1.5, '', 'true')
+    >>> safe_cell(-1.5), safe_cell(None), safe_cell(True), safe_cell(250.12623300000004)
+    ('-1.5', '', 'true', '250.126233')
     """
     if value is None:
         return ""
     if isinstance(value, bool):
         return "true" if value else "false"
-    if isinstance(value, int | float):
+    if isinstance(value, int):
         return value
+    if isinstance(value, float):
+        return machine_number(value)  # no float noise (250.12623300000004)
     if isinstance(value, datetime):
         return value.isoformat()
     text = str(value)

@@ -19,7 +19,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from datetime import datetime
 
-from thermolab.lab.spreadsheets import SheetDialect
+from thermolab.lab.spreadsheets import SheetDialect, machine_number
 
 __all__ = ["GRADE_COLUMNS", "GradeRow", "grades_csv", "safe_cell"]
 
@@ -41,6 +41,8 @@ GRADE_COLUMNS: tuple[str, ...] = (
     "answer_tau",
     "answer_theta",
     "conclusion",
+    "automatic_mark",
+    "comment",
 )
 
 _FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
@@ -52,7 +54,7 @@ _HEADINGS = dict(
         (
             *("Course", "Assignment no.", "Assignment", "Login name", "Name", "State", "Mark"),
             *("Out of", "Late", "Handed in at", "Marked at", "Run", "Answer Ks", "Answer Ts"),
-            *("Answer θ", "Conclusion"),
+            *("Answer θ", "Conclusion", "Automatic mark", "Teacher's comment"),
         ),
         strict=True,
     )
@@ -80,6 +82,7 @@ class GradeRow:
         ``review``: handed in, no automatic mark (the identification is not
         trustworthy); ``missing``: nothing handed in.
     mark : float or None
+        The final mark: a teacher's override, else the automatic mark;
         ``None`` unless ``state`` is ``marked``.
     max : float
     marked_at, submitted_at : datetime or None
@@ -89,6 +92,11 @@ class GradeRow:
         The student's answers (``None`` when missing).
     conclusion : str
         The student's conclusion.
+    automatic_mark : float or None
+        The lab's own mark of the hand-in (equal to ``mark`` unless a teacher
+        overrode it; ``None`` when missing or to review).
+    comment : str
+        The teacher's comment on an overridden mark ("" when not overridden).
     """
 
     course: str
@@ -107,6 +115,8 @@ class GradeRow:
     answer_tau: float | None = None
     answer_theta: float | None = None
     conclusion: str = ""
+    automatic_mark: float | None = None
+    comment: str = ""
 
 
 def safe_cell(value: object) -> str:
@@ -124,7 +134,7 @@ def safe_cell(value: object) -> str:
     if isinstance(value, datetime):
         return value.isoformat()
     if isinstance(value, int | float):
-        return repr(value) if isinstance(value, float) else str(value)
+        return machine_number(value)  # no float noise (250.12623300000004)
     text = str(value)
     return "'" + text if text.startswith(_FORMULA_START) else text
 
@@ -144,7 +154,7 @@ def grades_csv(rows: Iterable[GradeRow], dialect: SheetDialect | None = None) ->
     >>> at = datetime(2026, 11, 24, tzinfo=UTC)
     >>> row = GradeRow("c1", 1, "Step", "ana", "=cmd", "marked", 7.5, 10.0, at, at, False, 3)
     >>> print(grades_csv([row]).splitlines()[1])
-    c1,1,Step,ana,'=cmd,marked,7.5,10.0,no,2026-11-24T00:00:00+00:00,2026-11-24T00:00:00+00:00,3,,,,
+    c1,1,Step,ana,'=cmd,marked,7.5,10.0,no,2026-11-24T00:00:00+00:00,2026-11-24T00:00:00+00:00,3,,,,,,
     """
     if dialect is not None:
         return _grades_sheet(rows, dialect)
@@ -170,6 +180,8 @@ def grades_csv(rows: Iterable[GradeRow], dialect: SheetDialect | None = None) ->
                 safe_cell(row.answer_tau),
                 safe_cell(row.answer_theta),
                 safe_cell(row.conclusion),
+                safe_cell(row.automatic_mark),
+                safe_cell(row.comment),
             ]
         )
     return out.getvalue()
@@ -189,6 +201,7 @@ def _grades_sheet(rows: Iterable[GradeRow], dialect: SheetDialect) -> str:
                 state.get(row.state, row.state),
                 *(row.mark, row.max, row.late, row.submitted_at, row.marked_at, row.run_id),
                 *(row.answer_K, row.answer_tau, row.answer_theta, row.conclusion),
+                *(row.automatic_mark, row.comment),
             ]
             for row in rows
         ),

@@ -13,14 +13,20 @@ For other parts of the lab (LTI grade passback, analytics):
   mark, max, marked_at, late)`` rows (:class:`~.grades.GradeRow`);
 * :meth:`AssignmentService.on_marked` — subscribe to "submission marked":
   the callback gets the new :class:`~.grades.GradeRow` after the hand-in is
-  stored (a callback's error is logged, never undoes the hand-in).
+  stored, or a teacher's override changes the final mark (a callback's error
+  is logged, never undoes the hand-in).
+
+A teacher's tools hang off the service: :attr:`AssignmentService.overrides`
+(:mod:`.overrides`), :attr:`AssignmentService.extensions` (:mod:`.extensions`)
+and :attr:`AssignmentService.groups` (:mod:`.groups`); a group's hand-in is
+stored here, once per member.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
@@ -30,18 +36,44 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from thermolab.errors import AccessDeniedError, ConflictError, InvalidParameterError, NotFoundError
+from thermolab.lab.accounts.policy import Action
 from thermolab.lab.accounts.users import Principal
+from thermolab.lab.assignments.extensions import ExtensionService, extensions_of, own_deadline
 from thermolab.lab.assignments.grades import GradeRow
+from thermolab.lab.assignments.groups import GroupService, group_of, mates
 from thermolab.lab.assignments.identify import check_methods, identify_run
-from thermolab.lab.assignments.marking import MARK_MAX, Answers, Tolerances, assess
+from thermolab.lab.assignments.marking import Answers, Tolerances, assess
+from thermolab.lab.assignments.overrides import OverrideService, overrides_of
 from thermolab.lab.assignments.reference import reference_model
+from thermolab.lab.assignments.rows import (
+    AssignmentInfo,
+    SubmissionInfo,
+    assignment_with_course,
+    course_named,
+    grade_row,
+    info,
+    override_info,
+    submission_info,
+    tolerances_of,
+)
+from thermolab.lab.assignments.standing import Standing, standings
+from thermolab.lab.classes.authorize import require_in_course
 from thermolab.lab.classes.closed import require_open
 from thermolab.lab.classes.courses import require_member
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.assignment_models import Assignment, Submission
-from thermolab.lab.db.models import Course, CourseMember, Role, Run, RunStatus, Sample, User
+from thermolab.lab.db.models import (
+    Course,
+    CourseMember,
+    MemberRole,
+    Role,
+    Run,
+    RunStatus,
+    Sample,
+    User,
+)
 from thermolab.rigs.spec import RigSpec
 
 __all__ = [
@@ -77,48 +109,6 @@ class AssignmentDraft:
     settings: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
 
-@dataclass(frozen=True, slots=True)
-class SubmissionInfo:
-    """A hand-in and its assessment."""
-
-    id: int
-    assignment_id: int
-    student: str
-    display_name: str | None
-    run_id: int | None
-    answers: dict[str, Any]
-    submitted_at: datetime
-    late: bool
-    current: bool
-    state: str
-    mark: float | None
-    max: float
-    assessment: dict[str, Any]
-    marked_at: datetime
-
-
-@dataclass(frozen=True, slots=True)
-class AssignmentInfo:
-    """An assignment; for a student, their hand-ins (newest first)."""
-
-    id: int
-    course: str
-    course_title: str
-    title: str
-    instructions: str
-    rig: str
-    methods: tuple[str, ...]
-    settings: dict[str, Any]
-    tolerances: Tolerances
-    deadline: datetime
-    created_by: str
-    created_at: datetime
-    updated_at: datetime
-    mine: tuple[SubmissionInfo, ...] = ()
-    #: Copied from last term's course and not yet published: its teachers' only.
-    draft: bool = False
-
-
 class AssignmentService:
     """Set assignments, hand in, mark, list and export grades.
 
@@ -135,6 +125,10 @@ class AssignmentService:
         self._clock = clock
         self._config = config
         self._listeners: list[MarkedListener] = []
+        #: A teacher's tools: marks overridden, deadlines extended, lab groups.
+        self.overrides = OverrideService(db, clock, self._tell)
+        self.extensions = ExtensionService(db, clock)
+        self.groups = GroupService(db, clock)
 
     def on_marked(self, listener: MarkedListener) -> Callable[[], None]:
         """Call ``listener(row)`` after each hand-in is marked and stored; return an unsubscribe."""
@@ -153,14 +147,14 @@ class AssignmentService:
         self._check_draft(draft)
         now = self._clock.now()
         with self._db.write() as session:
-            found = _course(session, course)
-            require_member(session, found, who, Role.TEACHER, "set assignments")
+            found = course_named(session, course)
+            require_in_course(session, found, who, Action.COURSE_ASSIGNMENTS_EDIT)
             require_open(found, "set assignments")
             row = Assignment(course_id=found.id, created_by=who.username, created_at=now)
             _fill(row, draft, now)
             session.add(row)
             session.flush()
-            return _info(row, found)
+            return info(row, found)
 
     def update(self, assignment_id: int, who: Principal, draft: AssignmentDraft) -> AssignmentInfo:
         """Change an assignment (its hand-ins keep the marks they were given)."""
@@ -168,36 +162,40 @@ class AssignmentService:
         now = self._clock.now()
         with self._db.write() as session:
             row, found = assignment_with_course(session, assignment_id)
-            require_member(session, found, who, Role.TEACHER, "edit its assignments")
+            require_in_course(session, found, who, Action.COURSE_ASSIGNMENTS_EDIT)
             require_open(found, "edit its assignments")
             _fill(row, draft, now)
             session.flush()
-            return _info(row, found)
+            return info(row, found)
 
     def submissions(self, assignment_id: int, who: Principal) -> list[SubmissionInfo]:
         """Every hand-in of an assignment, current ones first then by student (its teachers)."""
         with self._db.read() as session:
             row, found = assignment_with_course(session, assignment_id)
-            require_member(session, found, who, Role.TEACHER, "see the hand-ins")
+            require_in_course(session, found, who, Action.COURSE_HAND_INS)
             rows = session.execute(
                 select(Submission, User.display_name)
                 .join(User, User.id == Submission.user_id)
                 .where(Submission.assignment_id == row.id)
                 .order_by(Submission.current.desc(), Submission.username, Submission.id.desc())
             ).all()
-            return [_submission(s, name) for s, name in rows]
+            return [submission_info(s, name) for s, name in rows]
+
+    def standings(self, assignment_id: int, who: Principal) -> list[Standing]:
+        """Each student's final and automatic mark, deadline and group (:mod:`.standing`)."""
+        return standings(self._db, assignment_id, who)
 
     def grade_rows(self, course: str, who: Principal | None = None) -> list[GradeRow]:
         """One row per student × assignment of ``course`` (the current hand-in, or ``missing``).
 
         This is the function LTI grade passback and analytics read. With
-        ``who`` the caller must be a teacher of the course; ``None`` is the
-        lab itself.
+        ``who`` the caller must be a teacher or assistant of the course;
+        ``None`` is the lab itself.
         """
         with self._db.read() as session:
-            found = _course(session, course)
+            found = course_named(session, course)
             if who is not None:
-                require_member(session, found, who, Role.TEACHER, "export its grades")
+                require_in_course(session, found, who, Action.COURSE_HAND_INS)
             assignments = list(
                 session.scalars(
                     select(Assignment)
@@ -223,11 +221,13 @@ class AssignmentService:
                     )
                 )
             }
+            overridden = overrides_of(session, [a.id for a in assignments])
             rows = []
             for a in assignments:
                 for user_id, username, display in students:
                     s = current.get((a.id, user_id))
-                    rows.append(_grade(found, a, username, display, s))
+                    o = overridden.get((a.id, user_id)) if s is not None else None
+                    rows.append(grade_row(found, a, username, display, s, o))
             return rows
 
     # -- students ------------------------------------------------------------------------
@@ -241,12 +241,12 @@ class AssignmentService:
                 .join(CourseMember, CourseMember.course_id == Course.id)
                 .where(
                     CourseMember.user_id == who.user_id,
-                    # A draft is its teachers' until they publish it.
-                    or_(Assignment.draft.is_(False), CourseMember.role == Role.TEACHER.value),
+                    # A draft is its teachers' (and assistants') until they publish it.
+                    or_(Assignment.draft.is_(False), CourseMember.role != MemberRole.STUDENT.value),
                 )
                 .order_by(Assignment.deadline, Assignment.id)
             ).all()
-            return [_info(a, c, _mine(session, a.id, who.user_id)) for a, c in rows]
+            return [_for_caller(session, a, c, who.user_id) for a, c in rows]
 
     def get(self, assignment_id: int, who: Principal) -> AssignmentInfo:
         """One assignment, for a member of its course (a student sees their own hand-ins)."""
@@ -254,8 +254,8 @@ class AssignmentService:
             row, found = assignment_with_course(session, assignment_id)
             require_member(session, found, who, None, "see its assignments")
             if row.draft:
-                require_member(session, found, who, Role.TEACHER, "see its draft assignments")
-            return _info(row, found, _mine(session, row.id, who.user_id))
+                require_in_course(session, found, who, Action.COURSE_HAND_INS)
+            return _for_caller(session, row, found, who.user_id)
 
     def hand_in(
         self, assignment_id: int, who: Principal, run_id: int, answers: Answers
@@ -264,12 +264,14 @@ class AssignmentService:
 
         The run is identified again and the answers marked; the hand-in
         becomes the student's current one (earlier ones are kept). After the
-        deadline it is kept and marked late.
+        student's deadline (their extension's, else the assignment's) it is
+        kept and marked late. In a lab group (:mod:`.groups`) the run may be
+        any member's and the hand-in is stored for every member.
 
         Raises
         ------
         AccessDeniedError
-            Not a student of the course, or not their run.
+            Not a student of the course, or not their (or their group's) run.
         NotFoundError
             No such assignment or run.
         ConflictError
@@ -287,8 +289,7 @@ class AssignmentService:
             run = session.get(Run, run_id)
             if run is None:
                 raise NotFoundError(f"no run {run_id}")
-            if run.user_id != who.user_id:
-                raise AccessDeniedError(f"run {run_id} is not yours: hand in a run you made")
+            owner = run.user_id  # theirs, or a lab group mate's (checked as it is stored)
             if run.rig_id != row.rig_id:
                 raise ConflictError(
                     f"run {run_id} was made on rig {run.rig_id!r}; this assignment is on "
@@ -309,8 +310,8 @@ class AssignmentService:
                 )
             methods = tuple(row.methods)
             settings = dict(row.settings)
-            tolerances = _tolerances(row)
-            dt, deadline, rig = run.dt, row.deadline, row.rig_id
+            tolerances = tolerances_of(row)
+            dt, rig = run.dt, row.rig_id
         t, u, y = (list(c) for c in zip(*samples, strict=True))
         units = self._units(rig)
         peers: dict[str, dict[str, Any]] = {}  # one output-error fit of the run for all
@@ -321,45 +322,75 @@ class AssignmentService:
             with self._db.write() as session:
                 row, found = assignment_with_course(session, assignment_id)
                 require_open(found, "hand in")
-                session.execute(
-                    update(Submission)
-                    .where(
-                        Submission.assignment_id == row.id,
-                        Submission.user_id == who.user_id,
-                        Submission.current,
-                    )
-                    .values(current=False)
-                )
-                stored = Submission(
-                    assignment_id=row.id,
-                    user_id=who.user_id,
-                    username=who.username,
-                    run_id=run_id,
-                    answers=answers.to_dict(),
-                    submitted_at=now,
-                    late=now > deadline,
-                    current=True,
-                    state=result.state,
-                    mark=result.mark,
-                    max_mark=result.max,
-                    assessment=result.to_dict(),
-                    marked_at=now,
-                )
-                session.add(stored)
-                session.flush()
-                display = session.scalar(select(User.display_name).where(User.id == who.user_id))
-                info = _submission(stored, display)
-                grade = _grade(found, row, who.username, display, stored)
+                group = mates(session, found.id, who.user_id)
+                if owner not in {user_id for user_id, _ in group}:
+                    raise AccessDeniedError(f"run {run_id} is not yours or your lab group's")
+                own = extensions_of(session, [row.id])
+                overridden = overrides_of(session, [row.id])
+                grades, mine = [], None
+                for user_id, username in group:  # one hand-in for each member of the group
+                    extended = own.get((row.id, user_id))
+                    deadline = own_deadline(row, extended)
+                    stored = self._store(session, row.id, user_id, username, now, deadline)
+                    stored.run_id, stored.answers = run_id, answers.to_dict()
+                    stored.state, stored.mark = result.state, result.mark
+                    stored.max_mark = result.max
+                    stored.assessment = result.to_dict()
+                    if user_id != who.user_id:
+                        stored.handed_in_by = who.username
+                    session.flush()
+                    display = session.scalar(select(User.display_name).where(User.id == user_id))
+                    o = overridden.get((row.id, user_id))
+                    grades.append(grade_row(found, row, username, display, stored, o))
+                    if user_id == who.user_id:
+                        mine = submission_info(stored, display)
         except IntegrityError:
             raise ConflictError(
                 "another hand-in of yours was stored meanwhile; try again"
             ) from None
+        for grade in grades:
+            self._tell(grade)
+        assert mine is not None  # the hander is always in their own group
+        return mine
+
+    @staticmethod
+    def _store(
+        session: Session,
+        assignment_id: int,
+        user_id: int,
+        username: str,
+        now: datetime,
+        deadline: datetime,
+    ) -> Submission:
+        """A new current hand-in of the student (the earlier current one kept as history)."""
+        session.execute(
+            update(Submission)
+            .where(
+                Submission.assignment_id == assignment_id,
+                Submission.user_id == user_id,
+                Submission.current,
+            )
+            .values(current=False)
+        )
+        stored = Submission(
+            assignment_id=assignment_id,
+            user_id=user_id,
+            username=username,
+            submitted_at=now,
+            late=now > deadline,
+            current=True,
+            marked_at=now,
+        )
+        session.add(stored)
+        return stored
+
+    def _tell(self, grade: GradeRow) -> None:
+        """Tell each "submission marked" listener a student's new grade."""
         for listener in list(self._listeners):
             try:
                 listener(grade)
             except Exception:  # a subscriber's fault never undoes a stored hand-in
                 log.exception("a 'submission marked' listener failed")
-        return info
 
     # -- helpers -------------------------------------------------------------------------
 
@@ -422,90 +453,24 @@ def _fill(row: Assignment, draft: AssignmentDraft, now: datetime) -> None:
     row.updated_at = now
 
 
-def _tolerances(row: Assignment) -> Tolerances:
-    return Tolerances(K=row.tol_k, tau=row.tol_tau, theta=row.tol_theta)
-
-
-def _course(session: Session, name: str) -> Course:
-    found = session.scalars(select(Course).where(Course.name == name.strip().lower())).one_or_none()
-    if found is None:
-        raise NotFoundError(f"no course called {name!r}")
-    return found
-
-
-def assignment_with_course(session: Session, assignment_id: int) -> tuple[Assignment, Course]:
-    """The assignment and its course (``NotFoundError`` if there is none)."""
-    found = session.execute(
-        select(Assignment, Course)
-        .join(Course, Course.id == Assignment.course_id)
-        .where(Assignment.id == assignment_id)
-    ).one_or_none()
-    if found is None:
-        raise NotFoundError(f"no assignment {assignment_id}")
-    return found[0], found[1]
-
-
-def _mine(session: Session, assignment_id: int, user_id: int) -> tuple[SubmissionInfo, ...]:
-    rows = session.execute(
+def _for_caller(session: Session, a: Assignment, course: Course, user_id: int) -> AssignmentInfo:
+    """The assignment with the caller's hand-ins, extension, override and lab group."""
+    mine = session.execute(
         select(Submission, User.display_name)
         .join(User, User.id == Submission.user_id)
-        .where(Submission.assignment_id == assignment_id, Submission.user_id == user_id)
+        .where(Submission.assignment_id == a.id, Submission.user_id == user_id)
         .order_by(Submission.id.desc())
     ).all()
-    return tuple(_submission(s, name) for s, name in rows)
-
-
-def _info(row: Assignment, course: Course, mine: Sequence[SubmissionInfo] = ()) -> AssignmentInfo:
-    return AssignmentInfo(
-        id=row.id,
-        course=course.name,
-        course_title=course.title,
-        title=row.title,
-        instructions=row.instructions,
-        rig=row.rig_id,
-        methods=tuple(row.methods),
-        settings=dict(row.settings),
-        tolerances=_tolerances(row),
-        deadline=row.deadline,
-        created_by=row.created_by,
-        created_at=row.created_at,
-        updated_at=row.updated_at,
-        mine=tuple(mine),
-        draft=bool(row.draft),
+    extended = extensions_of(session, [a.id]).get((a.id, user_id))
+    overridden = overrides_of(session, [a.id]).get((a.id, user_id))
+    username = mine[0][0].username if mine else ""
+    return info(
+        a,
+        course,
+        tuple(submission_info(s, name) for s, name in mine),
+        extended_deadline=(
+            extended.deadline if extended and extended.deadline > a.deadline else None
+        ),
+        override=None if overridden is None or not mine else override_info(overridden, username),
+        group=group_of(session, course, user_id),
     )
-
-
-def _submission(s: Submission, display: str | None) -> SubmissionInfo:
-    return SubmissionInfo(
-        id=s.id,
-        assignment_id=s.assignment_id,
-        student=s.username,
-        display_name=display,
-        run_id=s.run_id,
-        answers=dict(s.answers),
-        submitted_at=s.submitted_at,
-        late=bool(s.late),
-        current=bool(s.current),
-        state=s.state,
-        mark=s.mark,
-        max=s.max_mark,
-        assessment=dict(s.assessment),
-        marked_at=s.marked_at,
-    )
-
-
-def _grade(
-    course: Course, a: Assignment, username: str, display: str | None, s: Submission | None
-) -> GradeRow:
-    if s is None:
-        return GradeRow(
-            course.name, a.id, a.title, username, display, "missing", None, MARK_MAX,
-            None, None, False, None,
-        )  # fmt: skip
-    answers = s.answers
-    return GradeRow(
-        course.name, a.id, a.title, username, display, s.state, s.mark, s.max_mark,
-        s.marked_at, s.submitted_at, bool(s.late), s.run_id,
-        answers.get("K"), answers.get("tau"), answers.get("theta"),
-        str(answers.get("conclusion") or ""),
-    )  # fmt: skip

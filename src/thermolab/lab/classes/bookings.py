@@ -25,7 +25,7 @@ booked a rig is none of their business; teachers see every slot).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from datetime import UTC, datetime, timedelta
+from datetime import datetime, timedelta
 
 from sqlalchemy import ColumnElement, select
 from sqlalchemy.orm import Session
@@ -34,6 +34,7 @@ from thermolab.errors import BookingClashError, InvalidParameterError, NotFoundE
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.classes.closed import require_open
 from thermolab.lab.classes.courses import course_named, require_member
+from thermolab.lab.classes.slot_times import MAX_SLOT_HOURS, check_slot
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
@@ -46,10 +47,10 @@ __all__ = [
     "BookingInfo",
     "BookingService",
     "NextChance",
+    "booking_info",
+    "refuse_clash",
 ]
 
-MAX_SLOT_HOURS = 24
-"""The longest slot a teacher may book (a class, not a semester)."""
 MAX_CALENDAR_DAYS = 62
 """The longest window one calendar request may ask for."""
 _MAX_RIGS = 20
@@ -73,6 +74,9 @@ class BookingInfo:
     ends_at: datetime
     note: str
     created_by: str | None
+    self_booked: bool = False
+    mine: bool = False
+    series: str | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -113,8 +117,12 @@ class BookingService:
         starts_at: datetime,
         ends_at: datetime,
         note: str = "",
+        *,
+        longer: bool = False,
     ) -> BookingInfo:
         """Book ``rigs`` for ``course`` from ``starts_at`` to ``ends_at`` (its teachers only).
+
+        ``longer``: the teacher says the slot is longer than a day on purpose.
 
         Raises
         ------
@@ -129,15 +137,15 @@ class BookingService:
             If the slot overlaps another booking of one of the rigs.
         """
         who.require_teacher("book rigs")
-        wanted = self._check(rigs, starts_at, ends_at, note)
-        starts_at, ends_at = starts_at.astimezone(UTC), ends_at.astimezone(UTC)
+        starts_at, ends_at, wanted = self.check(rigs, starts_at, ends_at, note, longer=longer)
         now = self._clock.now()
         with self._db.write() as session:
-            course_row = course_named(session, course)
+            # Locked: a close that is under way finishes first, and this sees it closed.
+            course_row = course_named(session, course, lock=True)
             require_member(session, course_row, who, Role.TEACHER, "book rigs for it")
             require_open(course_row, "book rigs for it")
-            self._lock(session, wanted)
-            _refuse_clash(session, wanted, starts_at, ends_at, exclude=None)
+            self.lock(session, wanted)
+            refuse_clash(session, wanted, starts_at, ends_at, exclude=None)
             booking = Booking(
                 course_id=course_row.id,
                 starts_at=starts_at,
@@ -151,7 +159,7 @@ class BookingService:
             session.flush()
             session.add_all(BookingRig(booking_id=booking.id, rig_id=rig) for rig in wanted)
             session.flush()
-            return _info(session, booking, who, teacher=True)
+            return booking_info(session, booking, who, teacher=True)
 
     def update(
         self,
@@ -161,6 +169,8 @@ class BookingService:
         starts_at: datetime,
         ends_at: datetime,
         note: str = "",
+        *,
+        longer: bool = False,
     ) -> BookingInfo:
         """Move a booking or change its rigs (its course's teachers); checks as :meth:`create`.
 
@@ -170,14 +180,13 @@ class BookingService:
             If there is no such booking.
         """
         who.require_teacher("edit bookings")
-        wanted = self._check(rigs, starts_at, ends_at, note)
-        starts_at, ends_at = starts_at.astimezone(UTC), ends_at.astimezone(UTC)
+        starts_at, ends_at, wanted = self.check(rigs, starts_at, ends_at, note, longer=longer)
         with self._db.write() as session:
             booking = _booking(session, booking_id)
             _require_course_teacher(session, booking, who, "move its bookings")
             old = set(session.scalars(select(BookingRig.rig_id).where(_of(booking.id))))
-            self._lock(session, sorted(old | set(wanted)))
-            _refuse_clash(session, wanted, starts_at, ends_at, exclude=booking.id)
+            self.lock(session, sorted(old | set(wanted)))
+            refuse_clash(session, wanted, starts_at, ends_at, exclude=booking.id)
             booking.starts_at = starts_at
             booking.ends_at = ends_at
             booking.note = note.strip()
@@ -189,22 +198,28 @@ class BookingService:
                 BookingRig(booking_id=booking.id, rig_id=rig) for rig in wanted if rig not in old
             )
             session.flush()
-            return _info(session, booking, who, teacher=True)
+            return booking_info(session, booking, who, teacher=True)
 
     def cancel(self, who: Principal, booking_id: int) -> None:
-        """Cancel a booking (its course's teachers); the rules stop applying it at once.
+        """Cancel a booking (its course's teachers, or the student who booked it for
+        themselves); the rules stop applying it at once.
 
         Raises
         ------
         NotFoundError
             If there is no such booking.
         """
-        who.require_teacher("cancel bookings")
         with self._db.write() as session:
             booking = _booking(session, booking_id)
-            _require_course_teacher(session, booking, who, "cancel its bookings")
+            if booking.booked_for is not None and booking.booked_for == who.user_id:
+                course = session.get(Course, booking.course_id, with_for_update=True)
+                assert course is not None  # a course's bookings go with it
+                require_open(course, "cancel its bookings")
+            else:
+                who.require_teacher("cancel bookings")
+                _require_course_teacher(session, booking, who, "cancel its bookings")
             rigs = sorted(session.scalars(select(BookingRig.rig_id).where(_of(booking.id))))
-            self._lock(session, rigs)
+            self.lock(session, rigs)
             session.delete(booking)
 
     def calendar(
@@ -235,7 +250,7 @@ class BookingService:
             )
         with self._db.read() as session:
             bookings = list(session.scalars(query.order_by(Booking.starts_at, Booking.id)))
-            return [_info(session, b, who, teacher=who.is_teacher) for b in bookings]
+            return [booking_info(session, b, who, teacher=who.is_teacher) for b in bookings]
 
     def next_chance(self, who: Principal, rig: str) -> NextChance:
         """When ``who`` may next take ``rig``'s controls, by the bookings of the coming fortnight.
@@ -260,18 +275,17 @@ class BookingService:
 
     # -- helpers ---------------------------------------------------------------------
 
-    def _check(
-        self, rigs: list[str], starts_at: datetime, ends_at: datetime, note: str
-    ) -> list[str]:
-        _aware(starts_at, "starts_at")
-        _aware(ends_at, "ends_at")
-        if not starts_at < ends_at:
-            raise InvalidParameterError(
-                f"a slot must end after it starts, got {starts_at.isoformat()} to "
-                f"{ends_at.isoformat()}"
-            )
-        if ends_at - starts_at > timedelta(hours=MAX_SLOT_HOURS):
-            raise InvalidParameterError(f"a slot may last at most {MAX_SLOT_HOURS} hours")
+    def check(
+        self,
+        rigs: list[str],
+        starts_at: datetime,
+        ends_at: datetime,
+        note: str,
+        *,
+        longer: bool = False,
+    ) -> tuple[datetime, datetime, list[str]]:
+        """The slot in UTC and its rigs sorted, or refuse them (see :meth:`create`)."""
+        starts_at, ends_at = check_slot(starts_at, ends_at, longer=longer)
         if ends_at <= self._clock.now():
             raise InvalidParameterError("the slot is already over; book one that ends later")
         wanted = sorted(set(rigs))
@@ -281,9 +295,10 @@ class BookingService:
             self._config.rig(rig)
         if len(note.strip()) > _MAX_NOTE:
             raise InvalidParameterError(f"a note may have at most {_MAX_NOTE} characters")
-        return wanted
+        return starts_at, ends_at, wanted
 
-    def _lock(self, session: Session, rigs: list[str]) -> None:
+    def lock(self, session: Session, rigs: list[str]) -> None:
+        """Lock the rows of ``rigs`` for a booking's clash check and write."""
         # Sorted: two transactions locking overlapping sets never wait on each other.
         for rig in sorted(rigs):
             self._db.lock_rig(session, rig)
@@ -308,7 +323,7 @@ def _booking(session: Session, booking_id: int) -> Booking:
     return booking
 
 
-def _refuse_clash(
+def refuse_clash(
     session: Session,
     rigs: list[str],
     starts_at: datetime,
@@ -350,7 +365,9 @@ def _refuse_clash(
     )
 
 
-def _info(session: Session, booking: Booking, who: Principal, *, teacher: bool) -> BookingInfo:
+def booking_info(
+    session: Session, booking: Booking, who: Principal, *, teacher: bool
+) -> BookingInfo:
     rigs = tuple(
         session.scalars(
             select(BookingRig.rig_id).where(_of(booking.id)).order_by(BookingRig.rig_id)
@@ -376,13 +393,19 @@ def _info(session: Session, booking: Booking, who: Principal, *, teacher: bool) 
         ends_at=booking.ends_at,
         note=booking.note if shown else "",
         created_by=booking.created_by if shown else None,
+        self_booked=booking.booked_for is not None,
+        mine=booking.booked_for is not None and booking.booked_for == who.user_id,
+        series=booking.series if shown else None,
     )
 
 
 def _require_course_teacher(
     session: Session, booking: Booking, who: Principal, action: str
 ) -> None:
-    course = session.get(Course, booking.course_id)
+    # Locked, as in create: a close under way finishes first (and may cancel the booking).
+    course = session.get(Course, booking.course_id, with_for_update=True)
     assert course is not None  # a course's bookings go with it (ON DELETE CASCADE)
+    if session.get(Booking, booking.id, populate_existing=True) is None:
+        raise NotFoundError(f"no booking number {booking.id}")
     require_member(session, course, who, Role.TEACHER, action)
     require_open(course, action)

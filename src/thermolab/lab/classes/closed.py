@@ -4,8 +4,9 @@ A course closed at the end of its term (:mod:`thermolab.lab.classes.term`)
 is read and exported as before, and changed by nobody: no enrolment, no class
 list, no hand-in, no booking, no assignment, no limits, no rigs, no new code.
 Each service that changes a course calls :func:`require_open` inside its
-write transaction, on the row it has just read, so a close and a change that
-race are ordered by the database.
+write transaction, on the row it has just read. Bookings read it locked
+(``FOR UPDATE`` on PostgreSQL; SQLite has one writer): a close cancels the
+course's bookings to come, so one made as it closes waits for it and is refused.
 """
 
 from __future__ import annotations

@@ -27,6 +27,8 @@ from thermolab.errors import (
     ClassListError,
     ClassListProblem,
     ConflictError,
+    CourseNameTakenError,
+    NameTakenError,
     NotFoundError,
     WrongEnrolCodeError,
 )
@@ -37,7 +39,15 @@ from thermolab.lab.classes.class_list import read_class_list
 from thermolab.lab.classes.closed import require_open
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
-from thermolab.lab.db.models import Course, CourseMember, CourseRig, LoginSession, Role, User
+from thermolab.lab.db.models import (
+    Course,
+    CourseMember,
+    CourseRig,
+    LoginSession,
+    MemberRole,
+    Role,
+    User,
+)
 
 __all__ = [
     "COURSE_NAME",
@@ -84,7 +94,7 @@ class Member:
 
     username: str
     display_name: str | None
-    role: Role
+    role: MemberRole
     must_change_password: bool
 
 
@@ -146,7 +156,7 @@ class CourseService:
         ------
         InvalidParameterError
             A name other than 1–64 lower-case letters, digits, ``. _ -``, or an empty title.
-        ConflictError
+        CourseNameTakenError
             If the name is taken.
         AccessDeniedError
             If ``teacher`` is a student's account.
@@ -157,7 +167,7 @@ class CourseService:
         try:
             with self._db.write() as session:
                 if session.scalar(select(Course.id).where(Course.name == name)) is not None:
-                    raise ConflictError(f"course {name!r} already exists")
+                    raise CourseNameTakenError("taken.course", name)
                 user = _user(session, teacher)
                 if user.role != Role.TEACHER.value:
                     raise AccessDeniedError(f"{user.username!r} is not a teacher's account")
@@ -172,7 +182,7 @@ class CourseService:
                 session.flush()
                 return _info(session, course, roster=True)
         except IntegrityError:
-            raise ConflictError(f"course {name!r} already exists") from None
+            raise CourseNameTakenError("taken.course", name) from None
 
     def list(self) -> list[CourseInfo]:
         """Every course, by name (without rosters)."""
@@ -344,7 +354,7 @@ class CourseService:
             No course has this code.
         InvalidParameterError
             A bad login name, display name or password.
-        ConflictError
+        NameTakenError
             The login name is taken.
         """
         name = normalize_username(username)
@@ -360,7 +370,7 @@ class CourseService:
                     raise WrongEnrolCodeError("no course has this enrolment code; ask your teacher")
                 require_open(course, "enrol")
                 if session.scalar(select(User.id).where(User.username == name)) is not None:
-                    raise ConflictError(f"user {name!r} already exists; choose another login name")
+                    raise NameTakenError("taken.user_choose", name)
                 user = User(
                     username=name,
                     display_name=shown,
@@ -379,7 +389,7 @@ class CourseService:
                 )
                 return UserInfo.of(user)
         except IntegrityError:
-            raise ConflictError(f"user {name!r} already exists") from None
+            raise NameTakenError("taken.user", name) from None
 
     def reset_password(self, username: str) -> str:
         """Give a student a temporary password (returned, to show once); their logins end.
@@ -427,9 +437,11 @@ def _title(title: str) -> str:
     return cleaned
 
 
-def course_named(session: Session, name: str) -> Course:
-    """The course called ``name`` (names are lower case; ``NotFoundError`` if none)."""
-    course = session.scalars(select(Course).where(Course.name == name.strip().lower()))
+def course_named(session: Session, name: str, *, lock: bool = False) -> Course:
+    """The course called ``name`` (lower case; ``NotFoundError`` if none); ``lock``: its row
+    held to the transaction's end (``FOR UPDATE``), so no close slips in after a check."""
+    query = select(Course).where(Course.name == name.strip().lower())
+    course = session.scalars(query.with_for_update() if lock else query)
     found = course.one_or_none()
     if found is None:
         raise NotFoundError(f"no course called {name!r}")
@@ -462,7 +474,7 @@ def _info(session: Session, course: Course, *, roster: bool) -> CourseInfo:
             .order_by(CourseMember.role.desc(), User.username)
         ).all()
         members = tuple(
-            Member(u.username, u.display_name, Role(role), bool(u.must_change_password))
+            Member(u.username, u.display_name, MemberRole(role), bool(u.must_change_password))
             for u, role in rows
         )
     return CourseInfo(

@@ -2,8 +2,10 @@
 
 * :meth:`TermService.close` makes a course read-only (when and by whom are
   kept); every change to it is then a 409 ``course_closed``
-  (:func:`thermolab.lab.classes.closed.require_open`). An administrator
-  :meth:`~TermService.reopen`\\ s it.
+  (:func:`thermolab.lab.classes.closed.require_open`). Its bookings that have
+  not begun are cancelled in the same transaction, so that other courses may
+  book those rigs; a slot under way stays to its end. An administrator
+  :meth:`~TermService.reopen`\\ s it; the cancelled bookings do not come back.
 * :meth:`TermService.copy` makes the next term's course from it: the rigs it
   may use, its limits, its assignments as drafts (deadlines shifted), its
   booking pattern shifted to the new dates; no students, runs, hand-ins or
@@ -27,11 +29,12 @@ from thermolab.errors import (
     AccessDeniedError,
     BookingClashError,
     ConflictError,
+    CourseNameTakenError,
     InvalidParameterError,
     NotFoundError,
     RigBookedError,
 )
-from thermolab.lab.accounts.personal_data import PSEUDONYM_PREFIX, RunsChoice, forget_person
+from thermolab.lab.accounts.personal_data import RunsChoice, forget_person, removed_already
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.assignments.service import assignment_with_course
 from thermolab.lab.classes.bookings import BookingService
@@ -42,10 +45,12 @@ from thermolab.lab.classes.courses import (
     new_enrol_code,
     require_member,
 )
+from thermolab.lab.classes.slot_times import MAX_SLOT_HOURS
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
 from thermolab.lab.db.assignment_models import Assignment
 from thermolab.lab.db.booking_models import Booking, BookingRig
+from thermolab.lab.db.booking_tool_models import CourseBookingQuota
 from thermolab.lab.db.course_settings_models import CourseSettingsRow
 from thermolab.lab.db.models import Course, CourseMember, CourseRig, Role, User
 
@@ -107,10 +112,18 @@ class TermService:
         self._clock = clock
         self._bookings = bookings
 
-    def close(self, name: str, by: str) -> None:
+    def close(self, name: str, by: str) -> int:
         """Close ``name`` for the term: from now on it is read, exported, never changed.
 
         ``by`` is the login name of whoever closes it (kept beside the time).
+        The course's bookings that start from now on are cancelled (a closed
+        course can book nothing, so they would only keep its rigs from other
+        courses); one under way stays to its end.
+
+        Returns
+        -------
+        int
+            How many bookings were cancelled.
 
         Raises
         ------
@@ -121,11 +134,16 @@ class TermService:
         with self._db.write() as session:
             course = course_named(session, name)
             require_open(course, "close it again")
-            course.closed_at = self._clock.now()
+            now = self._clock.now()
+            course.closed_at = now
             course.closed_by = by
+            return self._cancel_future_bookings(session, course, now)
 
     def reopen(self, name: str) -> None:
         """Open a closed course again (an administrator's decision, checked by the route).
+
+        The bookings its close cancelled stay cancelled: their slots may be
+        another course's by now; its teachers book again.
 
         Raises
         ------
@@ -139,6 +157,22 @@ class TermService:
                 raise ConflictError(f"course {course.name!r} is open; only a closed one reopens")
             course.closed_at = None
             course.closed_by = None
+
+    def _cancel_future_bookings(self, session: Session, course: Course, now: datetime) -> int:
+        future = Booking.course_id == course.id, Booking.starts_at >= now
+        rigs = session.scalars(
+            select(BookingRig.rig_id)
+            .join(Booking, Booking.id == BookingRig.booking_id)
+            .where(*future)
+            .distinct()
+        )
+        # The rig locks every booking change takes, in the same (sorted) order.
+        for rig in sorted(rigs):
+            self._db.lock_rig(session, rig)
+        doomed = list(session.scalars(select(Booking).where(*future)))
+        for booking in doomed:
+            session.delete(booking)  # its rigs' rows cascade
+        return len(doomed)
 
     def shift_for(self, name: str, starts: date) -> int:
         """The days from ``name``'s first day (first booking, else creation) to ``starts``."""
@@ -170,7 +204,7 @@ class TermService:
             A bad name or title, or a shift beyond :data:`MAX_SHIFT_DAYS`.
         NotFoundError
             No course ``old``.
-        ConflictError
+        CourseNameTakenError
             ``new`` exists.
         AccessDeniedError
             ``who`` is a student.
@@ -193,7 +227,7 @@ class TermService:
             with self._db.write() as session:
                 source = course_named(session, old)
                 if session.scalar(select(Course.id).where(Course.name == cleaned)) is not None:
-                    raise ConflictError(f"course {cleaned!r} already exists; choose another name")
+                    raise CourseNameTakenError("taken.course_choose", cleaned)
                 shown = " ".join((title if title is not None else source.title).split())
                 if not 0 < len(shown) <= 200:
                     raise InvalidParameterError("a course title must have 1 to 200 characters")
@@ -225,6 +259,16 @@ class TermService:
                             updated_by=who.username,
                         )
                     )
+                quota = session.get(CourseBookingQuota, source.id)
+                if quota is not None:  # students' own bookings: the same weekly minutes
+                    session.add(
+                        CourseBookingQuota(
+                            course_id=copy.id,
+                            minutes_per_week=quota.minutes_per_week,
+                            updated_at=now,
+                            updated_by=who.username,
+                        )
+                    )
                 for a in session.scalars(
                     select(Assignment)
                     .where(Assignment.course_id == source.id)
@@ -236,7 +280,8 @@ class TermService:
                     (b.starts_at + shift, b.ends_at + shift, b.note, b.id)
                     for b in session.scalars(
                         select(Booking)
-                        .where(Booking.course_id == source.id)
+                        # Students' own bookings stay with their term (the copy has no students).
+                        .where(Booking.course_id == source.id, Booking.booked_for.is_(None))
                         .order_by(Booking.starts_at)
                     )
                 ]
@@ -249,10 +294,13 @@ class TermService:
                     for *_, booking in slots
                 }
         except IntegrityError:
-            raise ConflictError(f"course {cleaned!r} already exists; choose another name") from None
+            raise CourseNameTakenError("taken.course_choose", cleaned) from None
         for starts_at, ends_at, note, booking in slots:
             try:
-                self._bookings.create(who, cleaned, rigs[booking], starts_at, ends_at, note)
+                longer = ends_at - starts_at > timedelta(hours=MAX_SLOT_HOURS)  # said so then
+                self._bookings.create(
+                    who, cleaned, rigs[booking], starts_at, ends_at, note, longer=longer
+                )
                 report.bookings += 1
             except (BookingClashError, RigBookedError, InvalidParameterError, NotFoundError) as exc:
                 report.skipped.append(SkippedSlot(starts_at, ends_at, str(exc)))
@@ -339,8 +387,7 @@ def _leavers(session: Session, course: Course) -> list[Leaver]:
             CourseMember.role == Role.STUDENT.value,
             User.role == Role.STUDENT.value,
             User.id.not_in(open_places),
-            # Someone removed already, whose runs stay under a pseudonym (forget_person's).
-            ~(User.username.like(f"{PSEUDONYM_PREFIX}________") & User.display_name.is_(None)),
+            ~removed_already(),
         )
         .order_by(User.username)
     ).all()

@@ -23,6 +23,10 @@ database in the data folder). A TOML file declares more::
     live_sockets_per_rig = 500   # live WebSockets one rig may have at once (4503 beyond)
     live_replay_samples = 20000  # stored samples one socket may replay (the newest; see docs)
 
+    [retention]              # optional: unset, nobody is removed automatically
+    months = 24              # people whose last course closed this long ago are removed
+    action = "pseudonymise"  # their runs kept under a pseudonym; or "delete"
+
     [rig_defaults]           # limits every rig inherits unless it sets its own
     control_time_limit = 300 # s of control per turn
     idle_limit = 120         # s without a command before control ends (0: never)
@@ -56,6 +60,9 @@ from typing import Literal
 import platformdirs
 
 from thermolab.errors import ConfigError, NotFoundError
+from thermolab.lab.config.retention import RetentionPolicy
+from thermolab.lab.config.smtp import SmtpConfig
+from thermolab.lab.config.time_zones import is_known_zone
 from thermolab.rigs import RigSpec
 
 __all__ = [
@@ -328,6 +335,13 @@ class LabConfig:
     board : RigSettingsBoard
         The teacher settings in force (filled by the lab from its database);
         :meth:`rig` reads through it, ``rigs`` keeps the file's values.
+    retention : RetentionPolicy
+        How long people of closed courses are kept (default: until removed by hand).
+    smtp : SmtpConfig or None
+        The mail server of booking reminders (``None``: no reminders are sent).
+    time_zone : str
+        The lab's IANA time zone (``America/Sao_Paulo``; default ``UTC``): the local
+        time of its reminders, and of a weekly series whose request names no zone.
 
     Examples
     --------
@@ -342,6 +356,9 @@ class LabConfig:
     database_url: str | None = None
     speedup_override: float | None = None
     title: str = "ThermoLab"
+    retention: RetentionPolicy = field(default_factory=RetentionPolicy)
+    smtp: SmtpConfig | None = None
+    time_zone: str = "UTC"
     board: RigSettingsBoard = field(default_factory=RigSettingsBoard, compare=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -351,6 +368,11 @@ class LabConfig:
         duplicates = sorted({i for i in ids if ids.count(i) > 1})
         if duplicates:
             raise ConfigError(f"rig ids must be unique; repeated: {', '.join(duplicates)}")
+        if not is_known_zone(self.time_zone):
+            raise ConfigError(
+                f"time_zone: {self.time_zone!r} is not a known IANA time zone "
+                "(like America/Sao_Paulo, Europe/Lisbon or UTC)"
+            )
 
     @property
     def database(self) -> str:

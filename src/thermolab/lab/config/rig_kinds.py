@@ -12,13 +12,42 @@ the key.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 from thermolab.errors import ConfigError, InvalidParameterError
 from thermolab.lab.config.model import RigConfig
 from thermolab.rigs import RigInfo, RigSpec
 
-__all__ = ["PublishedRig", "narrow_range", "parse_rig_spec", "published_defaults"]
+__all__ = [
+    "ActuatorLevel",
+    "PublishedRig",
+    "narrow_range",
+    "parse_rig_spec",
+    "published_defaults",
+]
+
+
+@dataclass(frozen=True, slots=True)
+class ActuatorLevel:
+    """One actuator of a rig besides its input (a twin's fan), as it is and as declared.
+
+    Attributes
+    ----------
+    name : str
+        As the rig's kind declares it (:attr:`thermolab.rigs.RigSpec.actuators`).
+    unit : str
+    default : float
+        Its declared default: where every turn and run starts from.
+    level : float or None
+        Its level now (``None``: not known here, e.g. on a rig host).
+    """
+
+    name: str
+    unit: str
+    default: float
+    level: float | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -39,6 +68,8 @@ class PublishedRig:
         ``twin_speedup``, a twin on a rig host its host's ``--speedup`` once the
         host has said it (``None`` before). :meth:`DeviceHub.published
         <thermolab.lab.rigs.devices.DeviceHub.published>` fills it in.
+    actuators : tuple of ActuatorLevel
+        Every actuator besides the input, read now (filled in like ``speedup``).
     """
 
     input_min: float
@@ -48,6 +79,21 @@ class PublishedRig:
     safe_input: float
     live: bool
     speedup: float | None = None
+    actuators: tuple[ActuatorLevel, ...] = ()
+
+    @classmethod
+    def from_dict(cls, fields: Mapping[str, Any]) -> PublishedRig:
+        """Rebuild one from its ``dataclasses.asdict`` (another worker's, through the fleet bus).
+
+        Examples
+        --------
+        >>> fan = ActuatorLevel("fan", "%", 0.0, 50.0)
+        >>> rig = PublishedRig(0.0, 10.0, "V", "V", 0.0, True, 1.0, (fan,))
+        >>> PublishedRig.from_dict(dataclasses.asdict(rig)) == rig
+        True
+        """
+        actuators = tuple(ActuatorLevel(**level) for level in fields.get("actuators") or ())
+        return cls(**{**fields, "actuators": actuators})
 
     @classmethod
     def of(cls, info: RigInfo, *, live: bool) -> PublishedRig:

@@ -29,7 +29,9 @@ from thermolab.lab.config.model import (
     RigConfig,
     describe_value,
 )
+from thermolab.lab.config.retention import MAX_MONTHS, RetentionPolicy
 from thermolab.lab.config.rig_kinds import parse_rig_spec
+from thermolab.lab.config.smtp import SmtpConfig
 from thermolab.lab.config.teacher_settings import check_caps
 
 __all__ = ["load_config"]
@@ -220,11 +222,28 @@ class _Access(_Table):
     live_replay_samples: Annotated[int, Field(strict=True, ge=2)] | None = None
 
 
+class _Retention(_Table):
+    months: Annotated[int, Field(strict=True, ge=1, le=MAX_MONTHS)] | None = None
+    action: Literal["pseudonymise", "delete"] | None = None
+
+
+class _Smtp(_Table):
+    host: _Text
+    port: Annotated[int, Field(strict=True, ge=1, le=65535)] | None = None
+    sender: _Text | None = None
+    starttls: Annotated[bool, Field(strict=True)] | None = None
+    username: _Text | None = None
+    password_env: _Token | None = None
+
+
 class _File(_Table):
     title: _Text | None = None
+    time_zone: _Text | None = None
     database_url: _Text | None = None
     speedup: _Positive | None = None
     access: _Access | None = None
+    retention: _Retention | None = None
+    smtp: _Smtp | None = None
     rig_defaults: _LimitsTable | None = None
     rigs: Annotated[list[_Rig], Field(min_length=1)] | None = None
 
@@ -247,7 +266,9 @@ class _File(_Table):
             rigs=rigs,
             access=access,
             database_url=self.database_url,
-            **{k: top[k] for k in ("title",) if k in top},
+            retention=RetentionPolicy(**(self.retention or _Retention()).given()),
+            smtp=None if self.smtp is None else SmtpConfig(**self.smtp.given()),
+            **{k: top[k] for k in ("title", "time_zone") if k in top},
         )
 
 
@@ -279,6 +300,8 @@ def _table_at(loc: tuple[int | str, ...]) -> type[_Table]:
     model: type[_Table] = _File
     nested: dict[str, type[_Table]] = {
         "access": _Access,
+        "retention": _Retention,
+        "smtp": _Smtp,
         "rig_defaults": _LimitsTable,
         "rigs": _Rig,
         "cooldown": _Cooldown,
@@ -307,6 +330,8 @@ def _describe(error: ErrorDetails) -> str:
         bound = f"> {ctx['gt']:g}" if kind == "greater_than" else f">= {ctx['ge']:g}"
         noun = "finite number"
         return f"{key}: expected a {noun} {bound}, got {value!r}"
+    if kind == "less_than_equal":
+        return f"{key}: expected at most {ctx['le']}, got {value!r}"
     if kind in ("float_type", "float_parsing", "int_type", "int_parsing", "int_from_float"):
         what = "a whole number" if kind.startswith("int") else "a number"
         return f"{key}: expected {what}, got {describe_value(value)}"

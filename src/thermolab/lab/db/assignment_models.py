@@ -87,3 +87,5 @@ class Submission(Base):
     max_mark: Mapped[float] = mapped_column(Float)
     assessment: Mapped[dict[str, Any]] = mapped_column(JSON)
     marked_at: Mapped[datetime] = mapped_column(UTCDateTime)
+    #: The group member who handed in for this student (null: the student themself).
+    handed_in_by: Mapped[str | None] = mapped_column(String(64))

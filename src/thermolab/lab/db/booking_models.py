@@ -33,6 +33,12 @@ class Booking(Base):
     starts_at: Mapped[datetime] = mapped_column(UTCDateTime)
     ends_at: Mapped[datetime] = mapped_column(UTCDateTime)
     note: Mapped[str] = mapped_column(String(200), default="")
+    # A student's own booking within the course's quota (null: the teachers' slot).
+    booked_for: Mapped[int | None] = mapped_column(
+        ForeignKey("users.id", ondelete="CASCADE"), default=None, index=True
+    )
+    # The weekly series an occurrence was booked with (null: booked alone).
+    series: Mapped[str | None] = mapped_column(String(32), default=None, index=True)
     created_by: Mapped[str] = mapped_column(String(64))
     created_at: Mapped[datetime] = mapped_column(UTCDateTime)
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime)

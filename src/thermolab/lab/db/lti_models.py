@@ -10,6 +10,9 @@
 * ``lti_resource_links``: an activity placed in an LMS course, what it opens
   and its gradebook column (AGS line item), for the grades of that target.
 * ``lti_grades``: the grade outbox (AGS): scores queued, posted, retried.
+* ``lti_handoffs``: what a launch hands to a later request, perhaps on another
+  worker — a pending deep-linking request, a new window's ticket — keyed by
+  the SHA-256 of its random key, deleted when used or expired.
 """
 
 from __future__ import annotations
@@ -34,8 +37,10 @@ from thermolab.lab.db.models import Base, UTCDateTime
 
 __all__ = [
     "GradeStatus",
+    "HandoffKind",
     "LtiContext",
     "LtiGrade",
+    "LtiHandoff",
     "LtiIdentity",
     "LtiKey",
     "LtiLoginState",
@@ -52,6 +57,13 @@ class GradeStatus(enum.StrEnum):
     PENDING = "pending"
     SENT = "sent"
     FAILED = "failed"
+
+
+class HandoffKind(enum.StrEnum):
+    """What an :class:`LtiHandoff` waits for."""
+
+    DEEP_LINK = "deep_link"  # a teacher's choice of what to link
+    WINDOW = "window"  # a new window's first-party login (cookies blocked in the frame)
 
 
 class LtiPlatform(Base):
@@ -168,3 +180,28 @@ class LtiGrade(Base):
     next_attempt_at: Mapped[datetime] = mapped_column(UTCDateTime)
     last_error: Mapped[str | None] = mapped_column(Text)
     sent_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+
+
+class LtiHandoff(Base):
+    """A launch's state kept for a later request (any worker), used once, until it expires.
+
+    ``data`` is the kind's: a deep-linking request's deployment, settings and
+    lab course; a window's page to open.
+    """
+
+    __tablename__ = "lti_handoffs"
+    __table_args__ = (
+        CheckConstraint(
+            "kind IN (" + ", ".join(repr(k.value) for k in HandoffKind) + ")", name="kind"
+        ),
+    )
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    key_hash: Mapped[str] = mapped_column(String(64), unique=True)
+    kind: Mapped[str] = mapped_column(String(16))
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id", ondelete="CASCADE"), index=True)
+    platform_id: Mapped[int] = mapped_column(
+        ForeignKey("lti_platforms.id", ondelete="CASCADE"), index=True
+    )
+    data: Mapped[dict[str, Any]] = mapped_column(JSON)
+    expires_at: Mapped[datetime] = mapped_column(UTCDateTime, index=True)

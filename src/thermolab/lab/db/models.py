@@ -54,6 +54,7 @@ __all__ = [
     "GuideRevision",
     "LeaveReason",
     "LoginSession",
+    "MemberRole",
     "MethodResultRow",
     "PowerState",
     "QueueEntry",
@@ -83,6 +84,18 @@ class Role(enum.StrEnum):
 
     STUDENT = "student"
     TEACHER = "teacher"
+
+
+class MemberRole(enum.StrEnum):
+    """A person's place in one course: its teacher, a teaching assistant, or a student.
+
+    The values a user's :class:`Role` shares mean the same; an assistant's
+    account may be a student's or a teacher's.
+    """
+
+    STUDENT = "student"
+    TEACHER = "teacher"
+    ASSISTANT = "assistant"
 
 
 class PowerState(enum.StrEnum):
@@ -208,11 +221,11 @@ class Course(Base):
 
 
 class CourseMember(Base):
-    """A user in a course, as a teacher or a student (once per course)."""
+    """A user in a course, as a teacher, teaching assistant or student (once per course)."""
 
     __tablename__ = "course_members"
     __table_args__ = (
-        CheckConstraint(_in("role", Role), name="role"),
+        CheckConstraint(_in("role", MemberRole), name="role"),
         UniqueConstraint("course_id", "user_id"),
     )
 
@@ -326,6 +339,9 @@ class ControlSession(Base):
     ended_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
     end_reason: Mapped[str | None] = mapped_column(String(32))
     ended_by: Mapped[str | None] = mapped_column(String(64))
+    # The personal API token the turn was asked for with (null: a login): revoking it ends
+    # the turn at once. No foreign key: revoking deletes the token's row.
+    token_id: Mapped[int | None] = mapped_column(Integer)
 
 
 class QueueEntry(Base):
@@ -354,6 +370,7 @@ class QueueEntry(Base):
     last_heartbeat_at: Mapped[datetime] = mapped_column(UTCDateTime)
     left_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
     leave_reason: Mapped[str | None] = mapped_column(String(32))
+    token_id: Mapped[int | None] = mapped_column(Integer)  # as ControlSession's, passed on
 
 
 class Run(Base):

@@ -88,6 +88,15 @@ class FollowerLab(Lab):
             self._report = StartupReport(teachers=self.users.count_teachers(), faults={})
         return self._report
 
+    def end_token_turns(self, token_ids: frozenset[int]) -> None:
+        """Only once promoted: the owner's devices would not hear of a turn ended here.
+
+        Until then a revoked token's turn ends at the owner, by the client
+        timeout (the token's heartbeats are refused).
+        """
+        if self.owner:
+            super().end_token_turns(token_ids)
+
     def sweep(self) -> list[str]:
         """Nothing until promoted (limits and hand-overs are the owner's); then the owner's."""
         return super().sweep() if self.owner else []

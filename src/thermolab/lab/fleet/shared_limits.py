@@ -1,7 +1,8 @@
-"""The login throttle and the live-socket limits, lab-wide when workers share a Redis broker.
+"""The login throttles and the live-socket limits, lab-wide when workers share a Redis broker.
 
-One ``thermolab serve`` process keeps both in memory
-(:class:`~thermolab.lab.accounts.security.LoginThrottle`, :class:`LiveSocketCounts`).
+One ``thermolab serve`` process keeps them in memory
+(:class:`~thermolab.lab.accounts.security.LoginThrottle`,
+:class:`~thermolab.lab.lti.launch.InitiationRate`, :class:`LiveSocketCounts`).
 Several workers on one broker (``--broker redis://...``, ``docs/fleet.md``)
 would multiply them by the number of workers, so there they count in Redis:
 
@@ -12,6 +13,9 @@ would multiply them by the number of workers, so there they count in Redis:
   cannot be reached it falls back to this worker's own counts (it keeps them
   too): neither every student locked out nor unlimited guessing, only the
   per-worker limits of a lone server, for as long as the broker is away.
+* :class:`SharedInitiationRate` counts each address's LTI login initiations
+  in a sorted set, checked and added to by one Lua script, with the same
+  fallback to this worker's count.
 * :class:`SharedLiveSocketCounts` publishes this worker's live sockets per
   login and per rig as one Redis hash that expires unless refreshed (a dead
   worker's sockets stop counting within ``ttl`` seconds); admission adds the
@@ -29,9 +33,11 @@ from typing import Any
 from thermolab.lab.accounts.security import LoginThrottle, address_limited, pair_delayed
 from thermolab.lab.clock import LabClock
 from thermolab.lab.fleet.worker_hashes import Reachable, WorkerHash
+from thermolab.lab.lti.launch import InitiationRate
 
 __all__ = [
     "LiveSocketCounts",
+    "SharedInitiationRate",
     "SharedLiveSocketCounts",
     "SharedLoginThrottle",
 ]
@@ -172,6 +178,77 @@ class SharedLoginThrottle(LoginThrottle):
     def _keys(self, username: str, address: str) -> tuple[str, str]:
         pair = hashlib.sha256(f"{username}\0{address}".encode()).hexdigest()[:32]
         return f"{self._prefix}login.address:{address}", f"{self._prefix}login.pair:{pair}"
+
+
+# One LTI login initiation: the address's window trimmed, refused (0) at the limit,
+# else counted (1). One script, so two workers cannot both take the last place.
+_INITIATE = """
+redis.call('ZREMRANGEBYSCORE', KEYS[1], '-inf', ARGV[3])
+if redis.call('ZCARD', KEYS[1]) >= tonumber(ARGV[4]) then
+  return 0
+end
+redis.call('ZADD', KEYS[1], ARGV[1], ARGV[2])
+redis.call('EXPIRE', KEYS[1], ARGV[5])
+return 1
+"""
+
+
+class SharedInitiationRate(InitiationRate):
+    """:class:`~thermolab.lab.lti.launch.InitiationRate` counted in Redis, lab-wide.
+
+    Parameters
+    ----------
+    redis : redis.Redis
+        The broker (:func:`figures_client`).
+    prefix : str
+        The lab's key prefix.
+    clock, per_address, window
+        As :class:`~thermolab.lab.lti.launch.InitiationRate`'s.
+    """
+
+    def __init__(self, redis: Any, prefix: str, clock: LabClock, **numbers: Any) -> None:
+        super().__init__(clock, **numbers)
+        self._prefix = prefix
+        self._script = redis.register_script(_INITIATE)
+        self._reachable = Reachable("the LTI login throttle")
+
+    @classmethod
+    def like(cls, rate: InitiationRate, redis: Any, prefix: str) -> SharedInitiationRate:
+        """A shared count with ``rate``'s clock and numbers."""
+        return cls(redis, prefix, rate.clock, per_address=rate.per_address, window=rate.window)
+
+    def check(self, address: str) -> None:
+        """Count one initiation from ``address`` on every worker (this one's while Redis is away).
+
+        Raises
+        ------
+        LtiThrottledError
+            Past the limit.
+        """
+        if not self._reachable.now():
+            return super().check(address)
+        now = self.clock.now().timestamp()
+        window = self.window.total_seconds()
+        try:
+            counted = self._script(
+                keys=[f"{self._prefix}lti.login.address:{address}"],
+                args=[
+                    repr(now),
+                    f"{now!r}:{secrets.token_hex(4)}",  # one member per initiation
+                    repr(now - window),
+                    self.per_address,
+                    int(window) + 1,
+                ],
+            )
+        except Exception as exc:  # redis.RedisError, OSError: the broker is away
+            self._reachable.failed(exc)
+            return super().check(address)
+        self._reachable.ok()
+        if not int(counted):
+            raise self.refusal(address)
+        # This worker's own count too (never past the lab-wide one): it decides while
+        # Redis is unreachable.
+        return super().check(address)
 
 
 def _release(counts: collections.Counter[Any], key: Any) -> None:

@@ -55,12 +55,13 @@ from thermolab.lab.fleet.follower import FollowerLab
 from thermolab.lab.fleet.lease import LEASE_TTL, LeaseHeldError
 from thermolab.lab.fleet.shared_limits import (
     LiveSocketCounts,
+    SharedInitiationRate,
     SharedLiveSocketCounts,
     SharedLoginThrottle,
 )
 from thermolab.lab.fleet.worker_hashes import figures_client
 from thermolab.lab.live.shared_presence import SharedPresence
-from thermolab.lab.rigs.devices import RigOpener
+from thermolab.lab.rigs.opener import RigOpener
 from thermolab.lab.service import Lab, StartupReport
 
 if TYPE_CHECKING:
@@ -121,6 +122,8 @@ class Fleet:
         self.watchers = watchers
         self._standby: threading.Thread | None = None
         self._owner: tuple[str, float] | None = None  # (address, monotonic time heard)
+        #: How many owner announcements this follower has heard (a live owner adds one a second).
+        self.announcements = 0
         self._heard = threading.Event()
         self._seqs: dict[str, int] = {}
         self._stop = threading.Event()
@@ -279,6 +282,7 @@ class Fleet:
         url = news.get("url")
         if isinstance(url, str):
             self._owner = (url, time.monotonic())
+        self.announcements += 1
         self._owner_news = news
         self._adopt_published()
         seqs = news.get("seqs") or {}
@@ -295,7 +299,7 @@ class Fleet:
         lab = self._lab
         if isinstance(lab, FollowerLab):
             for rig_id, fields in (self._owner_news.get("published") or {}).items():
-                lab.adopt_published(rig_id, PublishedRig(**fields))
+                lab.adopt_published(rig_id, PublishedRig.from_dict(fields))
 
     def _heard_live(self, data: bytes) -> None:
         if self.role != "follower":
@@ -338,11 +342,14 @@ def start_worker(
     lab_key = hashlib.sha256(config.database.encode()).hexdigest()[:12]
     prefix = f"thermolab.{lab_key}."
     bus = open_bus(broker, prefix=prefix) if broker is not None else None
-    # With a broker, the login throttle, the live-socket limits and the watchers are lab-wide.
+    # With a broker, the login throttles, the live-socket limits and the watchers are lab-wide.
     figures = figures_client(broker) if broker is not None else None
     lab = Lab(config, opener=opener, exclusive=True)
     if figures is not None:
         lab.throttle = SharedLoginThrottle.like(lab.throttle, figures, prefix)
+        lab.lti.launches.initiations = SharedInitiationRate.like(
+            lab.lti.launches.initiations, figures, prefix
+        )
     try:
         report = lab.start()
     except LeaseHeldError as held:
@@ -360,6 +367,9 @@ def start_worker(
         remote_only = all(rig.agent for rig in config.rigs)
         follower = FollowerLab(config, standby=standby or remote_only, opener=opener)
         follower.throttle = SharedLoginThrottle.like(follower.throttle, figures, prefix)
+        follower.lti.launches.initiations = SharedInitiationRate.like(
+            follower.lti.launches.initiations, figures, prefix
+        )
         fleet.watchers = SharedPresence(follower.presence, figures, prefix)
         try:
             return follower, fleet, follower.start()

@@ -3,11 +3,12 @@
 A rig's guide has the sections of :data:`SECTIONS` (introduction, theory, the
 steps of panels 1–4, school). Each section, in each language of
 :data:`GUIDE_LANGUAGES`, is the newest revision a teacher saved, or else the
-default shipped in ``defaults/<lang>/<section>.md`` (Portuguese (Brazil) and
-English). Spanish has no shipped text: a section no teacher wrote in Spanish
-is shown in English, marked so (``lang`` of the section differs from the one
-asked). Revisions are never changed or deleted; restoring one saves its text
-again as the newest, naming the one restored.
+default shipped in ``defaults/<lang>/<section>.md`` (Portuguese (Brazil),
+English and Spanish, each naming the buttons as that language's page labels
+them). A language without shipped text would be shown in English, marked so
+(``lang`` of the section differs from the one asked). Revisions are never
+changed or deleted; restoring one saves its text again as the newest, naming
+the one restored.
 """
 
 from __future__ import annotations
@@ -42,7 +43,8 @@ SECTIONS = ("introduction", "theory", "panel-1", "panel-2", "panel-3", "panel-4"
 """A guide's sections, in reading order; ``panel-N`` is the steps of the rig page's panel N."""
 GUIDE_LANGUAGES = ("pt-BR", "en", "es")
 FALLBACK_LANGUAGE = "en"
-_SHIPPED = {"pt-BR": "pt_BR", "en": "en"}  # languages with default text, and their folder
+# The languages with shipped text, and their folder.
+_SHIPPED = {"pt-BR": "pt_BR", "en": "en", "es": "es"}
 
 
 @lru_cache(maxsize=32)

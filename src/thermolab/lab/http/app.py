@@ -31,11 +31,16 @@ from uvicorn.middleware.proxy_headers import ProxyHeadersMiddleware
 from thermolab import __version__
 from thermolab.agent.protocol import AGENT_LINK_PATH
 from thermolab.lab.config import LabConfig
-from thermolab.lab.fleet.workers import Fleet
+from thermolab.lab.fleet.workers import Fleet, FollowerLab
 from thermolab.lab.http.api_docs import install_api_docs
 from thermolab.lab.http.browser_guard import BrowserGuard
 from thermolab.lab.http.errors import install_error_handlers
-from thermolab.lab.http.forward import ForwardToOwner, refuse_agent_link
+from thermolab.lab.http.forward import (
+    ForwardToOwner,
+    hold_agent_link,
+    owner_tls,
+    refuse_agent_link,
+)
 from thermolab.lab.http.limits import BodyLimit
 from thermolab.lab.http.live_socket import LiveEndpoint
 from thermolab.lab.http.observe import install_observability
@@ -43,12 +48,15 @@ from thermolab.lab.http.outage import install_outage_handler
 from thermolab.lab.http.routers import api_router
 from thermolab.lab.http.routers.guide_images import CACHEABLE_PREFIX, UPLOAD_ALLOWANCE
 from thermolab.lab.http.routers.lti import LTI_CROSS_SITE_PATHS, too_large_page
-from thermolab.lab.rigs.devices import device_opener
+from thermolab.lab.rigs.opener import device_opener
 from thermolab.lab.service import Lab
 
-__all__ = ["create_app"]
+__all__ = ["RETENTION_INTERVAL", "create_app"]
 
 log = logging.getLogger(__name__)
+
+RETENTION_INTERVAL = 24 * 3600.0
+"""Seconds between the server's passes of the retention period (daily)."""
 
 
 def create_app(
@@ -59,6 +67,8 @@ def create_app(
     close_lab: bool | None = None,
     sweep_interval: float | None = 1.0,
     fleet: Fleet | None = None,
+    retention_interval: float | None = RETENTION_INTERVAL,
+    owner_ca: str | None = None,
 ) -> FastAPI:
     """Build the lab's ASGI application.
 
@@ -82,9 +92,16 @@ def create_app(
         This worker's part in a fleet of workers on one bus (``--broker``): the
         owner relays its live stream; a follower also forwards rig and run
         requests to the owner (:mod:`~thermolab.lab.fleet.workers`).
+    owner_ca : str, optional
+        A CA file a follower trusts, besides the system's, for an owner served
+        over HTTPS (``thermolab serve --ca``; :func:`~thermolab.lab.http.forward.owner_tls`).
     sweep_interval : float or None
         Seconds between sweeps of the access limits in the background;
         ``None`` for none (tests sweep by hand).
+    retention_interval : float or None
+        Seconds between passes of the retention period (at the start, then
+        daily), when the configuration sets one
+        (:mod:`~thermolab.lab.classes.retention`); ``None`` for none.
 
     Returns
     -------
@@ -119,14 +136,20 @@ def create_app(
             if sweep_interval is not None
             else None
         )
+        retainer = (
+            asyncio.create_task(_retain_forever(the_lab, retention_interval))
+            if retention_interval is not None and the_lab.retention.policy.enabled
+            else None
+        )
         try:
             yield
         finally:
             live.bind(None)
-            if sweeper is not None:
-                sweeper.cancel()
-                with contextlib.suppress(asyncio.CancelledError):
-                    await sweeper
+            for task in (sweeper, retainer):
+                if task is not None:
+                    task.cancel()
+                    with contextlib.suppress(asyncio.CancelledError):
+                        await task
             if fleet is not None:
                 await anyio.to_thread.run_sync(fleet.close)
             if owned:
@@ -151,13 +174,17 @@ def create_app(
     app.add_api_websocket_route("/api/rigs/{rig_id}/live", live.endpoint, name="live")
 
     # Rig hosts dial in here (thermolab agent; docs/operator.md, "Rigs on their own computers").
-    # A follower sends them on to the owner (docs/fleet.md, "Rig hosts"); a standby
-    # promoted to owner accepts them from then on.
+    # A follower sends them on to the owner (docs/fleet.md, "Rig hosts"); a standby holds
+    # them while no owner is heard (a takeover), and serves them once it owns.
     async def agent_link(ws: WebSocket) -> None:
-        if fleet is not None and fleet.role == "follower":
-            await refuse_agent_link(ws)
-        else:
+        if fleet is None or fleet.role != "follower":
             await the_lab.agents.endpoint(ws)
+        elif not (isinstance(the_lab, FollowerLab) and the_lab.standby):
+            await refuse_agent_link(ws)
+        elif await hold_agent_link(
+            ws, owns=lambda: fleet.role != "follower", announcements=lambda: fleet.announcements
+        ):
+            await the_lab.agents.endpoint(ws, accepted=True)
 
     app.add_api_websocket_route(AGENT_LINK_PATH, agent_link, name="agent_link")
     install_error_handlers(app)
@@ -184,6 +211,7 @@ def create_app(
             owner_url=lambda: fleet.owner_url,
             here=lambda: fleet.role != "follower",
             on_owner=fleet.on_owner,
+            tls=owner_tls(owner_ca),
         )
     if config.access.trusted_proxies:
         # Outermost, so that the guard and the routes see the client's address and scheme.
@@ -200,3 +228,23 @@ async def _sweep_forever(lab: Lab, interval: float) -> None:
             await anyio.to_thread.run_sync(lab.sweep)
         except Exception:  # a failed sweep must not stop the next ones
             log.exception("sweep of the access limits failed")
+
+
+async def _retain_forever(lab: Lab, interval: float) -> None:
+    """Remove the people past the retention period: at the start, then every ``interval``."""
+    while True:
+        try:
+            report = await anyio.to_thread.run_sync(lab.retention.apply)
+        except Exception:  # the next pass tries again; a failed one must not stop them
+            log.exception("retention pass failed")
+        else:
+            if report.removed:
+                lab.names.forget()
+                log.info(
+                    "retention: removed %d people of courses closed over %s months ago",
+                    len(report.removed),
+                    lab.retention.policy.months,
+                )
+            for reason in report.skipped.values():
+                log.info("retention: left one person until the next pass: %s", reason)
+        await asyncio.sleep(interval)

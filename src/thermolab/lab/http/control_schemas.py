@@ -115,6 +115,7 @@ class LoopOut(Out):
     output_unit: str
     input_unit: str
     input_range: list[float]
+    safe_input: float = Field(description="the input the rig rests at (a manual start's default)")
     output_limit: float | None
     closed_loop: bool = Field(description="the rig can be controlled (it has an output unit)")
     fan: dict[str, Any] | None = Field(description="the disturbance fan (unit, range), or null")

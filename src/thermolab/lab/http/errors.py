@@ -32,24 +32,35 @@ from starlette.websockets import WebSocket
 from thermolab.errors import (
     AccessDeniedError,
     BookingClashError,
+    BookingQuotaError,
+    BookingSeriesClashError,
     ClassListError,
     ConflictError,
     CourseClosedError,
+    CourseNameTakenError,
     GainRangeError,
+    NameTakenError,
     NoOutputUnitError,
     NoRunError,
     NotClosedLoopError,
     NotFoundError,
     PasswordChangeRequiredError,
+    PasswordRejectedError,
     PreviousRunEndingError,
     RigBookedError,
     RigError,
     RunInProgressError,
+    SetpointNoStepError,
     SetpointRangeError,
     SettingNotForRigError,
     SettingRangeError,
     SettingsChangedError,
+    SlotReversedError,
+    SlotTooLongError,
+    SlotZoneError,
+    SpeedupRefusedError,
     ThermoLabError,
+    TimeZoneError,
     TurnEndedError,
     TurnExtensionRefusedError,
     WrongEnrolCodeError,
@@ -113,6 +124,8 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     AccessDeniedError: HttpFault(403, "access_denied"),
     NotFoundError: HttpFault(404, "not_found"),
     ConflictError: HttpFault(409, "conflict"),
+    NameTakenError: HttpFault(409, "name_taken"),
+    CourseNameTakenError: HttpFault(409, "course_name_taken"),
     TurnEndedError: HttpFault(409, "turn_ended"),
     RunInProgressError: HttpFault(409, "run_in_progress"),
     PreviousRunEndingError: HttpFault(409, "previous_run_ending"),
@@ -124,6 +137,7 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     # The closed loop's (issue #11).
     GainRangeError: HttpFault(422, "gain_out_of_range"),
     SetpointRangeError: HttpFault(422, "setpoint_out_of_range"),
+    SetpointNoStepError: HttpFault(422, "setpoint_no_step"),
     NoOutputUnitError: HttpFault(422, "no_output_unit"),
     NoRunError: HttpFault(409, "no_run"),
     NotClosedLoopError: HttpFault(409, "not_closed_loop"),
@@ -136,9 +150,18 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     SettingRangeError: HttpFault(422, "setting_out_of_range"),
     SettingNotForRigError: HttpFault(422, "setting_not_for_rig"),
     SettingsChangedError: HttpFault(409, "settings_changed"),
+    # A script's own speed-up of a twin for its turn (issue #22, item 5).
+    SpeedupRefusedError: HttpFault(422, "speedup_refused"),
     # Bookings (issue #10, item 5).
     BookingClashError: HttpFault(409, "booking_clash"),
     RigBookedError: HttpFault(409, "rig_booked"),
+    # Slot times and the booking tools (issue #24, item 7).
+    SlotReversedError: HttpFault(422, "slot_ends_before_start"),
+    SlotTooLongError: HttpFault(422, "slot_too_long"),
+    SlotZoneError: HttpFault(422, "slot_zone_missing"),
+    TimeZoneError: HttpFault(422, "time_zone_unknown"),
+    BookingQuotaError: HttpFault(409, "booking_quota_exceeded"),
+    BookingSeriesClashError: HttpFault(409, "booking_series_clash"),
     # The LTI 1.3 tool (issue #12): a refused launch, or a platform that failed us.
     LtiError: HttpFault(400, "lti_invalid_token"),
     LtiReplayError: HttpFault(400, "lti_replayed"),
@@ -242,6 +265,13 @@ def install_error_handlers(app: FastAPI) -> None:
                 for p in exc.problems
             ]
             return invalid_response(str(exc), fault.code, problems, language=language)
+        if isinstance(exc, PasswordRejectedError):
+            # Why the password is refused, in the reader's language: the page shows it.
+            refusal = {"loc": ["body", "password"], "type": exc.problem, "msg": str(exc)}
+            message = exc.describe(lambda text: translate(text, language))
+            return invalid_response(
+                str(exc), fault.code, [refusal], language=language, message=message
+            )
         if fault.status == 422:
             # A setting's refusal names the value it is about, as a schema error would.
             about = exc if isinstance(exc, SettingRangeError | SettingNotForRigError) else None
@@ -249,7 +279,13 @@ def install_error_handlers(app: FastAPI) -> None:
             problem = {"loc": where, "type": fault.code, "msg": str(exc)}
             return invalid_response(str(exc), fault.code, [problem], language=language)
         # A booking refusal names the slot in the way, for the page to show.
-        extra = {"slot": exc.slot} if isinstance(exc, BookingClashError | RigBookedError) else None
+        extra: dict[str, Any] | None = None
+        if isinstance(exc, BookingClashError | RigBookedError):
+            extra = {"slot": exc.slot}
+        elif isinstance(exc, BookingQuotaError):
+            extra = {"quota": exc.quota}
+        elif isinstance(exc, BookingSeriesClashError):
+            extra = {"clashes": exc.clashes}
         return error_response(
             fault.status, str(exc), fault.code, headers, language=language, extra=extra
         )
@@ -319,10 +355,19 @@ def install_error_handlers(app: FastAPI) -> None:
 
 
 def invalid_response(
-    detail: str, code: str, errors: list[dict[str, Any]], *, language: str = "en"
+    detail: str,
+    code: str,
+    errors: list[dict[str, Any]],
+    *,
+    language: str = "en",
+    message: str | None = None,
 ) -> JSONResponse:
-    """The JSON answer of a 422 (``ValidationErrorOut``)."""
-    return error_response(422, detail, code, language=language, extra={"errors": errors})
+    """The JSON answer of a 422 (``ValidationErrorOut``); ``message`` replaces the code's
+    sentence when the error has a more precise one in the reader's language."""
+    extra: dict[str, Any] = {"errors": errors}
+    if message is not None:
+        extra["message"] = message
+    return error_response(422, detail, code, language=language, extra=extra)
 
 
 def api_methods(app: FastAPI, path: str) -> list[str]:

@@ -24,17 +24,33 @@ request that was sent and got no answer (the owner died reading it, or timed
 out) is not sent again — the owner may have applied it — and is answered 503
 at once.
 
+An owner served over HTTPS (``--advertise https://...``) is checked against
+the system's CAs and the lab's own (``thermolab serve --ca``, the file its rig
+hosts' ``--ca`` names: :func:`owner_tls`), so a fleet on a private CA works.
+A try that cannot reach the owner is logged (once while the reason stays the
+same): a certificate the follower does not trust is thus named in its log, not
+only felt as held requests.
+
 Rig hosts (``thermolab agent``) link to the owner only: a follower accepts
-their WebSocket and closes it at once with
+their WebSocket and closes it with
 :data:`~thermolab.agent.protocol.CLOSE_NOT_OWNER` (:func:`refuse_agent_link`),
-and the agent dials the next address it was given. The hosts page
+and the agent dials the next address it was given. A **standby** first
+waits for the next announcement of an owner (a live one announces every
+second): if none comes, the owner is dead and a takeover is under way, so the
+host is held — not refused, which would send it round its list while its
+grace runs out — until the takeover is decided: this worker owns (it serves
+the link, :func:`hold_agent_link` returns ``True``), or another owner is
+heard (the host is refused and dials on), or
+:data:`~thermolab.agent.protocol.HELLO_HOLD` passes. The hosts page
 (``/api/agents``, the owner's links) is forwarded like the rigs.
 """
 
 from __future__ import annotations
 
 import asyncio
+import logging
 import math
+import ssl
 import time
 from asyncio import FIRST_COMPLETED
 from collections.abc import Callable
@@ -44,11 +60,22 @@ import httpx
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from starlette.websockets import WebSocket
 
-from thermolab.agent.protocol import CLOSE_NOT_OWNER
+from thermolab.agent.protocol import CLOSE_NOT_OWNER, HELLO_HOLD
 from thermolab.lab.fleet.workers import ANNOUNCE_INTERVAL, OWNER_WAIT
 from thermolab.lab.http.errors import error_response
 
-__all__ = ["FORWARDED_PREFIXES", "ForwardToOwner", "refuse_agent_link"]
+__all__ = [
+    "FORWARDED_PREFIXES",
+    "ForwardToOwner",
+    "hold_agent_link",
+    "owner_tls",
+    "refuse_agent_link",
+]
+
+log = logging.getLogger(__name__)
+
+_HOLD_LOOK = 0.05
+"""Seconds between a held host's looks at who owns the rigs."""
 
 FORWARDED_PREFIXES = ("/api/rigs", "/api/runs", "/api/control", "/api/agents")
 """Paths the owner answers (a follower forwards them)."""
@@ -71,10 +98,53 @@ _HOP_BY_HOP = frozenset(
 )
 
 
-async def refuse_agent_link(ws: WebSocket) -> None:
+def owner_tls(cafile: str | None = None) -> ssl.SSLContext:
+    """How a follower checks the owner's certificate: the system's CAs, and ``cafile``'s.
+
+    Raises
+    ------
+    OSError, ssl.SSLError
+        ``cafile`` cannot be read or holds no certificate.
+    """
+    context = ssl.create_default_context()
+    if cafile is not None:
+        context.load_verify_locations(cafile=cafile)
+    return context
+
+
+async def refuse_agent_link(ws: WebSocket, *, accepted: bool = False) -> None:
     """A follower's answer to a rig host: not here — dial the owner (the next address)."""
-    await ws.accept()
+    if not accepted:
+        await ws.accept()
     await ws.close(code=CLOSE_NOT_OWNER, reason="this worker does not own the rigs")
+
+
+async def hold_agent_link(
+    ws: WebSocket,
+    *,
+    owns: Callable[[], bool],
+    announcements: Callable[[], int],
+    wait: float = min(OWNER_WAIT, HELLO_HOLD),
+) -> bool:
+    """A standby's answer to a rig host: held while no owner is heard, refused once one is.
+
+    Returns ``True`` (the WebSocket accepted, the host's ``Hello`` unread) when
+    this worker took the rigs over meanwhile: the caller serves the link.
+    ``announcements()`` counts the owner announcements heard; ``owns()`` says
+    whether this worker owns the rigs now.
+    """
+    await ws.accept()
+    heard = announcements()
+    deadline = time.monotonic() + wait
+    while time.monotonic() < deadline:
+        if owns():
+            log.info("a rig host held through the takeover is served here")
+            return True
+        if announcements() != heard:
+            break  # an owner is alive (or was just decided elsewhere): the host dials it
+        await asyncio.sleep(_HOLD_LOOK)
+    await refuse_agent_link(ws, accepted=True)
+    return False
 
 
 def _forwarded(path: str) -> bool:
@@ -101,6 +171,9 @@ class ForwardToOwner:
         heard (:meth:`~thermolab.lab.fleet.workers.Fleet.on_owner`): a waiting request
         is sent at once then. Without it, waiting requests try again every
         announcement interval.
+    tls : ssl.SSLContext, optional
+        Checks an ``https://`` owner's certificate (default :func:`owner_tls`:
+        the system's CAs).
 
     Notes
     -----
@@ -117,6 +190,7 @@ class ForwardToOwner:
         timeout: float = 30.0,
         wait: float = OWNER_WAIT,
         on_owner: Callable[[Callable[[], None]], None] | None = None,
+        tls: ssl.SSLContext | None = None,
     ) -> None:
         self.app = app
         self.owner_url = owner_url
@@ -126,8 +200,10 @@ class ForwardToOwner:
         # the connection attempt unanswered, and the next owner's address, announced meanwhile,
         # is then tried within about one more interval.
         self._client = httpx.AsyncClient(
-            timeout=httpx.Timeout(timeout, connect=min(timeout, ANNOUNCE_INTERVAL))
+            timeout=httpx.Timeout(timeout, connect=min(timeout, ANNOUNCE_INTERVAL)),
+            verify=tls if tls is not None else owner_tls(),
         )
+        self._unreachable = ""  # why the owner could not be reached, as last logged
         self._loop: asyncio.AbstractEventLoop | None = None
         self._owner_heard = asyncio.Event()
         if on_owner is not None:
@@ -224,7 +300,11 @@ class ForwardToOwner:
             answer = await self._client.send(
                 _request(self._client, scope, owner, body), stream=True
             )
-        except (httpx.ConnectError, httpx.ConnectTimeout):
+        except (httpx.ConnectError, httpx.ConnectTimeout) as exc:
+            why = f"{owner}: {exc or type(exc).__name__}"
+            if why != self._unreachable:  # once per reason, not once per held request
+                self._unreachable = why
+                log.warning("cannot reach the worker that owns the rigs at %s", why)
             return False  # never sent: safe to send again, even a POST
         except httpx.HTTPError:
             # Sent, and no answer: the owner may have applied it; sending it again could
@@ -234,6 +314,7 @@ class ForwardToOwner:
             )
             await response(scope, receive, send)
             return True
+        self._unreachable = ""
         await _relay(answer, send)
         return True
 

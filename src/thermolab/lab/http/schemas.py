@@ -25,6 +25,7 @@ from thermolab.lab.service import InputResult
 
 __all__ = [
     "AccessOut",
+    "ActuatorOut",
     "ControlSessionOut",
     "CooldownOut",
     "CredentialsIn",
@@ -95,21 +96,33 @@ class ValidationErrorOut(_Out):
         "class_list_invalid",
         "gain_out_of_range",
         "setpoint_out_of_range",
+        "setpoint_no_step",
         "no_output_unit",
         "setting_out_of_range",
         "image_invalid",
         "image_too_many_pixels",
         "setting_not_for_rig",
+        "speedup_refused",
+        "slot_ends_before_start",
+        "slot_too_long",
+        "slot_zone_missing",
+        "time_zone_unknown",
     ] = Field(
         description="invalid_request: the request does not match the schema (a body that is "
         "not UTF-8 JSON included); invalid_parameter: the values match the schema but the lab "
         "refuses them (a signal outside the rig's range, a run too long...); "
         "class_list_invalid: a class list with bad lines (one entry of errors per line); "
-        "gain_out_of_range, setpoint_out_of_range, no_output_unit: the closed loop's refusals; "
+        "gain_out_of_range, setpoint_out_of_range, setpoint_no_step, no_output_unit: the "
+        "closed loop's refusals; "
         "setting_out_of_range: a teacher setting outside the rig's allowed range (the message "
         "names the range); image_invalid, image_too_many_pixels: a guide picture that is not "
         "a readable picture, or has too many pixels; setting_not_for_rig: a setting this rig "
-        "does not have (the twin speed-up of hardware or of a rig host's twin)"
+        "does not have (the twin speed-up of hardware or of a rig host's twin); "
+        "speedup_refused: a script's speed-up the rig does not allow (the message names what "
+        "it allows); slot_ends_before_start, slot_too_long, slot_zone_missing: a booking's "
+        "times (an end at or before the start, longer than a day unless said longer, a time "
+        "without its zone); time_zone_unknown: a time zone that is not a known IANA name "
+        "(a weekly series' zone)"
     )
     message: str | None = Field(
         default=None, description="the code's sentence in the reader's language"
@@ -207,6 +220,15 @@ class InputRangeOut(_Out):
     safe: float
     last: float | None = Field(description="the controller's last input (null: the safe input)")
     live: bool = Field(description="true when inputs reach a device")
+
+
+class ActuatorOut(_Out):
+    """An actuator of the rig besides its input (a twin's disturbance fan)."""
+
+    name: str
+    unit: str
+    default: float = Field(description="its declared default: every turn and run starts here")
+    level: float | None = Field(description="its level now (null: not known to the lab)")
 
 
 class CooldownOut(_Out):
@@ -308,9 +330,14 @@ class RigOut(_Out):
     fault: str | None
     input: InputRangeOut
     output_unit: str
+    actuators: list[ActuatorOut] = Field(
+        description="every actuator besides the input, with its level now and its declared "
+        "default; a rig is handed over with each at its default"
+    )
     speedup: float | None = Field(
         description="how many times faster than real time the rig runs: 1 for hardware; a "
-        "twin the lab runs, its teacher setting twin_speedup (the pace of the next run, and "
+        "twin the lab runs, its teacher setting twin_speedup or, during a turn that chose "
+        "one (PUT /api/rigs/{id}/control/speedup), that turn's (the pace of the next run, and "
         "of the twin when no run is going: a run keeps the pace it started with); a twin on "
         "a rig host, its host's --speedup (null until the host has dialled in)"
     )
@@ -341,6 +368,10 @@ class RigOut(_Out):
                 live=pub.live,
             ),
             output_unit=pub.output_unit,
+            actuators=[
+                ActuatorOut(name=a.name, unit=a.unit, default=a.default, level=a.level)
+                for a in pub.actuators
+            ],
             speedup=pub.speedup,
             limits=LimitsOut(
                 control_time_limit=cfg.control_time_limit,

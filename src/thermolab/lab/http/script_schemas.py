@@ -16,7 +16,20 @@ from thermolab.lab.accounts.tokens import (
 from thermolab.lab.http.bodies import In, Out
 from thermolab.lab.service import OutputReading
 
-__all__ = ["LabVersionOut", "NewTokenOut", "ReadingOut", "TokenIn", "TokenOut"]
+__all__ = ["LabVersionOut", "NewTokenOut", "ReadingOut", "SpeedupIn", "TokenIn", "TokenOut"]
+
+
+class SpeedupIn(In):
+    """A twin's speed-up for the caller's turn (``setup(connected=False, speedup=...)``)."""
+
+    speedup: Annotated[
+        float,
+        Field(
+            gt=0,
+            allow_inf_nan=False,
+            description="times real time; from 1 up to the twin's twin_speedup",
+        ),
+    ]
 
 
 class TokenIn(In):

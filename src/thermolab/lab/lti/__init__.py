@@ -8,6 +8,8 @@
 * :mod:`.launch` — OIDC login initiation and the launch (:mod:`.accounts`:
   who is signed in, which course);
 * :mod:`.deep_linking` — the teacher's choice of what to link;
+* :mod:`.handoffs` — a pending deep link and a new window's ticket, in the
+  database, so that any web worker can finish a launch;
 * :mod:`.roster` — NRPS roster synchronisation;
 * :mod:`.grades` — the AGS grade outbox: ``LtiService.queue_grade`` is its ``queue_grade``;
 * :mod:`.assignment_links` — assignments offered to deep linking, their marks
@@ -29,19 +31,23 @@ joserfc would have done as well; PyJWT was chosen for ``PyJWKClient``.
 from __future__ import annotations
 
 import logging
-import secrets
 import threading
 import time
 from collections.abc import Callable, Iterable
+from datetime import timedelta
 
 from argon2 import PasswordHasher
 
+from thermolab.lab.accounts.users import UserInfo
 from thermolab.lab.assignments import AssignmentService
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
+from thermolab.lab.db.lti_models import HandoffKind
+from thermolab.lab.db.models import User
 from thermolab.lab.lti.assignment_links import follow_assignments
 from thermolab.lab.lti.deep_linking import DeepLinkRequests, LinkableItems, LinkItem
 from thermolab.lab.lti.grades import GradeOutbox
+from thermolab.lab.lti.handoffs import Handoffs
 from thermolab.lab.lti.keys import ToolKeys
 from thermolab.lab.lti.launch import LaunchOutcome, LtiLaunches
 from thermolab.lab.lti.platforms import PlatformRegistry
@@ -53,7 +59,7 @@ __all__ = ["LtiService"]
 
 log = logging.getLogger(__name__)
 
-_HANDOFF_LIFETIME = 120.0
+_WINDOW_LIFETIME = timedelta(minutes=2)
 _KICK_INTERVAL = 5.0  # seconds between looks at the grade outbox
 
 
@@ -81,6 +87,7 @@ class LtiService:
         guide_sections: Iterable[str],
     ) -> None:
         self._db = db
+        self.handoffs = Handoffs(db, clock)
         self.platforms = PlatformRegistry(db, clock)
         self.keys = ToolKeys(db, clock)
         self.jwks = JwksCache()
@@ -105,8 +112,7 @@ class LtiService:
                 for s in sections
             ]
         )
-        self.deep_links = DeepLinkRequests(self.keys, self.linkable)
-        self._handoffs: dict[str, tuple[LaunchOutcome, str, float]] = {}
+        self.deep_links = DeepLinkRequests(self.handoffs, self.keys, self.linkable)
         self._lock = threading.Lock()
         self._delivering: threading.Thread | None = None
         self._next_kick = 0.0
@@ -149,19 +155,23 @@ class LtiService:
             log.exception("the LTI grade outbox could not be delivered")
 
     def hand_over(self, outcome: LaunchOutcome, path: str) -> str:
-        """A one-time ticket (2 minutes) that opens the launch's login in a new window."""
-        ticket = secrets.token_urlsafe(32)
-        now = time.monotonic()
-        with self._lock:
-            for old in [k for k, v in self._handoffs.items() if v[2] <= now]:
-                del self._handoffs[old]
-            self._handoffs[ticket] = (outcome, path, now + _HANDOFF_LIFETIME)
-        return ticket
+        """A one-time ticket (2 minutes) that opens the launch's login in a new window.
 
-    def take_over(self, ticket: str) -> tuple[LaunchOutcome, str] | None:
-        """The launch of a ticket, once; ``None`` when unknown, used or expired."""
-        with self._lock:
-            found = self._handoffs.pop(ticket, None)
-        if found is None or found[2] <= time.monotonic():
+        Kept in the database: the new window's request may reach another worker.
+        """
+        return self.handoffs.put(
+            HandoffKind.WINDOW,
+            outcome.user.id,
+            outcome.platform.id,
+            {"path": path},
+            _WINDOW_LIFETIME,
+        )
+
+    def take_over(self, ticket: str) -> tuple[UserInfo, str] | None:
+        """The person and page of a ticket, once; ``None`` when unknown, used or expired."""
+        found = self.handoffs.take(HandoffKind.WINDOW, ticket)
+        if found is None:
             return None
-        return found[0], found[1]
+        with self._db.read() as session:
+            user = session.get(User, found.user_id)
+            return None if user is None else (UserInfo.of(user), str(found.data["path"]))

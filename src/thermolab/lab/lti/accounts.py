@@ -11,7 +11,8 @@
   ``lti-<12 hex digits of the identity's hash>``; its password is random and
   unknown (the person signs in through the LMS; a teacher can reset it).
 * **The role.** Instructor or Administrator is a teacher, anything else a
-  student (:func:`~thermolab.lab.lti.claims.lab_role`).
+  student (:func:`~thermolab.lab.lti.claims.lab_role`); in the course, a
+  TeachingAssistant is an assistant (:func:`~thermolab.lab.lti.claims.course_role`).
 * **The course.** An LMS context (platform, context id) fills one lab course
   (:class:`~thermolab.lab.db.lti_models.LtiContext`), made on the first
   launch from the context's label and title; the user joins it.
@@ -34,8 +35,8 @@ from thermolab.errors import InvalidParameterError
 from thermolab.lab.accounts.names import normalize_display_name, normalize_username
 from thermolab.lab.classes.courses import new_enrol_code
 from thermolab.lab.db.lti_models import URL_LENGTH, LtiContext, LtiIdentity, LtiResourceLink
-from thermolab.lab.db.models import Course, CourseMember, Role, User
-from thermolab.lab.lti.claims import CLAIM, lab_role
+from thermolab.lab.db.models import Course, CourseMember, MemberRole, Role, User
+from thermolab.lab.lti.claims import CLAIM, course_role, lab_role
 
 __all__ = [
     "LmsPerson",
@@ -55,6 +56,7 @@ class LmsPerson:
     role: Role
     login_name: str | None
     display_name: str | None
+    course_role: MemberRole = MemberRole.STUDENT
 
 
 def person_of(claims: dict[str, Any]) -> LmsPerson:
@@ -71,11 +73,13 @@ def person_of(claims: dict[str, Any]) -> LmsPerson:
         str(p) for p in (claims.get("given_name"), claims.get("family_name")) if p
     )
     roles = claims.get(CLAIM["roles"], claims.get("roles", []))
+    listed = roles if isinstance(roles, list) else []
     return LmsPerson(
         sub=str(claims.get("sub") or claims.get("user_id") or ""),
-        role=lab_role(roles if isinstance(roles, list) else []),
+        role=lab_role(listed),
         login_name=str(login) if login else None,
         display_name=str(name) if name else None,
+        course_role=course_role(listed),
     )
 
 
@@ -189,7 +193,9 @@ def join_course(
     return course
 
 
-def add_member(session: Session, course_id: int, user: User, role: Role, now: datetime) -> None:
+def add_member(
+    session: Session, course_id: int, user: User, role: MemberRole, now: datetime
+) -> None:
     """Put ``user`` in the course (once) with ``role``; a closed course takes nobody new.
 
     A launch into a closed course still signs its members in (they read it).

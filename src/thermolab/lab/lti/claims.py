@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from thermolab.lab.db.models import Role
+from thermolab.lab.db.models import MemberRole, Role
 
 __all__ = [
     "AGS_SCOPES",
@@ -17,6 +17,7 @@ __all__ = [
     "LTI_VERSION",
     "NRPS_SCOPE",
     "RESOURCE_LINK_REQUEST",
+    "course_role",
     "lab_role",
 ]
 
@@ -74,3 +75,31 @@ def lab_role(roles: Iterable[object]) -> Role:
         if name in _TEACHING:
             return Role.TEACHER
     return Role.STUDENT
+
+
+def course_role(roles: Iterable[object]) -> MemberRole:
+    """The place of an LMS user in the lab course: teacher, teaching assistant or student.
+
+    A teacher (:func:`lab_role`) teaches; else a ``TeachingAssistant`` (LTI's
+    ``membership/Instructor#TeachingAssistant`` or the short name) assists,
+    with a student's account; anyone else is a student.
+
+    Examples
+    --------
+    >>> course_role(["http://purl.imsglobal.org/vocab/lis/v2/membership/Instructor#TeachingAssistant"])
+    <MemberRole.ASSISTANT: 'assistant'>
+    >>> course_role(["Instructor", "TeachingAssistant"])
+    <MemberRole.TEACHER: 'teacher'>
+    >>> course_role(["Learner"])
+    <MemberRole.STUDENT: 'student'>
+    """
+    listed = list(roles)
+    if lab_role(listed) is Role.TEACHER:
+        return MemberRole.TEACHER
+    for role in listed:
+        if (
+            isinstance(role, str)
+            and role.rsplit("#", 1)[-1].rsplit("/", 1)[-1] == "TeachingAssistant"
+        ):
+            return MemberRole.ASSISTANT
+    return MemberRole.STUDENT

@@ -9,23 +9,26 @@ course the LMS launched them in). An item's ``target`` (``rig:<id>``,
 the content item's ``custom`` parameters and comes back in every launch of
 it, where :func:`target_path` turns it into the page to open.
 
-A deep-linking request is kept in memory (one server process) for 30 minutes,
-bound to the teacher who launched it; the answer is a JWT signed with the
-tool's key, posted back by the browser to the platform's return URL.
+A deep-linking request is kept in the database (:mod:`.handoffs`: any web
+worker can finish it) for 30 minutes, bound to the teacher who launched it;
+the answer is a JWT signed with the tool's key, posted back by the browser to
+the platform's return URL, and ends the request.
 """
 
 from __future__ import annotations
 
 import re
 import secrets
-import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from datetime import datetime, timedelta
 from typing import Any
 
 from thermolab.errors import InvalidParameterError, NotFoundError
+from thermolab.lab.db.lti_models import HandoffKind
 from thermolab.lab.lti.claims import CLAIM, DEEP_LINKING_RESPONSE, LTI_VERSION
+from thermolab.lab.lti.handoffs import Handoff, Handoffs
 from thermolab.lab.lti.keys import ToolKeys
 from thermolab.lab.lti.platforms import PlatformInfo
 
@@ -43,7 +46,7 @@ TARGET_PARAMETER = "thermolab_target"
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 # An assignment's number in a target.
 _ID = re.compile(r"[1-9][0-9]{0,17}")
-_LIFETIME = 1800.0
+_LIFETIME = timedelta(minutes=30)
 
 
 @dataclass(frozen=True, slots=True)
@@ -129,18 +132,30 @@ class PendingDeepLink:
     platform: PlatformInfo
     deployment_id: str
     settings: dict[str, Any]
-    expires: float
+    expires: datetime
     course: str | None = None
 
 
-class DeepLinkRequests:
-    """Pending deep-linking requests, and the signed answer to one."""
+def _pending(found: Handoff | None, user_id: int) -> PendingDeepLink:
+    if found is None or found.user_id != user_id:
+        raise NotFoundError("no such deep-linking request (it may have expired)")
+    return PendingDeepLink(
+        found.user_id,
+        found.platform,
+        str(found.data["deployment_id"]),
+        dict(found.data["settings"]),
+        found.expires,
+        found.data.get("course"),
+    )
 
-    def __init__(self, keys: ToolKeys, items: LinkableItems) -> None:
+
+class DeepLinkRequests:
+    """Pending deep-linking requests (rows of :class:`.Handoffs`), and the signed answer to one."""
+
+    def __init__(self, handoffs: Handoffs, keys: ToolKeys, items: LinkableItems) -> None:
+        self._handoffs = handoffs
         self._keys = keys
         self._items = items
-        self._pending: dict[str, PendingDeepLink] = {}
-        self._lock = threading.Lock()
 
     def open(
         self,
@@ -153,15 +168,8 @@ class DeepLinkRequests:
         """Keep a request (from the LMS course that fills lab ``course``); return its id."""
         if not isinstance(settings.get("deep_link_return_url"), str):
             raise InvalidParameterError("the deep-linking request has no return URL")
-        key = secrets.token_urlsafe(24)
-        now = time.monotonic()
-        with self._lock:
-            for old in [k for k, v in self._pending.items() if v.expires <= now]:
-                del self._pending[old]
-            self._pending[key] = PendingDeepLink(
-                user_id, platform, deployment_id, settings, now + _LIFETIME, course
-            )
-        return key
+        data = {"deployment_id": deployment_id, "settings": settings, "course": course}
+        return self._handoffs.put(HandoffKind.DEEP_LINK, user_id, platform.id, data, _LIFETIME)
 
     def get(self, key: str, user_id: int) -> PendingDeepLink:
         """A pending request of this teacher.
@@ -170,11 +178,7 @@ class DeepLinkRequests:
         ------
         NotFoundError
         """
-        with self._lock:
-            pending = self._pending.get(key)
-        if pending is None or pending.user_id != user_id or pending.expires <= time.monotonic():
-            raise NotFoundError("no such deep-linking request (it may have expired)")
-        return pending
+        return _pending(self._handoffs.peek(HandoffKind.DEEP_LINK, key), user_id)
 
     def items(self, pending: PendingDeepLink) -> list[LinkItem]:
         """What the teacher of ``pending`` can choose (their LMS course's assignments too)."""
@@ -188,7 +192,7 @@ class DeepLinkRequests:
         Raises
         ------
         NotFoundError
-            An unknown request or item.
+            An unknown, used or expired request, or an unknown item.
         InvalidParameterError
             More than one item where the platform accepts one.
         """
@@ -196,6 +200,8 @@ class DeepLinkRequests:
         chosen = [self._items.find(t, pending.course) for t in targets]
         if len(chosen) > 1 and pending.settings.get("accept_multiple") is False:
             raise InvalidParameterError("the LMS accepts one item here: choose one")
+        # Used once, on whichever worker answers first.
+        _pending(self._handoffs.take(HandoffKind.DEEP_LINK, key), user_id)
         # Shown as the platform accepts it: in its frame if it may, else in a window.
         shown = pending.settings.get("accept_presentation_document_targets") or ["iframe"]
         presentation: dict[str, Any] = (
@@ -224,6 +230,4 @@ class DeepLinkRequests:
         }
         if "data" in pending.settings:
             claims[CLAIM["dl_data"]] = pending.settings["data"]
-        with self._lock:
-            self._pending.pop(key, None)
         return str(pending.settings["deep_link_return_url"]), self._keys.sign(claims)

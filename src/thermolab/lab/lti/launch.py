@@ -180,17 +180,26 @@ class InitiationRate:
 
     Each initiation stores a state row, so an anonymous flood would fill the
     table; past the limit the address is refused (HTTP 429) until its oldest
-    initiation leaves the window. Addresses are forgotten when idle.
+    initiation leaves the window. Addresses are forgotten when idle. This is
+    one process's count; workers on a Redis broker count lab-wide
+    (:class:`~thermolab.lab.fleet.shared_limits.SharedInitiationRate`, same rule).
     """
 
     def __init__(
         self, clock: LabClock, *, per_address: int = 30, window: timedelta = timedelta(minutes=1)
     ) -> None:
-        self._clock = clock
-        self._per_address = per_address
-        self._window = window
+        self.clock = clock
+        self.per_address = per_address
+        self.window = window
         self._seen: dict[str, list[float]] = {}
         self._lock = threading.Lock()
+
+    def refusal(self, address: str) -> LtiThrottledError:
+        """The error of one initiation too many from ``address``."""
+        return LtiThrottledError(
+            f"too many LTI logins from {address}: at most {self.per_address} per "
+            f"{int(self.window.total_seconds())} s"
+        )
 
     def check(self, address: str) -> None:
         """Count one initiation from ``address``.
@@ -200,18 +209,15 @@ class InitiationRate:
         LtiThrottledError
             Past the limit.
         """
-        now = self._clock.now().timestamp()
-        start = now - self._window.total_seconds()
+        now = self.clock.now().timestamp()
+        start = now - self.window.total_seconds()
         with self._lock:
             if len(self._seen) > 10_000:  # forget idle addresses
                 self._seen = {a: t for a, t in self._seen.items() if t and t[-1] > start}
             times = [t for t in self._seen.get(address, []) if t > start]
-            if len(times) >= self._per_address:
+            if len(times) >= self.per_address:
                 self._seen[address] = times
-                raise LtiThrottledError(
-                    f"too many LTI logins from {address}: at most {self._per_address} per "
-                    f"{int(self._window.total_seconds())} s"
-                )
+                raise self.refusal(address)
             times.append(now)
             self._seen[address] = times
 
@@ -388,7 +394,7 @@ class LtiLaunches:
             course_name = None
             if isinstance(context, dict) and context.get("id"):
                 course = join_course(session, platform.id, context, services, now)
-                add_member(session, course.id, user, person.role, now)
+                add_member(session, course.id, user, person.course_role, now)
                 course_name = course.name
             info = UserInfo.of(user)
         custom = claims.get(CLAIM["custom"])

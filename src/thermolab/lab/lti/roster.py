@@ -95,7 +95,7 @@ class RosterSync:
             listed: set[int] = set()
             for person in active:
                 user = sign_in_account(session, platform.id, person, now, self._hasher)
-                add_member(session, course_id, user, person.role, now)
+                add_member(session, course_id, user, person.course_role, now)
                 listed.add(user.id)
                 if user.id in before:
                     report.kept += 1

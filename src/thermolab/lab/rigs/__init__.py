@@ -2,6 +2,8 @@
 
 * :mod:`.devices` — :class:`~.devices.DeviceHub`: makes each rig match the
   committed access state (the only module that drives a rig's inputs);
+* :mod:`.opener` — how a configured rig's driver is opened (a twin on a clock
+  whose rate the hub sets, hardware in real time);
 * :mod:`.rig_settings` — teachers' settings per rig, within the technician's caps;
 * :mod:`.camera` — the live image of a rig.
 

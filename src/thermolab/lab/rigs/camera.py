@@ -10,19 +10,49 @@ class of watchers polling the image costs one drawing, not one each.
 
 from __future__ import annotations
 
+import importlib.util
 import io
 import math
 import threading
 import time
+import unicodedata
 import urllib.request
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
 
 from PIL import Image, ImageDraw, ImageFont
 
 from thermolab.errors import RigError
 
-__all__ = ["CameraError", "Picture", "PictureCache", "draw_twin", "fetch_camera", "first_jpeg"]
+__all__ = [
+    "CAMERA_WORDS",
+    "CameraError",
+    "Picture",
+    "PictureCache",
+    "draw_twin",
+    "fetch_camera",
+    "first_jpeg",
+    "picture_text",
+]
+
+#: The words a twin's picture shows, as gettext msgids (``lab/locale`` translates
+#: them): the readings, each rig state, and the title the lab ships its default rig
+#: with (``lab.config.model.DEFAULT_RIG``: the lab's own words; an operator's title
+#: is shown as written).
+CAMERA_WORDS: Mapping[str, str] = {
+    "default_title": "Digital twin of the paper's box",
+    "output": "output {value} {unit}",
+    "input": "input {value} {unit}",
+    "off": "off",
+    "starting": "starting",
+    "free": "free",
+    "in_use": "in use",
+    "cooldown": "cooling down",
+    "fault": "fault",
+    "out_of_service": "out of service",
+}
 
 WIDTH, HEIGHT = 480, 320
 MAX_FRAME = 4 * 1024 * 1024
@@ -49,6 +79,10 @@ class Picture:
     input_min, input_max : float
         The input range (scales the lamp and the fan).
     input_unit, output_unit : str
+    say : callable
+        The words in the reader's language (a gettext function; English by default).
+    decimal_mark : str
+        The reader's decimal mark ("," in pt-BR and es).
     """
 
     title: str
@@ -59,6 +93,41 @@ class Picture:
     input_max: float
     input_unit: str
     output_unit: str
+    say: Callable[[str], str] = str
+    decimal_mark: str = "."
+
+
+@cache
+def _font_file() -> Path | None:
+    """A TrueType font with every letter of Portuguese and Spanish: matplotlib's DejaVu
+    Sans when matplotlib is installed (the ``plot`` extra), else none."""
+    spec = importlib.util.find_spec("matplotlib")
+    for folder in (spec.submodule_search_locations or []) if spec else []:
+        path = Path(folder) / "mpl-data" / "fonts" / "ttf" / "DejaVuSans.ttf"
+        if path.is_file():
+            return path
+    return None
+
+
+def _font(size: int) -> ImageFont.FreeTypeFont | ImageFont.ImageFont:
+    path = _font_file()
+    return ImageFont.truetype(str(path), size) if path else ImageFont.load_default(size=size)
+
+
+def picture_text(text: str) -> str:
+    """``text`` as the picture writes it: as is with DejaVu Sans; without its accents
+    ("saida") with Pillow's built-in font, which has no accented letter (a box would
+    stand in for it).
+
+    Examples
+    --------
+    >>> picture_text("output 0.785 V")
+    'output 0.785 V'
+    """
+    if _font_file() is not None:
+        return text
+    decomposed = unicodedata.normalize("NFKD", text)
+    return "".join(c for c in decomposed if not unicodedata.combining(c))
 
 
 def draw_twin(picture: Picture) -> bytes:
@@ -75,8 +144,8 @@ def draw_twin(picture: Picture) -> bytes:
     cool = max(0.0, -u) / -picture.input_min if picture.input_min < 0 else 0.0
     image = Image.new("RGB", (WIDTH, HEIGHT), (24, 28, 36))
     draw = ImageDraw.Draw(image)
-    font = ImageFont.load_default(size=18)
-    small = ImageFont.load_default(size=14)
+    font = _font(18)
+    small = _font(14)
     # The wooden box.
     draw.rectangle((60, 70, 420, 270), fill=(133, 94, 66), outline=(90, 60, 40), width=4)
     draw.rectangle((80, 90, 400, 250), fill=(60, 44, 34))
@@ -105,13 +174,20 @@ def draw_twin(picture: Picture) -> bytes:
             )
     draw.ellipse((fx - 8, fy - 8, fx + 8, fy + 8), fill=(200, 200, 210))
     # The words.
-    # Pillow's built-in font has no em dash or middle dot: keep the picture to ASCII.
-    heading = f"{picture.title} ({picture.state.replace('_', ' ')})"
-    draw.text((16, 14), heading, fill=(235, 235, 235), font=font)
+    # No em dash or middle dot (Pillow's built-in font has none); accents: picture_text.
+    say, mark = picture.say, picture.decimal_mark
+    state = CAMERA_WORDS.get(picture.state)
+    title = say(picture.title) if picture.title == CAMERA_WORDS["default_title"] else picture.title
+    heading = f"{title} ({say(state) if state else picture.state.replace('_', ' ')})"
+    draw.text((16, 14), picture_text(heading), fill=(235, 235, 235), font=font)
+    # The output to the millivolt, the input to 10 mV: what the box's converters resolve.
     reading = "-" if picture.y is None or not math.isfinite(picture.y) else f"{picture.y:.3f}"
-    draw.text((16, 286), f"output {reading} {picture.output_unit}", fill=(255, 220, 120), font=font)
-    shown = "-" if picture.u is None else f"{u:+.2f}"
-    draw.text((300, 290), f"input {shown} {picture.input_unit}", fill=(170, 210, 255), font=small)
+    output = say(CAMERA_WORDS["output"])
+    output = output.format(value=reading.replace(".", mark), unit=picture.output_unit)
+    draw.text((16, 286), picture_text(output), fill=(255, 220, 120), font=font)
+    shown = "-" if picture.u is None else f"{u:+.2f}".replace(".", mark)
+    words = say(CAMERA_WORDS["input"]).format(value=shown, unit=picture.input_unit)
+    draw.text((300, 290), picture_text(words), fill=(170, 210, 255), font=small)
     out = io.BytesIO()
     image.save(out, format="JPEG", quality=80)
     return out.getvalue()

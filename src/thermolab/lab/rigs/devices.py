@@ -25,53 +25,32 @@ from __future__ import annotations
 import dataclasses
 import logging
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import datetime
 
-from thermolab.errors import RigError, ThermoLabError
+from thermolab.errors import ConflictError, RigError, SpeedupRefusedError, ThermoLabError
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig, RigConfig
-from thermolab.lab.config.rig_kinds import PublishedRig, narrow_range, published_defaults
+from thermolab.lab.config.rig_kinds import (
+    ActuatorLevel,
+    PublishedRig,
+    narrow_range,
+    published_defaults,
+)
 from thermolab.lab.db.models import PowerState
-from thermolab.rigs import RateClock, RealClock, Rig
+from thermolab.lab.rigs.opener import RigOpener
+from thermolab.rigs import RateClock, Rig
 
 __all__ = [
     "DesiredState",
     "DeviceHub",
     "PublishedRig",
-    "RigOpener",
-    "device_opener",
     "published_defaults",
 ]
 
 log = logging.getLogger(__name__)
-
-RigOpener = Callable[[RigConfig], Rig]
-"""Opens the driver of a configured rig (the digital twin, a TCLab on its port)."""
-
-
-def device_opener() -> RigOpener:
-    """Return the opener of real rigs: :meth:`thermolab.rigs.RigSpec.open` on the rig's spec.
-
-    Each twin gets a clock of its own whose rate the hub changes (a
-    :class:`~thermolab.rigs.RateClock` at the rig's ``twin_speedup``);
-    hardware always runs in real time.
-
-    Examples
-    --------
-    >>> opener = device_opener()
-    >>> with opener(RigConfig("a", "A", "sim:tclab", twin_speedup=20.0)) as rig:
-    ...     rig.describe().input_unit, rig.clock.rate
-    ('%', 20.0)
-    """
-
-    def open_configured(rig: RigConfig) -> Rig:
-        spec = rig.rig_spec
-        return spec.open(clock=RateClock(rig.twin_speedup) if spec.simulated else RealClock())
-
-    return open_configured
 
 
 @dataclass(frozen=True, slots=True)
@@ -105,6 +84,11 @@ class _Slot:
         self.claimed = False
         self.input: float | None = None
         self.host_speedup: float | None = None  # a rig host's, as its Hello said
+        # A rig host's further actuators (a fan), as its run's samples and its rests
+        # tell them (None: not known yet); an in-process driver is read instead.
+        self.host_levels: dict[str, float | None] = dict.fromkeys(config.rig_spec.actuators)
+        # A controller's own speed-up of a twin for their turn: (control session, speed-up).
+        self.turn_pace: tuple[int, float] | None = None
 
 
 class DeviceHub:
@@ -194,6 +178,7 @@ class DeviceHub:
             slot.controller_session = None
             if left_off:
                 slot.powered, slot.input = False, None
+                self._host_at_rest(slot)  # its runner powered it off: the rig's safe state
             self._pace(slot, self._config.rig(rig_id))
 
     def follow_settings(self, rig: RigConfig) -> None:
@@ -214,24 +199,74 @@ class DeviceHub:
         clock = None if driver is None else driver.clock
         return clock.rate if isinstance(clock, RateClock) else None
 
+    def pace_turn(self, rig_id: str, speedup: float, *, controller_session: int) -> float:
+        """Run a twin at ``speedup`` for the controller's turn; return the speed-up in force.
+
+        Allowed: a twin the lab runs, from real time (1) up to its teacher's
+        ``twin_speedup``, while no run is going (a run keeps its pace). The
+        turn's speed-up ends with the turn (:meth:`reconcile`), and a teacher's
+        lower ``twin_speedup`` caps it.
+
+        Raises
+        ------
+        SpeedupRefusedError
+            For hardware or a rig host's twin, or a speed-up outside what the twin allows.
+        ConflictError
+            While a run is going, or when ``controller_session`` is no longer the rig's turn.
+        """
+        slot = self._slots[rig_id]
+        rig = self._config.rig(rig_id)
+        if not rig.lab_twin or self.clock_rate(rig_id) is None:
+            raise SpeedupRefusedError(
+                f"rig {rig_id!r} ({rig.spec}) runs at its own pace, not the lab's: it is "
+                "hardware or a twin on a rig host, so only 1x (real time for hardware) is "
+                f"allowed; {speedup:g}x was asked"
+            )
+        if not (1.0 <= speedup <= rig.twin_speedup):
+            raise SpeedupRefusedError(
+                f"rig {rig_id!r} (a twin) allows speed-ups from 1x to {rig.twin_speedup:g}x "
+                f"(its teacher's twin_speedup); {speedup:g}x was asked"
+            )
+        with slot.lock:
+            if slot.claimed:
+                raise ConflictError(
+                    f"a run is going on rig {rig_id!r}: it keeps the pace it started with; "
+                    "change the speed-up before its START"
+                )
+            slot.turn_pace = (controller_session, float(speedup))
+            self._pace(slot, rig)
+        return speedup
+
     @staticmethod
     def _pace(slot: _Slot, rig: RigConfig) -> None:
         clock = None if slot.driver is None else slot.driver.clock
         if isinstance(clock, RateClock) and rig.lab_twin:
-            clock.set_rate(rig.twin_speedup)
+            clock.set_rate(_speedup_in_force(slot, rig))
 
-    def note_sample(self, rig_id: str, u: float, y: float, *, of_run: bool = False) -> None:
+    def note_sample(
+        self,
+        rig_id: str,
+        u: float,
+        y: float,
+        *,
+        of_run: bool = False,
+        channels: Mapping[str, float | None] | None = None,
+    ) -> None:
         """Record a sample taken by someone else (a run samples the rig; a rig host reports).
 
         ``of_run``: a run's sample, ignored once the run has let the rig go
         (:meth:`release`). Its recorder stores samples in batches and may hand
         the last ones in after the end; the input they carry is history, not
-        what the rig now has.
+        what the rig now has. ``channels``: the sample's further channels; a
+        rig host's further actuators (a fan) are known from them.
         """
         slot = self._slots[rig_id]
         with slot.lock:
             if of_run and not slot.claimed:
                 return
+            for name, level in (channels or {}).items():
+                if name in slot.host_levels and level is not None:
+                    slot.host_levels[name] = level
             slot.input = u
             slot.output = y
             slot.output_at = self._clock.now() if self._clock is not None else slot.output_at
@@ -249,7 +284,14 @@ class DeviceHub:
         slot = self._slots[rig_id]
         rig = self._config.rig(rig_id)
         speedup = slot.host_speedup if rig.agent else rig.speedup
-        return dataclasses.replace(slot.published, speedup=speedup)
+        if rig.lab_twin and slot.turn_pace is not None:
+            speedup = _speedup_in_force(slot, rig)
+        levels = self.actuators(rig_id)
+        actuators = tuple(
+            ActuatorLevel(name, spec.unit, spec.default, levels[name])
+            for name, spec in rig.rig_spec.actuators.items()
+        )
+        return dataclasses.replace(slot.published, speedup=speedup, actuators=actuators)
 
     def host_said(self, rig_id: str, speedup: float) -> None:
         """A rig host dialled in and said how fast its rig runs (``Hello.speedup``)."""
@@ -316,17 +358,22 @@ class DeviceHub:
         with self._slots[rig_id].lock:
             yield
 
-    def reconcile(self, rig_id: str, desired: DesiredState, cooldown_input: float | None) -> None:
-        """Make the rig match ``desired``.
+    def reconcile(self, rig_id: str, desired: DesiredState, cooldown_input: float | None) -> bool:
+        """Make the rig match ``desired``; return whether the rig was handed over.
 
-        Powers the rig on or off; on a change of controller (or none) puts the
-        input at its safe value; while cooling holds ``cooldown_input``.
-        Errors of the device become the rig's fault (see :meth:`fault`).
+        Powers the rig on or off; on a change of controller (or none) hands the
+        rig over (:meth:`_hand_over`: every actuator at its declared default);
+        while cooling holds ``cooldown_input``. Errors of the device become the
+        rig's fault (see :meth:`fault`). A rig host's rig is handed over by its
+        host when the lab says so (``AgentHub.sync_power(hand_over=True)``).
         """
         slot = self._slots[rig_id]
         with slot.lock:
             if slot.claimed:
-                return
+                return False
+            if slot.turn_pace is not None and slot.turn_pace[0] != desired.controller_session:
+                slot.turn_pace = None  # the turn that chose it is over: the teacher's pace again
+                self._pace(slot, self._config.rig(rig_id))
             driver = slot.driver
             if driver is not None:
                 # The device's own state wins: a run powers the rig off when it ends.
@@ -338,7 +385,10 @@ class DeviceHub:
                     slot.powered = False
                     slot.controller_session = None
                     slot.input = None
-                    return
+                    if driver is None and slot.config.agent:
+                        self._host_at_rest(slot)  # told Power(off): its rig's safe state
+                    return False
+                handed_over = False
                 if not slot.powered:
                     if driver is not None:
                         driver.power_on()
@@ -346,19 +396,49 @@ class DeviceHub:
                     slot.controller_session = None
                     self._apply(slot, slot.published.safe_input)
                 if desired.power is PowerState.COOLING:
+                    handed_over = slot.controller_session is not None
+                    if handed_over:
+                        self._hand_over(slot)
                     slot.controller_session = None
                     target = slot.published.safe_input if cooldown_input is None else cooldown_input
                     self._apply(
                         slot, min(max(target, slot.published.input_min), slot.published.input_max)
                     )
                 elif desired.controller_session != slot.controller_session:
+                    handed_over = True
                     slot.controller_session = desired.controller_session
-                    self._apply(slot, slot.published.safe_input)
+                    self._hand_over(slot)
+                return handed_over
             except RigError as exc:
                 slot.fault = str(exc)
                 slot.powered = False
                 slot.controller_session = None
                 log.warning("rig %s: %s", rig_id, exc)
+                return False
+
+    def _hand_over(self, slot: _Slot) -> None:
+        """The one hand-over of a powered rig between turns: the rig's own safe state.
+
+        Powering the driver off puts every actuator its kind declares at its
+        declared default (the input at its safe value, a twin's fan off: the
+        :mod:`thermolab.rigs.contract` rule), so nothing a turn set reaches the
+        next one, whatever the rig has; then it is powered again at its safe
+        input. A rig host's rig (no driver here) is handed over by its host.
+        """
+        if slot.driver is not None:
+            slot.driver.power_off()
+            slot.driver.power_on()
+        slot.input = None
+        self._apply(slot, slot.published.safe_input)
+        if slot.driver is None and slot.config.agent:
+            slot.input = slot.published.safe_input  # what the host is told to hold
+            self._host_at_rest(slot)
+
+    @staticmethod
+    def _host_at_rest(slot: _Slot) -> None:
+        """A rig host's rig was powered off: by the rig contract, at its declared defaults."""
+        for name, spec in slot.config.rig_spec.actuators.items():
+            slot.host_levels[name] = spec.default
 
     def apply(self, rig_id: str, u: float, *, controller_session: int) -> float | None:
         """Apply a controller's input; return the value applied, or ``None`` if not applied.
@@ -412,9 +492,31 @@ class DeviceHub:
         """Return the input the hub last applied to the rig, if any."""
         return self._slots[rig_id].input
 
+    def actuators(self, rig_id: str) -> dict[str, float | None]:
+        """Every further actuator the rig's kind declares, at its level now (``None``: unknown).
+
+        Read from the open driver (a fan: its ``fan`` property, as
+        :class:`~thermolab.rigs.FanSpec` says); a rig host's, from its run's
+        samples and, once its rig was powered off (a run's end, a hand-over),
+        its declared default (``None`` until then).
+        """
+        slot = self._slots[rig_id]
+        driver = slot.driver  # one attribute read, no lock: views read it in a transaction
+        if driver is None and slot.config.agent:
+            return dict(slot.host_levels)
+        levels = {name: getattr(driver, name, None) for name in slot.config.rig_spec.actuators}
+        return {name: None if level is None else float(level) for name, level in levels.items()}
+
     @staticmethod
     def _apply(slot: _Slot, u: float) -> float | None:
         if slot.driver is None:
             return None
         slot.input = slot.driver.apply(u)
         return slot.input
+
+
+def _speedup_in_force(slot: _Slot, rig: RigConfig) -> float:
+    """The twin's pace now: the turn's own (capped by the teacher's), else the teacher's."""
+    if slot.turn_pace is None:
+        return rig.twin_speedup
+    return min(slot.turn_pace[1], rig.twin_speedup)

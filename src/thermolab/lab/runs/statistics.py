@@ -12,10 +12,11 @@ from typing import Any
 
 from thermolab.errors import ThermoLabError
 from thermolab.ident.online import OnlineIdentifier, make_identifier
+from thermolab.ident.table_figures import table_figures
 
 __all__ = ["CONVERGENCE_TOL", "STATS_LAST", "method_statistics", "replay_statistics"]
 
-#: The paper's tables: statistics over the last 2000 samples, convergence within ±1 %.
+#: The paper's tables: convergence within ±1 %; a scatter's spread over the last 2000 samples.
 STATS_LAST = 2000
 CONVERGENCE_TOL = 0.01
 
@@ -43,15 +44,17 @@ def method_statistics(
     -------
     dict
         ``{"last", "tol", "K", "tau", "converged_at"}``: ``K`` and ``tau`` are
-        ``{"mean", "max", "min"}`` of the valid estimates over the last
-        :data:`STATS_LAST` samples (:meth:`thermolab.ident.Trajectory.stats`),
-        ``None`` without one; ``converged_at`` is
-        :meth:`~thermolab.ident.Trajectory.converged_at` (within ±
-        :data:`CONVERGENCE_TOL`) for block and recursive methods and ``None``
-        for SRM and LSM, whose one estimate does not converge. SRM and LSM give
-        their estimate as mean, max and min. Block and recursive methods add
-        ``converged``: whether the estimates converge as the paper counts it
-        (:meth:`~thermolab.ident.Trajectory.after_convergence`).
+        ``{"mean", "max", "min"}``, ``None`` without a valid estimate. Block
+        and recursive methods' come from :func:`thermolab.ident.table_figures.table_figures`,
+        the function ``thermolab identify`` prints a CSV record's with, so the
+        run's CSV gives the same figures there (issue #24): over the samples
+        after convergence within ± :data:`CONVERGENCE_TOL` (``over``:
+        ``"after_convergence"``, ``last`` of them), or, where the estimates
+        never converge, their spread over the last :data:`STATS_LAST` samples
+        (``over``: ``"last"``); ``converged_at`` the samples to converge
+        (``None`` for one that did not) and ``converged`` the paper's verdict.
+        SRM and LSM give their one estimate as mean, max and min and no
+        ``converged_at`` (one estimate does not converge).
 
     Examples
     --------
@@ -68,17 +71,9 @@ def method_statistics(
     if method in _TRAJECTORY_METHODS:
         if identifier is None or identifier.n_samples == 0:
             return out
-        trajectory = identifier.trajectory()
-        stats = trajectory.stats(last=STATS_LAST)
-        for name in ("K", "tau"):
-            if math.isfinite(stats[name]["mean"]):
-                out[name] = stats[name]
-        out["converged_at"] = trajectory.converged_at(tol=CONVERGENCE_TOL, last=STATS_LAST)
-        # The paper's verdict (issue #8): judged over the samples after convergence,
-        # so a short run's start-up transient does not count against it; the page
-        # never shows the estimate of a run that did not converge as final.
-        out["converged"] = bool(trajectory.after_convergence(CONVERGENCE_TOL)["converged"])
-        return out
+        figures = table_figures(identifier.trajectory(), tol=CONVERGENCE_TOL, spread=STATS_LAST)
+        # The page never shows the estimate of a run that did not converge as final.
+        return {**out, **figures}
     if latest is not None and latest.get("valid"):
         for name in ("K", "tau"):
             value = latest.get(name)

@@ -36,6 +36,7 @@ from thermolab.errors import (
 from thermolab.jsonsafe import json_safe
 from thermolab.lab.accounts.security import normalize_username
 from thermolab.lab.accounts.users import Principal
+from thermolab.lab.classes.authorize import reads_as_group_mate
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import (
     Command,
@@ -117,13 +118,15 @@ class RunStore:
         NotFoundError
             If there is no such run.
         AccessDeniedError
-            If it belongs to another user, is over, and ``who`` is a student.
+            If it belongs to another user, is over, and ``who`` is a student
+            who is not the owner's lab group mate
+            (:func:`~thermolab.lab.classes.authorize.reads_as_group_mate`).
         """
         with self._db.read() as session:
             run = session.get(Run, run_id)
             if run is None:
                 raise NotFoundError(f"no run {run_id}")
-            _check_owner(run, who)
+            _check_owner(session, run, who)
 
     def read(self, run_id: int) -> tuple[Run, dict[str, dict[str, Any]]]:
         """A run's row and each method's stored ``{"method", "params", "result"}`` by label.
@@ -169,11 +172,14 @@ def _stored_results(session: Session, run: Run) -> dict[str, dict[str, Any]]:
     }
 
 
-def _check_owner(run: Run, who: Principal) -> None:
-    # A running run is on show to every watcher of its rig; once over it is its owner's.
+def _check_owner(session: Session, run: Run, who: Principal) -> None:
+    # A running run is on show to every watcher of its rig; once over it is its
+    # owner's, every teacher's and (read only) the owner's lab group mates'.
     if run.status == RunStatus.RUNNING.value:
         return
-    if not who.is_teacher and run.user_id != who.user_id:
+    if who.is_teacher or run.user_id == who.user_id:
+        return
+    if not reads_as_group_mate(session, run, who):
         raise AccessDeniedError(f"run {run.id} belongs to another user")
 
 

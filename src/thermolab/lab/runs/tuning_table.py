@@ -25,13 +25,15 @@ from thermolab.control import (
     RULE_FORMS,
     RULES,
     SPEED_RULES,
+    LoopWord,
     PIDGains,
     predict_closed_loop,
     predict_record_step,
-    rest_warning,
-    settling_warning,
+    rest_word,
+    settling_word,
     step_metrics,
     tune,
+    word_of,
 )
 from thermolab.errors import InvalidDataError, InvalidParameterError
 
@@ -111,7 +113,9 @@ def tuning_table(
                     y0=y0, u0=u0, u_limits=u_limits,
                 )  # fmt: skip
             except InvalidParameterError as exc:
-                rows.append({**row, "error": str(exc)})
+                # The English for the command line and the API; the code for a page's language.
+                word = word_of(exc)
+                rows.append({**row, "error": str(exc), "why": word and word.to_dict()})
                 continue
             rows.append(
                 {
@@ -158,21 +162,32 @@ def closed_loop_figures(
     y = np.asarray(samples.get("y") or [], dtype=np.float64)
     u = np.asarray(samples.get("u") or [], dtype=np.float64)
     r_values = samples.get("r")
-    out: dict[str, Any] = {"measured": None, "predicted": None, "note": None, "model": None}
-    if r_values is None or t.size < 3:
-        out["note"] = "not a closed-loop run (no set point recorded), or too few samples"
+    out: dict[str, Any] = {
+        "measured": None, "predicted": None, "note": None, "notes": [], "model": None,
+    }  # fmt: skip
+
+    def noted(*words: LoopWord | None) -> dict[str, Any]:
+        # ``note`` in English (the command line's words), ``notes`` by code for a page.
+        said = [w for w in words if w is not None]
+        out["note"] = "; ".join(w.text for w in said) or None
+        out["notes"] = [w.to_dict() for w in said]
         return out
+
+    if r_values is None or t.size < 3:
+        return noted(LoopWord.of("no_setpoint_recorded"))
     r = np.asarray([math.nan if v is None else v for v in r_values], dtype=np.float64)
     try:
         measured = step_metrics(t, r, y)
     except InvalidDataError as exc:
+        no_step = LoopWord.of("no_measured_step")
+        if str(exc) == no_step.text:
+            return noted(no_step)
         out["note"] = str(exc)
         return out
     out["measured"] = measured.to_dict()
     model = control.get("model")
     if model is None:
-        out["note"] = "the run was started without the model its gains came from"
-        return out
+        return noted(LoopWord.of("no_model"))
     fopdt = FOPDT(*(float(x) for x in model))
     out["model"] = fopdt.to_dict()
     n_filter = control.get("derivative_filter") or PARAMETERS["derivative_filter"].default
@@ -191,6 +206,4 @@ def closed_loop_figures(
     )
     out["predicted"] = predicted.metrics.to_dict()
     out["response"] = {"t": _thin(predicted.t), "y": _thin(predicted.y)}
-    notes = (rest_warning(fopdt, measured, t, y), settling_warning(measured, predicted.metrics))
-    out["note"] = "; ".join(n for n in notes if n) or None
-    return out
+    return noted(rest_word(fopdt, measured, t, y), settling_word(measured, predicted.metrics))

@@ -1,7 +1,8 @@
 """One router per resource of the HTTP API, all under ``/api``.
 
-Every route but ``POST /api/session``, ``POST /api/enrol``, ``GET /api/version``
-and the LTI launch's (``/api/lti/login``, ``/launch``, ``/continue``, ``/jwks``)
+Every route but ``POST /api/session``, ``POST /api/enrol``, ``GET /api/version``,
+``GET /api/privacy`` and the LTI launch's (``/api/lti/login``, ``/launch``,
+``/continue``, ``/jwks``) and a calendar feed's secret address (``/api/calendar/…``)
 needs a logged-in user or an API token (401 otherwise).
 """
 
@@ -12,10 +13,12 @@ from thermolab.lab.http.routers import (
     analytics,
     assignments,
     audit,
+    booking_tools,
     bookings,
     control,
     course_settings,
     courses,
+    grading,
     guide_images,
     guides,
     lti,
@@ -23,6 +26,7 @@ from thermolab.lab.http.routers import (
     me,
     methods,
     people,
+    privacy,
     readings,
     rig_settings,
     rigs,
@@ -40,6 +44,7 @@ api_router = APIRouter(prefix="/api")
 for _resource in (
     session,
     version,
+    privacy,
     rigs,
     readings,
     runs,
@@ -52,7 +57,9 @@ for _resource in (
     courses,
     rig_settings,
     assignments,
+    grading,
     bookings,
+    booking_tools,
     analytics,
     lti,
     lti_admin,
@@ -64,3 +71,5 @@ for _resource in (
     term,
 ):
     api_router.include_router(_resource.router)
+# A calendar feed's secret address: a calendar application has no login.
+api_router.include_router(booking_tools.public_router)

@@ -113,6 +113,7 @@ class SubmissionOut(Out):
     max: float
     assessment: dict[str, Any]
     marked_at: datetime
+    handed_in_by: str | None = Field(None, description="the lab group member who handed it in")
 
     @classmethod
     def of(cls, s: SubmissionInfo) -> SubmissionOut:
@@ -132,7 +133,25 @@ class SubmissionOut(Out):
             max=s.max,
             assessment=s.assessment,
             marked_at=s.marked_at,
+            handed_in_by=s.handed_in_by,
         )
+
+
+class MyOverrideOut(Out):
+    """A teacher's mark for the caller, and their comment (the final mark)."""
+
+    mark: float
+    max: float
+    comment: str
+    set_by: str
+    set_at: datetime
+
+
+class MyGroupOut(Out):
+    """The caller's lab group: its name and its members' login names."""
+
+    name: str
+    members: list[str]
 
 
 class AssignmentOut(Out):
@@ -153,6 +172,9 @@ class AssignmentOut(Out):
     updated_at: datetime
     mine: list[SubmissionOut]
     draft: bool = Field(False, description="copied from last term, not yet published")
+    extended_deadline: datetime | None = Field(None, description="the caller's own deadline")
+    override: MyOverrideOut | None = Field(None, description="a teacher's mark for the caller")
+    group: MyGroupOut | None = Field(None, description="the caller's lab group")
 
     @classmethod
     def of(cls, a: AssignmentInfo) -> AssignmentOut:
@@ -173,6 +195,19 @@ class AssignmentOut(Out):
             updated_at=a.updated_at,
             mine=[SubmissionOut.of(s) for s in a.mine],
             draft=a.draft,
+            extended_deadline=a.extended_deadline,
+            override=None
+            if a.override is None
+            else MyOverrideOut(
+                mark=a.override.mark,
+                max=a.override.max,
+                comment=a.override.comment,
+                set_by=a.override.set_by,
+                set_at=a.override.set_at,
+            ),
+            group=None
+            if a.group is None
+            else MyGroupOut(name=a.group.name, members=[u for u, _ in a.group.members]),
         )
 
 

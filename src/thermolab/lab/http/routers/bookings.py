@@ -57,6 +57,9 @@ class BookingIn(In):
     starts_at: Instant
     ends_at: Instant
     note: Annotated[str, Field(max_length=200)] = ""
+    longer: bool = Field(
+        default=False, description="the slot is longer than a day on purpose (up to 7 days)"
+    )
 
 
 class BookingEditIn(In):
@@ -68,6 +71,9 @@ class BookingEditIn(In):
     starts_at: Instant
     ends_at: Instant
     note: Annotated[str, Field(max_length=200)] = ""
+    longer: bool = Field(
+        default=False, description="the slot is longer than a day on purpose (up to 7 days)"
+    )
 
 
 class BookingOut(Out):
@@ -82,6 +88,9 @@ class BookingOut(Out):
     ends_at: datetime
     note: str
     created_by: str | None
+    self_booked: bool = Field(description="a student's own booking within the course's quota")
+    mine: bool = Field(description="the reader booked it for themselves (and may cancel it)")
+    series: str | None = Field(description="the weekly series it was booked with, if any")
 
     @classmethod
     def of(cls, b: BookingInfo) -> BookingOut:
@@ -96,6 +105,9 @@ class BookingOut(Out):
             ends_at=b.ends_at,
             note=b.note,
             created_by=b.created_by,
+            self_booked=b.self_booked,
+            mine=b.mine,
+            series=b.series,
         )
 
 
@@ -160,7 +172,9 @@ def calendar(
 )
 def book(body: BookingIn, who: UserDep, lab: LabDep) -> BookingOut:
     """Book rigs for a course's slot (teachers); 409 ``booking_clash`` names the slot in the way."""
-    info = lab.bookings.create(who, body.course, body.rigs, body.starts_at, body.ends_at, body.note)
+    info = lab.bookings.create(
+        who, body.course, body.rigs, body.starts_at, body.ends_at, body.note, longer=body.longer
+    )
     return BookingOut.of(info)
 
 
@@ -173,7 +187,9 @@ def book(body: BookingIn, who: UserDep, lab: LabDep) -> BookingOut:
 )
 def edit(booking: BookingId, body: BookingEditIn, who: UserDep, lab: LabDep) -> BookingOut:
     """Move a booking or change its rigs (teachers); the same checks as booking."""
-    info = lab.bookings.update(who, booking, body.rigs, body.starts_at, body.ends_at, body.note)
+    info = lab.bookings.update(
+        who, booking, body.rigs, body.starts_at, body.ends_at, body.note, longer=body.longer
+    )
     return BookingOut.of(info)
 
 
@@ -185,7 +201,7 @@ def edit(booking: BookingId, body: BookingEditIn, who: UserDep, lab: LabDep) -> 
     responses=documented_errors(403, 404, 422),
 )
 def cancel(booking: BookingId, who: UserDep, lab: LabDep) -> Response:
-    """Cancel a booking (teachers)."""
+    """Cancel a booking (its course's teachers, or the student who booked it for themselves)."""
     lab.bookings.cancel(who, booking)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 

@@ -13,7 +13,8 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Query
 
-from thermolab.control import PARAMETERS, control_json
+from thermolab.control import PARAMETERS, control_json, step_setpoint
+from thermolab.errors import SetpointNoStepError, SetpointRangeError
 from thermolab.lab.http.control_schemas import FanIn, GainsIn, LoopOut, ModeIn, SetpointIn
 from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, RunId, UserDep, documented_errors
 from thermolab.lab.http.routers.runs import RunOut
@@ -64,11 +65,26 @@ def rig_loop(rig_id: RigId, who: UserDep, lab: LabDep) -> LoopOut:
         output_unit=published.output_unit,
         input_unit=published.input_unit,
         input_range=[published.input_min, published.input_max],
+        safe_input=published.safe_input,
         output_limit=info.output_limit,
         closed_loop=bool(published.output_unit),
         fan=None if spec.fan is None else spec.fan.to_dict(),
         loop=lab.rig_runs.loop_state(rig_id),
     )
+
+
+def _check_step(target: float, y0: float, output_limit: float | None, unit: str) -> None:
+    """A tuning step's set point: below the rig's output limit, and away from ``y0``."""
+    if output_limit is not None and target >= output_limit:
+        raise SetpointRangeError(
+            f"set point {target:g} {unit} is not below the rig's output limit "
+            f"{output_limit:g} {unit}"
+        )
+    if abs(target - y0) <= 1e-9 * max(1.0, abs(y0)):
+        raise SetpointNoStepError(
+            f"set point {target:g} {unit} is the output the step starts from ({y0:g} {unit}): "
+            "no step to tune for; choose a set point away from it"
+        )
 
 
 def _command(
@@ -168,7 +184,9 @@ def run_tuning(
         Query(
             ge=-SETPOINT_BOUND,
             le=SETPOINT_BOUND,
-            description="the step's set point (default: halfway up the range)",
+            description="the step's set point, in the output unit (default: the output a "
+            "step of the input from rest halfway to the far end of its range settles at, "
+            "below the output limit)",
         ),
     ] = None,
     tau_c: Annotated[
@@ -202,17 +220,24 @@ def run_tuning(
     u0 = published.safe_input
     try:
         name, model, trusted = run_model(record.results, method)
-    except ValueError as exc:
-        if method is not None or record.control is None:
-            raise
-        out["note"] = str(exc)
-    else:
+        output_limit = lab.config.rig(record.rig_id).rig_spec.describe().output_limit
         target = setpoint
         if target is None:
-            target = y0 + model.K * (limits[0] + 0.5 * (limits[1] - limits[0]) - u0)
+            # From the rig's declared ranges: a step of the input from rest, never
+            # the middle of a range centred on rest (the ±10 V box: no step at all).
+            target = step_setpoint(
+                model, y0=y0, u_rest=u0, u_limits=limits, output_limit=output_limit
+            )
+        _check_step(target, y0, output_limit, published.output_unit)
         table = tuning_table(
             model, dt=record.dt, y0=y0, u0=u0, setpoint=target, u_limits=limits, tau_c=tau_c
         )
+    except ValueError as exc:
+        # A closed-loop run's measured figures come with or without a table of its own.
+        if method is not None or setpoint is not None or record.control is None:
+            raise
+        out["note"] = str(exc)
+    else:
         out["table"] = {**table, "method": name, "trusted": trusted}
     control = (record.settings or {}).get("control")
     if control is not None and us:

@@ -72,7 +72,7 @@ class MemberOut(Out):
 
     username: str
     display_name: str | None
-    role: Literal["student", "teacher"]
+    role: Literal["student", "teacher", "assistant"]
     must_change_password: bool
 
 
@@ -291,6 +291,45 @@ def set_rigs(
     changed = CourseOut.of(lab.courses.set_rigs(course, body.rigs, known))
     audit(lab, who, request, AuditAction.COURSE_RIGS_SET, course, rigs=changed.rigs)
     return changed
+
+
+@_teachers.put(
+    "/courses/{course}/assistants/{username}",
+    response_model=CourseOut,
+    tags=["courses"],
+    summary="Make someone a teaching assistant of a course",
+    responses=documented_errors(403, 404, 409, 422),
+)
+def add_assistant(
+    course: CourseName, username: Username, who: UserDep, lab: LabDep, request: Request
+) -> CourseOut:
+    """Give an account (a student's or a teacher's) an assistant's place in the course.
+
+    An assistant sees the roster, assignments, hand-ins, grades and
+    analytics, and changes none of them (see the teacher's guide). 409 for a
+    student or teacher of the course. Its teachers, administrators; logged.
+    """
+    lab.authorize.require_course(who, Action.COURSE_ASSISTANTS, course)
+    name = lab.assistants.add(course, username)
+    audit(lab, who, request, AuditAction.ASSISTANT_ADDED, course, username=name)
+    return CourseOut.of(lab.courses.get(course))
+
+
+@_teachers.delete(
+    "/courses/{course}/assistants/{username}",
+    response_model=CourseOut,
+    tags=["courses"],
+    summary="Take a teaching assistant's place away",
+    responses=documented_errors(403, 404, 409, 422),
+)
+def remove_assistant(
+    course: CourseName, username: Username, who: UserDep, lab: LabDep, request: Request
+) -> CourseOut:
+    """Remove an assistant from the course (their account stays). Its teachers; logged."""
+    lab.authorize.require_course(who, Action.COURSE_ASSISTANTS, course)
+    name = lab.assistants.remove(course, username)
+    audit(lab, who, request, AuditAction.ASSISTANT_REMOVED, course, username=name)
+    return CourseOut.of(lab.courses.get(course))
 
 
 @router.post(

@@ -31,6 +31,7 @@ from fastapi import APIRouter, Query, Request, Response
 from fastapi.responses import JSONResponse, RedirectResponse
 from starlette.requests import HTTPConnection
 
+from thermolab.lab.accounts.users import UserInfo
 from thermolab.lab.http.deps import COOKIE_NAME, client_address, documented_errors
 from thermolab.lab.http.errors import fault_of, request_language
 from thermolab.lab.http.lti_pages import error_page, handover_page
@@ -207,7 +208,7 @@ async def lti_launch(request: Request) -> Response:
         url = str(request.url_for("lti_continue").include_query_params(ticket=ticket))
         return handover_page(url, request_language(request.headers, request.cookies))
     return await anyio.to_thread.run_sync(
-        lambda: _signed_in(lab, request, outcome, path, partitioned=True)
+        lambda: _signed_in(lab, request, outcome.user, path, partitioned=True)
     )
 
 
@@ -225,12 +226,12 @@ def _destination(lab: Lab, outcome: LaunchOutcome) -> str:
 
 
 def _signed_in(
-    lab: Lab, request: Request, outcome: LaunchOutcome, path: str, *, partitioned: bool
+    lab: Lab, request: Request, user: UserInfo, path: str, *, partitioned: bool
 ) -> Response:
     address = request.client.host if request.client is not None else None
     lab.sessions.end(request.cookies.get(COOKIE_NAME))  # whoever was signed in here before
     token, _ = lab.sessions.create(
-        outcome.user, client_address=address, user_agent=request.headers.get("user-agent")
+        user, client_address=address, user_agent=request.headers.get("user-agent")
     )
     response = RedirectResponse(path, status_code=303)
     lifetime = int(lab.config.access.session_lifetime)
@@ -270,8 +271,8 @@ def lti_continue(
     found = lab.lti.take_over(ticket)
     if found is None:
         return _refused(request, LtiStateError("this link was used already or has expired"))
-    outcome, path = found
-    return _signed_in(lab, request, outcome, path, partitioned=False)
+    user, path = found
+    return _signed_in(lab, request, user, path, partitioned=False)
 
 
 @router.get("/jwks", summary="The tool's public keys (JWKS)")

@@ -7,6 +7,7 @@ from fastapi import APIRouter, Request, Response
 from thermolab.lab.access import RigView
 from thermolab.lab.audit.log import AuditAction
 from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, UserDep, audit, documented_errors
+from thermolab.lab.http.errors import request_language
 from thermolab.lab.http.schemas import (
     ControlSessionOut,
     ExtendIn,
@@ -17,6 +18,7 @@ from thermolab.lab.http.schemas import (
     ServiceIn,
     people_named,
 )
+from thermolab.lab.http.script_schemas import SpeedupIn
 from thermolab.lab.service import Lab
 
 __all__ = ["router"]
@@ -114,8 +116,27 @@ def extend_control(rig_id: RigId, body: ExtendIn, who: UserDep, lab: LabDep) -> 
 )
 def more_time(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
     """Add 120 s to the caller's own turn: only in its last minute, with the queue empty,
-    at most twice a turn (409 ``extend_refused`` says which rule stops it)."""
+    at most twice a turn — without that bound for a turn asked for with an API token (a
+    script) — (409 ``extend_refused`` says which rule stops it)."""
     return _out(lab.access.extend_own(rig_id, who), lab)
+
+
+@router.put(
+    "/rigs/{rig_id}/control/speedup",
+    response_model=RigOut,
+    tags=["access"],
+    summary="Run a twin at one's own speed-up for the turn",
+    responses=documented_errors(403, 404, 409, 422),
+)
+def pace_turn(rig_id: RigId, body: SpeedupIn, who: UserDep, lab: LabDep) -> RigOut:
+    """Run the twin at ``speedup`` until the caller's turn ends (controller only): from 1 up
+    to the twin's ``twin_speedup``, while no run is going (409; a run keeps its pace).
+    Hardware and a rig host's twin keep their own pace (422 ``speedup_refused``, as for a
+    speed-up out of range, naming the rig and what it allows)."""
+    lab.config.rig(rig_id)  # an unknown rig is a 404
+    with lab.access.controlled(rig_id, who, "change the twin's speed-up") as turn:
+        lab.hub.pace_turn(rig_id, body.speedup, controller_session=turn.control.id)
+    return _out(lab.access.view(rig_id, who), lab)
 
 
 @router.post(
@@ -179,10 +200,10 @@ def control_history(rig_id: RigId, who: UserDep, lab: LabDep) -> list[ControlSes
     response_class=Response,
     responses={200: {"content": {"image/jpeg": {}}}, **documented_errors(404, 503)},
 )
-def camera(rig_id: RigId, who: UserDep, lab: LabDep) -> Response:
+def camera(rig_id: RigId, who: UserDep, lab: LabDep, request: Request) -> Response:
     """The current image (JPEG): the rig's camera, or for a twin its state drawn (lamp glow
-    with the heating power, fan with the cooling, the output).
+    with the heating power, fan with the cooling, the output) in the reader's language.
     """
-    image = lab.camera(rig_id)
+    image = lab.camera(rig_id, request_language(request.headers, request.cookies))
     lab.presence.touch(rig_id, who.username)  # looking at the rig is watching it
     return Response(image, media_type="image/jpeg", headers={"Cache-Control": "no-store"})

@@ -219,9 +219,11 @@ class RunOut(Out):
     end_reason: str | None
     results: dict[str, Any] = Field(
         description="per method: latest estimate (K, tau, W, valid, final, extras.reason...), "
-        "error, and once the run is over stats: mean/max/min of K and tau over the last "
-        "2000 samples and converged_at, the samples to converge within ±1 % "
-        "(thermolab.ident.Trajectory.stats / converged_at)"
+        "error, and once the run is over stats: mean/max/min of K and tau after "
+        "convergence within ±1 % (over: after_convergence; last: how many samples) or, "
+        "where the estimates never converge, over the last 2000 samples (over: last), "
+        "and converged_at, the samples to converge: thermolab identify's figures of the "
+        "same record (thermolab.ident.table_figures)"
     )
     operating_point: OperatingPointOut | None = Field(
         description="how the operating point was handled (null for runs from before it was kept)"

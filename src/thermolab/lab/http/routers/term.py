@@ -29,6 +29,15 @@ __all__ = ["router"]
 router = APIRouter(**AUTHENTICATED)
 
 
+class ClosedCourseOut(CourseOut):
+    """The closed course, and how many of its bookings the close cancelled."""
+
+    released_bookings: int = Field(
+        description="bookings that had not begun, cancelled so that other courses may book "
+        "those rigs (a reopen does not bring them back)"
+    )
+
+
 class CopyIn(In):
     """The next term's course: its name, a title (default: the old one's), and its dates.
 
@@ -95,20 +104,26 @@ class PurgeOut(Out):
 
 @router.post(
     "/courses/{course}/close",
-    response_model=CourseOut,
+    response_model=ClosedCourseOut,
     tags=["courses"],
     summary="Close a course for the term",
     responses=documented_errors(403, 404, 409, 422),
 )
-def close_course(course: CourseName, who: UserDep, lab: LabDep, request: Request) -> CourseOut:
+def close_course(
+    course: CourseName, who: UserDep, lab: LabDep, request: Request
+) -> ClosedCourseOut:
     """Make the course read-only: reads and exports go on, every change is 409 ``course_closed``.
 
-    Its teachers or an administrator; only an administrator reopens it.
+    Its bookings that have not begun are cancelled (``releasedBookings``
+    says how many), so that other courses may book those rigs; a slot under
+    way stays to its end. Its teachers or an administrator; only an
+    administrator reopens it, without the cancelled bookings.
     """
     lab.authorize.require_course(who, Action.COURSE_CLOSE, course)
-    lab.term.close(course, who.username)
-    audit(lab, who, request, AuditAction.COURSE_CLOSED, course)
-    return CourseOut.of(lab.courses.get(course))
+    released = lab.term.close(course, who.username)
+    audit(lab, who, request, AuditAction.COURSE_CLOSED, course, released_bookings=released)
+    shown = CourseOut.of(lab.courses.get(course))
+    return ClosedCourseOut(**dict(shown), released_bookings=released)
 
 
 @router.post(

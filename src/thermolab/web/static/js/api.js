@@ -165,6 +165,8 @@ export const api = {
   csvUrl: (id) => `/api/runs/${enc(id)}/samples.csv`,
   exportUrl: (id) => `/api/runs/${enc(id)}/export.json`,
   myDataUrl: () => "/api/me/export",
+  /** The lab's retention period (no login): {retentionMonths: number | null, retentionAction: "pseudonymise" | "delete"}. */
+  privacy: (opts) => request("GET", "/api/privacy", undefined, opts),
   /** Everything stored about a run: {run, channels: [{name, unit, role, description}], samples: {channel name: values}, methods: {label: {method, params, result}}}. */
   exportRun: (id, opts) => request("GET", `/api/runs/${enc(id)}/export.json`, undefined, opts),
   cameraUrl: (rig) => `/api/rigs/${enc(rig)}/camera`,
@@ -185,6 +187,8 @@ export const api = {
     request("POST", `/api/users/${enc(user)}/password-reset`, { currentPassword }),
   enrol: (spec) => request("POST", "/api/enrol", spec, { quiet401: true }),
   setCourseRigs: (name, rigs) => request("PUT", `/api/courses/${enc(name)}/rigs`, { rigs }),
+  /** Make an account a teaching assistant of a course; the course (its roster) back. */
+  addAssistant: (name, user) => request("PUT", `/api/courses/${enc(name)}/assistants/${enc(user)}`),
   /** Close a course for the term (read-only from then on). */
   closeCourse: (name) => request("POST", `/api/courses/${enc(name)}/close`),
   /** The next term's course: spec {name, title?, starts: "YYYY-MM-DD"} or {name, shiftDays}. */
@@ -204,12 +208,40 @@ export const api = {
   handIn: (id, spec) => request("POST", `/api/assignments/${enc(id)}/submissions`, spec),
   submissions: (id, opts) => request("GET", `/api/assignments/${enc(id)}/submissions`, undefined, opts),
   gradesUrl: (course) => `/api/courses/${enc(course)}/grades.csv`,
+  /** Each student's standing: {student, displayName, state, mark, automaticMark, max, comment, overridden, late, deadline, extended, group}. */
+  standings: (id, opts) => request("GET", `/api/assignments/${enc(id)}/standings`, undefined, opts),
+  /** A teacher's mark for a student: {mark, comment}. */
+  overrideMark: (id, student, spec) => request("PUT", `/api/assignments/${enc(id)}/overrides/${enc(student)}`, spec),
+  removeOverride: (id, student) => request("DELETE", `/api/assignments/${enc(id)}/overrides/${enc(student)}`),
+  /** One student's later deadline: {deadline}. */
+  extendDeadline: (id, student, spec) => request("PUT", `/api/assignments/${enc(id)}/extensions/${enc(student)}`, spec),
+  removeExtension: (id, student) => request("DELETE", `/api/assignments/${enc(id)}/extensions/${enc(student)}`),
+  /** A course's lab groups: [{id, name, members: [{username, displayName}]}]. */
+  groups: (course, opts) => request("GET", `/api/courses/${enc(course)}/groups`, undefined, opts),
+  createGroup: (course, spec) => request("POST", `/api/courses/${enc(course)}/groups`, spec),
+  removeGroup: (course, id) => request("DELETE", `/api/courses/${enc(course)}/groups/${enc(id)}`),
   /** Bookings overlapping [from, to) (ISO instants), as the reader may see them. */
   bookings: (from, to, opts) =>
     request("GET", `/api/bookings?from=${enc(from)}&to=${enc(to)}`, undefined, opts),
   book: (spec) => request("POST", "/api/bookings", spec),
   editBooking: (id, spec) => request("PUT", `/api/bookings/${enc(id)}`, spec),
   cancelBooking: (id) => request("DELETE", `/api/bookings/${enc(id)}`),
+  /** The same slot every week until a day, at its wall-clock time in `zone` (IANA; left out:
+   * the lab's): {course, rigs, startsAt, endsAt, until, skipClashes, zone}. */
+  bookSeries: (spec) => request("POST", "/api/booking-series", spec),
+  bookingQuota: (course, opts) => request("GET", `/api/courses/${enc(course)}/booking-quota`, undefined, opts),
+  setBookingQuota: (course, minutesPerWeek) =>
+    request("PUT", `/api/courses/${enc(course)}/booking-quota`, { minutesPerWeek }),
+  /** The reader's courses that let students book for themselves, with this week's use. */
+  ownBookingCourses: (opts) => request("GET", "/api/own-bookings", undefined, opts),
+  bookOwn: (course, spec) => request("POST", `/api/courses/${enc(course)}/own-bookings`, spec),
+  calendarFeeds: (opts) => request("GET", "/api/calendar-feeds", undefined, opts),
+  /** A new secret iCalendar address (its url is in this answer only); course: null for all. */
+  createCalendarFeed: (course) => request("POST", "/api/calendar-feeds", { course }),
+  revokeCalendarFeed: (id) => request("DELETE", `/api/calendar-feeds/${enc(id)}`),
+  reminders: (opts) => request("GET", "/api/reminders", undefined, opts),
+  setReminders: (email, minutesBefore) => request("PUT", "/api/reminders", { email, minutesBefore }),
+  stopReminders: () => request("DELETE", "/api/reminders"),
   /** {bookedNow, freeFrom, nextOwn}: when the reader may next take the rig's controls. */
   nextChance: (rig, opts) => request("GET", `/api/rigs/${enc(rig)}/next-chance`, undefined, opts),
   /** A course's analytics; query: "?from=ISO&to=ISO" or "" (the course's whole life). */

@@ -11,6 +11,14 @@
 // shows the newest TABLE_ROWS samples it draws as a table with the axis and
 // series names as headers, kept current while it is open. A bar chart (one
 // bar per named category: a student, a rig) shows every row instead.
+//
+// A time chart may offer time windows (opts.windows): "last 100 s", "last 500 s"
+// and "all", as toggle buttons beside the table toggle. Buttons, not pinch or
+// drag zoom: they work the same with a finger, a mouse and the keyboard (Tab,
+// Enter), a screen reader says which is pressed (aria-pressed), they do not
+// fight the phone's own page scroll and pinch, and the window follows the live
+// data (the last 100 s stay the last 100 s as samples arrive), where a drag
+// zoom would freeze a fixed range while the run goes on.
 
 import uPlot from "../vendor/uplot/uPlot.esm.js";
 import { h } from "./dom.js";
@@ -42,6 +50,35 @@ export function tickLabels(_plot, splits, _axis, _space, incr) {
 /** How many of the newest samples the table alternative of a chart shows. */
 export const TABLE_ROWS = 10;
 
+/** The time windows a time chart offers besides "all" (s): a long square wave's last periods. */
+export const TIME_WINDOWS = [100, 500];
+
+/** Narrower than this is a phone (the css's phone layout: max-width 599px): its charts are drawn lower, so more of the page fits the screen. */
+const PHONE_WIDTH = 600;
+/** The height of a chart that names none: on a phone, and elsewhere. */
+const HEIGHT_PHONE = 144;
+const HEIGHT = 220;
+
+/**
+ * The columns of `data` from the first x at or after `from` on (x ascending);
+ * typed arrays as views, without copying.
+ * @param {ArrayLike<number>[]} data
+ * @param {number} from
+ * @returns {ArrayLike<number>[]}
+ */
+export function fromX(data, from) {
+  const x = data[0];
+  let lo = 0;
+  let hi = x.length;
+  while (lo < hi) {
+    const mid = (lo + hi) >> 1;
+    if (x[mid] < from) lo = mid + 1;
+    else hi = mid;
+  }
+  if (lo === 0) return data;
+  return data.map((col) => (ArrayBuffer.isView(col) ? /** @type {Float64Array} */ (col).subarray(lo) : Array.prototype.slice.call(col, lo)));
+}
+
 export class Chart {
   /**
    * @param {HTMLElement} parent
@@ -54,6 +91,9 @@ export class Chart {
    *   out of the axis range
    * @param {() => ArrayLike<number>[]} opts.source   [x, y1, y2...] for the next draw
    * @param {number} [opts.height]
+   * @param {number[]} [opts.windows] time windows (seconds of x) offered beside "all": the
+   *   chart then shows the newest that many seconds of its data
+   * @param {(seconds: number | null) => void} [opts.onWindow] called when the reader picks a window
    * @param {string} [opts.description] longer text for screen readers
    * @param {string} [opts.emptyText] what the chart says while it has no data
    * @param {string[]} [opts.categories] a bar chart: x is the index of these names (at most two
@@ -70,6 +110,9 @@ export class Chart {
       { class: "chart", role: "group", "aria-label": opts.label, "aria-describedby": opts.description ? descId : null },
       opts.description ? h("p", { class: "visually-hidden", id: descId }, opts.description) : null,
     );
+    // The axes' labels are drawn on the canvas: said here too, for tests and tools.
+    this.el.dataset.xLabel = opts.xLabel;
+    this.el.dataset.yLabel = opts.yLabel;
     this._plotHost = h("div", { class: "chart-plot", "aria-hidden": "true" });
     this._emptyNote = h("p", { class: "chart-empty" }, opts.emptyText ?? t("chart.waiting"));
     this._columns = [opts.xLabel, ...opts.series.map((s) => s.label)];
@@ -92,7 +135,16 @@ export class Chart {
       t("chart.showTable"),
     );
     this._tableToggle.addEventListener("click", () => this.showTable(this._table.hidden));
-    this.el.append(this._plotHost, this._emptyNote, this._tableToggle, this._table);
+    /** @type {number | null} seconds of x shown (null: all) */
+    this.timeWindow = null;
+    /** @type {HTMLButtonElement[]} */
+    this._windowButtons = [];
+    const tools = h("div", { class: "chart-tools" }, this._tableToggle);
+    if (opts.windows?.length) {
+      tools.append(this._windowGroup(opts.label, opts.windows, opts.onWindow));
+      this.el.dataset.window = "all";
+    }
+    this.el.append(this._plotHost, this._emptyNote, tools, this._table);
     parent.append(this.el);
     const width = Math.max(200, this._plotHost.clientWidth || parent.clientWidth || 320);
     const series = [
@@ -114,7 +166,7 @@ export class Chart {
     this.plot = new uPlot(
       {
         width,
-        height: opts.height ?? 220,
+        height: opts.height ?? (window.innerWidth < PHONE_WIDTH ? HEIGHT_PHONE : HEIGHT),
         series,
         scales: names
           ? { x: { time: false, range: () => [-0.5, Math.max(0.5, names.length - 0.5)] }, y: { range: (_u, _min, max) => [0, max > 0 ? max * 1.1 : 1] } }
@@ -130,7 +182,8 @@ export class Chart {
         hooks: {
           // The y range drawn: lets a test see that the axis is a real range (a NaN
           // in an auto-ranged series would leave an empty plot with no axis).
-          draw: [(u) => { this.el.dataset.yRange = `${u.scales.y.min},${u.scales.y.max}`; }],
+          // The x range too: lets a test see the time window drawn.
+          draw: [(u) => { this.el.dataset.yRange = `${u.scales.y.min},${u.scales.y.max}`; this.el.dataset.xRange = `${u.scales.x.min},${u.scales.x.max}`; }],
         },
       },
       this._empty(series.length),
@@ -159,9 +212,46 @@ export class Chart {
     });
   }
 
+  /**
+   * The window buttons: one per choice, then "all" (pressed at first).
+   * @param {string} label
+   * @param {number[]} choices
+   * @param {((seconds: number | null) => void) | undefined} onWindow
+   */
+  _windowGroup(label, choices, onWindow) {
+    const group = h("div", { class: "chart-window", role: "group", "aria-label": t("chart.windowOf", { chart: label }) });
+    for (const seconds of [...choices, null]) {
+      const button = h(
+        "button",
+        { type: "button", "aria-pressed": String(seconds === null), "data-window": seconds === null ? "all" : String(seconds) },
+        seconds === null ? t("chart.windowAll") : t("chart.windowLast", { seconds }),
+      );
+      button.addEventListener("click", () => {
+        this.setWindow(seconds);
+        onWindow?.(seconds);
+      });
+      group.append(button);
+      this._windowButtons.push(button);
+    }
+    return group;
+  }
+
+  /**
+   * Show only the newest `seconds` of x (null: all of it); kept as data arrive.
+   * @param {number | null} seconds
+   */
+  setWindow(seconds) {
+    this.timeWindow = seconds;
+    this.el.dataset.window = seconds === null ? "all" : String(seconds);
+    for (const b of this._windowButtons) b.setAttribute("aria-pressed", String(b.dataset.window === this.el.dataset.window));
+    this.invalidate();
+  }
+
   /** Redraw now from the source. */
   draw() {
-    const data = this._source();
+    let data = this._source();
+    const x = data[0];
+    if (this.timeWindow !== null && x.length > 0) data = fromX(data, x[x.length - 1] - this.timeWindow);
     this._emptyNote.hidden = data[0].length > 0;
     this.plot.setData(data, true);
     // How many points are drawn: lets a test see that the window stays bounded.

@@ -103,6 +103,13 @@ export function durationWords(seconds) {
   return parts.join(" ");
 }
 
+/** An ISO instant as a datetime-local field's value, in local time. @param {string} iso */
+export function localInput(iso) {
+  const d = new Date(iso);
+  const pad = (/** @type {number} */ n) => String(n).padStart(2, "0");
+  return `${d.getFullYear()}-${pad(d.getMonth() + 1)}-${pad(d.getDate())}T${pad(d.getHours())}:${pad(d.getMinutes())}`;
+}
+
 /** Local date and time of an ISO instant, or "–". */
 export function when(iso) {
   if (!iso) return "–";

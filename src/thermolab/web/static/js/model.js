@@ -113,12 +113,40 @@ export const FIGURE_DECIMALS = 6;
  * A model parameter (Ks, Ts, θ, their statistics) as the paper's tables print
  * it: six decimals, so the page reads digit by digit against Table I and
  * `thermolab reproduce table1` (fmt's six significant digits would cut
- * 250.126233 to 250.126). Very large or small values fall back to fmt.
+ * 250.126233 to 250.126).
  * @param {number | null | undefined} v
  */
 export function fmtFigure(v) {
   if (v === null || v === undefined || !Number.isFinite(v)) return "–";
-  const mag = Math.abs(v);
-  if (mag !== 0 && (mag >= 1e6 || mag < 1e-4)) return fmt(v);
-  return formatNumber(v, { useGrouping: false, minimumFractionDigits: FIGURE_DECIMALS, maximumFractionDigits: FIGURE_DECIMALS });
+  // Never in scientific notation, where a student reads it: a huge figure (a model
+  // that did not fit) to six significant digits, a tiny one as the six decimals
+  // give it (θ = 6.6e-11 s is 0.000000, no dead time).
+  if (Math.abs(v) >= 1e6) return formatNumber(Number(v.toPrecision(6)), { useGrouping: false, maximumFractionDigits: 0 });
+  const rounded = Number(v.toFixed(FIGURE_DECIMALS)) || 0;
+  return formatNumber(rounded, { useGrouping: false, minimumFractionDigits: FIGURE_DECIMALS, maximumFractionDigits: FIGURE_DECIMALS });
+}
+
+/**
+ * A figure's deviation from its reference, to the figures' six decimals with
+ * trailing zeros dropped and a sign ("+0.0021", "−0.5"); "0" when it is below
+ * the last decimal (−3.062e-9 is no deviation at the precision the tables print).
+ * @param {number | null | undefined} d
+ */
+export function fmtDeviation(d) {
+  if (d === null || d === undefined || !Number.isFinite(d)) return "–";
+  if (Math.abs(d) >= 1e6) return fmt(d);
+  const rounded = Number(d.toFixed(FIGURE_DECIMALS));
+  if (rounded === 0) return "0";
+  return formatNumber(rounded, { useGrouping: false, maximumFractionDigits: FIGURE_DECIMALS, signDisplay: "always" }).replace("-", "−");
+}
+
+/**
+ * A relative deviation in percent, to two decimals ("−1.25 %"), "0 %" below them.
+ * @param {number | null | undefined} rel  the deviation over the reference
+ */
+export function fmtPercentDeviation(rel) {
+  if (rel === null || rel === undefined || !Number.isFinite(rel)) return "–";
+  const rounded = Number((100 * rel).toFixed(2));
+  if (rounded === 0) return "0 %";
+  return `${formatNumber(rounded, { useGrouping: false, maximumFractionDigits: 2, signDisplay: "always" }).replace("-", "−")} %`;
 }

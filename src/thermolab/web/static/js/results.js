@@ -1,12 +1,13 @@
 // @ts-check
 // The figures of the paper's Tables I/II from a method's stored result.
 //
-// The lab computes them when a run ends, with thermolab.ident's own
-// Trajectory.stats() and converged_at(), and returns them with the run
-// (GET /api/runs/{run}, export.json): per method, `stats` holds mean / max /
-// min of the valid estimates over the last 2000 samples and the samples to
-// converge within ±1 % of that mean. Nothing here recomputes them; a run that
-// is still going has no statistics yet, only its latest estimate.
+// The lab computes them when a run ends, with the function thermolab identify
+// prints a CSV record's with (thermolab.ident.table_figures), and returns them
+// with the run (GET /api/runs/{run}, export.json): per method, `stats` holds
+// mean / max / min of the valid estimates after convergence within ±1 % (or,
+// where they never converge, their spread over the last 2000 samples) and the
+// samples to converge. Nothing here recomputes them; a run that is still going
+// has no statistics yet, only its latest estimate.
 
 import { t } from "./i18n.js";
 

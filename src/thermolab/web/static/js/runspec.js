@@ -206,9 +206,5 @@ function estimateWarnings(e) {
   return Array.isArray(list) ? list.map(String) : [];
 }
 
-/** What drove the input: the signal, or the manual set point. */
-export function inputText(run) {
-  if (run.signal) return run.signal;
-  if (run.setpoint !== null && run.setpoint !== undefined) return t("run.inputManualSetpoint", { setpoint: run.setpoint });
-  return t("run.inputManual");
-}
+/** What drove the input, in words (runwords.js); kept here for the views that import it from runs. */
+export { inputText } from "./runwords.js";

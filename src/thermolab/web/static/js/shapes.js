@@ -4,6 +4,7 @@
 // and GET /api/runs/{run}. Views only see the normalised objects below.
 
 import { t } from "./i18n.js";
+import { messages as english } from "./messages/en.js";
 
 /** The message of each rig state of the live protocol. */
 export const STATE_LABELS = Object.freeze({
@@ -63,6 +64,15 @@ function numberOr(v, fallback) {
 }
 
 /**
+ * An actuator of a rig besides its input (ActuatorOut in /openapi.json).
+ * @returns {{name: string, unit: string, default: number, level: number | null}}
+ */
+function readActuator(a) {
+  const src = a && typeof a === "object" ? a : {};
+  return { name: String(src.name ?? ""), unit: String(src.unit ?? ""), default: numberOr(src.default, 0), level: numberOr(src.level, null) };
+}
+
+/**
  * A rig (RigOut in /openapi.json: GET /api/rigs items, GET /api/rigs/{rig},
  * the answers of the control routes, the `rig` of a hello message).
  */
@@ -82,11 +92,29 @@ export function readRig(r) {
     safeInput: numberOr(input.safe, 0),
     lastInput: numberOr(input.last, null),
     live: input.live !== false,
+    // Every actuator besides the input (a twin's fan): its level now and its declared
+    // default, where each turn and run starts (issue #23).
+    actuators: Array.isArray(src.actuators) ? src.actuators.map(readActuator) : [],
     outputUnit: String(src.outputUnit ?? "V"),
+    // Times real time: 1 for hardware, a twin's pace, null for a rig host's twin not yet heard.
+    speedup: numberOr(src.speedup, null),
     limits: src.limits && typeof src.limits === "object" ? src.limits : {},
     access: readAccess(src.access),
     // Teachers only (null for students).
     queue: Array.isArray(src.queue) ? src.queue : null,
     watcherList: Array.isArray(src.watcherList) ? src.watcherList : null,
   };
+}
+
+/**
+ * A rig's title for a page. The title the lab ships its default rig with
+ * (thermolab.lab.config.model DEFAULT_RIG) is the English catalogue's
+ * rig.defaultTitle (tests/web/test_messages.py keeps the two equal): the lab's
+ * own words, so shown in the reader's language. A title an operator wrote is
+ * shown as written.
+ * @param {{id: string, title?: string | null}} rig
+ */
+export function rigTitle(rig) {
+  if (rig.title === english["rig.defaultTitle"]) return t("rig.defaultTitle");
+  return rig.title || rig.id;
 }

@@ -22,12 +22,16 @@ export function rangeText(spec) {
   const min = num(spec.min);
   const max = spec.max === undefined ? "" : num(spec.max);
   const whole = (range) => (spec.integer ? t("range.integer", { range }) : range);
+  const hi = t(spec.exclusiveMax ? "range.lessThan" : "range.atMost", { max });
+  const unbounded = (v) => v === undefined || v === null || v === Infinity || v === -Infinity;
+  // No lower bound (a set point below the output limit): say only the upper one, never "−∞".
+  if (unbounded(spec.min)) return unbounded(spec.max) ? whole(t("range.any")) : whole(hi) + unit;
   const lo = t(spec.exclusiveMin ? "range.moreThan" : "range.atLeast", { min });
-  if (spec.max === undefined || spec.max === Infinity) return whole(lo) + unit;
+  // A bound no one reaches (a run number's 2^53) is no bound for the reader: "at least 1".
+  if (unbounded(spec.max) || spec.max >= Number.MAX_SAFE_INTEGER) return whole(lo) + unit;
   if (!spec.exclusiveMin && !spec.exclusiveMax) {
     return t(spec.integer ? "range.integerBetween" : "range.between", { min, max }) + unit;
   }
-  const hi = t(spec.exclusiveMax ? "range.lessThan" : "range.atMost", { max });
   return whole(t("range.both", { lo, hi })) + unit;
 }
 

@@ -50,7 +50,9 @@ export class AccessPanel {
     ]) {
       const dd = h("dd", { "data-field": key });
       this.fields[key] = dd;
-      this.facts.append(h("dt", { "data-for": key }, label), dd);
+      // Each name and value in one box (HTML allows a div around a dt/dd group), so that a
+      // phone can flow the facts on a few lines without parting a name from its value.
+      this.facts.append(h("div", { class: "fact", "data-fact": key }, h("dt", { "data-for": key }, label), dd));
     }
     this.askButton = h("button", { type: "button", class: "primary", "data-action": "ask" }, t("access.ask"));
     this.leaveButton = h("button", { type: "button", "data-action": "leave" }, t("access.leave"));
@@ -58,9 +60,9 @@ export class AccessPanel {
     this.askButton.addEventListener("click", () => this._act("ask"));
     this.leaveButton.addEventListener("click", () => this._act("leave"));
     this.releaseButton.addEventListener("click", () => this._act("release"));
-    this.extendButton = h("button", { type: "button", class: "primary", "data-action": "extend", hidden: "" }, t("turn.extend"));
+    this.extendButton = h("button", { type: "button", class: "primary", "data-action": "extend", hidden: true }, t("turn.extend"));
     this.extendButton.addEventListener("click", () => this._act("extend"));
-    this.warning = h("p", { class: "time-warning", "data-testid": "time-warning", hidden: "" });
+    this.warning = h("p", { class: "time-warning", "data-testid": "time-warning", hidden: true });
     this.el = h(
       "section",
       { class: "card access", "aria-labelledby": "access-heading" },
@@ -165,6 +167,12 @@ export class AccessPanel {
       }
     }
     this._renderWarning(left);
+    this._markEmpty();
+  }
+
+  /** Mark the facts that have no value now ("–"): a phone leaves them out to keep the card short. */
+  _markEmpty() {
+    for (const dd of Object.values(this.fields)) dd.parentElement?.toggleAttribute("data-empty", dd.textContent === "–");
   }
 
   /** The visible warning in the turn's last minute, with "extend" when the server allows it. */
@@ -187,6 +195,7 @@ export class AccessPanel {
       this.role.dataset.role = this.unreachable ? "unknown" : "";
       for (const b of [this.askButton, this.leaveButton, this.releaseButton, this.extendButton]) b.hidden = true;
       for (const dd of Object.values(this.fields)) setText(dd, "–");
+      this._markEmpty();
       this.warning.hidden = true;
       return;
     }

@@ -6,10 +6,13 @@
 // and reads the mark and the feedback, check by check, in their language.
 
 import { api, spreadsheetUrl } from "../api.js";
-import { announce, h, setText, when } from "../dom.js";
+import { announce, h, localInput, setText, when } from "../dom.js";
 import { formatDecimal, formatNumber, t } from "../i18n.js";
 import { methods } from "../methods.js";
+import { methodTitle } from "../runspec.js";
 import { parseDecimal } from "../validate.js";
+import { gradingTools, handedInBy, myTerms } from "./grading.js";
+import { rigTitle } from "../shapes.js";
 
 const enc = encodeURIComponent;
 
@@ -126,7 +129,7 @@ function assignmentForm(current, courses, rigs, onSave) {
   const title = h("input", { id: "assign-title", maxlength: "200", required: true, autocomplete: "off", value: current?.title ?? "" });
   const instructions = h("textarea", { id: "assign-instructions", rows: "4", maxlength: "20000" });
   instructions.value = current?.instructions ?? "";
-  const rig = h("select", { id: "assign-rig" }, rigs.map((r) => h("option", { value: r.id }, r.title)));
+  const rig = h("select", { id: "assign-rig" }, rigs.map((r) => h("option", { value: r.id }, rigTitle(r))));
   if (current) rig.value = current.rig;
   const boxes = methods().map((m) =>
     h(
@@ -134,7 +137,7 @@ function assignmentForm(current, courses, rigs, onSave) {
       { class: "check" },
       h("input", { type: "checkbox", name: "method", value: m.name, checked: current ? current.methods.includes(m.name) : m.name === "lsm" }),
       " ",
-      m.title,
+      methodTitle(m.name),
     ),
   );
   const deadline = h("input", { id: "assign-deadline", type: "datetime-local", required: true, value: current ? localInput(current.deadline) : "" });
@@ -194,13 +197,6 @@ function assignmentForm(current, courses, rigs, onSave) {
   return form;
 }
 
-/** An ISO instant as a datetime-local field's value, in local time. @param {string} iso */
-function localInput(iso) {
-  const d = new Date(iso);
-  const pad = (/** @type {number} */ n) => String(n).padStart(2, "0");
-  return `${d.getFullYear()}-${pad(d.getMonth() + 1)}-${pad(d.getDate())}T${pad(d.getHours())}:${pad(d.getMinutes())}`;
-}
-
 /**
  * One assignment: for a teacher, its form and hand-ins; for a student, the hand-in.
  * @param {HTMLElement} main
@@ -222,7 +218,7 @@ async function showOne(main, id, ctx, error, alive) {
     h("dt", null, t("assign.rig")),
     h("dd", null, h("a", { href: `#/rig/${enc(a.rig)}` }, a.rig)),
     h("dt", null, t("assign.methods")),
-    h("dd", null, a.methods.map((m) => m.toUpperCase()).join(", ")),
+    h("dd", null, a.methods.map(methodTitle).join(", ")),
     h("dt", null, t("assign.deadline")),
     h("dd", null, when(a.deadline)),
     h("dt", null, t("assign.tolerances")),
@@ -253,10 +249,11 @@ async function showOne(main, id, ctx, error, alive) {
     );
     const all = await api.submissions(a.id);
     if (alive()) hand.replaceChildren(submissionsTable(all));
+    if (!a.draft && alive()) hand.after(await gradingTools(a, alive));
     return;
   }
   const result = h("section", { id: "handin-result", "aria-live": "polite" });
-  main.append(await handInForm(a, ctx, result), result);
+  main.append(myTerms(a), await handInForm(a, ctx, result), result);
   if (a.mine.length > 0) result.replaceChildren(feedback(a.mine[0]), history(a.mine));
 }
 
@@ -339,6 +336,9 @@ function feedback(s) {
     h("h2", null, t("assign.feedbackHeading")),
     h("p", { "data-testid": "mark", class: "mark" }, markText(s)),
     s.late ? h("p", { class: "warning", "data-testid": "late" }, t("assign.late")) : "",
+    s.handedInBy ? h("p", { class: "muted", "data-testid": "handed-in-by" }, t("grading.handedInBy", { name: s.handedInBy })) : "",
+    // A lab group mate's run too: the run policy lets the group read the runs it hands in.
+    s.runId ? h("p", null, t("assign.runHandedIn"), " ", h("a", { href: `#/runs/${enc(s.runId)}`, "data-testid": "handed-in-run" }, t("runs.label", { run: s.runId }))) : "",
     ...untrusted.map((/** @type {any} */ i) => h("p", { class: "warning" }, t("assign.untrusted", { method: String(i.method).toUpperCase() }))),
     ...s.assessment.identified
       .filter((/** @type {any} */ i) => typeof i.fit === "number")
@@ -373,7 +373,7 @@ function history(mine) {
     h(
       "ul",
       { id: "handin-history" },
-      mine.map((s) => h("li", null, t("assign.historyItem", { at: when(s.submittedAt), mark: markText(s) }), s.late ? ` (${t("assign.lateShort")})` : "")),
+      mine.map((s) => h("li", null, t("assign.historyItem", { at: when(s.submittedAt), mark: markText(s) }), s.late ? ` (${t("assign.lateShort")})` : "", handedInBy(s))),
     ),
   );
 }
@@ -386,7 +386,7 @@ function submissionsTable(all) {
     h(
       "tr",
       { "data-student": s.student, "data-current": String(s.current) },
-      h("td", null, s.displayName ? `${s.displayName} (${s.student})` : s.student),
+      h("td", null, s.displayName ? `${s.displayName} (${s.student})` : s.student, handedInBy(s)),
       h("td", null, when(s.submittedAt)),
       h("td", null, s.runId ? h("a", { href: `#/runs/${enc(s.runId)}` }, t("runs.label", { run: s.runId })) : "–"),
       h("td", null, markText(s)),

@@ -5,10 +5,17 @@
 // course on one or more rigs, edits or cancels it; a slot that overlaps
 // another is refused by the server (409 booking_clash), and the page says
 // which slot is in the way. Laid out as a list of days, so it reads on a phone.
+// A slot ends on the day its end date says, never moved past midnight by
+// itself: swapped times are refused (422 slot_ends_before_start), and longer
+// than a day needs the teacher's "longer" box. A teacher may repeat the slot
+// weekly until a day; the weeks in the way are listed. The tools under the
+// calendar (quota, own bookings, feeds, reminders) are ./booking_tools.js.
 
 import { api } from "../api.js";
 import { announce, h, setText } from "../dom.js";
-import { formatDateTime, t } from "../i18n.js";
+import { formatDateTime, formatNumber, t } from "../i18n.js";
+import { rigTitle } from "../shapes.js";
+import { dateValue, feedsCard, ownBookingCard, quotaCard, remindersCard } from "./booking_tools.js";
 
 const DAY_MS = 24 * 3600 * 1000;
 
@@ -18,12 +25,6 @@ export function weekStart(date) {
   const back = (d.getDay() + 6) % 7; // Monday = 0
   d.setDate(d.getDate() - back);
   return d;
-}
-
-/** @param {Date} d  as an <input type="date"> value (local) */
-function dateValue(d) {
-  const pad = (/** @type {number} */ n) => String(n).padStart(2, "0");
-  return `${d.getFullYear()}-${pad(d.getMonth() + 1)}-${pad(d.getDate())}`;
 }
 
 /** @param {Date} d  as an <input type="time"> value (local) */
@@ -65,6 +66,25 @@ export function mount(main, _route, ctx) {
 
   const form = teacher ? bookingForm() : null;
   if (form) main.append(form.el);
+  const tools = h("div", { id: "booking-tools" });
+  main.append(tools);
+  (teacher ? api.courses() : api.ownBookingCourses())
+    .then((/** @type {any[]} */ found) => {
+      if (!alive) return;
+      if (teacher) tools.append(quotaCard(found), feedsCard(found), remindersCard());
+      else {
+        if (found.length) {
+          tools.append(
+            ownBookingCard(found, (from) => {
+              monday = weekStart(from);
+              void refresh();
+            }),
+          );
+        }
+        tools.append(feedsCard([]), remindersCard());
+      }
+    })
+    .catch((err) => setText(status, err.message));
 
   async function refresh() {
     const end = new Date(monday.getTime() + 7 * DAY_MS + 3600 * 1000); // a DST week has 169 h
@@ -113,6 +133,13 @@ export function mount(main, _route, ctx) {
       t("calendar.rigs", { rigs: b.rigs.join(", ") }),
       b.note ? ` · ${b.note}` : "",
     );
+    if (!teacher && b.mine) {
+      const label = t("calendar.times", { start: hhmm(start), end: hhmm(end) });
+      item.append(
+        " ",
+        h("button", { type: "button", class: "link-button", "aria-label": t("calendar.cancelSlot", { slot: label }), onclick: () => void cancel(b.id) }, t("calendar.cancel")),
+      );
+    }
     if (teacher) {
       const label = t("calendar.times", { start: hhmm(start), end: hhmm(end) });
       item.append(
@@ -144,6 +171,14 @@ export function mount(main, _route, ctx) {
     const date = h("input", { id: "booking-date", type: "date", required: true, value: dateValue(new Date()) });
     const start = h("input", { id: "booking-start", type: "time", required: true, value: "08:00" });
     const end = h("input", { id: "booking-end", type: "time", required: true, value: "10:00" });
+    const endDate = h("input", { id: "booking-end-date", type: "date", required: true, value: dateValue(new Date()) });
+    const longer = h("input", { id: "booking-longer", type: "checkbox" });
+    const until = h("input", { id: "booking-repeat-until", type: "date" });
+    const skip = h("input", { id: "booking-skip-clashes", type: "checkbox" });
+    // The end's day follows the start's until the teacher changes it.
+    date.addEventListener("change", () => {
+      endDate.value = date.value;
+    });
     const note = h("input", { id: "booking-note", maxlength: "200", autocomplete: "off" });
     const heading = h("h2", null, t("calendar.bookHeading"));
     const submit = h("button", { type: "submit", class: "primary", id: "booking-submit" }, t("calendar.book"));
@@ -156,7 +191,11 @@ export function mount(main, _route, ctx) {
       rigs,
       h("div", { class: "field" }, h("label", { for: "booking-date" }, t("calendar.date")), date),
       h("div", { class: "field" }, h("label", { for: "booking-start" }, t("calendar.start")), start),
+      h("div", { class: "field" }, h("label", { for: "booking-end-date" }, t("calendar.endDate")), endDate),
       h("div", { class: "field" }, h("label", { for: "booking-end" }, t("calendar.end")), end),
+      h("div", { class: "field check" }, longer, h("label", { for: "booking-longer" }, t("calendar.longer"))),
+      h("div", { class: "field", id: "booking-repeat" }, h("label", { for: "booking-repeat-until" }, t("calendar.repeatUntil")), until),
+      h("div", { class: "field check" }, skip, h("label", { for: "booking-skip-clashes" }, t("calendar.skipClashes"))),
       h("div", { class: "field" }, h("label", { for: "booking-note" }, t("calendar.note")), note),
       error,
       h("div", { class: "buttons" }, submit, stop),
@@ -173,7 +212,7 @@ export function mount(main, _route, ctx) {
               "div",
               { class: "field check" },
               h("input", { type: "checkbox", id: `booking-rig-${r.id}`, value: r.id }),
-              h("label", { for: `booking-rig-${r.id}` }, r.title ?? r.id),
+              h("label", { for: `booking-rig-${r.id}` }, rigTitle(r)),
             ),
           ),
         );
@@ -192,19 +231,27 @@ export function mount(main, _route, ctx) {
         return;
       }
       const from = new Date(`${date.value}T${start.value}`);
-      let to = new Date(`${date.value}T${end.value}`);
-      if (to <= from) to = new Date(to.getTime() + DAY_MS); // a slot past midnight
-      const spec = { rigs: chosen, startsAt: from.toISOString(), endsAt: to.toISOString(), note: note.value.trim() };
+      // The end as typed: a reversed slot is refused by the server, never moved a day on.
+      const to = new Date(`${endDate.value || date.value}T${end.value}`);
+      const spec = { rigs: chosen, startsAt: from.toISOString(), endsAt: to.toISOString(), note: note.value.trim(), longer: longer.checked };
       submit.disabled = true;
       try {
-        if (editing === null) await api.book({ course: course.value, ...spec });
+        if (editing === null && until.value) {
+          // The weeks keep this wall-clock time in the reader's zone across daylight saving.
+          const series = await api.bookSeries({ course: course.value, ...spec, until: until.value, skipClashes: skip.checked, zone: zone || undefined });
+          announce(t("calendar.seriesBooked", { booked: formatNumber(series.booked.length), skipped: formatNumber(series.skipped.length) }));
+          setText(error, series.skipped.length ? t("calendar.seriesSkipped", { weeks: clashDays(series.skipped) }) : "");
+        } else if (editing === null) await api.book({ course: course.value, ...spec });
         else await api.editBooking(editing, spec);
-        announce(t(editing === null ? "calendar.booked" : "calendar.saved"));
+        if (editing !== null || !until.value) announce(t(editing === null ? "calendar.booked" : "calendar.saved"));
+        const said = error.textContent;
         reset();
+        setText(error, said ?? "");
         monday = weekStart(from);
         await refresh();
       } catch (err) {
-        setText(error, err.message);
+        const clashes = err?.body?.clashes;
+        setText(error, Array.isArray(clashes) ? `${err.message} ${t("calendar.seriesClashes", { weeks: clashDays(clashes) })}` : err.message);
       } finally {
         submit.disabled = false;
       }
@@ -227,8 +274,10 @@ export function mount(main, _route, ctx) {
       course.disabled = true; // a booking keeps its course
       for (const box of boxes()) box.checked = b.rigs.includes(box.value);
       date.value = dateValue(from);
+      endDate.value = dateValue(new Date(b.endsAt));
       start.value = timeValue(from);
       end.value = timeValue(new Date(b.endsAt));
+      until.value = "";
       note.value = b.note ?? "";
       stop.hidden = false;
       setText(heading, t("calendar.editHeading"));
@@ -238,6 +287,11 @@ export function mount(main, _route, ctx) {
 
     stop.addEventListener("click", reset);
     return { el, edit, reset };
+  }
+
+  /** @param {Array<any>} weeks  occurrences of a series: their days, in the reader's words */
+  function clashDays(weeks) {
+    return weeks.map((w) => formatDateTime(new Date(w.startsAt), { dateStyle: "medium", timeStyle: "short" })).join("; ");
   }
 
   const move = (/** @type {number} */ weeks) => {

@@ -5,7 +5,9 @@
 // parameter with its range, the rules and their forms) and GET
 // /api/rigs/{rig}/loop (units, output limit, the disturbance fan, the run's
 // loop now). From a run's identified model, the tuning table (GET
-// /api/runs/{id}/tuning) gives each rule's gains with the predicted step;
+// /api/runs/{id}/tuning) gives each rule's gains with the predicted step to the
+// set point the student typed, or to the server's default for the rig's ranges
+// (a step of the input from rest: the middle of the ±10 V box is no step);
 // picking a row fills the gains. START posts a run with `control`; while it
 // runs: set-point steps, manual/auto, the fan, END. The chart draws r, y, u and
 // the prediction; in adaptive mode the gains' trajectories and why the tuner
@@ -13,8 +15,9 @@
 
 import { api, request } from "../api.js";
 import { Chart, COLORS } from "../charts.js";
-import { h, replaceChildren, serverText, setText, tParts } from "../dom.js";
+import { h, replaceChildren, setText, tParts } from "../dom.js";
 import { formatNumber, t } from "../i18n.js";
+import { loopNotes, loopWord } from "../loopwords.js";
 import { checkNumber, rangeText } from "../validate.js";
 
 const enc = encodeURIComponent;
@@ -35,6 +38,11 @@ const loopApi = {
 
 /** The modes' labels (the server's words are "manual" and "auto"). */
 const MODE_KEYS = { manual: "loop.modeManual", auto: "loop.modeAuto" };
+
+/** A number as a field holds it: the page's decimal mark, six significant digits, no grouping. @param {number} v */
+function plain(v) {
+  return formatNumber(v, { maximumSignificantDigits: 6, useGrouping: false });
+}
 
 /** @param {number | null | undefined} v @param {number} [digits] */
 function num(v, digits = 4) {
@@ -71,6 +79,10 @@ export class ClosedLoopPanel {
     /** @type {any} */ this.rig = null;
     /** @type {any} */ this.modeSelect = null;
     /** @type {any} */ this.adaptive = null;
+    /** The table shown, the run it came from and the row picked (its prediction follows the set point). */
+    /** @type {any} */ this.tuning = null;
+    /** @type {any} */ this.tuningRun = null;
+    /** @type {string | null} */ this.usedRule = null;
     this.el = h("section", { class: "card closed-loop", "aria-labelledby": "loop-heading", "data-testid": "closed-loop" },
       h("h2", { id: "loop-heading" }, t("loop.heading")),
       h("p", {}, t("loop.lede")));
@@ -132,14 +144,17 @@ export class ClosedLoopPanel {
     const rig = this.rig;
     const out = rig.outputUnit;
     const [uMin, uMax] = rig.inputRange;
+    // Below the output limit; any value under it (the server refuses one at the step's start).
     const setpointSpec = { label: t("loop.setpoint"), min: -Infinity, max: rig.outputLimit ?? Infinity, exclusiveMax: true, unit: out };
+    // A manual start holds the input the rig rests at, not the range's end (−10 V on the box).
+    const rest = Number.isFinite(rig.safeInput) ? rig.safeInput : Math.min(Math.max(0, uMin), uMax);
     this.error = h("p", { class: "form-error", role: "alert", "data-testid": "loop-error" });
     if (!rig.closedLoop) {
       replaceChildren(this.body, h("p", {}, t("loop.noOutput")));
       return;
     }
     // Tuning table from a run's identified model.
-    this.modelRun = this._field("modelRun", t("loop.modelRun"), { label: t("loop.modelRun"), min: 1, max: 2 ** 53, integer: true });
+    this.modelRun = this._field("modelRun", t("loop.modelRun"), { label: t("loop.modelRun"), min: 1, max: Infinity, integer: true });
     this.tableButton = h("button", { type: "button", "data-action": "tuning" }, t("loop.tuningTable"));
     this.tableButton.addEventListener("click", () => void this._tuningTable());
     this.table = h("div", { class: "table-wrap", "data-testid": "tuning-table" });
@@ -153,13 +168,14 @@ export class ClosedLoopPanel {
     this.startButton.addEventListener("click", () => void this._start());
     this.form = h("fieldset", {},
       h("legend", {}, t("loop.controller")),
+      h("p", { class: "hint" }, t("loop.tuningHint")),
       h("div", { class: "fields" }, this.modelRun, this.tableButton), this.table,
       h("div", { class: "fields" },
         this._field("kp", t("loop.kp"), this._spec("kp", t("loop.kp"), `${rig.inputUnit}/${out}`)),
         this._field("ti", t("loop.ti"), this._spec("ti", t("loop.ti"))),
         this._field("td", t("loop.td"), this._spec("td", t("loop.td")), 0),
         this._field("setpoint", t("loop.setpoint"), setpointSpec),
-        this._field("u", t("loop.manualInput"), { label: t("loop.manualInput"), min: uMin, max: uMax, unit: rig.inputUnit }, uMin),
+        this._field("u", t("loop.manualInput"), { label: t("loop.manualInput"), min: uMin, max: uMax, unit: rig.inputUnit }, rest),
         this._field("dt", t("loop.dt"), { label: t("loop.dt"), min: 0.01, max: 3600, unit: "s" }, 1),
         this._field("samples", t("loop.samples"), { label: t("loop.samples"), min: 1, max: 200000, integer: true }, 1200)),
       h("div", { class: "field" }, h("label", { for: "loop-mode" }, t("loop.mode")), modeSelect),
@@ -193,13 +209,13 @@ export class ClosedLoopPanel {
     this.figures = h("div", { class: "table-wrap", "data-testid": "loop-figures" });
     this.chartHost = h("div", {});
     this.chart = new Chart(this.chartHost, {
-      label: t("loop.chart"), xLabel: t("loop.time"), yLabel: out,
+      label: t("loop.chart"), xLabel: t("loop.time"), yLabel: t("axis.withUnit", { axis: t("loop.outputAxis"), unit: out }),
       series: [{ label: "r", color: COLORS[6], dash: [6, 4] }, { label: "y", color: COLORS[0] },
         { label: t("loop.predicted"), color: COLORS[1], dash: [2, 3], auto: false }],
       source: () => [this.series.t, this.series.r, this.series.y, this.series.p],
     });
     this.uChart = new Chart(this.chartHost, {
-      label: t("loop.inputChart"), xLabel: t("loop.time"), yLabel: rig.inputUnit,
+      label: t("loop.inputChart"), xLabel: t("loop.time"), yLabel: t("axis.withUnit", { axis: t("axis.input"), unit: rig.inputUnit }),
       series: [{ label: "u", color: COLORS[2] }], source: () => [this.series.t, this.series.u], height: 140,
     });
     this.gainHost = h("div", { hidden: true });
@@ -221,12 +237,25 @@ export class ClosedLoopPanel {
     }
   }
 
+  /** The set point typed for the table: undefined (the server's default) or a checked value; null: refused. */
+  _tuningSetpoint() {
+    const f = this.fields.setpoint;
+    if (f.input.value.trim() === "") return undefined;
+    const v = this._read(["setpoint"]);
+    return v ? v.setpoint : null;
+  }
+
   async _tuningTable(runId) {
     const v = runId ? { modelRun: runId } : this._read(["modelRun"]);
     if (!v) return;
+    const setpoint = this._tuningSetpoint();
+    if (setpoint === null) return;
     setText(this.error, "");
     try {
-      const answer = await loopApi.tuning(v.modelRun, "");
+      const answer = await loopApi.tuning(v.modelRun, setpoint === undefined ? "" : `?setpoint=${enc(String(setpoint))}`);
+      this.tuningRun = v.modelRun;
+      this.usedRule = null;
+      this.predicted = null;
       this._showTable(answer.table);
     } catch (err) {
       setText(this.error, err.message);
@@ -235,12 +264,19 @@ export class ClosedLoopPanel {
 
   _showTable(table) {
     if (!table) return;
+    this.tuning = table;
     this.model = table.model;
-    const rows = table.rows.filter((r) => !r.error).map((row) => {
+    const out = this.rig.outputUnit;
+    // The step the rows predict: the server's default, or the one typed.
+    this.fields.setpoint.input.value = plain(table.setpoint);
+    const rows = table.rows.map((row) => {
+      const name = h("th", { scope: "row" }, `${row.rule.toUpperCase()} ${row.form.toUpperCase()}`);
+      // A rule that cannot tune this model says why (ZN and CC need a dead time), in the page's language.
+      if (row.error) return h("tr", { "data-refused": `${row.rule}-${row.form}` }, name, h("td", { colspan: "7", class: "hint" }, loopWord(row.why, row.error)));
       const use = h("button", { type: "button", "data-action": "use", "data-rule": `${row.rule}-${row.form}` }, t("loop.use"));
-      use.addEventListener("click", () => this._use(row, table));
+      use.addEventListener("click", () => this._use(row));
       const p = row.predicted;
-      return h("tr", {}, h("th", { scope: "row" }, `${row.rule.toUpperCase()} ${row.form.toUpperCase()}`),
+      return h("tr", {}, name,
         h("td", {}, num(row.Kp)), h("td", {}, num(row.Ti)), h("td", {}, num(row.Td)),
         h("td", {}, num(p.overshoot, 3)), h("td", {}, num(p.settling_time, 4)), h("td", {}, num(p.iae)), h("td", {}, use));
     });
@@ -248,17 +284,26 @@ export class ClosedLoopPanel {
     const heads = ["loop.rule", "loop.kp", "loop.ti", "loop.td", "loop.overshoot", "loop.settling", "loop.iae"];
     replaceChildren(this.table,
       h("p", {}, t("loop.model", { K: num(m.K), tau: num(m.tau), theta: num(m.theta), method: table.method.toUpperCase() })),
+      h("p", { "data-testid": "tuning-step" }, t("loop.tuningStep", { from: num(table.y0), to: num(table.setpoint), unit: out, u0: num(table.u0), inputUnit: this.rig.inputUnit })),
       h("table", {}, h("thead", {}, h("tr", {}, ...heads.map((k) => h("th", { scope: "col" }, t(k))), h("th", {}))),
         h("tbody", {}, ...rows)));
   }
 
-  _use(row, table) {
+  _use(row) {
     const gains = { kp: row.Kp, ti: row.Ti, td: row.Td };
-    for (const [name, value] of Object.entries(gains)) {
-      this.fields[name].input.value = formatNumber(value, { maximumSignificantDigits: 6, useGrouping: false });
-    }
-    this.fields.setpoint.input.value = formatNumber(table.setpoint, { maximumSignificantDigits: 6, useGrouping: false });
+    for (const [name, value] of Object.entries(gains)) this.fields[name].input.value = plain(value);
+    this.fields.setpoint.input.value = plain(this.tuning.setpoint);
+    this.usedRule = `${row.rule}-${row.form}`;
     this.predicted = row.response;
+  }
+
+  /** The picked rule's prediction for the set point the run starts with (typed after the pick, too). */
+  async _predictionFor(setpoint) {
+    const table = this.tuning;
+    if (!this.usedRule || !table || setpoint === table.setpoint) return;
+    const answer = await loopApi.tuning(this.tuningRun, `?setpoint=${enc(String(setpoint))}`);
+    const row = answer.table?.rows.find((r) => `${r.rule}-${r.form}` === this.usedRule && !r.error);
+    this.predicted = row ? row.response : null;
   }
 
   async _start() {
@@ -266,12 +311,20 @@ export class ClosedLoopPanel {
     const v = this._read(["kp", "ti", "td", "setpoint", "u", "dt", "samples"]);
     if (!v) return;
     setText(this.error, "");
+    try {
+      await this._predictionFor(v.setpoint);
+    } catch (err) {
+      setText(this.error, err.message);
+      return;
+    }
     /** @type {Record<string, unknown>} */
     const control = { mode: this.modeSelect.value, setpoint: v.setpoint, kp: v.kp, ti: v.ti, td: v.td, adaptive: this.adaptive.checked };
     if (this.model) control.model = [this.model.K, this.model.tau, this.model.theta];
     this.startButton.disabled = true;
     try {
-      const run = await api.startRun(this.rigId, { dt: v.dt, samples: v.samples, setpoint: v.u, methods: ["wlsm"], control });
+      // LSM fits the whole record, the set-point step included: it identifies in closed
+      // loop, where WLSM's last samples hold a settled loop (docs/command-line.md).
+      const run = await api.startRun(this.rigId, { dt: v.dt, samples: v.samples, setpoint: v.u, methods: ["lsm"], control });
       this.started(run);
     } catch (err) {
       setText(this.error, err.message);
@@ -310,7 +363,7 @@ export class ClosedLoopPanel {
         h("th", { scope: "col" }, t("loop.overshoot")), h("th", { scope: "col" }, t("loop.settling")), h("th", { scope: "col" }, t("loop.iae")))),
       h("tbody", {}, row("loop.measured", cl.measured), row("loop.predicted", cl.predicted))));
       // Why the prediction may not match (a warm box, no model stored...): said beside it.
-      if (cl.note) this.figures.append(h("p", { class: "hint", "data-testid": "loop-note" }, ...tParts("loop.predictionNote", { note: serverText(cl.note) })));
+      if (cl.note) this.figures.append(h("p", { class: "hint", "data-testid": "loop-note" }, ...tParts("loop.predictionNote", { note: h("span", {}, ...loopNotes(cl.notes, cl.note)) })));
     } catch (err) {
       setText(this.error, err.message);
     }
@@ -346,8 +399,8 @@ export class ClosedLoopPanel {
         const g = loop.gains;
         setText(this.status, t("loop.state", { mode: t(MODE_KEYS[loop.mode]), setpoint: num(loop.setpoint), Kp: num(g.Kp), Ti: num(g.Ti), Td: num(g.Td) }));
         const reason = loop.adaptive?.last_reason;
-        setText(this.hold, reason ? t("loop.holding", { reason }) : "");
-        if (reason) this.hold.setAttribute("lang", "en");
+        // Why the tuner holds the gains, in the page's language (by its code, loopwords.js).
+        replaceChildren(this.hold, ...(reason ? tParts("loop.holding", { reason: loopWord(loop.adaptive.last_word, reason) }) : []));
       }
     } catch {
       // the next poll tries again

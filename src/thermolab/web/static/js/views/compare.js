@@ -5,7 +5,7 @@
 
 import { api } from "../api.js";
 import { h, setText } from "../dom.js";
-import { deviation, fmt, fmtFigure, REFERENCE_MODEL } from "../model.js";
+import { deviation, fmtDeviation, fmtFigure, fmtPercentDeviation, REFERENCE_MODEL } from "../model.js";
 import { inputText, methodTitle } from "../runspec.js";
 import { runFigures } from "./run.js";
 import { lastSampleGain } from "./panels/results.js";
@@ -95,7 +95,7 @@ export function comparisonTable(runs, ref) {
   const dev = (s, refValue) => {
     const d = s ? deviation(s.mean, refValue) : null;
     if (!d) return "–";
-    return `${fmt(d.abs, 4)} (${fmt(100 * d.rel, 3)} %)`;
+    return `${fmtDeviation(d.abs)} (${fmtPercentDeviation(d.rel)})`;
   };
   const body = rows.map(({ run, label, f }) =>
     h(

@@ -1,15 +1,16 @@
 // @ts-check
 // A teacher's courses: create one, upload its class list (CSV) and read the
 // report (each new student's one-time password, or every bad line), see the
-// roster, show or renew the enrolment code, reset a student's password; at
-// the end of the term, close the course and copy it to the next one
-// (endOfTermSection in term.js).
+// roster, show or renew the enrolment code, reset a student's password, add a
+// teaching assistant; at the end of the term, close the course and copy it to
+// the next one (endOfTermSection in term.js).
 
 import { api } from "../api.js";
 import { announce, h, setText } from "../dom.js";
 import { serverMessage, t } from "../i18n.js";
 import { courseLimitsSection } from "./courselimits.js";
 import { endOfTermSection } from "./term.js";
+import { rigTitle } from "../shapes.js";
 
 /**
  * @param {HTMLElement} main
@@ -171,6 +172,7 @@ async function showCourse(box, name, alive, ctx) {
     h("div", { class: "field" }, h("label", { for: "reset-current" }, t("courses.resetCurrent")), teacherPassword),
     resetOut,
     roster,
+    assistantForm(name, refreshRoster),
     endOfTermSection(course, ctx),
   );
   box.hidden = false;
@@ -188,7 +190,7 @@ async function courseRigs(name, chosen) {
   const boxes = rigs.map((/** @type {any} */ rig) => {
     const id = `course-rig-${rig.id}`;
     const box = h("input", { type: "checkbox", id, value: rig.id, checked: chosen.includes(rig.id) });
-    return { box, el: h("div", { class: "field inline" }, box, h("label", { for: id }, rig.title || rig.id)) };
+    return { box, el: h("div", { class: "field inline" }, box, h("label", { for: id }, rigTitle(rig))) };
   });
   const save = h("button", { type: "submit", id: "course-rigs-save" }, t("courses.rigsSave"));
   const form = h(
@@ -267,6 +269,49 @@ function problemText(problem) {
   return serverMessage(problem.type, server, params);
 }
 
+/** @type {Record<string, string>} */
+const ROLE_KEYS = { teacher: "role.teacher", assistant: "role.assistant", student: "role.student" };
+
+/**
+ * A teaching assistant added by login name; the roster shown again.
+ * @param {string} name  the course
+ * @param {() => Promise<void>} refreshRoster
+ */
+function assistantForm(name, refreshRoster) {
+  const user = h("input", { id: "assistant-name", name: "assistant", maxlength: "64", required: true, autocomplete: "off", autocapitalize: "none" });
+  const add = h("button", { type: "submit", id: "assistant-add" }, t("courses.assistantAdd"));
+  const out = h("p", { role: "status", id: "assistant-result" });
+  const form = h(
+    "form",
+    { id: "assistant-form", novalidate: true },
+    h("h3", null, t("courses.assistantHeading")),
+    h("p", { class: "muted" }, t("courses.assistantHelp")),
+    h("div", { class: "field" }, h("label", { for: "assistant-name" }, t("courses.assistantName")), user),
+    add,
+    out,
+  );
+  form.addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    const login = user.value.trim();
+    if (!login) {
+      user.focus();
+      return;
+    }
+    add.disabled = true;
+    try {
+      await api.addAssistant(name, login);
+      setText(out, t("courses.assistantAdded", { user: login }));
+      form.reset();
+      await refreshRoster();
+    } catch (err) {
+      setText(out, err.message);
+    } finally {
+      add.disabled = false;
+    }
+  });
+  return form;
+}
+
 /**
  * @param {any[]} members
  * @param {(username: string) => void} onReset
@@ -278,7 +323,7 @@ function rosterTable(members, onReset) {
       { "data-member": m.username },
       h("td", null, m.username),
       h("td", null, m.displayName ?? ""),
-      h("td", null, t(m.role === "teacher" ? "role.teacher" : "role.student")),
+      h("td", null, t(ROLE_KEYS[m.role] ?? "role.student")),
       h("td", null, m.mustChangePassword ? t("courses.temporary") : ""),
       h(
         "td",

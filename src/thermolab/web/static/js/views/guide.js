@@ -15,6 +15,7 @@
 
 import { request } from "../api.js";
 import { h, replaceChildren, setText, when } from "../dom.js";
+import { glossaryList } from "../glossary.js";
 import { language, t } from "../i18n.js";
 
 /** The guide's sections in reading order, with the key of each one's name. */
@@ -104,6 +105,7 @@ export class GuideDrawer {
       this.note,
       this.article,
       this.meta,
+      glossaryList(),
       this.editor ? this.editor.el : null,
       this.status,
     );

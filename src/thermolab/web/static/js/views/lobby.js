@@ -4,7 +4,7 @@
 
 import { api } from "../api.js";
 import { h, setText } from "../dom.js";
-import { personName, readRig, stateLabel } from "../shapes.js";
+import { personName, readRig, rigTitle, stateLabel } from "../shapes.js";
 import { t } from "../i18n.js";
 
 const POLL_MS = 3000;
@@ -62,7 +62,7 @@ function rigCard(rig) {
   return h(
     "li",
     { class: "card rig-card", "data-rig": rig.id, "aria-labelledby": headingId },
-    h("h2", { id: headingId }, h("a", { href: `#/rig/${encodeURIComponent(rig.id)}`, class: "rig-link" }, rig.title)),
+    h("h2", { id: headingId }, h("a", { href: `#/rig/${encodeURIComponent(rig.id)}`, class: "rig-link" }, rigTitle(rig))),
     h("p", { class: "rig-id muted" }, rig.id),
     h(
       "dl",

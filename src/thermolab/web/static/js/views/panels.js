@@ -146,10 +146,16 @@ export class Panels {
     }
   }
 
-  /** Lock (watching) or unlock (controlling) every control, without a reload. */
-  setLocked(locked, reason = "") {
+  /**
+   * Lock (watching) or unlock (controlling) every control, without a reload.
+   * @param {boolean} locked
+   * @param {string} [reason]
+   * @param {boolean} [repeatsRole]  the reason only repeats the access card's role (a phone leaves it out)
+   */
+  setLocked(locked, reason = "", repeatsRole = false) {
     this.locked = locked;
     this.lockReason = reason;
+    this.notice.toggleAttribute("data-repeats-role", repeatsRole);
     this._renderLock();
   }
 

@@ -5,7 +5,7 @@
 // the catalogue's.
 
 import { api } from "../api.js";
-import { h } from "../dom.js";
+import { h, setText } from "../dom.js";
 import { t } from "../i18n.js";
 
 const KEPT = ["privacy.account", "privacy.runs", "privacy.handins", "privacy.bookings", "privacy.logins", "privacy.audit"];
@@ -16,6 +16,17 @@ const KEPT = ["privacy.account", "privacy.runs", "privacy.handins", "privacy.boo
  * @param {any} ctx
  */
 export function mount(main, _route, ctx) {
+  // The operator's retention period: filled in when the lab has said it.
+  const automatic = h("p", { id: "privacy-automatic" });
+  api
+    .privacy()
+    .then((policy) => {
+      const months = policy.retentionMonths;
+      if (months === null || months === undefined) setText(automatic, t("privacy.retentionNone"));
+      else if (policy.retentionAction === "delete") setText(automatic, t("privacy.retentionDelete", { count: months }));
+      else setText(automatic, t("privacy.retentionPseudonymise", { count: months }));
+    })
+    .catch(() => automatic.remove()); // the rest of the page stands without it
   const download = ctx.user
     ? h("a", { class: "button", href: api.myDataUrl(), download: `thermolab-${ctx.user.username}.json`, id: "privacy-download" }, t("account.dataDownload"))
     : h("a", { href: "#/login", id: "privacy-login" }, t("privacy.loginFirst"));
@@ -31,6 +42,7 @@ export function mount(main, _route, ctx) {
       h("p", null, t("privacy.why")),
       h("h2", null, t("privacy.howLongHeading")),
       h("p", { id: "privacy-retention" }, t("privacy.untilRemoved")),
+      automatic,
       h("h2", null, t("privacy.rightsHeading")),
       h("p", null, t("privacy.export")),
       h("p", null, download),

@@ -8,6 +8,7 @@
 // it shows: rig/header.js, rig/connection.js, rig/camera.js, rig/readout.js,
 // rig/runshow.js (the run on show: rig/livecharts.js, rig/convergence.js),
 // access.js and panels.js; rig/lock.js says why the panels are locked;
+// rig/pace.js says how fast the rig runs and how long a turn lasts;
 // rig/notice.js says what happened to my turn and run; rig/reach.js follows
 // whether the lab answers at all (and locks everything while it does not).
 
@@ -25,7 +26,8 @@ import { panelLimits } from "./panels/definitions.js";
 import { Camera } from "./rig/camera.js";
 import { clearConnection, showConnection } from "./rig/connection.js";
 import { RigHeader } from "./rig/header.js";
-import { lockReason } from "./rig/lock.js";
+import { paceText } from "./rig/pace.js";
+import { lockReason, lockRepeatsRole } from "./rig/lock.js";
 import { Readout } from "./rig/readout.js";
 import { TurnNotice } from "./rig/notice.js";
 import { NextChance } from "./rig/chance.js";
@@ -166,6 +168,16 @@ class RigPage {
     }
   }
 
+  /** Read the rig's actuators now (after a run's end, which puts them at their defaults). */
+  async _readActuators() {
+    try {
+      const rig = readRig(await api.rig(this.rigId));
+      if (!this._destroyed) this.readout.setActuators(rig.actuators);
+    } catch {
+      // the next poll or hello brings them
+    }
+  }
+
   /** Without the socket, follow one's own run over HTTP (progress, estimates, its end). */
   async _pollRun() {
     let run;
@@ -222,7 +234,10 @@ class RigPage {
       case "run":
         this.show.event(msg);
         if (msg.event === "started") this.loop.started(msg.run);
-        else void this.loop.ended(msg.run);
+        else {
+          void this.loop.ended(msg.run);
+          void this._readActuators(); // the run's end rested them: the rig says where
+        }
         break;
       case "access":
         this.access.update(readAccess(msg.access));
@@ -242,6 +257,7 @@ class RigPage {
     const first = this.rig === null;
     this.rig = rig;
     this.header.setTitle(rig.title || rig.id);
+    this.header.setPace(paceText(rig));
     this.access.setTurnLength(rig.limits.controlTimeLimit ?? null);
     if (first) {
       this.readout.setUnits(rig.inputUnit, rig.outputUnit);
@@ -253,6 +269,7 @@ class RigPage {
         this._rebuildPanels(panelLimits(rig, doc));
       });
     }
+    this.readout.setActuators(rig.actuators);
     this._setState(rig.state, rig.detail);
   }
 
@@ -282,8 +299,9 @@ class RigPage {
   }
 
   _updateLock() {
-    const reason = this.reach?.reachable === false ? t("turn.locked") : lockReason(this.access.access, this.rig?.state);
-    this.panels.setLocked(Boolean(reason), reason);
+    const unreachable = this.reach?.reachable === false;
+    const reason = unreachable ? t("turn.locked") : lockReason(this.access.access, this.rig?.state);
+    this.panels.setLocked(Boolean(reason), reason, !unreachable && lockRepeatsRole(this.access.access, this.rig?.state));
     this.loop.setLocked(Boolean(reason));
   }
 

@@ -3,11 +3,13 @@
 // convergence of the recursive methods), every method's results, the CSV.
 
 import { api, spreadsheetUrl } from "../api.js";
-import { Chart } from "../charts.js";
-import { h, serverText, setText, tParts, when } from "../dom.js";
+import { Chart, TIME_WINDOWS } from "../charts.js";
+import { h, setText, when } from "../dom.js";
 import { fmt, fmtFigure, predict, predictionBase } from "../model.js";
 import { readResult } from "../results.js";
 import { inputText, methodTitle, readRun, runStatusText } from "../runspec.js";
+import { settingsText, statusParts } from "../runwords.js";
+import { identReason, identWarning } from "../identwords.js";
 import { lastSampleGain, operatingPointHow, timingText } from "./panels/results.js";
 import { t } from "../i18n.js";
 import { personName } from "../shapes.js";
@@ -18,8 +20,8 @@ import { personName } from "../shapes.js";
  * @returns {Array<Node | string>}
  */
 function reasonCell(f) {
-  const status = f.valid ? (f.trusted === false ? t("estimate.notTrusted") : null) : f.reason ? serverText(f.reason) : t("estimate.noModel");
-  const notes = [status, f.converged ? null : t("run.notConverged"), ...f.warnings.map(serverText)];
+  const status = f.valid ? (f.trusted === false ? t("estimate.notTrusted") : null) : f.reason ? identReason(f.reason) : t("estimate.noModel");
+  const notes = [status, f.converged ? null : t("run.notConverged"), ...f.warnings.map(identWarning)];
   const shown = /** @type {Array<Node | string>} */ (notes.filter((n) => n !== null && n !== ""));
   return shown.length ? shown.flatMap((n, i) => (i ? ["; ", n] : [n])) : ["–"];
 }
@@ -79,22 +81,22 @@ function render(main, exported, charts) {
   const add = (k, v) => facts.append(h("dt", null, k), h("dd", null, v));
   add(t("runs.rig"), run.rig ?? "–");
   if (run.user) add(t("runs.student"), personName(run.user, run.userName, true));
-  add(t("runs.status"), run.endReason ? tParts("runs.statusWhy", { status: runStatusText(run.status), reason: serverText(run.endReason) }) : runStatusText(run.status));
+  add(t("runs.status"), statusParts(run, runStatusText));
   add(t("runs.started"), when(run.startedAt));
   add(t("run.endedAt"), when(run.endedAt));
   add(t("run.dt"), t("run.seconds", { seconds: run.dt }));
   add(t("runs.samples"), run.nSamples ? t("run.samplesOf", { samples: run.samples, of: run.nSamples }) : String(run.samples));
   add(t("runs.input"), inputText(run));
   add(t("runs.methods"), run.methods.map(methodTitle).join(", "));
-  const settings = Object.entries(run.settings ?? {}).filter(([, v]) => v !== null && typeof v !== "object");
-  if (settings.length) add(t("run.settings"), settings.map(([k, v]) => `${k} = ${v}`).join(", "));
+  const settings = settingsText(run.settings ?? {});
+  if (settings.length) add(t("run.settings"), settings.join("; "));
   const w0 = run.settings?.w0;
   if (Array.isArray(w0)) add(t("run.w0"), `[${w0.map((v) => fmt(v)).join(", ")}]`);
   if (run.operatingPoint?.used !== null && run.operatingPoint?.used !== undefined) {
     facts.append(h("dt", null, t("panel.operatingPoint")), h("dd", { "data-testid": "operating-point" }, operatingPointHow(run.operatingPoint)));
   }
   if (run.timing) {
-    facts.append(h("dt", null, t("run.timing")), h("dd", { "data-testid": "timing" }, [timingText(run.timing), ...(run.timing.warnings ?? []).flatMap((w) => [" ", serverText(w)])]));
+    facts.append(h("dt", null, t("run.timing")), h("dd", { "data-testid": "timing" }, [timingText(run.timing), ...(run.timing.warnings ?? []).flatMap((w) => [" ", identWarning(w)])]));
   }
   main.append(
     h(
@@ -142,6 +144,10 @@ function render(main, exported, charts) {
     yLabel: t("run.outputAxis"),
     series: [{ label: t("axis.output") }, { label: t("series.model"), dash: [6, 4], color: "#D55E00", width: 2, auto: false }],
     source: () => [thin(time), thin(y), thin(yhat)],
+    // A long square wave is a solid block at full width: its last periods on request,
+    // the input chart showing the same time.
+    windows: TIME_WINDOWS,
+    onWindow: (seconds) => inp.setWindow(seconds),
   });
   const inp = new Chart(chartBox, {
     label: t("run.inputChart", { run: run.id }),

@@ -2,8 +2,9 @@
 // My runs: the list, with a choice of runs to compare against the reference model.
 
 import { api } from "../api.js";
-import { h, serverText, setText, tParts, when } from "../dom.js";
+import { h, setText, when } from "../dom.js";
 import { inputText, methodName, methodTitle, panelOfRun, readRun, runStatusText } from "../runspec.js";
+import { statusParts } from "../runwords.js";
 import { t } from "../i18n.js";
 import { personName } from "../shapes.js";
 
@@ -41,7 +42,7 @@ export function runsTable(runs, opts = {}) {
       h("td", null, run.methods.map((m) => methodTitle(methodName(m))).join(", ") || methodTitle(panelOfRun(run))),
       h("td", null, inputText(run)),
       h("td", { class: "num" }, String(run.samples)),
-      h("td", null, run.endReason ? tParts("runs.statusWhy", { status: runStatusText(run.status), reason: serverText(run.endReason) }) : runStatusText(run.status)),
+      h("td", null, statusParts(run, runStatusText)),
     );
   });
   return h("table", { class: "runs" }, h("caption", { class: "visually-hidden" }, t("runs.caption")), h("thead", null, h("tr", null, head)), h("tbody", null, rows));

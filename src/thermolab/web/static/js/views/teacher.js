@@ -5,7 +5,7 @@
 
 import { api } from "../api.js";
 import { announce, duration, h, setText, when } from "../dom.js";
-import { personName, readRig, stateLabel } from "../shapes.js";
+import { personName, readRig, rigTitle, stateLabel } from "../shapes.js";
 import { checkNumber, rangeText } from "../validate.js";
 import { runsPicker } from "./runs.js";
 import { settingsSection } from "./settings.js";
@@ -173,7 +173,7 @@ class RigCard {
   update(rig) {
     this.rig = rig;
     this.deadline = rig.access.controller && rig.access.timeLeft !== null ? Date.now() + rig.access.timeLeft * 1000 : null;
-    setText(this.title, rig.title || rig.id);
+    setText(this.title, rigTitle(rig));
     setText(this.badge, stateLabel(rig.state));
     this.badge.dataset.state = rig.state;
     const a = rig.access;

@@ -2,11 +2,14 @@
 // What a panel says about its run: the status line, the operating point and
 // the table of the current estimates of each of its methods.
 
-import { duration, durationWords, h, serverText, setText, tParts } from "../../dom.js";
-import { fmt, fmtFigure } from "../../model.js";
+import { duration, durationWords, h, setText, tParts } from "../../dom.js";
+import { fmtFigure } from "../../model.js";
 import { isPlannedStep, methodName, methodTitle, panelOfRun, runStatusText } from "../../runspec.js";
 import { DEFAULT_LANGUAGE, formatDecimal, formatTime, language, t } from "../../i18n.js";
 import { OFFSET_LABELS } from "./definitions.js";
+import { endReasonNode } from "../../runwords.js";
+import { identReason, identWarning } from "../../identwords.js";
+import { formatQuantity } from "../../quantities.js";
 
 /**
  * How a run handled the operating point (RunOut.operatingPoint), in words,
@@ -40,7 +43,7 @@ export function operatingPointsFound(methods, estimates) {
   for (const m of methods) {
     const op = estimates?.get(m)?.operatingPoint;
     if (!op || !op.handling) continue;
-    const ambient = typeof op.ambient === "number" && Number.isFinite(op.ambient) ? fmt(op.ambient) : "–";
+    const ambient = formatQuantity(typeof op.ambient === "number" ? op.ambient : null, "volts");
     const label = OFFSET_LABELS[op.handling];
     const handling = label ? t(label) : String(op.handling);
     // The library explains its decision in English: shown to English readers only.
@@ -56,7 +59,7 @@ export function estimateStatus(est) {
   // An estimate the library does not trust never looks final.
   const when = est.trusted === false ? t("estimate.notTrusted") : est.final ? t("estimate.final") : t("estimate.live");
   if (est.valid) return when;
-  return tParts("estimate.withReason", { when, reason: est.reason ? serverText(est.reason) : t("estimate.noModel") });
+  return tParts("estimate.withReason", { when, reason: est.reason ? identReason(est.reason) : t("estimate.noModel") });
 }
 
 /**
@@ -68,10 +71,10 @@ export function estimateStatus(est) {
  */
 export function warningsList(methods, estimates, timing = null) {
   const items = [];
-  for (const w of timing?.warnings ?? []) items.push(h("li", { "data-method": "timing" }, serverText(w)));
+  for (const w of timing?.warnings ?? []) items.push(h("li", { "data-method": "timing" }, identWarning(w)));
   for (const m of methods) {
     if (estimates?.get(m)?.notConverged) items.push(h("li", { "data-method": m, "data-kind": "not-converged" }, t("panel.notConverged", { method: methodTitle(m) })));
-    for (const w of estimates?.get(m)?.warnings ?? []) items.push(h("li", { "data-method": m }, tParts("panel.warning", { method: methodTitle(m), warning: serverText(w) })));
+    for (const w of estimates?.get(m)?.warnings ?? []) items.push(h("li", { "data-method": m }, tParts("panel.warning", { method: methodTitle(m), warning: identWarning(w) })));
   }
   if (!items.length) return null;
   return h(
@@ -137,8 +140,8 @@ export function renderProgress(view, run, taken) {
 export function timingText(timing) {
   if (!timing || typeof timing !== "object") return "";
   if (timing.rig === "twin") return t("run.timingTwin");
-  const s = (v) => (typeof v === "number" && Number.isFinite(v) ? fmt(v, 3) : "–");
-  return t("run.timingReal", { max: s(timing.maxLateness), p95: s(timing.p95Lateness), spread: fmt(100 * (timing.periodSpread ?? 0), 2) });
+  const s = (v) => formatQuantity(typeof v === "number" ? v : null, "seconds");
+  return t("run.timingReal", { max: s(timing.maxLateness), p95: s(timing.p95Lateness), spread: formatQuantity(100 * (timing.periodSpread ?? 0), "percent") });
 }
 
 /**
@@ -148,8 +151,9 @@ export function timingText(timing) {
  */
 export function idleParts(run, panelId) {
   if (run && panelOfRun(run) === panelId) {
-    return run.endReason
-      ? tParts("panel.endedWhy", { run: run.id, status: runStatusText(run.status), reason: serverText(run.endReason) })
+    const reason = endReasonNode(run.endReason);
+    return reason !== null
+      ? tParts("panel.endedWhy", { run: run.id, status: runStatusText(run.status), reason })
       : [t("panel.ended", { run: run.id, status: runStatusText(run.status) })];
   }
   return [t("panel.noRun")];

@@ -3,7 +3,7 @@
 // for errors that clears itself.
 
 import { announce, h, setText } from "../../dom.js";
-import { stateLabel } from "../../shapes.js";
+import { rigTitle, stateLabel } from "../../shapes.js";
 import { t } from "../../i18n.js";
 
 /** How long an error stays on the banner. */
@@ -20,18 +20,26 @@ export class RigHeader {
     this._bannerTimer = 0;
     this.badge = h("span", { class: "badge", "data-testid": "rig-state" }, "…");
     this.detail = h("span", { class: "muted" });
+    // The rig's pace and the turn's length (rig/pace.js).
+    this.pace = h("p", { class: "muted", "data-testid": "rig-pace" });
     this.banner = h("p", { class: "error", role: "alert", "data-testid": "rig-error" });
     this.title = h("span", { "data-testid": "rig-title" }, rigId);
     main.append(
       h("p", { class: "crumbs" }, h("a", { href: "#/" }, t("nav.rigs")), t("crumbs.separator"), rigId),
       h("h1", null, this.title, " ", this.badge),
       h("p", null, this.detail),
+      this.pace,
       this.banner,
     );
   }
 
   setTitle(title) {
-    setText(this.title, title);
+    setText(this.title, rigTitle({ id: title, title }));
+  }
+
+  /** @param {string} text */
+  setPace(text) {
+    setText(this.pace, text);
   }
 
   /** Show the rig's state; a change to a fault is also said aloud. */

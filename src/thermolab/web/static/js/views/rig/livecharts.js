@@ -6,7 +6,7 @@
 // skips its middle (a `truncated` notice), the card says so and links the CSV.
 
 import { api } from "../../api.js";
-import { Chart } from "../../charts.js";
+import { Chart, TIME_WINDOWS } from "../../charts.js";
 import { parseCsv } from "../../csv.js";
 import { h, setText } from "../../dom.js";
 import { predict, predictionBase } from "../../model.js";
@@ -76,6 +76,9 @@ export class LiveCharts {
       yLabel: t("axis.output"),
       series: [{ label: t("axis.output") }, { label: t("series.model"), dash: [6, 4], color: "#D55E00", width: 2, auto: false }],
       source: () => this._outputData(),
+      // One choice for both charts: the input chart shows the same time as the output.
+      windows: TIME_WINDOWS,
+      onWindow: (seconds) => this.inChart.setWindow(seconds),
     });
     this.inChart = new Chart(card, {
       label: t("charts.input"),

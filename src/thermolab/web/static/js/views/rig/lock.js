@@ -17,3 +17,14 @@ export function lockReason(access, state) {
     ? t("lock.queued", { position: access.queuePosition })
     : t("lock.watching");
 }
+
+/**
+ * Whether the lock's reason only repeats the access card's role (watching, queued): on a
+ * phone the card sits right above the panels, and the css leaves this copy out there.
+ * @param {{role: string, queuePosition: number | null} | null} access
+ * @param {string | undefined} state
+ * @returns {boolean}
+ */
+export function lockRepeatsRole(access, state) {
+  return Boolean(access) && state !== "out_of_service" && state !== "fault" && access?.role !== "controller";
+}

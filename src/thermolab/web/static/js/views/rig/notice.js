@@ -29,7 +29,8 @@ export class TurnNotice {
     this.rigId = rigId;
     /** @type {string[]} */
     this.lines = [];
-    this.el = h("p", { class: "notice", role: "status", "data-testid": "turn-notice", hidden: "" });
+    // h() sets `hidden` as a property: "" would be false and leave an empty bar on the page.
+    this.el = h("p", { class: "notice", role: "status", "data-testid": "turn-notice", hidden: true });
     parent.append(this.el);
   }
 

@@ -2,8 +2,11 @@
 // The "Now" card: the latest reading of the rig, in the units it publishes.
 
 import { h, setText } from "../../dom.js";
-import { fmt } from "../../model.js";
 import { formatTime, t } from "../../i18n.js";
+import { formatQuantity } from "../../quantities.js";
+
+/** @type {Record<string, string>} The words for each actuator a rig's kind declares, by its name. */
+const ACTUATOR_NAMES = { fan: "readout.actuator.fan" };
 
 export class Readout {
   /** @param {HTMLElement} parent */
@@ -27,12 +30,36 @@ export class Readout {
     setText(this.label.y, t("readout.outputUnit", { unit: outputUnit }));
   }
 
-  /** @param {{u: number, y: number, t: number, k?: number, run?: number | null}} s  a live sample */
+  /**
+   * The rig's further actuators (a twin's fan), as the rig says them: a row each,
+   * added the first time, with the level now (at its default once handed over).
+   * @param {{name: string, unit: string, level: number | null}[]} actuators
+   */
+  setActuators(actuators) {
+    for (const a of actuators) {
+      if (!this.value[a.name]) {
+        this.value[a.name] = h("dd", { "data-readout": a.name }, "–");
+        const name = a.name in ACTUATOR_NAMES ? t(ACTUATOR_NAMES[a.name]) : a.name;
+        this.label[a.name] = h("dt", null, t("readout.actuatorUnit", { name, unit: a.unit }));
+        this.value.k.after(this.label[a.name], this.value[a.name]);
+      }
+      setText(this.value[a.name], formatQuantity(a.level, "volts"));
+    }
+  }
+
+  /** @param {{u: number, y: number, t: number, k?: number, run?: number | null, channels?: Record<string, number | null>}} s  a live sample */
   update(s) {
-    setText(this.value.u, fmt(s.u, 4));
-    setText(this.value.y, fmt(s.y, 5));
-    // A run's time is seconds since START; an idle reading's is the time of day.
-    setText(this.value.t, s.run === null || s.run === undefined ? formatTime(new Date(s.t * 1000)) : fmt(s.t, 6));
+    for (const [name, level] of Object.entries(s.channels ?? {})) {
+      // A closed loop's run records its actuators (the fan) with every sample.
+      if (this.label[name] && !["u", "y", "t", "k"].includes(name)) setText(this.value[name], formatQuantity(level, "volts"));
+    }
+    setText(this.value.u, formatQuantity(s.u, "volts"));
+    setText(this.value.y, formatQuantity(s.y, "volts"));
+    // A run's time is seconds since START; an idle reading's is the time of day,
+    // and its label says so.
+    const idle = s.run === null || s.run === undefined;
+    setText(this.label.t, t(idle ? "readout.clock" : "readout.time"));
+    setText(this.value.t, idle ? formatTime(new Date(s.t * 1000)) : formatQuantity(s.t, "seconds"));
     setText(this.value.k, s.k ?? "–");
   }
 }

@@ -7,6 +7,7 @@
 import { announce } from "../../dom.js";
 import { hasTrajectory } from "../../methods.js";
 import { panelOfRun, readEstimate, readRun } from "../../runspec.js";
+import { endReasonText } from "../../runwords.js";
 import { Convergence } from "./convergence.js";
 import { LiveCharts } from "./livecharts.js";
 import { t } from "../../i18n.js";
@@ -76,7 +77,9 @@ export class RunShow {
   }
 
   _announceEnd(run) {
-    announce(run.endReason ? t("run.endedWhy", { run: run.id, reason: run.endReason }) : t("run.ended", { run: run.id }));
+    const why = endReasonText(run.endReason);
+    const reason = why ? [why.text, why.detail].filter(Boolean).join(": ") : "";
+    announce(reason ? t("run.endedWhy", { run: run.id, reason }) : t("run.ended", { run: run.id }));
   }
 
   /** A live sample: drawn, and the panel's progress moved on when it is the run's. */

@@ -1,0 +1,121 @@
+"""A script's turn: ended from outside, the rig is safe at once; its own twin speed-up.
+
+The lab is the session's ``thermolab serve`` (conftest); the script is
+``thermolab.tclab.TCLab`` with a personal API token, as a course script runs.
+These tests heat rig ``kit2``, so that ``kit`` starts cool in the others. One
+teacher login serves them all: the lab limits password logins per address.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections.abc import Iterator
+
+import httpx
+import pytest
+
+from thermolab.client import TurnEndedError
+from thermolab.tclab import SpeedupRefusedError, TCLab, labtime, setup
+
+from .conftest import SPEEDUP, ServedLab
+
+RIG = "kit2"
+SAFE_WITHIN = 3.0
+"""Seconds (real) within which the heater must read 0: far under the lab's 15 s client timeout."""
+
+
+@pytest.fixture(autouse=True)
+def _lab_time_restored() -> Iterator[None]:
+    yield
+    labtime.hold(1, None)
+    labtime.set_rate(1)
+
+
+@pytest.fixture(scope="module")
+def teacher(served_lab: ServedLab) -> Iterator[httpx.Client]:
+    with contextlib.closing(served_lab.cookie_client("tina")) as client:
+        yield client
+
+
+def _rig(teacher: httpx.Client) -> dict[str, object]:
+    answer: dict[str, object] = teacher.get(f"/api/rigs/{RIG}").json()
+    return answer
+
+
+def _heater(teacher: httpx.Client) -> float:
+    return float(teacher.get(f"/api/rigs/{RIG}/reading").json()["u"])
+
+
+def _heater_at_zero_within(teacher: httpx.Client, seconds: float) -> float:
+    """Real seconds until the lab's rig reads its heater at 0 (fails after ``seconds``)."""
+    started = time.monotonic()
+    while True:
+        u = _heater(teacher)
+        waited = time.monotonic() - started
+        if u == 0.0:
+            return waited
+        assert waited < seconds, f"the heater still reads {u} % {waited:.1f} s later"
+        time.sleep(0.02)
+
+
+def _script_heating(served_lab: ServedLab, teacher: httpx.Client, token: str) -> TCLab:
+    kit = TCLab(url=served_lab.url, token=token, rig=RIG)
+    kit.Q1(80)
+    assert _heater(teacher) == 80.0
+    return kit
+
+
+def test_revoking_a_scripts_token_ends_its_turn_and_makes_the_rig_safe_at_once(
+    served_lab: ServedLab, teacher: httpx.Client
+) -> None:
+    with contextlib.closing(served_lab.cookie_client("ana")) as ana:
+        made = ana.post("/api/tokens", json={"name": "script"}).json()
+        kit = _script_heating(served_lab, teacher, made["token"])
+        try:
+            assert ana.delete(f"/api/tokens/{made['id']}").status_code == 204
+            assert _heater_at_zero_within(teacher, SAFE_WITHIN) < SAFE_WITHIN
+            access = _rig(teacher)["access"]
+            assert isinstance(access, dict)
+            assert access["controller"] is None  # the turn is over, not only the heater
+            with pytest.raises(TurnEndedError, match="revoked"):
+                kit.Q1(80)
+        finally:
+            kit.close()
+
+
+def test_a_teacher_kicking_a_script_makes_the_rig_safe_at_once(
+    served_lab: ServedLab, teacher: httpx.Client
+) -> None:
+    _, token = served_lab.token("ben")
+    kit = _script_heating(served_lab, teacher, token)
+    try:
+        assert teacher.post(f"/api/rigs/{RIG}/control/kick").status_code == 200
+        assert _heater_at_zero_within(teacher, SAFE_WITHIN) < SAFE_WITHIN
+        with pytest.raises(TurnEndedError):
+            kit.Q1(80)
+    finally:
+        kit.close()
+
+
+def test_setup_speedup_paces_the_twin_for_the_scripts_turn_and_then_gives_it_back(
+    served_lab: ServedLab, teacher: httpx.Client
+) -> None:
+    _, token = served_lab.token("carl")
+    TwinLab = setup(connected=False, speedup=5, twin=True)
+    with TwinLab(url=served_lab.url, token=token, rig=RIG) as kit:
+        assert kit.speedup == 5.0
+        assert labtime.get_rate() == 5.0  # clock() and labtime follow the twin's pace
+        assert _rig(teacher)["speedup"] == 5.0  # the lab runs its twin at it
+    assert _rig(teacher)["speedup"] == SPEEDUP  # the teacher's again once the turn is over
+    # One the twin does not allow is refused, naming the rig and its range, turn given back.
+    TwinLab = setup(connected=False, speedup=100, twin=True)
+    with pytest.raises(SpeedupRefusedError) as refused:
+        TwinLab(url=served_lab.url, token=token, rig=RIG)
+    assert "speedup=100" in str(refused.value)
+    assert f"rig '{RIG}' (a twin) allows speed-ups from 1x to 20x" in str(refused.value)
+    rig = _rig(teacher)
+    assert isinstance(rig["access"], dict)
+    assert rig["access"]["controller"] is None
+    assert rig["speedup"] == SPEEDUP
+    assert labtime.held_by is None
