@@ -129,6 +129,35 @@ def module_page(_module_context: tuple[Any, list[str]]) -> Iterator[Any]:
     assert errors == [], f"uncaught errors in the page: {errors}"
 
 
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Any:
+    """On a browser test's failure, say what each open page showed and what its lab logged.
+
+    A failure seen once in a full CI run (a page that never showed a state) cannot be
+    rerun: this section of the report is all that is left of it.
+    """
+    report = yield
+    funcargs = getattr(item, "funcargs", {})
+    if report.when == "call" and report.failed and "browser" in funcargs:
+        with contextlib.suppress(Exception):
+            report.sections.append(("what the pages showed", _pages_now(funcargs)))
+    return report
+
+
+def _pages_now(funcargs: dict[str, Any]) -> str:
+    """Each open page's address and start of its text; the session lab's log tail."""
+    lines: list[str] = []
+    for context in funcargs["browser"].contexts:
+        for page in context.pages:
+            text = page.evaluate("() => document.body ? document.body.innerText : ''")
+            lines.append(f"{page.url}: {' | '.join(text.split(chr(10)))[:800]}")
+    server = funcargs.get("lab")
+    if isinstance(server, LabServer) and server.log.exists():
+        lines.append("--- the lab's log, last lines ---")
+        lines.extend(server.log.read_text(encoding="utf-8", errors="replace").splitlines()[-40:])
+    return "\n".join(lines)
+
+
 @pytest.fixture(scope="session")
 def artifacts() -> Path:
     """Folder for screenshots (git-ignored)."""

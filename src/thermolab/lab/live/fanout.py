@@ -467,6 +467,9 @@ class LiveFanout:
         def fire() -> None:
             with self._lock:
                 self._access_pending.discard(rig_id)
-            refresh(rig_id)
+            # Unbound meanwhile: the server is stopping, and its loop may close before
+            # a task started now would run (its coroutine then "never awaited").
+            if self.loop is loop:
+                refresh(rig_id)
 
         loop.call_soon_threadsafe(loop.call_later, delay, fire)

@@ -12,7 +12,7 @@
 // rig/notice.js says what happened to my turn and run; rig/reach.js follows
 // whether the lab answers at all (and locks everything while it does not).
 
-import { api } from "../api.js";
+import { ApiError, api } from "../api.js";
 import { h } from "../dom.js";
 import { LiveClient } from "../live.js";
 import { buildRunSpec, readRun } from "../runspec.js";
@@ -147,11 +147,13 @@ class RigPage {
         }
         if (this.client.state !== "open" && this.show.run?.status === "running") await this._pollRun();
       } catch (err) {
-        if (err.status === 404) {
+        // Not the API's answer but a fault of this page's code: reported (the browser's
+        // console, the tests' page errors), never retried in silence every few seconds.
+        if (!(err instanceof ApiError)) reportError(err);
+        else if (err.status === 404) {
           this._error(err.message);
           return;
-        }
-        if (err.status === 0 && this.client.state !== "open") this.reach?.set(false);
+        } else if (err.status === 0 && this.client.state !== "open") this.reach?.set(false);
       }
     }
     clearTimeout(this._pollTimer);
