@@ -457,4 +457,11 @@ def _english_on(page: Any, english: set[str], where: str) -> list[str]:
     text = visible_text(page)
     found = sorted(words(text) & english)
     lines = [line for line in text.splitlines() if words(line) & set(found)]
-    return [f"{where}: {found} in {lines[:6]}"] if found else []
+    # The server's English the page declares (lang="en"): none is left either (#24).
+    marked = page.evaluate(
+        """() => [...document.body.querySelectorAll('span[lang=en]')]
+          .filter((el) => el.getClientRects().length > 0).map((el) => el.textContent)"""
+    )
+    return ([f"{where}: {found} in {lines[:6]}"] if found else []) + (
+        [f"{where}: marked English {marked[:6]}"] if marked else []
+    )

@@ -33,6 +33,7 @@ MACHINE = re.compile(
          credentials|key|event|state|mode|dash|color|value|stroke|kind|testid|panel|download)\s*:\s*$
       | "(data-[\w-]+|aria-(controls|describedby|labelledby|hidden|selected|current|live|atomic))"
         \s*:\s*$
+      | "pattern"\s*:\s*$  # identnotes.js: what reads the library's English back, never shown
       | \b(querySelector|querySelectorAll|getElementById|addEventListener|removeEventListener|
            createElement|closest|getAttribute|setAttribute|removeAttribute|startsWith|
            console\.\w+|RangeError|TypeError|import|from|column|push|has|get|includes)\s*\(\s*$
@@ -131,8 +132,9 @@ def test_every_key_used_is_in_the_catalogue() -> None:
     assert missing == {}
 
 
-#: Keys looked up by name at run time: "error.<code>" translates the server's stable error codes.
-LOOKED_UP = re.compile(r"^error\.")
+#: Keys looked up by name at run time: "error.<code>" translates the server's stable error
+#: codes, "identNote.<code>" the identification library's sentences (test_identwords.py).
+LOOKED_UP = re.compile(r"^(error|identNote)\.")
 
 
 def test_every_catalogue_key_is_used() -> None:

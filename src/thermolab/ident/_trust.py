@@ -20,6 +20,7 @@ from . import diagnostics as _diag
 from ._warning import IdentificationWarning
 from .deadtime import DEFAULT_CRITERION, DelaySearch, default_max_delay, search_delay
 from .models import ArxOrder
+from .notes import FINAL, note
 from .operating_point import OperatingPoint, decide_operating_point
 from .trajectory import Trajectory
 
@@ -146,14 +147,14 @@ def with_warnings(
         notes.append(search.warning)
     if record is not None and memory is not None and tr.final.valid:
         with np.errstate(all="ignore"):
-            note = _unexcited(tr, *record, memory)
-        if note:
-            notes.append(note)
+            unexcited = _unexcited(tr, *record, memory)
+        if unexcited:
+            notes.append(unexcited)
     final = tr.final
     duration = tr.n_samples * tr.dt
     if final.valid:
         notes += [
-            f"final estimate: {w}"
+            f"{FINAL}{w}"
             for w in _diag.plausibility_warnings(
                 final.K, final.tau, tr.dt, duration, expected_sign=expected_sign
             )
@@ -165,16 +166,15 @@ def with_warnings(
             gaps = np.flatnonzero(steps > 1.5 * float(np.median(steps)))
             if gaps.size:
                 first = int(gaps[0]) + 1
+                last = min(first + window - 2, tr.n_samples - 1)
+                at = float(t_arr[first - 1])
                 notes.append(
-                    f"estimates across a gap: the {window}-sample windows ending at samples "
-                    f"{first} to {min(first + window - 2, tr.n_samples - 1)} hold samples on both "
-                    f"sides of the gap after t = {float(t_arr[first - 1]):.6g} s, so they regress "
-                    "samples that are not one period apart; do not trust them"
+                    note("windows_across_gap", window=window, first=first, last=last, at=at)
                 )
     if not notes:
         return tr
-    for note in notes:
-        warnings.warn(note, IdentificationWarning, stacklevel=3)
+    for said in notes:
+        warnings.warn(said, IdentificationWarning, stacklevel=3)
     # The trajectory is frozen and its K/tau are derived at construction; the
     # warnings need them, so they are set afterwards rather than rebuilding it.
     object.__setattr__(tr, "warnings", tuple(notes))
@@ -219,11 +219,6 @@ def _unexcited(tr: Trajectory, u: FloatArray, y: FloatArray, memory: int) -> str
     last_change = int(changes[-1]) + 1 if changes.size else 0
     stride = max(1, span // 4)
     k_ok = next((k for k in range(n - 1, last_change - 1, -stride) if excited(k)), None)
-    where = "" if k_ok is None else f" (the last excited one ends near sample {k_ok})"
-    return (
-        f"final estimate not excited: its last {span} samples hold the input constant and "
-        f"the output settled (within 10 times its noise), so it fits noise{where}; "
-        f"{span} samples on a step see too little of the response to fit tau: give a "
-        "longer window or block (or a smaller forgetting), an input that keeps changing, "
-        "or use lsm or oe for a single step"
-    )
+    if k_ok is None:
+        return note("final_not_excited", span=span)
+    return note("final_not_excited_since", span=span, excited=k_ok)

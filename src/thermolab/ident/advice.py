@@ -13,6 +13,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from types import MappingProxyType
 
+from .notes import FINAL
+
 __all__ = ["ADVICE", "advice", "warning_kind"]
 
 #: The kind of a warning (its text before the first colon) -> what it means and what to do.
@@ -82,10 +84,16 @@ ADVICE: Mapping[str, str] = MappingProxyType(
             "the record ends before the output settles, so K and tau are extrapolated; "
             "record at least four time constants after the step"
         ),
+        "final estimate not excited": (
+            "the last estimate fits samples where nothing changes, so it follows the noise; "
+            "give a longer window, an input that keeps changing, or use lsm or oe"
+        ),
+        "dead time ambiguous": (
+            "several dead times fit the record as well, so the one chosen may be wrong; give "
+            "the dead time or record a step the plant settles after"
+        ),
     }
 )
-
-_FINAL = "final estimate: "
 
 
 def warning_kind(warning: str) -> str:
@@ -96,7 +104,7 @@ def warning_kind(warning: str) -> str:
     >>> warning_kind("final estimate: implausible gain: K = -1 has the wrong sign")
     'implausible gain'
     """
-    text = warning[len(_FINAL) :] if warning.startswith(_FINAL) else warning
+    text = warning[len(FINAL) :] if warning.startswith(FINAL) else warning
     return text.partition(":")[0].strip()
 
 

@@ -309,8 +309,8 @@ def least_squares(
             notes.append(advice)
     if timing is not None:
         notes += _diag.timing_warnings_from_steps(*timing)
-    for note in notes:
-        warnings.warn(note, IdentificationWarning, stacklevel=2)
+    for said in notes:
+        warnings.warn(said, IdentificationWarning, stacklevel=2)
     return LeastSquaresResult(
         W=W,
         param_names=ord_.param_names(constant=sol.constant),

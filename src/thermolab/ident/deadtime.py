@@ -42,6 +42,7 @@ from thermolab.jsonsafe import finite_or_none
 
 from . import _regression as _reg
 from ._lagged import shifted_dots
+from .notes import note
 
 __all__ = [
     "DEFAULT_CRITERION",
@@ -361,15 +362,10 @@ def search_delay(
         best, margin = _smallest_near_best(np.asarray(sse), Y.size, rounding)
         ties = _separate_ties(np.asarray(sse), best, margin)
         if ties:
-            cause = (
-                f"the input repeats every {repeat} samples"
-                if repeat is not None
-                else "the input does not excite the record enough to tell them apart"
-            )
             others = ", ".join(map(str, ties[:5])) + (" ..." if len(ties) > 5 else "")
             warning = (
-                f"dead time ambiguous: a delay of {best} samples and of {others} samples fit "
-                f"the record equally well ({cause}); give the dead time (order 1,1,DELAY) or "
-                "record a step the plant settles after"
+                note("delay_ambiguous_repeats", delay=best, others=others, repeat=repeat)
+                if repeat is not None
+                else note("delay_ambiguous", delay=best, others=others)
             )
     return DelaySearch(best, delays, tuple(sse), _CRITERIA[criterion], repeat, warning)

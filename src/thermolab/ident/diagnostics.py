@@ -35,6 +35,7 @@ from thermolab.jsonsafe import finite_or_none
 
 from . import _validation as _v
 from ._lagged import shifted_dots
+from .notes import note
 
 __all__ = [
     "CONFIDENCE_Z99",
@@ -203,23 +204,10 @@ def residual_advice(test: ResidualTest, delay_searched: bool) -> str | None:
         return None
     if not test.independent:
         early = np.abs(test.cross_correlation[: min(4, test.cross_correlation.size)])
-        if (early > test.bound).any() and not delay_searched:
-            cause = "an input effect is left in the residuals at short lags: dead time"
-        else:
-            cause = (
-                "an input effect is left in the residuals: higher order or dead time "
-                "(try order (2, 2, delay))"
-            )
-        return (
-            f"residual test failed: input-residual cross-correlation outside the 99 % bound "
-            f"±{test.bound:.3g}; likely cause: {cause}"
-        )
-    return (
-        f"residual test failed: the residuals are not white (autocorrelation outside the 99 % "
-        f"bound ±{test.bound:.3g}); likely cause: measurement noise, which biases an "
-        "equation-error (ARX) fit towards a faster, smaller-gain model; compare with the "
-        "output-error fit (thermolab.ident.output_error, method oe), or a drifting offset"
-    )
+        short_lags = bool((early > test.bound).any()) and not delay_searched
+        code = "residual_dead_time" if short_lags else "residual_higher_order"
+        return note(code, bound=test.bound)
+    return note("residual_not_white", bound=test.bound)
 
 
 def plausibility_warnings(
@@ -268,23 +256,11 @@ def plausibility_warnings(
     out: list[str] = []
     if math.isfinite(tau):
         if tau < 2.0 * dt:
-            out.append(
-                f"implausible time constant: tau = {tau:.3g} s is under two sample periods "
-                f"(2 × {dt:g} s), too fast for the samples to show; the estimate is noise or "
-                "the sampling is too slow"
-            )
+            out.append(note("tau_under_two_periods", tau=tau, dt=dt))
         elif tau > 10.0 * duration:
-            out.append(
-                f"implausible time constant: tau = {tau:.4g} s is more than ten times the "
-                f"record ({duration:.4g} s); the record cannot determine it: record longer "
-                "or excite more"
-            )
+            out.append(note("tau_over_ten_records", tau=tau, duration=duration))
     if expected_sign is not None and math.isfinite(K) and K * expected_sign <= 0.0:
-        out.append(
-            f"implausible gain: K = {K:.4g} has the wrong sign (expected "
-            f"{'positive' if expected_sign > 0 else 'negative'}); check the wiring, the "
-            "operating point (offset) or the input's units"
-        )
+        out.append(note("gain_not_positive" if expected_sign > 0 else "gain_not_negative", K=K))
     return out
 
 
@@ -326,17 +302,10 @@ def timing_warnings_from_steps(ta: FloatArray, steps: FloatArray) -> list[str]:
     regular = np.delete(steps, gaps) if gaps.size else steps
     spread = float(np.std(regular) / med) if regular.size else 0.0
     if spread > _JITTER_LIMIT:
-        out.append(
-            f"timing jitter: the sample period spreads {100 * spread:.1f} % around its median "
-            f"{med:.4g} s (over {100 * _JITTER_LIMIT:.0f} %), which biases methods that assume "
-            "a fixed period; the real period is not dt"
-        )
+        limit = 100 * _JITTER_LIMIT
+        out.append(note("timing_jitter", spread=100 * spread, median=med, limit=limit))
     if gaps.size:
         missing = int(np.round(steps[gaps] / med).sum() - gaps.size)
-        out.append(
-            f"gap in time: {gaps.size} gap{'s' if gaps.size > 1 else ''} (first after "
-            f"t = {float(ta[gaps[0]]):.6g} s, about {missing} missing samples in all); windows "
-            "and regressions across a gap mix samples that are not one period apart: cut the "
-            "record at the gap"
-        )
+        first = float(ta[gaps[0]])
+        out.append(note("time_gaps", count=gaps.size, first=first, missing=missing))
     return out

@@ -32,6 +32,8 @@ import numpy.typing as npt
 from thermolab.errors import InvalidParameterError
 from thermolab.jsonsafe import finite_or_none
 
+from .notes import note
+
 __all__ = [
     "FIRST_ORDER",
     "INVALID_REASONS",
@@ -55,13 +57,12 @@ NON_FINITE = 6
 #: Why an estimate has no first-order meaning, indexed by ``Trajectory.reason_code``.
 INVALID_REASONS: tuple[str | None, ...] = (
     None,
-    "no estimate yet: not enough samples have arrived",
-    "not excited: the regressor matrix is singular (input held constant or output settled)",
-    "unstable or integrating model: a pole on or outside the unit circle (a >= 1), "
-    "so there is no time constant",
-    "dominant pole <= 0: a sampled first-order lag has 0 < a < 1, so there is no time constant",
-    "dominant pole is complex: the model oscillates and has no first-order time constant",
-    "non-finite estimate: the parameters overflowed or diverged",
+    note("no_estimate_yet"),
+    note("not_excited"),
+    note("unstable"),
+    note("non_positive_pole"),
+    note("complex_pole"),
+    note("non_finite"),
 )
 
 

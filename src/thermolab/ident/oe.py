@@ -47,6 +47,7 @@ from ._warning import IdentificationWarning
 from .batch import least_squares
 from .deadtime import default_max_delay
 from .models import ArxOrder, FirstOrderModel
+from .notes import note
 from .registry import SETTINGS
 
 __all__ = [
@@ -355,10 +356,7 @@ def _fit(
         t_arr, steps = _v.check_time_steps(t, n)
         timing = _diag.timing_warnings_from_steps(t_arr, steps)
     if np.all(u_arr == u_arr[0]):
-        raise InsufficientExcitationError(
-            "no excitation: the input never changes in the record, so the output-error fit "
-            "cannot tell the gain from the ambient; record a step or a square wave"
-        )
+        raise InsufficientExcitationError(note("oe_no_excitation"))
     longest = (
         default_max_delay(n)
         if max_delay is None
@@ -463,23 +461,15 @@ def _fit(
     notes = _diag.plausibility_warnings(K, tau, step, duration, expected_sign=expected_sign)
     if rtest is not None and not rtest.passed:
         if not rtest.independent:
-            notes.append(
-                "residual test failed: input-residual cross-correlation outside the 99 % bound "
-                f"±{rtest.bound:.3g}; likely cause: the plant is not first order plus dead time "
-                "(higher order) or the dead time is outside the range searched"
-            )
+            notes.append(note("oe_residual_input", bound=rtest.bound))
         else:
-            notes.append(
-                "residual test failed: the simulation errors are not white (outside the 99 % "
-                f"bound ±{rtest.bound:.3g}); likely cause: a slow drift of the ambient or a "
-                "disturbance (coloured noise); the estimate is still unbiased for white noise"
-            )
+            notes.append(note("oe_residual_not_white", bound=rtest.bound))
     if not best.success:
-        notes.append(f"the optimiser did not converge: {best.message}")
+        notes.append(note("optimiser_stopped", message=best.message))
     # The same words as every method; this fit simulated at the recorded times.
     notes += timing
-    for note in notes:
-        warnings.warn(note, IdentificationWarning, stacklevel=2)
+    for said in notes:
+        warnings.warn(said, IdentificationWarning, stacklevel=2)
     return OutputErrorResult(
         model=model,
         ambient=amb,

@@ -38,6 +38,7 @@ from . import _validation as _v
 from ._instrumental import instrumental_ambient
 from .deadtime import DelaySearch, search_delay
 from .models import ArxOrder
+from .notes import note
 
 __all__ = ["OperatingPoint", "decide_operating_point"]
 
@@ -312,43 +313,19 @@ def decide_operating_point(
                     "fitted constant only predicted better by absorbing least squares' bias"
                 )
             elif at_rest:
-                notes.append(
-                    f"operating point undetermined: the ambient estimated free of the noise "
-                    f"bias ({iv.ambient:.4g} ± {iv.stderr:.2g} V) fits both a start at rest "
-                    f"at y[0] and one settled under {u0:.4g} V; assumed offset='fit'. Give "
-                    "offset='initial' if the record starts at rest with the input off, "
-                    "offset='fit' if it starts settled under an input, or the known ambient "
-                    "in volts; better, record with the input off before the experiment"
-                )
+                notes.append(note("start_ambiguous", ambient=iv.ambient, stderr=iv.stderr, u0=u0))
     if weak and u0 != 0.0 and (not math.isfinite(se) or 3.0 * se > abs(gain * u0)):
         chosen = "fit"
-        notes.append(
-            f"operating point undetermined: only {s} sample{'s' if s != 1 else ''} before the "
-            "input changes and the record cannot tell a start at ambient from one settled "
-            f"under {u0:.4g} V; assumed offset='fit'. Give offset='initial' if the record "
-            "starts at rest with the input off, offset='fit' if it starts settled under an "
-            "input or moving, or the known ambient in volts; better, record at least "
-            f"{max(20, 2 * s + 10)} samples before the step"
-        )
+        notes.append(note("start_too_early_fit", change=s, u0=u0, need=max(20, 2 * s + 10)))
     elif chosen == "fit" and u0 == 0.0 and (not math.isfinite(se) or se > 0.05 * span):
         # The input was off before it changed: a start at rest is the natural
         # reading, and a constant term this uncertain would ruin the gain.
         chosen = "initial"
-        notes.append(
-            f"operating point undetermined: only {s} sample{'s' if s != 1 else ''} before the "
-            f"input changes; the constant term ({amb:.4g} ± {se:.2g} V) cannot say whether the "
-            "record starts at rest, so it is taken to (offset='initial'). If it was still "
-            "moving, give offset='fit' and record at least "
-            f"{max(20, 2 * s + 10)} samples before the step"
-        )
+        need = max(20, 2 * s + 10)
+        notes.append(note("start_too_early_initial", change=s, ambient=amb, stderr=se, need=need))
     elif chosen == "fit" and (not math.isfinite(se) or se > 0.05 * span):
-        notes.append(
-            f"constant term poorly determined: the ambient is {amb:.4g} ± {se:.2g} V with "
-            f"only {s} sample{'s' if s != 1 else ''} before the input changes, so K and tau "
-            "are uncertain too; record at least "
-            f"{max(20, 2 * s + 10)} samples before the step, or give the known ambient "
-            "in volts as offset"
-        )
+        need = max(20, 2 * s + 10)
+        notes.append(note("constant_uncertain", ambient=amb, stderr=se, change=s, need=need))
     search = searches.get(chosen)
     if chosen == "initial":
         return OperatingPoint(

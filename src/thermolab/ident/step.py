@@ -27,6 +27,7 @@ from ._step_fit import LEVEL_28, LEVEL_63, MIN_TAIL, crossing_time, fit_exponent
 from ._validation import as_record, check_time, integer, real
 from ._warning import IdentificationWarning
 from .diagnostics import plausibility_warnings
+from .notes import note
 from .step_result import StepResponseResult
 
 __all__ = ["IdentificationWarning", "StepResponseResult", "step_response"]
@@ -187,10 +188,7 @@ def step_response(
 
     ks, u_before, u_after = find_step(u_arr, u_init)
     if n - ks < MIN_TAIL:
-        raise InvalidDataError(
-            f"too few samples after the step: the step is at sample {ks} and only {n - ks} "
-            f"samples follow; the step method needs at least {MIN_TAIL} (the paper records 2000)"
-        )
+        raise InvalidDataError(note("too_few_after_step", step=ks, after=n - ks, needed=MIN_TAIL))
     amplitude = u_after - u_before
     notes: list[str] = []
 
@@ -246,11 +244,7 @@ def step_response(
             )
         tau, t63 = tau_fit, math.nan
         tau_basis = "tail fit"
-        notes.append(
-            "no 63.2% crossing: the record ends before the output covers 63.2 % of its "
-            "extrapolated change, so tau is the fitted time constant; record at least "
-            f"{settle:g} time constants after the step"
-        )
+        notes.append(note("no_crossing", settle=settle))
     else:
         t63 = step_time + t63_rel
 
@@ -260,46 +254,32 @@ def step_response(
     recorded = span / tau if not unsound else math.nan
     settled = recorded >= settle
     if unsound:
-        notes.insert(
-            0,
-            f"no sound fit: the {n - ks} samples after the step give K = {K:.3g} and "
-            f"tau = {tau:.3g} s, which no first-order response has; do not use them, and "
-            "record the whole response (at least four time constants) after the step",
-        )
+        notes.insert(0, note("no_sound_fit", after=n - ks, K=K, tau=tau))
     elif not settled:
         need = settle * tau / median_dt(t_arr)
-        notes.insert(
-            0,
-            f"not settled: the record lasts {recorded:.2f} time constants after the step "
-            f"(needs {settle:g}); the last sample is {100.0 * (K_last - K) / K:+.2f} % off the "
-            "extrapolated gain; record at least "
-            f"{math.ceil(need) if math.isfinite(need) else 'many more'} samples after the step",
+        off = 100.0 * (K_last - K) / K
+        figures = {"recorded": recorded, "settle": settle, "off": off}
+        said = (
+            note("not_settled", need=math.ceil(need), **figures)
+            if math.isfinite(need)
+            else note("not_settled_far", **figures)
         )
+        notes.insert(0, said)
     if not unsound:
         # What the other methods check of a final model (tau within what the
         # samples can show), then whether the response follows the record.
         notes += plausibility_warnings(K, tau, median_dt(t_arr), span)
         notes += _poor_fit(tr, yr, change, tau, theta, noise)
     if abs(amplitude) < min_step_v * (1.0 - 1e-9):  # a 1 V step read back as 0.99999...9
-        notes.append(
-            f"small step: the input changes by {abs(amplitude):.3g} V, under {min_step_v:g} V, "
-            "so noise weighs more on the result; use a step of at least "
-            f"{min_step_v:g} V"
-        )
+        notes.append(note("small_step", amplitude=abs(amplitude), minimum=min_step_v))
     if n < min_samples_v:
-        notes.append(
-            f"short record: {n} samples, fewer than the {min_samples_v} the paper asks for "
-            "(the transient and the settled output must both be recorded)"
-        )
+        notes.append(note("short_record", n=n, needed=min_samples_v))
     drift = pre_step_drift(y_arr[: ks + 1], noise)
     if abs(drift) > 0.05 * abs(change):
-        notes.append(
-            f"moving before the step: the output changed by {drift:.3g} V before the step "
-            f"({100.0 * abs(drift / change):.0f} % of the response), so the baseline is "
-            "uncertain; start from rest (a cold rig)"
-        )
-    for note in notes:
-        warnings.warn(note, IdentificationWarning, stacklevel=2)
+        share = 100.0 * abs(drift / change)
+        notes.append(note("moving_before_step", drift=drift, share=share))
+    for said in notes:
+        warnings.warn(said, IdentificationWarning, stacklevel=2)
 
     return StepResponseResult(
         K=K,
@@ -353,9 +333,6 @@ def _poor_fit(
     if rel <= max(3.0 * noise / abs(change), 0.1):
         return []
     rms = rel * abs(change)
-    share = f"{100.0 * rel:.0f} %" if rel < 1e6 else "many times"
-    return [
-        f"poor fit: the first-order response with these K and tau misses the record by "
-        f"{rms:.3g} V RMS ({share} of the change), so they do not describe it; record a "
-        "clean step from rest and at least four time constants after it"
-    ]
+    if rel >= 1e6:
+        return [note("poor_fit_far", rms=rms)]
+    return [note("poor_fit", rms=rms, share=100.0 * rel)]

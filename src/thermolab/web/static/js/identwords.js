@@ -4,14 +4,19 @@
 // the wrong sign"; a trajectory's check of its final estimate adds "final
 // estimate: " in front), and thermolab.ident.advice.ADVICE declares each kind
 // once with what it means and what to do. A warning of a kind below reads as
-// its kind's name and that advice in the page's language, the library's
-// detail after them (numbers and symbols, marked as English); so does an
-// estimate's reason why there is no model, by the kinds the methods give. A
-// sentence of a kind this page does not know is shown as the server wrote it.
-// tests/web/test_identwords.py keeps WARNING_KINDS equal to ADVICE.
+// its kind's name and that advice in the page's language, then its detail:
+// the sentence's code and figures are read back with the patterns of
+// thermolab.ident.notes (identnotes.js, written from them) and said by the
+// catalogue's "identNote.<code>" in the page's language, its figures with the
+// language's decimal mark; a sentence no pattern reads keeps the library's
+// detail, marked as English. An estimate's reason why there is no model reads
+// the same way. A sentence of a kind this page does not know is shown as the
+// server wrote it. tests/web/test_identwords.py keeps WARNING_KINDS equal to
+// ADVICE and the catalogue's notes equal to NOTES.
 
 import { h, serverText, tParts } from "./dom.js";
-import { t } from "./i18n.js";
+import { formatNumber, t } from "./i18n.js";
+import { NOTE_PATTERNS } from "./identnotes.js";
 
 /** The warning kinds of thermolab.ident.advice.ADVICE, with their name and advice. */
 const WARNING_KINDS = [
@@ -31,6 +36,8 @@ const WARNING_KINDS = [
   { kind: "no sound fit", name: "warningKind.noSoundFit", advice: "warningAdvice.noSoundFit" },
   { kind: "poor fit", name: "warningKind.poorFit", advice: "warningAdvice.poorFit" },
   { kind: "not settled", name: "warningKind.notSettled", advice: "warningAdvice.notSettled" },
+  { kind: "final estimate not excited", name: "warningKind.finalEstimateNotExcited", advice: "warningAdvice.finalEstimateNotExcited" },
+  { kind: "dead time ambiguous", name: "warningKind.deadTimeAmbiguous", advice: "warningAdvice.deadTimeAmbiguous" },
 ];
 
 /**
@@ -66,12 +73,66 @@ function split(text) {
   return { kind: text.slice(0, colon).trim(), detail: text.slice(colon + 1).trim() };
 }
 
+const NOTES = NOTE_PATTERNS.map((note) => ({ ...note, regexp: new RegExp(note.pattern, "s") }));
+/** A figure as the library wrote it: "0.14", "-3.2e-05", "+1.50". */
+const FIGURE = /[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?/gi;
+/** Fields the library copies from elsewhere (the optimiser's own words): kept as written. */
+const VERBATIM = new Set(["message"]);
+
 /**
- * The library's detail, marked as English; none when it is empty.
- * @param {string} detail
+ * The code and fields of a sentence (kind included), or null when no pattern reads it.
+ * @param {string} text
+ * @returns {{code: string, fields: Record<string, string>} | null}
  */
-function detailNode(detail) {
-  return detail ? serverText(detail) : "";
+export function readNote(text) {
+  for (const note of NOTES) {
+    const found = note.regexp.exec(text);
+    if (found) return { code: note.code, fields: Object.fromEntries(note.fields.map((name, i) => [name, found[i + 1]])) };
+  }
+  return null;
+}
+
+/**
+ * The figures of a field in the reader's language, with the digits the library gave
+ * them ("0.140" reads "0,14" in pt-BR; a unit after a figure stays).
+ * @param {string} text
+ *
+ * @example localFigures("-0.5 °C") // pt-BR "-0,5 °C"
+ */
+export function localFigures(text) {
+  return text.replace(FIGURE, (figure) => {
+    const value = Number(figure);
+    if (!Number.isFinite(value)) return figure;
+    const mantissa = figure.replace(/^[-+]/, "").split(/e/i)[0].replace(".", "").replace(/^0+/, "");
+    const far = value !== 0 && (Math.abs(value) < 1e-3 || Math.abs(value) >= 1e9);
+    return formatNumber(value, {
+      maximumSignificantDigits: Math.min(21, Math.max(1, mantissa.length)),
+      notation: far ? "scientific" : "standard",
+      signDisplay: figure.startsWith("+") ? "exceptZero" : "auto",
+      useGrouping: false,
+    });
+  });
+}
+
+/** "residual_dead_time" -> "identNote.residualDeadTime". @param {string} code */
+function noteKey(code) {
+  return `identNote.${code.replace(/_([a-z])/g, (_, c) => c.toUpperCase())}`;
+}
+
+/**
+ * A sentence's detail in the reader's language when a pattern reads it, else the
+ * library's detail marked as English; none when it is empty.
+ * @param {string} text  the whole sentence (its kind included)
+ * @param {string} detail  the library's words after the kind
+ * @returns {Node | string}
+ */
+function detailNode(text, detail) {
+  const note = readNote(text);
+  if (!note) return detail ? serverText(detail) : "";
+  /** @type {Record<string, Node | string>} */
+  const params = {};
+  for (const [name, value] of Object.entries(note.fields)) params[name] = VERBATIM.has(name) ? serverText(value) : localFigures(value);
+  return h("span", { "data-note": note.code }, ...tParts(noteKey(note.code), params));
 }
 
 /**
@@ -86,11 +147,12 @@ function detailNode(detail) {
 export function identWarning(warning) {
   const text = String(warning);
   const final = FINAL.test(text);
-  const { kind, detail } = split(text.replace(FINAL, ""));
+  const body = text.replace(FINAL, "");
+  const { kind, detail } = split(body);
   const known = WARNINGS.get(kind);
   if (!known) return serverText(text);
   const key = detail ? "identWords.warning" : "identWords.warningNoDetail";
-  const said = h("span", { "data-kind": kind }, ...tParts(key, { kind: t(known.name), advice: t(known.advice), detail: detailNode(detail) }));
+  const said = h("span", { "data-kind": kind }, ...tParts(key, { kind: t(known.name), advice: t(known.advice), detail: detailNode(body, detail) }));
   return final ? h("span", null, ...tParts("identWords.finalEstimate", { warning: said })) : said;
 }
 
@@ -106,5 +168,5 @@ export function identReason(reason) {
   const known = REASONS.get(kind);
   if (!known) return serverText(text);
   const name = t(known.name);
-  return detail ? h("span", { "data-kind": kind }, ...tParts("identWords.reason", { kind: name, detail: detailNode(detail) })) : h("span", { "data-kind": kind }, name);
+  return detail ? h("span", { "data-kind": kind }, ...tParts("identWords.reason", { kind: name, detail: detailNode(text, detail) })) : h("span", { "data-kind": kind }, name);
 }
