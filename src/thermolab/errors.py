@@ -31,6 +31,7 @@ __all__ = [
     "InsufficientExcitationError",
     "InvalidDataError",
     "InvalidParameterError",
+    "ModelValueError",
     "NameTakenError",
     "NoOutputUnitError",
     "NoRunError",
@@ -233,6 +234,10 @@ class GainRangeError(_WordedParameterError):
 
 class RuleNotApplicableError(_WordedParameterError):
     """A tuning rule that cannot tune this model (one needing a dead time, on a model without)."""
+
+
+class ModelValueError(_WordedParameterError):
+    """A first-order model no rule tunes: a zero gain, a tau not positive, a negative theta."""
 
 
 class SetpointRangeError(InvalidParameterError):

@@ -48,6 +48,21 @@ def test_a_gain_of_the_wrong_sign_does_not_retune() -> None:
     assert "wrong sign" in tuner.last_reason
 
 
+def test_an_estimate_no_rule_tunes_holds_with_the_declared_reason() -> None:
+    """Why, by code (a page says it in its reader's language), never the bare English."""
+    g = PIDGains(1.0, 10.0)
+    tuner = AdaptiveTuner(Scripted(Est(1.0, 10.0, theta=-2.0)), every=1)
+    assert tuner.update(0.0, 0.0, g) is None
+    assert tuner.to_dict()["last_word"] == {
+        "code": "model_theta_invalid", "params": {"value": -2.0},
+    }  # fmt: skip
+    assert tuner.last_reason == "the model's theta must be a number >= 0, got -2.0"
+    zn = AdaptiveTuner(Scripted(Est(1.0, 10.0, theta=0.0)), "zn", every=1)
+    assert zn.update(0.0, 0.0, g) is None
+    assert zn.last_word is not None
+    assert (zn.last_word.code, zn.last_word.params) == ("needs_dead_time", {"rule": "zn"})
+
+
 def test_retunes_every_n_samples_with_the_estimates_theta() -> None:
     est = Est(1.0, 10.0, theta=2.0)
     tuner = AdaptiveTuner(Scripted(*[est] * 10), "simc", every=5, tau_c=2.0, max_change=10.0)

@@ -235,6 +235,31 @@ def test_students_book_free_slots_for_themselves_within_the_weekly_quota(
     assert tina.get("/api/courses/ctrl1-next/booking-quota").json()["minutesPerWeek"] == 90
 
 
+def test_a_students_quota_counts_the_weeks_of_the_labs_time_zone(make_lab: LabFactory) -> None:
+    """Sunday evening in São Paulo is Monday in UTC: it counts in Sunday's week there."""
+    from thermolab.errors import BookingQuotaError
+
+    lab = make_lab(control_time_limit=3600.0, idle_limit=None, time_zone="America/Sao_Paulo")
+    tina, ana = person(lab, "tina", "teacher"), person(lab, "ana")
+    course(lab, "tina", "ctrl1", ["ana"])
+    lab.booking_tools.set_quota(tina, "ctrl1", 60)
+    sp = ZoneInfo("America/Sao_Paulo")
+
+    def book(day: int, hour: int) -> Any:
+        start = datetime(2026, 1, day, hour, tzinfo=sp)
+        return lab.booking_tools.book_own(ana, "ctrl1", "twin", start, start + timedelta(hours=1))
+
+    sunday_evening = book(11, 22)  # 2026-01-12 01:00 UTC
+    assert sunday_evening.starts_at.astimezone(UTC).weekday() == 0  # a Monday in UTC
+    with pytest.raises(BookingQuotaError) as refused:
+        book(10, 10)  # Saturday: the same week in São Paulo, full
+    assert refused.value.quota["weekStartsAt"] == "2026-01-05T03:00:00+00:00"
+    assert "the week from 2026-01-05" in str(refused.value)
+    book(12, 10)  # Monday 10:00 there: a new week, though the same UTC week as Sunday's
+    [listed] = lab.booking_tools.own_courses(ana)
+    assert listed.week_starts_at == datetime(2026, 1, 1, 3, tzinfo=UTC) - timedelta(days=3)
+
+
 def test_a_weekly_series_books_each_week_and_lists_the_clashes(
     lab: Lab, school: None, app_client: Clients
 ) -> None:

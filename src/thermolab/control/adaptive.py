@@ -33,7 +33,7 @@ from typing import Any
 from thermolab.control.parameters import PARAMETERS
 from thermolab.control.pid import GAIN_LIMITS, PIDGains
 from thermolab.control.tuning import FOPDT, RULES, tune
-from thermolab.control.words import LoopWord
+from thermolab.control.words import LoopWord, word_of
 from thermolab.errors import InvalidParameterError
 
 __all__ = ["AdaptiveTuner", "GainBounds"]
@@ -255,7 +255,8 @@ class AdaptiveTuner:
             )
             target = tune(model, self.rule, form=self.form, tau_c=self.tau_c).gains
         except (InvalidParameterError, AttributeError, TypeError, ValueError) as exc:
-            self._hold(LoopWord.of("hold.not_tunable", reason=str(exc)))
+            # A declared sentence says why in the reader's language; else the error's English.
+            self._hold(word_of(exc) or LoopWord.of("hold.not_tunable", reason=str(exc)))
             return None
         if math.copysign(1.0, target.Kp) != math.copysign(1.0, current.Kp):
             self._hold(LoopWord.of("hold.wrong_sign"))

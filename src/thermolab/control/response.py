@@ -120,7 +120,7 @@ def step_metrics(
     if not (ta.ndim == ra.ndim == ya.ndim == 1 and len(ta) == len(ra) == len(ya)):
         raise InvalidDataError("t, r and y must be one-dimensional arrays of the same length")
     if not (np.isfinite(ta).all() and np.isfinite(ra).all() and np.isfinite(ya).all()):
-        raise InvalidDataError("t, r and y must be finite (no NaN or inf)")
+        raise InvalidDataError(LoopWord.of("record_not_finite").text)
     if not (0 < band < 1):
         raise InvalidParameterError(f"band must be a fraction in (0, 1), got {band!r}")
     changes = np.flatnonzero(np.diff(ra) != 0)

@@ -42,7 +42,7 @@ from typing import Any, Literal
 
 from thermolab.control.pid import PIDGains
 from thermolab.control.words import LoopWord
-from thermolab.errors import InvalidParameterError, RuleNotApplicableError
+from thermolab.errors import InvalidParameterError, ModelValueError, RuleNotApplicableError
 
 __all__ = [
     "FOPDT",
@@ -106,18 +106,14 @@ class FOPDT:
     theta: float = 0.0
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.K) and self.K != 0):
-            raise InvalidParameterError(
-                f"the model's gain K must be finite and non-zero, got {self.K!r}"
-            )
-        if not (math.isfinite(self.tau) and self.tau > 0):
-            raise InvalidParameterError(
-                f"the model's tau must be a positive number, got {self.tau!r}"
-            )
-        if not (math.isfinite(self.theta) and self.theta >= 0):
-            raise InvalidParameterError(
-                f"the model's theta must be a number >= 0, got {self.theta!r}"
-            )
+        for code, value, valid in (
+            ("model_gain_invalid", self.K, math.isfinite(self.K) and self.K != 0),
+            ("model_tau_invalid", self.tau, math.isfinite(self.tau) and self.tau > 0),
+            ("model_theta_invalid", self.theta, math.isfinite(self.theta) and self.theta >= 0),
+        ):
+            if not valid:
+                word = LoopWord.of(code, value=value)
+                raise ModelValueError(word.text, word_code=code, word_params=word.params)
 
     def to_dict(self) -> dict[str, float]:
         """Return ``{"K", "tau", "theta"}`` (JSON-ready)."""

@@ -14,7 +14,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-from thermolab.errors import GainRangeError, RuleNotApplicableError
+from thermolab.errors import GainRangeError, ModelValueError, RuleNotApplicableError
 
 __all__ = ["LOOP_WORDS", "LoopWord", "word_of"]
 
@@ -34,6 +34,11 @@ LOOP_WORDS: Mapping[str, str] = {
         "or the last step leaves fewer than 2 samples"
     ),
     "no_model": "the run was started without the model its gains came from",
+    "record_not_finite": "t, r and y must be finite (no NaN or inf)",
+    # A first-order model no rule tunes (control.tuning.FOPDT).
+    "model_gain_invalid": "the model's gain K must be finite and non-zero, got {value!r}",
+    "model_tau_invalid": "the model's tau must be a positive number, got {value!r}",
+    "model_theta_invalid": "the model's theta must be a number >= 0, got {value!r}",
     "output_drifted": (
         "the output drifted at {slope:+.3g}/s in the model's dead time ({theta:g} s) after "
         "the step, before the controller could act: the box was about {away:+.3g} from rest "
@@ -104,6 +109,6 @@ class LoopWord:
 
 def word_of(exc: BaseException) -> LoopWord | None:
     """The declared sentence an error of the closed loop says, if it says one."""
-    if isinstance(exc, (GainRangeError, RuleNotApplicableError)) and exc.word_code:
+    if isinstance(exc, (GainRangeError, ModelValueError, RuleNotApplicableError)) and exc.word_code:
         return LoopWord.of(exc.word_code, **exc.word_params)
     return None

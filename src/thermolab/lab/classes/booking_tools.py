@@ -2,10 +2,12 @@
 
 **Students' own bookings.** A course's teachers set ``student_booking_quota``:
 the minutes a week each student may book for themselves (0, the default:
-students book nothing). The week is the ISO week in UTC, Monday 00:00 to
-Monday 00:00, of the slot's start; what counts is the student's own bookings
-of that course starting in that week. A student books a free slot of one of
-their course's rigs (every rig when the course chose none); the slot is a
+students book nothing). The week is the ISO week of the slot's start in the
+lab's ``time_zone``, Monday 00:00 to Monday 00:00 there (a class in São Paulo
+counts Sunday evening's slot in Sunday's week, not in the next UTC week); what
+counts is the student's own bookings of that course starting in that week. A
+student books a free slot of one of their course's rigs (every rig when the
+course chose none); the slot is a
 normal booking of the course (the turn rules give its rigs to the course's
 people during it) that records who booked it, and that student may cancel it.
 
@@ -89,14 +91,24 @@ class SeriesResult:
     skipped: list[dict[str, object]]
 
 
-def week_of(t: datetime) -> datetime:
-    """Monday 00:00 UTC of the ISO week holding ``t``.
+def week_of(t: datetime, zone: tzinfo = UTC) -> tuple[datetime, datetime]:
+    """The ISO week holding ``t`` in ``zone``: its Monday 00:00 and the next, as UTC instants.
 
-    >>> week_of(datetime(2026, 3, 8, 23, 30, tzinfo=UTC)).isoformat()
-    '2026-03-02T00:00:00+00:00'
+    A week that changes daylight saving lasts 167 or 169 hours.
+
+    >>> from zoneinfo import ZoneInfo
+    >>> sunday_evening = datetime(2026, 3, 9, 1, 30, tzinfo=UTC)  # 22:30 on Sunday the 8th
+    >>> [d.isoformat() for d in week_of(sunday_evening, ZoneInfo("America/Sao_Paulo"))]
+    ['2026-03-02T03:00:00+00:00', '2026-03-09T03:00:00+00:00']
+    >>> week_of(sunday_evening)[0].isoformat()
+    '2026-03-09T00:00:00+00:00'
     """
-    t = t.astimezone(UTC)
-    return datetime.combine(t.date() - timedelta(days=t.weekday()), time(0), tzinfo=UTC)
+    local = t.astimezone(zone)
+    monday = local.date() - timedelta(days=local.weekday())
+    return tuple(  # type: ignore[return-value]
+        datetime.combine(monday + timedelta(days=d), time(0), tzinfo=zone).astimezone(UTC)
+        for d in (0, 7)
+    )
 
 
 def weekly(
@@ -184,7 +196,7 @@ class BookingTools:
         """The open courses ``who`` is a student of that let students book, with this week's use."""
         if scope_of(who, Action.BOOKING_OWN) is Scope.NONE:
             return []
-        week = week_of(self._clock.now())
+        week = week_of(self._clock.now(), zone_named(self._config.time_zone))
         with self._db.read() as session:
             rows = session.execute(
                 select(Course, CourseBookingQuota.minutes_per_week)
@@ -204,7 +216,7 @@ class BookingTools:
                     title=c.title,
                     minutes_per_week=minutes,
                     used_minutes=_used(session, c.id, who.user_id, week),
-                    week_starts_at=week,
+                    week_starts_at=week[0],
                     rigs=tuple(self._course_rigs(session, c.id)),
                 )
                 for c, minutes in rows
@@ -247,17 +259,19 @@ class BookingTools:
                 )
             # Locked before counting: two of the student's bookings at once cannot both fit.
             self._bookings.lock(session, wanted)
-            week = week_of(start)
+            zone = zone_named(self._config.time_zone)
+            week = week_of(start, zone)
             used = _used(session, row.id, who.user_id, week)
             length = round((end - start).total_seconds() / 60)
             if used + length > minutes:
                 raise BookingQuotaError(
-                    f"the week from {week:%Y-%m-%d} has {minutes - used} of your {minutes} "
+                    f"the week from {week[0].astimezone(zone):%Y-%m-%d} has {minutes - used} "
+                    f"of your {minutes} "
                     f"minutes left in course {row.name!r}; this slot takes {length}",
                     {
                         "minutesPerWeek": minutes,
                         "usedMinutes": used,
-                        "weekStartsAt": week.isoformat(),
+                        "weekStartsAt": week[0].isoformat(),
                     },
                 )
             refuse_clash(session, wanted, start, end, exclude=None)
@@ -352,14 +366,14 @@ def _require(who: Principal, action: Action) -> None:
         raise AccessDeniedError(f"only {who_may(action, reach)} may {action}")
 
 
-def _used(session: Session, course_id: int, user_id: int, week: datetime) -> int:
-    """Minutes of ``user_id``'s own bookings of the course starting in ``week``."""
+def _used(session: Session, course_id: int, user_id: int, week: tuple[datetime, datetime]) -> int:
+    """Minutes of ``user_id``'s own bookings of the course starting in ``week`` (start, end)."""
     rows = session.execute(
         select(Booking.starts_at, Booking.ends_at).where(
             Booking.course_id == course_id,
             Booking.booked_for == user_id,
-            Booking.starts_at >= week,
-            Booking.starts_at < week + timedelta(days=7),
+            Booking.starts_at >= week[0],
+            Booking.starts_at < week[1],
         )
     ).all()
     return round(sum((b - a).total_seconds() for a, b in rows) / 60)

@@ -179,9 +179,10 @@ def closed_loop_figures(
     try:
         measured = step_metrics(t, r, y)
     except InvalidDataError as exc:
-        no_step = LoopWord.of("no_measured_step")
-        if str(exc) == no_step.text:
-            return noted(no_step)
+        # The record's faults step_metrics declares (their words, by code), else its English.
+        for declared in (LoopWord.of("no_measured_step"), LoopWord.of("record_not_finite")):
+            if str(exc) == declared.text:
+                return noted(declared)
         out["note"] = str(exc)
         return out
     out["measured"] = measured.to_dict()
