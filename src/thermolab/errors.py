@@ -25,17 +25,22 @@ __all__ = [
     "ConfigError",
     "ConflictError",
     "CourseNameTakenError",
+    "FaultNotClearedError",
     "GainRangeError",
+    "HostOfflineError",
     "IdentifierStateError",
     "IncompatibleLabError",
     "InsufficientExcitationError",
     "InvalidDataError",
     "InvalidParameterError",
+    "LabStartingError",
     "ModelValueError",
     "NameTakenError",
     "NoOutputUnitError",
     "NoRunError",
+    "NobodyControlsError",
     "NotClosedLoopError",
+    "NotControllerError",
     "NotFoundError",
     "PasswordChangeRequiredError",
     "PasswordRejectedError",
@@ -44,6 +49,7 @@ __all__ = [
     "RigBookedError",
     "RigError",
     "RigFaultError",
+    "RigOutOfServiceError",
     "RigStateError",
     "RigTimeoutError",
     "RuleNotApplicableError",
@@ -254,6 +260,31 @@ class NoOutputUnitError(InvalidParameterError):
 
 class NoRunError(ConflictError):
     """A run command (switch, set point, gains, fan) with no run going on the rig."""
+
+
+# Why a rig takes no turn now: each its own stable code, so a page says which.
+class RigOutOfServiceError(ConflictError):
+    """A rig a teacher took out of service."""
+
+
+class FaultNotClearedError(ConflictError):
+    """A rig whose fault a teacher has not cleared yet."""
+
+
+class LabStartingError(ConflictError):
+    """A rig asked for before the lab has read its state at start-up."""
+
+
+class HostOfflineError(ConflictError):
+    """A rig whose host (the computer its kit hangs on) is not connected."""
+
+
+class NotControllerError(ConflictError):
+    """A controller's action by someone who does not control the rig."""
+
+
+class NobodyControlsError(ConflictError):
+    """A teacher's action on the controller of a rig nobody controls."""
 
 
 class NotClosedLoopError(ConflictError):

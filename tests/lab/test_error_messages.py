@@ -14,6 +14,7 @@ from fastapi.testclient import TestClient
 from thermolab.cli import main
 from thermolab.errors import CLASS_LIST_PROBLEMS, PASSWORD_PROBLEMS, TAKEN_NAMES
 from thermolab.lab import error_messages
+from thermolab.lab.accounts.users import Principal
 from thermolab.lab.classes.reminders import REMINDER_WORDS
 from thermolab.lab.error_messages import (
     ERROR_SENTENCES,
@@ -140,6 +141,29 @@ def test_api_errors_speak_the_readers_language(lab: Lab, app_client: Client) -> 
     stranger = app_client()
     answer = stranger.get("/api/rigs", headers={"Accept-Language": "en"})
     assert answer.json()["message"] == ERROR_SENTENCES["not_authenticated"]
+
+
+def test_why_a_rig_takes_no_turn_is_said_by_its_own_code(lab: Lab, app_client: Client) -> None:
+    """Not the generic "conflict": each reason its code and sentence, in the reader's language."""
+    lab.users.add("ana", PASSWORD, "student")
+    teacher = lab.users.add("tess", PASSWORD, "teacher")
+    ana = app_client("ana")
+    pt = {"Accept-Language": "pt-BR"}
+    # Asking for more time without the rig's control.
+    answer = ana.post("/api/rigs/twin/control/more-time", headers=pt)
+    assert (answer.status_code, answer.json()["code"]) == (409, "not_controller")
+    assert answer.json()["message"] == "Você não controla esta bancada agora."
+    # A teacher kicks the controller of a rig nobody controls.
+    tess = app_client("tess")
+    answer = tess.post("/api/rigs/twin/control/kick", json={}, headers={"Accept-Language": "es"})
+    assert (answer.status_code, answer.json()["code"]) == (409, "nobody_controls")
+    assert answer.json()["message"] == "Nadie controla este equipo ahora."
+    # A rig out of service takes no turn.
+    lab.access.set_service("twin", Principal(teacher.id, teacher.username, teacher.role), False)
+    answer = ana.post("/api/rigs/twin/control", headers=pt)
+    assert (answer.status_code, answer.json()["code"]) == (409, "rig_out_of_service")
+    assert answer.json()["message"] == error_message("rig_out_of_service", "pt-BR")
+    assert "out of service" in answer.json()["detail"]  # the precise English beside it
 
 
 def test_the_command_line_says_errors_in_the_users_language(

@@ -83,6 +83,13 @@ ERROR_SENTENCES: Mapping[str, str] = {
     "no_run": "No run is going on this rig.",
     "not_closed_loop": "The run was started without a controller.",
     "previous_run_ending": "The previous turn's run is still ending: try again in a few seconds.",
+    # Why a rig takes no turn now, and a controller's action by someone else (issue #24).
+    "rig_out_of_service": "The rig is out of service: ask a teacher.",
+    "rig_fault_not_cleared": "The rig has a fault: a teacher must clear it before anyone uses it.",
+    "lab_starting": "The lab is still starting: try again in a few seconds.",
+    "host_offline": "The computer this rig is connected to is offline: try again later.",
+    "not_controller": "You do not control this rig now.",
+    "nobody_controls": "Nobody controls this rig now.",
     "run_in_progress": "A run of your turn is already going: END it first.",
     "setpoint_out_of_range": "The set point is outside the rig's output range.",
     "setpoint_no_step": (

@@ -12,7 +12,7 @@ from datetime import datetime
 from sqlalchemy import bindparam, select
 from sqlalchemy.orm import Session
 
-from thermolab.errors import ConflictError
+from thermolab.errors import LabStartingError
 from thermolab.lab.access.rules import Slot, Turn, TurnState, Waiting
 from thermolab.lab.access.views import ControlRecord, QueueSlot, RigSnapshot
 from thermolab.lab.config import LabConfig
@@ -171,7 +171,7 @@ def read_snapshot(session: Session, rig_id: str, now: datetime) -> RigSnapshot:
     rig = session.get(RigRow, rig_id, populate_existing=True)
     if rig is None:
         # Configured but not yet in the table: start-up has not run.
-        raise ConflictError(f"rig {rig_id!r} is not ready yet; the lab is starting")
+        raise LabStartingError(f"rig {rig_id!r} is not ready yet; the lab is starting")
     control = active(session, rig_id)
     # Plain rows, not ORM objects: a class-sized queue is read on every look at the rig.
     rows = session.execute(_Q.queue_rows, {"rig": rig_id}).all()

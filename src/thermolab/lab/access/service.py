@@ -25,8 +25,12 @@ from sqlalchemy.orm import Session
 
 from thermolab.errors import (
     ConflictError,
+    FaultNotClearedError,
     InvalidParameterError,
+    NobodyControlsError,
+    NotControllerError,
     RigBookedError,
+    RigOutOfServiceError,
     TurnExtensionRefusedError,
 )
 from thermolab.lab.access import queries as q
@@ -75,9 +79,9 @@ class AccessService(RigTransactions):
 
         def act(session: Session, rig: RigRow, now: datetime) -> None:
             if not rig.in_service:
-                raise ConflictError(f"rig {rig.id!r} is out of service; ask a teacher")
+                raise RigOutOfServiceError(f"rig {rig.id!r} is out of service; ask a teacher")
             if rig.fault is not None:
-                raise ConflictError(
+                raise FaultNotClearedError(
                     f"rig {rig.id!r} has a fault ({rig.fault}); a teacher must clear it first"
                 )
             control = q.active(session, rig.id)
@@ -186,7 +190,7 @@ class AccessService(RigTransactions):
         def act(session: Session, rig: RigRow, now: datetime) -> None:
             control = q.active(session, rig.id)
             if control is None or control.user_id != who.user_id:
-                raise ConflictError(f"you do not control rig {rig.id!r}")
+                raise NotControllerError(f"you do not control rig {rig.id!r}")
             snap = q.read_snapshot(session, rig.id, now)
             refusal = extension_refusal(
                 queue_size=len(snap.queue),
@@ -228,7 +232,9 @@ class AccessService(RigTransactions):
         def act(session: Session, rig: RigRow, now: datetime) -> None:
             control = q.active(session, rig.id)
             if control is None:
-                raise ConflictError(f"nobody controls rig {rig.id!r}; there is no limit to change")
+                raise NobodyControlsError(
+                    f"nobody controls rig {rig.id!r}; there is no limit to change"
+                )
             control.deadline = max(control.deadline + timedelta(seconds=seconds), now)
             if control.deadline <= now:
                 self._end(session, rig, TurnEndReason.TIME_LIMIT, now, now, by=who.username)
@@ -252,7 +258,7 @@ class AccessService(RigTransactions):
             name = username.strip().lower() if username is not None else None
             if name is None or (control is not None and control.username == name):
                 if control is None:
-                    raise ConflictError(f"nobody controls rig {rig.id!r}")
+                    raise NobodyControlsError(f"nobody controls rig {rig.id!r}")
                 self._end(session, rig, TurnEndReason.KICKED, now, now, by=who.username)
                 return
             user_id = session.scalar(select(User.id).where(User.username == name))

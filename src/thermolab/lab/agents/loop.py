@@ -23,7 +23,7 @@ from typing import Any
 
 from thermolab.agent.protocol import LoopCommand, SetFan, SetGains, SetMode, SetSetpoint
 from thermolab.control import PIDGains
-from thermolab.errors import ConflictError, InvalidParameterError
+from thermolab.errors import HostOfflineError, InvalidParameterError
 from thermolab.rigs import RigInfo
 from thermolab.runner import ControlLoop, Interlocks
 from thermolab.runner.control_request import ControlRequest
@@ -138,4 +138,6 @@ class RemoteLoop:
 
     def _forward(self, command: LoopCommand) -> None:
         if not self._send(command):
-            raise ConflictError(f"the host of rig {self._info.name!r} is offline; try again later")
+            raise HostOfflineError(
+                f"the host of rig {self._info.name!r} is offline; try again later"
+            )

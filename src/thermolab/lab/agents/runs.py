@@ -47,7 +47,8 @@ from thermolab.agent.protocol import (
 )
 from thermolab.errors import (
     AccessDeniedError,
-    ConflictError,
+    HostOfflineError,
+    NoRunError,
     NotFoundError,
     RunInProgressError,
     ThermoLabError,
@@ -165,7 +166,7 @@ class RemoteRuns:
             if going is not None:
                 raise RunInProgressError(f"run {going.run_id} is still going on rig {rig_id!r}")
             if not self._agents.online(rig_id):
-                raise ConflictError(f"the host of rig {rig_id!r} is offline; try again later")
+                raise HostOfflineError(f"the host of rig {rig_id!r} is offline; try again later")
             run_id, control_id = store_start(
                 self._config, self._access, rig_id, who, start, channels
             )
@@ -203,7 +204,7 @@ class RemoteRuns:
         """
         remote = self._remote.get(rig_id)
         if remote is None:
-            raise ConflictError(f"no run is going on rig {rig_id!r}")
+            raise NoRunError(f"no run is going on rig {rig_id!r}")
         if (
             not who.is_teacher
             and self._access.caller_turn(rig_id, who.user_id) != remote.control_session

@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any, Protocol
 
-from thermolab.errors import AccessDeniedError, ConflictError, NoRunError, NotClosedLoopError
+from thermolab.errors import AccessDeniedError, NoRunError, NotClosedLoopError
 from thermolab.jsonsafe import json_safe
 from thermolab.lab.access import AccessService
 from thermolab.lab.accounts.users import Principal
@@ -56,7 +56,7 @@ def end_run(access: AccessService, active: ActiveRun | None, rig_id: str, who: P
         If no run is going on the rig.
     """
     if active is None:
-        raise ConflictError(f"no run is going on rig {rig_id!r}")
+        raise NoRunError(f"no run is going on rig {rig_id!r}")
     if not who.is_teacher:
         snap = access.snapshot(rig_id)
         if snap.controller is None or snap.controller.user_id != who.user_id:
