@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 __all__ = [
     "CLASS_LIST_PROBLEMS",
+    "HAND_IN_REFUSALS",
     "PASSWORD_PROBLEMS",
     "TAKEN_NAMES",
     "AccessDeniedError",
@@ -27,6 +28,7 @@ __all__ = [
     "CourseNameTakenError",
     "FaultNotClearedError",
     "GainRangeError",
+    "HandInRefusedError",
     "HostOfflineError",
     "IdentifierStateError",
     "IncompatibleLabError",
@@ -285,6 +287,20 @@ class NotControllerError(ConflictError):
 
 class NobodyControlsError(ConflictError):
     """A teacher's action on the controller of a rig nobody controls."""
+
+
+#: Why a run cannot be handed in, by stable code (each code's sentence: lab/error_messages.py).
+HAND_IN_REFUSALS = ("handin_wrong_rig", "handin_unfinished", "handin_too_short")
+
+
+class HandInRefusedError(ConflictError):
+    """A run that cannot be handed in for an assignment; ``case`` (of HAND_IN_REFUSALS) says why."""
+
+    def __init__(self, message: str, case: str) -> None:
+        if case not in HAND_IN_REFUSALS:
+            raise ValueError(f"no hand-in refusal {case!r}")
+        super().__init__(message)
+        self.case = case
 
 
 class NotClosedLoopError(ConflictError):

@@ -19,6 +19,7 @@ from thermolab.errors import ConflictError
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.assignments import Answers, GradeRow
 from thermolab.lab.clock import ManualClock
+from thermolab.lab.error_messages import error_message
 from thermolab.lab.runs.request import RunRequest
 from thermolab.lab.service import Lab
 
@@ -213,6 +214,15 @@ def test_a_hand_in_is_refused_for_a_run_that_is_not_the_students_or_not_on_the_r
         answer = ana.post(url, json=body)
         assert answer.status_code == code, (body, answer.text)
         assert words in answer.text, (body, answer.text)
+    # Each refusal of a run its own code and sentence, in the student's language (#24).
+    pt = {"Accept-Language": "pt-BR"}
+    for run_id, why in ((elsewhere, "handin_wrong_rig"), (short, "handin_too_short")):
+        answer = ana.post(url, json={"runId": run_id, "K": 0.14, "tau": 250.0}, headers=pt)
+        assert (answer.json()["code"], answer.json()["message"]) == (
+            why,
+            error_message(why, "pt-BR"),
+        )
+        assert answer.json()["message"].startswith("Este ensaio")
     assert ben.post(url, json={"runId": theirs, "K": 0.14, "tau": 250.0}).status_code == 403
     assert tina.get(url).json() == []
 

@@ -151,6 +151,9 @@ def _pages_now(funcargs: dict[str, Any]) -> str:
         for page in context.pages:
             text = page.evaluate("() => document.body ? document.body.innerText : ''")
             lines.append(f"{page.url}: {' | '.join(text.split(chr(10)))[:800]}")
+            errors = getattr(page, "errors", None)  # what tests record of uncaught errors
+            if errors:
+                lines.append(f"  uncaught errors in that page: {errors}")
     server = funcargs.get("lab")
     if isinstance(server, LabServer) and server.log.exists():
         lines.append("--- the lab's log, last lines ---")

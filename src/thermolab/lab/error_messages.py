@@ -90,6 +90,10 @@ ERROR_SENTENCES: Mapping[str, str] = {
     "host_offline": "The computer this rig is connected to is offline: try again later.",
     "not_controller": "You do not control this rig now.",
     "nobody_controls": "Nobody controls this rig now.",
+    # A run an assignment does not take (issue #24).
+    "handin_wrong_rig": "This run was made on another rig than the assignment's.",
+    "handin_unfinished": "This run did not run to its end: hand in one that did.",
+    "handin_too_short": "This run has too few samples to be marked.",
     "run_in_progress": "A run of your turn is already going: END it first.",
     "setpoint_out_of_range": "The set point is outside the rig's output range.",
     "setpoint_no_step": (

@@ -35,7 +35,13 @@ from sqlalchemy import or_, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from thermolab.errors import AccessDeniedError, ConflictError, InvalidParameterError, NotFoundError
+from thermolab.errors import (
+    AccessDeniedError,
+    ConflictError,
+    HandInRefusedError,
+    InvalidParameterError,
+    NotFoundError,
+)
 from thermolab.lab.accounts.policy import Action
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.assignments.extensions import ExtensionService, extensions_of, own_deadline
@@ -291,13 +297,16 @@ class AssignmentService:
                 raise NotFoundError(f"no run {run_id}")
             owner = run.user_id  # theirs, or a lab group mate's (checked as it is stored)
             if run.rig_id != row.rig_id:
-                raise ConflictError(
+                raise HandInRefusedError(
                     f"run {run_id} was made on rig {run.rig_id!r}; this assignment is on "
-                    f"{row.rig_id!r}"
+                    f"{row.rig_id!r}",
+                    "handin_wrong_rig",
                 )
             if run.status != RunStatus.FINISHED.value:
-                raise ConflictError(
-                    f"run {run_id} is {run.status}, not finished: hand in a run that ran to its end"
+                raise HandInRefusedError(
+                    f"run {run_id} is {run.status}, not finished: "
+                    "hand in a run that ran to its end",
+                    "handin_unfinished",
                 )
             samples = session.execute(
                 select(Sample.t, Sample.u, Sample.y)
@@ -305,8 +314,9 @@ class AssignmentService:
                 .order_by(Sample.k)
             ).all()
             if len(samples) < MIN_SAMPLES:
-                raise ConflictError(
-                    f"run {run_id} has {len(samples)} samples; at least {MIN_SAMPLES} are needed"
+                raise HandInRefusedError(
+                    f"run {run_id} has {len(samples)} samples; at least {MIN_SAMPLES} are needed",
+                    "handin_too_short",
                 )
             methods = tuple(row.methods)
             settings = dict(row.settings)
