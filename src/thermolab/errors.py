@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 __all__ = [
     "CLASS_LIST_PROBLEMS",
-    "HAND_IN_REFUSALS",
+    "CONFLICT_CASES",
     "PASSWORD_PROBLEMS",
     "TAKEN_NAMES",
     "AccessDeniedError",
@@ -140,8 +140,43 @@ class NotFoundError(ThermoLabError, LookupError):
     """A named thing (user, rig, run) does not exist."""
 
 
+#: The precise reasons a request clashes with the lab's state, by stable code (each code's
+#: sentence in every language: lab/error_messages.py). A ConflictError given one answers with
+#: it, so a page says which clash; without one, with the generic ``conflict``.
+CONFLICT_CASES = (
+    # Why a run cannot be handed in (HandInRefusedError).
+    "handin_wrong_rig",
+    "handin_unfinished",
+    "handin_too_short",
+    # A teacher's and an administrator's clashes.
+    "group_name_taken",
+    "already_in_group",
+    "course_open",
+    "leavers_changed",
+    "class_list_changed",
+    "platform_registered",
+    "member_has_other_role",
+    "token_limit",
+    "person_at_rig",
+    "pace_fixed_during_run",
+    "not_in_line",
+    "rig_no_device",
+    "nothing_handed_in",
+    "stored_meanwhile",
+)
+
+
 class ConflictError(ThermoLabError, RuntimeError):
-    """The request clashes with the current state (duplicate user, rig out of service)."""
+    """The request clashes with the current state (duplicate user, rig out of service).
+
+    ``case`` (of :data:`CONFLICT_CASES`) names the clash precisely, or is None.
+    """
+
+    def __init__(self, *args: object, case: str | None = None) -> None:
+        if case is not None and case not in CONFLICT_CASES:
+            raise ValueError(f"no conflict case {case!r}")  # a mistake in the lab's code
+        super().__init__(*args)
+        self.case = case
 
 
 #: A name already taken, by stable code: an English sentence with ``{name}``, the
@@ -289,18 +324,13 @@ class NobodyControlsError(ConflictError):
     """A teacher's action on the controller of a rig nobody controls."""
 
 
-#: Why a run cannot be handed in, by stable code (each code's sentence: lab/error_messages.py).
-HAND_IN_REFUSALS = ("handin_wrong_rig", "handin_unfinished", "handin_too_short")
-
-
 class HandInRefusedError(ConflictError):
-    """A run that cannot be handed in for an assignment; ``case`` (of HAND_IN_REFUSALS) says why."""
+    """A run that cannot be handed in for an assignment; ``case`` (``handin_*``) says why."""
 
     def __init__(self, message: str, case: str) -> None:
-        if case not in HAND_IN_REFUSALS:
+        if not case.startswith("handin_"):
             raise ValueError(f"no hand-in refusal {case!r}")
-        super().__init__(message)
-        self.case = case
+        super().__init__(message, case=case)
 
 
 class NotClosedLoopError(ConflictError):

@@ -12,7 +12,13 @@ from babel.messages.pofile import read_po
 from fastapi.testclient import TestClient
 
 from thermolab.cli import main
-from thermolab.errors import CLASS_LIST_PROBLEMS, PASSWORD_PROBLEMS, TAKEN_NAMES
+from thermolab.errors import (
+    CLASS_LIST_PROBLEMS,
+    CONFLICT_CASES,
+    PASSWORD_PROBLEMS,
+    TAKEN_NAMES,
+    ConflictError,
+)
 from thermolab.lab import error_messages
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.classes.reminders import REMINDER_WORDS
@@ -158,12 +164,24 @@ def test_why_a_rig_takes_no_turn_is_said_by_its_own_code(lab: Lab, app_client: C
     answer = tess.post("/api/rigs/twin/control/kick", json={}, headers={"Accept-Language": "es"})
     assert (answer.status_code, answer.json()["code"]) == (409, "nobody_controls")
     assert answer.json()["message"] == "Nadie controla este equipo ahora."
+    # ... or someone who neither controls it nor waits: a precise case of a conflict.
+    answer = tess.post("/api/rigs/twin/control/kick", json={"username": "ana"}, headers=pt)
+    assert (answer.status_code, answer.json()["code"]) == (409, "not_in_line")
+    assert answer.json()["message"] == "Esta pessoa não controla esta bancada nem espera por ela."
     # A rig out of service takes no turn.
     lab.access.set_service("twin", Principal(teacher.id, teacher.username, teacher.role), False)
     answer = ana.post("/api/rigs/twin/control", headers=pt)
     assert (answer.status_code, answer.json()["code"]) == (409, "rig_out_of_service")
     assert answer.json()["message"] == error_message("rig_out_of_service", "pt-BR")
     assert "out of service" in answer.json()["detail"]  # the precise English beside it
+
+
+def test_a_conflict_names_only_a_declared_case() -> None:
+    assert ConflictError("x", case="course_open").case == "course_open"
+    assert ConflictError("x").case is None
+    with pytest.raises(ValueError, match="no conflict case"):
+        ConflictError("x", case="something_new")
+    assert set(CONFLICT_CASES) <= all_error_codes()
 
 
 def test_the_command_line_says_errors_in_the_users_language(

@@ -99,7 +99,7 @@ def test_a_teacher_overrides_a_mark_with_a_comment_and_the_automatic_mark_stays(
         == "not_found"
     )
     nothing = tina.put(f"/api/assignments/{aid}/overrides/bea", json={"mark": 1, "comment": "x"})
-    assert (nothing.status_code, nothing.json()["code"]) == (409, "conflict")
+    assert (nothing.status_code, nothing.json()["code"]) == (409, "nothing_handed_in")
     assert "handed nothing in" in nothing.json()["detail"]
     # Assistants and students read; only the course's teachers override.
     assert tara.put(url, json={"mark": 8, "comment": "x"}).status_code == 403

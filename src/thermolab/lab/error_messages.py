@@ -94,6 +94,31 @@ ERROR_SENTENCES: Mapping[str, str] = {
     "handin_wrong_rig": "This run was made on another rig than the assignment's.",
     "handin_unfinished": "This run did not run to its end: hand in one that did.",
     "handin_too_short": "This run has too few samples to be marked.",
+    # A teacher's and an administrator's clashes (errors.CONFLICT_CASES).
+    "group_name_taken": "This course already has a lab group with this name.",
+    "already_in_group": "Someone in this group is already in another lab group of the course.",
+    "course_open": "This course is still open: close it first.",
+    "leavers_changed": (
+        "The list of students to remove changed since it was shown: look at it again."
+    ),
+    "class_list_changed": (
+        "The accounts changed while the class list was being imported: upload it again."
+    ),
+    "platform_registered": "This LMS is registered already.",
+    "member_has_other_role": (
+        "This person already has another role in the course: remove them from it first."
+    ),
+    "token_limit": "You have as many access tokens as allowed: revoke one first.",
+    "person_at_rig": (
+        "This person is at a rig's controls or waiting for one: remove them when they are done."
+    ),
+    "pace_fixed_during_run": (
+        "A run is going on this rig: its pace changes only before the next START."
+    ),
+    "not_in_line": "This person neither controls this rig nor waits for it.",
+    "rig_no_device": "This rig has no device attached: a run needs one.",
+    "nothing_handed_in": "This student has handed nothing in: there is no mark to change.",
+    "stored_meanwhile": "Something else was stored meanwhile: look again and retry.",
     "run_in_progress": "A run of your turn is already going: END it first.",
     "setpoint_out_of_range": "The set point is outside the rig's output range.",
     "setpoint_no_step": (

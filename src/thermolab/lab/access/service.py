@@ -264,7 +264,10 @@ class AccessService(RigTransactions):
             user_id = session.scalar(select(User.id).where(User.username == name))
             entry = None if user_id is None else q.waiting(session, rig.id, user_id)
             if entry is None:
-                raise ConflictError(f"{username!r} neither controls nor waits for rig {rig.id!r}")
+                raise ConflictError(
+                    f"{username!r} neither controls nor waits for rig {rig.id!r}",
+                    case="not_in_line",
+                )
             entry.left_at = now
             entry.leave_reason = LeaveReason.KICKED.value
 

@@ -216,7 +216,8 @@ def forget_person(db: Database, username: str, runs: RunsChoice, password_hash: 
         )
         if busy is not None:
             raise ConflictError(
-                f"{name} is at a rig's controls or waiting for one; remove them when they are done"
+                f"{name} is at a rig's controls or waiting for one; remove them when they are done",
+                case="person_at_rig",
             )
         identities = tables["lti_identities"]
         subs = list(

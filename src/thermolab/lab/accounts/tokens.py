@@ -150,7 +150,8 @@ class TokenService:
             )
             if (count or 0) >= MAX_TOKENS_PER_USER:
                 raise ConflictError(
-                    f"you already have {MAX_TOKENS_PER_USER} tokens; revoke one first"
+                    f"you already have {MAX_TOKENS_PER_USER} tokens; revoke one first",
+                    case="token_limit",
                 )
             row = ApiToken(
                 token_hash=hash_token(secret),

@@ -82,7 +82,10 @@ class GroupService:
                     )
                 )
                 if taken is not None:
-                    raise ConflictError(f"course {found.name!r} has a group called {title!r}")
+                    raise ConflictError(
+                        f"course {found.name!r} has a group called {title!r}",
+                        case="group_name_taken",
+                    )
                 busy = session.execute(
                     select(User.username, LabGroup.name)
                     .join(LabGroupMember, LabGroupMember.user_id == User.id)
@@ -95,7 +98,9 @@ class GroupService:
                 ).all()
                 if busy:
                     listed = ", ".join(f"{u} ({g})" for u, g in busy)
-                    raise ConflictError(f"already in a lab group of this course: {listed}")
+                    raise ConflictError(
+                        f"already in a lab group of this course: {listed}", case="already_in_group"
+                    )
                 group = LabGroup(course_id=found.id, name=title, created_by=who.username)
                 group.created_at = now
                 session.add(group)
@@ -108,7 +113,8 @@ class GroupService:
                 return _group_info(session, found, group)
         except IntegrityError:
             raise ConflictError(
-                "the course's groups changed meanwhile; look at them again and retry"
+                "the course's groups changed meanwhile; look at them again and retry",
+                case="stored_meanwhile",
             ) from None
 
     def list(self, course: str, who: Principal) -> list[GroupInfo]:

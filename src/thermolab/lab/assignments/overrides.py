@@ -91,7 +91,8 @@ class OverrideService:
             if current is None:
                 raise ConflictError(
                     f"{person.username} has handed nothing in for this assignment: "
-                    "there is no mark to override"
+                    "there is no mark to override",
+                    case="nothing_handed_in",
                 )
             found = overrides_of(session, [row.id]).get((row.id, person.id))
             if found is None:

@@ -356,7 +356,7 @@ class AssignmentService:
                         mine = submission_info(stored, display)
         except IntegrityError:
             raise ConflictError(
-                "another hand-in of yours was stored meanwhile; try again"
+                "another hand-in of yours was stored meanwhile; try again", case="stored_meanwhile"
             ) from None
         for grade in grades:
             self._tell(grade)

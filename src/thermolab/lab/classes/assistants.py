@@ -74,7 +74,8 @@ class AssistantService:
             elif held.role != MemberRole.ASSISTANT.value:
                 raise ConflictError(
                     f"{user.username} is a {held.role} of course {found.name!r}; "
-                    "remove them from it before making them an assistant"
+                    "remove them from it before making them an assistant",
+                    case="member_has_other_role",
                 )
             return user.username
 

@@ -312,7 +312,10 @@ class CourseService:
                     ).one_or_none()
                     if user is None:
                         if entry.username not in hashes:
-                            raise ConflictError(f"{entry.username!r} was removed meanwhile")
+                            raise ConflictError(
+                                f"{entry.username!r} was removed meanwhile",
+                                case="class_list_changed",
+                            )
                         user = User(
                             username=entry.username,
                             display_name=entry.display_name,
@@ -325,7 +328,9 @@ class CourseService:
                         session.add(user)
                         session.flush()
                     elif entry.username in report.created:
-                        raise ConflictError(f"{entry.username!r} was created meanwhile")
+                        raise ConflictError(
+                            f"{entry.username!r} was created meanwhile", case="class_list_changed"
+                        )
                     elif user.display_name != entry.display_name or user.id not in members:
                         user.display_name = entry.display_name
                         report.updated.append(entry.username)
@@ -342,7 +347,9 @@ class CourseService:
                         )
                         members.add(user.id)
         except IntegrityError:
-            raise ConflictError("the accounts changed while importing; upload again") from None
+            raise ConflictError(
+                "the accounts changed while importing; upload again", case="class_list_changed"
+            ) from None
         return report
 
     def enrol(self, code: str, username: str, display_name: str, password: str) -> UserInfo:

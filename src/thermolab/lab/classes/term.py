@@ -154,7 +154,9 @@ class TermService:
         with self._db.write() as session:
             course = course_named(session, name)
             if course.closed_at is None:
-                raise ConflictError(f"course {course.name!r} is open; only a closed one reopens")
+                raise ConflictError(
+                    f"course {course.name!r} is open; only a closed one reopens", case="course_open"
+                )
             course.closed_at = None
             course.closed_by = None
 
@@ -353,7 +355,8 @@ class TermService:
         if sorted(set(expected)) != found:
             raise ConflictError(
                 f"the students to remove from {name!r} changed since the list was shown "
-                f"({len(found)} now); look at the list again"
+                f"({len(found)} now); look at the list again",
+                case="leavers_changed",
             )
         report = PurgeReport()
         for username in found:
@@ -368,7 +371,8 @@ def _closed(session: Session, name: str) -> Course:
     course = course_named(session, name)
     if course.closed_at is None:
         raise ConflictError(
-            f"course {course.name!r} is open: close it before removing its students"
+            f"course {course.name!r} is open: close it before removing its students",
+            case="course_open",
         )
     return course
 

@@ -30,7 +30,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.websockets import WebSocket
 
 from thermolab.errors import (
-    HAND_IN_REFUSALS,
+    CONFLICT_CASES,
     AccessDeniedError,
     BookingClashError,
     BookingQuotaError,
@@ -41,7 +41,6 @@ from thermolab.errors import (
     CourseNameTakenError,
     FaultNotClearedError,
     GainRangeError,
-    HandInRefusedError,
     HostOfflineError,
     LabStartingError,
     NameTakenError,
@@ -155,7 +154,6 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     HostOfflineError: HttpFault(409, "host_offline"),
     NotControllerError: HttpFault(409, "not_controller"),
     NobodyControlsError: HttpFault(409, "nobody_controls"),
-    HandInRefusedError: HttpFault(409, "conflict"),  # answered with its own case
     NotClosedLoopError: HttpFault(409, "not_closed_loop"),
     # Courses and people (issue #10).
     ClassListError: HttpFault(422, "class_list_invalid"),
@@ -214,7 +212,7 @@ def fault_of(exc: BaseException) -> HttpFault:
     for cls in type(exc).__mro__:
         fault = _FAULTS.get(cls)
         if fault is not None:
-            # An error that names its own case (a refused hand-in's) answers with that code.
+            # A conflict that names its precise case answers with that code.
             case = getattr(exc, "case", None)
             return HttpFault(fault.status, case) if isinstance(case, str) else fault
     return _OTHER
@@ -249,7 +247,7 @@ def all_error_codes() -> frozenset[str]:
         | {_OTHER.code, "http_error", "invalid_request", "cross_origin"}
         | {"lti_cookies_blocked", "lti_returning"}  # the LTI pages' sentences
         | {"database_unavailable"}  # http/outage.py's
-        | set(HAND_IN_REFUSALS)  # HandInRefusedError's cases
+        | set(CONFLICT_CASES)  # a ConflictError's precise cases
         | set(_HTTP_CODES.values())
     )
 

@@ -148,13 +148,16 @@ class PlatformRegistry:
                 if clash is not None:
                     raise ConflictError(
                         f"the platform {row.issuer!r} with client id {row.client_id!r} "
-                        "is registered already"
+                        "is registered already",
+                        case="platform_registered",
                     )
                 session.add(row)
                 session.flush()
                 info = PlatformInfo.of(row)
         except IntegrityError:
-            raise ConflictError(f"the platform {row.issuer!r} is registered already") from None
+            raise ConflictError(
+                f"the platform {row.issuer!r} is registered already", case="platform_registered"
+            ) from None
         self._origins = None
         return info
 

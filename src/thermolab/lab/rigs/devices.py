@@ -231,7 +231,8 @@ class DeviceHub:
             if slot.claimed:
                 raise ConflictError(
                     f"a run is going on rig {rig_id!r}: it keeps the pace it started with; "
-                    "change the speed-up before its START"
+                    "change the speed-up before its START",
+                    case="pace_fixed_during_run",
                 )
             slot.turn_pace = (controller_session, float(speedup))
             self._pace(slot, rig)

@@ -241,7 +241,9 @@ class RunService(RunReading):
         plan = start.plan
         driver = self._hub.driver(rig_id)
         if driver is None:
-            raise ConflictError(f"rig {rig_id!r} has no device attached; a run needs one")
+            raise ConflictError(
+                f"rig {rig_id!r} has no device attached; a run needs one", case="rig_no_device"
+            )
         loop = None
         if request.control is not None:
             # Checked before anything is stored: ranges, set point, output unit.
