@@ -122,8 +122,10 @@ def _record(module: Any, lab: Any) -> Historian:
 def test_a_script_gives_the_same_shape_of_record_on_the_lab_as_on_tclabs_model(
     served_lab: ServedLab,
 ) -> None:
-    # tclab's model at 5x (a step is 200 ms: its clock skips none on a busy machine); the
-    # lab's twin at 20x, whose late steps are taken at once on the twin's time, never skipped.
+    # tclab's model at 5x (a step is 200 ms); the lab's twin at 20x, whose late steps are
+    # taken at once on the twin's time, never skipped. tclab's own clock is real time: on a
+    # busy machine it skips a step it woke too late for (a CI run logged 10 rows, t = 4.32
+    # then 5.17), so its record is checked for its shape, not its length.
     model = tclab.setup(connected=False, speedup=5)
     with model() as kit:
         theirs = _record(tclab, kit)
@@ -131,14 +133,17 @@ def test_a_script_gives_the_same_shape_of_record_on_the_lab_as_on_tclabs_model(
     with TCLab(url=served_lab.url, token=token, rig="kit") as lab:
         mine = _record(__import__("thermolab.tclab", fromlist=["clock"]), lab)
     assert mine.columns == theirs.columns == ["Time", "T1", "T2", "Q1", "Q2"]
-    assert len(mine.log) == len(theirs.log) == 11
-    assert [round(t) for t in theirs.t] == list(range(11))
+    assert len(mine.log) == 11
+    steps = [round(t) for t in theirs.t]
+    assert steps == sorted(set(steps))
+    assert set(steps) <= set(range(11))
+    assert len(steps) >= 8
     assert mine.t[0] == 0.0
     assert all(round(t) >= k for k, t in enumerate(mine.t))
     assert mine.t == sorted(set(mine.t))
     assert [type(v) for v in mine.log[0]] == [float] * 5
     assert [r[3] for r in mine.log] == [100.0 if t < 5 else 0.0 for t in mine.t]
-    assert [float(r[3]) for r in theirs.log] == [100.0] * 5 + [0.0] * 6
+    assert [float(r[3]) for r in theirs.log] == [100.0 if t < 5 else 0.0 for t in theirs.t]
     assert all(math.isnan(r[2]) and math.isnan(r[4]) for r in mine.log)  # one heater here
 
 
