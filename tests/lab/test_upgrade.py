@@ -77,6 +77,32 @@ def test_commands_run_while_the_server_makes_the_schema_wait_for_it(tmp_path: Pa
     check.close()
 
 
+def test_connections_opening_a_new_database_at_once_all_open(tmp_path: Path) -> None:
+    """Each new connection puts SQLite in WAL mode; two asking at once on a new file made
+    SQLite refuse one at once ("database is locked", 20 rounds of 300 before the fix)."""
+    failures: list[str] = []
+    for round_ in range(100):
+        url = f"sqlite:///{tmp_path / f'new{round_}.sqlite3'}"
+        databases = [Database(url, pool_size=1, max_overflow=1) for _ in range(4)]
+        start = threading.Barrier(len(databases))
+
+        def open_one(db: Database, start: threading.Barrier) -> None:
+            start.wait()
+            try:
+                db.engine.connect().close()
+            except Exception as exc:  # each counted, whatever it is
+                failures.append(str(exc).splitlines()[0])
+
+        threads = [threading.Thread(target=open_one, args=(db, start)) for db in databases]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join(timeout=60)
+        for db in databases:
+            db.close()
+    assert failures == []
+
+
 def _free_port() -> int:
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))

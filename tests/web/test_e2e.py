@@ -519,3 +519,30 @@ def student_time_left(page: Any) -> float:
     text = page.inner_text("[data-field=timeLeft]")
     minutes, seconds = text.split(":")
     return int(minutes) * 60 + int(seconds)
+
+
+def test_a_page_moved_to_while_the_session_loads_is_the_page_shown(
+    logged_in: Any, lab: Any
+) -> None:
+    """A hash change before the lab says who is logged in (a slow start, a test's quick
+    navigation) shows that page once it does, never the login page or the rigs instead."""
+    context = logged_in("erin")
+    page = context.new_page()
+    held: list[Any] = []
+    page.route("**/api/session", lambda route: held.append(route))  # its answer waits
+    try:
+        page.goto(f"{lab.url}/#/")
+        for _ in range(200):
+            if held:
+                break
+            page.wait_for_timeout(25)  # real time: pumps Playwright's events until it asks
+        assert held, "the page never asked who is logged in"
+        page.evaluate("() => { location.hash = '#/runs'; }")
+        page.wait_for_timeout(300)  # real time: what an early render would do, it has done
+        held[0].continue_()
+        page.wait_for_selector("#nav a[data-nav=runs][aria-current=page]")
+        page.wait_for_timeout(300)  # real time: no later bounce to another page
+        assert page.evaluate("() => location.hash") == "#/runs"
+        assert page.get_attribute("#nav a[data-nav=runs]", "aria-current") == "page"
+    finally:
+        context.close()

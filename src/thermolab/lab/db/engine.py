@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import sqlite3
 import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -278,7 +279,7 @@ def _sqlite_on_connect(dbapi_connection: DBAPIConnection, record: ConnectionPool
     dbapi_connection.isolation_level = None
     cursor = dbapi_connection.cursor()
     try:
-        cursor.execute("PRAGMA journal_mode=WAL")
+        _wal(cursor)
         # NORMAL is durable across a crash of the process in WAL mode (only an OS
         # crash may lose the last transactions) and much faster than FULL.
         cursor.execute("PRAGMA synchronous=NORMAL")
@@ -286,6 +287,25 @@ def _sqlite_on_connect(dbapi_connection: DBAPIConnection, record: ConnectionPool
         cursor.execute(f"PRAGMA busy_timeout={int(SQLITE_BUSY_TIMEOUT * 1000)}")
     finally:
         cursor.close()
+
+
+def _wal(cursor: sqlite3.Cursor) -> None:
+    """Put the database in WAL mode, waiting out another connection that does it too.
+
+    Two connections opening a new database both read its header, then both ask for
+    the exclusive lock that changes its journal mode: SQLite refuses one at once,
+    with no busy wait (the wait could deadlock), and a command started with the
+    server failed with "database is locked" on a loaded machine.
+    """
+    deadline = time.monotonic() + SQLITE_BUSY_TIMEOUT
+    while True:
+        try:
+            cursor.execute("PRAGMA journal_mode=WAL")
+            return
+        except sqlite3.OperationalError as exc:
+            if "locked" not in str(exc) or time.monotonic() > deadline:
+                raise
+            time.sleep(0.02)  # real time: the other connection's change takes a moment
 
 
 def _sqlite_pragmas(connection: Connection, busy_timeout: float, *, foreign_keys: bool) -> None:

@@ -42,6 +42,7 @@ export const ctx = {
   user: null,
   navigate,
   afterLogin,
+  landing,
   /** Set the page title (the document title and the first heading's text). */
   setTitle(text) {
     document.title = t("app.documentTitle", { page: text });
@@ -50,6 +51,8 @@ export const ctx = {
 
 let cleanup = null;
 let renderToken = 0;
+/** Whether the session is known: a page moved to before that is shown once it is. */
+let sessionKnown = false;
 
 /** Parse "#/path?a=1" into a path and its query. */
 export function parseHash(hash) {
@@ -191,7 +194,16 @@ async function logout() {
 /** Called by the login view after a successful login. */
 async function afterLogin(next) {
   await loadSession();
-  navigate(next && next.startsWith("/") && !next.startsWith("/login") ? next : "/");
+  navigate(landing(next));
+}
+
+/**
+ * Where a logged-in user goes from the login page: the page they were sent
+ * there from (`next`, a path of this app), else the rigs.
+ * @param {string | null} next
+ */
+function landing(next) {
+  return next && next.startsWith("/") && !next.startsWith("/login") ? next : "/";
 }
 
 /** The header's language switcher: one option per language, named in its own words. */
@@ -240,7 +252,12 @@ async function start() {
     navigate("/login");
   });
   shell("logout").addEventListener("click", logout);
-  window.addEventListener("hashchange", () => void render());
+  // A page moved to while the language and the session load is shown by the render
+  // below (it reads the address then): rendered now, it would send a logged-in user
+  // to the login page, as if logged out.
+  window.addEventListener("hashchange", () => {
+    if (sessionKnown) void render();
+  });
   try {
     await loadSession();
   } catch (err) {
@@ -252,6 +269,7 @@ async function start() {
     );
     return;
   }
+  sessionKnown = true;
   await render();
 }
 

@@ -7,7 +7,7 @@ import { t } from "../i18n.js";
 
 export function mount(main, { query }, ctx) {
   if (ctx.user) {
-    ctx.navigate("/");
+    ctx.navigate(ctx.landing(query.get("next")));
     return null;
   }
   const error = h("p", { class: "error", id: "login-error", role: "alert" });
