@@ -2,8 +2,9 @@
 
 uvicorn runs the pure-Python h11 parser, whose incomplete-event bound refuses
 request heads over 16 KiB (httptools, which uvicorn picks by default, has
-none); a client has ``request_timeout`` seconds to send a whole request (a
-slow or silent client is cut, :func:`_bounded_h11`); a WebSocket frame over
+none); a client has ``request_timeout`` seconds to send a whole request, and a
+new connection three times that to begin one (a slow or silent client is cut,
+:func:`_bounded_h11`); a WebSocket frame over
 1 MiB is refused from its header (:data:`WS_MAX_SIZE`); an idle keep-alive
 connection is closed after 5 s; beyond 1000 open connections (``thermolab
 serve --max-connections``) new requests get 503. The live stream writes its
@@ -21,6 +22,8 @@ HEAD_LIMIT = 16 * 1024
 """Largest request head (request line and headers) in bytes; larger ones are refused."""
 KEEP_ALIVE_TIMEOUT = 5
 """Seconds an idle keep-alive connection stays open."""
+SILENT_CONNECTION_FACTOR = 3
+"""A new connection that sends nothing is cut after this many request timeouts."""
 CONNECTION_LIMIT = 1000
 """Open connections (HTTP and WebSocket) beyond which new requests get 503."""
 WS_MAX_SIZE = 2**20
@@ -46,10 +49,15 @@ def _bounded_h11(request_timeout: float) -> type[asyncio.Protocol]:
     class BoundedH11Protocol(H11Protocol):
         _request_timer: asyncio.TimerHandle | None = None
         _upgraded = False
+        _silent = True  # nothing received yet
 
         def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
             super().connection_made(transport)
-            self._arm()
+            # A connection that has sent nothing yet may be a browser's, opened ahead of
+            # its requests: Chromium keeps such a socket unused up to 10 s and sends on it
+            # without retrying if it was cut. Cut at the same moment (the default request
+            # time), a page's module failed to load now and then; it gets three times that.
+            self._arm(SILENT_CONNECTION_FACTOR * request_timeout)
 
         def data_received(self, data: bytes) -> None:
             super().data_received(data)
@@ -59,7 +67,9 @@ def _bounded_h11(request_timeout: float) -> type[asyncio.Protocol]:
                 # socket after request_timeout seconds.
                 return
             if self.conn.their_state in (h11.IDLE, h11.SEND_BODY):
-                self._arm(only_if_unarmed=True)  # a request has begun: it must end in time
+                # A request has begun: it must end in time (the silent allowance is over).
+                self._arm(only_if_unarmed=not self._silent)
+                self._silent = False
             else:
                 self._disarm()
 
@@ -72,11 +82,11 @@ def _bounded_h11(request_timeout: float) -> type[asyncio.Protocol]:
             self._disarm()
             super().handle_websocket_upgrade(event)
 
-        def _arm(self, *, only_if_unarmed: bool = False) -> None:
+        def _arm(self, seconds: float = request_timeout, *, only_if_unarmed: bool = False) -> None:
             if only_if_unarmed and self._request_timer is not None:
                 return
             self._disarm()
-            self._request_timer = self.loop.call_later(request_timeout, self._too_slow)
+            self._request_timer = self.loop.call_later(seconds, self._too_slow)
 
         def _disarm(self) -> None:
             if self._request_timer is not None:
