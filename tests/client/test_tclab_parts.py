@@ -40,19 +40,19 @@ def fast_labtime() -> object:
 def test_clock_yields_every_step_up_to_the_period() -> None:
     ticks = list(clock(5))
     assert ticks[0] == 0.0
-    # Never one time twice (the CBE 30338 PID chapters divide by t - t_prev).
+    # Never one time twice (the CBE 30338 PID chapters divide by t - t_prev), never early.
     assert all(b > a for a, b in itertools.pairwise(ticks))
+    assert all(t >= k - 0.01 for k, t in enumerate(ticks)), ticks
     assert ticks[-1] <= 5.5
     # Adaptive (the default, as in tclab): a step woken late (a lab second is 20 ms here,
-    # which a loaded machine can miss) is skipped once, then lab time slows and none is
-    # lost; the last step is dropped if it wakes half a lab second late, as in tclab.
-    assert len(ticks) >= 4, ticks
-    on_time = [round(t) for t in ticks]
-    assert on_time in ([0, 1, 2, 3, 4, 5], [0, 1, 2, 3, 4]) or len(set(on_time)) >= 4, ticks
+    # which a loaded machine can miss) is skipped, then lab time slows; a wake past the
+    # period ends the loop, as in tclab (a CI machine stalled ~3 lab s: 0, 1, 2, then done).
+    assert len(ticks) >= 2, ticks
     long_steps = list(clock(6, 2))
     assert long_steps[0] == 0.0
     assert all(b > a for a, b in itertools.pairwise(long_steps))
-    assert len(long_steps) >= 3, long_steps
+    assert all(t >= 2 * k - 0.01 for k, t in enumerate(long_steps)), long_steps
+    assert len(long_steps) >= 2, long_steps
 
 
 @pytest.mark.usefixtures("fast_labtime")
