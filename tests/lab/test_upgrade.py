@@ -10,6 +10,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -47,27 +48,13 @@ def test_commands_run_while_the_server_makes_the_schema_wait_for_it(tmp_path: Pa
     # Each Database is what one process has (its own connections and in-process lock):
     # `thermolab serve` making a new database while `thermolab user add` starts.
     url = f"sqlite:///{tmp_path / 'lab.sqlite3'}"
-    databases = [Database(url, pool_size=1, max_overflow=1) for _ in range(4)]
-    start = threading.Barrier(len(databases))
-    failures: list[BaseException] = []
 
     def command(index: int, db: Database) -> None:
-        try:
-            start.wait()
-            db.upgrade()
-            if index:
-                UserService(db, ManualClock(), FAST_HASHER).add(f"user{index}", PASSWORD, "student")
-        except BaseException as exc:  # reported below, with the others
-            failures.append(exc)
+        db.upgrade()
+        if index:
+            UserService(db, ManualClock(), FAST_HASHER).add(f"user{index}", PASSWORD, "student")
 
-    threads = [threading.Thread(target=command, args=pair) for pair in enumerate(databases)]
-    for thread in threads:
-        thread.start()
-    for thread in threads:
-        thread.join(timeout=60)
-    for db in databases:
-        db.close()
-    assert failures == []
+    assert _at_once(url, command) == []
     check = Database(url)
     assert [u.username for u in UserService(check, ManualClock(), FAST_HASHER).list()] == [
         "user1",
@@ -80,27 +67,39 @@ def test_commands_run_while_the_server_makes_the_schema_wait_for_it(tmp_path: Pa
 def test_connections_opening_a_new_database_at_once_all_open(tmp_path: Path) -> None:
     """Each new connection puts SQLite in WAL mode; two asking at once on a new file made
     SQLite refuse one at once ("database is locked", 20 rounds of 300 before the fix)."""
-    failures: list[str] = []
-    for round_ in range(100):
-        url = f"sqlite:///{tmp_path / f'new{round_}.sqlite3'}"
-        databases = [Database(url, pool_size=1, max_overflow=1) for _ in range(4)]
-        start = threading.Barrier(len(databases))
-
-        def open_one(db: Database, start: threading.Barrier) -> None:
-            start.wait()
-            try:
-                db.engine.connect().close()
-            except Exception as exc:  # each counted, whatever it is
-                failures.append(str(exc).splitlines()[0])
-
-        threads = [threading.Thread(target=open_one, args=(db, start)) for db in databases]
-        for thread in threads:
-            thread.start()
-        for thread in threads:
-            thread.join(timeout=60)
-        for db in databases:
-            db.close()
+    failures = [
+        failure
+        for round_ in range(100)
+        for failure in _at_once(
+            f"sqlite:///{tmp_path / f'new{round_}.sqlite3'}",
+            lambda _, db: db.engine.connect().close(),
+        )
+    ]
     assert failures == []
+
+
+def _at_once(url: str, work: Callable[[int, Database], object]) -> list[BaseException]:
+    """``work(index, db)`` in four threads at once, each with its own Database of ``url``
+    (what one process has: its own connections and in-process lock); what they raised."""
+    databases = [Database(url, pool_size=1, max_overflow=1) for _ in range(4)]
+    start = threading.Barrier(len(databases))
+    failures: list[BaseException] = []
+
+    def one(index: int, db: Database) -> None:
+        try:
+            start.wait()
+            work(index, db)
+        except BaseException as exc:  # reported by the caller, with the others
+            failures.append(exc)
+
+    threads = [threading.Thread(target=one, args=pair) for pair in enumerate(databases)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout=60)
+    for db in databases:
+        db.close()
+    return failures
 
 
 def _free_port() -> int:
