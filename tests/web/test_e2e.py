@@ -546,3 +546,40 @@ def test_a_page_moved_to_while_the_session_loads_is_the_page_shown(
         assert page.get_attribute("#nav a[data-nav=runs]", "aria-current") == "page"
     finally:
         context.close()
+
+
+def test_a_module_the_network_lost_is_fetched_again(logged_in: Any, lab: Any) -> None:
+    """A view's module that failed to arrive (a dropped connection: a CI run's rig page
+    showed "Failed to fetch dynamically imported module") is tried again, and when the
+    browser keeps the failure, the page loads itself once more and opens the view."""
+    context = logged_in("erin")
+    page = context.new_page()
+    lost: list[str] = []
+
+    def lose_once(route: Any) -> None:
+        if lost:
+            route.continue_()
+        else:
+            lost.append(route.request.url)
+            route.abort("connectionreset")
+
+    page.route("**/js/views/rig/camera.js", lose_once)
+    try:
+        page.goto(f"{lab.url}/#/")
+        page.wait_for_selector(".rig-card[data-rig=twin]")
+        page.evaluate("() => { location.hash = '#/rig/twin'; }")
+        page.wait_for_function(
+            "sel => document.querySelector(sel)?.dataset.role", arg=ROLE, timeout=20_000
+        )
+        assert len(lost) == 1
+        assert "could not be loaded" not in page.inner_text("main")
+        # Never arriving, the module's loss is shown (after at most one reload), not
+        # reloaded for ever.
+        page.route("**/js/views/rig/*.js", lambda route: route.abort("connectionreset"))
+        page.goto(f"{lab.url}/#/")
+        page.reload()
+        page.wait_for_selector(".rig-card[data-rig=twin]")
+        page.evaluate("() => { location.hash = '#/rig/twin'; }")
+        page.wait_for_selector("main .error:text('could not be loaded')", timeout=20_000)
+    finally:
+        context.close()

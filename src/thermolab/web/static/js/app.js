@@ -159,7 +159,7 @@ async function render(opts = {}) {
     // The identification methods (GET /api/methods) before any view builds panels or results.
     // (Not with a temporary password: the server answers nothing but the password change.)
     if (!route.open && !ctx.user?.mustChangePassword) await loadMethods();
-    mod = await route.view();
+    mod = await viewModule(route);
   } catch (err) {
     replaceChildren(main, h("p", { class: "error" }, t("app.pageFailed", { error: String(err) })));
     return;
@@ -177,6 +177,48 @@ async function render(opts = {}) {
   } else {
     main.focus();
   }
+}
+
+/** When the page was last loaded again for a view's module the network lost (sessionStorage). */
+const RELOADED_AT = "thermolab.reloadedForModule";
+
+/**
+ * A route's view module, fetched a second time when the network lost it.
+ *
+ * A module the browser could not fetch (a connection dropped, a phone between
+ * networks) fails the import with a TypeError; a browser may keep that failure
+ * for the document's life, so when the second try fails too, the page loads
+ * itself again, at most once a minute (a lab that is really unreachable then
+ * shows its error instead of reloading for ever). A module's own error (a
+ * SyntaxError, say) is no network loss and is shown at once.
+ * @param {{view: () => Promise<any>}} route
+ */
+async function viewModule(route) {
+  try {
+    return await route.view();
+  } catch (err) {
+    if (!(err instanceof TypeError)) throw err;
+  }
+  await new Promise((resolve) => setTimeout(resolve, 300));
+  try {
+    return await route.view();
+  } catch (err) {
+    if (!(err instanceof TypeError) || !reloadOnce()) throw err;
+    return new Promise(() => {}); // the page is being loaded again
+  }
+}
+
+/** Load the page again unless that was done in the last minute; whether it is. */
+function reloadOnce() {
+  try {
+    const last = Number(window.sessionStorage.getItem(RELOADED_AT) ?? 0);
+    if (Date.now() - last < 60_000) return false;
+    window.sessionStorage.setItem(RELOADED_AT, String(Date.now()));
+  } catch {
+    return false; // no session storage (a private window may refuse it): no reload loop either
+  }
+  window.location.reload();
+  return true;
 }
 
 async function logout() {
