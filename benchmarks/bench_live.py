@@ -357,7 +357,7 @@ def replay_server_main(port: int, data_dir: str) -> None:
     import threading
     from datetime import UTC, datetime
 
-    from thermolab.cli.serve import _run_server
+    from thermolab.cli.http_server import run_server
     from thermolab.lab.config import LabConfig, RigConfig
     from thermolab.lab.http.app import create_app
     from thermolab.lab.service import Lab
@@ -389,7 +389,7 @@ def replay_server_main(port: int, data_dir: str) -> None:
             app.state.live.reading("other", 0.0, 1.0, datetime.now(UTC))
 
     threading.Thread(target=readings, daemon=True).start()
-    _run_server(app, "127.0.0.1", port)
+    run_server(app, "127.0.0.1", port)
 
 
 def replayer_main(url: str, cookie: str, sockets: int, seconds: float) -> None:
@@ -723,46 +723,81 @@ spec = "sim:paper-practical"
 """
 
 
-async def bench_thermolab(
-    watchers: int, seconds: float, procs: int, ping: float = 0.0, profile: str | None = None
-) -> dict[str, Any]:
+@dataclass
+class RunningLab:
+    """``thermolab serve`` in a child process, a teacher holding the twin's controls."""
+
+    server: subprocess.Popen[bytes]
+    http: httpx.AsyncClient
+    cookie: str
+    url: str  # the twin's live stream
+    student_cookie: str  # a student's login, who only watches
+    beats: list[float] = field(default_factory=list)  # the controller's heartbeats, ms
+
+    async def start_run(self, samples: int) -> None:
+        """START a run of ``samples`` at ``DT`` with LSM and WLSM (a square wave of 4 to 6)."""
+        started = await self.http.post(
+            "/api/rigs/twin/runs",
+            headers={"Cookie": self.cookie},
+            json={
+                "dt": DT,
+                "samples": samples,
+                "signal": "square:4:6:0.1",
+                "methods": ["lsm", "wlsm"],
+            },
+        )
+        started.raise_for_status()
+
+
+@contextlib.asynccontextmanager
+async def running_lab(profile: str | None = None) -> Any:
+    """A lab on the twin (SQLite in a temporary folder) whose teacher holds the controls."""
     port = free_port()
-    samples = round(seconds / DT)
     with tempfile.TemporaryDirectory() as tmp:
         config = Path(tmp, "lab.toml")
         config.write_text(textwrap.dedent(LAB_TOML))
         env = dict(os.environ, THERMOLAB_DATA_DIR=tmp)
         thermolab = [PYTHON, "-m", "thermolab"]
-        subprocess.run(
-            [
-                *thermolab,
-                "user",
-                "add",
-                "tina",
-                "--role",
-                "teacher",
-                "--password-stdin",
-                "--config",
-                str(config),
-            ],
-            input="bench-password\n",
-            text=True,
-            env=env,
-            check=True,
-            capture_output=True,
-        )
+        for name, role in (("tina", "teacher"), ("sam", "student")):
+            subprocess.run(
+                [
+                    *thermolab,
+                    "user",
+                    "add",
+                    name,
+                    "--role",
+                    role,
+                    "--password-stdin",
+                    "--config",
+                    str(config),
+                ],
+                input="bench-password\n",
+                text=True,
+                env=env,
+                check=True,
+                capture_output=True,
+            )
         serve = [*thermolab, "serve", "--port", str(port), "--config", str(config)]
         serve += ["--max-connections", "20000"]
         if profile:  # py-spy samples the server (PyPI: py-spy), a flame graph per run
-            out = f"{profile}-{watchers}.txt"
-            serve = ["py-spy", "record", "--rate", "50", "--format", "raw", "-o", out, "--", *serve]
+            serve = [
+                "py-spy",
+                "record",
+                "--rate",
+                "50",
+                "--format",
+                "raw",
+                "-o",
+                profile,
+                "--",
+                *serve,
+            ]
         server = subprocess.Popen(
             serve,
             env=env,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
         )
-        clients: list[asyncio.subprocess.Process] = []
         try:
             base = f"http://127.0.0.1:{port}"
             wait_for(base + "/openapi.json")
@@ -774,85 +809,115 @@ async def bench_thermolab(
                 cookie = f"thermolab_session={login.cookies['thermolab_session']}"
                 headers = {"Cookie": cookie}
                 (await http.post("/api/rigs/twin/control", headers=headers)).raise_for_status()
-
-                beats: list[float] = []
+                http.cookies.clear()  # a login from this client would end the teacher's
+                student = await http.post(
+                    "/api/session", json={"username": "sam", "password": "bench-password"}
+                )
+                student.raise_for_status()
+                http.cookies.clear()  # each request names its login
+                lab = RunningLab(
+                    server,
+                    http,
+                    cookie,
+                    f"ws://127.0.0.1:{port}/api/rigs/twin/live",
+                    f"thermolab_session={student.cookies['thermolab_session']}",
+                )
 
                 async def keep_control() -> None:  # the controller's page keeps its turn
                     while True:
                         await asyncio.sleep(5.0)
                         sent = time.monotonic()
                         await http.post("/api/rigs/twin/heartbeat", headers=headers)
-                        beats.append(1000.0 * (time.monotonic() - sent))
+                        lab.beats.append(1000.0 * (time.monotonic() - sent))
 
                 # From the start: connecting hundreds of watchers may outlast the 15 s a
                 # silent controller keeps the turn (and a run ends with its turn).
                 heartbeat = asyncio.create_task(keep_control())
-                url = f"ws://127.0.0.1:{port}/api/rigs/twin/live"
-                clients = await start_clients(url, cookie, watchers, procs, ping)
-                beats.clear()  # the heartbeats while the run goes on
-                cpu = CpuWindow({"server": [server.pid], "clients": [c.pid for c in clients]})
-                started = await http.post(
-                    "/api/rigs/twin/runs",
-                    headers=headers,
-                    json={
-                        "dt": DT,
-                        "samples": samples,
-                        "signal": "square:4:6:0.1",
-                        "methods": ["lsm", "wlsm"],
-                    },
-                )
-                started.raise_for_status()
                 try:
-                    results, figures = await measure(clients, cpu, seconds)
+                    yield lab
                 finally:
                     heartbeat.cancel()
                     with contextlib.suppress(asyncio.CancelledError):
                         await heartbeat
         finally:
-            for client in clients:
-                with contextlib.suppress(ProcessLookupError):
-                    client.kill()
             server.send_signal(signal.SIGINT)  # py-spy writes its graph on the server's exit
             with contextlib.suppress(subprocess.TimeoutExpired):
                 server.wait(timeout=30)
             if server.poll() is None:
                 server.kill()
+
+
+async def bench_thermolab(
+    watchers: int, seconds: float, procs: int, ping: float = 0.0, profile: str | None = None
+) -> dict[str, Any]:
+    samples = round(seconds / DT)
+    clients: list[asyncio.subprocess.Process] = []
+    try:
+        async with running_lab(f"{profile}-{watchers}.txt" if profile else None) as lab:
+            clients = await start_clients(lab.url, lab.cookie, watchers, procs, ping)
+            lab.beats.clear()  # the heartbeats while the run goes on
+            cpu = CpuWindow({"server": [lab.server.pid], "clients": [c.pid for c in clients]})
+            await lab.start_run(samples)
+            results, figures = await measure(clients, cpu, seconds)
+            beats = list(lab.beats)
+    finally:
+        kill(clients)
     row = summarise("thermolab", results, figures, samples)
     row["heartbeat_max"] = max(beats, default=math.nan)
     return row
 
 
-async def bench_peer(watchers: int, seconds: float, procs: int) -> dict[str, Any]:
+@contextlib.asynccontextmanager
+async def running_peer(samples: int) -> Any:
+    """The bare broadcast server in a child process, listening: yields it and its URL.
+
+    Its ``samples`` start on :func:`go`; it stops at the block's end.
+    """
     port = free_port()
-    samples = round(seconds / DT)
     peer = await asyncio.create_subprocess_exec(
         PYTHON,
         SCRIPT,
-        "--role",
-        "peer",
-        "--port",
-        str(port),
-        "--samples",
-        str(samples),
+        *("--role", "peer", "--port", str(port), "--samples", str(samples)),
         stdin=asyncio.subprocess.PIPE,
         stdout=asyncio.subprocess.PIPE,
     )
     assert peer.stdin is not None
-    clients: list[asyncio.subprocess.Process] = []
     try:
         await expect(peer, "listening", 60)
-        clients = await start_clients(f"ws://127.0.0.1:{port}/", None, watchers, procs)
-        cpu = CpuWindow({"server": [peer.pid], "clients": [c.pid for c in clients]})
-        peer.stdin.write(b"go\n")
-        await peer.stdin.drain()
-        results, figures = await measure(clients, cpu, seconds)
+        yield peer, f"ws://127.0.0.1:{port}/"
         peer.stdin.write(b"stop\n")
         await peer.stdin.drain()
         await asyncio.wait_for(peer.wait(), 30)
     finally:
-        for process in [*clients, peer]:
-            with contextlib.suppress(ProcessLookupError):
-                process.kill()
+        with contextlib.suppress(ProcessLookupError):
+            peer.kill()
+
+
+def kill(processes: list[asyncio.subprocess.Process]) -> None:
+    """Kill the client processes still running."""
+    for process in processes:
+        with contextlib.suppress(ProcessLookupError):
+            process.kill()
+
+
+async def go(peer: asyncio.subprocess.Process) -> None:
+    """Start the peer's samples."""
+    assert peer.stdin is not None
+    peer.stdin.write(b"go\n")
+    await peer.stdin.drain()
+
+
+async def bench_peer(watchers: int, seconds: float, procs: int) -> dict[str, Any]:
+    samples = round(seconds / DT)
+    clients: list[asyncio.subprocess.Process] = []
+    try:
+        async with running_peer(samples) as (peer, url):
+            clients = await start_clients(url, None, watchers, procs)
+            cpu = CpuWindow({"server": [peer.pid], "clients": [c.pid for c in clients]})
+            await go(peer)
+            results, figures = await measure(clients, cpu, seconds)
+    finally:
+        kill(clients)
     return summarise("peer", results, figures, samples)
 
 
