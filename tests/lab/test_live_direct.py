@@ -215,3 +215,76 @@ def test_a_controllers_many_sockets_keep_the_turn_with_one_look_a_second(
         while not any(m["type"] == "pong" for m in _messages(tabs[0])):
             pass
         assert viewed == ["bob", "bob"]
+
+
+def test_clients_joining_at_once_share_one_reading_and_each_sees_the_rig_as_theirs(
+    served: tuple[Lab, LiveEndpoint, str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A class joining at the bell: the hellos of everyone who joins while one is read
+    come from one reading of the rig, each still as its client sees it (the controller,
+    the queued student, a teacher with the queue, plain watchers) and each numbered
+    from its own place in the stream."""
+    lab, live, base = served
+    lab.users.add("tina", "correct horse", "teacher")
+    watchers = [f"w{i}" for i in range(12)]
+    for name in ("cy", *watchers):
+        lab.users.add(name, "correct horse", "student")
+    for name in ("ana", "bob"):  # Ana controls, Bob waits
+        user = lab.users.get(name)
+        lab.access.request_control("other", Principal(user.id, user.username, user.role))
+    url = base + "/api/rigs/other/live"
+
+    # The first reading is held until everyone else has joined: they wait for the next.
+    reads: list[str] = []
+    first_read = threading.Event()
+    release = threading.Event()
+    view = lab.access.view
+
+    def counted_view(rig_id: str, who: Principal, **kwargs: Any) -> Any:
+        reads.append(who.username)
+        if len(reads) == 1:
+            first_read.set()
+            assert release.wait(30)
+        return view(rig_id, who, **kwargs)
+
+    monkeypatch.setattr(lab.access, "view", counted_view)
+    names = ["cy", "ana", "bob", "tina", *watchers]
+    hellos: dict[str, dict[str, Any]] = {}
+    with contextlib.ExitStack() as stack:
+        first = stack.enter_context(connect(url, additional_headers=login(lab, "cy")))
+        assert first_read.wait(10)
+        others: dict[str, ClientConnection] = {}
+
+        def join(name: str) -> None:
+            others[name] = stack.enter_context(connect(url, additional_headers=login(lab, name)))
+
+        joiners = [threading.Thread(target=join, args=(name,)) for name in names[1:]]
+        for thread in joiners:
+            thread.start()
+        for thread in joiners:
+            thread.join(10)
+        channel = live.hub.channels["other"]
+        until(lambda: len(channel.clients()) == len(names))  # all attached, all waiting
+        release.set()
+        for name, ws in {"cy": first, **others}.items():
+            hellos[name] = _messages(ws)[0]
+        # After the hellos, the stream: each client's next sample comes after its hello.
+        live.reading("other", 0.0, 1.0, datetime.now(UTC))
+        for name, ws in {"cy": first, **others}.items():
+            sample = _readings(ws, 1)[0]
+            assert sample["seq"] == hellos[name]["seq"] + 1, name
+    # One reading for Cy, one for the batch that joined meanwhile (whose first member's
+    # view is its reading), and one more for each place holder: their heartbeat.
+    assert len(reads) <= 4, reads
+    assert all(h["type"] == "hello" for h in hellos.values())
+    roles = {name: h["access"]["role"] for name, h in hellos.items()}
+    assert roles["ana"] == "controller"
+    assert roles["bob"] == "queued"
+    assert hellos["bob"]["access"]["queuePosition"] == 1
+    assert {roles[name] for name in ("cy", "tina", *watchers)} == {"watcher"}
+    assert all(h["access"]["controller"] == "ana" for h in hellos.values())
+    # Only the teacher's hello names the queue and the watchers.
+    assert [slot["username"] for slot in hellos["tina"]["rig"]["queue"]] == ["bob"]
+    for name in ("cy", "ana", "bob", *watchers):
+        assert hellos[name]["rig"]["queue"] is None, name
+        assert hellos[name]["rig"]["watcherList"] is None, name

@@ -37,11 +37,11 @@ from thermolab.lab.db.models import Role
 from thermolab.lab.fleet.shared_limits import LiveSocketCounts
 from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.deps import COOKIE_NAME
+from thermolab.lab.http.live_hello import HelloReader
 from thermolab.lab.http.live_logins import LoginWatch
 from thermolab.lab.http.live_messages import (
     AccessMessage,
     EstimateMessage,
-    HelloMessage,
     RunMessage,
     SampleMessage,
     StateMessage,
@@ -135,6 +135,7 @@ class LiveEndpoint:
         self._kept_at: dict[tuple[str, int | None], datetime] = {}
         self._limiter: anyio.CapacityLimiter | None = None
         self.logins = LoginWatch(lab, self.hub)
+        self._hellos = HelloReader(lab, self._in_thread)
         # Watchers arriving or leaving on other workers change the count everyone sees.
         lab.presence.on_elsewhere(self.access_changed)
 
@@ -334,21 +335,8 @@ class LiveEndpoint:
             leave()
 
     async def _hello(self, websocket: WebSocket, rig_id: str, who: Principal, seq: int) -> None:
-        view = await self._in_thread(self.lab.access.view, rig_id, who)
-        rig = _dump(RigOut.of(view, self.lab.names.names(people_named(view))))
-        run_id = self.lab.running(rig_id)
-        run = None
-        if run_id is not None:
-            record = await self._in_thread(self.lab.runs.record, run_id)
-            run = _dump(RunOut.of(record, self.lab.names.names([record.username])))
-        hello: HelloMessage = {
-            "type": "hello",
-            "rig": rig,
-            "access": rig["access"],
-            "run": run,
-            "seq": seq,
-        }
-        await websocket.send_text(encode(hello))
+        # Read with every other client joining meanwhile (a class at the bell).
+        await websocket.send_text(await self._hellos.hello(rig_id, who, seq))
 
     async def _ping(self, rig_id: str, who: Principal, client: LiveClient) -> None:
         # A ping is the client being here: presence (memory, in the loop) and, for whoever
