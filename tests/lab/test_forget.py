@@ -7,6 +7,7 @@ from collections.abc import Callable
 import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import String, Text, select
+from sqlalchemy.orm import Session
 
 from thermolab.cli import main
 from thermolab.errors import ConflictError
@@ -96,6 +97,33 @@ def test_a_person_at_the_controls_is_removed_when_done(
     assert main(["user", "forget", "ana", "--runs", "delete", "--database-url", url]) == 0
     assert capsys.readouterr().out.strip() == "forgot 'ana': their runs deleted"
     assert main(["user", "forget", "ana", "--runs", "keep", "--database-url", url]) == 1
+    # The command line's removal is in the audit log too, naming the operator's shell.
+    [entry] = lab.audit.list(action="account.forgotten")
+    assert (entry.actor, entry.detail) == ("(command line)", {"runs": "delete"})
+    assert entry.target.startswith("removed-")
+
+
+@pytest.mark.parametrize("database_url", ["sqlite"], indirect=True)
+def test_a_removal_whose_audit_entry_cannot_be_written_removes_nobody(
+    make_lab: LabFactory,
+) -> None:
+    """The removal and its entry in the audit log are one transaction: nobody leaves
+    unlogged (they were two, and a failed entry left a removal no one could trace)."""
+    lab = twin_lab(make_lab)
+    person(lab, "ana")
+    written = lab.audit.forgotten("root")
+
+    def full_disk(session: Session, pseudonym: str) -> None:
+        written(session, pseudonym)
+        raise OSError("disk full")
+
+    with pytest.raises(OSError, match="disk full"):
+        forget_person(lab.db, "ana", "keep", "x", audit=full_disk)
+    assert lab.users.get("ana").username == "ana"
+    assert lab.audit.list(action="account.forgotten") == []
+    pseudonym = forget_person(lab.db, "ana", "keep", "x", audit=lab.audit.forgotten("root"))
+    [entry] = lab.audit.list(action="account.forgotten")
+    assert (entry.actor, entry.target) == ("root", pseudonym)
 
 
 @pytest.mark.parametrize("database_url", ["sqlite"], indirect=True)

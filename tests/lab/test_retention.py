@@ -151,7 +151,7 @@ def test_the_server_applies_the_period_at_its_start_and_then_on_its_own(
         def audited() -> list[str]:
             return [e.action for e in lab.audit.list() if e.actor == ACTOR]
 
-        # The removal, then its audit entry (a transaction of its own): wait for both.
+        # The removal and its audit entry (one transaction): wait for the server's pass.
         deadline = time.monotonic() + 30
         while not audited() and time.monotonic() < deadline:
             time.sleep(0.05)  # real time: the server's own pass, on its own thread

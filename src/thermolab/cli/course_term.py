@@ -191,10 +191,10 @@ def _purge(args: argparse.Namespace) -> int:
             )
             return 0
         unknown = default_password_hasher().hash(secrets.token_urlsafe(32))
-        report = term.purge(args.course, [p.username for p in leavers], runs, unknown)
         audit = AuditLog(db, clock)
-        for pseudonym in report.removed:
-            audit.record(OPERATOR, AuditAction.ACCOUNT_FORGOTTEN, pseudonym, detail={"runs": runs})
+        names = [p.username for p in leavers]
+        written = audit.forgotten(OPERATOR, runs=runs)
+        report = term.purge(args.course, names, runs, unknown, audit=written)
         audit.record(
             OPERATOR,
             AuditAction.COURSE_STUDENTS_PURGED,

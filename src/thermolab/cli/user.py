@@ -248,13 +248,17 @@ def _remove(args: argparse.Namespace) -> int:
 def _forget(args: argparse.Namespace) -> int:
     import secrets
 
+    from thermolab.cli.course_term import OPERATOR
     from thermolab.lab.accounts.personal_data import forget_person
     from thermolab.lab.accounts.security import default_password_hasher
+    from thermolab.lab.audit.log import AuditLog
+    from thermolab.lab.clock import SystemClock
 
     db, _ = _users(args)
     try:
         unknown = default_password_hasher().hash(secrets.token_urlsafe(32))
-        pseudonym = forget_person(db, args.name, args.runs, unknown)
+        written = AuditLog(db, SystemClock()).forgotten(OPERATOR, runs=args.runs)
+        pseudonym = forget_person(db, args.name, args.runs, unknown, audit=written)
     finally:
         db.close()
     kept = f"their runs kept as {pseudonym!r}" if args.runs == "keep" else "their runs deleted"

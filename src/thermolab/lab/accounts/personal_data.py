@@ -16,9 +16,11 @@ from __future__ import annotations
 import base64
 import datetime as dt
 import secrets
+from collections.abc import Callable
 from typing import Any, Literal
 
 from sqlalchemy import Column, ColumnElement, Table, delete, or_, select, update
+from sqlalchemy.orm import Session
 
 from thermolab import __version__
 from thermolab.errors import ConflictError, NotFoundError
@@ -166,7 +168,14 @@ _PERSONAL_TABLES = (
 )
 
 
-def forget_person(db: Database, username: str, runs: RunsChoice, password_hash: str) -> str:
+def forget_person(
+    db: Database,
+    username: str,
+    runs: RunsChoice,
+    password_hash: str,
+    *,
+    audit: Callable[[Session, str], None] | None = None,
+) -> str:
     """Remove a person: their account goes, their runs are kept under a pseudonym or deleted.
 
     With ``runs="keep"`` the account's row stays as ``removed-XXXXXXXX`` (no
@@ -180,6 +189,10 @@ def forget_person(db: Database, username: str, runs: RunsChoice, password_hash: 
     ----------
     password_hash : str
         The hash of a random password (the caller's hasher): what the kept row holds.
+    audit : callable, optional
+        Writes the removal's audit entry, given the session and the pseudonym, in
+        the removal's own transaction (:meth:`~thermolab.lab.audit.log.AuditLog.forgotten`):
+        if the entry cannot be written, nobody is removed.
 
     Returns
     -------
@@ -248,4 +261,6 @@ def forget_person(db: Database, username: str, runs: RunsChoice, password_hash: 
                 .where(users.c.id == user_id)
                 .values(username=pseudonym, display_name=None, password_hash=password_hash)
             )
+        if audit is not None:
+            audit(session, pseudonym)
     return pseudonym

@@ -5,12 +5,13 @@ from __future__ import annotations
 import csv
 import enum
 import io
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
 from sqlalchemy import select
+from sqlalchemy.orm import Session
 
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
@@ -95,16 +96,40 @@ class AuditLog:
     ) -> None:
         """Append one row: ``actor`` did ``action`` on ``target`` from ``address``."""
         with self._db.write() as session:
-            session.add(
-                AuditEntry(
-                    at=self._clock.now(),
-                    actor=actor[:64],
-                    action=action.value,
-                    target=target[:200],
-                    address=(address or None) and address[:64],
-                    detail=dict(detail or {}),
-                )
-            )
+            session.add(self._entry(actor, action, target, address, detail))
+
+    def _entry(
+        self,
+        actor: str,
+        action: AuditAction,
+        target: str,
+        address: str | None,
+        detail: Mapping[str, Any] | None,
+    ) -> AuditEntry:
+        return AuditEntry(
+            at=self._clock.now(),
+            actor=actor[:64],
+            action=action.value,
+            target=target[:200],
+            address=(address or None) and address[:64],
+            detail=dict(detail or {}),
+        )
+
+    def forgotten(
+        self, actor: str, *, address: str | None = None, **detail: Any
+    ) -> Callable[[Session, str], None]:
+        """The entry of a removal (``account.forgotten``), for the removal to write itself.
+
+        :func:`~thermolab.lab.accounts.personal_data.forget_person` calls it with
+        its session and the pseudonym, so that nobody is removed unlogged.
+        """
+
+        def write(session: Session, pseudonym: str) -> None:
+            # In the removal's transaction: the entry stands or falls with it.
+            forgotten = AuditAction.ACCOUNT_FORGOTTEN
+            session.add(self._entry(actor, forgotten, pseudonym, address, detail))
+
+        return write
 
     def list(
         self,

@@ -26,7 +26,7 @@ from sqlalchemy import func, select
 
 from thermolab.errors import ConflictError, NotFoundError
 from thermolab.lab.accounts.personal_data import RunsChoice, forget_person, removed_already
-from thermolab.lab.audit.log import AuditAction, AuditLog
+from thermolab.lab.audit.log import AuditLog
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config.retention import RetentionPolicy
 from thermolab.lab.db import Database
@@ -149,22 +149,18 @@ class RetentionService:
         runs: RunsChoice = "keep" if self.policy.action == "pseudonymise" else "delete"
         unknown = self._hasher.hash(secrets.token_urlsafe(32))
         for person in report.due:
+            audit = self._audit.forgotten(
+                ACTOR,
+                runs=runs,
+                retention_months=self.policy.months,
+                last_course_closed=person.last_closed.date().isoformat(),
+            )
             try:
-                pseudonym = forget_person(self._db, person.username, runs, unknown)
+                pseudonym = forget_person(self._db, person.username, runs, unknown, audit=audit)
             except NotFoundError:
                 continue
             except ConflictError as exc:
                 report.skipped[person.username] = str(exc)
                 continue
             report.removed.append(pseudonym)
-            self._audit.record(
-                ACTOR,
-                AuditAction.ACCOUNT_FORGOTTEN,
-                pseudonym,
-                detail={
-                    "runs": runs,
-                    "retention_months": self.policy.months,
-                    "last_course_closed": person.last_closed.date().isoformat(),
-                },
-            )
         return report

@@ -18,6 +18,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import date, datetime, timedelta
 
@@ -335,7 +336,13 @@ class TermService:
             return _leavers(session, _closed(session, name))
 
     def purge(
-        self, name: str, expected: list[str], runs: RunsChoice, password_hash: str
+        self,
+        name: str,
+        expected: list[str],
+        runs: RunsChoice,
+        password_hash: str,
+        *,
+        audit: Callable[[Session, str], None] | None = None,
     ) -> PurgeReport:
         """Remove the leavers of the closed course ``name``, each as an administrator's removal.
 
@@ -361,7 +368,9 @@ class TermService:
         report = PurgeReport()
         for username in found:
             try:
-                report.removed.append(forget_person(self._db, username, runs, password_hash))
+                report.removed.append(
+                    forget_person(self._db, username, runs, password_hash, audit=audit)
+                )
             except (ConflictError, NotFoundError) as exc:
                 report.skipped[username] = str(exc)
         return report

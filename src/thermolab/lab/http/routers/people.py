@@ -19,14 +19,13 @@ from thermolab.lab.accounts.names import username_form
 from thermolab.lab.accounts.personal_data import forget_person
 from thermolab.lab.accounts.policy import Action
 from thermolab.lab.accounts.security import default_password_hasher
-from thermolab.lab.audit.log import AuditAction
 from thermolab.lab.http.bodies import In, Out
 from thermolab.lab.http.deps import (
     AUTHENTICATED,
     LabDep,
     UserDep,
     Username,
-    audit,
+    client_address,
     documented_errors,
 )
 
@@ -67,7 +66,7 @@ def forget_user(
     if username_form(username) == who.username:
         raise AccessDeniedError("you cannot remove yourself; ask another administrator")
     unknown = default_password_hasher().hash(secrets.token_urlsafe(32))
-    pseudonym = forget_person(lab.db, username, body.runs, unknown)
+    written = lab.audit.forgotten(who.username, address=client_address(request), runs=body.runs)
+    pseudonym = forget_person(lab.db, username, body.runs, unknown, audit=written)
     lab.names.forget()
-    audit(lab, who, request, AuditAction.ACCOUNT_FORGOTTEN, pseudonym, runs=body.runs)
     return ForgottenOut(pseudonym=pseudonym)

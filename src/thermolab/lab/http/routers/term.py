@@ -20,7 +20,14 @@ from thermolab.lab.accounts.security import default_password_hasher
 from thermolab.lab.audit.log import AuditAction
 from thermolab.lab.classes.term import MAX_SHIFT_DAYS, CopyReport
 from thermolab.lab.http.bodies import In, Out
-from thermolab.lab.http.deps import AUTHENTICATED, LabDep, UserDep, audit, documented_errors
+from thermolab.lab.http.deps import (
+    AUTHENTICATED,
+    LabDep,
+    UserDep,
+    audit,
+    client_address,
+    documented_errors,
+)
 from thermolab.lab.http.routers.assignments import AssignmentId, AssignmentOut
 from thermolab.lab.http.routers.courses import CourseName, CourseOut
 
@@ -212,10 +219,9 @@ def purge_students(
     lab.authorize.require_lab(who, Action.COURSE_PURGE_STUDENTS)
     lab.authorize.require_lab(who, Action.ACCOUNT_FORGET)
     unknown = default_password_hasher().hash(secrets.token_urlsafe(32))
-    report = lab.term.purge(course, body.students, body.runs, unknown)
+    written = lab.audit.forgotten(who.username, address=client_address(request), runs=body.runs)
+    report = lab.term.purge(course, body.students, body.runs, unknown, audit=written)
     lab.names.forget()
-    for pseudonym in report.removed:
-        audit(lab, who, request, AuditAction.ACCOUNT_FORGOTTEN, pseudonym, runs=body.runs)
     audit(
         lab,
         who,
