@@ -32,6 +32,7 @@ __all__ = [
     "EXPORT_FORMAT",
     "NAME_COLUMNS",
     "PSEUDONYM_PREFIX",
+    "AuditWriter",
     "RunsChoice",
     "forget_person",
     "personal_data",
@@ -168,13 +169,17 @@ _PERSONAL_TABLES = (
 )
 
 
+AuditWriter = Callable[[Session, str], None]
+"""Writes a removal's audit entry in the removal's transaction: ``(session, pseudonym)``."""
+
+
 def forget_person(
     db: Database,
     username: str,
     runs: RunsChoice,
     password_hash: str,
     *,
-    audit: Callable[[Session, str], None] | None = None,
+    audit: AuditWriter | None = None,
 ) -> str:
     """Remove a person: their account goes, their runs are kept under a pseudonym or deleted.
 

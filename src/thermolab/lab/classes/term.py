@@ -18,7 +18,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import date, datetime, timedelta
 
@@ -35,7 +34,12 @@ from thermolab.errors import (
     NotFoundError,
     RigBookedError,
 )
-from thermolab.lab.accounts.personal_data import RunsChoice, forget_person, removed_already
+from thermolab.lab.accounts.personal_data import (
+    AuditWriter,
+    RunsChoice,
+    forget_person,
+    removed_already,
+)
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.assignments.service import assignment_with_course
 from thermolab.lab.classes.bookings import BookingService
@@ -342,7 +346,7 @@ class TermService:
         runs: RunsChoice,
         password_hash: str,
         *,
-        audit: Callable[[Session, str], None] | None = None,
+        audit: AuditWriter | None = None,
     ) -> PurgeReport:
         """Remove the leavers of the closed course ``name``, each as an administrator's removal.
 

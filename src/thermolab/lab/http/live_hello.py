@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Awaitable, Callable
-from typing import Any, TypeVar
+from typing import Any
 
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.http.routers.runs import RunOut
@@ -29,7 +29,6 @@ from thermolab.lab.service import Lab
 
 __all__ = ["HelloReader"]
 
-_T = TypeVar("_T")
 InThread = Callable[..., Awaitable[Any]]
 
 _SEQ_LAST = '"seq":null}'
@@ -99,14 +98,15 @@ class HelloReader:
             holds_place = (
                 snap.controller is not None and snap.controller.user_id == who.user_id
             ) or snap.slot_of(who.user_id) is not None
-            if holds_place:  # their hello is their place's heartbeat, as a ping is
-                view = first if index == 0 else lab.access.view(rig_id, who)
-            elif who.is_teacher in shown:
-                lab.presence.touch(rig_id, who.username)  # watching, as a view notes
-                texts.append(shown[who.is_teacher])
-                continue
+            if index == 0:
+                view = first  # read above, with its heartbeat and presence
+            elif holds_place:  # their hello is their place's heartbeat, as a ping is
+                view = lab.access.view(rig_id, who)
             else:
-                lab.presence.touch(rig_id, who.username)
+                lab.presence.touch(rig_id, who.username)  # watching, as a view notes
+                if who.is_teacher in shown:
+                    texts.append(shown[who.is_teacher])
+                    continue
                 view = lab.access.render(snap, who, watchers)
             rig = _dump(RigOut.of(view, lab.names.names(people_named(view))))
             text = encode(
