@@ -102,22 +102,24 @@ def send_command(
 
     Raises
     ------
+    AccessDeniedError
+        ``who`` does not control the rig (checked first, run or not), or the run
+        belongs to an earlier turn.
     NoRunError
         No run is going on the rig (``active`` is ``None``).
     NotClosedLoopError
         The run has no controller (and the command is not the fan).
-    AccessDeniedError
-        ``who`` does not control the rig, or the run belongs to an earlier turn.
     """
-    if active is None:
-        raise NoRunError(f"no run is going on rig {rig_id!r}: start a closed-loop run first")
-    if active.experiment.controller is None and kind != "fan":
-        raise NotClosedLoopError(
-            f"run {active.run_id} was started without a controller; start a run with "
-            "control (manual or auto) to switch, change the set point or the gains"
-        )
-
+    # Who may act is asked first: someone who does not control the rig hears 403
+    # whether or not a run is going (the run's state is not theirs to learn).
     with access.controlled(rig_id, who, f"send {kind} to its run") as turn:
+        if active is None:
+            raise NoRunError(f"no run is going on rig {rig_id!r}: start a closed-loop run first")
+        if active.experiment.controller is None and kind != "fan":
+            raise NotClosedLoopError(
+                f"run {active.run_id} was started without a controller; start a run with "
+                "control (manual or auto) to switch, change the set point or the gains"
+            )
         if turn.control.id != active.control_session:
             raise AccessDeniedError(
                 f"run {active.run_id} belongs to an earlier turn at rig {rig_id!r}"
