@@ -42,7 +42,10 @@ PORTUGUESE_TOO = {"ok", "online", "status", "login", "logout", "email", "softwar
 
 
 def words(text: str) -> set[str]:
-    return {w.lower() for w in re.findall(r"[^\W\d_]{2,}", re.sub(r"\{[A-Za-z0-9]+\}", " ", text))}
+    """The words of ``text``, lower-cased; a token with a digit in it (an enrolment
+    code such as ``FAR6C2V49V``, ``100ms``) is no word, whatever letters it holds."""
+    tokens = re.findall(r"[^\W_]+", re.sub(r"\{[A-Za-z0-9]+\}", " ", text))
+    return {t.lower() for t in tokens if len(t) >= 2 and not any(c.isdigit() for c in t)}
 
 
 def english_words(language: str) -> set[str]:
