@@ -1,11 +1,15 @@
 // @ts-check
-// Charts on uPlot, redrawn at most once per animation frame.
+// Charts on uPlot, redrawn at most REDRAWS_PER_SECOND times a second.
 //
-// Data arrive at up to 10 samples/s (and in bursts of thousands when a gap is
-// replayed); each arrival only marks the chart dirty. The next animation frame
-// pulls the current data from the chart's `source` (zero-copy ring-buffer
-// views) and redraws once. A hidden tab gets no frames, so it does no drawing
-// at all, and catches up with one redraw when shown again.
+// Data arrive at up to 10 samples/s on a real rig, faster on a sped-up twin (the
+// quick start's runs 60 samples/s), and in bursts of thousands when a gap is
+// replayed; each arrival only marks the chart dirty. The next animation frame,
+// once a tenth of a second has passed since the last redraw, pulls the current
+// data from the chart's `source` (zero-copy ring-buffer views) and redraws once:
+// a real rig's every sample still shows as it comes, and a phone following a
+// twin at 60 samples/s redraws 10 times a second, not 60. A hidden tab gets no
+// frames, so it does no drawing at all, and catches up with one redraw when
+// shown again.
 //
 // Every chart has a data-table alternative (WCAG 1.1.1 / 1.3.1): a toggle
 // shows the newest TABLE_ROWS samples it draws as a table with the axis and
@@ -52,6 +56,9 @@ export const TABLE_ROWS = 10;
 
 /** The time windows a time chart offers besides "all" (s): a long square wave's last periods. */
 export const TIME_WINDOWS = [100, 500];
+
+/** At most this many redraws a second, whatever the data's rate (see the top). */
+export const REDRAWS_PER_SECOND = 10;
 
 /** Narrower than this is a phone (the css's phone layout: max-width 599px): its charts are drawn lower, so more of the page fits the screen. */
 const PHONE_WIDTH = 600;
@@ -103,6 +110,8 @@ export class Chart {
     this._source = opts.source;
     this._categories = opts.categories ?? null;
     this._raf = 0;
+    this._wait = 0; // a timer until the next redraw may be asked for
+    this._drawnAt = -Infinity;
     this._destroyed = false;
     const descId = `chart-desc-${Math.random().toString(36).slice(2)}`;
     this.el = h(
@@ -204,10 +213,19 @@ export class Chart {
 
   /** Ask for a redraw on the next animation frame (cheap to call at any rate). */
   invalidate() {
-    if (this._raf || this._destroyed) return;
-    this._raf = requestAnimationFrame(() => {
+    if (this._raf || this._wait || this._destroyed) return;
+    const early = this._drawnAt + 1000 / REDRAWS_PER_SECOND - performance.now();
+    if (early > 0) {
+      this._wait = window.setTimeout(() => {
+        this._wait = 0;
+        this.invalidate();
+      }, early);
+      return;
+    }
+    this._raf = requestAnimationFrame((now) => {
       this._raf = 0;
       if (this._destroyed) return;
+      this._drawnAt = now;
       this.draw();
     });
   }
@@ -291,6 +309,7 @@ export class Chart {
   destroy() {
     this._destroyed = true;
     if (this._raf) cancelAnimationFrame(this._raf);
+    if (this._wait) clearTimeout(this._wait);
     this._ro.disconnect();
     this.plot.destroy();
     this.el.remove();
