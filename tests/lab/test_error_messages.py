@@ -12,6 +12,7 @@ from babel.messages.pofile import read_po
 from fastapi.testclient import TestClient
 
 from thermolab.cli import main
+from thermolab.cli._words import CLI_WORDS, say
 from thermolab.errors import (
     CLASS_LIST_PROBLEMS,
     CONFLICT_CASES,
@@ -22,6 +23,7 @@ from thermolab.errors import (
 from thermolab.lab import error_messages
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.classes.reminders import REMINDER_WORDS
+from thermolab.lab.db.models import Role
 from thermolab.lab.error_messages import (
     ERROR_SENTENCES,
     LANGUAGES,
@@ -34,13 +36,13 @@ from thermolab.lab.rigs.camera import CAMERA_WORDS
 from thermolab.lab.service import Lab
 from thermolab.lab.spreadsheets import SHEET_WORDS
 
-from .conftest import PASSWORD
+from .conftest import FAST_HASHER, PASSWORD
 
 Client = Callable[..., TestClient]
 TRANSLATED = [language for language in LANGUAGES if language != "en"]
 #: Every msgid the server's catalogue holds: error sentences, class-list problems,
 #: the spreadsheet forms' words, a password's refusals, the camera picture's words,
-#: the booking reminders' words and the command line's prefix.
+#: the booking reminders' words, the command line's own words and its prefix.
 SERVER_WORDS = [
     *CLASS_LIST_PROBLEMS.values(),
     *SHEET_WORDS,
@@ -48,6 +50,7 @@ SERVER_WORDS = [
     *CAMERA_WORDS.values(),
     *REMINDER_WORDS,
     *TAKEN_NAMES.values(),
+    *CLI_WORDS.values(),
 ]
 MSGIDS = {*ERROR_SENTENCES.values(), *SERVER_WORDS, "error"}
 #: Words the same in a language by chance (checked one by one).
@@ -260,3 +263,56 @@ def test_the_api_says_why_a_password_is_refused_in_the_readers_language(
     )
     assert body["errors"][0]["type"] == "password.breached"
     assert body["detail"] == "this password is in a list of breached passwords; choose another"
+
+
+def test_a_teachers_first_commands_speak_the_users_language(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Issue #24: the command line answered a Portuguese teacher in English but for errors.
+    for name in ("LANGUAGE", "LC_ALL", "LC_MESSAGES"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setattr(
+        "thermolab.lab.accounts.security.default_password_hasher", lambda: FAST_HASHER
+    )
+    monkeypatch.setenv("LANG", "pt_BR.UTF-8")
+    lab = ["--data-dir", str(tmp_path)]
+
+    def said(*words: str, stdin: str = "") -> tuple[str, str]:
+        monkeypatch.setattr("sys.stdin", io.StringIO(stdin))
+        assert main([*lab, *words]) == 0
+        out, err = capsys.readouterr()
+        return out.strip(), err.strip()
+
+    assert said("user", "list")[0].startswith("ainda não há contas; crie a conta de admin")
+    out, _ = said("user", "add", "tina", "--role", "teacher", "--password-stdin", stdin=PASSWORD)
+    assert out == "conta criada: docente 'tina'"
+    out, _ = said("course", "create", "ctrl1", "--title", "Controle I", "--teacher", "tina")
+    assert out.startswith("disciplina 'ctrl1' criada (Controle I); código de inscrição ")
+    (tmp_path / "turma.csv").write_text("username,display_name\nana,Ana Souza\n")
+    out, err = said("course", "import", "ctrl1", str(tmp_path / "turma.csv"))
+    assert err.splitlines() == [
+        "ctrl1: 1 contas criadas, 0 atualizadas, 0 sem mudança (lido como UTF-8)",
+        "senhas de uso único (mostradas uma só vez; cada uma deve ser trocada no primeiro acesso):",
+    ]
+    assert out.splitlines()[0] == "username,password"  # a file's header: never translated
+    out, _ = said("user", "list")
+    assert out.splitlines()[0].split() == ["usuário", "papel", "criada", "(UTC)"]
+    assert {line.split()[1] for line in out.splitlines()[1:]} == {"docente", "estudante"}
+    monkeypatch.setenv("LANG", "es_ES.UTF-8")
+    assert said("user", "remove", "ana")[0] == "cuenta eliminada: estudiante 'ana'"
+    monkeypatch.setattr("sys.stdin", io.StringIO("x\n"))
+    assert main([*lab, "user", "add", "bia", "--role", "student"]) == 1  # not a terminal
+    assert capsys.readouterr().err.strip() == "error: " + say("user.not_a_terminal", "es")
+    assert say("user.not_a_terminal", "es").startswith("la entrada estándar no es una terminal")
+
+
+def test_every_word_of_the_command_line_is_said_somewhere() -> None:
+    # Declared once and used: a key no command says is a stale word.
+    import thermolab.cli
+
+    source = "\n".join(
+        path.read_text() for path in Path(thermolab.cli.__file__).parent.glob("*.py")
+    )
+    said = {key for key in CLI_WORDS if f'"{key}"' in source or f"'{key}'" in source}
+    said |= {f"role.{role}" for role in Role} if 'say(f"role.{role}")' in source else set()
+    assert set(CLI_WORDS) == said, set(CLI_WORDS) - said

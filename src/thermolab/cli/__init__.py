@@ -106,13 +106,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 2
         return handler(args)
     except CliError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"{_error_prefix()}: {exc}", file=sys.stderr)
         return exc.status
     except ThermoLabError as exc:
         print(_error_line(exc), file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
+        from thermolab.cli._words import say
+
+        print(say("interrupted"), file=sys.stderr)
         return 130
     except BrokenPipeError:
         # Output piped into `head` and the like: not an error worth a message.
@@ -125,6 +127,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 70
+
+
+def _error_prefix() -> str:
+    """``error`` in the user's language."""
+    from thermolab.lab.error_messages import language_from_environment, translate
+
+    return translate("error", language_from_environment(os.environ))
 
 
 def _error_line(exc: ThermoLabError) -> str:

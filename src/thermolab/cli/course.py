@@ -22,6 +22,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from thermolab.cli._words import say
 from thermolab.cli.serve import add_database_options, lab_config_from_args, make_private
 
 if TYPE_CHECKING:
@@ -110,7 +111,7 @@ def _courses(args: argparse.Namespace) -> tuple[Database, CourseService]:
 
     config = lab_config_from_args(args)
     for path in make_private(config):
-        print(f"warning: tightened permissions of {path} to this user only", file=sys.stderr)
+        print(say("private", path=path), file=sys.stderr)
     db = Database(config.database, pool_size=1, max_overflow=1)
     db.upgrade()
     return db, CourseService(db, SystemClock(), default_password_hasher())
@@ -122,7 +123,7 @@ def _create(args: argparse.Namespace) -> int:
         course = courses.create(args.name, args.title, args.teacher)
     finally:
         db.close()
-    print(f"created course {course.name!r} ({course.title}); enrolment code {course.enrol_code}")
+    print(say("course.created", name=repr(course.name), title=course.title, code=course.enrol_code))
     return 0
 
 
@@ -133,9 +134,12 @@ def _list(args: argparse.Namespace) -> int:
     finally:
         db.close()
     if not found:
-        print("no courses yet; create one with: thermolab course create NAME --title T --teacher T")
+        from thermolab.cli.first_start import command_line
+
+        create = ("course", "create", "NAME", "--title", "T", "--teacher", "T")
+        print(say("course.none", command=command_line(args, lab_config_from_args(args), *create)))
     for course in found:
-        rigs = ", ".join(course.rigs) or "all rigs"
+        rigs = ", ".join(course.rigs) or say("course.all_rigs")
         print(f"{course.name}\t{course.enrol_code}\t{rigs}\t{course.title}")
     return 0
 
@@ -149,21 +153,23 @@ def _import(args: argparse.Namespace) -> int:
         with path.open("rb") as source:
             data = source.read(MAX_CLASS_LIST_BYTES + 1)
     except OSError as exc:
-        raise CliError(f"cannot read {path}: {exc.strerror or exc}") from None
+        raise CliError(say("course.cannot_read", path=path, reason=exc.strerror or exc)) from None
     db, courses = _courses(args)
     try:
         report = courses.import_class_list(args.course, data)
     finally:
         db.close()
-    print(
-        f"{args.course}: {len(report.created)} created, {len(report.updated)} updated, "
-        f"{len(report.unchanged)} unchanged (read as {report.encoding})",
-        file=sys.stderr,
+    words = say(
+        "course.imported",
+        course=args.course,
+        created=len(report.created),
+        updated=len(report.updated),
+        unchanged=len(report.unchanged),
+        encoding=report.encoding,
     )
+    print(words, file=sys.stderr)
     if report.created:
-        print(
-            "one-time passwords (shown once; each must be changed at first login):", file=sys.stderr
-        )
+        print(say("course.one_time_passwords"), file=sys.stderr)
         if args.dialect:
             from thermolab.lab.spreadsheets import SheetDialect
 
@@ -197,6 +203,6 @@ def _assistant(args: argparse.Namespace) -> int:
         AuditLog(db, clock).record(OPERATOR, action, args.course, detail={"username": name})
     finally:
         db.close()
-    done = "no longer assists" if args.remove else "assists"
-    print(f"{name} {done} course {args.course!r}")
+    done = "course.no_longer_assists" if args.remove else "course.assists"
+    print(say(done, name=name, course=repr(args.course)))
     return 0

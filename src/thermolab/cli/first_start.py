@@ -83,23 +83,24 @@ def _shown_url(url: str) -> str:
 
 def first_start_message(args: argparse.Namespace, config: LabConfig) -> str:
     """The lines ``serve`` prints while the lab has no teacher: who to create, and how."""
+    from thermolab.cli._words import say
 
     def run(*words: str) -> str:
         return f"    {command_line(args, config, *words)}"
 
     return "\n".join(
         [
-            "  No teacher account yet. In another terminal, create the lab's administrator",
-            "  (a teacher who also manages accounts and rigs), then log in at the address above:",
+            f"  {say('first.no_teacher')}",
+            f"  {say('first.admin_is')}",
             run("user", "add", "NAME", "--role", "admin"),
-            "  a teacher:",
+            f"  {say('first.a_teacher')}",
             run("user", "add", "NAME", "--role", "teacher"),
-            "  students: a course, then its class list (a CSV with username,display_name",
-            "  columns; the one-time passwords go to passwords.csv, to hand out):",
+            f"  {say('first.students')}",
+            f"  {say('first.passwords')}",
             run("course", "create", "COURSE", "--title", "TITLE", "--teacher", "NAME"),
             run("course", "import", "COURSE", "class.csv", "> passwords.csv"),
-            "  or one student:",
+            f"  {say('first.one_student')}",
             run("user", "add", "NAME", "--role", "student"),
-            "  (a teacher can also do this on a course's page once logged in.)",
+            f"  {say('first.on_the_page')}",
         ]
     )

@@ -19,6 +19,7 @@ import getpass
 import sys
 from typing import TYPE_CHECKING, Any
 
+from thermolab.cli._words import say
 from thermolab.cli.serve import add_database_options, lab_config_from_args, make_private
 
 if TYPE_CHECKING:
@@ -137,7 +138,7 @@ def _users(args: argparse.Namespace) -> tuple[Database, UserService]:
 
     config = lab_config_from_args(args)
     for path in make_private(config):
-        print(f"warning: tightened permissions of {path} to this user only", file=sys.stderr)
+        print(say("private", path=path), file=sys.stderr)
     db = Database(config.database, pool_size=1, max_overflow=1)
     db.upgrade()
     return db, UserService(db, SystemClock(), default_password_hasher())
@@ -151,17 +152,14 @@ def _read_password(args: argparse.Namespace, name: str) -> str:
         line = sys.stdin.readline()
         password = line.removesuffix("\n").removesuffix("\r")
         if not password:
-            raise CliError("no password on standard input (expected one line)")
+            raise CliError(say("user.no_stdin_password"))
     else:
         if not sys.stdin.isatty():
-            raise CliError(
-                "standard input is not a terminal, so the password cannot be asked: "
-                "pipe it with --password-stdin"
-            )
-        password = getpass.getpass(f"Password for {name}: ")
+            raise CliError(say("user.not_a_terminal"))
+        password = getpass.getpass(say("user.password_for", name=name))
         validate_password(password, name)
-        if getpass.getpass("Repeat the password: ") != password:
-            raise CliError("the two passwords differ; nothing was changed")
+        if getpass.getpass(say("user.repeat")) != password:
+            raise CliError(say("user.differ"))
     return validate_password(password, name)
 
 
@@ -182,12 +180,14 @@ def _add(args: argparse.Namespace) -> int:
     finally:
         db.close()
     shown = f" ({user.display_name})" if user.display_name else ""
-    print(f"added {_kind(user.role.value, user.admin)} {user.username!r}{shown}")
+    kind = _kind(user.role.value, user.admin)
+    print(say("user.added", kind=kind, name=repr(user.username), shown=shown))
     return 0
 
 
 def _kind(role: str, admin: bool) -> str:
-    return "admin" if admin else role
+    """An account's kind in the user's language: admin, teacher or student."""
+    return say("role.admin") if admin else say(f"role.{role}")
 
 
 def _admin(args: argparse.Namespace) -> int:
@@ -196,8 +196,7 @@ def _admin(args: argparse.Namespace) -> int:
         user = users.set_admin(args.name, not args.revoke)
     finally:
         db.close()
-    done = "is now a lab administrator" if user.admin else "is no longer a lab administrator"
-    print(f"{user.username!r} {done}")
+    print(say("user.now_admin" if user.admin else "user.no_longer_admin", name=repr(user.username)))
     return 0
 
 
@@ -213,13 +212,18 @@ def _list(args: argparse.Namespace) -> int:
         admin = command_line(
             args, lab_config_from_args(args), "user", "add", "NAME", "--role", "admin"
         )
-        print(f"no accounts yet; add the lab's administrator with: {admin}")
+        print(say("user.none", command=admin))
         return 0
     width = max(8, *(len(u.username) for u in accounts))
-    print(f"{'username':<{width}}  {'role':<7}  created (UTC)")
-    for user in accounts:
+    kinds = [_kind(user.role.value, user.admin) for user in accounts]
+    role_width = max(7, *(len(kind) for kind in kinds))
+    print(
+        f"{say('user.column_name'):<{width}}  {say('user.column_role'):<{role_width}}  "
+        f"{say('user.column_created')}"
+    )
+    for user, kind in zip(accounts, kinds, strict=True):
         created = user.created_at.strftime("%Y-%m-%d %H:%M")
-        print(f"{user.username:<{width}}  {_kind(user.role.value, user.admin):<7}  {created}")
+        print(f"{user.username:<{width}}  {kind:<{role_width}}  {created}")
     return 0
 
 
@@ -231,7 +235,7 @@ def _passwd(args: argparse.Namespace) -> int:
         users.set_password(user.username, password)
     finally:
         db.close()
-    print(f"changed the password of {user.username!r}; their logins have ended")
+    print(say("user.password_changed", name=repr(user.username)))
     return 0
 
 
@@ -241,7 +245,7 @@ def _remove(args: argparse.Namespace) -> int:
         user = users.remove(args.name)
     finally:
         db.close()
-    print(f"removed {user.role.value} {user.username!r}")
+    print(say("user.removed", kind=_kind(user.role.value, False), name=repr(user.username)))
     return 0
 
 
@@ -261,6 +265,8 @@ def _forget(args: argparse.Namespace) -> int:
         pseudonym = forget_person(db, args.name, args.runs, unknown, audit=written)
     finally:
         db.close()
-    kept = f"their runs kept as {pseudonym!r}" if args.runs == "keep" else "their runs deleted"
-    print(f"forgot {args.name!r}: {kept}")
+    if args.runs == "keep":
+        print(say("user.forgot_kept", name=repr(args.name), pseudonym=repr(pseudonym)))
+    else:
+        print(say("user.forgot_deleted", name=repr(args.name)))
     return 0
