@@ -67,21 +67,33 @@ class _Parser(argparse.ArgumentParser):
     """An argparse parser whose errors are one line and exit status 2."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        raise CliError(f"{self.prog}: {message} (see '{self.prog} --help')", status=2)
+        from thermolab.cli._words import _
+
+        said = _("{prog}: {message} (see '{prog} --help')").format(prog=self.prog, message=message)
+        raise CliError(said, status=2)
 
 
 def build_parser() -> argparse.ArgumentParser:
     """Build the full ``thermolab`` argument parser."""
+    from thermolab.cli._words import _
+
     parser = _Parser(
         prog="thermolab",
-        description="ThermoLab: identify the model of a temperature control system.",
+        description=_("ThermoLab: identify the model of a temperature control system."),
     )
-    parser.add_argument("--version", action="version", version=f"thermolab {__version__}")
+    parser.add_argument(
+        "--version",
+        action="version",
+        version=f"thermolab {__version__}",
+        help=_("show the program's version and exit"),
+    )
     parser.add_argument(
         "--data-dir",
         default=None,
-        help="folder for the lab's database and records (default: a per-user folder, "
-        "or $THERMOLAB_DATA_DIR)",
+        help=_(
+            "folder for the lab's database and records (default: a per-user folder, "
+            "or $THERMOLAB_DATA_DIR)"
+        ),
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name in _SUBCOMMAND_MODULES:
@@ -97,9 +109,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line and return its exit status."""
+    from thermolab.cli._words import speaking_argparse
+
     try:
-        parser = build_parser()
-        args = parser.parse_args(argv)
+        with speaking_argparse():
+            parser = build_parser()
+            args = parser.parse_args(argv)
         handler: Handler | None = getattr(args, "handler", None)
         if handler is None:
             parser.print_help(sys.stderr)
@@ -112,9 +127,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(_error_line(exc), file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        from thermolab.cli._words import say
+        from thermolab.cli._words import _
 
-        print(say("interrupted"), file=sys.stderr)
+        print(_("interrupted"), file=sys.stderr)
         return 130
     except BrokenPipeError:
         # Output piped into `head` and the like: not an error worth a message.
@@ -122,10 +137,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as exc:
         if os.environ.get("THERMOLAB_DEBUG"):
             raise
-        print(
-            f"internal error: {type(exc).__name__}: {exc} (set THERMOLAB_DEBUG=1 for details)",
-            file=sys.stderr,
-        )
+        from thermolab.cli._words import _
+
+        said = _("internal error: {kind}: {error} (set THERMOLAB_DEBUG=1 for details)")
+        print(said.format(kind=type(exc).__name__, error=exc), file=sys.stderr)
         return 70
 
 

@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from thermolab.cli._words import say
+from thermolab.cli._words import _
 from thermolab.cli.serve import add_database_options, lab_config_from_args, make_private
 
 if TYPE_CHECKING:
@@ -111,7 +111,10 @@ def _courses(args: argparse.Namespace) -> tuple[Database, CourseService]:
 
     config = lab_config_from_args(args)
     for path in make_private(config):
-        print(say("private", path=path), file=sys.stderr)
+        print(
+            _("warning: tightened permissions of {path} to this user only").format(path=path),
+            file=sys.stderr,
+        )
     db = Database(config.database, pool_size=1, max_overflow=1)
     db.upgrade()
     return db, CourseService(db, SystemClock(), default_password_hasher())
@@ -123,7 +126,11 @@ def _create(args: argparse.Namespace) -> int:
         course = courses.create(args.name, args.title, args.teacher)
     finally:
         db.close()
-    print(say("course.created", name=repr(course.name), title=course.title, code=course.enrol_code))
+    print(
+        _("created course {name} ({title}); enrolment code {code}").format(
+            name=repr(course.name), title=course.title, code=course.enrol_code
+        )
+    )
     return 0
 
 
@@ -137,9 +144,10 @@ def _list(args: argparse.Namespace) -> int:
         from thermolab.cli.first_start import command_line
 
         create = ("course", "create", "NAME", "--title", "T", "--teacher", "T")
-        print(say("course.none", command=command_line(args, lab_config_from_args(args), *create)))
+        command = command_line(args, lab_config_from_args(args), *create)
+        print(_("no courses yet; create one with: {command}").format(command=command))
     for course in found:
-        rigs = ", ".join(course.rigs) or say("course.all_rigs")
+        rigs = ", ".join(course.rigs) or _("all rigs")
         print(f"{course.name}\t{course.enrol_code}\t{rigs}\t{course.title}")
     return 0
 
@@ -153,14 +161,17 @@ def _import(args: argparse.Namespace) -> int:
         with path.open("rb") as source:
             data = source.read(MAX_CLASS_LIST_BYTES + 1)
     except OSError as exc:
-        raise CliError(say("course.cannot_read", path=path, reason=exc.strerror or exc)) from None
+        raise CliError(
+            _("cannot read {path}: {reason}").format(path=path, reason=exc.strerror or exc)
+        ) from None
     db, courses = _courses(args)
     try:
         report = courses.import_class_list(args.course, data)
     finally:
         db.close()
-    words = say(
-        "course.imported",
+    words = _(
+        "{course}: {created} created, {updated} updated, {unchanged} unchanged (read as {encoding})"
+    ).format(
         course=args.course,
         created=len(report.created),
         updated=len(report.updated),
@@ -169,7 +180,10 @@ def _import(args: argparse.Namespace) -> int:
     )
     print(words, file=sys.stderr)
     if report.created:
-        print(say("course.one_time_passwords"), file=sys.stderr)
+        print(
+            _("one-time passwords (shown once; each must be changed at first login):"),
+            file=sys.stderr,
+        )
         if args.dialect:
             from thermolab.lab.spreadsheets import SheetDialect
 
@@ -190,7 +204,7 @@ def _assistant(args: argparse.Namespace) -> int:
     from thermolab.lab.classes.assistants import AssistantService
     from thermolab.lab.clock import SystemClock
 
-    db, _ = _courses(args)
+    db, _courses_unused = _courses(args)
     clock = SystemClock()
     try:
         assistants = AssistantService(db, clock)
@@ -203,6 +217,9 @@ def _assistant(args: argparse.Namespace) -> int:
         AuditLog(db, clock).record(OPERATOR, action, args.course, detail={"username": name})
     finally:
         db.close()
-    done = "course.no_longer_assists" if args.remove else "course.assists"
-    print(say(done, name=name, course=repr(args.course)))
+    if args.remove:
+        done = _("{name} no longer assists course {course}")
+    else:
+        done = _("{name} assists course {course}")
+    print(done.format(name=name, course=repr(args.course)))
     return 0

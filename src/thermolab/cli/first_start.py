@@ -83,24 +83,32 @@ def _shown_url(url: str) -> str:
 
 def first_start_message(args: argparse.Namespace, config: LabConfig) -> str:
     """The lines ``serve`` prints while the lab has no teacher: who to create, and how."""
-    from thermolab.cli._words import say
+    from thermolab.cli._words import _
 
     def run(*words: str) -> str:
         return f"    {command_line(args, config, *words)}"
 
+    def say(words: str) -> str:
+        return f"  {words}"
+
     return "\n".join(
         [
-            f"  {say('first.no_teacher')}",
-            f"  {say('first.admin_is')}",
+            say(_("No teacher account yet. In another terminal, create the lab's administrator")),
+            say(
+                _(
+                    "(a teacher who also manages accounts and rigs), "
+                    "then log in at the address above:"
+                )
+            ),
             run("user", "add", "NAME", "--role", "admin"),
-            f"  {say('first.a_teacher')}",
+            say(_("a teacher:")),
             run("user", "add", "NAME", "--role", "teacher"),
-            f"  {say('first.students')}",
-            f"  {say('first.passwords')}",
+            say(_("students: a course, then its class list (a CSV with username,display_name")),
+            say(_("columns; the one-time passwords go to passwords.csv, to hand out):")),
             run("course", "create", "COURSE", "--title", "TITLE", "--teacher", "NAME"),
             run("course", "import", "COURSE", "class.csv", "> passwords.csv"),
-            f"  {say('first.one_student')}",
+            say(_("or one student:")),
             run("user", "add", "NAME", "--role", "student"),
-            f"  {say('first.on_the_page')}",
+            say(_("(a teacher can also do this on a course's page once logged in.)")),
         ]
     )

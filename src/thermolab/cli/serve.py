@@ -27,7 +27,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from thermolab.cli._words import say
+from thermolab.cli._words import _
 from thermolab.cli.http_server import CONNECTION_LIMIT, run_server
 
 if TYPE_CHECKING:
@@ -279,9 +279,12 @@ def _serve(args: argparse.Namespace) -> int:
     try:
         rigs = ", ".join(f"{rig.id} ({rig.spec})" for rig in config.rigs)
         scheme = "https" if args.ssl_certfile else "http"
-        print(say("serve.on", url=f"{scheme}://{args.host}:{args.port}/"), file=sys.stderr)
-        print(f"  {say('serve.database', url=lab.db.display_url)}", file=sys.stderr)
-        print(f"  {say('serve.rigs', rigs=rigs)}", file=sys.stderr)
+        print(
+            _("ThermoLab on {url}").format(url=f"{scheme}://{args.host}:{args.port}/"),
+            file=sys.stderr,
+        )
+        print("  " + _("database: {url}").format(url=lab.db.display_url), file=sys.stderr)
+        print("  " + _("rigs: {rigs}").format(rigs=rigs), file=sys.stderr)
         if fleet is not None:
             standing = " on standby" if getattr(lab, "standby", False) else ""
             print(f"  broker: {args.broker} ({fleet.role}{standing})", file=sys.stderr)
@@ -291,12 +294,18 @@ def _serve(args: argparse.Namespace) -> int:
             config.speedup_override is not None or any(r.twin_speedup != 1 for r in twins)
         ):
             given = config.speedup_override is not None
-            words = say("serve.speedups_given" if given else "serve.speedups", paces=paces)
+            if given:
+                words = _("twin speed-ups (--speedup): {paces}").format(paces=paces)
+            else:
+                words = _("twin speed-ups: {paces}").format(paces=paces)
             print(f"  {words}", file=sys.stderr)
         if config.retention.months is not None:
             print(f"  retention: {retention_line(config)}", file=sys.stderr)
         for rig_id, fault in report.faults.items():
-            print(f"  {say('serve.rig_warning', rig=rig_id, fault=fault)}", file=sys.stderr)
+            print(
+                "  " + _("warning: rig {rig}: {fault}").format(rig=rig_id, fault=fault),
+                file=sys.stderr,
+            )
         if report.teachers == 0:
             print(first_start_message(args, config), file=sys.stderr)
         static = STATIC_DIR if (STATIC_DIR / "index.html").is_file() else None

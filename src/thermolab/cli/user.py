@@ -19,7 +19,7 @@ import getpass
 import sys
 from typing import TYPE_CHECKING, Any
 
-from thermolab.cli._words import say
+from thermolab.cli._words import _
 from thermolab.cli.serve import add_database_options, lab_config_from_args, make_private
 
 if TYPE_CHECKING:
@@ -138,7 +138,10 @@ def _users(args: argparse.Namespace) -> tuple[Database, UserService]:
 
     config = lab_config_from_args(args)
     for path in make_private(config):
-        print(say("private", path=path), file=sys.stderr)
+        print(
+            _("warning: tightened permissions of {path} to this user only").format(path=path),
+            file=sys.stderr,
+        )
     db = Database(config.database, pool_size=1, max_overflow=1)
     db.upgrade()
     return db, UserService(db, SystemClock(), default_password_hasher())
@@ -152,14 +155,19 @@ def _read_password(args: argparse.Namespace, name: str) -> str:
         line = sys.stdin.readline()
         password = line.removesuffix("\n").removesuffix("\r")
         if not password:
-            raise CliError(say("user.no_stdin_password"))
+            raise CliError(_("no password on standard input (expected one line)"))
     else:
         if not sys.stdin.isatty():
-            raise CliError(say("user.not_a_terminal"))
-        password = getpass.getpass(say("user.password_for", name=name))
+            raise CliError(
+                _(
+                    "standard input is not a terminal, so the password cannot be asked: "
+                    "pipe it with --password-stdin"
+                )
+            )
+        password = getpass.getpass(_("Password for {name}: ").format(name=name))
         validate_password(password, name)
-        if getpass.getpass(say("user.repeat")) != password:
-            raise CliError(say("user.differ"))
+        if getpass.getpass(_("Repeat the password: ")) != password:
+            raise CliError(_("the two passwords differ; nothing was changed"))
     return validate_password(password, name)
 
 
@@ -181,13 +189,15 @@ def _add(args: argparse.Namespace) -> int:
         db.close()
     shown = f" ({user.display_name})" if user.display_name else ""
     kind = _kind(user.role.value, user.admin)
-    print(say("user.added", kind=kind, name=repr(user.username), shown=shown))
+    print(_("added {kind} {name}{shown}").format(kind=kind, name=repr(user.username), shown=shown))
     return 0
 
 
 def _kind(role: str, admin: bool) -> str:
     """An account's kind in the user's language: admin, teacher or student."""
-    return say("role.admin") if admin else say(f"role.{role}")
+    if admin:
+        return _("admin")
+    return _("teacher") if role == "teacher" else _("student")
 
 
 def _admin(args: argparse.Namespace) -> int:
@@ -196,7 +206,11 @@ def _admin(args: argparse.Namespace) -> int:
         user = users.set_admin(args.name, not args.revoke)
     finally:
         db.close()
-    print(say("user.now_admin" if user.admin else "user.no_longer_admin", name=repr(user.username)))
+    if user.admin:
+        done = _("{name} is now a lab administrator")
+    else:
+        done = _("{name} is no longer a lab administrator")
+    print(done.format(name=repr(user.username)))
     return 0
 
 
@@ -212,15 +226,15 @@ def _list(args: argparse.Namespace) -> int:
         admin = command_line(
             args, lab_config_from_args(args), "user", "add", "NAME", "--role", "admin"
         )
-        print(say("user.none", command=admin))
+        print(
+            _("no accounts yet; add the lab's administrator with: {command}").format(command=admin)
+        )
         return 0
     width = max(8, *(len(u.username) for u in accounts))
     kinds = [_kind(user.role.value, user.admin) for user in accounts]
     role_width = max(7, *(len(kind) for kind in kinds))
-    print(
-        f"{say('user.column_name'):<{width}}  {say('user.column_role'):<{role_width}}  "
-        f"{say('user.column_created')}"
-    )
+    columns = _("username"), _("role"), _("created (UTC)")
+    print(f"{columns[0]:<{width}}  {columns[1]:<{role_width}}  {columns[2]}")
     for user, kind in zip(accounts, kinds, strict=True):
         created = user.created_at.strftime("%Y-%m-%d %H:%M")
         print(f"{user.username:<{width}}  {kind:<{role_width}}  {created}")
@@ -235,7 +249,11 @@ def _passwd(args: argparse.Namespace) -> int:
         users.set_password(user.username, password)
     finally:
         db.close()
-    print(say("user.password_changed", name=repr(user.username)))
+    print(
+        _("changed the password of {name}; their logins have ended").format(
+            name=repr(user.username)
+        )
+    )
     return 0
 
 
@@ -245,7 +263,8 @@ def _remove(args: argparse.Namespace) -> int:
         user = users.remove(args.name)
     finally:
         db.close()
-    print(say("user.removed", kind=_kind(user.role.value, False), name=repr(user.username)))
+    kind = _kind(user.role.value, False)
+    print(_("removed {kind} {name}").format(kind=kind, name=repr(user.username)))
     return 0
 
 
@@ -258,7 +277,7 @@ def _forget(args: argparse.Namespace) -> int:
     from thermolab.lab.audit.log import AuditLog
     from thermolab.lab.clock import SystemClock
 
-    db, _ = _users(args)
+    db, _users_unused = _users(args)
     try:
         unknown = default_password_hasher().hash(secrets.token_urlsafe(32))
         written = AuditLog(db, SystemClock()).forgotten(OPERATOR, runs=args.runs)
@@ -266,7 +285,8 @@ def _forget(args: argparse.Namespace) -> int:
     finally:
         db.close()
     if args.runs == "keep":
-        print(say("user.forgot_kept", name=repr(args.name), pseudonym=repr(pseudonym)))
+        kept = _("forgot {name}: their runs kept as {pseudonym}")
+        print(kept.format(name=repr(args.name), pseudonym=repr(pseudonym)))
     else:
-        print(say("user.forgot_deleted", name=repr(args.name)))
+        print(_("forgot {name}: their runs deleted").format(name=repr(args.name)))
     return 0
