@@ -461,3 +461,57 @@ def test_a_saturated_input_is_refused_alike(run: Run, tmp_path: Path) -> None:
     for method in ("srm", "lsm", "oe", "malsm", "wlsm", "blockls"):
         err = _one_line_error(run, str(path), "--method", method, "--columns", "t=t,u=Q1,y=T1")
         assert "saturated input: the record asks the heater for 125 %" in err
+
+
+# --- the reader's language ---------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("lang", "said"),
+    [
+        ("pt_BR.UTF-8", ["método   srm (resposta ao degrau)", "valor final", "(aquecimento)"]),
+        ("es_ES.UTF-8", ["método   srm (respuesta al escalón)", "valor final", "(calentamiento)"]),
+    ],
+)
+def test_the_report_speaks_the_users_language_with_its_decimal_mark(
+    run: Run,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    lang: str,
+    said: list[str],
+) -> None:
+    # Issue #24: the command line was English but for its errors. A short record, so a
+    # warning of the library is said too, as the browser says it.
+    record = _write(tmp_path / "short.csv", _record("step:0:10@1", 1500))
+    for name in ("LANGUAGE", "LC_ALL", "LC_MESSAGES"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv("LANG", lang)
+    status, out, err = run(str(record), "--method", "srm")
+    assert status == 0, err
+    for words in said:
+        assert words in out, out
+    assert "0,1400" in out  # Ks with the decimal comma
+    assert "0.1400" not in out
+    english = {"method", "file", "final value", "heating", "step response", "yes", "settled"}
+    assert not [w for w in english if f" {w} " in f" {out} "], out
+    warning = "aviso: registro curto: " if lang.startswith("pt") else "aviso: registro corto: "
+    assert err.startswith(warning), err
+    # JSON stays the same in every language: it is for programs.
+    status, out, _err = run(str(record), "--method", "srm", "--json")
+    assert json.loads(out)["method"] == "srm"
+    assert '"K": 0.14' in out
+
+
+def test_help_and_argparse_speak_the_users_language(
+    run: Run, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    for name in ("LANGUAGE", "LC_ALL", "LC_MESSAGES"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv("LANG", "es_ES.UTF-8")
+    with pytest.raises(SystemExit):
+        main(["identify", "--help"])
+    out = capsys.readouterr().out
+    assert out.startswith("uso: thermolab identify")
+    assert "muestra esta ayuda y sale" in out
+    assert main(["identify", "x.csv", "--method", "nope"]) == 2
+    assert "opción no válida: 'nope'" in capsys.readouterr().err

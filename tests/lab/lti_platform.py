@@ -98,7 +98,9 @@ class Platform:
         # ``host="localhost"`` makes the platform another *site* than a lab on 127.0.0.1
         # (ports do not make sites), so its iframe is a real third-party context.
         self.url = f"http://{host}:{self._server.server_address[1]}"
-        self._thread = threading.Thread(target=self._server.serve_forever, args=(0.05,), daemon=True)
+        self._thread = threading.Thread(
+            target=self._server.serve_forever, args=(0.05,), daemon=True
+        )
 
     # -- set-up ------------------------------------------------------------------------
     def start(self) -> Platform:

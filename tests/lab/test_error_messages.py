@@ -8,7 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from babel.messages.extract import extract_from_dir
+from babel.messages.extract import extract_from_dir, extract_from_file
 from babel.messages.pofile import read_po
 from fastapi.testclient import TestClient
 
@@ -36,6 +36,7 @@ from thermolab.lab.http.errors import all_error_codes
 from thermolab.lab.rigs.camera import CAMERA_WORDS
 from thermolab.lab.service import Lab
 from thermolab.lab.spreadsheets import SHEET_WORDS
+from thermolab.reproduction import _results
 
 from .conftest import FAST_HASHER, PASSWORD
 
@@ -44,12 +45,17 @@ TRANSLATED = [language for language in LANGUAGES if language != "en"]
 
 
 def cli_msgids() -> set[str]:
-    """Every ``_()`` msgid of the command line (Babel's extractor) and argparse's words."""
+    """Every msgid of the command line (Babel's extractor): its ``_()``, argparse's words
+    and the reproduced Table I's words (``Table1Result.format``'s ``say()``)."""
     root = Path(thermolab.cli.__file__).parent
     found = extract_from_dir(root, method_map=[("**.py", "python")], keywords={"_": None})
-    return {str(message) for _file, _line, message, _comments, _context in found} | set(
-        ARGPARSE_WORDS
+    table = extract_from_file("python", _results.__file__, keywords={"say": None})
+    return (
+        {str(message) for _file, _line, message, _comments, _context in found}
+        | {str(message) for _line, message, _comments, _context in table}
+        | set(ARGPARSE_WORDS)
     )
+
 
 #: Every msgid the server's catalogue holds: error sentences, class-list problems,
 #: the spreadsheet forms' words, a password's refusals, the camera picture's words,
@@ -65,7 +71,7 @@ SERVER_WORDS = [
 ]
 MSGIDS = {*ERROR_SENTENCES.values(), *SERVER_WORDS, "error"}
 #: Words the same in a language by chance (checked one by one).
-SAME_BY_CHANCE = {("es", "no")}
+SAME_BY_CHANCE = {("es", "no"), ("es", "error")}
 
 
 @pytest.fixture
@@ -318,5 +324,17 @@ def test_a_teachers_first_commands_speak_the_users_language(
     assert refusal.endswith("--password-stdin")
     # argparse's own words too.
     assert main([*lab, "user", "add"]) == 2
-    assert "los siguientes argumentos son obligatorios: name" in capsys.readouterr().err
+    assert "los siguientes argumentos son obligatorios: NAME, --role" in capsys.readouterr().err
     assert in_language("usage: ", "pt-BR") == "uso: "
+
+
+def test_every_word_of_the_command_line_is_seen_by_the_extractor() -> None:
+    # `_()` around an f-string or a variable, or inside an f-string's braces, holds a
+    # msgid Babel cannot see: it would never be translated.
+    for path in Path(thermolab.cli.__file__).parent.glob("*.py"):
+        if path.name == "_words.py":  # where _() is written
+            continue
+        source = path.read_text(encoding="utf-8")
+        hidden = re.findall(r"(?<![\w.])_\((?!\s*[\"'])[^)]{0,40}", source)
+        assert hidden == [], f"{path.name}: {hidden}"
+        assert not re.search(r"\{_\(", source), f"{path.name}: _() inside an f-string"

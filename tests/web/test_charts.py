@@ -1,4 +1,4 @@
-"""The charts' redraw rate, in a real browser: data faster than REDRAWS_PER_SECOND draw less often."""
+"""The charts' redraw rate in a real browser: fast data draws REDRAWS_PER_SECOND times a second."""
 
 from __future__ import annotations
 

@@ -169,6 +169,12 @@ def _error_line(exc: ThermoLabError) -> str:
         # A class list's problems, a password's refusal and a taken name have sentences of
         # their own in the catalogue.
         detail = exc.describe(lambda text: translate(text, language))
+    else:
+        # A sentence of the numerical libraries (no excitation, no step, ...) as the
+        # browser says it; any other detail as the library wrote it.
+        from thermolab.web.library_words import library_sentence
+
+        detail = library_sentence(detail, language)
     return f"{translate('error', language)}: {sentence} ({detail})"
 
 

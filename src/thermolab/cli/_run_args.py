@@ -13,19 +13,20 @@ import math
 from typing import Any
 
 from thermolab.cli._settings import add_setting_options, settings_of
+from thermolab.cli._words import _
 from thermolab.ident.registry import METHOD_NAMES, Setting
 
 __all__ = [
-    "EXAMPLES",
     "add_run_options",
     "clock_for",
     "control_loop",
+    "examples",
     "identifier_settings",
     "number_of_samples",
 ]
 
-EXAMPLES = """\
-examples:
+# The commands are never translated; their heading is (see :func:`examples`).
+_EXAMPLE_COMMANDS = """\
   thermolab run --rig sim --dt 1 --duration 2000 --signal step:0:10@10 --fast
   thermolab run --rig sim:paper-practical --dt 1 --samples 3000 \\
       --signal square:4:6:0.1 --method lsm,malsm,wlsm --speedup 100 --out run.csv
@@ -35,6 +36,11 @@ examples:
   thermolab run --rig sim --dt 1 --samples 3000 --fast --control pid --setpoint 1 \
       --kp 20 --ti 100 --adaptive --tune imc --tau-c 100 --pid-form pi --max-change 0.1
 """
+
+
+def examples() -> str:
+    """The ``run`` parser's epilog: a heading in the user's language, then the commands."""
+    return _("examples:") + "\n" + _EXAMPLE_COMMANDS
 
 
 def add_run_options(parser: argparse.ArgumentParser) -> None:
@@ -49,60 +55,69 @@ def add_run_options(parser: argparse.ArgumentParser) -> None:
         "--rig",
         default="sim",
         metavar="SPEC",
-        help="sim (the paper's twin, noise-free), sim:PRESET (paper, paper-practical, tclab), "
-        "tclab (a kit, auto-detected) or tclab:PORT (default: sim)",
+        help=_(
+            "sim (the paper's twin, noise-free), sim:PRESET (paper, paper-practical, tclab), "
+            "tclab (a kit, auto-detected) or tclab:PORT (default: sim)"
+        ),
     )
     parser.add_argument(
-        "--dt", type=float, default=1.0, metavar="S", help="sample period in seconds (default 1)"
+        "--dt", type=float, default=1.0, metavar="S", help=_("sample period in seconds (default 1)")
     )
     length = parser.add_mutually_exclusive_group(required=True)
-    length.add_argument("--duration", type=float, metavar="S", help="run length in seconds")
-    length.add_argument("--samples", type=int, metavar="N", help="number of samples")
+    length.add_argument("--duration", type=float, metavar="S", help=_("run length in seconds"))
+    length.add_argument("--samples", type=int, metavar="N", help=_("number of samples"))
     parser.add_argument(
         "--signal",
         metavar="SPEC",
-        help="input signal: const:U, step:U0:U1@T, square:LOW:HIGH:FREQ_HZ, "
-        "sine:OFFSET:AMPLITUDE:FREQ_HZ, prbs:LOW:HIGH:BIT_SECONDS[:SEED] "
-        "(required unless --control pid)",
+        help=_(
+            "input signal: const:U, step:U0:U1@T, square:LOW:HIGH:FREQ_HZ, "
+            "sine:OFFSET:AMPLITUDE:FREQ_HZ, prbs:LOW:HIGH:BIT_SECONDS[:SEED] "
+            "(required unless --control pid)"
+        ),
     )
     parser.add_argument(
         "--method",
         default="all",
         metavar="LIST",
-        help=f"comma-separated online methods from {', '.join(METHOD_NAMES)} (default: all)",
+        help=_("comma-separated online methods from {methods} (default: all)").format(
+            methods=", ".join(METHOD_NAMES)
+        ),
     )
     # The identifiers' settings, from the registry; each goes to the methods that take it.
-    add_setting_options(parser.add_argument_group("method settings"), identifier_settings())
+    add_setting_options(parser.add_argument_group(_("method settings")), identifier_settings())
     speed = parser.add_mutually_exclusive_group()
     speed.add_argument(
         "--speedup",
         type=float,
         metavar="X",
-        help="simulated rigs: run X times faster than real time (default 1: real time)",
+        help=_("simulated rigs: run X times faster than real time (default 1: real time)"),
     )
     speed.add_argument(
-        "--fast", action="store_true", help="simulated rigs: run as fast as possible"
+        "--fast", action="store_true", help=_("simulated rigs: run as fast as possible")
     )
-    parser.add_argument("--seed", type=int, metavar="N", help="seed of a simulated rig's noise")
-    parser.add_argument("--out", metavar="FILE.csv", help="write every sample to this CSV file")
+    parser.add_argument("--seed", type=int, metavar="N", help=_("seed of a simulated rig's noise"))
+    parser.add_argument("--out", metavar="FILE.csv", help=_("write every sample to this CSV file"))
     parser.add_argument(
-        "--json", action="store_true", help="print the result as JSON instead of a table"
+        "--json", action="store_true", help=_("print the result as JSON instead of a table")
     )
     parser.add_argument(
         "--max-output",
         type=float,
         metavar="Y",
-        help="stop the run if the output exceeds Y (output unit; the rig's own limit "
-        "always applies)",
+        help=_(
+            "stop the run if the output exceeds Y (output unit; the rig's own limit always applies)"
+        ),
     )
     parser.add_argument(
         "--watchdog",
         type=float,
         default=10.0,
         metavar="S",
-        help="make the rig safe if the sampling loop stalls for S wall-clock seconds (default 10)",
+        help=_(
+            "make the rig safe if the sampling loop stalls for S wall-clock seconds (default 10)"
+        ),
     )
-    _add_control_options(parser.add_argument_group("closed-loop control"))
+    _add_control_options(parser.add_argument_group(_("closed-loop control")))
 
 
 def _add_control_options(group: Any) -> None:
@@ -112,52 +127,58 @@ def _add_control_options(group: Any) -> None:
         "--control",
         choices=("manual", "pid"),
         default="manual",
-        help="manual: the signal drives the input (default); pid: a PID holds --setpoint",
+        help=_("manual: the signal drives the input (default); pid: a PID holds --setpoint"),
     )
     group.add_argument(
         "--setpoint",
         metavar="SPEC",
-        help="the PID's set point in the rig's output unit: a number, or a profile in the "
-        "signal grammar (step:R0:R1@T ...)",
+        help=_(
+            "the PID's set point in the rig's output unit: a number, or a profile in the "
+            "signal grammar (step:R0:R1@T ...)"
+        ),
     )
-    group.add_argument("--kp", type=float, metavar="KP", help="proportional gain")
-    group.add_argument("--ti", type=float, metavar="S", help="integral time in seconds")
+    group.add_argument("--kp", type=float, metavar="KP", help=_("proportional gain"))
+    group.add_argument("--ti", type=float, metavar="S", help=_("integral time in seconds"))
     group.add_argument(
-        "--td", type=float, metavar="S", help="derivative time in seconds (default 0)"
+        "--td", type=float, metavar="S", help=_("derivative time in seconds (default 0)")
     )
     group.add_argument(
         "--tune",
         choices=tuple(RULES),
         metavar="RULE",
-        help=f"tune from --model by a rule: {', '.join(RULES)} (instead of --kp/--ti/--td; "
-        "the rule --adaptive uses, default simc)",
+        help=_(
+            "tune from --model by a rule: {rules} (instead of --kp/--ti/--td; "
+            "the rule --adaptive uses, default simc)"
+        ).format(rules=", ".join(RULES)),
     )
     group.add_argument(
-        "--model", metavar="K,TAU[,THETA]", help="the FOPDT model to tune from (gain, s, s)"
+        "--model", metavar="K,TAU[,THETA]", help=_("the FOPDT model to tune from (gain, s, s)")
     )
     group.add_argument(
-        "--tau-c", type=float, metavar="S", help="closed-loop time constant (imc, simc)"
+        "--tau-c", type=float, metavar="S", help=_("closed-loop time constant (imc, simc)")
     )
     group.add_argument(
-        "--pid-form", choices=("pi", "pid"), help="the rule's controller form (default: the rule's)"
+        "--pid-form",
+        choices=("pi", "pid"),
+        help=_("the rule's controller form (default: the rule's)"),
     )
     group.add_argument(
         "--adaptive",
         action="store_true",
-        help="retune the PID live from WLSM estimates (off by default)",
+        help=_("retune the PID live from WLSM estimates (off by default)"),
     )
     group.add_argument(
-        "--retune-every", type=int, default=50, metavar="N", help="retune every N samples"
+        "--retune-every", type=int, default=50, metavar="N", help=_("retune every N samples")
     )
     group.add_argument(
         "--max-change",
         type=float,
         default=0.2,
         metavar="F",
-        help="largest relative gain change per retune (default 0.2)",
+        help=_("largest relative gain change per retune (default 0.2)"),
     )
-    group.add_argument("--kp-range", metavar="LOW,HIGH", help="bounds of |Kp| when adaptive")
-    group.add_argument("--ti-range", metavar="LOW,HIGH", help="bounds of Ti (s) when adaptive")
+    group.add_argument("--kp-range", metavar="LOW,HIGH", help=_("bounds of |Kp| when adaptive"))
+    group.add_argument("--ti-range", metavar="LOW,HIGH", help=_("bounds of Ti (s) when adaptive"))
 
 
 _PID_OPTIONS = (
@@ -175,8 +196,18 @@ def _numbers(option: str, text: str, counts: tuple[int, ...]) -> tuple[float, ..
     except ValueError:
         values = ()
     if len(values) not in counts or not all(math.isfinite(v) for v in values):
-        shape = " or ".join(str(c) for c in counts)
-        raise CliError(f"{option} takes {shape} comma-separated numbers, got {text!r}", status=2)
+        if len(counts) == 1:
+            said = _("{option} takes {count} comma-separated numbers, got {text}").format(
+                option=option, count=counts[0], text=repr(text)
+            )
+        else:
+            said = _("{option} takes {low} or {high} comma-separated numbers, got {text}").format(
+                option=option,
+                low=", ".join(str(c) for c in counts[:-1]),
+                high=counts[-1],
+                text=repr(text),
+            )
+        raise CliError(said, status=2)
     return values
 
 
@@ -193,27 +224,27 @@ def control_loop(args: argparse.Namespace) -> tuple[Any, Any, Any]:
             given.append("adaptive")
         if given:
             names = ", ".join("--" + o.replace("_", "-") for o in given)
-            raise CliError(f"{names} need --control pid", status=2)
+            raise CliError(_("{options} need --control pid").format(options=names), status=2)
         if args.signal is None:
-            raise CliError("--signal is required (or give --control pid)", status=2)
+            raise CliError(_("--signal is required (or give --control pid)"), status=2)
         return None, None, None
     if args.setpoint is None:
-        raise CliError("--control pid needs --setpoint (a number or a profile)", status=2)
+        raise CliError(_("--control pid needs --setpoint (a number or a profile)"), status=2)
     model = None
     if args.model is not None:
         model = FOPDT(*_numbers("--model", args.model, (2, 3)))
     tuning = None
     if args.kp is not None:
         if args.ti is None:
-            raise CliError("--kp needs --ti (integral time in seconds)", status=2)
+            raise CliError(_("--kp needs --ti (integral time in seconds)"), status=2)
         if args.tune is not None and not args.adaptive:
-            raise CliError("give either --kp/--ti/--td or --tune, not both", status=2)
+            raise CliError(_("give either --kp/--ti/--td or --tune, not both"), status=2)
         gains = PIDGains(args.kp, args.ti, 0.0 if args.td is None else args.td)
     elif args.ti is not None or args.td is not None:
-        raise CliError("--ti and --td need --kp", status=2)
+        raise CliError(_("--ti and --td need --kp"), status=2)
     elif args.tune is None or model is None:
         raise CliError(
-            "--control pid needs gains: --kp/--ti[/--td], or --tune RULE --model K,TAU,THETA",
+            _("--control pid needs gains: --kp/--ti[/--td], or --tune RULE --model K,TAU,THETA"),
             status=2,
         )
     else:
@@ -241,7 +272,7 @@ def control_loop(args: argparse.Namespace) -> tuple[Any, Any, Any]:
             bounds=GainBounds(**ranges),
         )
     elif args.kp_range is not None or args.ti_range is not None:
-        raise CliError("--kp-range and --ti-range need --adaptive", status=2)
+        raise CliError(_("--kp-range and --ti-range need --adaptive"), status=2)
     try:
         setpoint: Any = float(args.setpoint)
     except ValueError:
@@ -259,19 +290,34 @@ def number_of_samples(args: argparse.Namespace) -> int:
     from thermolab.cli import CliError
 
     if not (math.isfinite(args.dt) and args.dt > 0):
-        raise CliError(f"--dt must be a positive number of seconds, got {args.dt:g}", status=2)
+        raise CliError(
+            _("--dt must be a positive number of seconds, got {dt}").format(dt=f"{args.dt:g}"),
+            status=2,
+        )
     if args.samples is not None:
         if args.samples < 1:
-            raise CliError(f"--samples must be at least 1, got {args.samples}", status=2)
+            raise CliError(
+                _("--samples must be at least 1, got {samples}").format(samples=args.samples),
+                status=2,
+            )
         return int(args.samples)
     duration = args.duration
     if not (math.isfinite(duration) and duration > 0):
-        raise CliError(f"--duration must be a positive number of seconds, got {duration:g}", 2)
+        raise CliError(
+            _("--duration must be a positive number of seconds, got {duration}").format(
+                duration=f"{duration:g}"
+            ),
+            2,
+        )
     # A duration of 2000 s at 1 s is 2000 samples (t = 0 ... 1999 s); the tolerance
     # keeps 0.3 / 0.1 from becoming 2 samples.
     n = math.floor(duration / args.dt + 1e-9)
     if n < 1:
-        raise CliError(f"--duration {duration:g} s is shorter than one period (--dt {args.dt:g})")
+        raise CliError(
+            _("--duration {duration} s is shorter than one period (--dt {dt})").format(
+                duration=f"{duration:g}", dt=f"{args.dt:g}"
+            )
+        )
     return int(n)
 
 
@@ -283,13 +329,21 @@ def clock_for(args: argparse.Namespace, simulated: bool) -> Any:
     if not simulated:
         if args.fast or (args.speedup is not None and args.speedup != 1.0):
             raise CliError(
-                f"a real rig ({args.rig}) runs in real time: drop --fast / --speedup", status=2
+                _("a real rig ({rig}) runs in real time: drop --fast / --speedup").format(
+                    rig=args.rig
+                ),
+                status=2,
             )
         return RealClock()
     if args.fast:
         return VirtualClock()
     if args.speedup is not None:
         if not (args.speedup > 0 and not math.isnan(args.speedup)):
-            raise CliError(f"--speedup must be a positive number, got {args.speedup:g}", 2)
+            raise CliError(
+                _("--speedup must be a positive number, got {speedup}").format(
+                    speedup=f"{args.speedup:g}"
+                ),
+                2,
+            )
         return make_clock(args.speedup)
     return RealClock()

@@ -14,6 +14,8 @@ import threading
 import time
 from typing import Any, TextIO
 
+from thermolab.cli._words import _, decimal, library_text
+
 __all__ = [
     "Progress",
     "closed_loop_figures",
@@ -23,8 +25,15 @@ __all__ = [
 ]
 
 
-def closed_loop_figures(result: Any, loop: Any, model: Any) -> dict[str, Any]:
-    """Measured (and, with a model, predicted) overshoot, settling time and IAE."""
+def closed_loop_figures(
+    result: Any, loop: Any, model: Any
+) -> tuple[dict[str, Any], tuple[str, ...]]:
+    """Measured (and, with a model, predicted) overshoot, settling time and IAE.
+
+    Returns the figures (``--json``'s ``closed_loop``, whose ``note`` is the notes
+    joined in English) and the notes one by one, for :func:`control_table` to say
+    each in the user's language.
+    """
     from thermolab.control import (
         predict_record_step,
         rest_warning,
@@ -38,7 +47,7 @@ def closed_loop_figures(result: Any, loop: Any, model: Any) -> dict[str, Any]:
     try:
         if model is None:
             figures["measured"] = step_metrics(result.t, r, result.y).to_dict()
-            return figures
+            return figures, ()
         rig = result.rig
         # The lab's figures come from the same function: one operating point rule.
         measured, predicted = predict_record_step(
@@ -55,47 +64,103 @@ def closed_loop_figures(result: Any, loop: Any, model: Any) -> dict[str, Any]:
         )
     except InvalidDataError as exc:
         figures["note"] = str(exc)
-        return figures
+        return figures, (str(exc),)
     figures["measured"] = measured.to_dict()
     figures["predicted"] = predicted.metrics.to_dict()
-    notes = (
-        rest_warning(model, measured, result.t, result.y),
-        settling_warning(measured, predicted.metrics),
+    notes = tuple(
+        n
+        for n in (
+            rest_warning(model, measured, result.t, result.y),
+            settling_warning(measured, predicted.metrics),
+        )
+        if n
     )
-    figures["note"] = "; ".join(n for n in notes if n) or None
-    return figures
+    figures["note"] = "; ".join(notes) or None
+    return figures, notes
 
 
-def control_table(result: Any, loop: Any, tuning: Any, figures: dict[str, Any]) -> str:
-    """The control line (mode, set point, gains, tuning) and the closed-loop figures' table."""
+def control_table(
+    result: Any,
+    loop: Any,
+    tuning: Any,
+    figures: dict[str, Any],
+    notes: tuple[str, ...] = (),
+) -> str:
+    """The control line (mode, set point, gains, tuning) and the closed-loop figures' table.
+
+    ``notes`` are the library's notes on the figures one by one (from
+    :func:`closed_loop_figures`); without them, ``figures["note"]`` is said as one.
+    """
     rig = result.rig
     g = loop.gains
     how = f"  ({tuning.rule} {tuning.form}" if tuning is not None else ""
     if tuning is not None and tuning.tau_c is not None:
         how += f", tau_c {tuning.tau_c:g} s"
     how += ")" if tuning is not None else ""
-    lines = [
-        f"control: PID {'auto' if loop.auto else 'manual'}   set point {loop.setpoint:g} "
-        f"{rig.output_unit}   Kp {g.Kp:.6g}  Ti {g.Ti:.6g} s  Td {g.Td:.6g} s{how}"
-    ]
-    if loop.tuner is not None:
-        lines.append(
-            f"adaptive: {loop.tuner.retunes} retunes, {loop.tuner.skipped} skipped "
-            f"(rule {loop.tuner.rule}, every {loop.tuner.every} samples)"
-            + (f"; holding the gains: {loop.tuner.last_reason}" if loop.tuner.last_reason else "")
+    if loop.auto:
+        control = _(
+            "control: PID auto   set point {setpoint} {unit}   Kp {kp}  Ti {ti} s  Td {td} s"
+            "{tuning}"
         )
+    else:
+        control = _(
+            "control: PID manual   set point {setpoint} {unit}   Kp {kp}  Ti {ti} s  Td {td} s"
+            "{tuning}"
+        )
+    lines = [
+        decimal(
+            control.format(
+                setpoint=f"{loop.setpoint:g}",
+                unit=rig.output_unit,
+                kp=f"{g.Kp:.6g}",
+                ti=f"{g.Ti:.6g}",
+                td=f"{g.Td:.6g}",
+                tuning=how,
+            )
+        )
+    ]
+    tuner = loop.tuner
+    if tuner is not None:
+        counts = {
+            "retunes": tuner.retunes,
+            "skipped": tuner.skipped,
+            "rule": tuner.rule,
+            "every": tuner.every,
+        }
+        if tuner.last_reason:
+            lines.append(
+                _(
+                    "adaptive: {retunes} retunes, {skipped} skipped (rule {rule}, every {every} "
+                    "samples); holding the gains: {reason}"
+                ).format(**counts, reason=library_text(tuner.last_reason))
+            )
+        else:
+            lines.append(
+                _(
+                    "adaptive: {retunes} retunes, {skipped} skipped (rule {rule}, every {every} "
+                    "samples)"
+                ).format(**counts)
+            )
     if figures["note"]:
-        lines.append(f"closed loop: {figures['note']}")
+        said = "; ".join(library_text(n) for n in notes or (figures["note"],))
+        lines.append(_("closed loop: {note}").format(note=said))
     if figures["measured"] is None:
         return "\n".join(lines)
-    header = f"{'closed loop':<12} {'overshoot (%)':>14} {'settling (s)':>13} {'IAE':>12}"
+    # The widths are the English table's, widened to fit the words in the user's language.
+    rows = {"measured": _("measured"), "predicted": _("predicted")}
+    title, overshoot, settling_title = _("closed loop"), _("overshoot (%)"), _("settling (s)")
+    w0 = max(12, len(title), *(len(label) for label in rows.values()))
+    w1 = max(14, len(overshoot))
+    w2 = max(13, len(settling_title))
+    header = f"{title:<{w0}} {overshoot:>{w1}} {settling_title:>{w2}} {'IAE':>12}"
     lines += ["", header, "-" * len(header)]
-    for name in ("measured", "predicted"):
+    for name, label in rows.items():
         m = figures[name]
         if m is None:
             continue
         settling = "-" if m["settling_time"] is None else f"{m['settling_time']:.1f}"
-        lines.append(f"{name:<12} {m['overshoot']:>14.2f} {settling:>13} {m['iae']:>12.4g}")
+        row = f"{label:<{w0}} {m['overshoot']:>{w1}.2f} {settling:>{w2}} {m['iae']:>12.4g}"
+        lines.append(decimal(row))
     return "\n".join(lines)
 
 
@@ -141,12 +206,15 @@ class Progress:
         width = 30
         filled = int(fraction * width)
         bar = "#" * filled + "-" * (width - filled)
+        counted = _("{done}/{total} samples  t={t} s").format(
+            done=done, total=total, t=f"{done * exp.dt:g}"
+        )
         eta = ""
         if 0 < done < total:
-            eta = f"  ETA {elapsed * (total - done) / done:4.0f} s"
-        line = (
-            f"\r[{bar}] {100 * fraction:3.0f}%  {done}/{total} samples  t={done * exp.dt:g} s{eta}"
-        )
+            eta = "  " + _("ETA {seconds} s").format(
+                seconds=f"{elapsed * (total - done) / done:4.0f}"
+            )
+        line = f"\r[{bar}] {100 * fraction:3.0f}%  {counted}{eta}"
         self._stream.write(line + "\x1b[K")
         self._stream.flush()
         self._shown = True
@@ -171,35 +239,70 @@ def _estimate_fields(estimate: Any) -> tuple[float, float, bool, str | None]:
 def summary_table(result: Any, csv_path: str | None) -> str:
     """The run's line (rig, dt, samples, lateness, CSV) and each method's Ks and Ts."""
     rig = result.rig
-    lines = [
-        f"rig: {rig.name}   dt: {result.dt:g} s   samples: {result.samples}/"
-        f"{result.samples_requested} ({result.end_reason.value})   "
-        f"late: {result.late}   missed deadlines: {result.missed}"
-        + (f"   csv: {csv_path}" if csv_path else ""),
-    ]
+    words = {
+        "rig": rig.name,
+        "dt": decimal(f"{result.dt:g}"),
+        "samples": result.samples,
+        "requested": result.samples_requested,
+        "end": _end_reason(result.end_reason.value),
+        "late": result.late,
+        "missed": result.missed,
+    }
+    if csv_path:
+        run_line = _(
+            "rig: {rig}   dt: {dt} s   samples: {samples}/{requested} ({end})   "
+            "late: {late}   missed deadlines: {missed}   csv: {path}"
+        ).format(**words, path=csv_path)
+    else:
+        run_line = _(
+            "rig: {rig}   dt: {dt} s   samples: {samples}/{requested} ({end})   "
+            "late: {late}   missed deadlines: {missed}"
+        ).format(**words)
+    lines = [run_line]
     if not result.methods:
         return "\n".join(lines)
     gain_unit = f"{rig.output_unit}/{rig.input_unit}"
-    header = f"{'method':<8} {'Ks (' + gain_unit + ')':>16} {'Ts (s)':>14} {'estimates':>10}  note"
+    # The widths are the English table's, widened to fit the words in the user's language.
+    method_title, estimates_title, note_title = _("method"), _("estimates"), _("note")
+    w0 = max(8, len(method_title))
+    w3 = max(10, len(estimates_title))
+    header = (
+        f"{method_title:<{w0}} {'Ks (' + gain_unit + ')':>16} {'Ts (s)':>14} "
+        f"{estimates_title:>{w3}}  {note_title}"
+    )
     lines += ["", header, "-" * len(header)]
     for name, method in result.methods.items():
         latest = method.latest
-        note = method.error or ""
+        note = library_text(method.error) if method.error else ""
         if latest is None:
             ks = ts = "-"
-            note = note or "no estimate"
+            note = note or _("no estimate")
         else:
             K, tau, valid, reason = _estimate_fields(latest)
-            ks = f"{K:.6f}" if math.isfinite(K) else "-"
-            ts = f"{tau:.6f}" if math.isfinite(tau) else "-"
+            ks = decimal(f"{K:.6f}") if math.isfinite(K) else "-"
+            ts = decimal(f"{tau:.6f}") if math.isfinite(tau) else "-"
             if not valid and not note:
-                note = reason or "no first-order meaning"
+                note = library_text(reason) if reason else _("no first-order meaning")
             elif method.final is None and result.ok and not note:
-                note = "last of the run"
+                note = _("last of the run")
             elif len(method.k) == 0 and method.final is not None and not note:
-                note = "at END"
-        lines.append(f"{name:<8} {ks:>16} {ts:>14} {len(method.k):>10}  {note}".rstrip())
+                note = _("at END")
+        lines.append(f"{name:<{w0}} {ks:>16} {ts:>14} {len(method.k):>{w3}}  {note}".rstrip())
     return "\n".join(lines)
+
+
+def _end_reason(value: str) -> str:
+    """Why the run ended (an :class:`~thermolab.runner.EndReason`'s value) in the user's words."""
+    words = {
+        "completed": _("completed"),
+        "ended": _("ended"),
+        "interlock": _("interlock"),
+        "rig_fault": _("rig_fault"),
+        "watchdog": _("watchdog"),
+        "error": _("error"),
+        "aborted": _("aborted"),
+    }
+    return words.get(value, value)
 
 
 def json_report(result: Any, csv_path: str | None, signal_spec: str | None) -> dict[str, Any]:

@@ -15,6 +15,7 @@ import math
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
+from thermolab.cli._words import _, library_text
 from thermolab.ident.registry import METHODS, Setting
 
 __all__ = ["add_setting_options", "given_settings", "option", "settings_of"]
@@ -42,8 +43,10 @@ def add_setting_options(
     for s in settings:
         takers = [m.name for m in METHODS if s in m.settings]
         shown = _shown_default(s)
-        where = ", ".join(takers) if len(takers) < len(METHODS) - 1 else "all but srm"
-        help_text = f"{where}: {s.help}" + (f" (default {shown})" if shown else "")
+        where = ", ".join(takers) if len(takers) < len(METHODS) - 1 else _("all but srm")
+        help_text = f"{where}: {library_text(s.help)}"
+        if shown:
+            help_text += " " + _("(default {default})").format(default=shown)
         kwargs: dict[str, Any] = {"dest": s.name, "default": None, "help": help_text}
         if s.type == "choice":
             kwargs["choices"] = s.choices
@@ -75,7 +78,11 @@ def _parser_for(s: Setting) -> Callable[[str], Any]:
     flag = option(s)
 
     def refuse(text: str) -> argparse.ArgumentTypeError:
-        return argparse.ArgumentTypeError(f"{flag} must be {s.allowed()}, got {text!r}")
+        return argparse.ArgumentTypeError(
+            _("{option} must be {allowed}, got {value}").format(
+                option=flag, allowed=library_text(s.allowed()), value=repr(text)
+            )
+        )
 
     def number(text: str) -> float:
         try:
@@ -104,7 +111,9 @@ def _parser_for(s: Setting) -> Callable[[str], Any]:
             na, nb, delay = (int(p) for p in parts)
         except ValueError:
             raise argparse.ArgumentTypeError(
-                f"{flag} must be three whole numbers NA,NB,DELAY (e.g. 1,1,0), got {text!r}"
+                _(
+                    "{option} must be three whole numbers NA,NB,DELAY (e.g. 1,1,0), got {value}"
+                ).format(option=flag, value=repr(text))
             ) from None
         return na, nb, delay
 

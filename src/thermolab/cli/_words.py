@@ -20,9 +20,19 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import re
 from collections.abc import Iterator
 
-__all__ = ["ARGPARSE_WORDS", "_", "cli_language", "in_language", "speaking_argparse"]
+__all__ = [
+    "ARGPARSE_WORDS",
+    "_",
+    "any_words",
+    "cli_language",
+    "decimal",
+    "in_language",
+    "library_text",
+    "speaking_argparse",
+]
 
 #: argparse's own words that a user of ``thermolab`` can meet (Python 3.11's msgids;
 #: another Python's that differ stay English). The catalogues translate these too.
@@ -95,3 +105,35 @@ def speaking_argparse() -> Iterator[None]:
         yield
     finally:
         argparse._, argparse.ngettext = saved  # type: ignore[attr-defined]
+
+
+def library_text(text: str) -> str:
+    """A sentence of the numerical libraries (an identification warning or reason, a
+    closed loop's note) in the user's language, as the browser says it; any other
+    text as written."""
+    language = cli_language()
+    if language == "en":
+        return text
+    from thermolab.web.library_words import library_sentence
+
+    return library_sentence(text, language)
+
+
+def any_words(text: str) -> str:
+    """``text`` in the user's language, whatever it is: a msgid declared by a library
+    function that takes a translator (``Table1Result.format(say=...)``, whose words the
+    catalogue test extracts there) or a sentence of the numerical libraries."""
+    return library_text(_(text))
+
+
+def decimal(text: str) -> str:
+    """The figures of ``text`` with the user's decimal mark (``0.14`` -> ``0,14`` in
+    pt-BR and es); their digits as written. For a report's values, never for a path,
+    a command or output meant for a program (``--json``)."""
+    language = cli_language()
+    if language == "en":
+        return text
+    from thermolab.lab.error_messages import decimal_mark
+
+    mark = decimal_mark(language)
+    return re.sub(r"(?<=\d)\.(?=\d)", mark, text)

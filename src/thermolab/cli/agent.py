@@ -22,26 +22,32 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from thermolab.cli._words import _
 from thermolab.cli.serve import add_database_options, lab_config_from_args
 
 __all__ = ["register"]
 
-_EXAMPLES = """\
-examples:
-  thermolab agent-secret box1 --config lab.toml > box1.secret     # on the lab
-  thermolab agent --lab wss://lab.example:8443 --rig box1 --spec tclab \\
-      --secret-file box1.secret --ca lab-ca.pem                   # on the rig host
-"""
+
+def _examples() -> str:
+    """The ``--help`` epilog: the commands as they are typed, the words around them translated."""
+    commands = (
+        "thermolab agent-secret box1 --config lab.toml > box1.secret     # " + _("on the lab"),
+        "thermolab agent --lab wss://lab.example:8443 --rig box1 --spec tclab \\",
+        "    --secret-file box1.secret --ca lab-ca.pem                   # " + _("on the rig host"),
+    )
+    return _("examples:") + "\n" + "".join(f"  {command}\n" for command in commands)
 
 
 def register(subparsers: Any) -> None:
     """Add ``agent`` and ``agent-secret`` to the ``thermolab`` parser."""
     agent = subparsers.add_parser(
         "agent",
-        help="serve one rig from its host, dialling the lab (remote rigs)",
-        description="Own a rig, its runner and interlocks on this host, and connect out to "
-        "the lab that uses it.",
-        epilog=_EXAMPLES,
+        help=_("serve one rig from its host, dialling the lab (remote rigs)"),
+        description=_(
+            "Own a rig, its runner and interlocks on this host, and connect out to "
+            "the lab that uses it."
+        ),
+        epilog=_examples(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     agent.add_argument(
@@ -49,41 +55,49 @@ def register(subparsers: Any) -> None:
         required=True,
         action="append",
         metavar="URL",
-        help="the lab: wss://HOST:PORT (repeat for each web worker of a fleet)",
+        help=_("the lab: wss://HOST:PORT (repeat for each web worker of a fleet)"),
     )
-    agent.add_argument("--rig", required=True, metavar="ID", help="the rig's id in the lab's file")
     agent.add_argument(
-        "--spec", required=True, metavar="SPEC", help="what the rig is (sim:tclab, tclab:PORT)"
+        "--rig", required=True, metavar="ID", help=_("the rig's id in the lab's file")
+    )
+    agent.add_argument(
+        "--spec", required=True, metavar="SPEC", help=_("what the rig is (sim:tclab, tclab:PORT)")
     )
     agent.add_argument(
         "--secret-file",
         required=True,
         metavar="FILE",
-        help="the rig's secret (thermolab agent-secret)",
+        help=_("the rig's secret (thermolab agent-secret)"),
     )
-    agent.add_argument("--ca", metavar="FILE.pem", help="CA certificate(s) to trust for the lab")
+    agent.add_argument("--ca", metavar="FILE.pem", help=_("CA certificate(s) to trust for the lab"))
     agent.add_argument(
-        "--outbox", metavar="FILE", help="the durable sample outbox (default: in the data folder)"
+        "--outbox",
+        metavar="FILE",
+        help=_("the durable sample outbox (default: in the data folder)"),
     )
     agent.add_argument(
         "--speedup",
         type=float,
         default=1.0,
         metavar="X",
-        help="twins only: X times real time (the host's own: the lab's twin_speedup setting "
-        "is for the twins the lab runs)",
+        help=_(
+            "twins only: X times real time (the host's own: the lab's twin_speedup setting "
+            "is for the twins the lab runs)"
+        ),
     )
     agent.add_argument(
-        "--ping", type=float, default=1.0, metavar="S", help="seconds between link checks (1)"
+        "--ping", type=float, default=1.0, metavar="S", help=_("seconds between link checks (1)")
     )
     agent.set_defaults(handler=_agent)
 
     issue = subparsers.add_parser(
         "agent-secret",
-        help="issue or rotate a remote rig's secret (on the lab)",
-        description="Issue a remote rig's secret, or rotate it: printed once, stored hashed.",
+        help=_("issue or rotate a remote rig's secret (on the lab)"),
+        description=_("Issue a remote rig's secret, or rotate it: printed once, stored hashed."),
     )
-    issue.add_argument("rig", metavar="RIG", help="the rig's id (agent = true in the lab's file)")
+    issue.add_argument(
+        "rig", metavar="RIG", help=_("the rig's id (agent = true in the lab's file)")
+    )
     add_database_options(issue)
     issue.set_defaults(handler=_issue)
 
@@ -110,11 +124,15 @@ def _agent(args: argparse.Namespace) -> int:
 
     for lab in args.lab:
         if not (lab.startswith("wss://") or lab.startswith("ws://")):
-            raise CliError(f"--lab {lab!r}: use wss://HOST:PORT", status=2)
+            raise CliError(_("--lab {url}: use wss://HOST:PORT").format(url=repr(lab)), status=2)
     try:
         secret = Path(args.secret_file).read_text().strip()
     except OSError as exc:
-        raise CliError(f"cannot read --secret-file {args.secret_file}: {exc.strerror}") from None
+        raise CliError(
+            _("cannot read --secret-file {path}: {reason}").format(
+                path=args.secret_file, reason=exc.strerror
+            )
+        ) from None
     spec = RigSpec.parse(args.spec)
     outbox_path = Path(args.outbox) if args.outbox else _default_outbox(args)
     outbox_path.parent.mkdir(parents=True, exist_ok=True)
@@ -137,7 +155,12 @@ def _agent(args: argparse.Namespace) -> int:
     host = RigHost(rig, outbox)
     link = AgentLink(host, settings)
     host.on_outbox = link.wake
-    print(f"thermolab agent: rig {args.rig} ({args.spec}) -> {url}", file=sys.stderr)
+    print(
+        _("thermolab agent: rig {rig} ({spec}) -> {url}").format(
+            rig=args.rig, spec=args.spec, url=url
+        ),
+        file=sys.stderr,
+    )
     try:
         asyncio.run(_until_signal(link))
     finally:

@@ -14,16 +14,23 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from thermolab.cli._words import _
 from thermolab.cli.serve import add_database_options, lab_config_from_args
 
 __all__ = ["register"]
 
-_EXAMPLES = """\
-examples:
+
+# The commands are never translated; their heading is (see :func:`_examples`).
+_EXAMPLE_COMMANDS = """\
   thermolab --data-dir /srv/thermolab backup /var/backups/thermolab/lab-$(date +%F).tar.gz
   thermolab --data-dir /srv/thermolab-new restore /var/backups/thermolab/lab-2026-11-28.tar.gz
   thermolab backup lab.tar.gz --database-url postgresql+psycopg://lab@db/thermolab
 """
+
+
+def _examples() -> str:
+    """The ``--help`` epilog: a heading in the user's language, then the commands."""
+    return _("examples:") + "\n" + _EXAMPLE_COMMANDS
 
 
 def register(subparsers: Any) -> None:
@@ -36,25 +43,29 @@ def register(subparsers: Any) -> None:
     """
     backup = subparsers.add_parser(
         "backup",
-        help="copy the lab (database and data folder) into one archive, even while it runs",
-        description="Copy the lab's database (consistently, while it runs) and data folder "
-        "into one .tar.gz with a manifest of checksums.",
-        epilog=_EXAMPLES,
+        help=_("copy the lab (database and data folder) into one archive, even while it runs"),
+        description=_(
+            "Copy the lab's database (consistently, while it runs) and data folder "
+            "into one .tar.gz with a manifest of checksums."
+        ),
+        epilog=_examples(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    backup.add_argument("archive", metavar="FILE.tar.gz", help="the archive to write")
+    backup.add_argument("archive", metavar="FILE.tar.gz", help=_("the archive to write"))
     add_database_options(backup)
     backup.set_defaults(handler=_backup)
 
     restore = subparsers.add_parser(
         "restore",
-        help="bring a backup back into an empty data folder or database",
-        description="Restore a 'thermolab backup' archive into an empty data folder (and an "
-        "empty database with --database-url), checking every checksum first.",
-        epilog=_EXAMPLES,
+        help=_("bring a backup back into an empty data folder or database"),
+        description=_(
+            "Restore a 'thermolab backup' archive into an empty data folder (and an "
+            "empty database with --database-url), checking every checksum first."
+        ),
+        epilog=_examples(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    restore.add_argument("archive", metavar="FILE.tar.gz", help="the archive to read")
+    restore.add_argument("archive", metavar="FILE.tar.gz", help=_("the archive to read"))
     add_database_options(restore)
     restore.set_defaults(handler=_restore)
 
@@ -68,8 +79,16 @@ def _backup(args: argparse.Namespace) -> int:
     manifest = make_backup(config, Path(args.archive))
     size = sum(int(f["size"]) for f in manifest.files.values())
     print(
-        f"backed up the lab (ThermoLab {manifest.version}, schema {manifest.revision}, "
-        f"{len(manifest.files)} files, {size} bytes) into {args.archive}"
+        _(
+            "backed up the lab (ThermoLab {version}, schema {revision}, "
+            "{files} files, {size} bytes) into {archive}"
+        ).format(
+            version=manifest.version,
+            revision=manifest.revision,
+            files=len(manifest.files),
+            size=size,
+            archive=args.archive,
+        )
     )
     return 0
 
@@ -81,13 +100,14 @@ def _restore(args: argparse.Namespace) -> int:
 
     archive = Path(args.archive)
     if not archive.is_file():
-        raise CliError(f"no backup at {archive}")
+        raise CliError(_("no backup at {path}").format(path=archive))
     config = lab_config_from_args(args)
     make_private(config)  # the restored files are the server user's only
     manifest = restore_backup(archive, config)
     print(
-        f"restored the backup of {manifest.created} (ThermoLab {manifest.version}) "
-        f"into {config.data_dir}",
+        _("restored the backup of {created} (ThermoLab {version}) into {path}").format(
+            created=manifest.created, version=manifest.version, path=config.data_dir
+        ),
         file=sys.stdout,
     )
     return 0

@@ -31,70 +31,79 @@ if TYPE_CHECKING:
 
 __all__ = ["register"]
 
-_EXAMPLES = """\
-examples:
-  thermolab course create ctrl1 --title "Controle I" --teacher tina
-  thermolab course import ctrl1 turma.csv > passwords.csv
-  thermolab course import ctrl1 turma.csv --dialect pt-BR > senhas.csv
-  thermolab course list
-  thermolab course assistant ctrl1 rafa            # rafa assists ctrl1 (reads, changes nothing)
-  thermolab course assistant ctrl1 rafa --remove
-  thermolab course close ctrl1
-  thermolab course copy ctrl1 ctrl1-2027-1 --starts 2027-03-01
-  thermolab course purge-students ctrl1            # who would go (nothing changes)
-  thermolab course purge-students ctrl1 --yes      # remove them; runs kept under a pseudonym
-"""
+
+def _examples() -> str:
+    """The ``--help`` epilog: the commands as they are typed, the words around them translated."""
+    commands = (
+        'thermolab course create ctrl1 --title "Controle I" --teacher tina',
+        "thermolab course import ctrl1 turma.csv > passwords.csv",
+        "thermolab course import ctrl1 turma.csv --dialect pt-BR > senhas.csv",
+        "thermolab course list",
+        "thermolab course assistant ctrl1 rafa            # "
+        + _("rafa assists ctrl1 (reads, changes nothing)"),
+        "thermolab course assistant ctrl1 rafa --remove",
+        "thermolab course close ctrl1",
+        "thermolab course copy ctrl1 ctrl1-2027-1 --starts 2027-03-01",
+        "thermolab course purge-students ctrl1            # " + _("who would go (nothing changes)"),
+        "thermolab course purge-students ctrl1 --yes      # "
+        + _("remove them; runs kept under a pseudonym"),
+    )
+    return _("examples:") + "\n" + "".join(f"  {command}\n" for command in commands)
 
 
 def register(subparsers: Any) -> None:
     """Add the ``course`` subcommand to the ``thermolab`` parser."""
     parser = subparsers.add_parser(
         "course",
-        help="manage courses, class lists and the end of a term (create, list, import, "
-        "assistant, close, reopen, copy, purge-students)",
-        description="Manage the lab's courses and their students.",
-        epilog=_EXAMPLES,
+        help=_(
+            "manage courses, class lists and the end of a term (create, list, import, "
+            "assistant, close, reopen, copy, purge-students)"
+        ),
+        description=_("Manage the lab's courses and their students."),
+        epilog=_examples(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     actions = parser.add_subparsers(
         dest="action", metavar="ACTION", parser_class=type(parser), required=True
     )
-    create = actions.add_parser("create", help="create a course")
-    create.add_argument("name", metavar="NAME", help="short name: letters, digits, . _ -")
-    create.add_argument("--title", required=True, help="the title shown on the pages")
-    create.add_argument("--teacher", required=True, help="the login name of its first teacher")
+    create = actions.add_parser("create", help=_("create a course"))
+    create.add_argument("name", metavar="NAME", help=_("short name: letters, digits, . _ -"))
+    create.add_argument("--title", required=True, help=_("the title shown on the pages"))
+    create.add_argument("--teacher", required=True, help=_("the login name of its first teacher"))
     add_database_options(create)
     create.set_defaults(handler=_create)
 
-    listing = actions.add_parser("list", help="list the courses with their enrolment codes")
+    listing = actions.add_parser("list", help=_("list the courses with their enrolment codes"))
     add_database_options(listing)
     listing.set_defaults(handler=_list)
 
     load = actions.add_parser(
-        "import", help="add or update a course's students from a CSV class list"
+        "import", help=_("add or update a course's students from a CSV class list")
     )
     load.add_argument("course", metavar="COURSE")
     load.add_argument(
         "--dialect",
         choices=("pt-BR", "es", "en"),
-        help="write the one-time passwords for a spreadsheet in this language (pt-BR and es: "
-        "';' separated, with a BOM and translated headings); default: plain CSV",
+        help=_(
+            "write the one-time passwords for a spreadsheet in this language (pt-BR and es: "
+            "';' separated, with a BOM and translated headings); default: plain CSV"
+        ),
     )
     load.add_argument(
         "file",
         metavar="FILE",
         type=Path,
-        help="CSV: username,display_name (or matrícula;nome, usuario;nombre)",
+        help=_("CSV: username,display_name (or matrícula;nome, usuario;nombre)"),
     )
     add_database_options(load)
     load.set_defaults(handler=_import)
 
     helper = actions.add_parser(
-        "assistant", help="make someone a teaching assistant of a course (or --remove them)"
+        "assistant", help=_("make someone a teaching assistant of a course (or --remove them)")
     )
     helper.add_argument("course", metavar="COURSE")
-    helper.add_argument("username", metavar="NAME", help="the login name of an existing account")
-    helper.add_argument("--remove", action="store_true", help="take the assistant's place away")
+    helper.add_argument("username", metavar="NAME", help=_("the login name of an existing account"))
+    helper.add_argument("--remove", action="store_true", help=_("take the assistant's place away"))
     add_database_options(helper)
     helper.set_defaults(handler=_assistant)
 

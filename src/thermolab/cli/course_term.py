@@ -21,6 +21,7 @@ import sys
 from datetime import date
 from typing import TYPE_CHECKING, Any
 
+from thermolab.cli._words import _, library_text
 from thermolab.cli.serve import add_database_options, lab_config_from_args, make_private
 
 if TYPE_CHECKING:
@@ -37,49 +38,53 @@ OPERATOR = "(command line)"
 
 def add_actions(actions: Any) -> None:
     """Add the end-of-term actions to ``thermolab course``'s subparsers."""
-    close = actions.add_parser("close", help="close a course at the end of its term (read-only)")
+    close = actions.add_parser("close", help=_("close a course at the end of its term (read-only)"))
     close.add_argument("course", metavar="COURSE")
-    close.add_argument("--by", metavar="NAME", help="whose decision it was (a login name)")
+    close.add_argument("--by", metavar="NAME", help=_("whose decision it was (a login name)"))
     add_database_options(close)
     close.set_defaults(handler=_close)
 
-    reopen = actions.add_parser("reopen", help="open a closed course again")
+    reopen = actions.add_parser("reopen", help=_("open a closed course again"))
     reopen.add_argument("course", metavar="COURSE")
     add_database_options(reopen)
     reopen.set_defaults(handler=_reopen)
 
     copy = actions.add_parser(
         "copy",
-        help="make the next term's course from one (rigs, limits, draft assignments, bookings)",
+        help=_("make the next term's course from one (rigs, limits, draft assignments, bookings)"),
     )
     copy.add_argument("old", metavar="OLD")
-    copy.add_argument("new", metavar="NEW", help="the new course's short name")
+    copy.add_argument("new", metavar="NEW", help=_("the new course's short name"))
     when = copy.add_mutually_exclusive_group(required=True)
-    when.add_argument("--shift-days", type=int, metavar="N", help="move every date by N days")
+    when.add_argument("--shift-days", type=int, metavar="N", help=_("move every date by N days"))
     when.add_argument(
         "--starts",
         type=_day,
         metavar="YYYY-MM-DD",
-        help="the new term's first day: OLD's first booked day (else its creation) moves there",
+        help=_("the new term's first day: OLD's first booked day (else its creation) moves there"),
     )
-    copy.add_argument("--title", help="the new title (default: OLD's)")
+    copy.add_argument("--title", help=_("the new title (default: OLD's)"))
     copy.add_argument(
-        "--teacher", metavar="NAME", help="the copy's teacher (default: OLD's first teacher)"
+        "--teacher", metavar="NAME", help=_("the copy's teacher (default: OLD's first teacher)")
     )
     add_database_options(copy)
     copy.set_defaults(handler=_copy)
 
     purge = actions.add_parser(
         "purge-students",
-        help="remove a closed course's students who are in no open course (dry run without --yes)",
+        help=_(
+            "remove a closed course's students who are in no open course (dry run without --yes)"
+        ),
     )
     purge.add_argument("course", metavar="COURSE")
     purge.add_argument(
         "--delete-runs",
         action="store_true",
-        help="delete their runs too (default: kept under a pseudonym for the class's statistics)",
+        help=_(
+            "delete their runs too (default: kept under a pseudonym for the class's statistics)"
+        ),
     )
-    purge.add_argument("--yes", action="store_true", help="remove them (without it: only list)")
+    purge.add_argument("--yes", action="store_true", help=_("remove them (without it: only list)"))
     add_database_options(purge)
     purge.set_defaults(handler=_purge)
 
@@ -88,7 +93,9 @@ def _day(text: str) -> date:
     try:
         return date.fromisoformat(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a day written YYYY-MM-DD") from None
+        raise argparse.ArgumentTypeError(
+            _("{text} is not a day written YYYY-MM-DD").format(text=repr(text))
+        ) from None
 
 
 def _term(args: argparse.Namespace) -> tuple[Database, TermService, LabClock]:
@@ -99,7 +106,10 @@ def _term(args: argparse.Namespace) -> tuple[Database, TermService, LabClock]:
 
     config = lab_config_from_args(args)
     for path in make_private(config):
-        print(f"warning: tightened permissions of {path} to this user only", file=sys.stderr)
+        print(
+            _("warning: tightened permissions of {path} to this user only").format(path=path),
+            file=sys.stderr,
+        )
     db = Database(config.database, pool_size=1, max_overflow=1)
     db.upgrade()
     clock = SystemClock()
@@ -120,10 +130,11 @@ def _close(args: argparse.Namespace) -> int:
         )
     finally:
         db.close()
-    print(
-        f"closed course {args.course!r}: it can be read and exported, not changed; "
-        f"{released} bookings that had not begun were cancelled, freeing their rigs"
+    said = _(
+        "closed course {course}: it can be read and exported, not changed; "
+        "{released} bookings that had not begun were cancelled, freeing their rigs"
     )
+    print(said.format(course=repr(args.course), released=released))
     return 0
 
 
@@ -136,7 +147,7 @@ def _reopen(args: argparse.Namespace) -> int:
         AuditLog(db, clock).record(OPERATOR, AuditAction.COURSE_REOPENED, args.course)
     finally:
         db.close()
-    print(f"reopened course {args.course!r}")
+    print(_("reopened course {course}").format(course=repr(args.course)))
     return 0
 
 
@@ -158,15 +169,29 @@ def _copy(args: argparse.Namespace) -> int:
         )
     finally:
         db.close()
+    said = _(
+        "copied {old} to {new} (teacher {teacher}, dates moved {days} days): "
+        "{assignments} draft assignments, {bookings} bookings"
+    )
     print(
-        f"copied {args.old!r} to {report.course!r} (teacher {teacher.username}, dates moved "
-        f"{report.shift_days} days): {report.assignments} draft assignments, "
-        f"{report.bookings} bookings"
+        said.format(
+            old=repr(args.old),
+            new=repr(report.course),
+            teacher=teacher.username,
+            days=report.shift_days,
+            assignments=report.assignments,
+            bookings=report.bookings,
+        )
     )
     for slot in report.skipped:
+        left_out = _("left out the slot {starts}-{ends} UTC: {reason}")
         print(
-            f"  left out the slot {slot.starts_at:%Y-%m-%d %H:%M}-{slot.ends_at:%H:%M} UTC: "
-            f"{slot.reason}"
+            "  "
+            + left_out.format(
+                starts=f"{slot.starts_at:%Y-%m-%d %H:%M}",
+                ends=f"{slot.ends_at:%H:%M}",
+                reason=library_text(slot.reason),
+            )
         )
     return 0
 
@@ -183,12 +208,19 @@ def _purge(args: argparse.Namespace) -> int:
         if not args.yes or not leavers:
             for person in leavers:
                 print(f"{person.username}\t{person.display_name or ''}")
-            what = "deleted" if runs == "delete" else "kept under a pseudonym"
-            print(
-                f"{len(leavers)} students of {args.course!r} are in no open course"
-                + (f"; to remove them (runs {what}), add --yes" if leavers else ""),
-                file=sys.stderr,
-            )
+            if not leavers:
+                said = _("{count} students of {course} are in no open course")
+            elif runs == "delete":
+                said = _(
+                    "{count} students of {course} are in no open course; "
+                    "to remove them (runs deleted), add --yes"
+                )
+            else:
+                said = _(
+                    "{count} students of {course} are in no open course; "
+                    "to remove them (runs kept under a pseudonym), add --yes"
+                )
+            print(said.format(count=len(leavers), course=repr(args.course)), file=sys.stderr)
             return 0
         unknown = default_password_hasher().hash(secrets.token_urlsafe(32))
         audit = AuditLog(db, clock)
@@ -203,9 +235,14 @@ def _purge(args: argparse.Namespace) -> int:
         )
     finally:
         db.close()
-    print(f"removed {len(report.removed)} students of {args.course!r} (runs {runs})")
+    if runs == "delete":
+        removed = _("removed {count} students of {course} (runs delete)")
+    else:
+        removed = _("removed {count} students of {course} (runs keep)")
+    print(removed.format(count=len(report.removed), course=repr(args.course)))
     for username, reason in report.skipped.items():
-        print(f"  left {username}: {reason}", file=sys.stderr)
+        left = _("left {username}: {reason}")
+        print("  " + left.format(username=username, reason=library_text(reason)), file=sys.stderr)
     return 1 if report.skipped else 0
 
 

@@ -15,9 +15,13 @@ import json
 import math
 import sys
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from thermolab.cli import CliError
+from thermolab.cli._words import _, any_words
+
+if TYPE_CHECKING:
+    pass
 
 __all__ = ["register"]
 
@@ -29,78 +33,86 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     """Add the ``reproduce`` subcommand to the ``thermolab`` parser."""
     p = subparsers.add_parser(
         "reproduce",
-        help="reproduce the paper's Table I on the simulated reference model",
-        description="Run every row of the paper's Table I (SRM, LSM(1)-(3), MALSM, "
-        "WLSM(1)-(6)) on the exact simulation of the reference model (Ks = 0.140090, "
-        "Ts = 250.126233 s, T = 1 s) and print ours beside the paper's printed figures, "
-        "with the deviation. The variant options re-run it under the assumptions "
-        "examined in docs/reproduction.md.",
+        help=_("reproduce the paper's Table I on the simulated reference model"),
+        description=_(
+            "Run every row of the paper's Table I (SRM, LSM(1)-(3), MALSM, "
+            "WLSM(1)-(6)) on the exact simulation of the reference model (Ks = 0.140090, "
+            "Ts = 250.126233 s, T = 1 s) and print ours beside the paper's printed figures, "
+            "with the deviation. The variant options re-run it under the assumptions "
+            "examined in docs/reproduction.md."
+        ),
     )
-    p.add_argument("table", choices=_TABLES, help="the table to reproduce")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("table", choices=_TABLES, help=_("the table to reproduce"))
+    p.add_argument("--json", action="store_true", help=_("print one JSON object"))
     p.add_argument(
         "--plot",
         metavar="DIR",
-        help="write one figure per row into DIR (table1-<run>.png; needs matplotlib)",
+        help=_("write one figure per row into DIR (table1-<run>.png; needs matplotlib)"),
     )
     p.add_argument(
         "--runs",
         type=_runs,
         metavar="RUN[,RUN...]",
-        help="only these rows, e.g. 'LSM(2),WLSM(4)' (default: all)",
+        help=_("only these rows, e.g. 'LSM(2),WLSM(4)' (default: all)"),
     )
     variant = p.add_argument_group(
-        "variants", "assumptions that explain the paper's figures (docs/reproduction.md)"
+        _("variants"), _("assumptions that explain the paper's figures (docs/reproduction.md)")
     )
     variant.add_argument(
         "--solver",
         choices=("lstsq", "explicit-inverse"),
-        help="LSM/MALSM rows: lstsq (default, SVD) or eq. 12 verbatim, inv(DᵀD) Dᵀ Y",
+        help=_("LSM/MALSM rows: lstsq (default, SVD) or eq. 12 verbatim, inv(DᵀD) Dᵀ Y"),
     )
     variant.add_argument(
         "--covariance",
         choices=("propagated", "frozen"),
-        help="WLSM rows: P propagated by eq. 15 (default) or frozen at pmax·I",
+        help=_("WLSM rows: P propagated by eq. 15 (default) or frozen at pmax·I"),
     )
     variant.add_argument(
         "--paper-arithmetic",
         action="store_true",
-        help="shorthand for --solver explicit-inverse --covariance frozen, the assumptions "
-        "that reproduce the paper's LSM(2) and WLSM(4)-(6)",
+        help=_(
+            "shorthand for --solver explicit-inverse --covariance frozen, the assumptions "
+            "that reproduce the paper's LSM(2) and WLSM(4)-(6)"
+        ),
     )
     variant.add_argument(
         "--precision",
         choices=("float64", "float32"),
-        help="store the measured output in single precision (float32)",
+        help=_("store the measured output in single precision (float32)"),
     )
     variant.add_argument(
         "--decimals",
         type=_int_range("--decimals", 0, 15),
         metavar="N",
-        help="round the measured output to N decimals (0-15), as a text file would",
+        help=_("round the measured output to N decimals (0-15), as a text file would"),
     )
     variant.add_argument(
         "--quantum",
         type=_quantum,
         metavar="VOLTS|daq16",
-        help="quantise the measured output to multiples of VOLTS; daq16 = 20/65536 V, "
-        "the paper's 16-bit ±10 V board",
+        help=_(
+            "quantise the measured output to multiples of VOLTS; daq16 = 20/65536 V, "
+            "the paper's 16-bit ±10 V board"
+        ),
     )
     variant.add_argument(
         "--noise",
         type=_nonnegative_float("--noise"),
         metavar="SIGMA",
-        help="add white Gaussian noise of SIGMA volts to the measured output",
+        help=_("add white Gaussian noise of SIGMA volts to the measured output"),
     )
     variant.add_argument(
-        "--seed", type=_int_range("--seed", 0, 2**63 - 1), help="seed of --noise (default 0)"
+        "--seed", type=_int_range("--seed", 0, 2**63 - 1), help=_("seed of --noise (default 0)")
     )
     variant.add_argument(
         "--after-convergence",
         type=_int_range("--after-convergence", 1, 65536),
         metavar="N",
-        help="samples a WLSM run lasts after convergence, over which its statistics are "
-        "taken (default 2000, the paper's)",
+        help=_(
+            "samples a WLSM run lasts after convergence, over which its statistics are "
+            "taken (default 2000, the paper's)"
+        ),
     )
     p.set_defaults(handler=run)
 
@@ -118,7 +130,10 @@ def run(args: argparse.Namespace) -> int:
         ):
             if value not in (None, wanted):
                 raise CliError(
-                    f"--paper-arithmetic means {option} {wanted}; it contradicts {option} {value}",
+                    _(
+                        "--paper-arithmetic means {option} {wanted}; it contradicts {option} "
+                        "{value}"
+                    ).format(option=option, wanted=wanted, value=value),
                     status=2,
                 )
         solver, covariance = "explicit-inverse", "frozen"
@@ -139,20 +154,25 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(result.to_dict(), allow_nan=False))
     else:
-        print(result.format())
+        print(result.format(say=any_words))
     if args.plot:
         try:
             written = result.plot(args.plot)
         except ImportError:
-            raise CliError("--plot needs matplotlib: pip install 'thermolab[plot]'") from None
+            raise CliError(_("--plot needs matplotlib: pip install 'thermolab[plot]'")) from None
         except OSError as exc:
-            raise CliError(f"--plot {args.plot}: cannot write ({exc.strerror or exc})") from None
+            raise CliError(
+                _("--plot {path}: cannot write ({reason})").format(
+                    path=args.plot, reason=exc.strerror or exc
+                )
+            ) from None
         # Keep standard output pure JSON when --json is given.
         out = sys.stderr if args.json else sys.stdout
-        print(
-            f"wrote {len(written)} figure{'' if len(written) == 1 else 's'} to {args.plot}",
-            file=out,
-        )
+        if len(written) == 1:
+            wrote = _("wrote {count} figure to {path}")
+        else:
+            wrote = _("wrote {count} figures to {path}")
+        print(wrote.format(count=len(written), path=args.plot), file=out)
     return 0
 
 
@@ -165,7 +185,9 @@ def _runs(text: str) -> tuple[str, ...]:
         key = part.strip().lower()
         if key not in known:
             raise argparse.ArgumentTypeError(
-                f"unknown run {part.strip()!r}: Table I has {', '.join(known.values())}"
+                _("unknown run {run}: Table I has {runs}").format(
+                    run=repr(part.strip()), runs=", ".join(known.values())
+                )
             )
         names.append(known[key])
     return tuple(names)
@@ -178,7 +200,9 @@ def _quantum(text: str) -> float:
         return DAQ_16BIT_QUANTUM
     value = _parse_float("--quantum", text)
     if not value > 0.0:
-        raise argparse.ArgumentTypeError(f"--quantum must be > 0 volts or daq16, got {text!r}")
+        raise argparse.ArgumentTypeError(
+            _("--quantum must be > 0 volts or daq16, got {value}").format(value=repr(text))
+        )
     return value
 
 
@@ -186,9 +210,13 @@ def _parse_float(option: str, text: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{option} must be a number, got {text!r}") from None
+        raise argparse.ArgumentTypeError(
+            _("{option} must be a number, got {value}").format(option=option, value=repr(text))
+        ) from None
     if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"{option} must be finite, got {text!r}")
+        raise argparse.ArgumentTypeError(
+            _("{option} must be finite, got {value}").format(option=option, value=repr(text))
+        )
     return value
 
 
@@ -196,7 +224,9 @@ def _nonnegative_float(option: str) -> Callable[[str], float]:
     def parse(text: str) -> float:
         value = _parse_float(option, text)
         if value < 0.0:
-            raise argparse.ArgumentTypeError(f"{option} must be >= 0, got {text!r}")
+            raise argparse.ArgumentTypeError(
+                _("{option} must be >= 0, got {value}").format(option=option, value=repr(text))
+            )
         return value
 
     return parse
@@ -207,9 +237,17 @@ def _int_range(option: str, lo: int, hi: int) -> Callable[[str], int]:
         try:
             value = int(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{option} must be an integer, got {text!r}") from None
+            raise argparse.ArgumentTypeError(
+                _("{option} must be an integer, got {value}").format(
+                    option=option, value=repr(text)
+                )
+            ) from None
         if not lo <= value <= hi:
-            raise argparse.ArgumentTypeError(f"{option} must be between {lo} and {hi}, got {value}")
+            raise argparse.ArgumentTypeError(
+                _("{option} must be between {lo} and {hi}, got {value}").format(
+                    option=option, lo=lo, hi=hi, value=value
+                )
+            )
         return value
 
     return parse

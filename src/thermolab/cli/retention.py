@@ -15,6 +15,7 @@ import argparse
 import sys
 from typing import TYPE_CHECKING, Any
 
+from thermolab.cli._words import _, library_text
 from thermolab.cli.serve import add_database_options, lab_config_from_args, make_private
 
 if TYPE_CHECKING:
@@ -29,37 +30,42 @@ def add_retention_options(parser: argparse.ArgumentParser) -> None:
         "--retention-months",
         type=_months,
         metavar="N",
-        help="remove the students whose courses all closed over N months ago (default: "
-        "$THERMOLAB_RETENTION_MONTHS, else the configuration's [retention] months, else never)",
+        help=_(
+            "remove the students whose courses all closed over N months ago (default: "
+            "$THERMOLAB_RETENTION_MONTHS, else the configuration's [retention] months, else "
+            "never)"
+        ),
     )
     parser.add_argument(
         "--retention-action",
         choices=("pseudonymise", "delete"),
-        help="pseudonymise (their runs kept under a pseudonym) or delete (with their runs) "
-        "(default: $THERMOLAB_RETENTION_ACTION, else the configuration's, else pseudonymise)",
+        help=_(
+            "pseudonymise (their runs kept under a pseudonym) or delete (with their runs) "
+            "(default: $THERMOLAB_RETENTION_ACTION, else the configuration's, else pseudonymise)"
+        ),
     )
 
 
 def retention_line(config: LabConfig) -> str:
     """What ``thermolab serve`` says at start about a retention period that is set."""
     policy = config.retention
-    return (
-        f"students whose courses all closed over {policy.months} months ago are removed "
-        f"daily ({policy.action})"
-    )
+    return _(
+        "students whose courses all closed over {months} months ago are removed daily ({action})"
+    ).format(months=policy.months, action=policy.action)
 
 
 def register(subparsers: Any) -> None:
     """Add the ``retention`` subcommand to the ``thermolab`` parser."""
     parser = subparsers.add_parser(
-        "retention", help="remove the people of courses closed longer than the retention period"
+        "retention",
+        help=_("remove the people of courses closed longer than the retention period"),
     )
     actions = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
     apply = actions.add_parser(
-        "apply", help="remove them now (the server does it daily); --dry-run lists them"
+        "apply", help=_("remove them now (the server does it daily); --dry-run lists them")
     )
     apply.add_argument(
-        "--dry-run", action="store_true", help="list who would be removed; change nothing"
+        "--dry-run", action="store_true", help=_("list who would be removed; change nothing")
     )
     add_retention_options(apply)
     add_database_options(apply)
@@ -74,7 +80,9 @@ def _months(text: str) -> int:
         return check_months(int(text), "--retention-months")
     except (ValueError, ConfigError):
         raise argparse.ArgumentTypeError(
-            f"expected a whole number of months from 1 to 1200, got {text!r}"
+            _("expected a whole number of months from 1 to 1200, got {value}").format(
+                value=repr(text)
+            )
         ) from None
 
 
@@ -90,12 +98,17 @@ def _apply(args: argparse.Namespace) -> int:
     policy = config.retention
     if policy.months is None:
         raise CliError(
-            "no retention period is set, so nobody is removed automatically; set "
-            "[retention] months in the configuration, $THERMOLAB_RETENTION_MONTHS or "
-            "--retention-months"
+            _(
+                "no retention period is set, so nobody is removed automatically; set "
+                "[retention] months in the configuration, $THERMOLAB_RETENTION_MONTHS or "
+                "--retention-months"
+            )
         )
     for path in make_private(config):
-        print(f"warning: tightened permissions of {path} to this user only", file=sys.stderr)
+        print(
+            _("warning: tightened permissions of {path} to this user only").format(path=path),
+            file=sys.stderr,
+        )
     db = Database(config.database, pool_size=1, max_overflow=1)
     try:
         db.upgrade()
@@ -112,16 +125,24 @@ def _apply(args: argparse.Namespace) -> int:
         for person in report.due:
             print(f"{person.username}\t{person.last_closed:%Y-%m-%d}")
         print(
-            f"{len(report.due)} students' courses all closed before {before} "
-            f"({policy.months} months ago); without --dry-run they are removed "
-            f"({policy.action})",
+            _(
+                "{count} students' courses all closed before {date} ({months} months ago); "
+                "without --dry-run they are removed ({action})"
+            ).format(
+                count=len(report.due), date=before, months=policy.months, action=policy.action
+            ),
             file=sys.stderr,
         )
         return 0
     print(
-        f"removed {len(report.removed)} students whose courses all closed before {before} "
-        f"({policy.action}); each removal is in the audit log"
+        _(
+            "removed {count} students whose courses all closed before {date} ({action}); "
+            "each removal is in the audit log"
+        ).format(count=len(report.removed), date=before, action=policy.action)
     )
     for username, reason in report.skipped.items():
-        print(f"  left {username}: {reason}", file=sys.stderr)
+        print(
+            "  " + _("left {name}: {reason}").format(name=username, reason=library_text(reason)),
+            file=sys.stderr,
+        )
     return 1 if report.skipped else 0

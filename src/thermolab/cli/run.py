@@ -28,10 +28,10 @@ import sys
 from typing import Any
 
 from thermolab.cli._run_args import (
-    EXAMPLES,
     add_run_options,
     clock_for,
     control_loop,
+    examples,
     identifier_settings,
     number_of_samples,
 )
@@ -43,6 +43,7 @@ from thermolab.cli._run_report import (
     summary_table,
 )
 from thermolab.cli._settings import given_settings
+from thermolab.cli._words import _, library_text
 
 __all__ = ["register"]
 
@@ -57,10 +58,12 @@ def register(subparsers: Any) -> None:
     """
     parser = subparsers.add_parser(
         "run",
-        help="run an experiment on a rig and identify its model live",
-        description="Run an experiment on a rig (the digital twin or a TCLab kit): apply a "
-        "signal, record every sample, identify Ks and Ts with online methods.",
-        epilog=EXAMPLES,
+        help=_("run an experiment on a rig and identify its model live"),
+        description=_(
+            "Run an experiment on a rig (the digital twin or a TCLab kit): apply a "
+            "signal, record every sample, identify Ks and Ts with online methods."
+        ),
+        epilog=examples(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_run_options(parser)
@@ -129,13 +132,19 @@ def _run(args: argparse.Namespace) -> int:
             signum = interrupt_signal(exc)
             if signum is None:
                 raise
-            taken = experiment.k
-            kept = f"; {taken} samples kept in {args.out}" if args.out else ""
             name = signal_module.Signals(signum).name
-            print(f"interrupted by {name}: {info.name} made safe{kept}", file=sys.stderr)
+            if args.out:
+                said = _(
+                    "interrupted by {signal}: {rig} made safe; {samples} samples kept in {path}"
+                ).format(signal=name, rig=info.name, samples=experiment.k, path=args.out)
+            else:
+                said = _("interrupted by {signal}: {rig} made safe").format(
+                    signal=name, rig=info.name
+                )
+            print(said, file=sys.stderr)
             return 128 + signum
     assert result is not None
-    figures = None if loop is None else closed_loop_figures(result, loop, model)
+    figures, notes = (None, ()) if loop is None else closed_loop_figures(result, loop, model)
     if args.json:
         report = json_report(result, args.out, None if signal is None else signal.spec)
         if loop is not None:
@@ -151,11 +160,22 @@ def _run(args: argparse.Namespace) -> int:
         if loop is not None:
             assert figures is not None
             print()
-            print(control_table(result, loop, tuning, figures))
+            print(control_table(result, loop, tuning, figures, notes))
     if not result.ok:
-        kept = f"; {result.samples} samples kept in {args.out}" if args.out else ""
-        raise CliError(
-            f"run stopped at sample {result.samples} (t={result.samples * result.dt:g} s): "
-            f"{result.message}; {info.name} made safe{kept}"
-        )
+        words = {
+            "sample": result.samples,
+            "t": f"{result.samples * result.dt:g}",
+            "reason": library_text(result.message),
+            "rig": info.name,
+        }
+        if args.out:
+            said = _(
+                "run stopped at sample {sample} (t={t} s): {reason}; {rig} made safe; "
+                "{samples} samples kept in {path}"
+            ).format(**words, samples=result.samples, path=args.out)
+        else:
+            said = _("run stopped at sample {sample} (t={t} s): {reason}; {rig} made safe").format(
+                **words
+            )
+        raise CliError(said)
     return 0

@@ -41,13 +41,15 @@ __all__ = [
 ]
 
 
-_EXAMPLES = """\
-examples:
-  thermolab serve
-  thermolab --data-dir /srv/thermolab serve --host 0.0.0.0 --config lab.toml
-  thermolab serve --database-url postgresql+psycopg://lab@localhost/thermolab
-  thermolab serve --speedup 50        # saves 50 as every twin's speed-up (demos)
-"""
+def _examples() -> str:
+    """The ``--help`` epilog: the commands as they are typed, the words around them translated."""
+    commands = (
+        "thermolab serve",
+        "thermolab --data-dir /srv/thermolab serve --host 0.0.0.0 --config lab.toml",
+        "thermolab serve --database-url postgresql+psycopg://lab@localhost/thermolab",
+        "thermolab serve --speedup 50        # " + _("saves 50 as every twin's speed-up (demos)"),
+    )
+    return _("examples:") + "\n" + "".join(f"  {command}\n" for command in commands)
 
 
 def add_database_options(parser: argparse.ArgumentParser) -> None:
@@ -55,13 +57,15 @@ def add_database_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--config",
         metavar="FILE.toml",
-        help="lab configuration: rigs, limits, access policy, database (default: one twin)",
+        help=_("lab configuration: rigs, limits, access policy, database (default: one twin)"),
     )
     parser.add_argument(
         "--database-url",
         metavar="URL",
-        help="database to use instead of SQLite in the data folder "
-        "(e.g. postgresql+psycopg://USER@HOST/DB)",
+        help=_(
+            "database to use instead of SQLite in the data folder "
+            "(e.g. postgresql+psycopg://USER@HOST/DB)"
+        ),
     )
 
 
@@ -75,85 +79,101 @@ def register(subparsers: Any) -> None:
     """
     parser = subparsers.add_parser(
         "serve",
-        help="run the remote laboratory (web server)",
-        description="Run the remote laboratory: rigs shared by many watchers, one controller "
-        "at a time, on http://HOST:PORT.",
-        epilog=_EXAMPLES,
+        help=_("run the remote laboratory (web server)"),
+        description=_(
+            "Run the remote laboratory: rigs shared by many watchers, one controller "
+            "at a time, on http://HOST:PORT."
+        ),
+        epilog=_examples(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--host", default="127.0.0.1", help="address to listen on (127.0.0.1)")
-    parser.add_argument("--port", type=int, default=8000, help="port to listen on (8000)")
+    parser.add_argument("--host", default="127.0.0.1", help=_("address to listen on (127.0.0.1)"))
+    parser.add_argument("--port", type=int, default=8000, help=_("port to listen on (8000)"))
     add_database_options(parser)
     parser.add_argument(
         "--speedup",
         type=float,
         metavar="X",
-        help="save X as the twin speed-up of every twin the lab runs, over the teachers' "
-        "setting (demos and tests); without it each twin keeps its saved one",
+        help=_(
+            "save X as the twin speed-up of every twin the lab runs, over the teachers' "
+            "setting (demos and tests); without it each twin keeps its saved one"
+        ),
     )
     parser.add_argument(
         "--request-timeout",
         type=float,
         default=10.0,
         metavar="S",
-        help="seconds a client has to send a whole request; slower ones are cut (10)",
+        help=_("seconds a client has to send a whole request; slower ones are cut (10)"),
     )
     parser.add_argument(
-        "--ssl-certfile", metavar="FILE.pem", help="serve HTTPS/WSS with this certificate"
+        "--ssl-certfile", metavar="FILE.pem", help=_("serve HTTPS/WSS with this certificate")
     )
-    parser.add_argument("--ssl-keyfile", metavar="FILE.pem", help="the certificate's private key")
+    parser.add_argument(
+        "--ssl-keyfile", metavar="FILE.pem", help=_("the certificate's private key")
+    )
     parser.add_argument(
         "--ca",
         metavar="FILE.pem",
-        help="CA certificate(s) to trust, besides the system's, for the owner worker's "
-        "https:// address (a follower forwards rig requests there; the rig hosts' --ca)",
+        help=_(
+            "CA certificate(s) to trust, besides the system's, for the owner worker's "
+            "https:// address (a follower forwards rig requests there; the rig hosts' --ca)"
+        ),
     )
     parser.add_argument(
         "--agent-grace",
         type=float,
         metavar="S",
-        help="seconds a rig host may be away: its run goes on and the controller keeps the "
-        "turn for that long after a lost link; then the host ENDs the run and the rig is out "
-        "of service (default 30: longer than a takeover)",
+        help=_(
+            "seconds a rig host may be away: its run goes on and the controller keeps the "
+            "turn for that long after a lost link; then the host ENDs the run and the rig is "
+            "out of service (default 30: longer than a takeover)"
+        ),
     )
     parser.add_argument(
-        "--smtp", metavar="HOST:PORT", help="mail server for the rig-health alerts (none: no mail)"
+        "--smtp",
+        metavar="HOST:PORT",
+        help=_("mail server for the rig-health alerts (none: no mail)"),
     )
     parser.add_argument(
         "--alert-to",
         action="append",
         default=[],
         metavar="ADDRESS",
-        help="who gets the rig-health alerts (repeat for several)",
+        help=_("who gets the rig-health alerts (repeat for several)"),
     )
     parser.add_argument(
         "--broker",
         metavar="URL",
-        help="join the other workers of this database over this broker (redis://HOST:PORT/DB)",
+        help=_("join the other workers of this database over this broker (redis://HOST:PORT/DB)"),
     )
     parser.add_argument(
         "--advertise",
         metavar="URL",
-        help="this worker's address for the other workers (http://HOST:PORT of --host/--port)",
+        help=_("this worker's address for the other workers (http://HOST:PORT of --host/--port)"),
     )
     parser.add_argument(
         "--standby",
         action="store_true",
-        help="as a follower, take the rigs over when their owner's lease lapses (only on a "
-        "machine that can open the lab's devices; docs/fleet.md)",
+        help=_(
+            "as a follower, take the rigs over when their owner's lease lapses (only on a "
+            "machine that can open the lab's devices; docs/fleet.md)"
+        ),
     )
     parser.add_argument(
         "--max-connections",
         type=int,
         default=CONNECTION_LIMIT,
         metavar="N",
-        help=f"open connections beyond which new requests get 503 ({CONNECTION_LIMIT})",
+        help=_("open connections beyond which new requests get 503 ({limit})").format(
+            limit=CONNECTION_LIMIT
+        ),
     )
     parser.add_argument(
         "--log-format",
         choices=("text", "json"),
         default="text",
-        help="the server's log on standard error: text, or one JSON object a line (text)",
+        help=_("the server's log on standard error: text, or one JSON object a line (text)"),
     )
     from thermolab.cli.retention import add_retention_options
 
@@ -189,20 +209,24 @@ def _check_port_free(host: str, port: int) -> None:
     from thermolab.cli import CliError
 
     if not 0 < port < 65536:
-        raise CliError(f"--port {port} is not a TCP port (1-65535)", status=2)
+        raise CliError(_("--port {port} is not a TCP port (1-65535)").format(port=port), status=2)
     try:
         infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
     except socket.gaierror as exc:
-        raise CliError(f"cannot listen on {host!r}: {exc.strerror}") from None
-    family, kind, proto, _, address = infos[0]
+        raise CliError(
+            _("cannot listen on {host}: {reason}").format(host=repr(host), reason=exc.strerror)
+        ) from None
+    family, kind, proto, _name, address = infos[0]
     with socket.socket(family, kind, proto) as probe:
         probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             probe.bind(address)
         except OSError as exc:
             raise CliError(
-                f"cannot listen on {host}:{port} ({exc.strerror}); is another server running? "
-                "choose another --port"
+                _(
+                    "cannot listen on {host}:{port} ({reason}); is another server running? "
+                    "choose another --port"
+                ).format(host=host, port=port, reason=exc.strerror)
             ) from None
 
 
@@ -232,7 +256,7 @@ def make_private(config: LabConfig) -> list[str]:
             continue
         if mode & 0o077:
             path.chmod(mode & 0o700)
-            tightened.append(f"{path} (was {mode:o})")
+            tightened.append(_("{path} (was {mode})").format(path=path, mode=f"{mode:o}"))
     return tightened
 
 
@@ -247,22 +271,36 @@ def _serve(args: argparse.Namespace) -> int:
 
     config = lab_config_from_args(args)
     if not 0 < args.request_timeout <= 3600:
-        raise CliError(f"--request-timeout {args.request_timeout:g}: use 0 < S <= 3600", status=2)
+        raise CliError(
+            _("--request-timeout {value}: use 0 < S <= 3600").format(
+                value=f"{args.request_timeout:g}"
+            ),
+            status=2,
+        )
     if not 1 <= args.max_connections <= 100_000:
-        raise CliError(f"--max-connections {args.max_connections}: use 1 <= N <= 100000", status=2)
+        raise CliError(
+            _("--max-connections {value}: use 1 <= N <= 100000").format(value=args.max_connections),
+            status=2,
+        )
     _check_port_free(args.host, args.port)
     for path in make_private(config):
         print(
-            f"warning: tightened permissions of {path} to the server's user only", file=sys.stderr
+            _("warning: tightened permissions of {path} to the server's user only").format(
+                path=path
+            ),
+            file=sys.stderr,
         )
     if args.agent_grace is None:
         from thermolab.lab.agents.hub import DEFAULT_GRACE
 
         args.agent_grace = DEFAULT_GRACE
     if not 0 < args.agent_grace <= 3600:
-        raise CliError(f"--agent-grace {args.agent_grace:g}: use 0 < S <= 3600", status=2)
+        raise CliError(
+            _("--agent-grace {value}: use 0 < S <= 3600").format(value=f"{args.agent_grace:g}"),
+            status=2,
+        )
     if args.standby and args.broker is None:
-        raise CliError("--standby: a standby follows an owner; give --broker too", status=2)
+        raise CliError(_("--standby: a standby follows an owner; give --broker too"), status=2)
     if args.ca is not None:
         _check_ca(args.ca)
     url = args.advertise or f"http://{args.host}:{args.port}"
@@ -286,8 +324,13 @@ def _serve(args: argparse.Namespace) -> int:
         print("  " + _("database: {url}").format(url=lab.db.display_url), file=sys.stderr)
         print("  " + _("rigs: {rigs}").format(rigs=rigs), file=sys.stderr)
         if fleet is not None:
-            standing = " on standby" if getattr(lab, "standby", False) else ""
-            print(f"  broker: {args.broker} ({fleet.role}{standing})", file=sys.stderr)
+            roles = {"alone": _("alone"), "owner": _("owner"), "follower": _("follower")}
+            if getattr(lab, "standby", False):
+                standing = _("broker: {url} ({role} on standby)")
+            else:
+                standing = _("broker: {url} ({role})")
+            role = roles.get(fleet.role, fleet.role)
+            print("  " + standing.format(url=args.broker, role=role), file=sys.stderr)
         twins = [lab.config.rig(rig.id) for rig in config.rigs if rig.lab_twin]
         paces = ", ".join(f"{rig.id} {rig.twin_speedup:g}x" for rig in twins)
         if twins and (
@@ -300,7 +343,10 @@ def _serve(args: argparse.Namespace) -> int:
                 words = _("twin speed-ups: {paces}").format(paces=paces)
             print(f"  {words}", file=sys.stderr)
         if config.retention.months is not None:
-            print(f"  retention: {retention_line(config)}", file=sys.stderr)
+            print(
+                "  " + _("retention: {policy}").format(policy=retention_line(config)),
+                file=sys.stderr,
+            )
         for rig_id, fault in report.faults.items():
             print(
                 "  " + _("warning: rig {rig}: {fault}").format(rig=rig_id, fault=fault),
@@ -339,7 +385,10 @@ def _check_ca(cafile: str) -> None:
     try:
         owner_tls(cafile)
     except (OSError, ssl.SSLError) as exc:
-        raise CliError(f"--ca {cafile}: not a CA certificate file ({exc})", status=2) from None
+        raise CliError(
+            _("--ca {path}: not a CA certificate file ({reason})").format(path=cafile, reason=exc),
+            status=2,
+        ) from None
 
 
 def _announce_upgrade(config: LabConfig) -> None:
@@ -360,8 +409,11 @@ def _announce_upgrade(config: LabConfig) -> None:
         return
     pending = revisions[revisions.index(current) + 1 :]
     print(
-        f"  database: upgrading its schema from revision {current} to {revisions[-1]} "
-        f"({len(pending)} migrations, in one transaction; other commands wait for it)",
+        "  "
+        + _(
+            "database: upgrading its schema from revision {current} to {latest} "
+            "({count} migrations, in one transaction; other commands wait for it)"
+        ).format(current=current, latest=revisions[-1], count=len(pending)),
         file=sys.stderr,
     )
 
@@ -372,7 +424,12 @@ def _mailer(args: argparse.Namespace, title: str) -> Any:
 
     if args.smtp is None:
         return None
-    host, _, port = args.smtp.rpartition(":")
+    host, _colon, port = args.smtp.rpartition(":")
     if not host or not port.isdigit() or not 0 < int(port) < 65536 or not args.alert_to:
-        raise CliError(f"--smtp {args.smtp!r}: use HOST:PORT with --alert-to ADDRESS", status=2)
+        raise CliError(
+            _("--smtp {value}: use HOST:PORT with --alert-to ADDRESS").format(
+                value=repr(args.smtp)
+            ),
+            status=2,
+        )
     return Mailer(host, int(port), tuple(args.alert_to), lab_title=title)

@@ -29,7 +29,6 @@ if TYPE_CHECKING:
 __all__ = ["register"]
 
 _EXAMPLES = """\
-examples:
   thermolab user add root --role admin
   thermolab user add tina --role teacher
   thermolab user admin tina
@@ -51,55 +50,57 @@ def register(subparsers: Any) -> None:
     """
     parser = subparsers.add_parser(
         "user",
-        help="manage the lab's accounts (add, list, passwd, remove)",
-        description="Manage the accounts of the lab.",
-        epilog=_EXAMPLES,
+        help=_("manage the lab's accounts (add, list, passwd, remove)"),
+        description=_("Manage the accounts of the lab."),
+        epilog=_("examples:") + "\n" + _EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     actions = parser.add_subparsers(
         dest="action", metavar="ACTION", parser_class=type(parser), required=True
     )
 
-    add = actions.add_parser("add", help="create an account")
+    add = actions.add_parser("add", help=_("create an account"))
     add.add_argument(
         "name",
         metavar="NAME",
-        help="login name (letters, digits, . _ @ -; stored without case or accents: João -> joao)",
+        help=_(
+            "login name (letters, digits, . _ @ -; stored without case or accents: João -> joao)"
+        ),
     )
     add.add_argument(
         "--role",
         required=True,
-        help="student, teacher or admin (a teacher who also manages accounts, rigs and LTI)",
+        help=_("student, teacher or admin (a teacher who also manages accounts, rigs and LTI)"),
     )
     add.add_argument(
         "--display-name",
         metavar="TEXT",
-        help="the name shown on the pages, as written (e.g. 'João da Silva')",
+        help=_("the name shown on the pages, as written (e.g. 'João da Silva')"),
     )
     _password_option(add)
     add_database_options(add)
     add.set_defaults(handler=_add)
 
-    listing = actions.add_parser("list", help="list the accounts")
+    listing = actions.add_parser("list", help=_("list the accounts"))
     add_database_options(listing)
     listing.set_defaults(handler=_list)
 
-    passwd = actions.add_parser("passwd", help="change a password (ends the user's logins)")
+    passwd = actions.add_parser("passwd", help=_("change a password (ends the user's logins)"))
     passwd.add_argument("name", metavar="NAME")
     _password_option(passwd)
     add_database_options(passwd)
     passwd.set_defaults(handler=_passwd)
 
     admin = actions.add_parser(
-        "admin", help="make a teacher a lab administrator (or take it back with --revoke)"
+        "admin", help=_("make a teacher a lab administrator (or take it back with --revoke)")
     )
     admin.add_argument("name", metavar="NAME")
-    admin.add_argument("--revoke", action="store_true", help="take the administrator role back")
+    admin.add_argument("--revoke", action="store_true", help=_("take the administrator role back"))
     add_database_options(admin)
     admin.set_defaults(handler=_admin)
 
     remove = actions.add_parser(
-        "remove", help="remove an account with its logins, queue places and runs"
+        "remove", help=_("remove an account with its logins, queue places and runs")
     )
     remove.add_argument("name", metavar="NAME")
     add_database_options(remove)
@@ -107,16 +108,20 @@ def register(subparsers: Any) -> None:
 
     forget = actions.add_parser(
         "forget",
-        help="remove a person for good: their name leaves every row; runs kept under a "
-        "pseudonym or deleted",
+        help=_(
+            "remove a person for good: their name leaves every row; runs kept under a "
+            "pseudonym or deleted"
+        ),
     )
     forget.add_argument("name", metavar="NAME")
     forget.add_argument(
         "--runs",
         required=True,
         choices=("keep", "delete"),
-        help="keep: runs, turns and hand-ins stay for the class's statistics under a "
-        "pseudonym; delete: they go with the account",
+        help=_(
+            "keep: runs, turns and hand-ins stay for the class's statistics under a "
+            "pseudonym; delete: they go with the account"
+        ),
     )
     add_database_options(forget)
     forget.set_defaults(handler=_forget)
@@ -126,7 +131,7 @@ def _password_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--password-stdin",
         action="store_true",
-        help="read the password as one line from standard input instead of asking",
+        help=_("read the password as one line from standard input instead of asking"),
     )
 
 

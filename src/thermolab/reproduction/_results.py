@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -249,23 +250,49 @@ class Table1Result:
             },
         }
 
-    def format(self) -> str:
+    def format(self, say: Callable[[str], str] | None = None) -> str:
         """A readable table: ours beside the paper's figures, with the deviation.
+
+        Parameters
+        ----------
+        say
+            Says the table's words and sentences in a reader's language (the
+            command line's translator): each English phrase given to it is a
+            msgid, and the variant and the notes are given as the library wrote
+            them. The figures, their marks, the rows' names and the symbols are
+            never given. Default: English.
 
         Returns
         -------
         str
             One line per figure; the last column says ``=`` when ours rounds to
             the paper's printed digits, ``~`` when a convergence count is within
-            a factor of √10 of the paper's, and ``x`` otherwise.
+            a factor of √10 of the paper's, and ``x`` otherwise. The columns are
+            as wide as their words in the reader's language need.
         """
+        if say is None:
+            say = _english
+        heads = [say("run"), say("param"), say("stat"), say("ours"), say("paper")]
+        heads.append(say("ours - paper"))
+        stats = {"mean": say("mean"), "max": say("max"), "min": say("min")}
+        value, conv = say("value"), say("conv")
+        w_run = max(8, len(heads[0]))
+        w_par = max(5, len(heads[1]))
+        w_stat = max(5, len(heads[2]), len(value), len(conv), *(len(w) for w in stats.values()))
+        w_num = max(13, *(len(h) for h in heads[3:]))
         lines = [
-            "Table I (simulation): ours on the reference model "
-            f"(Ks = {REFERENCE_MODEL.K:.6f}, Ts = {REFERENCE_MODEL.tau:.6f} s, "
-            f"T = {REFERENCE_MODEL.dt:g} s) beside the paper's printed figures",
-            f"variant: {self.options.describe()}",
+            say(
+                "Table I (simulation): ours on the reference model "
+                "(Ks = {K}, Ts = {tau} s, T = {dt} s) beside the paper's printed figures"
+            ).format(
+                K=f"{REFERENCE_MODEL.K:.6f}",
+                tau=f"{REFERENCE_MODEL.tau:.6f}",
+                dt=f"{REFERENCE_MODEL.dt:g}",
+            ),
+            say("variant: {variant}").format(variant=say(self.options.describe())),
             "",
-            f"{'run':<8} {'param':<5} {'stat':<5} {'ours':>13} {'paper':>13} {'ours - paper':>13}",
+            f"{heads[0]:<{w_run}} {heads[1]:<{w_par}} {heads[2]:<{w_stat}} "
+            f"{heads[3]:>{w_num}} {heads[4]:>{w_num}} {heads[5]:>{w_num}}",
         ]
         for r in self.rows:
             single = "trajectory" not in get_method(r.row.method).returns
@@ -278,9 +305,10 @@ class Table1Result:
                 for (stat, ours), (_, paper) in items[:1] if single else items:
                     mark = "=" if _printed(ours) == paper else "x"
                     lines.append(
-                        f"{r.run if first else '':<8} {pname:<5} "
-                        f"{'value' if single else stat:<5} {_number(ours):>13} "
-                        f"{_number(paper):>13} {_number(ours - paper, sign=True):>13} {mark}"
+                        f"{r.run if first else '':<{w_run}} {pname:<{w_par}} "
+                        f"{value if single else stats[stat]:<{w_stat}} {_number(ours):>{w_num}} "
+                        f"{_number(paper):>{w_num}} {_number(ours - paper, sign=True):>{w_num}} "
+                        f"{mark}"
                     )
                     first = False
                     pname = ""
@@ -293,26 +321,38 @@ class Table1Result:
                     mark = "~" if _same_order(ours_n, paper_n) else "x"
                     dev_n = sub(ours_n, paper_n)
                     lines.append(
-                        f"{'':<8} {pname:<5} {'conv':<5} {_int_text(ours_n):>13} "
-                        f"{_int_text(paper_n):>13} "
-                        f"{'-' if dev_n is None else f'{dev_n:+d}':>13} {mark}"
+                        f"{'':<{w_run}} {pname:<{w_par}} {conv:<{w_stat}} "
+                        f"{_int_text(ours_n):>{w_num}} {_int_text(paper_n):>{w_num}} "
+                        f"{'-' if dev_n is None else f'{dev_n:+d}':>{w_num}} {mark}"
                     )
             for note in r.notes:
-                lines.append(f"{'':<8} note: {note}")
-        lines += [
-            "",
-            "= ours rounds to the paper's printed digits; ~ samples to converge within a "
-            "factor of 3.2 of the paper's; x differs (see docs/reproduction.md)",
-            "conv: samples until the estimate stays within ±1 % of its stabilisation value; "
-            "WLSM statistics over the "
-            f"{_samples(self.options.after_convergence)} after convergence",
-        ]
+                lines.append(f"{'':<{w_run}} " + say("note: {note}").format(note=say(note)))
+        after = self.options.after_convergence
+        if after == 1:
+            window = say(
+                "conv: samples until the estimate stays within ±1 % of its stabilisation "
+                "value; WLSM statistics over the {count} sample after convergence"
+            )
+        else:
+            window = say(
+                "conv: samples until the estimate stays within ±1 % of its stabilisation "
+                "value; WLSM statistics over the {count} samples after convergence"
+            )
         digits = [r.run for r in self.rows if r.digits_match]
         order = [r.run for r in self.rows if r.convergence_order_match]
-        lines.append(
-            f"match to the printed digits: {', '.join(digits) or 'none'}; "
-            f"convergence within the order of magnitude: {', '.join(order) or 'none'}"
-        )
+        none = say("none")
+        lines += [
+            "",
+            say(
+                "= ours rounds to the paper's printed digits; ~ samples to converge within a "
+                "factor of 3.2 of the paper's; x differs (see docs/reproduction.md)"
+            ),
+            window.format(count=after),
+            say(
+                "match to the printed digits: {digits}; "
+                "convergence within the order of magnitude: {order}"
+            ).format(digits=", ".join(digits) or none, order=", ".join(order) or none),
+        ]
         return "\n".join(lines)
 
     def plot(self, directory: str | Path) -> list[Path]:
@@ -369,8 +409,9 @@ def _number(x: float, *, sign: bool = False) -> str:
     return f"{x:+.6f}" if sign else f"{x:.6f}"
 
 
-def _samples(n: int) -> str:
-    return f"{n} sample{'' if n == 1 else 's'}"
+def _english(text: str) -> str:
+    """The table's words as written (no translation)."""
+    return text
 
 
 def _int_text(n: int | None) -> str:
