@@ -26,7 +26,7 @@ from collections.abc import Mapping
 from functools import cache
 from types import MappingProxyType
 
-__all__ = ["FINAL", "NOTES", "note", "note_pattern", "read_note"]
+__all__ = ["FINAL", "NOTES", "note", "note_pattern", "read_note", "template_pattern"]
 
 _RESIDUAL_CROSS = (
     "residual test failed: input-residual cross-correlation outside the 99 % bound ±{bound:.3g}; "
@@ -261,10 +261,24 @@ def note_pattern(code: str) -> tuple[str, tuple[str, ...]]:
     >>> note_pattern("short_record")[1]
     ('n', 'needed')
     """
+    return template_pattern(NOTES[code])
+
+
+def template_pattern(template: str) -> tuple[str, tuple[str, ...]]:
+    """The pattern that reads a sentence written from ``template`` back (any
+    ``str.format`` template: :data:`NOTES`', the closed loop's words), and its groups'
+    field names, in order; a figure's ``V`` after a field is read with whatever unit
+    :func:`~thermolab.ident.units.in_units` gave it.
+
+    Examples
+    --------
+    >>> template_pattern("rule {rule!r} needs theta > 0")
+    ('^rule (.+?) needs theta > 0$', ('rule',))
+    """
     parts = ["^"]
     names: list[str] = []
     after_field = False
-    for literal, field, _spec, _conversion in string.Formatter().parse(NOTES[code]):
+    for literal, field, _spec, _conversion in string.Formatter().parse(template):
         if after_field and _VOLTS_AFTER.match(literal):
             literal = literal[2:]  # the figure's group takes its unit, whichever it is
         parts.append(_escape(literal))

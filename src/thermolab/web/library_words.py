@@ -16,12 +16,11 @@ from __future__ import annotations
 
 import json
 import re
-import string
 from functools import cache
 from typing import Any
 
 from thermolab.control.words import LOOP_WORDS
-from thermolab.ident.notes import NOTES, note_pattern
+from thermolab.ident.notes import read_note, template_pattern
 from thermolab.web import STATIC_DIR
 
 __all__ = ["catalogue", "ident_sentence", "library_sentence", "loop_sentence", "method_title"]
@@ -52,15 +51,6 @@ def _kinds() -> dict[str, tuple[str, str | None]]:
     return {kind: (name, advice or None) for kind, name, advice in _KIND_ROW.findall(source)}
 
 
-@cache
-def _patterns() -> tuple[tuple[str, re.Pattern[str], tuple[str, ...]], ...]:
-    rows = []
-    for code in NOTES:
-        source, names = note_pattern(code)
-        rows.append((code, re.compile(source, re.DOTALL), names))
-    return tuple(rows)
-
-
 def _fill(template: str, values: dict[str, str]) -> str:
     return re.sub(r"\{(\w+)\}", lambda m: values.get(m.group(1), m.group(0)), template)
 
@@ -85,17 +75,15 @@ def _note_key(code: str) -> str:
 
 
 def _detail(sentence: str, detail: str, language: str) -> str:
-    words = catalogue(language)
-    for code, pattern, names in _patterns():
-        found = pattern.match(sentence)
-        if found is None:
-            continue
-        values = {
-            name: value if name in _VERBATIM else _local_figures(value, language)
-            for name, value in zip(names, found.groups(), strict=False)
-        }
-        return _fill(str(words.get(_note_key(code), detail)), values)
-    return detail
+    found = read_note(sentence)
+    if found is None:
+        return detail
+    code, fields, _final = found
+    values = {
+        name: value if name in _VERBATIM else _local_figures(value, language)
+        for name, value in fields.items()
+    }
+    return _fill(str(catalogue(language).get(_note_key(code), detail)), values)
 
 
 def ident_sentence(text: str, language: str) -> str:
@@ -137,21 +125,11 @@ def ident_sentence(text: str, language: str) -> str:
 
 @cache
 def _loop_patterns() -> tuple[tuple[str, re.Pattern[str], tuple[str, ...]], ...]:
-    """Each loop word's template read back: its literals, a group per first field."""
+    """Each loop word's template read back (:func:`~thermolab.ident.notes.template_pattern`)."""
     rows = []
     for code, template in LOOP_WORDS.items():
-        parts, names = ["^"], []
-        for literal, field, _spec, _conversion in string.Formatter().parse(template):
-            parts.append(re.escape(literal))
-            if field is None:
-                continue
-            if field in names:
-                parts.append("(?:.+?)")
-            else:
-                parts.append("(.+?)")
-                names.append(field)
-        parts.append("$")
-        rows.append((code, re.compile("".join(parts), re.DOTALL), tuple(names)))
+        source, names = template_pattern(template)
+        rows.append((code, re.compile(source, re.DOTALL), names))
     return tuple(rows)
 
 
