@@ -515,3 +515,16 @@ def test_help_and_argparse_speak_the_users_language(
     assert "muestra esta ayuda y sale" in out
     assert main(["identify", "x.csv", "--method", "nope"]) == 2
     assert "opción no válida: 'nope'" in capsys.readouterr().err
+
+
+def test_why_a_record_gives_no_model_is_said_in_the_users_language(
+    run: Run, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A real kit's record whose heater never moved: the reason's detail was English.
+    record = _write(tmp_path / "flat.csv", _record("const:5", 300))
+    for name in ("LANGUAGE", "LC_ALL", "LC_MESSAGES"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv("LANG", "pt_BR.UTF-8")
+    status, _out, err = run(str(record), "--method", "srm")
+    assert status == 1
+    assert "(sem excitação: a entrada nunca muda (fica em 5), então nenhum método" in err

@@ -104,7 +104,8 @@ def test_each_sentence_reads_back_as_written_and_in_other_units(code: str) -> No
 #: The sentences that say why there is no model (not warnings: their kinds are REASONS').
 _REASON_CODES = {
     "no_estimate_yet", "not_excited", "unstable", "non_positive_pole", "complex_pole",
-    "non_finite", "too_few_after_step", "oe_no_excitation",
+    "non_finite", "too_few_after_step", "oe_no_excitation", "too_few_to_identify",
+    "input_never_changes", "no_step", "no_step_first_sample",
 }  # fmt: skip
 
 

@@ -13,6 +13,8 @@ import numpy.typing as npt
 
 from thermolab.errors import InsufficientExcitationError, InvalidDataError
 
+from .notes import note
+
 __all__ = ["find_step", "first_response", "median_dt", "noise_level", "pre_step_drift"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -27,17 +29,8 @@ def find_step(u: FloatArray, u_initial: float | None) -> tuple[int, float, float
     jumps = np.abs(np.diff(ext))
     scale = max(1.0, float(np.max(np.abs(ext))))
     if jumps.size == 0 or float(jumps.max()) <= 1e-12 * scale:
-        hint = (
-            ""
-            if u_initial is not None
-            else (
-                "; if the step happened at the first sample, give u_initial (the input before it)"
-            )
-        )
-        raise InsufficientExcitationError(
-            f"no step: the input stays at {float(ext[0]):.6g} V for the whole record, so the "
-            f"output shows no step response{hint}"
-        )
+        code = "no_step" if u_initial is not None else "no_step_first_sample"
+        raise InsufficientExcitationError(note(code, u=float(ext[0])))
     j = int(np.argmax(jumps))
     others = np.flatnonzero(jumps > _OTHER_STEP_FRACTION * jumps[j])
     others = others[others != j]

@@ -214,6 +214,23 @@ NOTES: Mapping[str, str] = MappingProxyType(
             "too few samples after the step: the step is at sample {step} and only {after} "
             "samples follow; the step method needs at least {needed} (the paper records 2000)"
         ),
+        # The record's screening before any method (ident/verdict.py, ident/_step_detect.py).
+        "too_few_to_identify": (
+            "too few samples: {n}, at least {needed} are needed to identify a model"
+        ),
+        "input_never_changes": (
+            "no excitation: the input never changes (it stays at {u:g}), so no method can tell "
+            "the gain from the ambient; record a step or a square wave"
+        ),
+        "no_step": (
+            "no step: the input stays at {u:.6g} V for the whole record, so the output shows no "
+            "step response"
+        ),
+        "no_step_first_sample": (
+            "no step: the input stays at {u:.6g} V for the whole record, so the output shows no "
+            "step response; if the step happened at the first sample, give u_initial (the input "
+            "before it)"
+        ),
         "oe_no_excitation": (
             "no excitation: the input never changes in the record, so the output-error fit "
             "cannot tell the gain from the ambient; record a step or a square wave"

@@ -44,6 +44,7 @@ import numpy.typing as npt
 
 from thermolab.errors import InsufficientExcitationError, InvalidDataError
 
+from .notes import note
 from .oe import simulate_fopdt_at
 
 __all__ = [
@@ -141,14 +142,9 @@ def check_identifiable(
     """
     ua, ya = np.asarray(u, dtype=np.float64), np.asarray(y, dtype=np.float64)
     if ya.size < MIN_SAMPLES:
-        raise InvalidDataError(
-            f"too few samples: {ya.size}, at least {MIN_SAMPLES} are needed to identify a model"
-        )
+        raise InvalidDataError(note("too_few_to_identify", n=ya.size, needed=MIN_SAMPLES))
     if np.ptp(ua) == 0.0:
-        raise InsufficientExcitationError(
-            f"no excitation: the input never changes (it stays at {float(ua[0]):g}), so no "
-            "method can tell the gain from the ambient; record a step or a square wave"
-        )
+        raise InsufficientExcitationError(note("input_never_changes", u=float(ua[0])))
     if u_unit == "%" and (float(np.min(ua)) < 0.0 or float(np.max(ua)) > 100.0):
         worst = float(np.max(ua)) if float(np.max(ua)) > 100.0 else float(np.min(ua))
         raise InvalidDataError(

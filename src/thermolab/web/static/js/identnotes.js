@@ -42,5 +42,9 @@ export const NOTE_PATTERNS = [
   {"code": "complex_pole", "pattern": "^dominant pole is complex: the model oscillates and has no first-order time constant$", "fields": []},
   {"code": "non_finite", "pattern": "^non-finite estimate: the parameters overflowed or diverged$", "fields": []},
   {"code": "too_few_after_step", "pattern": "^too few samples after the step: the step is at sample (.+?) and only (.+?) samples follow; the step method needs at least (.+?) \\(the paper records 2000\\)$", "fields": ["step", "after", "needed"]},
+  {"code": "too_few_to_identify", "pattern": "^too few samples: (.+?), at least (.+?) are needed to identify a model$", "fields": ["n", "needed"]},
+  {"code": "input_never_changes", "pattern": "^no excitation: the input never changes \\(it stays at (.+?)\\), so no method can tell the gain from the ambient; record a step or a square wave$", "fields": ["u"]},
+  {"code": "no_step", "pattern": "^no step: the input stays at (.+?) for the whole record, so the output shows no step response$", "fields": ["u"]},
+  {"code": "no_step_first_sample", "pattern": "^no step: the input stays at (.+?) for the whole record, so the output shows no step response; if the step happened at the first sample, give u_initial \\(the input before it\\)$", "fields": ["u"]},
   {"code": "oe_no_excitation", "pattern": "^no excitation: the input never changes in the record, so the output-error fit cannot tell the gain from the ambient; record a step or a square wave$", "fields": []},
 ];
