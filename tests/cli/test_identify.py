@@ -496,6 +496,12 @@ def test_the_report_speaks_the_users_language_with_its_decimal_mark(
     assert not [w for w in english if f" {w} " in f" {out} "], out
     warning = "aviso: registro curto: " if lang.startswith("pt") else "aviso: registro corto: "
     assert err.startswith(warning), err
+    # The operating point's decision without the library's English reasoning.
+    status, out, err = run(str(record), "--method", "lsm")
+    assert status == 0, err
+    assert "offset=" in out
+    assert "the record starts" not in out
+    assert "subtracting" not in out
     # JSON stays the same in every language: it is for programs.
     status, out, _err = run(str(record), "--method", "srm", "--json")
     assert json.loads(out)["method"] == "srm"

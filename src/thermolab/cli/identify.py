@@ -324,15 +324,24 @@ def _trust_lines(s: dict[str, Any]) -> list[str]:
     rows: list[tuple[str, str]] = []
     op = s.get("operating_point")
     if op is not None:
-        said = _(
-            "offset={handling} (decided from the data: record starts {start}, ambient "
-            "{ambient}): {reason}"
-        ).format(
-            handling=op["handling"],
-            start=_step_word(op["start"]),
-            ambient=_num(op["ambient"], ".6g"),
-            reason=library_text(op["reason"]),
-        )
+        values = {
+            "handling": op["handling"],
+            "start": _step_word(op["start"]),
+            "ambient": _num(op["ambient"], ".6g"),
+        }
+        reason = library_text(op["reason"])
+        if reason == op["reason"] and cli_language() != "en":
+            # The library's reasoning has no words but English; as the browser does, the
+            # decision is said without it rather than half in English.
+            said = _(
+                "offset={handling} (decided from the data: record starts {start}, ambient "
+                "{ambient})"
+            ).format(**values)
+        else:
+            said = _(
+                "offset={handling} (decided from the data: record starts {start}, ambient "
+                "{ambient}): {reason}"
+            ).format(**values, reason=reason)
         rows.append((labels["operating_point"], said))
     elif s.get("offset") is not None:
         rows.append(
