@@ -29,6 +29,7 @@ from thermolab.ident.notes import FINAL, NOTES, note, note_pattern, read_note
 from thermolab.ident.units import in_units
 from thermolab.web import STATIC_DIR
 from thermolab.web.identnotes import JS_MODULE, js_module
+from thermolab.web.library_words import library_sentence
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_messages import TRANSLATIONS, catalogue
@@ -106,6 +107,9 @@ _REASON_CODES = {
     "no_estimate_yet", "not_excited", "unstable", "non_positive_pole", "complex_pole",
     "non_finite", "too_few_after_step", "oe_no_excitation", "too_few_to_identify",
     "input_never_changes", "no_step", "no_step_first_sample",
+    # Why an estimate is not trusted: no kind of its own, said whole.
+    "poor_free_run_fit", "poor_prediction", "peer_gave_no_model", "disagrees_with_peer",
+    "dead_time_uncertain", "start_uncertain", "not_converged",
 }  # fmt: skip
 
 
@@ -188,3 +192,35 @@ def test_a_real_records_warnings_read_wholly_in_portuguese_and_spanish(module_pa
         assert "1 %" in small
         assert "-0,01234" in shown[-2]["text"]
     assert "0.6 %" in r["en"][kinds_in_order.index("small step")]["text"]
+
+
+def test_why_an_estimate_is_not_trusted_reads_whole_in_the_readers_language(
+    module_page: Any,
+) -> None:
+    """The verdict's reasons (no kind of their own) were English on a pt-BR run page."""
+    sentences = [
+        note("poor_free_run_fit", fit=71.25, minimum=90),
+        note("disagrees_with_peer", method="oe", off="K 0.6 vs 0.5", apart=10),
+        note("start_uncertain", u0=50, K=0.61, tau=151.5),
+        note("not_converged"),
+    ]
+    r = module_page.evaluate(
+        """async (sentences) => {
+          const i18n = await import('/js/i18n.js');
+          const { identWarning } = await import('/js/identwords.js');
+          i18n.setLanguage('pt-BR', (await import('/js/messages/pt-BR.js')).messages);
+          return sentences.map((s) => {
+            const node = identWarning(s);
+            return { text: node.textContent, english: node.querySelectorAll?.('[lang=en]').length };
+          });
+        }""",
+        sentences,
+    )
+    assert r[0]["text"].startswith("ajuste ruim em simulação livre: ")
+    assert "71,2 %" in r[0]["text"] or "71,3 %" in r[0]["text"]
+    assert "K 0,6 vs 0,5" in r[1]["text"]
+    assert r[3]["text"].startswith("a estimativa não convergiu")
+    assert all(s["english"] == 0 for s in r), r
+    # The command line says them in the same words.
+    for sentence, shown in zip(sentences, r, strict=True):
+        assert library_sentence(sentence, "pt-BR") == shown["text"]

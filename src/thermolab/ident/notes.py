@@ -231,6 +231,31 @@ NOTES: Mapping[str, str] = MappingProxyType(
             "step response; if the step happened at the first sample, give u_initial (the input "
             "before it)"
         ),
+        # Why an estimate is not trusted (ident/verdict.py): said whole, kind included.
+        "poor_free_run_fit": (
+            "poor free-run fit: the model's simulation follows the record to {fit:.1f} % "
+            "(at least {minimum:g} % asked)"
+        ),
+        "poor_prediction": (
+            "poor prediction: the model fitted on the first two thirds predicts the last "
+            "third to {fit:.1f} % (at least {minimum:g} % asked)"
+        ),
+        "peer_gave_no_model": "no independent estimate to agree with ({method} gave no model)",
+        "disagrees_with_peer": (
+            "disagrees with {method} on the same record ({off}; more than {apart:g} % apart)"
+        ),
+        "dead_time_uncertain": (
+            "dead time uncertain: {here:.3g} s here, {peer:.3g} s from {method} (more than "
+            "{apart:g} s apart)"
+        ),
+        "start_uncertain": (
+            "start uncertain: the input is on ({u0:g}) from the first row, and a kit at rest "
+            "before the record gives K {K:.4g}, tau {tau:.4g} s instead; record some samples "
+            "with the input off (or settled) first"
+        ),
+        "not_converged": (
+            "the estimate did not converge: it never stays within ±1 % to the end of the record"
+        ),
         "oe_no_excitation": (
             "no excitation: the input never changes in the record, so the output-error fit "
             "cannot tell the gain from the ambient; record a step or a square wave"

@@ -249,23 +249,15 @@ def judge(
         fit_record, fit_holdout = free_run_fit(t, u, y, K, tau, th)
     fits_ok = math.isfinite(fit_record) and math.isfinite(fit_holdout)
     if not fits_ok or fit_record < MIN_FIT:
-        reasons.append(
-            f"poor free-run fit: the model's simulation follows the record to {fit_record:.1f} % "
-            f"(at least {MIN_FIT:g} % asked)"
-        )
+        reasons.append(note("poor_free_run_fit", fit=fit_record, minimum=MIN_FIT))
     elif fit_holdout < MIN_FIT:
-        reasons.append(
-            f"poor prediction: the model fitted on the first two thirds predicts the last "
-            f"third to {fit_holdout:.1f} % (at least {MIN_FIT:g} % asked)"
-        )
+        reasons.append(note("poor_prediction", fit=fit_holdout, minimum=MIN_FIT))
     agreement: dict[str, Any] = {}
     if peer is not None:
         agreement = dict(peer)
         pK, ptau, pth = peer.get("K"), peer.get("tau"), peer.get("theta")
         if pK is None or ptau is None:
-            reasons.append(
-                f"no independent estimate to agree with ({peer.get('method')} gave no model)"
-            )
+            reasons.append(note("peer_gave_no_model", method=peer.get("method")))
         else:
             off = [
                 f"{name} {mine:.4g} vs {theirs:.4g}"
@@ -274,27 +266,31 @@ def judge(
             ]
             if off:
                 reasons.append(
-                    f"disagrees with {peer.get('method')} on the same record ("
-                    + ", ".join(off)
-                    + f"; more than {100 * AGREE_REL:g} % apart)"
+                    note(
+                        "disagrees_with_peer",
+                        method=peer.get("method"),
+                        off=", ".join(off),
+                        apart=100 * AGREE_REL,
+                    )
                 )
             if abs(th - float(pth or 0.0)) > AGREE_THETA:
                 reasons.append(
-                    f"dead time uncertain: {th:.3g} s here, {float(pth or 0.0):.3g} s from "
-                    f"{peer.get('method')} (more than {AGREE_THETA:g} s apart)"
+                    note(
+                        "dead_time_uncertain",
+                        here=th,
+                        peer=float(pth or 0.0),
+                        method=peer.get("method"),
+                        apart=AGREE_THETA,
+                    )
                 )
     if at_rest is not None and at_rest.get("K") is not None:
         rK, rtau = float(at_rest["K"]), float(at_rest["tau"])
         if abs(K / rK - 1.0) > AGREE_REL or abs(tau / rtau - 1.0) > AGREE_REL:
             reasons.append(
-                f"start uncertain: the input is on ({at_rest.get('u0', 0.0):g}) from the first "
-                f"row, and a kit at rest before the record gives K {rK:.4g}, tau {rtau:.4g} s "
-                f"instead; record some samples with the input off (or settled) first"
+                note("start_uncertain", u0=float(at_rest.get("u0", 0.0)), K=rK, tau=rtau)
             )
     if converged is False:
-        reasons.append(
-            "the estimate did not converge: it never stays within ±1 % to the end of the record"
-        )
+        reasons.append(note("not_converged"))
     return Verdict(
         not reasons,
         tuple(reasons),

@@ -74,16 +74,24 @@ def _note_key(code: str) -> str:
     return "identNote." + _camel(code)
 
 
-def _detail(sentence: str, detail: str, language: str) -> str:
+def _note_words(sentence: str, language: str) -> str | None:
+    """The note ``sentence`` is, said by its catalogue sentence (its figures in the
+    language's form); None when no pattern reads it or the catalogue lacks it."""
     found = read_note(sentence)
     if found is None:
-        return detail
+        return None
     code, fields, _final = found
     values = {
         name: value if name in _VERBATIM else _local_figures(value, language)
         for name, value in fields.items()
     }
-    return _fill(str(catalogue(language).get(_note_key(code), detail)), values)
+    template = catalogue(language).get(_note_key(code))
+    return None if template is None else _fill(str(template), values)
+
+
+def _detail(sentence: str, detail: str, language: str) -> str:
+    """A warning's detail in ``language``, or the library's when no note reads it."""
+    return _note_words(sentence, language) or detail
 
 
 def ident_sentence(text: str, language: str) -> str:
@@ -109,7 +117,8 @@ def ident_sentence(text: str, language: str) -> str:
     kind, colon, rest = body.partition(":")
     known = _kinds().get(kind.strip())
     if known is None:
-        return text
+        # A sentence of no kind (why an estimate is not trusted) is said whole.
+        return _note_words(body, language) or text
     name_key, advice_key = known
     detail = _detail(body, rest.strip(), language) if colon else ""
     if advice_key is None:  # a reason

@@ -46,5 +46,12 @@ export const NOTE_PATTERNS = [
   {"code": "input_never_changes", "pattern": "^no excitation: the input never changes \\(it stays at (.+?)\\), so no method can tell the gain from the ambient; record a step or a square wave$", "fields": ["u"]},
   {"code": "no_step", "pattern": "^no step: the input stays at (.+?) for the whole record, so the output shows no step response$", "fields": ["u"]},
   {"code": "no_step_first_sample", "pattern": "^no step: the input stays at (.+?) for the whole record, so the output shows no step response; if the step happened at the first sample, give u_initial \\(the input before it\\)$", "fields": ["u"]},
+  {"code": "poor_free_run_fit", "pattern": "^poor free-run fit: the model's simulation follows the record to (.+?) % \\(at least (.+?) % asked\\)$", "fields": ["fit", "minimum"]},
+  {"code": "poor_prediction", "pattern": "^poor prediction: the model fitted on the first two thirds predicts the last third to (.+?) % \\(at least (.+?) % asked\\)$", "fields": ["fit", "minimum"]},
+  {"code": "peer_gave_no_model", "pattern": "^no independent estimate to agree with \\((.+?) gave no model\\)$", "fields": ["method"]},
+  {"code": "disagrees_with_peer", "pattern": "^disagrees with (.+?) on the same record \\((.+?); more than (.+?) % apart\\)$", "fields": ["method", "off", "apart"]},
+  {"code": "dead_time_uncertain", "pattern": "^dead time uncertain: (.+?) s here, (.+?) s from (.+?) \\(more than (.+?) s apart\\)$", "fields": ["here", "peer", "method", "apart"]},
+  {"code": "start_uncertain", "pattern": "^start uncertain: the input is on \\((.+?)\\) from the first row, and a kit at rest before the record gives K (.+?), tau (.+?) s instead; record some samples with the input off \\(or settled\\) first$", "fields": ["u0", "K", "tau"]},
+  {"code": "not_converged", "pattern": "^the estimate did not converge: it never stays within ±1 % to the end of the record$", "fields": []},
   {"code": "oe_no_excitation", "pattern": "^no excitation: the input never changes in the record, so the output-error fit cannot tell the gain from the ambient; record a step or a square wave$", "fields": []},
 ];

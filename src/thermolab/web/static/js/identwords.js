@@ -10,8 +10,9 @@
 // catalogue's "identNote.<code>" in the page's language, its figures with the
 // language's decimal mark; a sentence no pattern reads keeps the library's
 // detail, marked as English. An estimate's reason why there is no model reads
-// the same way. A sentence of a kind this page does not know is shown as the
-// server wrote it. tests/web/test_identwords.py keeps WARNING_KINDS equal to
+// the same way. A sentence of no kind that a pattern reads whole (why an
+// estimate is not trusted) is said by its catalogue sentence; any other
+// sentence of a kind this page does not know is shown as the server wrote it. tests/web/test_identwords.py keeps WARNING_KINDS equal to
 // ADVICE and the catalogue's notes equal to NOTES.
 
 import { h, serverText, tParts } from "./dom.js";
@@ -136,6 +137,22 @@ function detailNode(text, detail) {
 }
 
 /**
+ * A sentence of no warning kind that a note's pattern reads whole (why an estimate
+ * is not trusted: "poor free-run fit: …"), said by its catalogue sentence, kind
+ * included; null when no pattern reads it.
+ * @param {string} text
+ * @returns {Node | null}
+ */
+function wholeNote(text) {
+  const note = readNote(text);
+  if (!note) return null;
+  /** @type {Record<string, Node | string>} */
+  const params = {};
+  for (const [name, value] of Object.entries(note.fields)) params[name] = VERBATIM.has(name) ? serverText(value) : localFigures(value);
+  return h("span", { "data-note": note.code }, ...tParts(noteKey(note.code), params));
+}
+
+/**
  * A warning of the identification library in the reader's language: its
  * kind's name and advice, then its detail (marked as English); a warning of
  * an unknown kind as the server wrote it.
@@ -150,7 +167,7 @@ export function identWarning(warning) {
   const body = text.replace(FINAL, "");
   const { kind, detail } = split(body);
   const known = WARNINGS.get(kind);
-  if (!known) return serverText(text);
+  if (!known) return wholeNote(body) ?? serverText(text);
   const key = detail ? "identWords.warning" : "identWords.warningNoDetail";
   const said = h("span", { "data-kind": kind }, ...tParts(key, { kind: t(known.name), advice: t(known.advice), detail: detailNode(body, detail) }));
   return final ? h("span", null, ...tParts("identWords.finalEstimate", { warning: said })) : said;
