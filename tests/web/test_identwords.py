@@ -109,7 +109,7 @@ _REASON_CODES = {
     "input_never_changes", "no_step", "no_step_first_sample",
     # Why an estimate is not trusted: no kind of its own, said whole.
     "poor_free_run_fit", "poor_prediction", "peer_gave_no_model", "disagrees_with_peer",
-    "dead_time_uncertain", "start_uncertain", "not_converged",
+    "dead_time_uncertain", "start_uncertain", "not_converged", "no_model",
 }  # fmt: skip
 
 
@@ -203,6 +203,7 @@ def test_why_an_estimate_is_not_trusted_reads_whole_in_the_readers_language(
         note("disagrees_with_peer", method="oe", off="K 0.6 vs 0.5", apart=10),
         note("start_uncertain", u0=50, K=0.61, tau=151.5),
         note("not_converged"),
+        note("no_model", reason=note("no_step", u=5.0)),
     ]
     r = module_page.evaluate(
         """async (sentences) => {
@@ -220,6 +221,7 @@ def test_why_an_estimate_is_not_trusted_reads_whole_in_the_readers_language(
     assert "71,2 %" in r[0]["text"] or "71,3 %" in r[0]["text"]
     assert "K 0,6 vs 0,5" in r[1]["text"]
     assert r[3]["text"].startswith("a estimativa não convergiu")
+    assert r[4]["text"].startswith("sem modelo: sem degrau: a entrada fica em 5 V")
     assert all(s["english"] == 0 for s in r), r
     # The command line says them in the same words.
     for sentence, shown in zip(sentences, r, strict=True):

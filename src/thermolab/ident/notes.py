@@ -232,6 +232,7 @@ NOTES: Mapping[str, str] = MappingProxyType(
             "before it)"
         ),
         # Why an estimate is not trusted (ident/verdict.py): said whole, kind included.
+        "no_model": "no model: {reason}",
         "poor_free_run_fit": (
             "poor free-run fit: the model's simulation follows the record to {fit:.1f} % "
             "(at least {minimum:g} % asked)"

@@ -242,7 +242,8 @@ def judge(
     notes = [w for w in warnings if _is_note(w, honours_time)]
     reasons = [w for w in warnings if not _is_note(w, honours_time)]
     if K is None or tau is None or not (math.isfinite(K) and math.isfinite(tau)) or tau <= 0:
-        reasons.insert(0, f"no model: {reason or 'the method gave no first-order model'}")
+        said = reason or "the method gave no first-order model"
+        reasons.insert(0, note("no_model", reason=said))
         return Verdict(False, tuple(reasons), tuple(notes))
     th = 0.0 if theta is None or not math.isfinite(theta) else float(theta)
     with np.errstate(all="ignore"):

@@ -85,6 +85,9 @@ def _note_words(sentence: str, language: str) -> str | None:
         name: value if name in _VERBATIM else _local_figures(value, language)
         for name, value in fields.items()
     }
+    if "reason" in fields:  # why there is no model: a sentence of its own
+        said = library_sentence(fields["reason"], language)
+        values["reason"] = said if said != fields["reason"] else values["reason"]
     template = catalogue(language).get(_note_key(code))
     return None if template is None else _fill(str(template), values)
 

@@ -46,6 +46,7 @@ export const NOTE_PATTERNS = [
   {"code": "input_never_changes", "pattern": "^no excitation: the input never changes \\(it stays at (.+?)\\), so no method can tell the gain from the ambient; record a step or a square wave$", "fields": ["u"]},
   {"code": "no_step", "pattern": "^no step: the input stays at (.+?) for the whole record, so the output shows no step response$", "fields": ["u"]},
   {"code": "no_step_first_sample", "pattern": "^no step: the input stays at (.+?) for the whole record, so the output shows no step response; if the step happened at the first sample, give u_initial \\(the input before it\\)$", "fields": ["u"]},
+  {"code": "no_model", "pattern": "^no model: (.+?)$", "fields": ["reason"]},
   {"code": "poor_free_run_fit", "pattern": "^poor free-run fit: the model's simulation follows the record to (.+?) % \\(at least (.+?) % asked\\)$", "fields": ["fit", "minimum"]},
   {"code": "poor_prediction", "pattern": "^poor prediction: the model fitted on the first two thirds predicts the last third to (.+?) % \\(at least (.+?) % asked\\)$", "fields": ["fit", "minimum"]},
   {"code": "peer_gave_no_model", "pattern": "^no independent estimate to agree with \\((.+?) gave no model\\)$", "fields": ["method"]},

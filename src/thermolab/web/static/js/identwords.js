@@ -149,6 +149,8 @@ function wholeNote(text) {
   /** @type {Record<string, Node | string>} */
   const params = {};
   for (const [name, value] of Object.entries(note.fields)) params[name] = VERBATIM.has(name) ? serverText(value) : localFigures(value);
+  // Why there is no model ("no model: no step: …"): a reason of its own.
+  if (note.fields.reason !== undefined) params.reason = identReason(note.fields.reason);
   return h("span", { "data-note": note.code }, ...tParts(noteKey(note.code), params));
 }
 

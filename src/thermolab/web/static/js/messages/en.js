@@ -620,6 +620,7 @@ export const messages = {
   "identNote.movingBeforeStep": "the output changed by {drift} before the step ({share} % of the response), so the baseline is uncertain; start from rest (a cold rig)",
   "identNote.noCrossing": "the record ends before the output covers 63.2 % of its extrapolated change, so tau is the fitted time constant; record at least {settle} time constants after the step",
   "identNote.noEstimateYet": "not enough samples have arrived",
+  "identNote.noModel": "no model: {reason}",
   "identNote.noSoundFit": "{after} samples after the step give K = {K} and tau = {tau} s, which no first-order response has",
   "identNote.noStep": "the input stays at {u} for the whole record, so the output shows no step response",
   "identNote.noStepFirstSample": "the input stays at {u} for the whole record, so the output shows no step response; if the step happened at the first sample, give u_initial (the input before it)",

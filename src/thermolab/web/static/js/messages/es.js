@@ -620,6 +620,7 @@ export const messages = {
   "identNote.movingBeforeStep": "la salida cambió {drift} antes del escalón ({share} % de la respuesta), así que la línea de base es incierta; empiece desde el reposo (equipo frío)",
   "identNote.noCrossing": "el registro termina antes de que la salida cubra el 63,2 % de su cambio extrapolado, así que Ts es la constante de tiempo ajustada; registre al menos {settle} constantes de tiempo después del escalón",
   "identNote.noEstimateYet": "aún no han llegado suficientes muestras",
+  "identNote.noModel": "sin modelo: {reason}",
   "identNote.noSoundFit": "las {after} muestras después del escalón dan Ks = {K} y Ts = {tau} s, que ninguna respuesta de primer orden tiene",
   "identNote.noStep": "la entrada se queda en {u} durante todo el registro, así que la salida no muestra respuesta al escalón",
   "identNote.noStepFirstSample": "la entrada se queda en {u} durante todo el registro, así que la salida no muestra respuesta al escalón; si el escalón ocurrió en la primera muestra, indique u_initial (la entrada antes de él)",

@@ -620,6 +620,7 @@ export const messages = {
   "identNote.movingBeforeStep": "a saída mudou {drift} antes do degrau ({share} % da resposta), então a linha de base é incerta; comece do repouso (bancada fria)",
   "identNote.noCrossing": "o registro termina antes de a saída cobrir 63,2 % da sua variação extrapolada, então Ts é a constante de tempo ajustada; registre pelo menos {settle} constantes de tempo após o degrau",
   "identNote.noEstimateYet": "ainda não chegaram amostras suficientes",
+  "identNote.noModel": "sem modelo: {reason}",
   "identNote.noSoundFit": "as {after} amostras após o degrau dão Ks = {K} e Ts = {tau} s, que nenhuma resposta de primeira ordem tem",
   "identNote.noStep": "a entrada fica em {u} durante todo o registro, então a saída não mostra resposta ao degrau",
   "identNote.noStepFirstSample": "a entrada fica em {u} durante todo o registro, então a saída não mostra resposta ao degrau; se o degrau ocorreu na primeira amostra, informe u_initial (a entrada antes dele)",
