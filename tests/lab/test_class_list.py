@@ -127,7 +127,7 @@ def test_the_command_line_says_a_class_lists_problems_in_portuguese(
     roster.write_bytes("matrícula;nome\n1;Conceição\n".encode("cp1252"))
     status, out, err = run([*base, "course", "import", "c1", str(roster)], capsys, monkeypatch)
     assert status == 0
-    assert "(read as Windows-1252)" in err
+    assert "(lido como Windows-1252)" in err
     assert out.splitlines()[0] == "username,password"
     # The one-time passwords for a Brazilian spreadsheet.
     roster.write_bytes("matrícula;nome\n2;Zé\n".encode("cp1252"))

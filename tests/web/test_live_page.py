@@ -129,7 +129,13 @@ def send_run(page: Any, first_seq: int, n: int, batch: int = 1000) -> int:
 
 
 def drawn(page: Any, label: str) -> int:
-    page.evaluate("() => new Promise((r) => requestAnimationFrame(() => setTimeout(r, 0)))")
+    """The chart's points once the redraw asked for so far has run: a chart waits up to
+    a tenth of a second between redraws (charts.js REDRAWS_PER_SECOND), so this waits
+    for a timer set after its own, then for the frame after its redraw's."""
+    page.evaluate(
+        """() => new Promise((r) =>
+          setTimeout(() => requestAnimationFrame(() => setTimeout(r, 0)), 110))"""
+    )
     return int(page.get_attribute(f"figure[aria-label='{label}']", "data-points") or 0)
 
 
