@@ -375,6 +375,26 @@ def test_a_runs_late_sample_does_not_become_the_idle_rigs_input(make_lab: LabFac
     assert hub.applied(RIG) == 0.5
 
 
+def test_a_rig_its_run_powered_off_is_said_off_as_soon_as_the_run_lets_it_go(
+    make_lab: LabFactory, clock: ManualClock
+) -> None:
+    # Between the run's release of the rig and the hub's next reconcile, the hub said
+    # "powered, at the run's last input" of a rig the run had switched off (CI saw it in
+    # test_a_start_that_loses_the_race_gets_turn_ended_every_time: 6.0 with no turn).
+    scene = Scene(make_lab, clock)
+    scene.ready()  # a controller: the rig is open and powered
+    hub = scene.lab.hub
+    driver = hub.driver(RIG)
+    assert driver is not None
+    assert hub.powered(RIG)
+    hub.claim(RIG)
+    hub.note_sample(RIG, 6.0, 30.0, of_run=True)
+    driver.power_off()  # what a run does as it ends
+    hub.release(RIG)
+    assert not hub.powered(RIG)
+    assert hub.applied(RIG) is None
+
+
 def test_a_start_after_the_turn_ended_is_refused_not_a_lost_race(
     make_lab: LabFactory, clock: ManualClock
 ) -> None:

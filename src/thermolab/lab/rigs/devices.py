@@ -176,6 +176,12 @@ class DeviceHub:
         with slot.lock:
             slot.claimed = False
             slot.controller_session = None
+            driver = slot.driver
+            if driver is not None and not driver.powered:
+                # The run powered the device off as it ended: the hub says so from now on,
+                # not the run's last input until the next reconcile (a reader between the
+                # two saw an idle rig "powered at 6 V" that was off).
+                slot.powered, slot.input = False, None
             if left_off:
                 slot.powered, slot.input = False, None
                 self._host_at_rest(slot)  # its runner powered it off: the rig's safe state
