@@ -31,9 +31,9 @@ _EXAMPLE_COMMANDS = """\
   thermolab run --rig sim:paper-practical --dt 1 --samples 3000 \\
       --signal square:4:6:0.1 --method lsm,malsm,wlsm --speedup 100 --out run.csv
   thermolab run --rig tclab --dt 1 --duration 600 --signal step:0:50@30 --out kit.csv
-  thermolab run --rig sim:tclab --dt 1 --duration 1200 --fast --control pid \
+  thermolab run --rig sim:tclab --dt 1 --duration 1200 --fast --control pid \\
       --setpoint step:21:50@60 --tune simc --model 0.6,140,15.9
-  thermolab run --rig sim --dt 1 --samples 3000 --fast --control pid --setpoint 1 \
+  thermolab run --rig sim --dt 1 --samples 3000 --fast --control pid --setpoint 1 \\
       --kp 20 --ti 100 --adaptive --tune imc --tau-c 100 --pid-form pi --max-change 0.1
 """
 
