@@ -17,30 +17,26 @@ from thermolab.cli._words import _
 from thermolab.ident.registry import METHOD_NAMES, Setting
 
 __all__ = [
+    "EXAMPLE_COMMANDS",
     "add_run_options",
     "clock_for",
     "control_loop",
-    "examples",
     "identifier_settings",
     "number_of_samples",
 ]
 
-# The commands are never translated; their heading is (see :func:`examples`).
-_EXAMPLE_COMMANDS = """\
-  thermolab run --rig sim --dt 1 --duration 2000 --signal step:0:10@10 --fast
-  thermolab run --rig sim:paper-practical --dt 1 --samples 3000 \\
-      --signal square:4:6:0.1 --method lsm,malsm,wlsm --speedup 100 --out run.csv
-  thermolab run --rig tclab --dt 1 --duration 600 --signal step:0:50@30 --out kit.csv
-  thermolab run --rig sim:tclab --dt 1 --duration 1200 --fast --control pid \\
-      --setpoint step:21:50@60 --tune simc --model 0.6,140,15.9
-  thermolab run --rig sim --dt 1 --samples 3000 --fast --control pid --setpoint 1 \\
-      --kp 20 --ti 100 --adaptive --tune imc --tau-c 100 --pid-form pi --max-change 0.1
-"""
-
-
-def examples() -> str:
-    """The ``run`` parser's epilog: a heading in the user's language, then the commands."""
-    return _("examples:") + "\n" + _EXAMPLE_COMMANDS
+#: The commands as they are typed (never translated); :func:`~thermolab.cli._words.examples`
+#: puts the heading in the user's language.
+EXAMPLE_COMMANDS = (
+    "thermolab run --rig sim --dt 1 --duration 2000 --signal step:0:10@10 --fast",
+    "thermolab run --rig sim:paper-practical --dt 1 --samples 3000 \\",
+    "    --signal square:4:6:0.1 --method lsm,malsm,wlsm --speedup 100 --out run.csv",
+    "thermolab run --rig tclab --dt 1 --duration 600 --signal step:0:50@30 --out kit.csv",
+    "thermolab run --rig sim:tclab --dt 1 --duration 1200 --fast --control pid \\",
+    "    --setpoint step:21:50@60 --tune simc --model 0.6,140,15.9",
+    "thermolab run --rig sim --dt 1 --samples 3000 --fast --control pid --setpoint 1 \\",
+    "    --kp 20 --ti 100 --adaptive --tune imc --tau-c 100 --pid-form pi --max-change 0.1",
+)
 
 
 def add_run_options(parser: argparse.ArgumentParser) -> None:

@@ -84,12 +84,12 @@ def control_table(
     loop: Any,
     tuning: Any,
     figures: dict[str, Any],
-    notes: tuple[str, ...] = (),
+    notes: tuple[str, ...],
 ) -> str:
     """The control line (mode, set point, gains, tuning) and the closed-loop figures' table.
 
     ``notes`` are the library's notes on the figures one by one (from
-    :func:`closed_loop_figures`); without them, ``figures["note"]`` is said as one.
+    :func:`closed_loop_figures`), each said in the user's language.
     """
     rig = result.rig
     g = loop.gains
@@ -141,8 +141,8 @@ def control_table(
                     "samples)"
                 ).format(**counts)
             )
-    if figures["note"]:
-        said = "; ".join(library_text(n) for n in notes or (figures["note"],))
+    if notes:
+        said = "; ".join(library_text(n) for n in notes)
         lines.append(_("closed loop: {note}").format(note=said))
     if figures["measured"] is None:
         return "\n".join(lines)

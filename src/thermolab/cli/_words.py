@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
-import re
 from collections.abc import Iterator
 
 __all__ = [
@@ -29,6 +28,7 @@ __all__ = [
     "any_words",
     "cli_language",
     "decimal",
+    "examples",
     "in_language",
     "library_text",
     "speaking_argparse",
@@ -87,6 +87,13 @@ def in_language(message: str, language: str) -> str:
     return translate(message, language)
 
 
+def examples(*commands: str) -> str:
+    """A ``--help`` epilog: the heading in the user's language, then each command as it is
+    typed, indented (a continuation line given as a command of its own keeps its indent).
+    A comment after a command is the caller's ``_()``: the commands are never translated."""
+    return _("examples:") + "\n" + "".join(f"  {command}\n" for command in commands)
+
+
 def _ngettext(singular: str, plural: str, n: int) -> str:
     return _(singular if n == 1 else plural)
 
@@ -133,7 +140,6 @@ def decimal(text: str) -> str:
     language = cli_language()
     if language == "en":
         return text
-    from thermolab.lab.error_messages import decimal_mark
+    from thermolab.web.library_words import local_figures
 
-    mark = decimal_mark(language)
-    return re.sub(r"(?<=\d)\.(?=\d)", mark, text)
+    return local_figures(text, language)

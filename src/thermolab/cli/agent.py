@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from thermolab.cli._words import _
+from thermolab.cli._words import _, examples
 from thermolab.cli.serve import add_database_options, lab_config_from_args
 
 __all__ = ["register"]
@@ -35,7 +35,7 @@ def _examples() -> str:
         "thermolab agent --lab wss://lab.example:8443 --rig box1 --spec tclab \\",
         "    --secret-file box1.secret --ca lab-ca.pem                   # " + _("on the rig host"),
     )
-    return _("examples:") + "\n" + "".join(f"  {command}\n" for command in commands)
+    return examples(*commands)
 
 
 def register(subparsers: Any) -> None:

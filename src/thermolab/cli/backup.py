@@ -14,23 +14,19 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from thermolab.cli._words import _
+from thermolab.cli._words import _, examples
 from thermolab.cli.serve import add_database_options, lab_config_from_args
 
 __all__ = ["register"]
 
 
-# The commands are never translated; their heading is (see :func:`_examples`).
-_EXAMPLE_COMMANDS = """\
-  thermolab --data-dir /srv/thermolab backup /var/backups/thermolab/lab-$(date +%F).tar.gz
-  thermolab --data-dir /srv/thermolab-new restore /var/backups/thermolab/lab-2026-11-28.tar.gz
-  thermolab backup lab.tar.gz --database-url postgresql+psycopg://lab@db/thermolab
-"""
-
-
-def _examples() -> str:
-    """The ``--help`` epilog: a heading in the user's language, then the commands."""
-    return _("examples:") + "\n" + _EXAMPLE_COMMANDS
+#: The commands as they are typed (never translated); :func:`~thermolab.cli._words.examples`
+#: puts the heading in the user's language.
+_EXAMPLE_COMMANDS = (
+    "thermolab --data-dir /srv/thermolab backup /var/backups/thermolab/lab-$(date +%F).tar.gz",
+    "thermolab --data-dir /srv/thermolab-new restore /var/backups/thermolab/lab-2026-11-28.tar.gz",
+    "thermolab backup lab.tar.gz --database-url postgresql+psycopg://lab@db/thermolab",
+)
 
 
 def register(subparsers: Any) -> None:
@@ -48,7 +44,7 @@ def register(subparsers: Any) -> None:
             "Copy the lab's database (consistently, while it runs) and data folder "
             "into one .tar.gz with a manifest of checksums."
         ),
-        epilog=_examples(),
+        epilog=examples(*_EXAMPLE_COMMANDS),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     backup.add_argument("archive", metavar="FILE.tar.gz", help=_("the archive to write"))
@@ -62,7 +58,7 @@ def register(subparsers: Any) -> None:
             "Restore a 'thermolab backup' archive into an empty data folder (and an "
             "empty database with --database-url), checking every checksum first."
         ),
-        epilog=_examples(),
+        epilog=examples(*_EXAMPLE_COMMANDS),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     restore.add_argument("archive", metavar="FILE.tar.gz", help=_("the archive to read"))

@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from thermolab.cli._words import _
+from thermolab.cli._words import _, examples
 from thermolab.cli.serve import add_database_options, lab_config_from_args, make_private
 
 if TYPE_CHECKING:
@@ -48,7 +48,7 @@ def _examples() -> str:
         "thermolab course purge-students ctrl1 --yes      # "
         + _("remove them; runs kept under a pseudonym"),
     )
-    return _("examples:") + "\n" + "".join(f"  {command}\n" for command in commands)
+    return examples(*commands)
 
 
 def register(subparsers: Any) -> None:

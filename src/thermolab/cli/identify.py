@@ -432,7 +432,8 @@ def _label(method: str) -> str:
 
 
 def _step_word(value: str) -> str:
-    """A step's figure's basis or direction, as the library names it, in the user's language."""
+    """A word the library names a step's figure or a record's start with (its basis, its
+    direction, where the record starts), in the user's language."""
     words = {
         "heating": _("heating"),
         "cooling": _("cooling"),

@@ -28,10 +28,10 @@ import sys
 from typing import Any
 
 from thermolab.cli._run_args import (
+    EXAMPLE_COMMANDS,
     add_run_options,
     clock_for,
     control_loop,
-    examples,
     identifier_settings,
     number_of_samples,
 )
@@ -43,7 +43,7 @@ from thermolab.cli._run_report import (
     summary_table,
 )
 from thermolab.cli._settings import given_settings
-from thermolab.cli._words import _, library_text
+from thermolab.cli._words import _, examples, library_text
 
 __all__ = ["register"]
 
@@ -63,7 +63,7 @@ def register(subparsers: Any) -> None:
             "Run an experiment on a rig (the digital twin or a TCLab kit): apply a "
             "signal, record every sample, identify Ks and Ts with online methods."
         ),
-        epilog=examples(),
+        epilog=examples(*EXAMPLE_COMMANDS),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_run_options(parser)

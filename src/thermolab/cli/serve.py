@@ -27,7 +27,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from thermolab.cli._words import _
+from thermolab.cli._words import _, examples
 from thermolab.cli.http_server import CONNECTION_LIMIT, run_server
 
 if TYPE_CHECKING:
@@ -49,7 +49,7 @@ def _examples() -> str:
         "thermolab serve --database-url postgresql+psycopg://lab@localhost/thermolab",
         "thermolab serve --speedup 50        # " + _("saves 50 as every twin's speed-up (demos)"),
     )
-    return _("examples:") + "\n" + "".join(f"  {command}\n" for command in commands)
+    return examples(*commands)
 
 
 def add_database_options(parser: argparse.ArgumentParser) -> None:

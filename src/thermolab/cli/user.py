@@ -19,7 +19,7 @@ import getpass
 import sys
 from typing import TYPE_CHECKING, Any
 
-from thermolab.cli._words import _
+from thermolab.cli._words import _, examples
 from thermolab.cli.serve import add_database_options, lab_config_from_args, make_private
 
 if TYPE_CHECKING:
@@ -28,16 +28,17 @@ if TYPE_CHECKING:
 
 __all__ = ["register"]
 
-_EXAMPLES = """\
-  thermolab user add root --role admin
-  thermolab user add tina --role teacher
-  thermolab user admin tina
-  printf '%s\\n' "$PASSWORD" | thermolab user add ana --role student --password-stdin
-  thermolab user list
-  thermolab user passwd ana
-  thermolab user remove ana
-  thermolab user forget ana --runs keep
-"""
+#: The commands as they are typed (never translated).
+_EXAMPLES = (
+    "thermolab user add root --role admin",
+    "thermolab user add tina --role teacher",
+    "thermolab user admin tina",
+    "printf '%s\\n' \"$PASSWORD\" | thermolab user add ana --role student --password-stdin",
+    "thermolab user list",
+    "thermolab user passwd ana",
+    "thermolab user remove ana",
+    "thermolab user forget ana --runs keep",
+)
 
 
 def register(subparsers: Any) -> None:
@@ -52,7 +53,7 @@ def register(subparsers: Any) -> None:
         "user",
         help=_("manage the lab's accounts (add, list, passwd, remove)"),
         description=_("Manage the accounts of the lab."),
-        epilog=_("examples:") + "\n" + _EXAMPLES,
+        epilog=examples(*_EXAMPLES),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     actions = parser.add_subparsers(

@@ -21,9 +21,17 @@ from typing import Any
 
 from thermolab.control.words import LOOP_WORDS
 from thermolab.ident.notes import read_note, template_pattern
+from thermolab.lab.error_messages import decimal_mark
 from thermolab.web import STATIC_DIR
 
-__all__ = ["catalogue", "ident_sentence", "library_sentence", "loop_sentence", "method_title"]
+__all__ = [
+    "catalogue",
+    "ident_sentence",
+    "library_sentence",
+    "local_figures",
+    "loop_sentence",
+    "method_title",
+]
 
 _JS = STATIC_DIR / "js"
 #: A kind's row of identwords.js's WARNING_KINDS / REASON_KINDS.
@@ -55,11 +63,20 @@ def _fill(template: str, values: dict[str, str]) -> str:
     return re.sub(r"\{(\w+)\}", lambda m: values.get(m.group(1), m.group(0)), template)
 
 
-def _local_figures(text: str, language: str) -> str:
-    """The figures of ``text`` with the language's decimal mark, their digits as written."""
+def local_figures(text: str, language: str) -> str:
+    """The figures of ``text`` with the language's decimal mark, their digits as written
+    (the browser's ``localFigures``, without its digits rule): for a sentence's figures
+    and a report's values, never for a path, a command or output meant for a program.
+
+    Examples
+    --------
+    >>> local_figures("K 0.599725 V/V, 1.5e-05 at t = 10 s", "pt-BR")
+    'K 0,599725 V/V, 1,5e-05 at t = 10 s'
+    """
     if language == "en":
         return text
-    return _FIGURE.sub(lambda m: m.group().replace(".", ","), text)
+    mark = decimal_mark(language)
+    return _FIGURE.sub(lambda m: m.group().replace(".", mark), text)
 
 
 def _camel(code: str) -> str:
@@ -82,7 +99,7 @@ def _note_words(sentence: str, language: str) -> str | None:
         return None
     code, fields, _final = found
     values = {
-        name: value if name in _VERBATIM else _local_figures(value, language)
+        name: value if name in _VERBATIM else local_figures(value, language)
         for name, value in fields.items()
     }
     if "reason" in fields:  # why there is no model: a sentence of its own
@@ -90,11 +107,6 @@ def _note_words(sentence: str, language: str) -> str | None:
         values["reason"] = said if said != fields["reason"] else values["reason"]
     template = catalogue(language).get(_note_key(code))
     return None if template is None else _fill(str(template), values)
-
-
-def _detail(sentence: str, detail: str, language: str) -> str:
-    """A warning's detail in ``language``, or the library's when no note reads it."""
-    return _note_words(sentence, language) or detail
 
 
 def ident_sentence(text: str, language: str) -> str:
@@ -123,7 +135,7 @@ def ident_sentence(text: str, language: str) -> str:
         # A sentence of no kind (why an estimate is not trusted) is said whole.
         return _note_words(body, language) or text
     name_key, advice_key = known
-    detail = _detail(body, rest.strip(), language) if colon else ""
+    detail = (_note_words(body, language) or rest.strip()) if colon else ""
     if advice_key is None:  # a reason
         said = _fill(
             str(words["identWords.reason"]), {"kind": str(words[name_key]), "detail": detail}
@@ -167,7 +179,7 @@ def loop_sentence(text: str, language: str) -> str | None:
             if name in ("warning", "reason"):
                 values[name] = library_sentence(value, language)
             else:
-                values[name] = _local_figures(value.strip("'"), language)
+                values[name] = local_figures(value.strip("'"), language)
         template = words.get("loopWord." + _camel(code))
         return text if template is None else _fill(str(template), values)
     return None
