@@ -138,6 +138,29 @@ def migrated_postgres(postgres_server: str) -> Iterator[str]:
         admin.dispose()
 
 
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Run a module marked ``sqlite_only`` on SQLite alone: its PostgreSQL twins are deselected.
+
+    Every lab test that takes ``database_url`` runs on both databases unless its module
+    says that what it checks does not depend on the database (turn and queue rules, the
+    hand-over, marking, the control API's shapes: the same Python over the same store).
+    What does depend on it (locks and races, constraints and uniqueness, SQL queries,
+    dates, types and blobs, migrations, backups, the API fuzzing) keeps both. The
+    PostgreSQL twin of a test costs two to three times its SQLite run (each write is a
+    round trip to the server), and the twins of the modules marked so were about a tenth of
+    the suite's time (issue #20).
+    """
+    kept: list[pytest.Item] = []
+    dropped: list[pytest.Item] = []
+    for item in items:
+        callspec = getattr(item, "callspec", None)
+        on_postgres = callspec is not None and callspec.params.get("database_url") == "postgres"
+        (dropped if on_postgres and item.get_closest_marker("sqlite_only") else kept).append(item)
+    if dropped:
+        config.hook.pytest_deselected(items=dropped)
+        items[:] = kept
+
+
 @pytest.fixture(
     params=["sqlite", pytest.param("postgres", marks=pytest.mark.postgres)],
 )

@@ -1,4 +1,4 @@
-"""Assignments through the API on SQLite and PostgreSQL: set, hand in a real twin run, mark, export.
+"""Assignments through the API on SQLite: set, hand in a real twin run, mark, export.
 
 The runs are real: the paper's twin on a virtual clock, sampled, stored and
 identified again by the library when handed in.
@@ -25,6 +25,9 @@ from thermolab.lab.service import Lab
 
 from .conftest import PASSWORD, LabFactory
 from .test_runs import twin_lab
+
+# On SQLite alone: hand-in and marking rules (tests/lab/conftest.py says why).
+pytestmark = pytest.mark.sqlite_only
 
 # The paper twin's true model (the reference the marks are checked against).
 TRUE_K, TRUE_TAU = 0.14009, 250.126233

@@ -18,6 +18,10 @@ from thermolab.lab.service import Lab
 
 from .conftest import PASSWORD
 
+# On SQLite alone: request guards and answer shapes, before and after any store
+# (tests/lab/conftest.py says why).
+pytestmark = pytest.mark.sqlite_only
+
 FOREIGN = "https://evil.example"
 
 

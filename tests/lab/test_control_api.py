@@ -26,6 +26,9 @@ from thermolab.rigs.tclab_emulator import TCLabEmulator
 from .conftest import LabFactory
 from .test_runs import StepClock, api_client, person, until
 
+# On SQLite alone: closed-loop commands and their answers (tests/lab/conftest.py says why).
+pytestmark = pytest.mark.sqlite_only
+
 KIT = (0.6, 140.0, 15.9)  # the kit twin's FOPDT figures
 PAPER = (0.140090, 250.126233, 0.5)
 

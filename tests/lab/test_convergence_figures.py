@@ -28,6 +28,9 @@ from thermolab.rigs import Rig, TwinRig, VirtualClock
 from .conftest import PASSWORD, LabFactory
 from .test_runs import person
 
+# On SQLite alone: the library's figures on a stored record (tests/lab/conftest.py says why).
+pytestmark = pytest.mark.sqlite_only
+
 
 def _lab_and_cli(make_lab: LabFactory, tmp_path: Path, preset: str, body: dict[str, Any]) -> Any:
     def opener(rig: RigConfig) -> Rig:

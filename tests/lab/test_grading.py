@@ -1,4 +1,4 @@
-"""A teacher's grading tools through the API (issue #24 item 7), on SQLite and PostgreSQL.
+"""A teacher's grading tools through the API (issue #24 item 7), on SQLite.
 
 Marks overridden with a comment (the automatic mark kept beside it, in the
 grades, the spreadsheet, the analytics and what the LMS is told), one
@@ -25,6 +25,9 @@ from thermolab.lab.service import Lab
 
 from .conftest import PASSWORD
 from .test_assignments import _assignment, _client, _run, school  # noqa: F401 - the fixture
+
+# On SQLite alone: marking rules over the same store (tests/lab/conftest.py says why).
+pytestmark = pytest.mark.sqlite_only
 
 
 @pytest.fixture

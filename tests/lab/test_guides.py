@@ -14,6 +14,9 @@ from thermolab.web import STATIC_DIR
 from .conftest import LabFactory
 from .test_live import login, make
 
+# On SQLite alone: sanitising and revision rules (tests/lab/conftest.py says why).
+pytestmark = pytest.mark.sqlite_only
+
 
 def catalogue(lang: str) -> dict[str, object]:
     """The interface's messages in ``lang`` (js/messages/<lang>.js holds a JSON object)."""

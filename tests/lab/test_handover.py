@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import pytest
 from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
@@ -25,6 +26,10 @@ from thermolab.rigs import RigSpec, TwinRig
 
 from .conftest import LabFactory
 from .test_runs import api_client, person, until
+
+# On SQLite alone: the hand-over is the rig and the runner, the same over either store
+# (tests/lab/conftest.py says why).
+pytestmark = pytest.mark.sqlite_only
 
 RIG = "twin"
 #: How fast the twin runs: a 1-s sample every 5 ms, so a run is going when a user acts.

@@ -28,6 +28,10 @@ from .test_assignments import _assignment, _run
 from .test_lti import TOOL, _launch, platform, registered, teacher
 from .test_runs import twin_lab
 
+# On SQLite alone: the LMS exchange; LTI's nonces and platforms on both are test_lti
+# (tests/lab/conftest.py says why).
+pytestmark = pytest.mark.sqlite_only
+
 __all__ = ["platform", "registered", "teacher"]  # the fixtures, shared with test_lti
 
 Client = Callable[..., TestClient]

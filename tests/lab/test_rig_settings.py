@@ -1,6 +1,6 @@
 """Teacher settings in the database: the API, the first values, caps, when a change applies.
 
-SQLite and PostgreSQL (the ``database_url`` fixture); the lab's clock is manual.
+SQLite (the ``database_url`` fixture); the lab's clock is manual.
 """
 
 from __future__ import annotations
@@ -24,6 +24,10 @@ from thermolab.lab.service import Lab
 
 from .conftest import PASSWORD, LabFactory
 from .test_runs import StepClock, person, until
+
+# On SQLite alone: settings rules; their storage is test_db and the upgrade ladder on both
+# (tests/lab/conftest.py says why).
+pytestmark = pytest.mark.sqlite_only
 
 Clients = Callable[..., TestClient]
 

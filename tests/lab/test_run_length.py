@@ -24,6 +24,9 @@ from thermolab.rigs import Rig, TwinRig
 from .conftest import LabFactory
 from .test_runs import StepClock, api_client, person, until
 
+# On SQLite alone: the turn covers the run: clock rules (tests/lab/conftest.py says why).
+pytestmark = pytest.mark.sqlite_only
+
 
 @pytest.fixture
 def step_clock() -> Iterator[StepClock]:

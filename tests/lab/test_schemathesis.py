@@ -64,8 +64,8 @@ ASGIApp = Callable[
 SEEDS = range(int(os.environ.get("THERMOLAB_FUZZ_SEEDS", "2")))
 SCENARIOS_PER_SEED = 12
 STEPS_PER_SCENARIO = 8
-ALONE_EXAMPLES = 10  # for each operation no chain reached, on SQLite
-ALONE_EXAMPLES_POSTGRES = 4  # the same there: what differs is types and constraints
+ALONE_EXAMPLES = 6  # for each operation no chain reached, on SQLite
+ALONE_EXAMPLES_POSTGRES = 3  # the same there: what differs is types and constraints
 CHECKS = (not_a_server_error, response_schema_conformance)
 
 # (check, operation) -> why it still fails. Empty: schemathesis finds nothing else.
@@ -227,6 +227,17 @@ def run_stateful(
             self, response: Any, case: Any, additional_checks: Any = None, **kwargs: Any
         ) -> None:
             tally.checked(response, case)
+
+        def _repr_step(self, rule: Any, data: Any, result: Any) -> str:
+            # Hypothesis 6.170 replays a failing scenario printing each step, and for a
+            # rule that raised before returning the result its bundle expects, its
+            # printer asserts a name that was never made: that AssertionError ("assert 0
+            # >= 1", seen once in a run on PostgreSQL under load) then hides the rule's
+            # own error. Print the step without the assignment so the real error shows.
+            try:
+                return str(super()._repr_step(rule, data, result))
+            except AssertionError:
+                return f"state.{rule.function.__name__}(...)  # raised"
 
     for number in seeds:  # a run that ends as Flaky ends early; the next seed goes on
         try:

@@ -30,6 +30,9 @@ from thermolab.rigs import Rig, TwinRig, VirtualClock
 
 from .conftest import PASSWORD, LabFactory
 
+# On SQLite alone: the calls a START makes, traced in Python (tests/lab/conftest.py says why).
+pytestmark = pytest.mark.sqlite_only
+
 #: The modules that do START's work, in the order first entered (docs/architecture.md).
 START_PATH = (
     "http.routers.runs",  # the route and its bodies: RunIn.request(), RunOut.of()

@@ -17,6 +17,9 @@ from thermolab.lab.service import Lab
 
 from .conftest import PASSWORD, LabFactory
 
+# On SQLite alone: turn rules on a manual clock (tests/lab/conftest.py says why).
+pytestmark = pytest.mark.sqlite_only
+
 Client = Callable[..., TestClient]
 
 

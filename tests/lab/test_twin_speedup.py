@@ -34,6 +34,9 @@ from thermolab.rigs import RateClock, Rig, TwinRig
 from .conftest import FAST_HASHER, PASSWORD, LabFactory
 from .test_runs import StepClock, person, until
 
+# On SQLite alone: the twin's clock rate (tests/lab/conftest.py says why).
+pytestmark = pytest.mark.sqlite_only
+
 #: A rig of each sort: a twin the lab runs, a kit, a twin on a rig host.
 RIGS = (
     RigConfig("twin", "Twin", "sim"),
