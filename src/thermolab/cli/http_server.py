@@ -112,12 +112,14 @@ def _framed_websockets() -> type[asyncio.Protocol]:
     writer that puts a whole, ready-made frame on the connection's transport
     (the frame the channel built once for every client). The protocol's own
     frames (pings, close) go to the same transport from the same thread, so
-    frames never interleave; nothing is written once a close is sent.
+    frames never interleave; nothing is written once a close is sent. Joiners
+    pass the loop's :mod:`~thermolab.lab.live.turnstile` before the app sees them.
     """
     from uvicorn.protocols.websockets.websockets_sansio_impl import WebSocketsSansIOProtocol
     from websockets.http11 import Request
 
     from thermolab.lab.live.fanout import FRAMES_EXTENSION
+    from thermolab.lab.live.turnstile import take_turn
 
     class Frames:
         __slots__ = ("protocol",)
@@ -143,6 +145,13 @@ def _framed_websockets() -> type[asyncio.Protocol]:
             scope = getattr(self, "scope", None)  # none when the handshake was refused
             if scope is not None:
                 scope["extensions"][FRAMES_EXTENSION] = Frames(self)
+
+        async def run_asgi(self) -> None:
+            # A thousand pages joining at once would each run the whole ASGI stack
+            # (middleware, routing, the accept) in the same turn of the loop, and a
+            # sample's flush would wait behind them all: a few go through per turn.
+            await take_turn()
+            await super().run_asgi()
 
     return FramedWebSockets
 
