@@ -10,26 +10,33 @@ joins read the store.
 from __future__ import annotations
 
 import asyncio
+import json
+import socket
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from dataclasses import replace
 from typing import Any
 
 import pytest
+import uvicorn
 from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
+from websockets.sync.client import connect
 
+from thermolab.cli.http_server import _bounded_h11, _framed_websockets
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.db.models import Role
 from thermolab.lab.http.app import create_app
 from thermolab.lab.http.deps import COOKIE_NAME
 from thermolab.lab.http.live_logins import KnownLogins
-from thermolab.lab.live.turnstile import Turnstile
+from thermolab.lab.live.turnstile import Turnstile, loop_turnstile
 from thermolab.lab.service import Lab
 
 from .conftest import PASSWORD, LabFactory
-from .test_live import receive
+from .test_live import login, receive
 from .test_live_limits import run_alone
+from .test_runs import until
 
 # -- the turnstile ---------------------------------------------------------------------------
 
@@ -257,3 +264,76 @@ def test_no_credentials_read_nothing_and_a_zero_ttl_remembers_nothing(
         return nobody, known.reads
 
     assert run_alone(scenario()) == (None, 3)
+
+
+# -- thermolab serve's protocols: upgrades wait for their turn -----------------------------------
+
+
+@pytest.fixture
+def served_one_per_turn(make_lab: LabFactory) -> Iterator[tuple[Lab, str, list[int]]]:
+    """``thermolab serve``'s HTTP and WebSocket protocols, one joiner step per loop turn."""
+    lab = make_lab()
+    lab.users.add("ana", PASSWORD, "student")  # her page in a dozen tabs
+    lab.config = replace(lab.config, access=replace(lab.config.access, live_sockets_per_login=12))
+    app = create_app(lab.config, lab=lab, sweep_interval=None)
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    config = uvicorn.Config(
+        app,
+        host="127.0.0.1",
+        port=port,
+        log_level="warning",
+        ws_per_message_deflate=False,
+        http=_bounded_h11(10.0),
+        ws=_framed_websockets(),
+    )
+    server = uvicorn.Server(config)
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    deferred: list[int] = []
+    try:
+        until(lambda: server.started)
+        loop = app.state.live.hub.loop
+
+        def one_per_turn() -> None:
+            turnstile = loop_turnstile()
+            turnstile.per_turn = 1
+            place = turnstile.place
+
+            def counted() -> asyncio.Future[None] | None:
+                future = place()
+                if future is not None:
+                    deferred.append(1)
+                return future
+
+            turnstile.place = counted  # type: ignore[method-assign]
+
+        loop.call_soon_threadsafe(one_per_turn)
+        yield lab, f"ws://127.0.0.1:{port}/api/rigs/twin/live", deferred
+    finally:
+        server.should_exit = True
+        thread.join(timeout=30)
+
+
+def test_upgrades_beyond_a_turns_places_wait_for_later_turns_and_all_get_in(
+    served_one_per_turn: tuple[Lab, str, list[int]],
+) -> None:
+    lab, url, deferred = served_one_per_turn
+    cookie = login(lab, "ana")
+    first: list[str] = []
+    lock = threading.Lock()
+
+    def join() -> None:
+        with connect(url, additional_headers=cookie, open_timeout=30) as ws:
+            message = json.loads(ws.recv(timeout=30))
+            with lock:
+                first.append(message["type"])
+
+    joiners = [threading.Thread(target=join) for _ in range(12)]
+    for joiner in joiners:
+        joiner.start()
+    for joiner in joiners:
+        joiner.join(timeout=60)
+    assert first == ["hello"] * 12
+    assert deferred  # some waited for a later turn (upgrade, ASGI call, login, hello)

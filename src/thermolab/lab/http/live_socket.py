@@ -260,6 +260,9 @@ class LiveEndpoint:
         cookie = websocket.cookies.get(COOKIE_NAME)
         authorization = websocket.headers.get("authorization")
         who = await self.known.resolve(cookie, authorization)
+        # Every joiner that waited for one reading of its login wakes in the same turn:
+        # they go on a few per turn, as they came in.
+        await take_turn()
         if who is None:
             await websocket.close(CLOSE_UNAUTHORIZED, "not logged in")
             return

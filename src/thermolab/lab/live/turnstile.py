@@ -17,9 +17,9 @@ before the next joiners: the stream's watchers wait for a few joiners at
 most, never for all of them. A joiner that finds no queue and a free place
 goes through at once, without a wait.
 
-:func:`take_turn` is the running loop's turnstile, shared by every place a
-joiner passes (``thermolab serve``'s WebSocket protocol, the live endpoint's
-``hello``).
+:func:`loop_turnstile` is the running loop's turnstile, shared by every place
+a joiner passes: ``thermolab serve``'s WebSocket upgrade and ASGI call, the live
+endpoint once the joiner's login is known and before its ``hello`` is sent.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import asyncio
 import weakref
 from collections import deque
 
-__all__ = ["PER_TURN", "Turnstile", "take_turn"]
+__all__ = ["PER_TURN", "Turnstile", "loop_turnstile", "take_turn"]
 
 PER_TURN = 8
 """Joiners let through per turn of the event loop: a few milliseconds of its time."""
@@ -75,14 +75,23 @@ class Turnstile:
 
     async def turn(self) -> None:
         """Return in this turn of the loop if there is a place in it, else in a later one."""
+        future = self.place()
+        if future is not None:
+            await future  # a cancelled waiter is skipped by _next_turn: it takes no place
+
+    def place(self) -> asyncio.Future[None] | None:
+        """A place: ``None`` if it is in this turn, else a future done in the turn that has it.
+
+        For callbacks (a protocol's); cancel the future to give the place up.
+        """
         if not self._waiting and self._passed < self.per_turn:
             self._passed += 1
             self._schedule_next()
-            return
+            return None
         future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
         self._waiting.append(future)
         self._schedule_next()
-        await future  # a cancelled waiter is skipped by _next_turn: it takes no place
+        return future
 
     def _schedule_next(self) -> None:
         if not self._next_scheduled:
@@ -107,10 +116,15 @@ _turnstiles: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, Turnstile] = (
 )
 
 
-async def take_turn() -> None:
-    """Wait for a place in the running loop's turnstile (one per loop, shared by all joiners)."""
+def loop_turnstile() -> Turnstile:
+    """The running loop's turnstile (one per loop, shared by all joiners)."""
     loop = asyncio.get_running_loop()
     turnstile = _turnstiles.get(loop)
     if turnstile is None:
         turnstile = _turnstiles[loop] = Turnstile()
-    await turnstile.turn()
+    return turnstile
+
+
+async def take_turn() -> None:
+    """Wait for a place in the running loop's turnstile."""
+    await loop_turnstile().turn()
