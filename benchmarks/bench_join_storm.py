@@ -153,7 +153,9 @@ def percentiles(values: list[float]) -> str:
     return f"{p50:7.1f}  {p99:7.1f}  {values[-1]:7.1f}  ({len(values)})"
 
 
-def summarise(name: str, results: list[dict[str, Any]], samples: int) -> None:
+def summarise(
+    name: str, results: list[dict[str, Any]], samples: int, timeline: bool = False
+) -> None:
     base = [w for r in results for w in r["base"]]
     joiners = [w for r in results for w in r["joiners"]]
     t0 = min(t - k * DT for w in base for k, t in zip(w["k"], w["t"], strict=True))
@@ -183,6 +185,15 @@ def summarise(name: str, results: list[dict[str, Any]], samples: int) -> None:
     print(
         f"    the base's worst: {worst[0]:.0f} ms, a sample taken {worst[1]:.1f} s into the storm"
     )
+    if timeline:  # each sample of the storm: its worst delay over the base watchers
+        worst_of: dict[float, float] = {}
+        for taken, d in base_delays:
+            if start - 0.5 <= taken <= end:
+                worst_of[taken] = max(d, worst_of.get(taken, d))
+        print("    base's worst per sample (s into the storm: ms):")
+        marks = [f"{taken - start:+.1f}:{d:.0f}" for taken, d in sorted(worst_of.items())]
+        for row in range(0, len(marks), 10):
+            print("     ", "  ".join(marks[row : row + 10]))
     unfinished = sum(r["unfinished"] for r in results)
     if missing or unfinished:
         print(f"    base watchers missed {missing} samples; {unfinished} watchers unfinished")
@@ -200,7 +211,7 @@ async def bench_thermolab(args: argparse.Namespace) -> None:
             results = await storm(clients, args.at)
     finally:
         kill(clients)
-    summarise("thermolab", results, samples)
+    summarise("thermolab", results, samples, args.timeline)
 
 
 async def bench_peer(args: argparse.Namespace) -> None:
@@ -213,7 +224,7 @@ async def bench_peer(args: argparse.Namespace) -> None:
             results = await storm(clients, args.at)
     finally:
         kill(clients)
-    summarise("peer", results, samples)
+    summarise("peer", results, samples, args.timeline)
 
 
 def main() -> int:
@@ -223,6 +234,9 @@ def main() -> int:
     parser.add_argument("--at", type=float, default=4.0, help="seconds into the run (4)")
     parser.add_argument("--seconds", type=float, default=15.0, help="the run's length (15)")
     parser.add_argument("--client-procs", type=int, default=2, help="joiners' client processes (2)")
+    parser.add_argument(
+        "--timeline", action="store_true", help="print each storm sample's worst delay"
+    )
     parser.add_argument("--only", choices=["thermolab", "peer"], help="measure one server")
     parser.add_argument(
         "--profile", metavar="FILE", help="sample thermolab's server with py-spy into FILE"

@@ -8,7 +8,9 @@ new connection three times that to begin one (a slow or silent client is cut,
 1 MiB is refused from its header (:data:`WS_MAX_SIZE`); an idle keep-alive
 connection is closed after 5 s; beyond 1000 open connections (``thermolab
 serve --max-connections``) new requests get 503. The live stream writes its
-ready-made frames straight to each socket (:func:`_framed_websockets`).
+ready-made frames straight to each socket (:func:`_framed_websockets`). A
+storm of WebSocket upgrades goes through the event loop's
+:mod:`~thermolab.lab.live.turnstile` a few per turn.
 """
 
 from __future__ import annotations
@@ -46,10 +48,13 @@ def _bounded_h11(request_timeout: float) -> type[asyncio.Protocol]:
     import h11
     from uvicorn.protocols.http.h11_impl import H11Protocol
 
+    from thermolab.lab.live.turnstile import loop_turnstile
+
     class BoundedH11Protocol(H11Protocol):
         _request_timer: asyncio.TimerHandle | None = None
         _upgraded = False
         _silent = True  # nothing received yet
+        _turn: asyncio.Future[None] | None = None  # the upgrade's place in the loop's turnstile
 
         def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
             super().connection_made(transport)
@@ -75,11 +80,30 @@ def _bounded_h11(request_timeout: float) -> type[asyncio.Protocol]:
 
         def connection_lost(self, exc: Exception | None) -> None:
             self._disarm()
+            if self._turn is not None:
+                self._turn.cancel()  # its place goes to the next connection
             super().connection_lost(exc)
 
         def handle_websocket_upgrade(self, event: h11.Request) -> None:
             self._upgraded = True
             self._disarm()
+            # A lecture hall reconnecting sends a thousand upgrade requests at once, and
+            # the event loop reads them all in one go: their handshakes (the request parsed
+            # again, the accept key, the WebSocket protocol) held the live stream's samples
+            # for all of them. A few are upgraded per turn of the loop; the others wait,
+            # unread (a client sends nothing more before its handshake's answer).
+            self._turn = loop_turnstile().place()
+            if self._turn is None:
+                super().handle_websocket_upgrade(event)
+                return
+            self.transport.pause_reading()
+            self._turn.add_done_callback(lambda turn: self._upgrade_now(turn, event))
+
+        def _upgrade_now(self, turn: asyncio.Future[None], event: h11.Request) -> None:
+            self._turn = None
+            if turn.cancelled() or self.transport.is_closing():
+                return
+            self.transport.resume_reading()
             super().handle_websocket_upgrade(event)
 
         def _arm(self, seconds: float = request_timeout, *, only_if_unarmed: bool = False) -> None:
@@ -112,12 +136,14 @@ def _framed_websockets() -> type[asyncio.Protocol]:
     writer that puts a whole, ready-made frame on the connection's transport
     (the frame the channel built once for every client). The protocol's own
     frames (pings, close) go to the same transport from the same thread, so
-    frames never interleave; nothing is written once a close is sent.
+    frames never interleave; nothing is written once a close is sent. Joiners
+    pass the loop's :mod:`~thermolab.lab.live.turnstile` before the app sees them.
     """
     from uvicorn.protocols.websockets.websockets_sansio_impl import WebSocketsSansIOProtocol
     from websockets.http11 import Request
 
     from thermolab.lab.live.fanout import FRAMES_EXTENSION
+    from thermolab.lab.live.turnstile import take_turn
 
     class Frames:
         __slots__ = ("protocol",)
@@ -143,6 +169,13 @@ def _framed_websockets() -> type[asyncio.Protocol]:
             scope = getattr(self, "scope", None)  # none when the handshake was refused
             if scope is not None:
                 scope["extensions"][FRAMES_EXTENSION] = Frames(self)
+
+        async def run_asgi(self) -> None:
+            # A thousand pages joining at once would each run the whole ASGI stack
+            # (middleware, routing, the accept) in the same turn of the loop, and a
+            # sample's flush would wait behind them all: a few go through per turn.
+            await take_turn()
+            await super().run_asgi()
 
     return FramedWebSockets
 

@@ -35,10 +35,9 @@ from thermolab.lab.access import RigSnapshot
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.db.models import Role
 from thermolab.lab.fleet.shared_limits import LiveSocketCounts
-from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.deps import COOKIE_NAME
 from thermolab.lab.http.live_hello import HelloReader
-from thermolab.lab.http.live_logins import LoginWatch
+from thermolab.lab.http.live_logins import KnownLogins, LoginWatch
 from thermolab.lab.http.live_messages import (
     AccessMessage,
     EstimateMessage,
@@ -63,6 +62,7 @@ from thermolab.lab.live.fanout import (
     LiveFanout,
     encode,
 )
+from thermolab.lab.live.turnstile import take_turn
 from thermolab.lab.runs import RunRecord
 from thermolab.lab.service import Lab
 from thermolab.runner import EstimateEvent, Event, SampleEvent
@@ -94,7 +94,9 @@ class LiveEndpoint:
     session_check : float or None
         Seconds between checks that every client's login still exists, for
         logins ended by another process (``thermolab user remove``); logins
-        this lab ends arrive at once as :attr:`Lab.logins_ended` events.
+        this lab ends arrive at once as :attr:`Lab.logins_ended` events. Whom a
+        login belongs to is remembered as long (``None``: never), so that a
+        storm of joins reads each login once (:class:`KnownLogins`).
     budget : ReplayBudget, optional
         How replays share the server (default: :class:`ReplayBudget`'s).
     sockets : LiveSocketCounts, optional
@@ -134,7 +136,10 @@ class LiveEndpoint:
         # second per user, however many of their sockets ping (tabs, a projector).
         self._kept_at: dict[tuple[str, int | None], datetime] = {}
         self._limiter: anyio.CapacityLimiter | None = None
-        self.logins = LoginWatch(lab, self.hub)
+        # Whom a socket's login is, remembered as long as an ended login may go unnoticed
+        # anyway (the periodic session check): a join storm reads each login once.
+        self.known = KnownLogins(lab, session_check or 0.0, self._in_thread)
+        self.logins = LoginWatch(lab, self.hub, self.known)
         self._hellos = HelloReader(lab, self._in_thread)
         # Watchers arriving or leaving on other workers change the count everyone sees.
         lab.presence.on_elsewhere(self.access_changed)
@@ -254,9 +259,10 @@ class LiveEndpoint:
         await websocket.accept()
         cookie = websocket.cookies.get(COOKIE_NAME)
         authorization = websocket.headers.get("authorization")
-        who = await self._in_thread(
-            lambda: resolve_principal(self.lab, cookie=cookie, authorization=authorization)
-        )
+        who = await self.known.resolve(cookie, authorization)
+        # Every joiner that waited for one reading of its login wakes in the same turn:
+        # they go on a few per turn, as they came in.
+        await take_turn()
         if who is None:
             await websocket.close(CLOSE_UNAUTHORIZED, "not logged in")
             return
@@ -335,8 +341,12 @@ class LiveEndpoint:
             leave()
 
     async def _hello(self, websocket: WebSocket, rig_id: str, who: Principal, seq: int) -> None:
-        # Read with every other client joining meanwhile (a class at the bell).
-        await websocket.send_text(await self._hellos.hello(rig_id, who, seq))
+        # Read with every other client joining meanwhile (a class at the bell), and sent
+        # a few clients per turn of the loop: a batch of a thousand hellos, sent at once,
+        # would hold the loop (and the samples due meanwhile) for all of them.
+        text = await self._hellos.hello(rig_id, who, seq)
+        await take_turn()
+        await websocket.send_text(text)
 
     async def _ping(self, rig_id: str, who: Principal, client: LiveClient) -> None:
         # A ping is the client being here: presence (memory, in the loop) and, for whoever
