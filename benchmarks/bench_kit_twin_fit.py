@@ -13,14 +13,17 @@ the next change of either heater) for
   stamps, shifted to each sensor's ambient (the model is linear); with
   ``tclab`` missing, the published constants on :func:`thermolab.kit_physics.simulate_kit`.
 
-``--refit`` fits the constants again (about a minute on a 2-core box) and
+``--refit`` fits the constants again (about two minutes on a 2-core box) and
 scores them instead of ``KIT_FIT``, printing them as code; ``--detail`` adds
-each step's RMS.
+each step's RMS; ``--alone`` also fits each record alone (another two minutes)
+and prints its RMS and constants: how far one kit's constants are from
+another's.
 
 Run from the repository root::
 
     .venv/bin/python benchmarks/bench_kit_twin_fit.py
     .venv/bin/python benchmarks/bench_kit_twin_fit.py --refit --detail
+    .venv/bin/python benchmarks/bench_kit_twin_fit.py --alone
 """
 
 from __future__ import annotations
@@ -78,6 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--refit", action="store_true", help="fit the constants again")
     parser.add_argument("--detail", action="store_true", help="each step's RMS too")
+    parser.add_argument("--alone", action="store_true", help="fit each record alone too")
     args = parser.parse_args(argv)
 
     constants = KIT_FIT
@@ -123,7 +127,20 @@ def main(argv: list[str] | None = None) -> int:
                 line.append(f"{key} {np.sqrt(np.mean(np.square(a))):.2f} | "
                             f"{np.sqrt(np.mean(np.square(b))):.2f}")  # fmt: skip
         print(f"RMS over the {part} records: " + ", ".join(line))
+    if args.alone:
+        alone()
     return 0
+
+
+def alone() -> None:
+    """Each record's own fit: its RMS (°C) and constants, the spread between kits."""
+    print()
+    print("each record fitted alone: RMS T1, T2 (°C) and its constants")
+    for record in kit_records.records():
+        own = kit_records.fit([record])
+        s = kit_records.score(record, own)
+        fitted = ", ".join(f"{n}={getattr(own, n):.3g}" for n in kit_records.FITTED)
+        print(f"{record.spec.name:26s} {_figure(s.T1)} {_figure(s.T2)}   {fitted}")
 
 
 if __name__ == "__main__":

@@ -141,8 +141,8 @@ def simulate(record: KitRecord, constants: KitConstants) -> tuple[Array, Array]:
 FITTED = ("heater_gain", "heater2_factor", "tau_ambient", "tau_exchange", "tau_sensor")
 
 
-def _constants(x: Array, base: KitConstants) -> KitConstants:
-    return replace(base, **{n: float(math.exp(v)) for n, v in zip(FITTED, x, strict=True)})
+def _constants(x: Array, base: KitConstants, names: tuple[str, ...] = FITTED) -> KitConstants:
+    return replace(base, **{n: float(math.exp(v)) for n, v in zip(names, x, strict=True)})
 
 
 def _residuals(recs: list[KitRecord], constants: KitConstants) -> Array:
@@ -174,14 +174,25 @@ def fit(recs: list[KitRecord] | None = None) -> KitConstants:
     """The constants of :data:`FITTED` that fit ``recs`` best (default: the fitting records).
 
     From each of :data:`STARTS`, the lowest :func:`cost` wins; the other
-    constants (noise, quantum, PWM limits) stay the published ones.
+    constants (noise, quantum, PWM limits) stay the published ones, and so
+    does ``heater2_factor`` where heater 2 never moves (nothing decides it).
+    Each constant stays within three decades of its start.
     """
     recs = records(held_out=False) if recs is None else recs
+    names = (
+        FITTED
+        if any(r.heaters == 2 for r in recs)
+        else tuple(n for n in FITTED if n != "heater2_factor")
+    )
     best: KitConstants | None = None
     for base in STARTS:
-        x0 = np.log([getattr(base, n) for n in FITTED])
-        result = least_squares(lambda x, b=base: _residuals(recs, _constants(x, b)), x0)
-        found = _constants(result.x, base)
+        x0 = np.log([getattr(base, n) for n in names])
+        span = math.log(1e3)
+        result = least_squares(
+            lambda x, b=base: _residuals(recs, _constants(x, b, names)), x0,
+            bounds=(x0 - span, x0 + span),
+        )  # fmt: skip
+        found = _constants(result.x, base, names)
         if best is None or cost(recs, found) < cost(recs, best):
             best = found
     assert best is not None
