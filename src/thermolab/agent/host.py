@@ -31,6 +31,7 @@ from thermolab.agent.protocol import (
     LoopCommand,
     RunEnded,
     SampleOut,
+    SetChannel,
     SetFan,
     SetGains,
     SetMode,
@@ -40,7 +41,7 @@ from thermolab.errors import RigError, ThermoLabError
 from thermolab.jsonsafe import json_safe
 from thermolab.records import RUN_CHANNELS, ChannelSpec
 from thermolab.rigs import Rig
-from thermolab.runner import EventBus, Experiment, closed_loop_channels
+from thermolab.runner import EventBus, Experiment, closed_loop_channels, further_channels
 from thermolab.runner.control_request import build_control_loop
 from thermolab.signals import parse_signal
 
@@ -153,7 +154,13 @@ class RigHost:
             if command.control is not None:
                 times = [k * command.dt for k in range(command.samples)]
                 loop = build_control_loop(command.control, command.dt, times, info)
-                recorder.declare(closed_loop_channels(self.rig, loop))
+            # As the lab declared the run: a loop's channels, then the rig's further ones.
+            recorder.declare(
+                (
+                    *(closed_loop_channels(self.rig, loop) if loop is not None else ()),
+                    *further_channels(info),
+                )
+            )
             experiment = Experiment(
                 self.rig,
                 command.dt,
@@ -216,6 +223,8 @@ class RigHost:
             run.set_gains(command.gains)
         elif isinstance(command, SetFan):
             run.set_fan(command.percent)
+        elif isinstance(command, SetChannel):
+            run.set_further(command.name, command.level)
         else:
             run.set_setpoint(command.setpoint)
 

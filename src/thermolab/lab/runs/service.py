@@ -67,6 +67,7 @@ from thermolab.runner import (
     LoopCommands,
     RunResult,
     closed_loop_channels,
+    further_channels,
 )
 
 __all__ = ["RunService", "StartPlan", "plan_on_rig", "plan_start", "store_start"]
@@ -256,6 +257,7 @@ class RunService(RunReading):
         channels = start.channels
         if loop is not None:
             channels = (*channels, *closed_loop_channels(driver, loop))
+        channels = (*channels, *further_channels(driver.describe()))  # a kit's T2, Q2
 
         # START and the end of a turn are one decision: the lab reconciles a rig (and
         # ends its run when the turn is over) under the hub's lock for that rig, so
