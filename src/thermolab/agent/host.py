@@ -202,6 +202,23 @@ class RigHost:
             if run_id is None and self.rig.powered:
                 self._guard(lambda: self._set_u(self.rig.apply(u)))
 
+    def set_channel(self, name: str, level: float, run_id: int | None) -> None:
+        """Hand a further input's level to the run going (``run_id``), or set it on the idle rig.
+
+        Raises
+        ------
+        ThermoLabError
+            As the run or the rig refuses it (the link logs it).
+        """
+        with self._lock:
+            run = self._run
+            if run is not None:
+                if run_id == self._run_id:
+                    run.set_further(name, level)
+                return
+            if run_id is None and self.rig.powered:
+                self._guard(lambda: self.rig.set_channel(name, level))
+
     def command(self, command: LoopCommand) -> None:
         """Apply a closed-loop command to run ``command.run`` if it is the one going.
 
@@ -223,8 +240,8 @@ class RigHost:
             run.set_gains(command.gains)
         elif isinstance(command, SetFan):
             run.set_fan(command.percent)
-        elif isinstance(command, SetChannel):
-            run.set_further(command.name, command.level)
+        elif isinstance(command, SetChannel):  # the link sends it to set_channel; kept whole
+            self.set_channel(command.name, command.level, command.run)
         else:
             run.set_setpoint(command.setpoint)
 

@@ -260,12 +260,12 @@ class SetFan(_Message):
 
 
 class SetChannel(_Message):
-    """Set the rig's further input ``name`` (a kit's heater 2, ``q2``) at ``level`` in the run."""
+    """A further input's level (a kit's heater 2, ``q2``): to run ``run``, else the idle rig."""
 
     type: Literal["set_channel"] = "set_channel"
-    run: int = Field(ge=1)
     name: str = Field(min_length=1, max_length=40)
     level: _Finite
+    run: int | None = Field(default=None, ge=1)
 
 
 LoopCommand = SetMode | SetSetpoint | SetGains | SetFan | SetChannel

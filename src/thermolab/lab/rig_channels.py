@@ -7,16 +7,19 @@ goes to the run as a command, as the disturbance fan's does
 (:func:`thermolab.lab.runs.commands.send_command`: the controller of the
 run's turn only, applied at the next sample, recorded); with no run, only the
 controller sets it, the command is recorded, and the hub applies it to the
-device. Either way the rig's safe state puts it back at its default at the
-end of the run and of the turn (issue #23).
+device (a rig host's idle rig: its host, told by the agent hub). Either way
+the rig's safe state puts it back at its default at the end of the run and of
+the turn (issue #23).
 """
 
 from __future__ import annotations
 
+from collections.abc import Container
 from dataclasses import dataclass
 
 from thermolab.lab.access import AccessService
 from thermolab.lab.accounts.users import Principal
+from thermolab.lab.agents import AgentHub
 from thermolab.lab.config import LabConfig
 from thermolab.lab.rigs.devices import DeviceHub
 from thermolab.lab.runs.commands import CHANNEL_COMMAND
@@ -54,12 +57,16 @@ def set_channel(
     access: AccessService,
     hub: DeviceHub,
     runs: RunsByRig,
+    hosts: tuple[AgentHub, Container[str]],
     rig_id: str,
     who: Principal,
     name: str,
     value: float,
 ) -> ChannelResult:
     """Set the rig's further input ``name`` at ``value`` for its controller ``who``.
+
+    ``hosts``: the lab's rig hosts and the rigs they serve (an idle hosted rig
+    gets the level through its host).
 
     Raises
     ------
@@ -90,4 +97,7 @@ def set_channel(
         )
         session = turn.control.id
     applied = hub.set_channel(rig_id, name, level, controller_session=session)
+    agents, hosted = hosts
+    if applied is None and rig_id in hosted and agents.set_channel(rig_id, name, level):
+        applied = level
     return ChannelResult(rig_id, name, level, applied, None)

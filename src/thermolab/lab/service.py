@@ -411,7 +411,7 @@ class Lab:
     def set_channel(self, rig_id: str, who: Principal, name: str, value: float) -> ChannelResult:
         """Set the rig's further input ``name`` (see :func:`.rig_channels.set_channel`)."""
         parts = (self.config, self.access, self.hub, self.rig_runs)
-        return set_channel(*parts, rig_id, who, name, value)
+        return set_channel(*parts, (self.agents, self.remote_rigs), rig_id, who, name, value)
 
     def running(self, rig_id: str) -> int | None:
         """The id of the run going on the rig, in-process or on its host, if any."""
