@@ -377,6 +377,21 @@ def test_the_watchdog_switches_off_a_silent_host(
     assert rig.state is RigState.FAULTED
 
 
+def test_the_watchdog_watches_heater_2_too(
+    emulator: TCLabEmulator,
+    open_driver: Callable[..., TCLabRig],
+    clock: VirtualClock,
+    wait_until: Callable[..., bool],
+) -> None:
+    rig = open_driver(watchdog=5.0)
+    rig.power_on()
+    rig.set_channel("q2", 70.0)  # heater 1 off: heater 2 alone is still heating
+    clock.advance(6.0)  # the host falls silent
+    assert wait_until(lambda: rig.fault() is not None)
+    assert "watchdog" in (rig.fault() or "")
+    assert emulator.heater(2) == 0.0
+
+
 @pytest.mark.parametrize(
     ("options", "message"),
     [
