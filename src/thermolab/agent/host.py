@@ -41,7 +41,7 @@ from thermolab.errors import RigError, ThermoLabError
 from thermolab.jsonsafe import json_safe
 from thermolab.records import RUN_CHANNELS, ChannelSpec
 from thermolab.rigs import Rig
-from thermolab.runner import EventBus, Experiment, closed_loop_channels, further_channels
+from thermolab.runner import EventBus, Experiment, extra_channels
 from thermolab.runner.control_request import build_control_loop
 from thermolab.signals import parse_signal
 
@@ -154,13 +154,7 @@ class RigHost:
             if command.control is not None:
                 times = [k * command.dt for k in range(command.samples)]
                 loop = build_control_loop(command.control, command.dt, times, info)
-            # As the lab declared the run: a loop's channels, then the rig's further ones.
-            recorder.declare(
-                (
-                    *(closed_loop_channels(self.rig, loop) if loop is not None else ()),
-                    *further_channels(info),
-                )
-            )
+            recorder.declare(extra_channels(self.rig, info, loop))  # as the lab declared them
             experiment = Experiment(
                 self.rig,
                 command.dt,

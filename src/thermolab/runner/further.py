@@ -15,8 +15,10 @@ from __future__ import annotations
 
 from thermolab.records import ChannelSpec
 from thermolab.rigs import RigInfo
+from thermolab.runner.closed_loop import ControlLoop
+from thermolab.runner.control_requests import closed_loop_channels
 
-__all__ = ["further_channels"]
+__all__ = ["extra_channels", "further_channels"]
 
 
 def further_channels(info: RigInfo) -> tuple[ChannelSpec, ...]:
@@ -41,3 +43,26 @@ def further_channels(info: RigInfo) -> tuple[ChannelSpec, ...]:
         if c.recorded
     )
     return (*outputs, *inputs)
+
+
+def extra_channels(
+    rig: object, info: RigInfo, loop: ControlLoop | None, *, fan: bool | None = None
+) -> tuple[ChannelSpec, ...]:
+    """Every channel a run on the rig records after ``RUN_CHANNELS``, in the run's order.
+
+    A closed loop's (:func:`~thermolab.runner.closed_loop_channels`: its own,
+    then the fan when the rig has one; ``loop`` bound first), then the rig's
+    further channels (:func:`further_channels`): what the recorder of the run
+    declares (``Experiment(...).channels`` after the standard ones, known
+    before the rig is sampled). ``rig`` and ``fan`` as for
+    :func:`~thermolab.runner.closed_loop_channels` (a rig host's rig is known
+    by its spec only: ``rig=None`` and ``fan`` said).
+
+    Examples
+    --------
+    >>> from thermolab.rigs import tclab_info
+    >>> [c.name for c in extra_channels(None, tclab_info(None), None)]
+    ['t2', 'q2']
+    """
+    looped = () if loop is None else closed_loop_channels(rig, loop, fan=fan)
+    return (*looped, *further_channels(info))
