@@ -141,7 +141,7 @@ def test_emulated_tclab_that_stops_answering(
         opened(reset_wait=0.0, timeout=0.2)
 
         def go_silent() -> None:
-            while len(emulator.commands) < 24:  # VER, X, then ~10 samples of T1 + Q1
+            while len(emulator.commands) < 24:  # VER, X, WDOG, then ~7 samples of T1, T2, Q1
                 time.sleep(0.005)
             emulator.silent = True
 
