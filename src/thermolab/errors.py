@@ -21,6 +21,7 @@ __all__ = [
     "BookingClashError",
     "BookingQuotaError",
     "BookingSeriesClashError",
+    "ChannelNotOnRigError",
     "ClassListError",
     "ClassListProblem",
     "ConfigError",
@@ -98,6 +99,10 @@ class InsufficientExcitationError(InvalidDataError):
 
 class InvalidParameterError(ThermoLabError, ValueError):
     """A method or signal parameter is outside its allowed range."""
+
+
+class ChannelNotOnRigError(InvalidParameterError):
+    """A further input or output the rig does not declare (``q2`` on a one-heater rig)."""
 
 
 class IdentifierStateError(ThermoLabError, RuntimeError):

@@ -11,7 +11,7 @@ import pytest
 
 from thermolab.agent.host import RigHost
 from thermolab.agent.outbox import Outbox
-from thermolab.agent.protocol import SetGains, SetSetpoint, StartRun
+from thermolab.agent.protocol import SetChannel, SetGains, SetSetpoint, StartRun
 from thermolab.control import PIDGains
 from thermolab.errors import SetpointRangeError, ThermoLabError
 from thermolab.rigs import RigSpec, make_clock
@@ -113,3 +113,30 @@ def test_a_closed_loop_run_records_its_channels_and_takes_the_loops_commands() -
         assert ended["control"]["gains"]["Kp"] == 5.0
     finally:
         host.close()
+
+
+def test_a_kit_host_sets_heater_2_idle_and_in_its_run_and_records_t2_and_q2() -> None:
+    rig = RigSpec.parse("sim:kit").open(clock=make_clock(1.0))
+    host = RigHost(rig, Outbox(":memory:"), grace=5.0)
+    try:
+        host.power(True)
+        host.set_channel("q2", 40.0, None)  # the idle rig, as a controller's PUT .../channels/q2
+        assert host.rig.level("q2") == 40.0
+        host.power(False)
+        assert host.rig.level("q2") == 0.0  # at rest: its declared default
+        host.start_run(StartRun(run=3, dt=0.05, samples=10_000, signal="const:0"))
+        _wait(lambda: host.outbox.count() > 2)
+        host.set_channel("q2", 70.0, 99)  # another run's: ignored
+        host.command(SetChannel(run=3, name="q2", level=70.0))
+        _wait(lambda: host.rig.level("q2") == 70.0)
+        _wait(lambda: host.outbox.count() > 10)
+        samples = [
+            json.loads(body) for _, kind, body in host.outbox.pending(0, 10**6) if kind == "sample"
+        ]
+        assert {"t2", "q2"} <= set(samples[-1]["extra"])
+        assert samples[-1]["extra"]["q2"] == 70.0
+        with pytest.raises(ThermoLabError, match="no input 'fan'"):
+            host.set_channel("fan", 10.0, 3)
+    finally:
+        host.close()
+    assert host.rig.level("q2") == 0.0

@@ -141,7 +141,7 @@ def test_emulated_tclab_that_stops_answering(
         opened(reset_wait=0.0, timeout=0.2)
 
         def go_silent() -> None:
-            while len(emulator.commands) < 24:  # VER, X, then ~10 samples of T1 + Q1
+            while len(emulator.commands) < 24:  # VER, X, WDOG, then ~7 samples of T1, T2, Q1
                 time.sleep(0.005)
             emulator.silent = True
 
@@ -411,3 +411,14 @@ def test_pid_on_a_rig_without_an_output_unit(
     status = main([*PID_RUN, "--setpoint", "40", "--kp", "5", "--ti", "100"])
     assert status == 1
     assert "has no output unit" in capsys.readouterr().err
+
+
+def test_a_run_on_the_kits_two_heater_twin_records_sensor_2_and_heater_2(tmp_path: Path) -> None:
+    out = tmp_path / "kit.csv"
+    argv = ["run", "--rig", "sim:kit", "--fast", "--samples", "300", "--seed", "1"]
+    status = main([*argv, "--signal", "step:0:50@10", "--method", "lsm", "--out", str(out)])
+    assert status == 0
+    rows = _rows(out)
+    assert list(rows[0])[-2:] == ["t2", "q2"]
+    assert {row["q2"] for row in rows} == {"0.0"}  # heater 2 stays off
+    assert float(rows[-1]["y"]) > float(rows[-1]["t2"]) + 10.0  # heater 1 warms sensor 1

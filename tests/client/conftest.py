@@ -39,6 +39,11 @@ spec = "sim"
 id = "kit2"
 title = "Another kit's twin (heated by the turn tests, so the kit starts cool elsewhere)"
 spec = "sim:tclab"
+
+[[rigs]]
+id = "dual"
+title = "The kit's two-heater twin"
+spec = "sim:kit"
 """
 
 

@@ -1,7 +1,8 @@
 """``thermolab.tclab.TCLab`` on a real lab: what course notebooks rely on, and clear refusals.
 
 The lab is the session's ``thermolab serve`` (conftest): a kit's twin
-(``sim:tclab``, one heater) and the paper's box (``sim``, volts) at 20x.
+(``sim:tclab``, one heater), the kit's two-heater twin (``sim:kit``) and the
+paper's box (``sim``, volts) at 20x.
 """
 
 from __future__ import annotations
@@ -109,6 +110,36 @@ def test_the_kits_interface_on_one_heater(served_lab: ServedLab) -> None:
         assert math.isnan(q2)
         assert q1 == 80.0
     assert _teacher(served_lab, "/api/rigs/kit/reading")["u"] == 0.0
+
+
+def test_the_kits_second_heater_and_sensor_on_a_two_heater_rig(served_lab: ServedLab) -> None:
+    _, token = served_lab.token("ana")
+    with TCLab(url=served_lab.url, token=token, rig="dual") as lab:
+        assert lab.heaters == 2
+        start = lab.T2
+        assert 10.0 < start < 40.0
+        assert lab.Q2(150) == 100.0  # clipped, as the kit clips
+        assert lab.Q2() == 100.0  # read back from the rig
+        assert lab.U2 == 100.0
+        assert _teacher(served_lab, "/api/rigs/dual/reading")["channels"]["q2"] == 100.0
+        # P2 below the kit's 100 scales heater 2, as the kit's PWM limit does.
+        assert lab.P2 == 100.0
+        lab.P2 = 50
+        assert _teacher(served_lab, "/api/rigs/dual/reading")["channels"]["q2"] == 50.0
+        assert lab.Q2() == 100.0
+        with pytest.raises(NotOnThisRigError, match=r"full heater 2 is the kit's P2 = 100"):
+            lab.P2 = 200
+        lab.P2 = 100
+        lab.U2 = 100
+        deadline = labtime.time() + 120.0  # two lab minutes: 6 s at 20x
+        while start + 2.0 > lab.T2:
+            assert labtime.time() < deadline, "sensor 2 did not warm under heater 2"
+            labtime.sleep(2.0)
+        t1, t2, q1, q2 = lab.scan()
+        assert (q1, q2) == (0.0, 100.0)
+        assert t2 > t1  # heater 2 warms sensor 2 more than sensor 1
+    reading = _teacher(served_lab, "/api/rigs/dual/reading")
+    assert reading["channels"]["q2"] == 0.0  # close() and the release put heater 2 off
 
 
 def _record(module: Any, lab: Any) -> Historian:

@@ -6,7 +6,9 @@ out of service, a restart of the lab) bring the rig back to what its kind
 declares (:meth:`thermolab.rigs.RigSpec.rest_state`), the rig as the browser
 receives it (``GET /api/rigs/{rig}``, the live ``hello``) says so, and the next
 run starts from there. A Hypothesis state machine drives several users' acts in
-any order on the real app, SQLite and a twin at a high speed-up.
+any order on the real app, SQLite and a twin at a high speed-up: the paper's,
+whose further input is its fan, and the kit's (``sim:kit``), whose further input
+is heater 2; both set through ``PUT .../channels/{name}``, idle or in a run.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from hypothesis.stateful import RuleBasedStateMachine, invariant, rule, run_stat
 from thermolab.lab.clock import ManualClock
 from thermolab.lab.rigs.opener import device_opener
 from thermolab.lab.service import Lab
-from thermolab.rigs import RigSpec, TwinRig
+from thermolab.rigs import KitTwinRig, RigSpec, TwinRig
 
 from .conftest import LabFactory
 from .test_runs import api_client, person, until
@@ -135,10 +137,14 @@ def test_a_hand_over_without_a_run_rests_every_declared_actuator(make_lab: LabFa
 STUDENTS = ("ana", "ben", "carla")
 
 
+@pytest.mark.parametrize("spec", ["sim", "sim:kit"])  # the paper's fan; the kit's heater 2
 def test_every_hand_over_leaves_the_rig_at_its_declared_defaults_whatever_happens(
-    make_lab: LabFactory, clock: ManualClock
+    make_lab: LabFactory, clock: ManualClock, spec: str
 ) -> None:
-    options = {"control_time_limit": 600.0, "idle_limit": None}
+    options = {"control_time_limit": 600.0, "idle_limit": None, "spec": spec}
+    rest = RigSpec.parse(spec).rest_state()
+    further = {name: level for name, level in rest.items() if name != "u"}
+    (name_of_further,) = further  # one further input each: the fan, heater 2
     people = {"tina": "teacher", **dict.fromkeys(STUDENTS, "student")}
     world: dict[str, Any] = {"lab": fast_lab(make_lab, **options)}
     for name, role in people.items():
@@ -157,6 +163,14 @@ def test_every_hand_over_leaves_the_rig_at_its_declared_defaults_whatever_happen
     def client(name: str) -> TestClient:
         found: TestClient = world["clients"][name]
         return found
+
+    def rig() -> TwinRig | KitTwinRig:
+        driver = lab().hub.driver(RIG)
+        assert isinstance(driver, TwinRig | KitTwinRig)
+        return driver
+
+    def levels() -> dict[str, float]:
+        return {name: rig().level(name) for name in further}
 
     def controller() -> int | None:
         snap = lab().access.snapshot(RIG)
@@ -185,6 +199,7 @@ def test_every_hand_over_leaves_the_rig_at_its_declared_defaults_whatever_happen
             self.turn = controller()
             self.runs_ended = 0
             self.idle_input = False  # the controller set an input with no run going
+            self.idle_further = False  # ... or a further input (the fan, heater 2)
 
         # -- what users do ------------------------------------------------------------
 
@@ -209,17 +224,29 @@ def test_every_hand_over_leaves_the_rig_at_its_declared_defaults_whatever_happen
             if answer.status_code != 201:
                 return
             # The run starts from the declared state, whatever the last run or turn did
-            # (nothing of this run can have moved the fan yet).
-            assert twin(lab()).fan == RigSpec.parse(lab().config.rig(RIG).spec).rest_state()["fan"]
+            # (nothing of this run can have moved the fan yet) -- unless its controller
+            # set a further input on the idle rig in this turn, which the run keeps.
+            if not self.idle_further:
+                assert levels() == further
             self.idle_input = False
             if closed and fan is not None:  # the fan on at once, as the issue's closed loop
-                on = at_controls().put(f"/api/rigs/{RIG}/runs/current/fan", json={"percent": fan})
+                path = f"/api/rigs/{RIG}/channels/{name_of_further}"
+                on = at_controls().put(path, json={"level": fan})
                 assert on.status_code == 200, on.text
-                until(lambda: twin(lab()).fan == fan or lab().running(RIG) is None)
+                until(lambda: levels()[name_of_further] == fan or lab().running(RIG) is None)
 
         @rule(percent=st.sampled_from([30.0, 50.0, 100.0]))
         def fan(self, percent: float) -> None:
+            # The fan's own route (a rig without a fan: refused, 422).
             at_controls().put(f"/api/rigs/{RIG}/runs/current/fan", json={"percent": percent})
+
+        @rule(level=st.sampled_from([30.0, 100.0]))
+        def further_input(self, level: float) -> None:
+            # The further input's route, into the run or on the idle rig.
+            path = f"/api/rigs/{RIG}/channels/{name_of_further}"
+            answer = at_controls().put(path, json={"level": level})
+            if answer.status_code == 200 and answer.json().get("run") is None:
+                self.idle_further = True
 
         @rule()
         def closed_loop_auto(self) -> None:
@@ -274,20 +301,20 @@ def test_every_hand_over_leaves_the_rig_at_its_declared_defaults_whatever_happen
             settle()
             turn = controller()
             going = lab().running(RIG) is not None
-            rest = RigSpec.parse(lab().config.rig(RIG).spec).rest_state()
-            rig = twin(lab())
             handed_over = turn != self.turn
             if handed_over:
-                self.turn, self.idle_input = turn, False
+                self.turn, self.idle_input, self.idle_further = turn, False, False
             if going:
                 return
-            # No run: whatever the last run or turn set is gone, and shown as gone.
-            assert rig.fan == rest["fan"]
+            # No run: whatever the last run or turn set is gone, and shown as gone (a
+            # further input the controller set on the idle rig stays until the turn ends).
             shown = client("tina").get(f"/api/rigs/{RIG}").json()
-            assert [a["level"] for a in shown["actuators"]] == [rest["fan"]]
+            if not self.idle_further:
+                assert levels() == further
+                assert [a["level"] for a in shown["actuators"]] == list(further.values())
             assert client("tina").get(f"/api/rigs/{RIG}/loop").json()["loop"] is None
             if not self.idle_input:
-                assert rig.applied_input == rest["u"]
+                assert rig().applied_input == rest["u"]
             if handed_over:
                 assert shown["input"]["last"] is None  # the next controller starts at rest
 

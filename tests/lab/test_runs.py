@@ -659,7 +659,9 @@ def test_an_invalid_estimate_handed_to_the_live_stream_carries_its_reason(
             if isinstance(event, EstimateEvent):
                 heard.append(event)
 
-        def reading(self, rig_id: str, u: object, y: float, at: object) -> None:
+        def reading(
+            self, rig_id: str, u: object, y: float, at: object, channels: object = None
+        ) -> None:
             pass
 
     lab.add_listener(Listener())

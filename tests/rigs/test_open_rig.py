@@ -81,6 +81,7 @@ def test_the_spec_list_names_every_form() -> None:
         "sim:paper",
         "sim:paper-practical",
         "sim:tclab",
+        "sim:kit",
         "tclab",
         "tclab:PORT",
     )

@@ -118,6 +118,26 @@ def test_it_is_a_rig(subject: Subject) -> None:
     assert isinstance(subject.rig, Rig)
 
 
+def test_every_further_input_rests_at_its_default_after_power_off_and_close(
+    subject: Subject,
+) -> None:
+    # Issue #23 for every declared further input (a twin's fan, a kit's heater 2).
+    rig = subject.rig
+    inputs = rig.describe().further_inputs
+    assert inputs, "every rig here declares a further input"
+    rig.power_on()
+    for channel in inputs:
+        assert rig.set_channel(channel.name, channel.maximum) == channel.maximum
+        assert rig.level(channel.name) == channel.maximum
+    rig.power_off()
+    assert {c.name: rig.level(c.name) for c in inputs} == {c.name: c.default for c in inputs}
+    rig.power_on()
+    for channel in inputs:
+        rig.set_channel(channel.name, channel.maximum)
+    rig.close()
+    assert {c.name: rig.level(c.name) for c in inputs} == {c.name: c.default for c in inputs}
+
+
 def test_describe_is_consistent(subject: Subject) -> None:
     info = subject.rig.describe()
     assert info.input_min < info.input_max

@@ -15,7 +15,13 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
-from thermolab.errors import InvalidParameterError, RigError, RigFaultError, RigTimeoutError
+from thermolab.errors import (
+    InvalidParameterError,
+    RigError,
+    RigFaultError,
+    RigStateError,
+    RigTimeoutError,
+)
 from thermolab.rigs.base import RigState
 from thermolab.rigs.clock import VirtualClock
 from thermolab.rigs.tclab import TCLabRig, TCLabVersion, find_tclab
@@ -107,10 +113,71 @@ def test_apply_and_read_speak_the_protocol(
     assert emulator.heater(2) == 0.0
     clock.advance(300.0)
     reading = rig.read()
-    assert emulator.commands[-1] == "T1"
+    assert emulator.commands[-2:] == ["T1", "T2"]  # sensor 2 is read with sensor 1
     assert reading.t == 300.0
     assert reading.value == pytest.approx(emulator.temperature(1), abs=5e-4)
     assert reading.value > 30.0
+
+
+def test_heater_2_is_driven_and_sensor_2_read_as_the_kits_further_channels(
+    emulator: TCLabEmulator, open_driver: Callable[..., TCLabRig], clock: VirtualClock
+) -> None:
+    rig = open_driver()
+    info = rig.describe()
+    assert [c.name for c in info.further_inputs] == ["q2"]
+    assert [(c.name, c.unit, c.limit) for c in info.further_outputs] == [("t2", "degC", 90.0)]
+    with pytest.raises(RigStateError, match="call power_on"):
+        rig.set_channel("q2", 50.0)  # an idle kit heats nothing
+    assert emulator.heater(2) == 0.0
+    rig.power_on()
+    assert rig.set_channel("q2", 60.12345) == 60.123
+    assert emulator.commands[-1] == "Q2 60.123"
+    assert (emulator.heater(1), emulator.heater(2)) == (0.0, 60.123)
+    assert rig.level("q2") == 60.123
+    clock.advance(300.0)
+    reading = rig.read()
+    assert reading.further["t2"] == pytest.approx(emulator.temperature(2), abs=5e-4)
+    assert reading.further["t2"] > 30.0 > reading.value  # heater 2 heats sensor 2, not 1
+    with pytest.raises(InvalidParameterError, match="takes 0-100 %"):
+        rig.set_channel("q2", 120.0)
+    with pytest.raises(InvalidParameterError, match="no input 'fan'"):
+        rig.set_channel("fan", 10.0)
+    rig.power_off()
+    assert emulator.heater(2) == 0.0
+    assert rig.level("q2") == 0.0
+
+
+def test_heater_2_goes_off_on_a_fault_and_on_close(
+    emulator: TCLabEmulator, open_driver: Callable[..., TCLabRig], clock: VirtualClock
+) -> None:
+    rig = open_driver()
+    rig.power_on()
+    rig.set_channel("q2", 80.0)
+    emulator.sensor_disconnected = True
+    with pytest.raises(RigFaultError):
+        rig.read()
+    assert emulator.heater(2) == 0.0
+    assert rig.level("q2") == 0.0
+    emulator.sensor_disconnected = False
+    rig.clear_fault()
+    rig.power_on()
+    rig.set_channel("q2", 80.0)
+    rig.close()
+    assert emulator.heater(2) == 0.0
+
+
+def test_sensor_2_over_temperature_cuts_both_heaters(
+    emulator: TCLabEmulator, open_driver: Callable[..., TCLabRig], clock: VirtualClock
+) -> None:
+    rig = open_driver(max_temperature=30.0)
+    rig.power_on()
+    rig.apply(5.0)
+    rig.set_channel("q2", 100.0)
+    clock.advance(300.0)
+    with pytest.raises(RigFaultError, match=r"output t2 .* exceeds the limit of 30 degC"):
+        rig.read()
+    assert (emulator.heater(1), emulator.heater(2)) == (0.0, 0.0)
+    assert rig.state is RigState.FAULTED
 
 
 def test_late_replies_are_not_taken_for_the_next_answer(
@@ -308,6 +375,21 @@ def test_the_watchdog_switches_off_a_silent_host(
     assert "watchdog" in (rig.fault() or "")
     assert emulator.heater(1) == 0.0
     assert rig.state is RigState.FAULTED
+
+
+def test_the_watchdog_watches_heater_2_too(
+    emulator: TCLabEmulator,
+    open_driver: Callable[..., TCLabRig],
+    clock: VirtualClock,
+    wait_until: Callable[..., bool],
+) -> None:
+    rig = open_driver(watchdog=5.0)
+    rig.power_on()
+    rig.set_channel("q2", 70.0)  # heater 1 off: heater 2 alone is still heating
+    clock.advance(6.0)  # the host falls silent
+    assert wait_until(lambda: rig.fault() is not None)
+    assert "watchdog" in (rig.fault() or "")
+    assert emulator.heater(2) == 0.0
 
 
 @pytest.mark.parametrize(

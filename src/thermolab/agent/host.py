@@ -31,6 +31,7 @@ from thermolab.agent.protocol import (
     LoopCommand,
     RunEnded,
     SampleOut,
+    SetChannel,
     SetFan,
     SetGains,
     SetMode,
@@ -40,7 +41,7 @@ from thermolab.errors import RigError, ThermoLabError
 from thermolab.jsonsafe import json_safe
 from thermolab.records import RUN_CHANNELS, ChannelSpec
 from thermolab.rigs import Rig
-from thermolab.runner import EventBus, Experiment, closed_loop_channels
+from thermolab.runner import EventBus, Experiment, extra_channels
 from thermolab.runner.control_request import build_control_loop
 from thermolab.signals import parse_signal
 
@@ -153,7 +154,7 @@ class RigHost:
             if command.control is not None:
                 times = [k * command.dt for k in range(command.samples)]
                 loop = build_control_loop(command.control, command.dt, times, info)
-                recorder.declare(closed_loop_channels(self.rig, loop))
+            recorder.declare(extra_channels(self.rig, info, loop))  # as the lab declared them
             experiment = Experiment(
                 self.rig,
                 command.dt,
@@ -195,6 +196,23 @@ class RigHost:
             if run_id is None and self.rig.powered:
                 self._guard(lambda: self._set_u(self.rig.apply(u)))
 
+    def set_channel(self, name: str, level: float, run_id: int | None) -> None:
+        """Hand a further input's level to the run going (``run_id``), or set it on the idle rig.
+
+        Raises
+        ------
+        ThermoLabError
+            As the run or the rig refuses it (the link logs it).
+        """
+        with self._lock:
+            run = self._run
+            if run is not None:
+                if run_id == self._run_id:
+                    run.set_further(name, level)
+                return
+            if run_id is None and self.rig.powered:
+                self._guard(lambda: self.rig.set_channel(name, level))
+
     def command(self, command: LoopCommand) -> None:
         """Apply a closed-loop command to run ``command.run`` if it is the one going.
 
@@ -216,6 +234,8 @@ class RigHost:
             run.set_gains(command.gains)
         elif isinstance(command, SetFan):
             run.set_fan(command.percent)
+        elif isinstance(command, SetChannel):  # the link sends it to set_channel; kept whole
+            self.set_channel(command.name, command.level, command.run)
         else:
             run.set_setpoint(command.setpoint)
 

@@ -73,6 +73,7 @@ from thermolab.agent.protocol import (
     EndRun,
     Hello,
     Power,
+    SetChannel,
     SetFan,
     SetGains,
     SetInput,
@@ -350,6 +351,10 @@ class AgentLink:
                     await asyncio.to_thread(self.host.set_input, message.u, message.run)
                 elif isinstance(message, Power):
                     await asyncio.to_thread(self.host.power, message.on)
+                elif isinstance(message, SetChannel):
+                    await asyncio.to_thread(
+                        self.host.set_channel, message.name, message.level, message.run
+                    )
                 elif isinstance(message, SetMode | SetSetpoint | SetGains | SetFan):
                     await asyncio.to_thread(self.host.command, message)
             except ThermoLabError as exc:

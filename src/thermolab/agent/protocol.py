@@ -52,6 +52,7 @@ __all__ = [
     "RunEnded",
     "SampleBatch",
     "SampleOut",
+    "SetChannel",
     "SetFan",
     "SetGains",
     "SetInput",
@@ -258,7 +259,16 @@ class SetFan(_Message):
     percent: _Finite
 
 
-LoopCommand = SetMode | SetSetpoint | SetGains | SetFan
+class SetChannel(_Message):
+    """A further input's level (a kit's heater 2, ``q2``): to run ``run``, else the idle rig."""
+
+    type: Literal["set_channel"] = "set_channel"
+    name: str = Field(min_length=1, max_length=40)
+    level: _Finite
+    run: int | None = Field(default=None, ge=1)
+
+
+LoopCommand = SetMode | SetSetpoint | SetGains | SetFan | SetChannel
 """A closed-loop command to the run going on the host."""
 
 

@@ -52,8 +52,9 @@ def add_run_options(parser: argparse.ArgumentParser) -> None:
         default="sim",
         metavar="SPEC",
         help=_(
-            "sim (the paper's twin, noise-free), sim:PRESET (paper, paper-practical, tclab), "
-            "tclab (a kit, auto-detected) or tclab:PORT (default: sim)"
+            "sim (the paper's twin, noise-free), sim:PRESET (paper, paper-practical, tclab, "
+            "kit: the kit's two heaters), tclab (a kit, auto-detected) or tclab:PORT "
+            "(default: sim)"
         ),
     )
     parser.add_argument(

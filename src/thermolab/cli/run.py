@@ -80,7 +80,7 @@ def _run(args: argparse.Namespace) -> int:
         Experiment,
         Interlocks,
         RunResult,
-        closed_loop_channels,
+        extra_channels,
         interrupt_signal,
         termination_signals,
     )
@@ -104,10 +104,9 @@ def _run(args: argparse.Namespace) -> int:
         identifiers = build_identifiers(
             methods, args.dt, **given_settings(args, identifier_settings())
         )
-        channels = RUN_CHANNELS
         if loop is not None:
             loop.bind(info, interlocks)
-            channels = (*RUN_CHANNELS, *closed_loop_channels(rig, loop))
+        channels = (*RUN_CHANNELS, *extra_channels(rig, info, loop))  # a kit's t2, q2 too
         recorder = (
             CsvRecorder(args.out, fsync=not simulated, channels=channels) if args.out else None
         )

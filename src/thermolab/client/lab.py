@@ -14,7 +14,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
@@ -51,13 +51,18 @@ def print_place(rig: dict[str, Any]) -> None:
 
 @dataclass(frozen=True, slots=True)
 class Reading:
-    """A rig's output: ``y`` in ``unit`` at ``at``; ``u`` the input applied; ``fresh`` read now."""
+    """A rig's output: ``y`` in ``unit`` at ``at``; ``u`` the input applied; ``fresh`` read now.
+
+    ``channels``: the rig's further channels, read with ``y`` (a kit's ``t2``)
+    or at their level (``q2``); empty for a rig that has none.
+    """
 
     y: float | None
     at: datetime | None
     u: float | None
     unit: str
     fresh: bool
+    channels: dict[str, float | None] = field(default_factory=dict)
 
 
 class Lab:
@@ -406,6 +411,18 @@ class Turn:
         applied = answer.get("applied")
         return None if applied is None else float(applied)
 
+    def set_channel(self, name: str, level: float) -> float | None:
+        """Set one of the rig's further inputs (a kit's heater 2, ``q2``); return the level set.
+
+        ``None``: it reached no device. The lab refuses (422) an input the rig
+        does not have (``channel_not_on_rig``) or a level outside its range.
+        """
+        answer = self.lab.request(
+            "PUT", f"/api/rigs/{self.rig_id}/channels/{name}", json={"level": float(level)}
+        )
+        applied = answer.get("applied")
+        return None if applied is None else float(applied)
+
     def pace(self, speedup: float) -> float:
         """Run the rig (a twin) at ``speedup`` until this turn ends; return the speed-up in force.
 
@@ -430,6 +447,7 @@ class Turn:
             body.get("u"),
             str(body.get("unit", "")),
             bool(body.get("fresh")),
+            dict(body.get("channels") or {}),
         )
 
     def start_run(

@@ -76,6 +76,7 @@ ERROR_SENTENCES: Mapping[str, str] = {
     "setting_out_of_range": "A setting is outside the range this rig allows.",
     "setting_not_for_rig": "This rig does not have that setting.",
     "speedup_refused": "This rig does not allow that speed-up.",
+    "channel_not_on_rig": "This rig does not have that input (a second heater, a fan).",
     "settings_changed": "Someone changed these settings meanwhile: load them again.",
     # The closed loop and the runs' precise conflicts.
     "gain_out_of_range": "A controller setting is not a finite number within its published range.",

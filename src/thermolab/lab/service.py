@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import threading
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 from typing import Protocol
@@ -45,6 +46,7 @@ from thermolab.lab.fleet.lease import DatabaseLease
 from thermolab.lab.guides import SECTIONS, GuideImageService, GuideService
 from thermolab.lab.live.presence import Presence
 from thermolab.lab.lti import LtiService
+from thermolab.lab.rig_channels import ChannelResult, set_channel
 from thermolab.lab.rigs.camera import Picture, PictureCache, draw_twin, fetch_camera
 from thermolab.lab.rigs.devices import DesiredState, DeviceHub
 from thermolab.lab.rigs.opener import RigOpener
@@ -78,8 +80,18 @@ class LabListener(Protocol):
         """A runner event of a run (sample, estimate, state, fault)."""
         ...
 
-    def reading(self, rig_id: str, u: float | None, y: float, at: datetime) -> None:
-        """A reading of a powered rig with no run (the lab's idle monitoring)."""
+    def reading(
+        self,
+        rig_id: str,
+        u: float | None,
+        y: float,
+        at: datetime,
+        channels: Mapping[str, float | None] | None = None,
+    ) -> None:
+        """A reading of a powered rig with no run (the lab's idle monitoring).
+
+        ``channels``: the rig's further channels with it (a kit's ``t2``, ``q2``).
+        """
         ...
 
 
@@ -114,6 +126,9 @@ class OutputReading:
         The input the lab last applied.
     fresh : bool
         Read from the device for this request (the controller's reads).
+    channels : mapping of str to float or None
+        The rig's further channels (a kit's ``t2`` read with ``y``, ``q2``'s
+        level); empty for a rig that declares none.
     """
 
     rig_id: str
@@ -121,6 +136,7 @@ class OutputReading:
     at: datetime | None
     u: float | None
     fresh: bool
+    channels: Mapping[str, float | None] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, slots=True)
@@ -392,6 +408,11 @@ class Lab:
             self.access.report_fault(rig_id, fault)
         return InputResult(rig_id, record.u, applied, record.at, record.id, run_id)
 
+    def set_channel(self, rig_id: str, who: Principal, name: str, value: float) -> ChannelResult:
+        """Set the rig's further input ``name`` (see :func:`.rig_channels.set_channel`)."""
+        parts = (self.config, self.access, self.hub, self.rig_runs)
+        return set_channel(*parts, (self.agents, self.remote_rigs), rig_id, who, name, value)
+
     def running(self, rig_id: str) -> int | None:
         """The id of the run going on the rig, in-process or on its host, if any."""
         return self.rig_runs.running(rig_id)
@@ -428,6 +449,7 @@ class Lab:
             None if reading is None else reading[1],
             self.hub.applied(rig_id),
             fresh,
+            self.hub.channels(rig_id),
         )
 
     def set_service(self, rig_id: str, who: Principal, in_service: bool) -> RigView:
@@ -506,8 +528,9 @@ class Lab:
                 continue
             if self.runs.running(rig.id) is not None or self.remote_runs.running(rig.id):
                 continue
+            channels = self.hub.channels(rig.id)
             for listener in self.listeners:
-                listener.reading(rig.id, self.hub.applied(rig.id), reading[0], now)
+                listener.reading(rig.id, self.hub.applied(rig.id), reading[0], now, channels)
 
     def add_listener(self, listener: LabListener) -> None:
         """Tell ``listener`` about access changes, runs and readings from now on."""

@@ -27,8 +27,9 @@ from thermolab.rigs.clock import (
     VirtualClock,
     make_clock,
 )
-from thermolab.rigs.contract import Reading, Rig, RigInfo, RigState
-from thermolab.rigs.spec import RIG_KINDS, FanSpec, RigKind, RigSpec
+from thermolab.rigs.contract import InputChannel, OutputChannel, Reading, Rig, RigInfo, RigState
+from thermolab.rigs.kit_twin import KitTwinRig
+from thermolab.rigs.spec import RIG_KINDS, RigKind, RigSpec
 from thermolab.rigs.tclab import TCLabRig, tclab_info
 from thermolab.rigs.tclab_port import TCLabVersion, find_tclab
 from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_info, twin_params, twin_preset
@@ -39,7 +40,9 @@ __all__ = [
     "RIG_SPECS",
     "BaseRig",
     "Clock",
-    "FanSpec",
+    "InputChannel",
+    "KitTwinRig",
+    "OutputChannel",
     "RateClock",
     "Reading",
     "RealClock",

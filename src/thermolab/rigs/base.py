@@ -112,6 +112,18 @@ class BaseRig(abc.ABC):
     def _release(self) -> None:
         """Free resources. Must not raise."""
 
+    def _set_further_input(self, name: str, value: float) -> float:
+        """Drive the further input ``name`` (declared, validated); return the level set.
+
+        Only a rig that declares further inputs is ever asked; its
+        ``_make_safe`` puts each back at its default.
+        """
+        raise NotImplementedError(f"{type(self).__name__} declares {name!r} but cannot set it")
+
+    def _further_level(self, name: str) -> float:
+        """The further input ``name``'s level now (declared)."""
+        raise NotImplementedError(f"{type(self).__name__} declares {name!r} but cannot read it")
+
     def _check_fault_cleared(self) -> None:
         """Raise :class:`RigFaultError` if the cause of the fault persists.
 
@@ -268,6 +280,63 @@ class BaseRig(abc.ABC):
                 self._at = None
             return reading
 
+    def set_channel(self, name: str, value: float, *, at: float | None = None) -> float:
+        """Set a further input (:attr:`RigInfo.further_inputs`): a kit's heater 2.
+
+        Parameters
+        ----------
+        name : str
+            The channel's declared name (``"q2"``).
+        value : float
+            Its level, within the channel's range.
+        at : float, optional
+            The scheduled sample instant (see :meth:`apply`).
+
+        Returns
+        -------
+        float
+            The level set.
+
+        Raises
+        ------
+        InvalidParameterError
+            For a channel the rig does not declare, or a level outside its range.
+        RigStateError
+            If the rig is closed, or not POWERED and ``value`` is not the
+            channel's default (an idle rig heats nothing).
+        RigFaultError
+            If the device faults (the fault is latched, the rig made safe).
+        """
+        with self._lock:
+            channel = self._info.inputs.get(name)
+            level = self._info.further_level(name, value)
+            assert channel is not None  # further_level refuses an undeclared name
+            if self._state is RigState.CLOSED or (
+                self._state is not RigState.POWERED and level != channel.default
+            ):
+                raise RigStateError(self._refusal(f"set {name}"))
+            self._at = _check_instant(at)
+            try:
+                return self._set_further_input(name, level)
+            except RigFaultError as exc:
+                self._latch(str(exc))
+                raise
+            finally:
+                self._at = None
+
+    def level(self, name: str) -> float:
+        """The further input ``name``'s level now (its default unless set while powered).
+
+        Raises
+        ------
+        InvalidParameterError
+            For a channel the rig does not declare.
+        """
+        with self._lock:
+            if name not in self._info.inputs:
+                self._info.further_level(name, math.nan)  # raises, naming what the rig has
+            return self._further_level(name)
+
     def clear_fault(self) -> None:
         """Acknowledge a latched fault and return to IDLE.
 
@@ -340,6 +409,15 @@ class BaseRig(abc.ABC):
                 f"{self._info.name}: output {reading.value:.3f} {self._info.output_unit} "
                 f"exceeds the limit of {limit:g} {self._info.output_unit}; actuator switched off"
             )
+        # Every further output has its own limit (a kit's sensor 2 watches heater 2).
+        for channel in self._info.further_outputs:
+            value = reading.further.get(channel.name)
+            if channel.limit is not None and value is not None and not value <= channel.limit:
+                raise RigFaultError(
+                    f"{self._info.name}: output {channel.name} {value:.3f} {channel.unit} "
+                    f"exceeds the limit of {channel.limit:g} {channel.unit}; "
+                    "actuators switched off"
+                )
 
     def _transition(self, new: RigState) -> None:
         if new not in _TRANSITIONS[self._state]:

@@ -1,7 +1,12 @@
 """The rig contract: what every rig (digital twin, hardware driver) is and provides.
 
 A rig has one actuator input ``u`` (volts for the paper's box, percent of
-heater power for a TCLab kit) and one sensor output ``y``. The interface is the
+heater power for a TCLab kit) and one sensor output ``y``: the primary pair,
+which runs, identification and control use. It may declare further channels
+in its :class:`RigInfo`, once: further inputs (:class:`InputChannel`: a
+twin's disturbance fan, a kit's heater 2) that :meth:`Rig.set_channel` sets
+and :meth:`Rig.level` reads back, and further outputs (:class:`OutputChannel`:
+a kit's sensor 2) that every :class:`Reading` carries beside ``value``. The interface is the
 :class:`Rig` protocol, with what it describes (:class:`RigInfo`), reads
 (:class:`Reading`) and goes through (:class:`RigState`);
 :class:`~thermolab.rigs.base.BaseRig` implements the parts every rig shares.
@@ -13,8 +18,8 @@ Lifecycle (:class:`RigState`)::
     any --close()--> CLOSED   (terminal)
 
 In every state but POWERED the actuator is at the rig's safe input value, and
-every further actuator the rig's kind declares (a twin's disturbance fan:
-:class:`FanSpec`) is at its declared ``default``: powering off, a fault and
+every further input the rig declares (:attr:`RigInfo.further_inputs`: a
+twin's fan, a kit's heater 2) is at its declared ``default``: powering off, a fault and
 closing put them all there, so a rig powered off and on again is the rig its
 declaration describes, whatever a run or a user set before (issue #23).
 An operation that is not allowed in the current state raises
@@ -25,13 +30,16 @@ An operation that is not allowed in the current state raises
 from __future__ import annotations
 
 import enum
-from dataclasses import asdict, dataclass
-from types import TracebackType
+import math
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from types import MappingProxyType, TracebackType
 from typing import Any, Protocol, Self, runtime_checkable
 
+from thermolab.errors import ChannelNotOnRigError, InvalidParameterError
 from thermolab.rigs.clock import Clock
 
-__all__ = ["FanSpec", "Reading", "Rig", "RigInfo", "RigState"]
+__all__ = ["InputChannel", "OutputChannel", "Reading", "Rig", "RigInfo", "RigState"]
 
 
 class RigState(enum.Enum):
@@ -59,6 +67,87 @@ class RigState(enum.Enum):
 
 
 @dataclass(frozen=True, slots=True)
+class InputChannel:
+    """A further input of a rig, apart from the primary input ``u``.
+
+    A twin's disturbance fan, a kit's heater 2. The rig sets it with
+    :meth:`Rig.set_channel` and reads it back with :meth:`Rig.level`, and
+    puts it at ``default`` in its safe state (see the module's notes).
+
+    Attributes
+    ----------
+    name : str
+        The channel's name: the column of a record, the key of a command.
+    unit : str
+    minimum, maximum : float
+        The levels ``set_channel`` accepts, inclusive.
+    default : float
+        The level the rig rests at: where powering off, a fault and closing
+        put the input, and so where every run and every turn starts from.
+    description : str
+    recorded : bool
+        ``True``: every run records the level as a channel. ``False``: only a
+        closed-loop run does (the paper's twins' fan, a disturbance for a
+        controller: the open-loop records of the paper stay ``t,u,y``).
+
+    Examples
+    --------
+    >>> heater = InputChannel("q2", description="heater 2")
+    >>> heater.range, heater.default
+    ((0.0, 100.0), 0.0)
+    """
+
+    name: str
+    unit: str = "%"
+    minimum: float = 0.0
+    maximum: float = 100.0
+    default: float = 0.0
+    description: str = ""
+    recorded: bool = True
+
+    @property
+    def range(self) -> tuple[float, float]:
+        """``(minimum, maximum)``."""
+        return (self.minimum, self.maximum)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the fields as a JSON-ready dictionary."""
+        return asdict(self)
+
+
+@dataclass(frozen=True, slots=True)
+class OutputChannel:
+    """A further output of a rig, apart from the primary output ``y`` (a kit's sensor 2).
+
+    Every :class:`Reading` of the rig carries its value (``Reading.further``);
+    above ``limit`` the rig faults as for ``y`` (over-temperature).
+
+    Attributes
+    ----------
+    name : str
+        The channel's name: the column of a record.
+    unit : str
+    limit : float or None
+        The value above which the rig faults and goes to its safe state.
+    description : str
+
+    Examples
+    --------
+    >>> OutputChannel("t2", "degC", 90.0).limit
+    90.0
+    """
+
+    name: str
+    unit: str
+    limit: float | None = None
+    description: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the fields as a JSON-ready dictionary."""
+        return asdict(self)
+
+
+@dataclass(frozen=True, slots=True)
 class RigInfo:
     """What a rig is and what it accepts.
 
@@ -81,6 +170,10 @@ class RigInfo:
         (over-temperature); ``None`` when the rig has none.
     description : str
         One sentence for a user interface (``""`` if none).
+    further_inputs : tuple of InputChannel
+        The inputs besides ``u`` (none for most rigs).
+    further_outputs : tuple of OutputChannel
+        The outputs besides ``y``.
 
     Examples
     --------
@@ -100,49 +193,64 @@ class RigInfo:
     safe_input: float
     output_limit: float | None
     description: str = ""
+    further_inputs: tuple[InputChannel, ...] = ()
+    further_outputs: tuple[OutputChannel, ...] = ()
 
     @property
     def input_range(self) -> tuple[float, float]:
         """``(input_min, input_max)``."""
         return (self.input_min, self.input_max)
 
+    @property
+    def inputs(self) -> Mapping[str, InputChannel]:
+        """:attr:`further_inputs` by name."""
+        return MappingProxyType({c.name: c for c in self.further_inputs})
+
+    @property
+    def outputs(self) -> Mapping[str, OutputChannel]:
+        """:attr:`further_outputs` by name."""
+        return MappingProxyType({c.name: c for c in self.further_outputs})
+
+    def further_level(self, name: str, value: object) -> float:
+        """Return ``value`` as a level of the further input ``name``.
+
+        Raises
+        ------
+        ChannelNotOnRigError
+            If the rig has no such input (an :class:`InvalidParameterError`).
+        InvalidParameterError
+            If ``value`` is not a number in the input's range.
+
+        Examples
+        --------
+        >>> info = RigInfo("kit", "tclab", 0, 100, "%", "degC", 0, 90,
+        ...                further_inputs=(InputChannel("q2"),))
+        >>> info.further_level("q2", "40")
+        40.0
+        >>> info.further_level("q2", 140)
+        Traceback (most recent call last):
+        ...
+        thermolab.errors.InvalidParameterError: q2 of 'kit' takes 0-100 %, got 140
+        """
+        channel = self.inputs.get(name)
+        if channel is None:
+            has = ", ".join(self.inputs) or "none"
+            raise ChannelNotOnRigError(
+                f"rig {self.name!r} has no input {name!r}; its further inputs: {has}"
+            )
+        try:
+            level = float(value)  # type: ignore[arg-type]  # anything a request carried
+        except (TypeError, ValueError):
+            level = math.nan
+        if not (math.isfinite(level) and channel.minimum <= level <= channel.maximum):
+            raise InvalidParameterError(
+                f"{name} of {self.name!r} takes {channel.minimum:g}-{channel.maximum:g} "
+                f"{channel.unit}, got {value!r}"
+            )
+        return level
+
     def to_dict(self) -> dict[str, Any]:
         """Return the fields as a JSON-ready dictionary."""
-        return asdict(self)
-
-
-@dataclass(frozen=True, slots=True)
-class FanSpec:
-    """A rig's disturbance fan: a second actuator, apart from the controlled input.
-
-    A rig kind that has one opens rigs with ``set_fan(percent, *, at=None)``
-    and a ``fan`` property (the twin: :meth:`thermolab.rigs.twin.TwinRig.set_fan`),
-    and puts the fan at ``default`` in its safe state (see the module's notes).
-
-    Attributes
-    ----------
-    unit : str
-    minimum, maximum : float
-        The levels ``set_fan`` accepts, inclusive.
-    default : float
-        The level the rig rests at: where powering off, a fault and closing
-        put the fan, and so where every run and every turn starts from.
-    description : str
-
-    Examples
-    --------
-    >>> FanSpec().default
-    0.0
-    """
-
-    unit: str = "%"
-    minimum: float = 0.0
-    maximum: float = 100.0
-    default: float = 0.0
-    description: str = ""
-
-    def to_dict(self) -> dict[str, Any]:
-        """Return ``{"unit", "minimum", "maximum", "default", "description"}``."""
         return asdict(self)
 
 
@@ -158,15 +266,21 @@ class Reading:
         The rig clock's time when the reading was taken, as the host knows it.
         (A twin with sample-time jitter samples its state at a slightly
         different, undisclosed instant, as a real acquisition board does.)
+    further : mapping of str to float
+        Each further output's value at the same instant, by name
+        (:attr:`RigInfo.further_outputs`; empty for a rig that has none).
 
     Examples
     --------
     >>> Reading(1.25, 3.0)
     Reading(value=1.25, t=3.0)
+    >>> Reading(30.5, 3.0, {"t2": 24.1}).further["t2"]
+    24.1
     """
 
     value: float
     t: float
+    further: Mapping[str, float] = field(default_factory=dict, repr=False)
 
 
 @runtime_checkable
@@ -220,6 +334,17 @@ class Rig(Protocol):
         ``at``: the scheduled sample instant (a twin samples exactly there;
         hardware samples now).
         """
+        ...
+
+    def set_channel(self, name: str, value: float, *, at: float | None = None) -> float:
+        """Set the further input ``name`` (:attr:`RigInfo.further_inputs`); return the level set.
+
+        Allowed while POWERED; ``at`` as for :meth:`apply`.
+        """
+        ...
+
+    def level(self, name: str) -> float:
+        """The further input ``name``'s level now."""
         ...
 
     def fault(self) -> str | None:

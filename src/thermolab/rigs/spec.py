@@ -27,11 +27,15 @@ from typing import Any
 
 from thermolab.errors import InvalidParameterError
 from thermolab.rigs.clock import Clock
-from thermolab.rigs.contract import FanSpec, Rig, RigInfo
+from thermolab.rigs.contract import InputChannel, Rig, RigInfo
+from thermolab.rigs.kit_twin import KitTwinRig, check_kit_options, kit_twin_info
 from thermolab.rigs.tclab import TCLabRig, tclab_info
-from thermolab.rigs.twin import PRESETS, TWIN_FAN, TwinParams, TwinRig, twin_info, twin_params
+from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_info, twin_params
 
-__all__ = ["RIG_KINDS", "RIG_SPECS", "FanSpec", "RigKind", "RigSpec"]
+__all__ = ["KIT_TWIN", "RIG_KINDS", "RIG_SPECS", "RigKind", "RigSpec"]
+
+#: The ``sim`` argument of the kit's two-heater twin (:class:`KitTwinRig`), beside the presets.
+KIT_TWIN = "kit"
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,14 +66,10 @@ class RigKind:
         :attr:`RigSpec.typical_dead_time`): what a live block or recursive
         identification takes when the record is not yet there to search it.
 
-    fan : FanSpec or None
-        The disturbance fan the kind's rigs have (every twin), or ``None``
-        (a TCLab kit has none).
-
     Examples
     --------
     >>> RIG_KINDS["sim"].choices
-    ('paper', 'paper-practical', 'tclab')
+    ('paper', 'paper-practical', 'tclab', 'kit')
     >>> "max_temperature" in RIG_KINDS["tclab"].options
     True
     """
@@ -87,16 +87,6 @@ class RigKind:
     _open: Callable[[str | None, Clock | None, int | None, Mapping[str, Any]], Rig] = field(
         repr=False
     )
-    fan: FanSpec | None = None
-
-    @property
-    def actuators(self) -> Mapping[str, FanSpec]:
-        """Every actuator besides the input, by the name of the rig's property that reads it.
-
-        Each has a declared ``default``, where the rig's safe state puts it
-        (:mod:`thermolab.rigs.contract`); a lab shows them and checks a hand-over by them.
-        """
-        return MappingProxyType({} if self.fan is None else {"fan": self.fan})
 
     @property
     def forms(self) -> tuple[str, ...]:
@@ -134,7 +124,17 @@ def _keyword_defaults(factory: Callable[..., Any], *, skip: tuple[str, ...]) -> 
 def _open_twin(
     preset: str | None, clock: Clock | None, seed: int | None, options: Mapping[str, Any]
 ) -> Rig:
+    if preset == KIT_TWIN:
+        check_kit_options(dict(options))
+        return KitTwinRig(clock=clock, seed=seed, **options)
     return TwinRig(preset or "paper", clock=clock, seed=seed, **options)
+
+
+def _describe_twin(preset: str | None, options: Mapping[str, Any]) -> RigInfo:
+    if preset == KIT_TWIN:
+        check_kit_options(dict(options))
+        return kit_twin_info(options.get("output_limit", _KIT_TWIN_DEFAULTS["output_limit"]))
+    return twin_info(twin_params(preset or "paper", **options))
 
 
 def _open_tclab(
@@ -149,6 +149,8 @@ def _describe_tclab(port: str | None, options: Mapping[str, Any]) -> RigInfo:
 
 
 def _twin_defaults(preset: str | None) -> Mapping[str, Any]:
+    if preset == KIT_TWIN:
+        return _KIT_TWIN_DEFAULTS
     params = PRESETS[preset or "paper"]
     fields = {f.name: getattr(params, f.name) for f in dataclasses.fields(TwinParams)}
     return {"realism": True, **fields}
@@ -158,8 +160,12 @@ def _twin_dead_time(preset: str | None) -> float:
     """The first order plus dead time θ of a twin: its transport delay and sensor lag.
 
     The sensor's lag rounds the start of a step and a first-order fit counts
-    it as delay (the ``tclab`` twin: 13 s + 3 s, the kit model's 15.9 s).
+    it as delay (the ``tclab`` twin: 13 s + 3 s, the kit model's 15.9 s);
+    the kit's two-heater twin has no transport delay but its sensors' lag,
+    which a first-order fit counts as a kit's delay (:data:`TCLAB_DEAD_TIME`).
     """
+    if preset == KIT_TWIN:
+        return TCLAB_DEAD_TIME
     params = PRESETS[preset or "paper"]
     return float(params.dead_time + (params.sensor_lag or 0.0))
 
@@ -169,6 +175,7 @@ def _twin_dead_time(preset: str | None) -> float:
 TCLAB_DEAD_TIME = 15.0
 
 _TCLAB_DEFAULTS = MappingProxyType(_keyword_defaults(TCLabRig, skip=("clock",)))
+_KIT_TWIN_DEFAULTS = MappingProxyType(_keyword_defaults(KitTwinRig, skip=("clock", "seed")))
 
 #: Every kind of rig, by the word that starts its spec.
 RIG_KINDS: Mapping[str, RigKind] = MappingProxyType(
@@ -179,13 +186,12 @@ RIG_KINDS: Mapping[str, RigKind] = MappingProxyType(
             argument="PRESET",
             simulated=True,
             default_argument="paper",
-            choices=tuple(PRESETS),
+            choices=(*PRESETS, KIT_TWIN),
             options=("realism", *(f.name for f in dataclasses.fields(TwinParams))),
             typical_dead_time=_twin_dead_time,
             _defaults=_twin_defaults,
-            _describe=lambda preset, options: twin_info(twin_params(preset or "paper", **options)),
+            _describe=_describe_twin,
             _open=_open_twin,
-            fan=TWIN_FAN,
         ),
         "tclab": RigKind(
             name="tclab",
@@ -315,8 +321,8 @@ class RigSpec:
 
         Examples
         --------
-        >>> [RigSpec.parse(s).typical_dead_time for s in ("sim", "sim:tclab", "tclab")]
-        [0.0, 16.0, 15.0]
+        >>> [RigSpec.parse(s).typical_dead_time for s in ("sim", "sim:tclab", "tclab", "sim:kit")]
+        [0.0, 16.0, 15.0, 15.0]
         """
         return float(self.rig_kind.typical_dead_time(self.argument))
 
@@ -333,14 +339,24 @@ class RigSpec:
         return dict(self.rig_kind._defaults(self.argument))
 
     @property
-    def fan(self) -> FanSpec | None:
-        """The disturbance fan of this kind of rig, or ``None``."""
-        return self.rig_kind.fan
+    def fan(self) -> InputChannel | None:
+        """The disturbance fan of this rig (every twin of the paper's), or ``None``."""
+        return self.actuators.get("fan")
 
     @property
-    def actuators(self) -> Mapping[str, FanSpec]:
-        """Every actuator besides the input, by name (:attr:`RigKind.actuators`)."""
-        return self.rig_kind.actuators
+    def actuators(self) -> Mapping[str, InputChannel]:
+        """Every input besides ``u``, by name: the rig's declared further inputs.
+
+        Each has a declared ``default``, where the rig's safe state puts it
+        (:mod:`thermolab.rigs.contract`); a lab shows them and checks a hand-over
+        by them.
+
+        Examples
+        --------
+        >>> list(RigSpec.parse("sim").actuators), list(RigSpec.parse("sim:kit").actuators)
+        (['fan'], ['q2'])
+        """
+        return self.describe().inputs
 
     def rest_state(self, **options: Any) -> dict[str, float]:
         """Every actuator's declared default: where the rig rests, and each turn and run starts.
@@ -352,7 +368,7 @@ class RigSpec:
         >>> RigSpec.parse("sim").rest_state()
         {'u': 0.0, 'fan': 0.0}
         >>> RigSpec.parse("tclab").rest_state()
-        {'u': 0.0}
+        {'u': 0.0, 'q2': 0.0}
         """
         rest = {"u": self.describe(**options).safe_input}
         return rest | {name: spec.default for name, spec in self.actuators.items()}

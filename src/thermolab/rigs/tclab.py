@@ -1,7 +1,10 @@
 """Driver for a TCLab kit (firmware 2.0.1) over USB serial.
 
-:class:`TCLabRig` drives heater 1 and reads sensor 1 of a TCLab kit as a rig
-(input 0-100 % of heater power, output °C); heater 2 is held off. It speaks the
+:class:`TCLabRig` drives a TCLab kit as a rig: heater 1 and sensor 1 are its
+primary pair (input 0-100 % of heater power, output °C); heater 2 is its
+further input ``q2`` (:meth:`~thermolab.rigs.base.BaseRig.set_channel`, off at
+rest) and sensor 2 its further output ``t2`` (read with sensor 1 at every
+reading). It speaks the
 firmware 2.0.1 protocol as stated in NOTES.md §6 through pyserial: 115200 baud,
 ``CMD value\\r\\n`` commands, one reply line per command ending in ``\\r\\n``.
 
@@ -17,9 +20,9 @@ the kit runs ThermoLab's watchdog sketch (``firmware/tclab_watchdog``):
   off already at that point) and echoes ``WDOG``; the driver then records
   ``None`` and relies on the host-side guards below;
 
-* a reading of sensor 1 above ``max_temperature`` (or an implausibly low one,
-  the sign of a disconnected sensor) switches both heaters off and latches a
-  fault;
+* a reading of either sensor above ``max_temperature`` (or an implausibly low
+  one, the sign of a disconnected sensor) switches both heaters off and
+  latches a fault;
 * a watchdog thread switches the heaters off and latches a fault when the host
   has neither applied an input nor read the sensor for ``watchdog`` seconds of
   the rig's clock while a heater is on;
@@ -59,14 +62,23 @@ import serial
 from thermolab.errors import InvalidParameterError, RigError, RigFaultError, RigTimeoutError
 from thermolab.rigs.base import BaseRig
 from thermolab.rigs.clock import Clock, RealClock
-from thermolab.rigs.contract import Reading, RigInfo
+from thermolab.rigs.contract import InputChannel, OutputChannel, Reading, RigInfo
 from thermolab.rigs.tclab_exit import register, unregister
 from thermolab.rigs.tclab_port import PORT_ERRORS, TCLabVersion, find_tclab, open_port
 
-__all__ = ["TCLabRig", "TCLabVersion", "find_tclab", "tclab_info"]
+__all__ = ["HEATER_2", "TCLabRig", "TCLabVersion", "find_tclab", "kit_sensor_2", "tclab_info"]
 
 #: Below this a TMP36 reading means a broken or disconnected sensor, not a cold room.
 _MIN_PLAUSIBLE_TEMPERATURE = -20.0
+
+
+#: A kit's heater 2: its further input, as the kit and its twin (``sim:kit``) declare it.
+HEATER_2 = InputChannel("q2", description="heater 2, % of its power")
+
+
+def kit_sensor_2(max_temperature: float) -> OutputChannel:
+    """A kit's sensor 2, its further output, faulting above ``max_temperature`` °C like sensor 1."""
+    return OutputChannel("t2", "degC", float(max_temperature), "sensor 2, on heater 2")
 
 
 def tclab_info(port: str | None, max_temperature: float = 90.0) -> RigInfo:
@@ -82,13 +94,16 @@ def tclab_info(port: str | None, max_temperature: float = 90.0) -> RigInfo:
     Returns
     -------
     RigInfo
-        Heater 1 in 0-100 % (safe at 0), sensor 1 in °C.
+        Heater 1 in 0-100 % (safe at 0), sensor 1 in °C; heater 2 (``q2``)
+        and sensor 2 (``t2``) as further channels.
 
     Examples
     --------
     >>> info = tclab_info("/dev/ttyACM0")
     >>> info.name, info.input_range, info.output_limit
     ('TCLab on /dev/ttyACM0', (0.0, 100.0), 90.0)
+    >>> list(info.inputs), list(info.outputs)
+    (['q2'], ['t2'])
     """
     return RigInfo(
         name=f"TCLab on {port}" if port is not None else "TCLab (found automatically)",
@@ -99,12 +114,14 @@ def tclab_info(port: str | None, max_temperature: float = 90.0) -> RigInfo:
         output_unit="degC",
         safe_input=0.0,
         output_limit=float(max_temperature),
-        description="A TCLab kit: heater 1 (0-100 %) and sensor 1 (°C).",
+        description="A TCLab kit: heaters 1 and 2 (0-100 %), sensors 1 and 2 (°C).",
+        further_inputs=(HEATER_2,),
+        further_outputs=(kit_sensor_2(max_temperature),),
     )
 
 
 class TCLabRig(BaseRig):
-    """A TCLab kit as a rig: heater 1 (0-100 %) in, sensor 1 (°C) out.
+    """A TCLab kit as a rig: heater 1 (0-100 %) in, sensor 1 (°C) out; heater 2, sensor 2 further.
 
     Parameters
     ----------
@@ -119,7 +136,7 @@ class TCLabRig(BaseRig):
     reset_wait : float
         Seconds to wait after opening the port for the board's reset (2.0).
     max_temperature : float
-        Over-temperature cut-off of sensor 1 in °C (default 90).
+        Over-temperature cut-off of each sensor in °C (default 90).
     watchdog : float or None
         Seconds (of ``clock``) of host silence after which a heater that is
         on is switched off and a fault latched (default 10); ``None``: off.
@@ -155,8 +172,8 @@ class TCLabRig(BaseRig):
     Notes
     -----
     A reading's time is the clock's time halfway between sending ``T1`` and
-    receiving the reply. ``apply`` returns the heater value the firmware
-    echoes (clipped, three decimals).
+    receiving the reply to ``T2``. ``apply`` (and ``set_channel("q2", ...)``)
+    returns the heater value the firmware echoes (clipped, three decimals).
     """
 
     def __init__(
@@ -203,6 +220,7 @@ class TCLabRig(BaseRig):
         self._desync = False
         self._sync_count = 0
         self._heater = 0.0
+        self._heater_2 = 0.0
         self._last_host = clock.now()
         self._watchdog_period = watchdog
         self._watchdog_stop = threading.Event()
@@ -318,7 +336,7 @@ class TCLabRig(BaseRig):
                 raise RigFaultError(
                     f"TCLab on {self.port} is gone (unplugged?) during {marker!r}: {exc}"
                 ) from None
-        self._heater = 0.0
+        self._heater = self._heater_2 = 0.0
         self._desync = False
 
     def _number(self, command: str) -> float:
@@ -342,7 +360,7 @@ class TCLabRig(BaseRig):
         if match is None:
             # Stock firmware: WDOG is unknown, so it echoed it and switched the heaters off
             # (they are off already). The host-side guards are all there is.
-            self._heater = 0.0
+            self._heater = self._heater_2 = 0.0
             return None
         return int(match.group(1))
 
@@ -354,34 +372,51 @@ class TCLabRig(BaseRig):
                 f"TCLab on {self.port} answered {reply!r} to X instead of 'Stop'; "
                 "heaters may still be on"
             )
-        self._heater = 0.0
+        self._heater = self._heater_2 = 0.0
 
     # -- hooks ----------------------------------------------------------------------
 
     def _apply_input(self, u: float) -> float:
+        self._heater = self._set_heater(1, u)
+        return self._heater
+
+    def _set_further_input(self, name: str, value: float) -> float:
+        # HEATER_2 is the one further input the kit declares.
+        self._heater_2 = self._set_heater(2, value)
+        return self._heater_2
+
+    def _further_level(self, name: str) -> float:
+        return self._heater_2
+
+    def _set_heater(self, n: int, percent: float) -> float:
+        """Send ``Qn``; return the level the firmware echoes, or fault on a wrong echo."""
         self._last_host = self.clock.now()
-        echo = self._number(f"Q1 {u:.3f}")
-        if abs(echo - u) > 0.0015:
+        echo = self._number(f"Q{n} {percent:.3f}")
+        if abs(echo - percent) > 0.0015:
             self._desync = True
             raise RigFaultError(
-                f"TCLab on {self.port} echoed {echo!r} for heater 1 set to {u:.3f}; "
+                f"TCLab on {self.port} echoed {echo!r} for heater {n} set to {percent:.3f}; "
                 "heaters switched off"
             )
-        self._heater = echo
         return echo
 
     def _read_output(self) -> Reading:
         before = self.clock.now()
         self._last_host = before
-        value = self._number("T1")
+        value = self._temperature(1)
+        value_2 = self._temperature(2)
         t = 0.5 * (before + self.clock.now())
+        return Reading(value, t, {"t2": value_2})
+
+    def _temperature(self, n: int) -> float:
+        value = self._number(f"T{n}")
         if value < _MIN_PLAUSIBLE_TEMPERATURE:
             raise RigFaultError(
-                f"TCLab on {self.port}: sensor 1 reads {value:.3f} °C, below "
+                f"TCLab on {self.port}: sensor {n} reads {value:.3f} °C, below "
                 f"{_MIN_PLAUSIBLE_TEMPERATURE:g} °C: disconnected or broken sensor; "
                 "heaters switched off"
             )
-        return Reading(value, t)
+        return value
 
     def _make_safe(self) -> None:
         if self._link is None:
@@ -429,7 +464,8 @@ class TCLabRig(BaseRig):
         # Poll often in real time: with a fast virtual clock, seconds pass quickly.
         while not self._watchdog_stop.wait(0.02):
             silent_for = self.clock.now() - self._last_host
-            if self.powered and self._heater > 0.0 and silent_for > period:
+            heating = self._heater > 0.0 or self._heater_2 > 0.0
+            if self.powered and heating and silent_for > period:
                 with self._lock:
                     if self.powered and self.clock.now() - self._last_host > period:
                         self._latch(

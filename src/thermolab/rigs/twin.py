@@ -57,11 +57,12 @@ from thermolab.errors import (
 from thermolab.rigs._thermal import ThermalModel
 from thermolab.rigs.base import BaseRig
 from thermolab.rigs.clock import Clock, RealClock
-from thermolab.rigs.contract import FanSpec, Reading, RigState
+from thermolab.rigs.contract import Reading, RigState
 from thermolab.rigs.twin_params import (
     DAQ16_STEP,
     PRESETS,
     TCLAB_STEP,
+    TWIN_FAN,
     TwinParams,
     twin_info,
     twin_params,
@@ -79,14 +80,6 @@ __all__ = [
     "twin_params",
     "twin_preset",
 ]
-
-
-#: Every twin's disturbance fan, as its kind declares it (:data:`thermolab.rigs.RIG_KINDS`):
-#: off when the twin rests.
-TWIN_FAN = FanSpec(
-    description="a fan blowing room air over the box: it raises the heat-loss rate "
-    "(by half at 100 %), a disturbance for a closed loop to reject"
-)
 
 
 class _NormalStream:
@@ -311,6 +304,15 @@ class TwinRig(BaseRig):
         self._check_limit(Reading(self._output_at(now), now))
 
     # -- the disturbance fan --------------------------------------------------------
+
+    def _set_further_input(self, name: str, value: float) -> float:
+        t = self._instant()
+        self._output_at(t)  # inputs in transit up to t act first
+        self._model.set_fan(t, value / 100.0)
+        return value
+
+    def _further_level(self, name: str) -> float:
+        return self.fan
 
     def set_fan(self, percent: float, *, at: float | None = None) -> float:
         """Run the disturbance fan at ``percent`` (0-100) of full speed from ``at`` on.

@@ -12,12 +12,13 @@ from dataclasses import dataclass
 from typing import Any
 
 from thermolab.errors import InvalidParameterError
-from thermolab.rigs.contract import RigInfo
+from thermolab.rigs.contract import InputChannel, RigInfo
 
 __all__ = [
     "DAQ16_STEP",
     "PRESETS",
     "TCLAB_STEP",
+    "TWIN_FAN",
     "TwinParams",
     "twin_info",
     "twin_params",
@@ -364,6 +365,16 @@ def twin_params(
     return base
 
 
+#: Every twin's disturbance fan, its further input (:attr:`RigInfo.further_inputs`): off
+#: when the twin rests; a closed-loop run records it (the paper's open-loop records stay t,u,y).
+TWIN_FAN = InputChannel(
+    "fan",
+    description="a fan blowing room air over the box: it raises the heat-loss rate "
+    "(by half at 100 %), a disturbance for a closed loop to reject",
+    recorded=False,
+)
+
+
 def twin_info(params: TwinParams) -> RigInfo:
     """Return the :class:`RigInfo` a twin with these parameters reports.
 
@@ -382,4 +393,5 @@ def twin_info(params: TwinParams) -> RigInfo:
         safe_input=params.safe_input,
         output_limit=params.output_limit,
         description=params.description,
+        further_inputs=(TWIN_FAN,),
     )

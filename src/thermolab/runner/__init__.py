@@ -27,6 +27,7 @@ from thermolab.runner.experiment import (
     MethodResult,
     RunResult,
 )
+from thermolab.runner.further import extra_channels, further_channels
 from thermolab.runner.interlocks import Interlocks, Watchdog
 from thermolab.runner.recorder import CSV_COLUMNS, CsvRecorder, Recorder
 from thermolab.runner.state import EndReason, RunState, RunStateMachine
@@ -59,6 +60,8 @@ __all__ = [
     "adaptive_tuner",
     "closed_loop_channels",
     "estimate_trust",
+    "extra_channels",
+    "further_channels",
     "interrupt_signal",
     "termination_signals",
 ]

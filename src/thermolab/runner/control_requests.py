@@ -10,6 +10,7 @@ state are the sampling loop's and still win.
 from __future__ import annotations
 
 import math
+import threading
 from typing import Protocol
 
 from thermolab.control import PIDGains
@@ -92,6 +93,10 @@ class LoopCommands(Protocol):
         """Run the disturbance fan (see :meth:`ControlRequests.set_fan`)."""
         ...
 
+    def set_further(self, name: str, value: float) -> None:
+        """Set a further input (see :meth:`ControlRequests.set_further`)."""
+        ...
+
 
 class ControlRequests:
     """Mixed into :class:`~thermolab.runner.Experiment`: requests to its control loop."""
@@ -99,6 +104,8 @@ class ControlRequests:
     _control: ControlLoop | None
     _info: RigInfo
     _fan_request: float | None
+    _further_requests: dict[str, float]
+    _request_lock: threading.Lock
 
     def set_input(self, u: float) -> None:  # the experiment's
         raise NotImplementedError
@@ -199,6 +206,26 @@ class ControlRequests:
         level = fan_level(self._info, self.has_fan, percent)
         self._refuse_when_over("set the fan")
         self._fan_request = level
+
+    def set_further(self, name: str, value: float) -> None:
+        """Set the rig's further input ``name`` (a kit's heater 2) from the next sample on.
+
+        Like the fan, a further input is not the run's input ``u``: it is set
+        at the sample's instant (``rig.set_channel(name, value, at=...)``), in
+        an open or a closed loop, and the run records its level when the rig
+        declares it ``recorded`` (:func:`thermolab.runner.further.further_channels`).
+
+        Raises
+        ------
+        InvalidParameterError
+            If the rig has no such input or ``value`` is outside its range.
+        RunStateError
+            If the run is already over.
+        """
+        level = self._info.further_level(name, value)
+        self._refuse_when_over(f"set {name}")
+        with self._request_lock:
+            self._further_requests[name] = level
 
     @property
     def has_fan(self) -> bool:

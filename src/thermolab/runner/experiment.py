@@ -30,17 +30,18 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
 from thermolab.errors import InvalidParameterError, RunStateError
 from thermolab.records import RUN_CHANNELS, ChannelSpec, channel_names
-from thermolab.rigs import Rig
+from thermolab.rigs import Rig, RigInfo
 from thermolab.runner.closed_loop import ControlLoop
 from thermolab.runner.control_requests import FAN_CHANNEL, ControlRequests
 from thermolab.runner.event_bus import EventBus
 from thermolab.runner.events import SupportsToDict
+from thermolab.runner.further import further_channels
 from thermolab.runner.inputs import ChannelSource, IdentifierLike, InputSignal
 from thermolab.runner.interlocks import Interlocks
 from thermolab.runner.recorder import Recorder
@@ -150,7 +151,15 @@ class Experiment(ControlRequests, SamplingLoop):
             raise InvalidParameterError(
                 f"late_tolerance must be a number of seconds >= 0, got {late_tolerance!r}"
             )
-        self._sources = tuple((spec, fn) for spec, fn in sources)
+        self._info = rig.describe()
+        # Every run records the rig's further channels (a kit's T2, Q2) after the loop's;
+        # set_further() applies a further input at a sample's instant.
+        self._further_reading: Mapping[str, float] = {}
+        self._further_requests: dict[str, float] = {}
+        self._sources = (
+            *self._further_sources(rig, self._info),
+            *((spec, fn) for spec, fn in sources),
+        )
         # A closed-loop run on a rig with a disturbance fan records it (after the loop's
         # channels), and set_fan() applies it at a sample's instant.
         self._set_fan = getattr(rig, "set_fan", None)
@@ -162,7 +171,6 @@ class Experiment(ControlRequests, SamplingLoop):
                 *self._sources,
             )
         self._interlocks = interlocks if interlocks is not None else Interlocks()
-        self._info = rig.describe()
         if controller is not None and not isinstance(controller, ControlLoop):
             raise InvalidParameterError(
                 f"controller must be a ControlLoop, got {type(controller).__name__}"
@@ -444,6 +452,25 @@ class Experiment(ControlRequests, SamplingLoop):
         )
 
     # -- internals (the worker thread's: thermolab.runner.sampling) ---------------------------
+
+    def _further_sources(self, rig: Rig, info: RigInfo) -> tuple[ChannelSource, ...]:
+        """A source per further channel the run records, in :func:`further_channels`' order.
+
+        An output's value comes from the sample's reading (the sampling loop
+        keeps its ``further``), an input's from the rig once the sample's
+        inputs are applied.
+        """
+
+        def output(name: str) -> Callable[[float, float, float], float]:
+            return lambda t, u, y: float(self._further_reading.get(name, math.nan))
+
+        def input_level(name: str) -> Callable[[float, float, float], float]:
+            return lambda t, u, y: float(rig.level(name))
+
+        return tuple(
+            (spec, output(spec.name) if spec.role == "output" else input_level(spec.name))
+            for spec in further_channels(info)
+        )
 
     def _checked_input(self, u: float) -> float:
         try:

@@ -82,6 +82,8 @@ class SamplingLoop:
     _control_channels: tuple[ChannelSpec, ...]
     _set_fan: Any
     _fan_request: float | None
+    _further_requests: dict[str, float]
+    _further_reading: Mapping[str, float]
     events: EventBus
     _machine: RunStateMachine
     _request: tuple[EndReason, str] | None
@@ -353,6 +355,7 @@ class SamplingLoop:
 
             reading = rig.read(at=deadline)
             y = float(reading.value)
+            self._further_reading = reading.further
             if not (
                 (out_max is None or y <= out_max)
                 and (out_min is None or y >= out_min)
@@ -380,6 +383,11 @@ class SamplingLoop:
             if fan is not None:
                 self._fan_request = None
                 self._set_fan(fan, at=deadline)
+            if self._further_requests:
+                with self._request_lock:  # one arriving meanwhile waits for the next sample
+                    requested, self._further_requests = self._further_requests, {}
+                for name, level in requested.items():
+                    rig.set_channel(name, level, at=deadline)
             u = float(rig.apply(u, at=deadline))
 
             t_read = reading.t - t0

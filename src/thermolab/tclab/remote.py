@@ -55,7 +55,11 @@ class NotOnThisRigError(NotImplementedError):
 
 
 class SecondHeaterError(NotOnThisRigError):
-    """The rig has one heater and one sensor: ``Q2``/``T2``/``U2``/``P2`` do not exist there."""
+    """The rig has one heater and one sensor: ``Q2``/``T2``/``U2``/``P2`` do not exist there.
+
+    A rig that declares heater 2 (``q2``) and sensor 2 (``t2``) — a kit, the
+    kit's twin ``sim:kit`` — has them all.
+    """
 
 
 class NotAKitError(ValueError):
@@ -72,6 +76,12 @@ class PortError(RuntimeError):
 
 KIT_P1 = 200.0
 """Heater 1's PWM limit (counts of 255) at which a kit's 100 % is a lab rig's 100 %."""
+
+KIT_P2 = 100.0
+"""Heater 2's PWM limit at which a kit's 100 % is a lab rig's heater 2 at 100 %."""
+
+HEATER_2, SENSOR_2 = "q2", "t2"
+"""The names a rig declares the kit's heater 2 and sensor 2 by (``thermolab.rigs.tclab``)."""
 
 TEMPERATURE_UNITS = frozenset({"°C", "degC", "C", "ºC"})
 """Output units ``T1`` reads as a temperature in °C."""
@@ -139,6 +149,12 @@ def _describe(info: dict[str, Any]) -> str:
     )
 
 
+def _channel(reading: Reading, name: str) -> float:
+    """A further channel of ``reading`` (NaN if the lab did not know it yet)."""
+    value = reading.channels.get(name)
+    return math.nan if value is None else float(value)
+
+
 def _check_kit(info: dict[str, Any]) -> None:
     unit_in, unit_out = info["input"]["unit"], info.get("outputUnit")
     if not _kit_like(info):
@@ -169,6 +185,8 @@ class TCLab:
     speedup : float
         The rig's speed-up when it connected (``labtime`` follows it): 1 for
         hardware, a twin's teacher setting (1 when the lab does not know it).
+    heaters : int
+        2 on a rig with the kit's heater 2 and sensor 2 (a kit, ``sim:kit``), else 1.
     sources : list of (name, callable or None)
         ``T1``, ``T2``, ``Q1``, ``Q2`` from one :meth:`scan`, for a
         :class:`~thermolab.tclab.Historian` (on a one-heater rig ``T2`` and
@@ -187,8 +205,6 @@ class TCLab:
     """
 
     _simulated: ClassVar[bool | None] = None  # set by ``setup(connected=...)``
-    heaters = 1
-    """The lab's rigs drive one heater and read one sensor (``Q1``/``T1``)."""
 
     def __init__(
         self,
@@ -211,6 +227,9 @@ class TCLab:
         self._led = 0.0
         self._p1 = KIT_P1
         self._q1 = 0.0  # the last Q1 set, for reading it back under P1 = 0
+        self._p2 = KIT_P2
+        self._q2 = 0.0
+        self.heaters = 1
         self.lab = Lab(url, token)
         try:
             rigs = self.lab.rigs()
@@ -227,6 +246,10 @@ class TCLab:
                 )
             self.info = info
             _check_kit(info)
+            # Heater 2 and sensor 2 as the rig declares them: both, or the kit's one pair.
+            inputs = {a["name"] for a in info.get("actuators") or ()}
+            outputs = {o["name"] for o in info.get("outputs") or ()}
+            self.heaters = 2 if HEATER_2 in inputs and SENSOR_2 in outputs else 1
             self._key = (self.lab.url, self.rig_id)
             with _guard:
                 if any(kit._key == self._key for kit in _open):
@@ -304,8 +327,16 @@ class TCLab:
 
     @property
     def T2(self) -> float:
-        """Sensor 2: not on a one-heater rig (:class:`SecondHeaterError`)."""
-        raise self._missing("T2")
+        """Temperature of sensor 2 in °C, read now (one-heater rig: :class:`SecondHeaterError`)."""
+        self._need_second("T2")
+        value = _channel(self._reading(), SENSOR_2)
+        if self.debug:
+            print(f"T2 -> {value}")
+        return value
+
+    def _need_second(self, name: str) -> None:
+        if self.heaters < 2:
+            raise self._missing(name)
 
     def _q1_of(self, applied: float | None) -> float:
         # The rig's input is the heater's share of its full power; Q1 is that share under P1.
@@ -341,8 +372,38 @@ class TCLab:
         return value
 
     def Q2(self, val: float | None = None) -> float:
-        """Heater 2: not on a one-heater rig (:class:`SecondHeaterError`)."""
-        raise self._missing("Q2")
+        """Heater 2 in %: set it to ``val`` clipped to 0–100 (if given); return it, read now.
+
+        Under a ``P2`` below the kit's 100, the rig receives ``Q2 × P2 / 100`` %
+        of heater 2's full power. A one-heater rig: :class:`SecondHeaterError`.
+
+        Raises
+        ------
+        ValueError
+            For a value that is not a finite number.
+        """
+        self._need_second("Q2")
+        if val is None:
+            value = self._q2_of(_channel(self._reading(), HEATER_2))
+            if self.debug:
+                print(f"Q2 -> {value}")
+            return value
+        value = float(val)
+        if not math.isfinite(value):
+            raise ValueError(f"Q2 must be a finite number of %; got {val!r}")
+        value = min(max(value, 0.0), 100.0)
+        applied = value * self._p2 / KIT_P2
+        self._request(lambda turn: turn.set_channel(HEATER_2, applied))
+        self._q2 = value
+        if self.debug:
+            print(f"Q2 <- {value}")
+        return value
+
+    def _q2_of(self, applied: float) -> float:
+        # As _q1_of: the rig's level is heater 2's share of its full power, under P2.
+        if math.isnan(applied) or self._p2 == 0:
+            return self._q2
+        return round(applied * KIT_P2 / self._p2, 9)
 
     @property
     def U1(self) -> float:
@@ -355,12 +416,14 @@ class TCLab:
 
     @property
     def U2(self) -> float:
-        """Heater 2: not on a one-heater rig."""
-        raise self._missing("U2")
+        """Heater 2 in %, as a property (read now; a one-heater rig: :class:`SecondHeaterError`)."""
+        self._need_second("U2")
+        return self.Q2()
 
     @U2.setter
     def U2(self, val: float) -> None:
-        raise self._missing("U2")
+        self._need_second("U2")
+        self.Q2(val)
 
     @property
     def P1(self) -> float:
@@ -387,12 +450,27 @@ class TCLab:
 
     @property
     def P2(self) -> float:
-        """Heater 2's PWM limit: not on a one-heater rig."""
-        raise self._missing("P2")
+        """Heater 2's PWM limit in counts of 255 (the kit's 100 at the start).
+
+        As :attr:`P1`: up to the kit's 100 applied by scaling heater 2, above
+        refused (:class:`NotOnThisRigError`); a one-heater rig: :class:`SecondHeaterError`.
+        """
+        self._need_second("P2")
+        return self._p2
 
     @P2.setter
     def P2(self, val: float) -> None:
-        raise self._missing("P2")
+        self._need_second("P2")
+        limit = min(max(float(val), 0.0), 255.0)
+        if limit > KIT_P2:
+            raise NotOnThisRigError(
+                f"rig {self.rig_id!r}: its full heater 2 is the kit's P2 = {KIT_P2:g} (of 255), "
+                f"so P2 = {val!r} (more power than that) cannot be applied; use P2 <= {KIT_P2:g}"
+            )
+        q2 = self._q2
+        self._p2 = limit
+        if self.connected:
+            self.Q2(q2)  # heater 2's power follows its new limit now, as on the kit
 
     def LED(self, val: float = 100) -> float:
         """The kit's LED in %: the lab's rigs have none; ``val`` is clipped to 0–100, returned."""
@@ -402,7 +480,10 @@ class TCLab:
     def scan(self) -> tuple[float, float, float, float]:
         """``(T1, T2, Q1, Q2)`` from one reading; a one-heater rig's T2 and Q2 are NaN."""
         reading = self._reading()
-        return (float(reading.y or 0.0), math.nan, self._q1_of(reading.u), math.nan)
+        t1, q1 = float(reading.y or 0.0), self._q1_of(reading.u)
+        if self.heaters < 2:
+            return (t1, math.nan, q1, math.nan)
+        return (t1, _channel(reading, SENSOR_2), q1, self._q2_of(_channel(reading, HEATER_2)))
 
     def close(self) -> None:
         """Heater off, turn released (the lab makes the rig safe); idempotent."""
@@ -419,6 +500,8 @@ class TCLab:
                 # A turn already gone is fine: the lab put the rig at its safe input then.
                 with contextlib.suppress(LabRequestError):
                     turn.set_input(min(max(0.0, self._low), self._high))
+                    if self.heaters == 2:
+                        turn.set_channel(HEATER_2, 0.0)
         finally:
             if turn is not None:
                 turn.release()

@@ -57,6 +57,7 @@ from thermolab.agent.protocol import (
     Power,
     RunEnded,
     SampleBatch,
+    SetChannel,
     SetInput,
     StartRun,
     Welcome,
@@ -257,6 +258,14 @@ class AgentHub:
             self.serves(rig_id)
             and self._devices.powered(rig_id)
             and self.send(rig_id, SetInput(u=u))
+        )
+
+    def set_channel(self, rig_id: str, name: str, level: float) -> bool:
+        """Send a controller's further input level to the idle powered remote rig; whether sent."""
+        return (
+            self.serves(rig_id)
+            and self._devices.powered(rig_id)
+            and self.send(rig_id, SetChannel(name=name, level=level))
         )
 
     # -- the monitor ---------------------------------------------------------------------

@@ -21,7 +21,14 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import replace
 from typing import Any
 
-from thermolab.agent.protocol import LoopCommand, SetFan, SetGains, SetMode, SetSetpoint
+from thermolab.agent.protocol import (
+    LoopCommand,
+    SetChannel,
+    SetFan,
+    SetGains,
+    SetMode,
+    SetSetpoint,
+)
 from thermolab.control import PIDGains
 from thermolab.errors import HostOfflineError, InvalidParameterError
 from thermolab.rigs import RigInfo
@@ -130,6 +137,11 @@ class RemoteLoop:
         """Run the rig's disturbance fan (a rig without one: 422)."""
         level = fan_level(self._info, self._fan, percent)
         self._forward(SetFan(run=self._run, percent=level))
+
+    def set_further(self, name: str, value: float) -> None:
+        """Set the rig's further input ``name`` (a rig without it, a level out of range: 422)."""
+        level = self._info.further_level(name, value)
+        self._forward(SetChannel(run=self._run, name=name, level=level))
 
     def _require(self) -> ControlLoop:
         if self._loop is None:  # send_command refuses first; kept for direct callers

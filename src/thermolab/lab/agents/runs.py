@@ -78,7 +78,7 @@ from thermolab.runner import (
     Event,
     LoopCommands,
     SampleEvent,
-    closed_loop_channels,
+    extra_channels,
 )
 
 __all__ = ["RemoteRuns"]
@@ -160,7 +160,7 @@ class RemoteRuns:
         if request.control is not None:
             # Checked as in-process, before anything is stored; the host builds it again.
             loop = self._loop(request.control, request.dt, request.samples, info)
-            channels = (*channels, *closed_loop_channels(None, loop, fan=fan))
+        channels = (*channels, *extra_channels(None, info, loop, fan=fan))  # as the host records
         with self._hub.locked(rig_id):
             going = self._remote.get(rig_id)
             if going is not None:

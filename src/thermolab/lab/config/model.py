@@ -36,7 +36,7 @@ database in the data folder). A TOML file declares more::
     [[rigs]]
     id = "twin-1"
     title = "Digital twin of the paper's box"
-    spec = "sim"             # sim, sim:PRESET (paper, paper-practical, tclab), tclab, tclab:PORT
+    spec = "sim"             # sim, sim:PRESET (paper, paper-practical, tclab, kit), tclab[:PORT]
     input_range = [0, 10]    # optional, narrows the rig's published range
     cooldown = { mode = "ambient", tolerance = 0.05, max_seconds = 900, input = -10 }
 

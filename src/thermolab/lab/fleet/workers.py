@@ -45,7 +45,7 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, Literal
 
 from thermolab.lab.config import LabConfig
@@ -200,7 +200,14 @@ class Fleet:
     def run_event(self, rig_id: str, run_id: int, event: Any) -> None:
         """Nothing: as :meth:`run_changed`."""
 
-    def reading(self, rig_id: str, u: float | None, y: float, at: Any) -> None:
+    def reading(
+        self,
+        rig_id: str,
+        u: float | None,
+        y: float,
+        at: Any,
+        channels: Mapping[str, float | None] | None = None,
+    ) -> None:
         """Nothing: as :meth:`run_changed`."""
 
     def close(self) -> None:

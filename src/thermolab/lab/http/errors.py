@@ -35,6 +35,7 @@ from thermolab.errors import (
     BookingClashError,
     BookingQuotaError,
     BookingSeriesClashError,
+    ChannelNotOnRigError,
     ClassListError,
     ConflictError,
     CourseClosedError,
@@ -166,6 +167,8 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     SettingsChangedError: HttpFault(409, "settings_changed"),
     # A script's own speed-up of a twin for its turn (issue #22, item 5).
     SpeedupRefusedError: HttpFault(422, "speedup_refused"),
+    # A rig's further channels (issue #22, item 1): a kit's heater 2 on a one-heater rig.
+    ChannelNotOnRigError: HttpFault(422, "channel_not_on_rig"),
     # Bookings (issue #10, item 5).
     BookingClashError: HttpFault(409, "booking_clash"),
     RigBookedError: HttpFault(409, "rig_booked"),

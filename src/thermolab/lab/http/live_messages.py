@@ -45,7 +45,8 @@ class SampleMessage(SampleItem):
 
     ``channels`` holds every channel of a run's sample by name
     (:meth:`thermolab.runner.SampleEvent.channels`: ``t,u,y,k,t_read,jitter,lateness``
-    and any a rig adds); an idle reading has only ``t``, ``u``, ``y``.
+    and any a rig adds: a kit's ``t2``, ``q2``); an idle reading has ``t``, ``u``, ``y``
+    and the rig's further channels.
     """
 
     type: Literal["sample"]

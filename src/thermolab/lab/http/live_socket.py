@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from datetime import datetime, timedelta
 from typing import Annotated, Any, Literal, TypeVar
 
@@ -186,8 +186,19 @@ class LiveEndpoint:
             }
             self.hub.publish(rig_id, message)
 
-    def reading(self, rig_id: str, u: float | None, y: float, at: datetime) -> None:
-        """Publish an idle-monitoring sample (no run: ``run`` and ``k`` are null)."""
+    def reading(
+        self,
+        rig_id: str,
+        u: float | None,
+        y: float,
+        at: datetime,
+        channels: Mapping[str, float | None] | None = None,
+    ) -> None:
+        """Publish an idle-monitoring sample (no run: ``run`` and ``k`` are null).
+
+        Its channels are ``t``, ``u``, ``y`` and the rig's further ones (a kit's ``t2``, ``q2``).
+        """
+        further = {n: None if v is None else finite_or_none(v) for n, v in (channels or {}).items()}
         sample: SampleMessage = {
             "type": "sample",
             "run": None,
@@ -195,7 +206,7 @@ class LiveEndpoint:
             "t": at.timestamp(),
             "u": u,
             "y": y,
-            "channels": {"t": at.timestamp(), "u": u, "y": y},
+            "channels": {"t": at.timestamp(), "u": u, "y": y, **further},
         }
         self.hub.publish(rig_id, sample)
 

@@ -31,6 +31,7 @@ __all__ = [
     "CredentialsIn",
     "ErrorOut",
     "ExtendIn",
+    "FurtherOutputOut",
     "InputIn",
     "InputOut",
     "InputRangeOut",
@@ -103,6 +104,7 @@ class ValidationErrorOut(_Out):
         "image_too_many_pixels",
         "setting_not_for_rig",
         "speedup_refused",
+        "channel_not_on_rig",
         "slot_ends_before_start",
         "slot_too_long",
         "slot_zone_missing",
@@ -119,7 +121,9 @@ class ValidationErrorOut(_Out):
         "a readable picture, or has too many pixels; setting_not_for_rig: a setting this rig "
         "does not have (the twin speed-up of hardware or of a rig host's twin); "
         "speedup_refused: a script's speed-up the rig does not allow (the message names what "
-        "it allows); slot_ends_before_start, slot_too_long, slot_zone_missing: a booking's "
+        "it allows); channel_not_on_rig: an input the rig does not have (a second heater on a "
+        "one-heater rig; the message names what it has); slot_ends_before_start, "
+        "slot_too_long, slot_zone_missing: a booking's "
         "times (an end at or before the start, longer than a day unless said longer, a time "
         "without its zone); time_zone_unknown: a time zone that is not a known IANA name "
         "(a weekly series' zone)"
@@ -319,6 +323,13 @@ class WatcherOut(_Out):
         )
 
 
+class FurtherOutputOut(_Out):
+    """An output of a rig besides ``y`` (a kit's sensor 2)."""
+
+    name: str
+    unit: str
+
+
 class RigOut(_Out):
     """A rig: what it is, its state, limits, and access as the caller sees it."""
 
@@ -333,6 +344,10 @@ class RigOut(_Out):
     actuators: list[ActuatorOut] = Field(
         description="every actuator besides the input, with its level now and its declared "
         "default; a rig is handed over with each at its default"
+    )
+    outputs: list[FurtherOutputOut] = Field(
+        default_factory=list,
+        description="every output besides y (a kit's sensor 2, t2); a reading carries each",
     )
     speedup: float | None = Field(
         description="how many times faster than real time the rig runs: 1 for hardware; a "
@@ -371,6 +386,10 @@ class RigOut(_Out):
             actuators=[
                 ActuatorOut(name=a.name, unit=a.unit, default=a.default, level=a.level)
                 for a in pub.actuators
+            ],
+            outputs=[
+                FurtherOutputOut(name=o.name, unit=o.unit)
+                for o in cfg.rig_spec.describe().further_outputs
             ],
             speedup=pub.speedup,
             limits=LimitsOut(

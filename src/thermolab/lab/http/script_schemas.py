@@ -14,6 +14,7 @@ from thermolab.lab.accounts.tokens import (
     TokenInfo,
 )
 from thermolab.lab.http.bodies import In, Out
+from thermolab.lab.rig_channels import ChannelResult
 from thermolab.lab.service import OutputReading
 
 __all__ = ["LabVersionOut", "NewTokenOut", "ReadingOut", "SpeedupIn", "TokenIn", "TokenOut"]
@@ -91,6 +92,11 @@ class ReadingOut(Out):
     u: float | None = Field(description="the input the lab last applied")
     unit: str
     fresh: bool
+    channels: dict[str, float | None] = Field(
+        default_factory=dict,
+        description="the rig's further channels: outputs read with y (a kit's t2), inputs at "
+        "their level (q2); empty for a rig that has none",
+    )
 
     @classmethod
     def of(cls, reading: OutputReading, unit: str) -> ReadingOut:
@@ -102,4 +108,34 @@ class ReadingOut(Out):
             u=reading.u,
             unit=unit,
             fresh=reading.fresh,
+            channels=dict(reading.channels),
+        )
+
+
+class ChannelIn(In):
+    """A further input's new level (a kit's heater 2, %), within the range the rig declares."""
+
+    level: Annotated[float, Field(allow_inf_nan=False, description="the new level")]
+
+
+class ChannelOut(Out):
+    """An accepted level of a further input."""
+
+    rig: str
+    name: str
+    level: float
+    applied: float | None = Field(
+        description="the level set (by the device, or the run's next sample); null if none"
+    )
+    run: int | None = Field(description="the run it went to, if one is going")
+
+    @classmethod
+    def of(cls, result: ChannelResult) -> ChannelOut:
+        """Build from the lab's result."""
+        return cls(
+            rig=result.rig_id,
+            name=result.name,
+            level=result.level,
+            applied=result.applied,
+            run=result.run_id,
         )

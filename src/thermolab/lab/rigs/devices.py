@@ -41,7 +41,7 @@ from thermolab.lab.config.rig_kinds import (
 )
 from thermolab.lab.db.models import PowerState
 from thermolab.lab.rigs.opener import RigOpener
-from thermolab.rigs import RateClock, Rig
+from thermolab.rigs import RateClock, Reading, Rig
 
 __all__ = [
     "DesiredState",
@@ -87,6 +87,9 @@ class _Slot:
         # A rig host's further actuators (a fan), as its run's samples and its rests
         # tell them (None: not known yet); an in-process driver is read instead.
         self.host_levels: dict[str, float | None] = dict.fromkeys(config.rig_spec.actuators)
+        # The further outputs (a kit's T2) the rig declares, and the latest reading's.
+        self.output_names = tuple(config.rig_spec.describe().outputs)
+        self.further_outputs: dict[str, float] = {}
         # A controller's own speed-up of a twin for their turn: (control session, speed-up).
         self.turn_pace: tuple[int, float] | None = None
 
@@ -274,6 +277,8 @@ class DeviceHub:
             for name, level in (channels or {}).items():
                 if name in slot.host_levels and level is not None:
                     slot.host_levels[name] = level
+                elif level is not None and name in slot.output_names:
+                    slot.further_outputs[name] = level
             slot.input = u
             slot.output = y
             slot.output_at = self._clock.now() if self._clock is not None else slot.output_at
@@ -328,14 +333,14 @@ class DeviceHub:
             if driver is None or slot.claimed or slot.fault is not None or not driver.powered:
                 return None
             try:
-                slot.output = driver.read().value
+                value = _take(slot, driver.read())
             except RigError as exc:
                 slot.fault = str(exc)
                 slot.powered = False
                 slot.controller_session = None
                 return None
             slot.output_at = self._clock.now() if self._clock is not None else slot.output_at
-            return None if slot.output_at is None else (slot.output, slot.output_at)
+            return None if slot.output_at is None else (value, slot.output_at)
 
     def fault(self, rig_id: str) -> str | None:
         """Return the rig's pending fault, if any."""
@@ -467,6 +472,38 @@ class DeviceHub:
                 slot.controller_session = None
                 return None
 
+    def set_channel(
+        self, rig_id: str, name: str, level: float, *, controller_session: int
+    ) -> float | None:
+        """Set a controller's further input (a kit's heater 2); return the level set, or ``None``.
+
+        As :meth:`apply`: not set when no device is attached, a run holds it,
+        the rig is not powered, or the control session is no longer the rig's.
+        """
+        slot = self._slots[rig_id]
+        with slot.lock:
+            driver = slot.driver
+            if driver is None or slot.claimed or not driver.powered:
+                return None
+            if slot.controller_session != controller_session:
+                return None
+            try:
+                return float(driver.set_channel(name, level))
+            except RigError as exc:
+                slot.fault = str(exc)
+                slot.powered = False
+                slot.controller_session = None
+                return None
+
+    def channels(self, rig_id: str) -> dict[str, float | None]:
+        """The rig's further channels now: its outputs as last read, its inputs' levels.
+
+        Empty for a rig that declares none; ``None`` for one not known yet.
+        """
+        slot = self._slots[rig_id]
+        read = {name: slot.further_outputs.get(name) for name in slot.output_names}
+        return {**read, **self.actuators(rig_id)}
+
     def poll(self, now: datetime) -> None:
         """Take a reading of every attached rig (keeps :meth:`output` fresh)."""
         for slot in self._slots.values():
@@ -474,7 +511,7 @@ class DeviceHub:
                 if slot.driver is None or slot.fault is not None or slot.claimed:
                     continue
                 try:
-                    slot.output = slot.driver.read().value
+                    _take(slot, slot.driver.read())
                     slot.output_at = now
                 except RigError as exc:
                     slot.fault = str(exc)
@@ -502,8 +539,8 @@ class DeviceHub:
     def actuators(self, rig_id: str) -> dict[str, float | None]:
         """Every further actuator the rig's kind declares, at its level now (``None``: unknown).
 
-        Read from the open driver (a fan: its ``fan`` property, as
-        :class:`~thermolab.rigs.FanSpec` says); a rig host's, from its run's
+        Read from the open driver (:meth:`~thermolab.rigs.Rig.level`, for each
+        :class:`~thermolab.rigs.InputChannel` its spec declares); a rig host's, from its run's
         samples and, once its rig was powered off (a run's end, a hand-over),
         its declared default (``None`` until then).
         """
@@ -511,8 +548,7 @@ class DeviceHub:
         driver = slot.driver  # one attribute read, no lock: views read it in a transaction
         if driver is None and slot.config.agent:
             return dict(slot.host_levels)
-        levels = {name: getattr(driver, name, None) for name in slot.config.rig_spec.actuators}
-        return {name: None if level is None else float(level) for name, level in levels.items()}
+        return {name: _level(driver, name) for name in slot.config.rig_spec.actuators}
 
     @staticmethod
     def _apply(slot: _Slot, u: float) -> float | None:
@@ -520,6 +556,24 @@ class DeviceHub:
             return None
         slot.input = slot.driver.apply(u)
         return slot.input
+
+
+def _take(slot: _Slot, reading: Reading) -> float:
+    """Keep a reading the hub took: ``y`` (returned), and the further outputs it carries."""
+    slot.output = reading.value
+    slot.further_outputs = dict(reading.further)
+    return reading.value
+
+
+def _level(driver: object, name: str) -> float | None:
+    """The driver's further input ``name`` now; ``None`` with no driver or one that cannot say."""
+    level_of = getattr(driver, "level", None)
+    if not callable(level_of):
+        return None
+    try:
+        return float(level_of(name))
+    except ThermoLabError:  # a stand-in driver that does not declare it
+        return None
 
 
 def _speedup_in_force(slot: _Slot, rig: RigConfig) -> float:

@@ -2,7 +2,8 @@
 
 What START asks of a closed loop's controller and its one check are
 :mod:`.control`; here are the commands the controller sends afterwards
-(``PUT .../runs/current/mode``, ``setpoint``, ``gains``, ``fan``) and the
+(``PUT .../runs/current/mode``, ``setpoint``, ``gains``, ``fan``; a further
+input's level, :mod:`thermolab.lab.rig_channels`) and the
 loop's state read back. Each closed-loop command is checked by the run's
 :class:`~thermolab.runner.Experiment` before anything changes, applied from
 the run's next sample on, and recorded in ``commands``. Each function takes
@@ -22,7 +23,20 @@ from thermolab.lab.runs.active import ActiveRun
 from thermolab.lab.runs.store import run_command
 from thermolab.runner import LoopCommands
 
-__all__ = ["GoingRun", "end_run", "hand_input", "loop_state", "send_command"]
+__all__ = [
+    "CHANNEL_COMMAND",
+    "OPEN_LOOP_COMMANDS",
+    "GoingRun",
+    "end_run",
+    "hand_input",
+    "loop_state",
+    "send_command",
+]
+
+#: The command that sets a rig's further input (a kit's heater 2) in a run.
+CHANNEL_COMMAND = "channel"
+#: Commands an open-loop run takes too: the inputs beside ``u`` (the fan, a further input).
+OPEN_LOOP_COMMANDS = frozenset({"fan", CHANNEL_COMMAND})
 
 
 class GoingRun(Protocol):
@@ -108,14 +122,14 @@ def send_command(
     NoRunError
         No run is going on the rig (``active`` is ``None``).
     NotClosedLoopError
-        The run has no controller (and the command is not the fan).
+        The run has no controller (and the command is not in :data:`OPEN_LOOP_COMMANDS`).
     """
     # Who may act is asked first: someone who does not control the rig hears 403
     # whether or not a run is going (the run's state is not theirs to learn).
     with access.controlled(rig_id, who, f"send {kind} to its run") as turn:
         if active is None:
             raise NoRunError(f"no run is going on rig {rig_id!r}: start a closed-loop run first")
-        if active.experiment.controller is None and kind != "fan":
+        if active.experiment.controller is None and kind not in OPEN_LOOP_COMMANDS:
             raise NotClosedLoopError(
                 f"run {active.run_id} was started without a controller; start a run with "
                 "control (manual or auto) to switch, change the set point or the gains"

@@ -66,7 +66,7 @@ from thermolab.runner import (
     Experiment,
     LoopCommands,
     RunResult,
-    closed_loop_channels,
+    extra_channels,
 )
 
 __all__ = ["RunService", "StartPlan", "plan_on_rig", "plan_start", "store_start"]
@@ -253,9 +253,7 @@ class RunService(RunReading):
         self.checkpoint("start:arrived")
         if arrived_in is not None:  # without a turn START is refused (403) below
             self._await_previous_turn(rig_id, arrived_in)
-        channels = start.channels
-        if loop is not None:
-            channels = (*channels, *closed_loop_channels(driver, loop))
+        channels = (*start.channels, *extra_channels(driver, driver.describe(), loop))
 
         # START and the end of a turn are one decision: the lab reconciles a rig (and
         # ends its run when the turn is over) under the hub's lock for that rig, so

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Request, Response
+from typing import Annotated
+
+from fastapi import APIRouter, Path, Request, Response
 
 from thermolab.lab.access import RigView
 from thermolab.lab.audit.log import AuditAction
@@ -18,7 +20,7 @@ from thermolab.lab.http.schemas import (
     ServiceIn,
     people_named,
 )
-from thermolab.lab.http.script_schemas import SpeedupIn
+from thermolab.lab.http.script_schemas import ChannelIn, ChannelOut, SpeedupIn
 from thermolab.lab.service import Lab
 
 __all__ = ["router"]
@@ -177,6 +179,36 @@ def set_service(
 def set_input(rig_id: RigId, body: InputIn, who: UserDep, lab: LabDep) -> InputOut:
     """Set the input (controller only); ``u`` must be inside the rig's published range."""
     return InputOut.of(lab.apply_input(rig_id, who, body.u))
+
+
+@router.put(
+    "/rigs/{rig_id}/channels/{name}",
+    response_model=ChannelOut,
+    tags=["access"],
+    summary="Set one of the rig's further inputs (a kit's heater 2)",
+    responses=documented_errors(403, 404, 409, 422),
+)
+def set_channel(
+    rig_id: RigId,
+    name: Annotated[
+        str,
+        Path(
+            min_length=1,
+            max_length=40,
+            pattern=r"^[a-z][a-z0-9_]*$",  # a channel's name (thermolab.records.ChannelSpec)
+            description="the input's name, e.g. q2",
+        ),
+    ],
+    body: ChannelIn,
+    who: UserDep,
+    lab: LabDep,
+) -> ChannelOut:
+    """Controller only. During a run the level goes to the run, from its next sample on (as
+    the fan does); otherwise to the rig now. 422 ``channel_not_on_rig`` for an input the rig
+    does not have, ``invalid_parameter`` outside its range; the end of the run and of the
+    turn put it back at its declared default.
+    """
+    return ChannelOut.of(lab.set_channel(rig_id, who, name, body.level))
 
 
 @router.get(

@@ -908,6 +908,7 @@ export const messages = {
   "range.lessThan": "less than {max}",
   "range.moreThan": "more than {min}",
   "readout.actuator.fan": "Fan",
+  "readout.actuator.q2": "Heater 2",
   "readout.actuatorUnit": "{name} ({unit})",
   "readout.clock": "Time of day",
   "readout.heading": "Now",

@@ -908,6 +908,7 @@ export const messages = {
   "range.lessThan": "menor que {max}",
   "range.moreThan": "mayor que {min}",
   "readout.actuator.fan": "Ventilador",
+  "readout.actuator.q2": "Calentador 2",
   "readout.actuatorUnit": "{name} ({unit})",
   "readout.clock": "Hora",
   "readout.heading": "Ahora",

@@ -6,7 +6,7 @@ import { formatTime, t } from "../../i18n.js";
 import { formatQuantity } from "../../quantities.js";
 
 /** @type {Record<string, string>} The words for each actuator a rig's kind declares, by its name. */
-const ACTUATOR_NAMES = { fan: "readout.actuator.fan" };
+const ACTUATOR_NAMES = { fan: "readout.actuator.fan", q2: "readout.actuator.q2" };
 
 export class Readout {
   /** @param {HTMLElement} parent */
