@@ -41,6 +41,15 @@ finds the owner — the first one, or the follower that took over — within a
 round of its list. A standby dialled while no owner is heard (a takeover)
 holds the link instead, up to :data:`~thermolab.agent.protocol.HELLO_HOLD`,
 and answers it as the new owner once it has taken over.
+
+The same tries tell the host why a run it ENDs at its grace's end ended
+(:meth:`RigHost.lab_answered`): if the last try of some address reached the
+lab's machine — a worker closed the link as not the owner, the connection was
+refused (nothing listens: the worker died) or accepted and left unanswered (a
+hung worker) — the owner worker was gone (``OWNER_GONE``); if none reached
+anything (timeouts, no route), the link was lost (``LINK_LOST``). A lab
+machine that is itself down looks like a lost link: from the host, the two
+cannot be told apart.
 """
 
 from __future__ import annotations
@@ -161,6 +170,10 @@ class AgentLink:
         self._wake = asyncio.Event()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._turn = 0  # which of the lab's addresses is dialled next
+        # Which addresses answered their last try (a dial or a probe) while the link is
+        # down: the host's END at its grace's end names the cause from it (owner gone, or
+        # the link lost: RigHost.lab_answered).
+        self._answers: dict[int, bool] = {}
         # Who this process is, the same on every redial: the lab refuses a second host
         # for a rig it already has, and lets this one replace a link it lost.
         self.host_id = f"{socket.gethostname()}:{os.getpid()}:{secrets.token_hex(4)}"
@@ -189,11 +202,15 @@ class AgentLink:
             except RefusedError:
                 raise
             except _NotOwnerError:
+                self._answered(self._turn, True)
                 self._turn += 1
                 if self._turn % addresses:  # the next worker at once, a pause after a round
                     continue
             except (OSError, websockets.exceptions.WebSocketException, TimeoutError) as exc:
                 log.warning("link to %s: %s", self.url, exc)
+                # Refused (nothing listens) or answered in HTTP: the lab's machine is there.
+                if isinstance(exc, ConnectionRefusedError | websockets.exceptions.InvalidStatus):
+                    self._answered(self._turn, True)
                 self._turn += 1
             finally:
                 if self.connected.is_set():
@@ -211,6 +228,12 @@ class AgentLink:
             # A little jitter: every host of a lab whose network came back would dial at once.
             await asyncio.sleep(random.random() * PROBE_EVERY)
 
+    def _answered(self, index: int, answers: bool) -> None:
+        """Address ``index`` answered its last try or not; the host hears whether any did."""
+        addresses = 1 + len(self.settings.others)
+        self._answers[index % addresses] = answers
+        self.host.lab_answered(any(self._answers.values()))
+
     async def _answering(self, *, once: bool) -> int | None:
         """Which lab address accepts a TCP connection: one round of probes, or until one does.
 
@@ -226,8 +249,13 @@ class AgentLink:
                 _, writer = await asyncio.wait_for(
                     asyncio.open_connection(*hops[index]), PROBE_TIMEOUT
                 )
-            except (OSError, TimeoutError):
+            except ConnectionRefusedError:
+                self._answered(index, True)  # the machine answers: its worker is gone
                 return
+            except (OSError, TimeoutError):
+                self._answered(index, False)
+                return
+            self._answered(index, True)
             writer.close()
             if not answered.done():
                 answered.set_result(index)
@@ -293,6 +321,7 @@ class AgentLink:
             if not isinstance(first, Welcome):
                 raise websockets.exceptions.InvalidMessage(f"expected welcome, got {first.type}")
             self.host.grace = first.grace
+            self._answers.clear()
             self.host.link_back()
             self.connected.set()
             log.info("linked to %s as rig %s", url, s.rig)
