@@ -259,8 +259,9 @@ class RigHost:
         :data:`~thermolab.agent.protocol.LINK_LOST`), so that the lab stores the
         real cause.
         """
-        with self._lock:
-            self._lab_answers = answers
+        # No lock: the link's event loop calls this, and the lock may be held by a rig's
+        # command for a while (a serial read); one attribute's write is atomic.
+        self._lab_answers = answers
 
     def link_back(self) -> None:
         """The lab is back: the run (if still going) goes on."""
