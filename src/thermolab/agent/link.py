@@ -10,7 +10,8 @@ The connection is the ``websockets`` library's client (already the lab's
 live-stream dependency): TLS with the lab's CA (``ssl`` from the standard
 library), and its own ping every ``ping`` seconds, so that a lab that stops
 answering (a paused process, a cut cable: TCP would wait for minutes) is
-noticed within ``ping`` + ``ping_timeout`` seconds. Then the host is told
+noticed within ``ping`` + ``ping_timeout`` seconds (:data:`HELLO_PING_TIMEOUT` while
+a standby holds its Hello through a takeover). Then the host is told
 (:meth:`RigHost.link_lost`) and the agent dials again; nothing listens on
 the rig host.
 
@@ -95,6 +96,7 @@ from thermolab.agent.protocol import (
 from thermolab.errors import ThermoLabError
 
 __all__ = [
+    "HELLO_PING_TIMEOUT",
     "PROBE_EVERY",
     "PROBE_TIMEOUT",
     "AgentLink",
@@ -112,6 +114,10 @@ PROBE_EVERY = 0.25
 
 PROBE_TIMEOUT = 1.5
 """Seconds a probe waits for the lab's address to accept a TCP connection."""
+
+HELLO_PING_TIMEOUT = 10.0
+"""Seconds a ping may wait for its pong before the lab answers the Hello (a standby taking
+over is busy); after the ``Welcome``, ``LinkSettings.ping_timeout``."""
 
 
 class RefusedError(ThermoLabError):
@@ -289,8 +295,7 @@ class AgentLink:
         async with connect(
             url,
             ssl=self._ssl(),
-            ping_interval=s.ping,
-            ping_timeout=s.ping_timeout,
+            ping_interval=None,  # our own keepalive: lenient while a standby holds the Hello
             open_timeout=10,
             close_timeout=2,
             max_size=2**20,
@@ -306,9 +311,7 @@ class AgentLink:
             )
             await ws.send(encode(hello))
             try:
-                # A standby may hold the Hello through a takeover (HELLO_HOLD); the pings
-                # meanwhile tell a dead worker from a holding one.
-                first = decode_lab(await asyncio.wait_for(ws.recv(), HELLO_HOLD + 10))
+                first = decode_lab(await self._first_answer(ws))
             except websockets.exceptions.ConnectionClosed as exc:
                 if exc.rcvd is not None and exc.rcvd.code == CLOSE_REFUSED:
                     raise RefusedError(
@@ -329,6 +332,7 @@ class AgentLink:
                 asyncio.create_task(self._send(ws)),
                 asyncio.create_task(self._beat(ws)),
                 asyncio.create_task(self._receive(ws)),
+                asyncio.create_task(self._keepalive(ws, s.ping_timeout)),
             ]
             try:
                 done, _ = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
@@ -338,6 +342,41 @@ class AgentLink:
                 for task in tasks:
                     task.cancel()
                 await asyncio.gather(*tasks, return_exceptions=True)
+
+    async def _first_answer(self, ws: ClientConnection) -> str | bytes:
+        """The lab's answer to the Hello: ``Welcome``, or a close (raised).
+
+        A standby may hold the Hello through a takeover (``HELLO_HOLD``), and
+        it is busiest then — opening the rigs, adopting the runs — so its pongs
+        may come late: the pings meanwhile wait :data:`HELLO_PING_TIMEOUT`, not
+        ``ping_timeout``, or the host would drop the very link that keeps its run
+        (a dead worker's connection closes by itself; a hung one is told in time).
+        """
+        answer = asyncio.create_task(asyncio.wait_for(ws.recv(), HELLO_HOLD + 10))
+        alive = asyncio.create_task(self._keepalive(ws, HELLO_PING_TIMEOUT))
+        try:
+            done, _ = await asyncio.wait({answer, alive}, return_when=FIRST_COMPLETED)
+            if alive in done:
+                alive.result()  # raise why the worker is taken for dead
+            return answer.result()
+        finally:
+            for task in (answer, alive):
+                task.cancel()
+            await asyncio.gather(answer, alive, return_exceptions=True)
+
+    async def _keepalive(self, ws: ClientConnection, timeout: float) -> None:
+        """Ping every ``ping`` seconds; raise :class:`TimeoutError` if a pong takes ``timeout``.
+
+        The ``websockets`` client's own keepalive, with a timeout that depends on
+        the link's phase (:meth:`_first_answer`).
+        """
+        while True:
+            await asyncio.sleep(self.settings.ping)
+            pong = await ws.ping()
+            try:
+                await asyncio.wait_for(pong, timeout)
+            except TimeoutError:
+                raise TimeoutError(f"no answer to a ping for {timeout:g} s") from None
 
     async def _send(self, ws: ClientConnection) -> None:
         sent = 0  # this connection resends the whole outbox from its start
