@@ -33,6 +33,7 @@ import argparse
 import contextlib
 import os
 import random
+import shutil
 import signal
 import subprocess
 import sys
@@ -198,6 +199,7 @@ def main() -> int:
     parser.add_argument("--tries", type=int, default=10)
     parser.add_argument("--seed", type=int, default=None, help="of the kill moments")
     parser.add_argument("--hang", action="store_true", help="SIGSTOP the owner (lease lapses)")
+    parser.add_argument("--logs", type=Path, default=None, help="keep each try's logs here")
     args = parser.parse_args()
     rng = random.Random(args.seed)
     kept = 0
@@ -212,6 +214,12 @@ def main() -> int:
                         f"--- {log.name} (tail)\n" + "\n".join(log.read_text().splitlines()[-15:])
                     )
                 continue
+            finally:
+                if args.logs is not None:
+                    kept_logs = args.logs / f"try-{n}"
+                    kept_logs.mkdir(parents=True, exist_ok=True)
+                    for log in Path(tmp).glob("*.log"):
+                        shutil.copy(log, kept_logs / log.name)
         kept += got["kept"]
         run = got["run"]
         print(
