@@ -158,6 +158,10 @@ def _try(tmp: Path, rng: random.Random, *, hang: bool = False) -> dict[str, Any]
             time.sleep(kill_at)
             owner.process.send_signal(signal.SIGSTOP if hang else signal.SIGKILL)
             killed = time.monotonic()
+            if not hang:
+                # Reaped at once, as systemd reaps its units: an unreaped zombie's pid still
+                # answers, and the standby would wait for the lease's 15 s as for a hang.
+                owner.process.wait()
             _until("the standby takes over", lambda: TAKEN_OVER in standby.log.read_text(), 60)
             owner.process.kill()  # a hung owner's machine never comes back either
             owner.process.wait()

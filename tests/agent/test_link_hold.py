@@ -1,13 +1,14 @@
 """A standby busy taking over while it holds a host's Hello keeps the host (issue #23).
 
 A standby holds the Hello of a host that dials it during a takeover, and is
-busiest then (opening the rigs, adopting the runs): on a loaded machine its
-pongs came seconds late, the host's keepalive (a 2-3 s timeout) dropped the
-held link, and the host went round its list again — 20 s of a 30 s grace
-spent in ``benchmarks/bench_takeover.py`` instead of 2. Here a WebSocket
-server reads the Hello, then blocks its own event loop for 5 s (no pong can
-go out), then answers ``Welcome``: the agent must be linked on that first
-connection.
+busiest then (opening the rigs, adopting the runs): its pongs may come late,
+and with its usual keepalive (a 2-3 s timeout) the host would drop the very
+link it is held on and go round its list again, spending its grace. Until the
+Welcome the host waits 10 s for a pong (``HELLO_PING_TIMEOUT``). Here a
+WebSocket server reads the Hello, then blocks its own event loop for 5 s (no
+pong can go out), then answers ``Welcome``: the agent must be linked on that
+first connection. (A standby that never read the held Hello answered no ping
+at all: tests/lab/test_forward.py.)
 """
 
 from __future__ import annotations

@@ -331,7 +331,8 @@ def test_a_held_host_hears_its_pongs_until_the_standby_owns() -> None:
     # The lab's server (uvicorn's sans-I/O WebSockets) reads nothing more from a connection
     # whose message the application has not taken: a standby that held the Hello unread
     # answered no ping, and the host (pongs due within 2-3 s) dropped the link it was held
-    # on (issue #23: a takeover took 16-22 s of the 30 s grace in bench_takeover.py).
+    # on (issue #23): a takeover longer than that (a lease lapsing after 15 s) cost it a
+    # round of its list, 16-22 s of the 30 s grace in bench_takeover.py.
     takeover = _Takeover()
     with _serve(takeover.app(wait=WAIT), ws="websockets-sansio") as base:
         threading.Timer(2.5, lambda: setattr(takeover, "owning", True)).start()
