@@ -148,6 +148,9 @@ def test_link_cut_mid_run_keeps_every_sample_and_the_rig_safe(fleet: Fleet, rig:
                 break
             time.sleep(0.2)
         assert record["status"] == "stopped", record
+        # The paused lab's machine still took the host's connections (its kernel did): a
+        # hung owner, not a lost link, is the stored cause (issue #23).
+        assert record["endReason"].startswith("owner_gone: no lab worker owned the rigs"), record
         # The lab identified the run from the host's samples, as it does in-process.
         assert set(record["results"]) == {"srm", "lsm"}
         assert record["results"]["lsm"]["latest"] is not None

@@ -301,13 +301,19 @@ def test_a_rotated_secret_drops_the_link_made_with_the_old_one(lab: Lab) -> None
 @pytest.mark.parametrize(
     ("message", "stored"),
     [
-        # The host's grace ran out first: it ENDed the run itself and says why.
+        # The host's grace ran out first: it ENDed the run itself and says why — no
+        # address of the lab answered (the link lost) ...
         (
             "link to the lab lost for over 30 s",
-            "ended: link to the lab lost for over 30 s",
+            "link_lost: link to the lab lost for over 30 s",
+        ),
+        # ... or the lab's machines answered and no worker owned the rigs (the owner gone).
+        (
+            "no lab worker owned the rigs for over 30 s",
+            "owner_gone: no lab worker owned the rigs for over 30 s",
         ),
         # The host came back in time to hear the END the lab sent when its turn ended.
-        ("ended by request", "ended by its host being away (offline (not connected))"),
+        ("ended by request", "host_away: offline (not connected)"),
     ],
 )
 def test_a_run_ended_by_its_hosts_absence_says_so(lab: Lab, message: str, stored: str) -> None:

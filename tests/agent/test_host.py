@@ -2,14 +2,19 @@
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import json
+import socket
 import time
+from collections.abc import Iterator
 from dataclasses import replace
 from typing import Any
 
 import pytest
 
 from thermolab.agent.host import RigHost
+from thermolab.agent.link import AgentLink, LinkSettings
 from thermolab.agent.outbox import Outbox
 from thermolab.agent.protocol import SetChannel, SetGains, SetSetpoint, StartRun
 from thermolab.control import PIDGains
@@ -140,3 +145,75 @@ def test_a_kit_host_sets_heater_2_idle_and_in_its_run_and_records_t2_and_q2() ->
     finally:
         host.close()
     assert host.rig.level("q2") == 0.0
+
+
+@contextlib.contextmanager
+def _dead_address() -> Iterator[str]:
+    """A loopback port nothing listens on: its machine refuses the connection (a dead worker)."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    yield f"ws://127.0.0.1:{port}/api/agents/link"
+
+
+@contextlib.contextmanager
+def _silent_address() -> Iterator[str]:
+    """A loopback port whose every new connection goes unanswered, as over a cut cable.
+
+    A listener that never accepts, its backlog full: the kernel drops each new
+    SYN, so a dial or a probe waits until it times out.
+    """
+    with contextlib.ExitStack() as stack:
+        listener = stack.enter_context(socket.socket())
+        listener.bind(("127.0.0.1", 0))
+        listener.listen(0)
+        port = listener.getsockname()[1]
+        for _ in range(8):  # fill the accept queue; later connections find it full
+            filler = stack.enter_context(socket.socket())
+            filler.setblocking(False)
+            with contextlib.suppress(BlockingIOError):
+                filler.connect(("127.0.0.1", port))
+        yield f"ws://127.0.0.1:{port}/api/agents/link"
+
+
+@pytest.mark.parametrize(
+    ("lab", "cause"),
+    [
+        # The owner worker killed, none taking over: its machine refuses the redials.
+        (_dead_address, "no lab worker owned the rigs for over 1.5 s"),
+        # The network away: no address answers at all.
+        (_silent_address, "link to the lab lost for over 1.5 s"),
+    ],
+)
+def test_a_run_ended_at_the_graces_end_says_whether_the_owner_or_the_link_went(
+    lab: Any, cause: str
+) -> None:
+    """Issue #23: the stored end names the real cause (the lab stores the host's words)."""
+    address = contextlib.ExitStack()
+    url = address.enter_context(lab())
+    host = _host(grace=1.5)
+    link = AgentLink(host, LinkSettings(url=url, rig="box", secret="s", spec="sim:tclab"))
+
+    async def dial_until_the_run_ends() -> None:
+        dialling = asyncio.create_task(link.run())
+        try:
+            deadline = time.monotonic() + 30
+            while host.heartbeat().run is not None:
+                assert time.monotonic() < deadline, "the grace did not end the run"
+                await asyncio.sleep(0.05)
+        finally:
+            dialling.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await dialling
+
+    try:
+        host.start_run(StartRun(run=9, dt=0.05, samples=10_000, signal="const:30"))
+        _wait(lambda: host.outbox.count() > 2)
+        host.link_lost()  # the link to the owner broke; the agent dials on
+        asyncio.run(dial_until_the_run_ends())
+        rows = host.outbox.pending(0, 10**6)
+        assert rows[-1][1] == "run_ended"
+        assert json.loads(rows[-1][2])["message"] == cause
+    finally:
+        host.close()
+        address.close()

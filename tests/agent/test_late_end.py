@@ -20,6 +20,7 @@ from numpy.testing import assert_allclose
 from sqlalchemy import func, select
 
 from thermolab.agent.protocol import RunEnded, SampleBatch, SampleOut
+from thermolab.lab.access.queries import SERVER_STOPPED
 from thermolab.lab.config import RigConfig, default_config
 from thermolab.lab.db.models import MethodResultRow, Run, RunStatus, User
 from thermolab.lab.runs.request import RunRequest, plan_run
@@ -49,7 +50,9 @@ def lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Lab]:
     the_lab.close()
 
 
-def _interrupted_run(lab: Lab, n: int, rig: str = "box", late: np.ndarray | None = None) -> int:
+def _interrupted_run(
+    lab: Lab, n: int, rig: str = "box", late: np.ndarray | None = None, reason: str | None = None
+) -> int:
     """A run as START stored it, interrupted by a restart, with ``n`` samples from its host.
 
     ``late``: each sample's lateness (s) as the host's runner measured it (default none),
@@ -66,6 +69,7 @@ def _interrupted_run(lab: Lab, n: int, rig: str = "box", late: np.ndarray | None
             rig_id=rig,
             user_id=user_id,
             status=RunStatus.INTERRUPTED.value,
+            end_reason=reason,
             dt=1.0,
             methods=["srm", "lsm"],
             meta={"settings": plan.settings},
@@ -142,3 +146,24 @@ def test_the_late_end_of_a_real_rigs_run_shows_its_late_samples(lab: Lab) -> Non
     )
     assert timing["periodSpread"] > 0.05
     assert timing["warnings"][0].startswith("timing jitter: the sample period spreads")
+
+
+@pytest.mark.parametrize(
+    ("interrupted", "stored"),
+    [
+        # The lab's server stopped during the run (its restart stored it so): the host lost
+        # its link because the owner went, whatever an older host's words say.
+        (SERVER_STOPPED, "owner_gone: link to the lab lost for over 30 s"),
+        (None, "link_lost: link to the lab lost for over 30 s"),
+    ],
+)
+def test_a_late_end_for_a_lost_link_names_the_owner_gone_when_the_server_stopped(
+    lab: Lab, interrupted: str | None, stored: str
+) -> None:
+    run_id = _interrupted_run(lab, 20, reason=interrupted)
+    message = "link to the lab lost for over 30 s"
+    lab.agents.on_run_ended(
+        "box", RunEnded(seq=21, run=run_id, reason="ended", message=message, samples=20)
+    )
+    record = lab.runs.record(run_id)
+    assert (record.status, record.end_reason) == ("stopped", stored)

@@ -67,8 +67,11 @@ def test_the_hosts_end_after_a_lab_restart_stores_the_runs_results(tmp_path: Pat
                     break
                 assert time.monotonic() < deadline, record
                 time.sleep(0.3)
-        # The host ENDed the run when the link went; its end overwrote "interrupted".
+        # The host ENDed the run when the link went; its end overwrote "interrupted", and
+        # names the real cause: the lab's server went (its machine refused the redials),
+        # not the host's link (issue #23).
         assert record["status"] == "stopped", record
+        assert record["endReason"] == "owner_gone: no lab worker owned the rigs for over 2 s"
         log = (fleet.data_dir / "agent-box.log").read_text(errors="replace")
         assert "ENDing run" in log, log
         # ... and the lab identified it on the uploaded samples, as in-process.

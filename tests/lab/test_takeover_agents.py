@@ -48,16 +48,23 @@ GRACE = "300"
 
 @contextlib.contextmanager
 def owner_standby_and_host(
-    tmp_path: Path, postgres_url: str, redis_url: str, *, speedup: float = 1.0
+    tmp_path: Path,
+    postgres_url: str,
+    redis_url: str,
+    *,
+    speedup: float = 1.0,
+    grace: str | None = GRACE,
 ) -> Iterator[tuple[Worker, Worker, dict[str, str], Database]]:
-    """The owner, its standby and the box's host (its twin ``speedup`` times real time)."""
+    """The owner, its standby and the box's host (its twin ``speedup`` times real time);
+    ``grace`` the workers' ``--agent-grace`` (``None``: the default, 30 s)."""
     cookies = seed_lab(tmp_path, postgres_url, LAB_TOML, PEOPLE, agent_rigs=["box"])
     processes: list[subprocess.Popen[bytes]] = []
     db = Database(postgres_url)
+    given = () if grace is None else ("--agent-grace", grace)
     try:
-        owner = _start(tmp_path, postgres_url, redis_url, "--agent-grace", GRACE)
+        owner = _start(tmp_path, postgres_url, redis_url, *given)
         processes.append(owner.process)
-        follower = _start(tmp_path, postgres_url, redis_url, "--agent-grace", GRACE)
+        follower = _start(tmp_path, postgres_url, redis_url, *given)
         processes.append(follower.process)
         processes.append(start_agent(tmp_path, [follower.ws, owner.ws], speedup=speedup))
         yield owner, follower, cookies, db
@@ -171,3 +178,44 @@ def test_a_rig_hosts_run_goes_on_under_the_standby_after_the_owner_is_killed(
         ks = list(session.scalars(stored))
     assert ks == list(range(len(ks))), "a gap in the stored samples"
     assert _open_turns(db) == [turn]
+
+
+def test_a_kill_of_the_owner_keeps_a_rig_hosts_run_to_its_end_with_the_default_grace(
+    tmp_path: Path, postgres_url: str, redis_url: str
+) -> None:
+    """Issue #23, one try of benchmarks/bench_takeover.py's ten: the default grace (30 s),
+    the student heartbeating through the standby, the run going on to its last sample."""
+    samples = 100  # 20 s
+    with owner_standby_and_host(tmp_path, postgres_url, redis_url, grace=None) as made:
+        owner, standby, cookies, db = made
+        wait_for("the agent links", lambda: hosts_online(standby, cookies["tina"]))
+        with httpx.Client(base_url=standby.base, headers={"Cookie": cookies["ana"]}) as http:
+            http.timeout = httpx.Timeout(30)
+            wait_for("ana takes the box", lambda: http.post("/api/rigs/box/control").is_success)
+            started = http.post(
+                "/api/rigs/box/runs",
+                json={"dt": 0.2, "samples": samples, "signal": "step:0:40@0.4", "methods": ["lsm"]},
+            )
+            assert started.status_code == 201, started.text
+            run_id: int = started.json()["id"]
+            (turn,) = _open_turns(db)
+            wait_for("the run's first samples", lambda: _stored(db, run_id) >= 10)
+            owner.process.send_signal(signal.SIGKILL)
+            owner.process.wait()
+
+            def ended() -> dict[str, Any] | None:
+                http.post("/api/rigs/box/heartbeat")  # the student's page, held if need be
+                run: dict[str, Any] = http.get(f"/api/runs/{run_id}").json()
+                return run if run["status"] != "running" else None
+
+            run = wait_for("the run's end is stored", ended, timeout=180)
+    assert (run["status"], run["endReason"]) == ("finished", "completed"), run
+    with db.read() as session:
+        stored = select(Sample.k).where(Sample.run_id == run_id).order_by(Sample.k)
+        assert list(session.scalars(stored)) == list(range(samples)), "a lost or doubled sample"
+    assert _open_turns(db) == [turn]
+
+
+def _stored(db: Database, run_id: int) -> int:
+    with db.read() as session:
+        return len(list(session.scalars(select(Sample.k).where(Sample.run_id == run_id))))

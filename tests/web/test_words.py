@@ -37,6 +37,9 @@ return {
   endedBy: reason('ended by ana'),
   interlock: reason('interlock: output 11.2 V over the limit 11 V'),
   stopped: reason('the server stopped during the run'),
+  linkLost: reason('link_lost: link to the lab lost for over 30 s'),
+  hostAway: reason('host_away: offline (not connected)'),
+  ownerGone: reason('owner_gone: no lab worker owned the rigs for over 30 s'),
   other: reason('something new'),
   settings: words.settingsText({ dt: 1, samples: 2000, signal: 'step:0:10@1', offset: 'auto',
                                  window: 100, gamma: 0.96, block: 0, methods: ['lsm'] }),
@@ -73,6 +76,20 @@ def test_a_run_is_described_in_brazilian_portuguese(module_page: Any) -> None:
     assert r["interlock"] == ["um limite de segurança atuou", "output 11.2 V over the limit 11 V"]
     assert r["stopped"] == ["o servidor do laboratório parou durante o ensaio", None]
     assert r["other"] == ["", "something new"]
+    # A rig host's run ended for want of the lab: its real cause, in the reader's words.
+    assert r["linkLost"] == [
+        "o computador da bancada perdeu a conexão com o laboratório por mais tempo que a"
+        " tolerância",
+        "link to the lab lost for over 30 s",
+    ]
+    assert r["hostAway"] == [
+        "o computador da bancada ficou ausente por mais tempo que a tolerância",
+        "offline (not connected)",
+    ]
+    assert r["ownerGone"] == [
+        "o servidor do laboratório que controlava a bancada parou e nenhum outro assumiu a tempo",
+        "no lab worker owned the rigs for over 30 s",
+    ]
     assert r["settings"] == [
         "Janela (amostras): 100",
         "Fator de esquecimento γ: 0,96",
@@ -93,6 +110,10 @@ def test_a_run_is_described_in_spanish_and_english(module_page: Any) -> None:
     es = words(module_page, "es")
     assert es["step"] == "escalón de 0 a 10 V en t = 1 s"
     assert es["endedBy"] == ["finalizado por ana", None]
+    assert es["ownerGone"][0] == (
+        "el servidor del laboratorio que controlaba el equipo se detuvo y ninguno lo reemplazó"
+        " a tiempo"
+    )
     assert es["deviations"] == ["0", "+0,0021", "−0,5"]
     en = words(module_page, "en")
     assert en["step"] == "step from 0 to 10 V at t = 1 s"
@@ -101,3 +122,4 @@ def test_a_run_is_described_in_spanish_and_english(module_page: Any) -> None:
     assert en["noise"] == "250.126"
     assert en["figures"] == ["0.000000", "250.126233", "0.140090"]
     assert en["rig"] == "Digital twin of the paper's box"
+    assert en["linkLost"][0] == "the rig's host lost its link to the lab for longer than its grace"

@@ -27,6 +27,7 @@ from collections.abc import Callable
 from thermolab.agent.outbox import Outbox
 from thermolab.agent.protocol import (
     LINK_LOST,
+    OWNER_GONE,
     Heartbeat,
     LoopCommand,
     RunEnded,
@@ -134,6 +135,8 @@ class RigHost:
         self._grace_timer: threading.Timer | None = None
         # Why the host ENDed the run going, if it did (told in its RunEnded).
         self._ended_for: str | None = None
+        #: Whether the lab's machines answered the link's last tries (see :meth:`lab_answered`).
+        self._lab_answers = False
         self._u: float | None = None
         self._y: float | None = None
         self.fault: str | None = None
@@ -265,9 +268,25 @@ class RigHost:
                 self._grace_timer.daemon = True
                 self._grace_timer.start()
 
+    def lab_answered(self, answers: bool) -> None:
+        """Whether the lab's machines answer the link's tries while it is down.
+
+        ``True``: a worker answered but none took the link as the owner (closed
+        it as a follower, refused the connection: nothing listens, or hung): the
+        owner worker is gone. ``False``: no address answered at all (the
+        network, or the lab's machine, is away). The run's END at the grace's
+        end says which (:data:`~thermolab.agent.protocol.OWNER_GONE` or
+        :data:`~thermolab.agent.protocol.LINK_LOST`), so that the lab stores the
+        real cause.
+        """
+        # No lock: the link's event loop calls this, and the lock may be held by a rig's
+        # command for a while (a serial read); one attribute's write is atomic.
+        self._lab_answers = answers
+
     def link_back(self) -> None:
         """The lab is back: the run (if still going) goes on."""
         with self._lock:
+            self._lab_answers = False
             if self._grace_timer is not None:
                 self._grace_timer.cancel()
                 self._grace_timer = None
@@ -309,8 +328,11 @@ class RigHost:
         with self._lock:
             self._grace_timer = None
             if self._run is not None:
-                log.warning("link lost for %.3g s: ENDing run %s", self.grace, self._run_id)
-                self._ended_for = f"{LINK_LOST} for over {self.grace:g} s"
+                cause = OWNER_GONE if self._lab_answers else LINK_LOST
+                log.warning(
+                    "link lost for %.3g s: ENDing run %s (%s)", self.grace, self._run_id, cause
+                )
+                self._ended_for = f"{cause} for over {self.grace:g} s"
                 self._run.end()
 
     def _await_end(self, experiment: Experiment, run_id: int) -> None:

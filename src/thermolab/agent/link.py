@@ -10,7 +10,8 @@ The connection is the ``websockets`` library's client (already the lab's
 live-stream dependency): TLS with the lab's CA (``ssl`` from the standard
 library), and its own ping every ``ping`` seconds, so that a lab that stops
 answering (a paused process, a cut cable: TCP would wait for minutes) is
-noticed within ``ping`` + ``ping_timeout`` seconds. Then the host is told
+noticed within ``ping`` + ``ping_timeout`` seconds (:data:`HELLO_PING_TIMEOUT` while
+a standby holds its Hello through a takeover). Then the host is told
 (:meth:`RigHost.link_lost`) and the agent dials again; nothing listens on
 the rig host.
 
@@ -41,6 +42,15 @@ finds the owner — the first one, or the follower that took over — within a
 round of its list. A standby dialled while no owner is heard (a takeover)
 holds the link instead, up to :data:`~thermolab.agent.protocol.HELLO_HOLD`,
 and answers it as the new owner once it has taken over.
+
+The same tries tell the host why a run it ENDs at its grace's end ended
+(:meth:`RigHost.lab_answered`): if the last try of some address reached the
+lab's machine — a worker closed the link as not the owner, the connection was
+refused (nothing listens: the worker died) or accepted and left unanswered (a
+hung worker) — the owner worker was gone (``OWNER_GONE``); if none reached
+anything (timeouts, no route), the link was lost (``LINK_LOST``). A lab
+machine that is itself down looks like a lost link: from the host, the two
+cannot be told apart.
 """
 
 from __future__ import annotations
@@ -87,6 +97,7 @@ from thermolab.agent.protocol import (
 from thermolab.errors import ThermoLabError
 
 __all__ = [
+    "HELLO_PING_TIMEOUT",
     "PROBE_EVERY",
     "PROBE_TIMEOUT",
     "AgentLink",
@@ -104,6 +115,10 @@ PROBE_EVERY = 0.25
 
 PROBE_TIMEOUT = 1.5
 """Seconds a probe waits for the lab's address to accept a TCP connection."""
+
+HELLO_PING_TIMEOUT = 10.0
+"""Seconds a ping may wait for its pong before the lab answers the Hello (a standby taking
+over is busy); after the ``Welcome``, ``LinkSettings.ping_timeout``."""
 
 
 class RefusedError(ThermoLabError):
@@ -162,6 +177,10 @@ class AgentLink:
         self._wake = asyncio.Event()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._turn = 0  # which of the lab's addresses is dialled next
+        # Which addresses answered their last try (a dial or a probe) while the link is
+        # down: the host's END at its grace's end names the cause from it (owner gone, or
+        # the link lost: RigHost.lab_answered).
+        self._answers: dict[int, bool] = {}
         # Who this process is, the same on every redial: the lab refuses a second host
         # for a rig it already has, and lets this one replace a link it lost.
         self.host_id = f"{socket.gethostname()}:{os.getpid()}:{secrets.token_hex(4)}"
@@ -190,11 +209,15 @@ class AgentLink:
             except RefusedError:
                 raise
             except _NotOwnerError:
+                self._answered(self._turn, True)
                 self._turn += 1
                 if self._turn % addresses:  # the next worker at once, a pause after a round
                     continue
             except (OSError, websockets.exceptions.WebSocketException, TimeoutError) as exc:
                 log.warning("link to %s: %s", self.url, exc)
+                # Refused (nothing listens) or answered in HTTP: the lab's machine is there.
+                if isinstance(exc, ConnectionRefusedError | websockets.exceptions.InvalidStatus):
+                    self._answered(self._turn, True)
                 self._turn += 1
             finally:
                 if self.connected.is_set():
@@ -212,6 +235,12 @@ class AgentLink:
             # A little jitter: every host of a lab whose network came back would dial at once.
             await asyncio.sleep(random.random() * PROBE_EVERY)
 
+    def _answered(self, index: int, answers: bool) -> None:
+        """Address ``index`` answered its last try or not; the host hears whether any did."""
+        addresses = 1 + len(self.settings.others)
+        self._answers[index % addresses] = answers
+        self.host.lab_answered(any(self._answers.values()))
+
     async def _answering(self, *, once: bool) -> int | None:
         """Which lab address accepts a TCP connection: one round of probes, or until one does.
 
@@ -227,8 +256,13 @@ class AgentLink:
                 _, writer = await asyncio.wait_for(
                     asyncio.open_connection(*hops[index]), PROBE_TIMEOUT
                 )
-            except (OSError, TimeoutError):
+            except ConnectionRefusedError:
+                self._answered(index, True)  # the machine answers: its worker is gone
                 return
+            except (OSError, TimeoutError):
+                self._answered(index, False)
+                return
+            self._answered(index, True)
             writer.close()
             if not answered.done():
                 answered.set_result(index)
@@ -262,8 +296,7 @@ class AgentLink:
         async with connect(
             url,
             ssl=self._ssl(),
-            ping_interval=s.ping,
-            ping_timeout=s.ping_timeout,
+            ping_interval=None,  # our own keepalive: lenient while a standby holds the Hello
             open_timeout=10,
             close_timeout=2,
             max_size=2**20,
@@ -279,9 +312,7 @@ class AgentLink:
             )
             await ws.send(encode(hello))
             try:
-                # A standby may hold the Hello through a takeover (HELLO_HOLD); the pings
-                # meanwhile tell a dead worker from a holding one.
-                first = decode_lab(await asyncio.wait_for(ws.recv(), HELLO_HOLD + 10))
+                first = decode_lab(await self._first_answer(ws))
             except websockets.exceptions.ConnectionClosed as exc:
                 if exc.rcvd is not None and exc.rcvd.code == CLOSE_REFUSED:
                     raise RefusedError(
@@ -294,6 +325,7 @@ class AgentLink:
             if not isinstance(first, Welcome):
                 raise websockets.exceptions.InvalidMessage(f"expected welcome, got {first.type}")
             self.host.grace = first.grace
+            self._answers.clear()
             self.host.link_back()
             self.connected.set()
             log.info("linked to %s as rig %s", url, s.rig)
@@ -301,6 +333,7 @@ class AgentLink:
                 asyncio.create_task(self._send(ws)),
                 asyncio.create_task(self._beat(ws)),
                 asyncio.create_task(self._receive(ws)),
+                asyncio.create_task(self._keepalive(ws, s.ping_timeout)),
             ]
             try:
                 done, _ = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
@@ -310,6 +343,41 @@ class AgentLink:
                 for task in tasks:
                     task.cancel()
                 await asyncio.gather(*tasks, return_exceptions=True)
+
+    async def _first_answer(self, ws: ClientConnection) -> str | bytes:
+        """The lab's answer to the Hello: ``Welcome``, or a close (raised).
+
+        A standby may hold the Hello through a takeover (``HELLO_HOLD``), and
+        it is busiest then — opening the rigs, adopting the runs — so its pongs
+        may come late: the pings meanwhile wait :data:`HELLO_PING_TIMEOUT`, not
+        ``ping_timeout``, or the host would drop the very link that keeps its run
+        (a dead worker's connection closes by itself; a hung one is told in time).
+        """
+        answer = asyncio.create_task(asyncio.wait_for(ws.recv(), HELLO_HOLD + 10))
+        alive = asyncio.create_task(self._keepalive(ws, HELLO_PING_TIMEOUT))
+        try:
+            done, _ = await asyncio.wait({answer, alive}, return_when=FIRST_COMPLETED)
+            if alive in done:
+                alive.result()  # raise why the worker is taken for dead
+            return answer.result()
+        finally:
+            for task in (answer, alive):
+                task.cancel()
+            await asyncio.gather(answer, alive, return_exceptions=True)
+
+    async def _keepalive(self, ws: ClientConnection, timeout: float) -> None:
+        """Ping every ``ping`` seconds; raise :class:`TimeoutError` if a pong takes ``timeout``.
+
+        The ``websockets`` client's own keepalive, with a timeout that depends on
+        the link's phase (:meth:`_first_answer`).
+        """
+        while True:
+            await asyncio.sleep(self.settings.ping)
+            pong = await ws.ping()
+            try:
+                await asyncio.wait_for(pong, timeout)
+            except TimeoutError:
+                raise TimeoutError(f"no answer to a ping for {timeout:g} s") from None
 
     async def _send(self, ws: ClientConnection) -> None:
         sent = 0  # this connection resends the whole outbox from its start

@@ -40,6 +40,7 @@ __all__ = [
     "CLOSE_REFUSED",
     "HELLO_HOLD",
     "LINK_LOST",
+    "OWNER_GONE",
     "PROTOCOL_VERSION",
     "Ack",
     "AgentMessage",
@@ -74,7 +75,13 @@ CLOSE_REFUSED = 4401
 CLOSE_NOT_OWNER = 4409
 """WebSocket close code: this web worker does not own the rigs (a follower); dial another."""
 LINK_LOST = "link to the lab lost"
-"""How a ``RunEnded.message`` begins when the host ENDed the run for its lost link (its grace)."""
+"""How a ``RunEnded.message`` begins when the host ENDed the run for its lost link (its grace):
+no address of the lab answered at all (the network away, or the lab's machine)."""
+OWNER_GONE = "no lab worker owned the rigs"
+"""How a ``RunEnded.message`` begins when the host ENDed the run at its grace's end while
+the lab's machines answered (a worker that does not own the rigs, a refused connection, a
+hung worker): the owner worker was gone and no standby took over in time. Old hosts say
+:data:`LINK_LOST` for this too."""
 HELLO_HOLD = 20.0
 """Seconds a lab worker may hold a host's ``Hello`` unanswered; the host waits longer.
 

@@ -342,12 +342,16 @@ class AgentHub:
 
     # -- the WebSocket ---------------------------------------------------------------------
 
-    async def endpoint(self, ws: WebSocket, *, accepted: bool = False) -> None:
-        """Serve one rig host's connection until it closes (``accepted``: already, by a hold)."""
+    async def endpoint(
+        self, ws: WebSocket, *, accepted: bool = False, hello: str | None = None
+    ) -> None:
+        """Serve one rig host's connection until it closes (``accepted``: already, by a
+        hold, which read its first message, ``hello``)."""
         if not accepted:
             await ws.accept()
         try:
-            first = decode_agent(await asyncio.wait_for(ws.receive_text(), 10))
+            said = hello if hello is not None else await asyncio.wait_for(ws.receive_text(), 10)
+            first = decode_agent(said)
         except (ValidationError, TimeoutError, WebSocketDisconnect):
             await _close(ws, "expected hello")
             return

@@ -39,6 +39,7 @@ from sqlalchemy import select
 
 from thermolab.agent.protocol import (
     LINK_LOST,
+    OWNER_GONE,
     EndRun,
     RunEnded,
     SampleBatch,
@@ -54,6 +55,7 @@ from thermolab.errors import (
     ThermoLabError,
 )
 from thermolab.lab.access import AccessService
+from thermolab.lab.access.queries import SERVER_STOPPED
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.agents.estimates import RemoteIdentification
 from thermolab.lab.agents.hub import HEALTH_FAULT, AgentHub
@@ -61,12 +63,20 @@ from thermolab.lab.agents.loop import RemoteLoop, commanded_request
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
-from thermolab.lab.db.models import Command, Run
+from thermolab.lab.db.models import Command, Run, RunStatus
 from thermolab.lab.rigs.devices import DeviceHub
 from thermolab.lab.runs import RunRecord, RunService
 from thermolab.lab.runs.commands import loop_state, send_command
 from thermolab.lab.runs.control import ControlRequest, build_control_loop
-from thermolab.lab.runs.ending import Record, RunEnd, save_end, status_of, stored_timing
+from thermolab.lab.runs.ending import (
+    EndCause,
+    Record,
+    RunEnd,
+    host_end_words,
+    save_end,
+    status_of,
+    stored_timing,
+)
 from thermolab.lab.runs.export import RunExport
 from thermolab.lab.runs.request import RUN_SETTINGS, RunRequest
 from thermolab.lab.runs.service import plan_on_rig, plan_start, store_start
@@ -94,6 +104,7 @@ class _RemoteRun:
     experiment: RemoteLoop  # what the closed-loop commands act on (send_command's)
     ended: threading.Event = field(default_factory=threading.Event)
     stopped_by: str | None = None
+    away: str | None = None  # the lab ENDed it for its host's absence (the fault's words)
 
 
 class RemoteRuns:
@@ -265,12 +276,10 @@ class RemoteRuns:
         remote = self._remote.get(rig_id)
         if remote is not None and remote.control_session != controller_session:
             fault = self._access.snapshot(rig_id).fault
-            cause = (
-                f"its host being away ({fault.removeprefix(HEALTH_FAULT)})"
-                if fault is not None and fault.startswith(HEALTH_FAULT)
-                else "end of the turn at the controls"
-            )
-            remote.stopped_by = remote.stopped_by or cause
+            if fault is not None and fault.startswith(HEALTH_FAULT):
+                remote.away = remote.away or fault.removeprefix(HEALTH_FAULT)
+            else:
+                remote.stopped_by = remote.stopped_by or "end of the turn at the controls"
             self._agents.send(rig_id, EndRun(run=remote.run_id))
 
     def adopt(self, rig_id: str, run_id: int, control_session: int) -> None:
@@ -397,17 +406,30 @@ class RemoteRuns:
             reason = EndReason(ended.reason)
         except ValueError:
             reason = EndReason.ERROR
-        words = reason.value + (f": {ended.message}" if ended.message else "")
-        # The host's own END says why (its link lost past the grace): the real cause, even
-        # when the lab also asked for the END meanwhile (the turn ended while it was away).
-        lost = ended.message.startswith(LINK_LOST)
-        if reason is EndReason.ENDED and not lost and remote is not None and remote.stopped_by:
-            words = f"ended by {remote.stopped_by}"
         try:
             run, stored = self._store.read(ended.run)
         except NotFoundError:  # deleted meanwhile: nothing to store (the host may forget it)
             log.warning("rig host %s reported the end of run %s, which is gone", rig_id, ended.run)
             return
+        # The host's own END at its grace's end says why: the real cause, even when the lab
+        # also asked for the END meanwhile (the turn ended while it was away).
+        cause = (
+            EndCause.OWNER_GONE
+            if ended.message.startswith(OWNER_GONE)
+            else EndCause.LINK_LOST
+            if ended.message.startswith(LINK_LOST)
+            else None
+        )
+        mine = remote is not None and remote.run_id == ended.run
+        words = host_end_words(
+            reason,
+            ended.message,
+            cause=cause,
+            away=remote.away if mine and remote is not None else None,
+            asked_by=remote.stopped_by if mine and remote is not None else None,
+            server_stopped=run.status == RunStatus.INTERRUPTED.value
+            and run.end_reason == SERVER_STOPPED,
+        )
         if run.rig_id != rig_id:
             log.warning("rig host %s reported the end of run %s of another rig", rig_id, ended.run)
             return

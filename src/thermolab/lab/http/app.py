@@ -181,10 +181,12 @@ def create_app(
             await the_lab.agents.endpoint(ws)
         elif not (isinstance(the_lab, FollowerLab) and the_lab.standby):
             await refuse_agent_link(ws)
-        elif await hold_agent_link(
-            ws, owns=lambda: fleet.role != "follower", announcements=lambda: fleet.announcements
-        ):
-            await the_lab.agents.endpoint(ws, accepted=True)
+        elif (
+            hello := await hold_agent_link(
+                ws, owns=lambda: fleet.role != "follower", announcements=lambda: fleet.announcements
+            )
+        ) is not None:
+            await the_lab.agents.endpoint(ws, accepted=True, hello=hello)
 
     app.add_api_websocket_route(AGENT_LINK_PATH, agent_link, name="agent_link")
     install_error_handlers(app)

@@ -58,7 +58,7 @@ from typing import Any
 
 import httpx
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
-from starlette.websockets import WebSocket
+from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from thermolab.agent.protocol import CLOSE_NOT_OWNER, HELLO_HOLD
 from thermolab.lab.fleet.workers import ANNOUNCE_INTERVAL, OWNER_WAIT
@@ -125,26 +125,37 @@ async def hold_agent_link(
     owns: Callable[[], bool],
     announcements: Callable[[], int],
     wait: float = min(OWNER_WAIT, HELLO_HOLD),
-) -> bool:
+) -> str | None:
     """A standby's answer to a rig host: held while no owner is heard, refused once one is.
 
-    Returns ``True`` (the WebSocket accepted, the host's ``Hello`` unread) when
-    this worker took the rigs over meanwhile: the caller serves the link.
-    ``announcements()`` counts the owner announcements heard; ``owns()`` says
-    whether this worker owns the rigs now.
+    Returns the host's first message (its ``Hello``, read: the WebSocket
+    accepted) when this worker took the rigs over meanwhile: the caller serves
+    the link with it. ``None``: the host was refused. ``announcements()`` counts
+    the owner announcements heard; ``owns()`` says whether this worker owns the
+    rigs now.
+
+    The Hello is read before the hold: the server reads nothing more from a
+    connection whose message the application has not taken (uvicorn pauses
+    reading), so a held host's pings went unanswered and it dropped the link
+    after its ping timeout (2-3 s), long before a takeover's 17 s.
     """
     await ws.accept()
     heard = announcements()
     deadline = time.monotonic() + wait
+    try:
+        hello = await asyncio.wait_for(ws.receive_text(), wait)
+    except (TimeoutError, WebSocketDisconnect, KeyError):  # KeyError: a bytes message
+        await refuse_agent_link(ws, accepted=True)
+        return None
     while time.monotonic() < deadline:
         if owns():
             log.info("a rig host held through the takeover is served here")
-            return True
+            return hello
         if announcements() != heard:
             break  # an owner is alive (or was just decided elsewhere): the host dials it
         await asyncio.sleep(_HOLD_LOOK)
     await refuse_agent_link(ws, accepted=True)
-    return False
+    return None
 
 
 def _forwarded(path: str) -> bool:

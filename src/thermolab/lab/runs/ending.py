@@ -17,6 +17,7 @@ a restart or a takeover, is judged the same way.
 
 from __future__ import annotations
 
+import enum
 import logging
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -41,8 +42,10 @@ from thermolab.runner.results import MethodResult
 
 __all__ = [
     "SERVER_STOPPED",
+    "EndCause",
     "RunEnd",
     "end_of_run",
+    "host_end_words",
     "method_results",
     "save_end",
     "status_of",
@@ -53,6 +56,63 @@ log = logging.getLogger(__name__)
 
 #: ``ActiveRun.stopped_by`` of the runs the server aborted as it stopped (stored interrupted).
 SERVER_STOPPED = "the server stopped"
+
+
+class EndCause(enum.StrEnum):
+    """Why a rig host's run ended when nobody at the lab asked: its stored reason's code.
+
+    Stored as ``"<code>: <the English detail>"``, as the runner's reasons
+    (``"rig_fault: ..."``); the browser says each code in the reader's language
+    (``runwords.js``, ``END_REASONS``).
+
+    Attributes
+    ----------
+    LINK_LOST
+        The host ENDed the run at its grace's end, no address of the lab
+        answering (the network, or the lab's machine, away).
+    HOST_AWAY
+        The lab ENDed it: its host was away (not connected, or silent) past the
+        grace, which took the rig out of service and ended the turn.
+    OWNER_GONE
+        The owner worker was gone (killed, stopped, hung) and no worker took
+        the host's link in its grace: the host ENDed the run while the lab's
+        machines answered, or the lab had stored the run interrupted by its
+        server's stop.
+    """
+
+    LINK_LOST = "link_lost"
+    HOST_AWAY = "host_away"
+    OWNER_GONE = "owner_gone"
+
+
+def host_end_words(
+    reason: EndReason,
+    message: str,
+    *,
+    cause: EndCause | None,
+    away: str | None = None,
+    asked_by: str | None = None,
+    server_stopped: bool = False,
+) -> str:
+    """The stored end reason of a rig host's run: the real cause, whoever asked for the END.
+
+    ``message`` is the host's (``RunEnded.message``); ``cause`` what it says
+    of the host's own END at its grace's end (``None``: the host did not END
+    it by itself). ``away``: the lab ENDed it because its host was away (the
+    health fault's words). ``asked_by``: who asked for the END (a user, "end of
+    the turn at the controls"). ``server_stopped``: the lab had stored the run
+    interrupted as its server stopped (a restart): a host that lost its link
+    then lost it because the owner went.
+    """
+    if cause is EndCause.LINK_LOST and server_stopped:
+        cause = EndCause.OWNER_GONE
+    if cause is not None:  # the host's own END: its cause, even if the lab also asked
+        return f"{cause.value}: {message}"
+    if reason is EndReason.ENDED and away is not None:
+        return f"{EndCause.HOST_AWAY.value}: {away}"
+    if reason is EndReason.ENDED and asked_by:
+        return f"ended by {asked_by}"
+    return reason.value + (f": {message}" if message else "")
 
 
 @dataclass(frozen=True, slots=True)

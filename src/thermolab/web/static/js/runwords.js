@@ -58,6 +58,10 @@ const END_REASONS = {
   watchdog: "runEnd.watchdog",
   error: "runEnd.error",
   aborted: "runEnd.aborted",
+  // A rig host's run that ended for want of the lab (lab/runs/ending.py, EndCause).
+  link_lost: "runEnd.linkLost",
+  host_away: "runEnd.hostAway",
+  owner_gone: "runEnd.ownerGone",
 };
 
 /**
