@@ -11,7 +11,9 @@ every code cell with nbclient in a fresh kernel, twice:
   notebook's own ``setup(connected=False, speedup=...)`` keeps its own);
 * **lab** — with ``import tclab`` / ``from tclab import`` turned into
   ``thermolab.tclab``, against a ``thermolab serve`` started here with the
-  kit's twin (``sim:tclab``) at ``--speedup``, reached through
+  rig ``--rig`` names (the kit's two-heater twin ``sim:kit`` by default, so
+  ``T2``/``Q2``/``P2`` work as on a kit; ``sim:tclab`` is the one-heater
+  twin) at ``--speedup``, reached through
   ``THERMOLAB_URL``/``THERMOLAB_TOKEN``/``THERMOLAB_RIG``.
 
 Scripts written for a kit pace themselves with ``time.sleep`` in real time;
@@ -27,6 +29,7 @@ course's PID chapters, APMonitor's process-control scripts).
 Usage::
 
     .venv/bin/python benchmarks/bench_tclab_notebooks.py /tmp/nb/tclab
+    .venv/bin/python benchmarks/bench_tclab_notebooks.py /tmp/nb/tclab --rig sim:tclab
     .venv/bin/python benchmarks/bench_tclab_notebooks.py /tmp/nb/apm --speedup 20 --json out.json
 """
 
@@ -50,6 +53,7 @@ from nbclient.exceptions import CellTimeoutError, DeadKernelError
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_client
+from thermolab.rigs.spec import RigSpec
 
 
 @dataclass
@@ -63,12 +67,21 @@ class Outcome:
     seconds: float = 0.0
 
 
+def _default_rig() -> str:
+    """The kit's two-heater twin ``sim:kit`` where this thermolab has it, else ``sim:tclab``."""
+    try:
+        RigSpec.parse("sim:kit")
+    except ValueError:
+        return "sim:tclab"
+    return "sim:kit"
+
+
 @contextlib.contextmanager
-def served_lab(speedup: float) -> Iterator[tuple[str, str]]:
-    """A lab with the kit's twin at ``speedup`` in a child process: (URL, a teacher's token)."""
+def served_lab(speedup: float, rig: str = "sim:kit") -> Iterator[tuple[str, str]]:
+    """A lab with the rig ``rig`` at ``speedup`` in a child process: (URL, a teacher's token)."""
     config = (
         "[rig_defaults]\npower_off_grace = 600\ncontrol_time_limit = 3600\n\n"
-        '[[rigs]]\nid = "kit"\ntitle = "TCLab kit\'s twin"\nspec = "sim:tclab"\n'
+        f'[[rigs]]\nid = "kit"\ntitle = "TCLab kit\'s twin"\nspec = {json.dumps(rig)}\n'
     )
     with bench_client.served_lab(config, ("--speedup", f"{speedup:g}")) as served:
         yield served
@@ -172,6 +185,12 @@ def run_notebook(
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("folder", type=Path, help="a folder of *.ipynb notebooks and *.py scripts")
+    parser.add_argument(
+        "--rig",
+        default=_default_rig(),
+        metavar="SPEC",
+        help="the lab's rig (sim:kit: the kit's two-heater twin; sim:tclab: one heater)",
+    )
     parser.add_argument("--speedup", type=float, default=20.0, help="lab time's speed-up (20)")
     parser.add_argument("--timeout", type=float, default=600.0, help="seconds a cell may take")
     parser.add_argument("--real-sleep", action="store_true", help="keep time.sleep in real time")
@@ -184,7 +203,9 @@ def main() -> None:
     if not paths:
         raise SystemExit(f"no *.ipynb or *.py in {args.folder}")
     results: dict[str, dict[str, Outcome]] = {}
-    with served_lab(args.speedup) as (url, token):
+    RigSpec.parse(args.rig)  # a wrong spec fails here, not in the lab's log
+    print(f"lab rig: {args.rig}", flush=True)
+    with served_lab(args.speedup, args.rig) as (url, token):
         os.environ.update({"THERMOLAB_URL": url, "THERMOLAB_TOKEN": token, "THERMOLAB_RIG": "kit"})
         for path in paths:
             results[path.name] = {
