@@ -19,8 +19,10 @@ every code cell with nbclient in a fresh kernel, twice:
 Scripts written for a kit pace themselves with ``time.sleep`` in real time;
 in both runs a hidden first cell scales ``time.sleep`` by ``1/speedup`` so a
 14-minute step test takes 42 s at 20x and still samples each lab second
-(``--real-sleep`` keeps real time). ``!pip`` cells are not run (counted
-apart). It prints, per notebook, the cells that pass on the lab and on the
+(``--real-sleep`` keeps real time). Figures are drawn but not encoded to
+PNG when shown (``--png`` encodes them): a ``Plotter`` or an animated script
+shows its figure every period, which made a run CPU-bound. ``!pip`` cells are
+not run (counted apart). It prints, per notebook, the cells that pass on the lab and on the
 model, and every cell that passes on the model but not on the lab with its
 error's last line. The notebooks are not part of the repository: fetch them
 to a folder of your own (the TCLab repository's ``notebooks/``, the CBE 30338
@@ -101,8 +103,12 @@ def _to_lab(source: str) -> str:
     return source
 
 
-def _preamble(side: str, speedup: float, real_sleep: bool) -> str:
+def _preamble(side: str, speedup: float, real_sleep: bool, png: bool = False) -> str:
     lines = ["import matplotlib", "matplotlib.use('Agg')"]
+    if not png:
+        # Figures are drawn, but not encoded to PNG on each display: a Plotter or an
+        # animated script shows its figure every period, which made a run CPU-bound.
+        lines += ["get_ipython().display_formatter.formatters['image/png'].enabled = False"]
     if not real_sleep:
         # The notebook's own time.sleep only: tclab's and thermolab's lab time sleep for real.
         lines += [
@@ -139,7 +145,7 @@ def _load(path: Path) -> nbformat.NotebookNode:
 
 
 def run_notebook(
-    path: Path, side: str, speedup: float, timeout: float, real_sleep: bool
+    path: Path, side: str, speedup: float, timeout: float, real_sleep: bool, png: bool = False
 ) -> Outcome:
     """Run ``path``'s code cells on one side; count those that end without an error."""
     notebook = _load(path)
@@ -155,7 +161,7 @@ def run_notebook(
             cell.source = _to_lab(cell.source)
         kept.append(cell)
     outcome.cells = len(kept)
-    notebook.cells = [nbformat.v4.new_code_cell(_preamble(side, speedup, real_sleep)), *kept]
+    notebook.cells = [nbformat.v4.new_code_cell(_preamble(side, speedup, real_sleep, png)), *kept]
     started = time.monotonic()
     with tempfile.TemporaryDirectory() as work:
         client = NotebookClient(
@@ -194,6 +200,9 @@ def main() -> None:
     parser.add_argument("--speedup", type=float, default=20.0, help="lab time's speed-up (20)")
     parser.add_argument("--timeout", type=float, default=600.0, help="seconds a cell may take")
     parser.add_argument("--real-sleep", action="store_true", help="keep time.sleep in real time")
+    parser.add_argument(
+        "--png", action="store_true", help="encode each figure shown to PNG (off: drawn only)"
+    )
     parser.add_argument("--only", help="run the notebooks whose name contains this")
     parser.add_argument("--json", type=Path, help="also write the results here")
     args = parser.parse_args()
@@ -209,7 +218,9 @@ def main() -> None:
         os.environ.update({"THERMOLAB_URL": url, "THERMOLAB_TOKEN": token, "THERMOLAB_RIG": "kit"})
         for path in paths:
             results[path.name] = {
-                side: run_notebook(path, side, args.speedup, args.timeout, args.real_sleep)
+                side: run_notebook(
+                    path, side, args.speedup, args.timeout, args.real_sleep, args.png
+                )
                 for side in ("model", "lab")
             }
             model, lab = results[path.name]["model"], results[path.name]["lab"]
