@@ -81,7 +81,7 @@ def served_lab(
             )
             url = f"http://127.0.0.1:{port}"
             try:
-                deadline = time.monotonic() + 60
+                deadline = time.monotonic() + 180  # a loaded machine takes over 60 s
                 while True:
                     with contextlib.suppress(httpx.HTTPError):
                         if httpx.get(f"{url}/api/version", timeout=1).status_code == 200:

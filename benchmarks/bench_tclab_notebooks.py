@@ -11,14 +11,18 @@ every code cell with nbclient in a fresh kernel, twice:
   notebook's own ``setup(connected=False, speedup=...)`` keeps its own);
 * **lab** — with ``import tclab`` / ``from tclab import`` turned into
   ``thermolab.tclab``, against a ``thermolab serve`` started here with the
-  kit's twin (``sim:tclab``) at ``--speedup``, reached through
+  rig ``--rig`` names (the kit's two-heater twin ``sim:kit`` by default, so
+  ``T2``/``Q2``/``P2`` work as on a kit; ``sim:tclab`` is the one-heater
+  twin) at ``--speedup``, reached through
   ``THERMOLAB_URL``/``THERMOLAB_TOKEN``/``THERMOLAB_RIG``.
 
 Scripts written for a kit pace themselves with ``time.sleep`` in real time;
 in both runs a hidden first cell scales ``time.sleep`` by ``1/speedup`` so a
 14-minute step test takes 42 s at 20x and still samples each lab second
-(``--real-sleep`` keeps real time). ``!pip`` cells are not run (counted
-apart). It prints, per notebook, the cells that pass on the lab and on the
+(``--real-sleep`` keeps real time). Figures are drawn but not encoded to
+PNG when shown (``--png`` encodes them): a ``Plotter`` or an animated script
+shows its figure every period, which made a run CPU-bound. ``!pip`` cells are
+not run (counted apart). It prints, per notebook, the cells that pass on the lab and on the
 model, and every cell that passes on the model but not on the lab with its
 error's last line. The notebooks are not part of the repository: fetch them
 to a folder of your own (the TCLab repository's ``notebooks/``, the CBE 30338
@@ -27,6 +31,7 @@ course's PID chapters, APMonitor's process-control scripts).
 Usage::
 
     .venv/bin/python benchmarks/bench_tclab_notebooks.py /tmp/nb/tclab
+    .venv/bin/python benchmarks/bench_tclab_notebooks.py /tmp/nb/tclab --rig sim:tclab
     .venv/bin/python benchmarks/bench_tclab_notebooks.py /tmp/nb/apm --speedup 20 --json out.json
 """
 
@@ -50,6 +55,7 @@ from nbclient.exceptions import CellTimeoutError, DeadKernelError
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_client
+from thermolab.rigs.spec import RigSpec
 
 
 @dataclass
@@ -63,12 +69,21 @@ class Outcome:
     seconds: float = 0.0
 
 
+def _default_rig() -> str:
+    """The kit's two-heater twin ``sim:kit`` where this thermolab has it, else ``sim:tclab``."""
+    try:
+        RigSpec.parse("sim:kit")
+    except ValueError:
+        return "sim:tclab"
+    return "sim:kit"
+
+
 @contextlib.contextmanager
-def served_lab(speedup: float) -> Iterator[tuple[str, str]]:
-    """A lab with the kit's twin at ``speedup`` in a child process: (URL, a teacher's token)."""
+def served_lab(speedup: float, rig: str = "sim:kit") -> Iterator[tuple[str, str]]:
+    """A lab with the rig ``rig`` at ``speedup`` in a child process: (URL, a teacher's token)."""
     config = (
         "[rig_defaults]\npower_off_grace = 600\ncontrol_time_limit = 3600\n\n"
-        '[[rigs]]\nid = "kit"\ntitle = "TCLab kit\'s twin"\nspec = "sim:tclab"\n'
+        f'[[rigs]]\nid = "kit"\ntitle = "TCLab kit\'s twin"\nspec = {json.dumps(rig)}\n'
     )
     with bench_client.served_lab(config, ("--speedup", f"{speedup:g}")) as served:
         yield served
@@ -88,8 +103,12 @@ def _to_lab(source: str) -> str:
     return source
 
 
-def _preamble(side: str, speedup: float, real_sleep: bool) -> str:
+def _preamble(side: str, speedup: float, real_sleep: bool, png: bool = False) -> str:
     lines = ["import matplotlib", "matplotlib.use('Agg')"]
+    if not png:
+        # Figures are drawn, but not encoded to PNG on each display: a Plotter or an
+        # animated script shows its figure every period, which made a run CPU-bound.
+        lines += ["get_ipython().display_formatter.formatters['image/png'].enabled = False"]
     if not real_sleep:
         # The notebook's own time.sleep only: tclab's and thermolab's lab time sleep for real.
         lines += [
@@ -126,7 +145,7 @@ def _load(path: Path) -> nbformat.NotebookNode:
 
 
 def run_notebook(
-    path: Path, side: str, speedup: float, timeout: float, real_sleep: bool
+    path: Path, side: str, speedup: float, timeout: float, real_sleep: bool, png: bool = False
 ) -> Outcome:
     """Run ``path``'s code cells on one side; count those that end without an error."""
     notebook = _load(path)
@@ -142,7 +161,7 @@ def run_notebook(
             cell.source = _to_lab(cell.source)
         kept.append(cell)
     outcome.cells = len(kept)
-    notebook.cells = [nbformat.v4.new_code_cell(_preamble(side, speedup, real_sleep)), *kept]
+    notebook.cells = [nbformat.v4.new_code_cell(_preamble(side, speedup, real_sleep, png)), *kept]
     started = time.monotonic()
     with tempfile.TemporaryDirectory() as work:
         client = NotebookClient(
@@ -172,9 +191,18 @@ def run_notebook(
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("folder", type=Path, help="a folder of *.ipynb notebooks and *.py scripts")
+    parser.add_argument(
+        "--rig",
+        default=_default_rig(),
+        metavar="SPEC",
+        help="the lab's rig (sim:kit: the kit's two-heater twin; sim:tclab: one heater)",
+    )
     parser.add_argument("--speedup", type=float, default=20.0, help="lab time's speed-up (20)")
     parser.add_argument("--timeout", type=float, default=600.0, help="seconds a cell may take")
     parser.add_argument("--real-sleep", action="store_true", help="keep time.sleep in real time")
+    parser.add_argument(
+        "--png", action="store_true", help="encode each figure shown to PNG (off: drawn only)"
+    )
     parser.add_argument("--only", help="run the notebooks whose name contains this")
     parser.add_argument("--json", type=Path, help="also write the results here")
     args = parser.parse_args()
@@ -184,11 +212,15 @@ def main() -> None:
     if not paths:
         raise SystemExit(f"no *.ipynb or *.py in {args.folder}")
     results: dict[str, dict[str, Outcome]] = {}
-    with served_lab(args.speedup) as (url, token):
+    RigSpec.parse(args.rig)  # a wrong spec fails here, not in the lab's log
+    print(f"lab rig: {args.rig}", flush=True)
+    with served_lab(args.speedup, args.rig) as (url, token):
         os.environ.update({"THERMOLAB_URL": url, "THERMOLAB_TOKEN": token, "THERMOLAB_RIG": "kit"})
         for path in paths:
             results[path.name] = {
-                side: run_notebook(path, side, args.speedup, args.timeout, args.real_sleep)
+                side: run_notebook(
+                    path, side, args.speedup, args.timeout, args.real_sleep, args.png
+                )
                 for side in ("model", "lab")
             }
             model, lab = results[path.name]["model"], results[path.name]["lab"]
