@@ -50,7 +50,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from scipy.linalg import expm
 
 __all__ = ["KIT_FIT", "KitConstants", "KitPhysics", "sensor_reading", "simulate_kit"]
 
@@ -183,6 +182,8 @@ class KitPhysics:
             # The exponential of [[A, B], [0, 0]] holds both the state's and the input's map.
             block = np.zeros((6, 6))
             block[:4, :4], block[:4, 4:] = self._A * key, self._B * key
+            from scipy.linalg import expm  # at first use: a lab's start imports no SciPy
+
             whole = expm(block)
             cached = (whole[:4, :4], whole[:4, 4:])
             if len(self._steps) > 64:  # irregular steps (a notebook's own timing) vary a lot
@@ -290,6 +291,8 @@ def simulate_kit(
     blocks = np.zeros((lengths.size, 6, 6))
     blocks[:, :4, :4] = _state_matrix(c)[None] * lengths[:, None, None]
     blocks[:, :4, 4:] = _INPUT_MATRIX[None] * lengths[:, None, None]
+    from scipy.linalg import expm  # at first use: a lab's start imports no SciPy
+
     whole = expm(blocks) if lengths.size else blocks
     gain = c.heater_gain
     heating = np.stack([gain * c.p1 * heat1, gain * c.heater2_factor * c.p2 * heat2], axis=1)
