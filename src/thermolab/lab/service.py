@@ -46,12 +46,12 @@ from thermolab.lab.fleet.lease import DatabaseLease
 from thermolab.lab.guides import SECTIONS, GuideImageService, GuideService
 from thermolab.lab.live.presence import Presence
 from thermolab.lab.lti import LtiService
-from thermolab.lab.rig_channels import ChannelResult, set_channel
 from thermolab.lab.rigs.camera import Picture, PictureCache, draw_twin, fetch_camera
 from thermolab.lab.rigs.devices import DesiredState, DeviceHub
 from thermolab.lab.rigs.opener import RigOpener
 from thermolab.lab.rigs.rig_settings import RigSettingsService
 from thermolab.lab.runs import RunRecord, RunService
+from thermolab.lab.runs.channels import ChannelResult, set_channel
 from thermolab.lab.runs.where import RunsByRig
 from thermolab.runner import Event
 
@@ -409,7 +409,7 @@ class Lab:
         return InputResult(rig_id, record.u, applied, record.at, record.id, run_id)
 
     def set_channel(self, rig_id: str, who: Principal, name: str, value: float) -> ChannelResult:
-        """Set the rig's further input ``name`` (see :func:`.rig_channels.set_channel`)."""
+        """Set the rig's further input ``name`` (see :func:`.runs.channels.set_channel`)."""
         parts = (self.config, self.access, self.hub, self.rig_runs)
         return set_channel(*parts, (self.agents, self.remote_rigs), rig_id, who, name, value)
 

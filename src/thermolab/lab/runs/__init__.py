@@ -11,6 +11,8 @@
 * :mod:`.active` — :class:`~.active.ActiveRun`: a run going on a rig, read as it is now;
 * :mod:`.commands` — what is sent to a running run: END, an input, a closed loop's
   commands (mode, set point, gains, fan) and its state;
+* :mod:`.channels` — a rig's further input (a kit's heater 2), in a run or on the
+  idle rig;
 * :mod:`.ending` — what is stored when a run ends: status, results with their
   statistics, timing, the controller as it ended (and storing it);
 * :mod:`.reading` — reading runs back for the routes (:class:`RunService`'s base);

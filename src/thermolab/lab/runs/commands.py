@@ -3,7 +3,7 @@
 What START asks of a closed loop's controller and its one check are
 :mod:`.control`; here are the commands the controller sends afterwards
 (``PUT .../runs/current/mode``, ``setpoint``, ``gains``, ``fan``; a further
-input's level, :mod:`thermolab.lab.rig_channels`) and the
+input's level, :mod:`thermolab.lab.runs.channels`) and the
 loop's state read back. Each closed-loop command is checked by the run's
 :class:`~thermolab.runner.Experiment` before anything changes, applied from
 the run's next sample on, and recorded in ``commands``. Each function takes

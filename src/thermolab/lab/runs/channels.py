@@ -16,17 +16,28 @@ from __future__ import annotations
 
 from collections.abc import Container
 from dataclasses import dataclass
+from typing import Protocol
 
 from thermolab.lab.access import AccessService
 from thermolab.lab.accounts.users import Principal
-from thermolab.lab.agents import AgentHub
 from thermolab.lab.config import LabConfig
 from thermolab.lab.rigs.devices import DeviceHub
 from thermolab.lab.runs.commands import CHANNEL_COMMAND
 from thermolab.lab.runs.store import run_command
 from thermolab.lab.runs.where import RunsByRig
 
-__all__ = ["ChannelResult", "set_channel"]
+__all__ = ["ChannelResult", "RigHosts", "set_channel"]
+
+
+class RigHosts(Protocol):
+    """The rig hosts as a further input's level needs them (the lab's agent hub).
+
+    A protocol, not the hub itself: the runs know no rig host's socket
+    (:class:`~thermolab.lab.runs.where.RunsByRig` says the same of a run).
+    """
+
+    def set_channel(self, rig_id: str, name: str, level: float) -> bool:
+        """Tell the idle rig's host to set ``name`` at ``level``; whether a host took it."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -57,7 +68,7 @@ def set_channel(
     access: AccessService,
     hub: DeviceHub,
     runs: RunsByRig,
-    hosts: tuple[AgentHub, Container[str]],
+    hosts: tuple[RigHosts, Container[str]],
     rig_id: str,
     who: Principal,
     name: str,
