@@ -19,9 +19,11 @@ from __future__ import annotations
 import os
 import time
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import pytest
+from _pytest.doctest import DoctestModule
 from hypothesis import settings
 
 settings.register_profile("ci", derandomize=True, print_blob=True)
@@ -68,11 +70,93 @@ def _compile_source() -> None:
     # each server, rig host and CLI process the tests start compiled the ~300 modules
     # anew. py_compile writes the bytecode whatever that variable says (0.6 s, once).
     import compileall
-    from pathlib import Path
 
     import thermolab
 
     compileall.compile_dir(Path(thermolab.__file__).parent, quiet=2)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_collect_file(
+    file_path: Path, parent: pytest.Collector
+) -> Iterator[list[pytest.Collector]]:
+    """Collect a test module once: not a second time as a module of doctests.
+
+    ``--doctest-modules`` (for the package's examples) also imported every
+    ``test_*.py`` and ``conftest.py`` here a second time (the importlib import
+    mode makes a new module each time), assertion rewriting included: half of
+    the collection's 20 s in each worker. None of them has a doctest; a
+    helper module beside them (``web/jsscan.py``) keeps its own.
+    """
+    collectors: list[pytest.Collector] = yield
+    if file_path.name.startswith("test_") or file_path.name == "conftest.py":
+        return [c for c in collectors if not isinstance(c, DoctestModule)]
+    return collectors
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """With N workers, put the modules of ``slow`` tests at the head of each worker's share.
+
+    pytest-xdist's ``worksteal`` gives each worker a contiguous Nth of the
+    collection and lets an idle worker take the back half of a busy one's queue.
+    In collection order the fleet, take-over and browser modules sat at the
+    backs of the shares, so the run ended on a few minute-long tests while the
+    other workers had nothing left to take. Here every share starts with its
+    round of those modules and of the browser's (each kept whole, for its
+    module-wide servers; shares balanced on a guess from the marks) and ends
+    with short tests, which are what the others take. The order is the
+    same in every worker, as xdist requires.
+    """
+    workers = getattr(config.option, "numprocesses", None)
+    if not isinstance(workers, int) or workers < 2:
+        return
+    by_module: dict[str, list[pytest.Item]] = {}
+    for item in items:
+        by_module.setdefault(item.nodeid.split("::", 1)[0], []).append(item)
+    slow = [m for m, its in by_module.items() if _weight(its)]
+    rest = [i for m, its in by_module.items() if m not in slow for i in its]
+    heads: list[list[pytest.Item]] = [[] for _ in range(workers)]
+    for module in sorted(slow, key=lambda m: -_weight(by_module[m])):  # heaviest first,
+        min(heads, key=_weight).extend(by_module[module])  # to the lightest share so far
+    # The sizes xdist cuts the collection into: a worker in turn gets an equal part of
+    # what is left (xdist/scheduler/worksteal.py, check_schedule).
+    left, sizes = len(items), []
+    for number in range(workers):
+        sizes.append(left // (workers - number))
+        left -= sizes[-1]
+    ordered: list[pytest.Item] = []
+    for head, size in zip(heads, sizes, strict=True):
+        fill = max(0, size - len(head))
+        ordered += head + rest[:fill]
+        rest = rest[fill:]
+    items[:] = ordered + rest
+
+
+def _weight(items: list[pytest.Item]) -> int:
+    # A guess at the seconds the tests take, from their marks alone: a ``slow`` test
+    # (servers, fleets, long runs) 20 s, any other test in a browser 3 s, the rest none.
+    return sum(
+        20 if item.get_closest_marker("slow") else 3 if item.get_closest_marker("browser") else 0
+        for item in items
+    )
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Iterator[object]:
+    """With ``THERMOLAB_TEST_TIMELINE=FILE``: a line per test (worker, start, end, id).
+
+    Where a run's minutes go across its workers (``.ci/run``'s duration table
+    says how long each test took, not when, so not how long a worker idled).
+    """
+    path = os.environ.get("THERMOLAB_TEST_TIMELINE")
+    began = time.time()
+    result = yield
+    if path:
+        worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+        with open(path, "a", encoding="utf-8") as timeline:
+            timeline.write(f"{worker}\t{began:.3f}\t{time.time():.3f}\t{item.nodeid}\n")
+    return result
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

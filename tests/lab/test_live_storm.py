@@ -38,6 +38,9 @@ from .test_live import login, receive
 from .test_live_limits import run_alone
 from .test_runs import until
 
+# The order of joiners and what reads the store: the same Python on either database.
+pytestmark = pytest.mark.sqlite_only
+
 # -- the turnstile ---------------------------------------------------------------------------
 
 

@@ -54,15 +54,17 @@ import ssl
 import time
 from asyncio import FIRST_COMPLETED
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import httpx
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from thermolab.agent.protocol import CLOSE_NOT_OWNER, HELLO_HOLD
 from thermolab.lab.fleet.workers import ANNOUNCE_INTERVAL, OWNER_WAIT
 from thermolab.lab.http.errors import error_response
+
+if TYPE_CHECKING:
+    import httpx
 
 __all__ = [
     "FORWARDED_PREFIXES",
@@ -210,6 +212,10 @@ class ForwardToOwner:
         # A try's connection gets one announcement interval: a dead owner's machine may drop
         # the connection attempt unanswered, and the next owner's address, announced meanwhile,
         # is then tried within about one more interval.
+        # Imported here, by a fleet's follower only (see lti/services.py: httpx brings its
+        # command line's libraries, 0.2-0.3 s of a server's start).
+        import httpx
+
         self._client = httpx.AsyncClient(
             timeout=httpx.Timeout(timeout, connect=min(timeout, ANNOUNCE_INTERVAL)),
             verify=tls if tls is not None else owner_tls(),
@@ -307,6 +313,8 @@ class ForwardToOwner:
         self, scope: Scope, owner: str, body: bytes, receive: Receive, send: Send
     ) -> bool:
         # Whether the request was sent to the owner (and answered, by it or by a 503).
+        import httpx
+
         try:
             answer = await self._client.send(
                 _request(self._client, scope, owner, body), stream=True

@@ -12,14 +12,15 @@ import secrets
 import threading
 import time
 from datetime import datetime, timedelta
-from typing import Any
-
-import httpx
+from typing import TYPE_CHECKING, Any
 
 from thermolab.lab.clock import LabClock
 from thermolab.lab.lti.errors import LtiServiceError
 from thermolab.lab.lti.keys import ToolKeys
 from thermolab.lab.lti.platforms import PlatformInfo
+
+if TYPE_CHECKING:
+    import httpx
 
 __all__ = ["PlatformClient"]
 
@@ -149,6 +150,11 @@ class PlatformClient:
             headers["Accept"] = accept
         if content_type is not None:
             headers["Content-Type"] = content_type
+        # Imported at the first call: httpx imports its command line's libraries (rich,
+        # click) where they are installed, 0.2-0.3 s of every server's start that most
+        # labs, with no LMS, never use.
+        import httpx
+
         try:
             response = httpx.request(method, url, headers=headers, timeout=self._timeout, **kwargs)
         except httpx.HTTPError as exc:
