@@ -18,7 +18,6 @@ at start are tightened, with a warning.
 from __future__ import annotations
 
 import argparse
-import gc
 import os
 import socket
 import stat
@@ -32,6 +31,7 @@ from thermolab.cli.http_server import CONNECTION_LIMIT, run_server
 
 if TYPE_CHECKING:
     from thermolab.lab.config import LabConfig
+    from thermolab.lab.operations.collector import CollectorPolicy
 
 __all__ = [
     "add_database_options",
@@ -314,6 +314,7 @@ def _serve(args: argparse.Namespace) -> int:
     )
     lab.agents.grace = args.agent_grace
     lab.agents.notify = _mailer(args, config.title)
+    collector: CollectorPolicy | None = None
     try:
         rigs = ", ".join(f"{rig.id} ({rig.spec})" for rig in config.rigs)
         scheme = "https" if args.ssl_certfile else "http"
@@ -358,9 +359,12 @@ def _serve(args: argparse.Namespace) -> int:
         app = create_app(config, static, lab=lab, close_lab=True, fleet=fleet, owner_ca=args.ca)
         # What exists now (the imported libraries, the lab, the app) lives as long as the
         # server: keep it out of the collector's full passes, which otherwise stop every
-        # thread, the live stream's included, for 0.1-0.2 s each (benchmarks/bench_live.py).
-        gc.collect()
-        gc.freeze()
+        # thread, the live stream's included, for 0.1-0.2 s each (benchmarks/bench_live.py),
+        # and what survives a pass later out of the next (lab/operations/collector.py).
+        from thermolab.lab.operations.collector import CollectorPolicy
+
+        collector = CollectorPolicy(lambda: all(lab.running(rig.id) is None for rig in config.rigs))
+        collector.start()
         run_server(
             app,
             args.host,
@@ -371,6 +375,8 @@ def _serve(args: argparse.Namespace) -> int:
             log_format=args.log_format,
         )
     finally:
+        if collector is not None:
+            collector.stop()
         lab.close()
     return 0
 
