@@ -44,7 +44,8 @@ READ = """name => {
   return text === '–' ? null : Number(text.replace(',', '.').replace('−', '-'));
 }"""
 #: The label of a readout row.
-LABEL = "name => document.querySelector(`[data-readout=${name}]`).previousElementSibling.textContent"
+LABEL = """name =>
+  document.querySelector(`[data-readout=${name}]`).previousElementSibling.textContent"""
 #: The names of an output or input chart's traces, and whether each has a number drawn last.
 TRACES = """index => {
   const chart = document.querySelectorAll('.live-charts figure.chart')[index];
@@ -62,7 +63,9 @@ CALL = """async ([method, path, body]) => {
 
 
 @pytest.fixture(scope="module")
-def kit_lab(start_lab: Any, tmp_path_factory: pytest.TempPathFactory, browser: Any) -> Iterator[Any]:
+def kit_lab(
+    start_lab: Any, tmp_path_factory: pytest.TempPathFactory, browser: Any
+) -> Iterator[Any]:
     with start_lab(tmp_path_factory.mktemp("kit-page"), USERS, config=CONFIG) as server:
         yield server
 
@@ -91,12 +94,14 @@ def test_heater_2_and_sensor_2_on_the_rig_page(
         # The watcher reads them and cannot set heater 2.
         watcher.wait_for_function(f"() => ({READ})('t2') > 0")
         assert watcher.evaluate(LABEL, "t2") == f"{words['channel.t2']} (°C)"
-        assert watcher.is_disabled(FIELD) and watcher.is_disabled(SET)
+        assert watcher.is_disabled(FIELD)
+        assert watcher.is_disabled(SET)
         # A level out of range is refused in words, before anything is sent.
         page.fill(FIELD, "150")
         page.click(SET)
         refusal = page.inner_text("[data-testid=channel-q2-error]")
-        assert words["channel.q2"] in refusal and "150" in refusal
+        assert words["channel.q2"] in refusal
+        assert "150" in refusal
         # A run; heater 2 to 40 % from the page, into the run.
         run = {"dt": 1, "samples": 2000, "setpoint": 0, "methods": ["lsm"]}
         status, started = page.evaluate(CALL, ["POST", f"/api/rigs/{RIG}/runs", run])
@@ -114,7 +119,8 @@ def test_heater_2_and_sensor_2_on_the_rig_page(
         output, heater = page.evaluate(TRACES, 0), page.evaluate(TRACES, 1)
         assert output["names"][-1] == words["channel.t2"], output
         assert heater["names"][-1] == words["channel.q2"], heater
-        assert output["last"][-1] != "–" and heater["last"][-1] == "40", (output, heater)
+        assert output["last"][-1] != "–", output
+        assert heater["last"][-1] == "40", heater
         found = ana.english("the kit's rig page, controller") + ben.english("watcher")
         page.screenshot(path=str(artifacts / "kit-rig-page.png"), full_page=True)
         status, _ = page.evaluate(CALL, ["POST", f"/api/rigs/{RIG}/runs/current/stop", None])
@@ -126,10 +132,12 @@ def test_heater_2_and_sensor_2_on_the_rig_page(
         q2 = [float(r["q2"]) for r in rows]
         t2 = [float(r["t2"]) for r in rows]
         on = q2.index(40.0)
-        assert set(q2[on:]) == {40.0} and set(q2[:on]) == {0.0}
+        assert set(q2[on:]) == {40.0}
+        assert set(q2[:on]) == {0.0}
         assert max(t2[on:]) > t2[on] + 2
         assert found == []
-        assert ana.errors == [] and ben.errors == []
+        assert ana.errors == []
+        assert ben.errors == []
     finally:
         ana.page.context.close()
         ben.page.context.close()
