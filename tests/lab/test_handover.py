@@ -89,7 +89,9 @@ def test_a_closed_loops_fan_is_off_once_the_run_ends(make_lab: LabFactory) -> No
     start(ana)
     fan_on(ana, lab)
     shown = ana.get(f"/api/rigs/{RIG}").json()["actuators"]
-    assert shown == [{"name": "fan", "unit": "%", "default": 0.0, "level": 50.0}]
+    # Its range and that only a closed loop records it, as the rig declares the fan.
+    fan = {"name": "fan", "unit": "%", "min": 0.0, "max": 100.0, "default": 0.0}
+    assert shown == [{**fan, "level": 50.0, "recorded": False}]
     assert ana.post(f"/api/rigs/{RIG}/runs/current/stop").status_code == 200
     lab.runs.wait(RIG, timeout=30)
     assert_at_rest(lab, ana)

@@ -17,7 +17,8 @@ pytestmark = pytest.mark.browser
 WORDS = """
 const i18n = await import('/js/i18n.js');
 const words = await import('/js/runwords.js');
-const { formatQuantity } = await import('/js/quantities.js');
+const { formatQuantity, quantityOfUnit, unitSymbol } = await import('/js/quantities.js');
+const { channelLabel } = await import('/js/channelwords.js');
 const { fmtFigure, fmtDeviation, fmtPercentDeviation } = await import('/js/model.js');
 const { rangeText } = await import('/js/validate.js');
 const { rigTitle } = await import('/js/shapes.js');
@@ -46,6 +47,11 @@ return {
   ambient: formatQuantity(2.29665e-26, 'volts'),
   noise: formatQuantity(250.12623300000004, 'seconds'),
   negative: formatQuantity(-0.0001, 'volts'),
+  // A kit's channels by their declared units: sensor 2 read with float noise, heater 2.
+  channels: [formatQuantity(31.259999999999998, quantityOfUnit('degC')),
+             formatQuantity(40.00000000001, quantityOfUnit('%')),
+             formatQuantity(1.23456, quantityOfUnit('mA')), unitSymbol('degC'), unitSymbol('V')],
+  labels: [channelLabel('t2', 'degC'), channelLabel('q2', '%'), channelLabel('x9', '')],
   figures: [fmtFigure(6.6293e-11), fmtFigure(250.12623300000004), fmtFigure(0.1400901)],
   deviations: [fmtDeviation(-3.062e-9), fmtDeviation(0.0021), fmtDeviation(-0.5)],
   percents: [fmtPercentDeviation(-2.2e-11), fmtPercentDeviation(-0.01254)],
@@ -98,6 +104,8 @@ def test_a_run_is_described_in_brazilian_portuguese(module_page: Any) -> None:
     assert r["ambient"] == "0"
     assert r["noise"] == "250,126"
     assert r["negative"] == "0"
+    assert r["channels"] == ["31,26", "40", "1,235", "°C", "V"]
+    assert r["labels"] == ["Temperatura 2, T2 (°C)", "Aquecedor 2, Q2 (%)", "x9"]
     assert r["figures"] == ["0,000000", "250,126233", "0,140090"]
     assert r["deviations"] == ["0", "+0,0021", "−0,5"]
     assert r["percents"] == ["0 %", "−1,25 %"]
@@ -120,6 +128,7 @@ def test_a_run_is_described_in_spanish_and_english(module_page: Any) -> None:
     assert en["square"] == "square wave between 4 and 6 V, period 10 s"
     assert en["manual"] == "input 2.5 V (manual)"
     assert en["noise"] == "250.126"
+    assert en["labels"] == ["Temperature 2, T2 (°C)", "Heater 2, Q2 (%)", "x9"]
     assert en["figures"] == ["0.000000", "250.126233", "0.140090"]
     assert en["rig"] == "Digital twin of the paper's box"
     assert en["linkLost"][0] == "the rig's host lost its link to the lab for longer than its grace"

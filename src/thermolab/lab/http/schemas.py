@@ -231,8 +231,14 @@ class ActuatorOut(_Out):
 
     name: str
     unit: str
+    min: float = Field(description="the lowest level it takes (PUT /api/rigs/{id}/channels/{name})")
+    max: float = Field(description="the highest level it takes")
     default: float = Field(description="its declared default: every turn and run starts here")
     level: float | None = Field(description="its level now (null: not known to the lab)")
+    recorded: bool = Field(
+        description="every run records it (a kit's heater 2); false: only a closed-loop run "
+        "does (a twin's fan, a disturbance for a controller)"
+    )
 
 
 class CooldownOut(_Out):
@@ -367,6 +373,7 @@ class RigOut(_Out):
         :func:`people_named`)."""
         cfg, pub, acc = view.config, view.published, view.access
         names = names or {}
+        declared = cfg.rig_spec.actuators
         return cls(
             id=view.id,
             title=view.title,
@@ -384,7 +391,15 @@ class RigOut(_Out):
             ),
             output_unit=pub.output_unit,
             actuators=[
-                ActuatorOut(name=a.name, unit=a.unit, default=a.default, level=a.level)
+                ActuatorOut(
+                    name=a.name,
+                    unit=a.unit,
+                    min=declared[a.name].minimum,
+                    max=declared[a.name].maximum,
+                    default=a.default,
+                    level=a.level,
+                    recorded=declared[a.name].recorded,
+                )
                 for a in pub.actuators
             ],
             outputs=[

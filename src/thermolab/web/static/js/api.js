@@ -151,6 +151,7 @@ export const api = {
   askControl: (rig) => request("POST", `/api/rigs/${enc(rig)}/control`),
   releaseControl: (rig) => request("DELETE", `/api/rigs/${enc(rig)}/control`),
   setInput: (rig, u) => request("PUT", `/api/rigs/${enc(rig)}/input`, { u }),
+  setChannel: (rig, name, level) => request("PUT", `/api/rigs/${enc(rig)}/channels/${enc(name)}`, { level }),
   startRun: (rig, spec) => request("POST", `/api/rigs/${enc(rig)}/runs`, spec),
   stopRun: (rig) => request("POST", `/api/rigs/${enc(rig)}/runs/current/stop`),
   extendControl: (rig, seconds) => request("POST", `/api/rigs/${enc(rig)}/control/extend`, { seconds }),

@@ -64,12 +64,30 @@ function numberOr(v, fallback) {
 }
 
 /**
- * An actuator of a rig besides its input (ActuatorOut in /openapi.json).
- * @returns {{name: string, unit: string, default: number, level: number | null}}
+ * An actuator of a rig besides its input (ActuatorOut in /openapi.json): `recorded`
+ * when every run records it (a kit's heater 2), not only a closed loop (a twin's fan).
+ * @returns {{name: string, unit: string, min: number, max: number, default: number, level: number | null, recorded: boolean}}
  */
 function readActuator(a) {
   const src = a && typeof a === "object" ? a : {};
-  return { name: String(src.name ?? ""), unit: String(src.unit ?? ""), default: numberOr(src.default, 0), level: numberOr(src.level, null) };
+  return {
+    name: String(src.name ?? ""),
+    unit: String(src.unit ?? ""),
+    min: numberOr(src.min, 0),
+    max: numberOr(src.max, 100),
+    default: numberOr(src.default, 0),
+    level: numberOr(src.level, null),
+    recorded: src.recorded === true,
+  };
+}
+
+/**
+ * An output of a rig besides y (FurtherOutputOut in /openapi.json: a kit's sensor 2).
+ * @returns {{name: string, unit: string}}
+ */
+function readFurtherOutput(o) {
+  const src = o && typeof o === "object" ? o : {};
+  return { name: String(src.name ?? ""), unit: String(src.unit ?? "") };
 }
 
 /**
@@ -95,6 +113,8 @@ export function readRig(r) {
     // Every actuator besides the input (a twin's fan): its level now and its declared
     // default, where each turn and run starts (issue #23).
     actuators: Array.isArray(src.actuators) ? src.actuators.map(readActuator) : [],
+    // Every output besides y (a kit's sensor 2, t2): each reading carries it.
+    outputs: Array.isArray(src.outputs) ? src.outputs.map(readFurtherOutput) : [],
     outputUnit: String(src.outputUnit ?? "V"),
     // Times real time: 1 for hardware, a twin's pace, null for a rig host's twin not yet heard.
     speedup: numberOr(src.speedup, null),

@@ -6,7 +6,8 @@
 //
 // This module follows the rig (state, access, limits) and hands each part what
 // it shows: rig/header.js, rig/connection.js, rig/camera.js, rig/readout.js,
-// rig/runshow.js (the run on show: rig/livecharts.js, rig/convergence.js),
+// rig/furtherinputs.js (a kit's heater 2), rig/runshow.js (the run on show:
+// rig/livecharts.js, rig/convergence.js),
 // access.js and panels.js; rig/lock.js says why the panels are locked;
 // rig/pace.js says how fast the rig runs and how long a turn lasts;
 // rig/notice.js says what happened to my turn and run; rig/reach.js follows
@@ -29,6 +30,7 @@ import { RigHeader } from "./rig/header.js";
 import { paceText } from "./rig/pace.js";
 import { lockReason, lockRepeatsRole } from "./rig/lock.js";
 import { Readout } from "./rig/readout.js";
+import { FurtherInputs } from "./rig/furtherinputs.js";
 import { TurnNotice } from "./rig/notice.js";
 import { NextChance } from "./rig/chance.js";
 import { Reachability } from "./rig/reach.js";
@@ -90,6 +92,9 @@ class RigPage {
       },
     });
     this.readout = new Readout(side);
+    this.further = new FurtherInputs(side, this.rigId, (name, applied) => {
+      if (applied !== null) this.readout.setLevel(name, applied);
+    });
 
     // The three panels (rebuilt once the rig's limits are known).
     this.panelsHost = h("div", { class: "panels-host" });
@@ -174,7 +179,7 @@ class RigPage {
   async _readActuators() {
     try {
       const rig = readRig(await api.rig(this.rigId));
-      if (!this._destroyed) this.readout.setActuators(rig.actuators);
+      if (!this._destroyed) this.readout.setFurther(rig.actuators);
     } catch {
       // the next poll or hello brings them
     }
@@ -263,6 +268,8 @@ class RigPage {
     this.access.setTurnLength(rig.limits.controlTimeLimit ?? null);
     if (first) {
       this.readout.setUnits(rig.inputUnit, rig.outputUnit);
+      this.further.setActuators(rig.actuators);
+      this.show.charts.setFurther(rig);
       // The panels' ranges come from the rig and the server's schema; both are
       // known before the panels unlock (they are locked until access is known).
       void openapi().then((doc) => {
@@ -271,7 +278,7 @@ class RigPage {
         this._rebuildPanels(panelLimits(rig, doc));
       });
     }
-    this.readout.setActuators(rig.actuators);
+    this.readout.setFurther(rig.actuators, rig.outputs);
     this._setState(rig.state, rig.detail);
   }
 
@@ -305,6 +312,7 @@ class RigPage {
     const reason = unreachable ? t("turn.locked") : lockReason(this.access.access, this.rig?.state);
     this.panels.setLocked(Boolean(reason), reason, !unreachable && lockRepeatsRole(this.access.access, this.rig?.state));
     this.loop.setLocked(Boolean(reason));
+    this.further.setLocked(Boolean(reason));
   }
 
   // -- commands -------------------------------------------------------------------------

@@ -4,9 +4,13 @@
 // samples, or the rig's idle readings. A watcher who joins mid-run gets the
 // run's earlier samples from its CSV; when the server's replay of a long run
 // skips its middle (a `truncated` notice), the card says so and links the CSV.
+// A rig with further channels a run records (a kit's sensor 2 and heater 2)
+// gets each as a labelled trace of its own, on the chart of its unit: t2
+// beside y, q2 beside u.
 
 import { api } from "../../api.js";
-import { Chart, TIME_WINDOWS } from "../../charts.js";
+import { channelName } from "../../channelwords.js";
+import { COLORS, Chart, TIME_WINDOWS } from "../../charts.js";
 import { parseCsv } from "../../csv.js";
 import { h, setText } from "../../dom.js";
 import { predict, predictionBase } from "../../model.js";
@@ -28,7 +32,10 @@ export const WINDOW = 2000;
  * @property {boolean} loading  the run's earlier samples are being fetched
  * @property {Sample[]} pending  live samples held while they load
  */
-/** @typedef {{t: number, u: number, y: number, k?: number, run?: number | null}} Sample */
+/** @typedef {{t: number, u: number, y: number, k?: number, run?: number | null, channels?: Record<string, number | null>}} Sample */
+
+/** The colours of further traces (Okabe–Ito, apart from y's, the model's and u's). */
+const FURTHER_COLORS = [COLORS[3], COLORS[4], COLORS[5]];
 
 /**
  * A segment with nothing in it yet.
@@ -46,12 +53,15 @@ export class LiveCharts {
    */
   constructor(parent, getRun) {
     this.getRun = getRun;
+    /** The further channels drawn (setFurther): outputs beside y, inputs beside u. */
+    this.further = { outputs: /** @type {string[]} */ ([]), inputs: /** @type {string[]} */ ([]) };
     this.ring = new RingBuffer(WINDOW, ["t", "u", "y"]);
     this.yhat = new Float64Array(WINDOW);
     this.segment = emptySegment(null);
     this.overlayMethod = null;
     this._destroyed = false;
     const card = h("section", { class: "card live-charts", "aria-labelledby": "charts-heading" });
+    this.card = card;
     parent.append(card);
     this.note = h("p", { class: "muted small", "data-testid": "chart-note" });
     this.truncatedNote = h("p", { class: "notice small", role: "status", hidden: true, "data-testid": "chart-truncated" });
@@ -69,25 +79,64 @@ export class LiveCharts {
       h("div", { class: "field inline" }, h("label", { for: "overlay-method" }, t("charts.overlay")), this.overlaySelect),
       this.liveButton,
     );
-    this.outChart = new Chart(card, {
+    const charts = this._buildCharts();
+    this.outChart = charts.output;
+    this.inChart = charts.input;
+  }
+
+  /** The output and input charts, with a trace for each further channel drawn. */
+  _buildCharts() {
+    const trace = (name, i) => ({ label: channelName(name), color: FURTHER_COLORS[i % FURTHER_COLORS.length] });
+    const { outputs, inputs } = this.further;
+    const output = new Chart(this.card, {
       label: t("charts.output"),
       description: t("charts.outputDescription"),
       xLabel: t("axis.time"),
       yLabel: t("axis.output"),
-      series: [{ label: t("axis.output") }, { label: t("series.model"), dash: [6, 4], color: "#D55E00", width: 2, auto: false }],
+      series: [
+        { label: t("axis.output") },
+        { label: t("series.model"), dash: [6, 4], color: "#D55E00", width: 2, auto: false },
+        ...outputs.map(trace),
+      ],
       source: () => this._outputData(),
       // One choice for both charts: the input chart shows the same time as the output.
       windows: TIME_WINDOWS,
       onWindow: (seconds) => this.inChart.setWindow(seconds),
     });
-    this.inChart = new Chart(card, {
+    const input = new Chart(this.card, {
       label: t("charts.input"),
       xLabel: t("axis.time"),
       yLabel: t("axis.input"),
       height: 160,
-      series: [{ label: t("axis.input"), color: "#009E73" }],
-      source: () => [this.ring.column("t"), this.ring.column("u")],
+      series: [{ label: t("axis.input"), color: "#009E73" }, ...inputs.map((name, i) => trace(name, i + outputs.length))],
+      source: () => [this.ring.column("t"), this.ring.column("u"), ...inputs.map((name) => this.ring.column(name))],
     });
+    return { output, input };
+  }
+
+  /**
+   * Draw the rig's further channels that a run records, each on the chart of
+   * its unit: its further outputs beside y (a kit's t2 in °C), its recorded
+   * further inputs beside u (q2 in %). A twin's fan, which only a closed loop
+   * records, stays off. A rig with none keeps its charts as they are; one with
+   * some gets them rebuilt once, when the page first learns the rig (before its
+   * first sample: the segment on show is loaded again, if any).
+   * @param {{inputUnit: string, outputUnit: string, outputs: {name: string, unit: string}[],
+   *   actuators: {name: string, unit: string, recorded: boolean}[]}} rig  as readRig gives it
+   */
+  setFurther(rig) {
+    const own = ["t", "u", "y"];
+    const outputs = rig.outputs.filter((o) => o.unit === rig.outputUnit && !own.includes(o.name)).map((o) => o.name);
+    const inputs = rig.actuators.filter((a) => a.recorded && a.unit === rig.inputUnit && !own.includes(a.name)).map((a) => a.name);
+    if (outputs.length + inputs.length === 0) return;
+    this.further = { outputs, inputs };
+    this.ring = new RingBuffer(WINDOW, [...own, ...outputs, ...inputs]);
+    this.outChart.destroy();
+    this.inChart.destroy();
+    const charts = this._buildCharts();
+    this.outChart = charts.output;
+    this.inChart = charts.input;
+    this.startSegment(this.segment.run, this.segment.run !== null);
   }
 
   /** Start showing a new segment (a run, or idle readings). */
@@ -140,12 +189,24 @@ export class LiveCharts {
     try {
       const res = await fetch(api.csvUrl(runId), { credentials: "same-origin" });
       if (!res.ok) throw new Error(`${res.status}`);
-      const table = parseCsv(await res.text(), ["k", "t", "u", "y"]);
+      const text = await res.text();
+      const table = parseCsv(text, ["k", "t", "u", "y"]);
+      const names = [...this.further.outputs, ...this.further.inputs];
+      /** @type {Record<string, Float64Array>} */
+      const further = {};
+      for (const name of names) {
+        try {
+          Object.assign(further, parseCsv(text, [name]));
+        } catch {
+          // A record without the channel: its trace starts with the live samples.
+        }
+      }
       if (this._destroyed || this.segment !== seg) return;
       const n = table.k.length;
       if (n > 0) seg.y0 = table.k[0] === 0 ? table.y[0] : Number.NaN;
       for (let i = Math.max(0, n - WINDOW); i < n; i += 1) {
-        this._push({ k: table.k[i], t: table.t[i], u: table.u[i], y: table.y[i] });
+        const channels = names.length ? Object.fromEntries(names.map((name) => [name, further[name]?.[i] ?? null])) : undefined;
+        this._push({ k: table.k[i], t: table.t[i], u: table.u[i], y: table.y[i], channels });
       }
     } catch {
       // The window then starts with the live samples; nothing else is lost.
@@ -193,7 +254,12 @@ export class LiveCharts {
     const time = seg.run === null ? s.t - seg.t0 : s.t;
     const lastT = this.ring.last("t");
     if (this.ring.length && !(time > lastT)) this.ring.clear(); // a new time base
-    this.ring.push({ t: time, u: s.u, y: s.y });
+    /** @type {Record<string, number | null | undefined>} */
+    const row = { t: time, u: s.u, y: s.y };
+    // Samples replayed from the store carry no channels: a gap in the further traces.
+    for (const name of this.further.outputs) row[name] = s.channels?.[name];
+    for (const name of this.further.inputs) row[name] = s.channels?.[name];
+    this.ring.push(row);
     this.invalidate();
   }
 
@@ -232,7 +298,7 @@ export class LiveCharts {
     const model = this._overlayModel();
     if (!model || y.length === 0) {
       this.yhat.fill(Number.NaN);
-      return [time, y, this.yhat.subarray(0, y.length)];
+      return [time, y, this.yhat.subarray(0, y.length), ...this._furtherOutputs()];
     }
     const run = this.getRun();
     const seg = this.segment;
@@ -241,7 +307,12 @@ export class LiveCharts {
     // A warm rig's run fits its operating point: the model settles there, not at y0.
     const base = predictionBase(run.operatingPoint?.used, model.W, y0);
     const yhat = predict(u, base, model, run.dt, this.yhat, (fromStart ? y0 : y[0]) - base);
-    return [time, y, yhat];
+    return [time, y, yhat, ...this._furtherOutputs()];
+  }
+
+  /** The further outputs' columns, in the output chart's order. */
+  _furtherOutputs() {
+    return this.further.outputs.map((name) => this.ring.column(name));
   }
 
   /** Redraw the model only (a new estimate). */

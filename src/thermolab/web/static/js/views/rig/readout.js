@@ -1,12 +1,15 @@
 // @ts-check
-// The "Now" card: the latest reading of the rig, in the units it publishes.
+// The "Now" card: the latest reading of the rig, in the units it publishes:
+// its input u and output y, then every further input and output it declares
+// (a kit's heater 2 and sensor 2, a twin's fan), each in its own unit.
 
+import { channelLabel } from "../../channelwords.js";
 import { h, setText } from "../../dom.js";
 import { formatTime, t } from "../../i18n.js";
-import { formatQuantity } from "../../quantities.js";
+import { formatQuantity, quantityOfUnit, unitSymbol } from "../../quantities.js";
 
-/** @type {Record<string, string>} The words for each actuator a rig's kind declares, by its name. */
-const ACTUATOR_NAMES = { fan: "readout.actuator.fan", q2: "readout.actuator.q2" };
+/** The rows every rig has, which no further channel's value overwrites. */
+const OWN_ROWS = ["u", "y", "t", "k"];
 
 export class Readout {
   /** @param {HTMLElement} parent */
@@ -15,6 +18,8 @@ export class Readout {
     this.value = {};
     /** @type {Record<string, HTMLElement>} */
     this.label = {};
+    /** @type {Record<string, import("../../quantities.js").Quantity>} how each row's number is written, by its unit */
+    this.quantity = { u: "volts", y: "volts" };
     const dl = h("dl", { class: "facts readout" });
     for (const [key, label] of [["u", t("readout.input")], ["y", t("readout.output")], ["t", t("readout.time")], ["k", t("readout.sample")]]) {
       this.value[key] = h("dd", { "data-readout": key }, "–");
@@ -26,35 +31,51 @@ export class Readout {
 
   /** Units as the rig publishes them (volts for the paper's box, % and °C for a TCLab). */
   setUnits(inputUnit, outputUnit) {
-    setText(this.label.u, t("readout.inputUnit", { unit: inputUnit }));
-    setText(this.label.y, t("readout.outputUnit", { unit: outputUnit }));
+    setText(this.label.u, t("readout.inputUnit", { unit: unitSymbol(inputUnit) }));
+    setText(this.label.y, t("readout.outputUnit", { unit: unitSymbol(outputUnit) }));
+    this.quantity.u = quantityOfUnit(inputUnit);
+    this.quantity.y = quantityOfUnit(outputUnit);
   }
 
   /**
-   * The rig's further actuators (a twin's fan), as the rig says them: a row each,
-   * added the first time, with the level now (at its default once handed over).
-   * @param {{name: string, unit: string, level: number | null}[]} actuators
+   * The rig's further channels as the rig declares them: a row each, added the
+   * first time, after the sample's (inputs first, then outputs). An input shows
+   * its level now (at its default once handed over); an output shows "–" until
+   * a reading brings it.
+   * @param {{name: string, unit: string, level: number | null}[]} inputs
+   * @param {{name: string, unit: string}[]} [outputs]
    */
-  setActuators(actuators) {
-    for (const a of actuators) {
-      if (!this.value[a.name]) {
-        this.value[a.name] = h("dd", { "data-readout": a.name }, "–");
-        const name = a.name in ACTUATOR_NAMES ? t(ACTUATOR_NAMES[a.name]) : a.name;
-        this.label[a.name] = h("dt", null, t("readout.actuatorUnit", { name, unit: a.unit }));
-        this.value.k.after(this.label[a.name], this.value[a.name]);
+  setFurther(inputs, outputs = []) {
+    let last = this.value.k;
+    for (const c of [...inputs, ...outputs]) {
+      if (OWN_ROWS.includes(c.name)) continue;
+      if (!this.value[c.name]) {
+        this.value[c.name] = h("dd", { "data-readout": c.name, "data-unit": unitSymbol(c.unit) }, "–");
+        this.label[c.name] = h("dt", null, channelLabel(c.name, c.unit));
+        this.quantity[c.name] = quantityOfUnit(c.unit);
+        last.after(this.label[c.name], this.value[c.name]);
       }
-      setText(this.value[a.name], formatQuantity(a.level, "volts"));
+      last = this.value[c.name];
     }
+    for (const c of inputs) this.setLevel(c.name, c.level);
+  }
+
+  /**
+   * A further channel's value now (a level the controller has just set).
+   * @param {string} name
+   * @param {number | null} level
+   */
+  setLevel(name, level) {
+    if (this.label[name] && !OWN_ROWS.includes(name)) setText(this.value[name], formatQuantity(level, this.quantity[name]));
   }
 
   /** @param {{u: number, y: number, t: number, k?: number, run?: number | null, channels?: Record<string, number | null>}} s  a live sample */
   update(s) {
-    for (const [name, level] of Object.entries(s.channels ?? {})) {
-      // A closed loop's run records its actuators (the fan) with every sample.
-      if (this.label[name] && !["u", "y", "t", "k"].includes(name)) setText(this.value[name], formatQuantity(level, "volts"));
-    }
-    setText(this.value.u, formatQuantity(s.u, "volts"));
-    setText(this.value.y, formatQuantity(s.y, "volts"));
+    // A run's samples and the idle readings carry the further channels by name
+    // (a kit's t2 and q2; a closed loop's run records the fan).
+    for (const [name, level] of Object.entries(s.channels ?? {})) this.setLevel(name, level);
+    setText(this.value.u, formatQuantity(s.u, this.quantity.u));
+    setText(this.value.y, formatQuantity(s.y, this.quantity.y));
     // A run's time is seconds since START; an idle reading's is the time of day,
     // and its label says so.
     const idle = s.run === null || s.run === undefined;

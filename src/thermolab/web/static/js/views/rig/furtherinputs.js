@@ -1,0 +1,113 @@
+// @ts-check
+// The rig's further inputs that a run records (a kit's heater 2, Q2): a field
+// each, within the range the rig declares, and a button that sets it (PUT
+// /api/rigs/{rig}/channels/{name}: on the idle rig, or into the run, at its
+// next sample). Only the controller sets them: for everyone else the card is
+// locked, as the panels are. A twin's fan, which only a closed loop records,
+// is set in the closed-loop panel (closedloop.js), as a disturbance.
+
+import { api } from "../../api.js";
+import { channelLabel } from "../../channelwords.js";
+import { h, setText } from "../../dom.js";
+import { formatDecimal, t } from "../../i18n.js";
+import { unitSymbol } from "../../quantities.js";
+import { checkNumber, rangeText } from "../../validate.js";
+
+/** @typedef {{name: string, unit: string, min: number, max: number, default: number, level: number | null, recorded: boolean}} Actuator */
+
+export class FurtherInputs {
+  /**
+   * @param {HTMLElement} parent
+   * @param {string} rigId
+   * @param {(name: string, applied: number | null) => void} onSet  a level the lab took (applied: null when it reached no device)
+   */
+  constructor(parent, rigId, onSet) {
+    this.rigId = rigId;
+    this.onSet = onSet;
+    this.locked = true;
+    /** @type {HTMLButtonElement[]} */
+    this.buttons = [];
+    this.fieldset = h("fieldset", { disabled: true });
+    this.el = h(
+      "section",
+      { class: "card further-inputs", "aria-labelledby": "further-inputs-heading", hidden: true, "data-testid": "further-inputs" },
+      h("h2", { id: "further-inputs-heading" }, t("furtherInputs.heading")),
+      this.fieldset,
+    );
+    parent.append(this.el);
+  }
+
+  /**
+   * The rig's actuators (readRig's): a field for each a run records, built once.
+   * @param {Actuator[]} actuators
+   */
+  setActuators(actuators) {
+    if (this.buttons.length) return;
+    for (const a of actuators.filter((c) => c.recorded)) this.fieldset.append(this._field(a));
+    this.el.hidden = this.buttons.length === 0;
+  }
+
+  /** @param {Actuator} a */
+  _field(a) {
+    const id = `channel-${a.name}`;
+    const label = channelLabel(a.name, a.unit);
+    const spec = { label, min: a.min, max: a.max, unit: unitSymbol(a.unit) };
+    const input = h("input", { id, name: a.name, type: "text", inputmode: "decimal", value: formatDecimal(a.level ?? a.default), "aria-describedby": `${id}-range` });
+    const error = h("span", { class: "field-error", role: "alert", "data-testid": `${id}-error` });
+    const done = h("span", { class: "hint", role: "status", "data-testid": `${id}-status` });
+    const button = h("button", { type: "submit", "data-action": "set-channel", "data-channel": a.name }, t("furtherInputs.set"));
+    this.buttons.push(button);
+    // A form of its own: Enter in the field sets the level, as the button does.
+    const form = h(
+      "form",
+      { class: "field", novalidate: true },
+      h("label", { for: id }, label),
+      h("div", { class: "field inline" }, input, button),
+      h("small", { id: `${id}-range` }, rangeText(spec)),
+      error,
+      done,
+    );
+    form.addEventListener("submit", (e) => {
+      e.preventDefault();
+      void this._set(a, spec, input, error, done);
+    });
+    return form;
+  }
+
+  /**
+   * Check the level typed and send it; say in words what went wrong.
+   * @param {Actuator} a
+   * @param {import("../../validate.js").FieldSpec} spec
+   * @param {HTMLInputElement} input
+   * @param {HTMLElement} error
+   * @param {HTMLElement} done
+   */
+  async _set(a, spec, input, error, done) {
+    if (this.locked) return;
+    setText(done, "");
+    const checked = checkNumber(input.value, spec);
+    if (!checked.ok) {
+      input.setAttribute("aria-invalid", "true");
+      setText(error, checked.error);
+      input.focus();
+      return;
+    }
+    input.removeAttribute("aria-invalid");
+    setText(error, "");
+    try {
+      const answer = await api.setChannel(this.rigId, a.name, checked.value);
+      const applied = typeof answer?.applied === "number" ? answer.applied : null;
+      // Off, the rig takes it when powered: the record has it already.
+      setText(done, applied === null ? t("furtherInputs.recorded") : "");
+      this.onSet(a.name, applied);
+    } catch (err) {
+      setText(error, err instanceof Error ? err.message : String(err));
+    }
+  }
+
+  /** Locked for all but the controller (and while the lab cannot be reached). */
+  setLocked(locked) {
+    this.locked = locked;
+    this.fieldset.disabled = locked;
+  }
+}
