@@ -59,6 +59,14 @@ def _heater_at_zero_within(teacher: httpx.Client, seconds: float) -> float:
         time.sleep(0.02)
 
 
+def _read_until_refused(kit: TCLab, seconds: float) -> None:
+    """Read T1 every 0.1 s until it raises (or ``seconds`` pass, which fails the test)."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        assert kit.T1 > -50
+        time.sleep(0.1)
+
+
 def _script_heating(served_lab: ServedLab, teacher: httpx.Client, token: str) -> TCLab:
     kit = TCLab(url=served_lab.url, token=token, rig=RIG)
     kit.Q1(80)
@@ -92,8 +100,24 @@ def test_a_teacher_kicking_a_script_makes_the_rig_safe_at_once(
     try:
         assert teacher.post(f"/api/rigs/{RIG}/control/kick").status_code == 200
         assert _heater_at_zero_within(teacher, SAFE_WITHIN) < SAFE_WITHIN
-        with pytest.raises(TurnEndedError):
+        # The script's next command is refused, and the error names who ended the turn.
+        with pytest.raises(TurnEndedError, match=r"ended: a teacher \(tina\) ended it\. The lab"):
             kit.Q1(80)
+    finally:
+        kit.close()
+
+
+def test_a_script_only_reading_learns_from_its_heartbeat_who_ended_its_turn(
+    served_lab: ServedLab, teacher: httpx.Client
+) -> None:
+    _, token = served_lab.token("ben")
+    kit = _script_heating(served_lab, teacher, token)
+    try:
+        assert teacher.post(f"/api/rigs/{RIG}/control/kick").status_code == 200
+        # Reading is open to watchers, so the script hears of the end at its next heartbeat
+        # (a third of the client timeout); T1 then raises, naming why.
+        with pytest.raises(TurnEndedError, match=r"ended: a teacher \(tina\) ended it\. The lab"):
+            _read_until_refused(kit, seconds=60)
     finally:
         kit.close()
 

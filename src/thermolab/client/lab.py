@@ -329,6 +329,12 @@ class Lab:
             self.request("DELETE", f"/api/rigs/{rig_id}/control")
 
 
+def _why_ended(access: dict[str, Any]) -> str:
+    """Why the caller's turn ended, as the lab's heartbeat answer says (``turnEnded``)."""
+    why = access.get("turnEnded")
+    return str(why) if why else "the turn ended (time limit, a teacher, or the rig's fault)"
+
+
 class Turn:
     """This script's turn at a rig: commands, readings, runs; released on exit.
 
@@ -384,9 +390,30 @@ class Turn:
                 continue  # a network blip: try again next time
             access = rig["access"]
             if access["role"] != "controller":
-                self.lost = "the turn ended (time limit, a teacher, or the rig's fault)"
+                self.lost = _why_ended(access)
                 return
             self._watch_queue(access)
+
+    def refused(self, exc: LabRequestError) -> None:
+        """Mark the turn lost if the lab refused ``exc``'s request because the turn ended.
+
+        The lab's heartbeat answer says whether the turn is still this script's
+        and, if not, why it ended (a teacher, the time limit...): a refusal for
+        another cause (a run going) leaves the turn held.
+        """
+        if self.lost is not None or exc.status not in (401, 403, 409):
+            return
+        if exc.status == 401:  # the token is gone: its detail says so (revoked, expired)
+            self.lost = exc.detail
+            return
+        try:
+            rig = self.lab.request("POST", f"/api/rigs/{self.rig_id}/heartbeat")
+        except LabRequestError as again:
+            if again.status is not None:
+                self.lost = again.detail
+            return
+        if rig["access"]["role"] != "controller":
+            self.lost = _why_ended(rig["access"])
 
     def _watch_queue(self, access: dict[str, Any]) -> None:
         waiting = int(access.get("queueSize") or 0)
