@@ -1,4 +1,4 @@
-"""A script's turn: ended from outside, the rig is safe at once; its own twin speed-up.
+"""A script's turn: extended while nobody waits, told why it ended, safe at once; its speed-up.
 
 The lab is the session's ``thermolab serve`` (conftest); the script is
 ``thermolab.tclab.TCLab`` with a personal API token, as a course script runs.
@@ -10,15 +10,15 @@ from __future__ import annotations
 
 import contextlib
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import httpx
 import pytest
 
 from thermolab.client import TurnEndedError
-from thermolab.tclab import SpeedupRefusedError, TCLab, labtime, setup
+from thermolab.tclab import SpeedupRefusedError, TCLab, clock, labtime, setup
 
-from .conftest import SPEEDUP, ServedLab
+from .conftest import BRIEF_TURN, SPEEDUP, ServedLab
 
 RIG = "kit2"
 SAFE_WITHIN = 3.0
@@ -143,3 +143,65 @@ def test_setup_speedup_paces_the_twin_for_the_scripts_turn_and_then_gives_it_bac
     assert rig["access"]["controller"] is None
     assert rig["speedup"] == SPEEDUP
     assert labtime.held_by is None
+
+
+def test_a_20_minute_1_s_script_outlives_its_turns_limit_while_nobody_waits(
+    served_lab: ServedLab, teacher: httpx.Client
+) -> None:
+    # Rig 'brief' gives 12 s turns; 20 lab minutes at the twin's 20x take 60 s or more.
+    _, token = served_lab.token("ana")
+    temperatures = []
+    with TCLab(url=served_lab.url, token=token, rig="brief") as kit:
+        started = time.monotonic()
+        for t in clock(20 * 60, 1):
+            kit.Q1(60 if t < 600 else 0)
+            temperatures.append(kit.T1)
+        took = time.monotonic() - started
+        access = _rig_named(teacher, "brief")["access"]
+        assert isinstance(access, dict)
+        assert access["controller"] == "ana"  # still the script's turn at the last sample
+    assert len(temperatures) == 20 * 60 + 1  # every second of the 20 minutes, none skipped
+    assert took > BRIEF_TURN * 4  # the turn outlived its limit by the client's extensions
+
+
+def test_once_someone_queues_a_script_is_told_its_time_left_then_why_its_turn_ended(
+    served_lab: ServedLab, teacher: httpx.Client, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _, token = served_lab.token("ben")
+    kit = TCLab(url=served_lab.url, token=token, rig="brief2")
+    try:
+        with contextlib.closing(served_lab.cookie_client("carl")) as carl:
+            # Carl queues before the script's first heartbeat (a third of the 15 s timeout).
+            place = carl.post("/api/rigs/brief2/control").json()["access"]
+            assert place["role"] == "queued"
+
+            def heat_and_keep_carls_place() -> None:
+                kit.Q1(60)
+                carl.post("/api/rigs/brief2/heartbeat")
+
+            with pytest.raises(
+                TurnEndedError,
+                match=r"ended: its time limit ran out \(a turn is extended only while nobody "
+                r"waits for the rig\)\. The lab put the rig at its safe input",
+            ):
+                _repeat_for(heat_and_keep_carls_place, seconds=60)
+            assert _rig_named(teacher, "brief2")["access"]["controller"] == "carl"  # type: ignore[index]
+            carl.delete("/api/rigs/brief2/control")
+    finally:
+        kit.close()
+    told = capsys.readouterr().err
+    assert "rig 'brief2': 1 waiting in the queue; this script's turn ends in " in told
+    assert "(no more extensions while someone waits)" in told
+
+
+def _rig_named(teacher: httpx.Client, rig: str) -> dict[str, object]:
+    answer: dict[str, object] = teacher.get(f"/api/rigs/{rig}").json()
+    return answer
+
+
+def _repeat_for(step: Callable[[], None], seconds: float) -> None:
+    """Call ``step`` every 0.2 s until it raises (or ``seconds`` pass, which fails the test)."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        step()
+        time.sleep(0.2)
