@@ -2,8 +2,10 @@
 
 The lab is the session's ``thermolab serve`` (conftest); the script is
 ``thermolab.tclab.TCLab`` with a personal API token, as a course script runs.
-These tests heat rig ``kit2``, so that ``kit`` starts cool in the others. One
-teacher login serves them all: the lab limits password logins per address.
+These tests heat rig ``kit2``, so that ``kit`` starts cool in the others, and
+rigs ``brief`` and ``brief2``, whose 12 s turns a script outlives only by
+extensions. One teacher login serves them all: the lab limits password logins
+per address.
 """
 
 from __future__ import annotations
@@ -21,8 +23,6 @@ from thermolab.tclab import SpeedupRefusedError, TCLab, clock, labtime, setup
 from .conftest import BRIEF_TURN, SPEEDUP, ServedLab
 
 RIG = "kit2"
-SAFE_WITHIN = 3.0
-"""Seconds (real) within which the heater must read 0: far under the lab's 15 s client timeout."""
 
 
 @pytest.fixture(autouse=True)
@@ -45,18 +45,6 @@ def _rig(teacher: httpx.Client) -> dict[str, object]:
 
 def _heater(teacher: httpx.Client) -> float:
     return float(teacher.get(f"/api/rigs/{RIG}/reading").json()["u"])
-
-
-def _heater_at_zero_within(teacher: httpx.Client, seconds: float) -> float:
-    """Real seconds until the lab's rig reads its heater at 0 (fails after ``seconds``)."""
-    started = time.monotonic()
-    while True:
-        u = _heater(teacher)
-        waited = time.monotonic() - started
-        if u == 0.0:
-            return waited
-        assert waited < seconds, f"the heater still reads {u} % {waited:.1f} s later"
-        time.sleep(0.02)
 
 
 def _read_until_refused(kit: TCLab, seconds: float) -> None:
@@ -82,7 +70,8 @@ def test_revoking_a_scripts_token_ends_its_turn_and_makes_the_rig_safe_at_once(
         kit = _script_heating(served_lab, teacher, made["token"])
         try:
             assert ana.delete(f"/api/tokens/{made['id']}").status_code == 204
-            assert _heater_at_zero_within(teacher, SAFE_WITHIN) < SAFE_WITHIN
+            # Safe before the lab answered the revocation: not at the 15 s client timeout.
+            assert _heater(teacher) == 0.0
             access = _rig(teacher)["access"]
             assert isinstance(access, dict)
             assert access["controller"] is None  # the turn is over, not only the heater
@@ -99,7 +88,7 @@ def test_a_teacher_kicking_a_script_makes_the_rig_safe_at_once(
     kit = _script_heating(served_lab, teacher, token)
     try:
         assert teacher.post(f"/api/rigs/{RIG}/control/kick").status_code == 200
-        assert _heater_at_zero_within(teacher, SAFE_WITHIN) < SAFE_WITHIN
+        assert _heater(teacher) == 0.0  # safe before the lab answered the kick
         # The script's next command is refused, and the error names who ended the turn.
         with pytest.raises(TurnEndedError, match=r"ended: a teacher \(tina\) ended it\. The lab"):
             kit.Q1(80)
