@@ -44,7 +44,21 @@ spec = "sim:tclab"
 id = "dual"
 title = "The kit's two-heater twin"
 spec = "sim:kit"
+
+[[rigs]]
+id = "brief"
+title = "A kit's twin with 12 s turns (a script's turn outlives it only by extensions)"
+spec = "sim:tclab"
+control_time_limit = 12
+
+[[rigs]]
+id = "brief2"
+title = "Another kit's twin with 12 s turns (cut once someone waits)"
+spec = "sim:tclab"
+control_time_limit = 12
 """
+BRIEF_TURN = 12.0
+"""Seconds (real) of a turn at rigs ``brief`` and ``brief2`` before any extension."""
 
 
 def free_port() -> int:

@@ -8,7 +8,7 @@ from datetime import timedelta
 import pytest
 from fastapi.testclient import TestClient
 
-from thermolab.errors import ConflictError, TurnExtensionRefusedError
+from thermolab.errors import AccessDeniedError, ConflictError, TurnExtensionRefusedError
 from thermolab.lab.access.extension import EXTEND_WINDOW, MAX_TURN_EXTENSIONS, TURN_EXTENSION
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import ManualClock
@@ -127,3 +127,27 @@ def test_the_endpoint_answers_in_the_readers_language(
         granted = ana.post("/api/rigs/twin/control/more-time")
         assert granted.status_code == 200
         assert granted.json()["access"]["timeLeft"] == 150.0
+
+
+def test_a_script_cut_because_someone_waits_is_told_why_by_its_heartbeat_and_its_next_input(
+    make_lab: LabFactory, clock: ManualClock
+) -> None:
+    lab = make_lab(control_time_limit=300, idle_limit=None)
+    ana, ben = _person(lab, "ana"), _person(lab, "ben")
+    script = lab.tokens.resolve(lab.tokens.create(ana, "step test").secret)
+    assert script is not None
+    lab.access.request_control("twin", script)
+    assert lab.access.heartbeat("twin", script).access.turn_ended is None  # still its turn
+    lab.access.request_control("twin", ben)
+    _wait(lab, clock, script, 310, ben)
+    access = lab.access.heartbeat("twin", script).access
+    assert (access.role, access.controller) == ("watcher", "ben")
+    assert access.turn_ended is not None
+    assert access.turn_ended.startswith("its time limit ran out")
+    assert "only while nobody waits" in access.turn_ended
+    with pytest.raises(AccessDeniedError, match="your last turn at it ended: its time limit ran"):
+        lab.access.record_input("twin", script, 10.0)
+    # A teacher's kick is named with the teacher.
+    tina = lab.users.add("tina", PASSWORD, "teacher")
+    lab.access.kick("twin", Principal(tina.id, tina.username, tina.role))
+    assert lab.access.heartbeat("twin", ben).access.turn_ended == "a teacher (tina) ended it"

@@ -11,9 +11,10 @@ the lab's server side (a contract in ``pyproject.toml`` checks it).
 """
 
 from thermolab.client.errors import LabRequestError, TurnEndedError
-from thermolab.client.lab import ENV_TOKEN, ENV_URL, Lab, Reading, Turn, print_place
+from thermolab.client.lab import ENV_TOKEN, ENV_URL, Lab, print_place
 from thermolab.client.live import follow_run
 from thermolab.client.runs import RunData
+from thermolab.client.turn import Reading, Turn
 
 __all__ = [
     "ENV_TOKEN",

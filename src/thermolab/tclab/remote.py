@@ -299,9 +299,8 @@ class TCLab:
             return call(turn)
         except LabRequestError as exc:
             # A refusal because the turn just ended says so, by its reason.
-            if exc.status in (401, 403, 409):
-                turn.lost = turn.lost or exc.detail
-                turn.check()
+            turn.refused(exc)
+            turn.check()
             raise
 
     def _missing(self, name: str) -> SecondHeaterError:

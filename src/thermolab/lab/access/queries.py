@@ -37,6 +37,7 @@ __all__ = [
     "SERVER_STOPPED",
     "active",
     "head",
+    "last_turn_end",
     "queue",
     "read_slots",
     "read_snapshot",
@@ -96,6 +97,21 @@ class _Q:
 def active(session: Session, rig_id: str) -> ControlSession | None:
     """The rig's active control session."""
     return session.scalars(_Q.active, {"rig": rig_id}).one_or_none()
+
+
+def last_turn_end(session: Session, rig_id: str, user_id: int) -> tuple[str, str | None] | None:
+    """How ``user_id``'s latest ended turn at the rig ended: ``(end_reason, ended_by)``."""
+    row = session.execute(
+        select(ControlSession.end_reason, ControlSession.ended_by)
+        .where(
+            ControlSession.rig_id == rig_id,
+            ControlSession.user_id == user_id,
+            ControlSession.ended_at.is_not(None),
+        )
+        .order_by(ControlSession.ended_at.desc(), ControlSession.id.desc())
+        .limit(1)
+    ).first()
+    return None if row is None or row[0] is None else (row[0], row[1])
 
 
 def queue(session: Session, rig_id: str) -> list[QueueEntry]:

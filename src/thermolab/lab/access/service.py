@@ -18,6 +18,7 @@ are the pure table of :mod:`thermolab.lab.access.rules`.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from datetime import datetime, timedelta
 
 from sqlalchemy import select
@@ -37,7 +38,7 @@ from thermolab.lab.access import queries as q
 from thermolab.lab.access.extension import TURN_EXTENSION, extension_refusal
 from thermolab.lab.access.rules import Slot, current_slot
 from thermolab.lab.access.transactions import RigTransactions
-from thermolab.lab.access.views import CommandRecord, RigView, turn_limit
+from thermolab.lab.access.views import CommandRecord, RigView, turn_end_words, turn_limit
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.db.models import (
     Command,
@@ -130,8 +131,20 @@ class AccessService(RigTransactions):
         return self._write(rig_id, who, act)
 
     def heartbeat(self, rig_id: str, who: Principal) -> RigView:
-        """Say the caller's client is still there; return the rig as they see it."""
-        return self._write(rig_id, who, lambda s, rig, now: None)
+        """Say the caller's client is still there; return the rig as they see it.
+
+        To someone who does not control the rig the answer says how their last
+        turn at it ended (``access.turn_ended``): a script's heartbeat is how it
+        learns that its turn was ended from outside, and why.
+        """
+        view = self._write(rig_id, who, lambda s, rig, now: None)
+        if view.access.role == "controller":
+            return view
+        with self._db.read() as session:
+            ended = q.last_turn_end(session, rig_id, who.user_id)
+        if ended is None:
+            return view
+        return replace(view, access=replace(view.access, turn_ended=turn_end_words(*ended)))
 
     def record_input(
         self, rig_id: str, who: Principal, u: float, *, run_id: int | None = None

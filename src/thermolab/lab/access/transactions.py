@@ -44,7 +44,13 @@ from thermolab.errors import (
 )
 from thermolab.lab.access import queries as q
 from thermolab.lab.access.rules import TurnRules, current_slot, end_turn, is_due, next_state
-from thermolab.lab.access.views import RigMonitor, RigSnapshot, RigView, render_view
+from thermolab.lab.access.views import (
+    RigMonitor,
+    RigSnapshot,
+    RigView,
+    render_view,
+    turn_end_words,
+)
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig, RigConfig
@@ -304,9 +310,12 @@ class RigTransactions:
             control = q.active(locked.session, rig_id)
             if control is None or control.user_id != who.user_id:
                 holder = "nobody" if control is None else "another user"
+                # A script whose turn was ended from outside learns why from its next call.
+                ended = q.last_turn_end(locked.session, rig_id, who.user_id)
+                why = f"; your last turn at it ended: {turn_end_words(*ended)}" if ended else ""
                 raise AccessDeniedError(
                     f"only the controller of rig {rig_id!r} may {action}, and "
-                    f"{holder} controls it now; ask for control first"
+                    f"{holder} controls it now{why}; ask for control first"
                 )
             control.last_activity_at = locked.now
             yield Controlled(locked.session, locked.rig, control, locked.now)

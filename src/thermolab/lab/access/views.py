@@ -23,7 +23,7 @@ from thermolab.lab.access.rules import (
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.config import RigConfig
 from thermolab.lab.config.teacher_settings import course_override, with_values
-from thermolab.lab.db.models import PowerState
+from thermolab.lab.db.models import PowerState, TurnEndReason
 from thermolab.lab.live.presence import Watcher
 from thermolab.lab.rigs.devices import PublishedRig
 
@@ -40,6 +40,7 @@ __all__ = [
     "render_access",
     "render_view",
     "state_name",
+    "turn_end_words",
 ]
 
 AccessRole = Literal["controller", "queued", "watcher"]
@@ -163,6 +164,10 @@ class AccessView:
     can_extend : bool
         Whether the controller may extend the turn now (``access.extension``);
         ``False`` for everyone else.
+    turn_ended : str or None
+        Answering a heartbeat of someone who does not control the rig: how
+        their last turn at it ended, in words (:func:`turn_end_words`), so a
+        script told its turn is over can say why.
     """
 
     role: AccessRole
@@ -174,6 +179,7 @@ class AccessView:
     controller: str | None
     watchers: int
     can_extend: bool = False
+    turn_ended: str | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -271,6 +277,40 @@ def render_access(
         controller=controller_name,
         watchers=watchers,
     )
+
+
+_END_WORDS = {
+    TurnEndReason.RELEASED: "it was released",
+    TurnEndReason.TIME_LIMIT: (
+        "its time limit ran out (a turn is extended only while nobody waits for the rig)"
+    ),
+    TurnEndReason.IDLE: "it was idle for longer than the rig's idle limit",
+    TurnEndReason.CLIENT_GONE: (
+        "the lab heard nothing from its client within the client timeout, "
+        "or its API token was revoked or expired"
+    ),
+    TurnEndReason.KICKED: "a teacher ended it",
+    TurnEndReason.RIG_FAULT: "the rig reported a fault",
+    TurnEndReason.SERVER_RESTART: "the lab restarted",
+    TurnEndReason.BOOKED: "a course's booked slot on the rig began",
+}
+
+
+def turn_end_words(reason: str, by: str | None) -> str:
+    """How a turn ended, in a user's words (English, as an answer's ``detail``).
+
+    Examples
+    --------
+    >>> turn_end_words("kicked", "tina")
+    'a teacher (tina) ended it'
+    >>> turn_end_words("time_limit", None)[:26]
+    'its time limit ran out (a '
+    """
+    if reason == TurnEndReason.KICKED and by:
+        return f"a teacher ({by}) ended it"
+    if reason == TurnEndReason.TIME_LIMIT and by:
+        return f"a teacher ({by}) cut its time"  # a teacher's extension to now or earlier
+    return _END_WORDS.get(TurnEndReason(reason), reason)
 
 
 def in_force(cfg: RigConfig, snap: RigSnapshot, now: datetime) -> RigConfig:

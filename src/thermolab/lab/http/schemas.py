@@ -287,6 +287,12 @@ class AccessOut(_Out):
         description="the controller may extend the turn now (POST .../control/more-time): "
         "nobody waits, its last minute, room left",
     )
+    turn_ended: str | None = Field(
+        default=None,
+        description="answering a heartbeat (POST .../heartbeat) of a user who does not "
+        "control the rig: how their last turn at it ended, in words (a teacher ended it, "
+        "its time limit ran out...); null otherwise",
+    )
 
 
 class QueueSlotOut(_Out):
@@ -429,6 +435,7 @@ class RigOut(_Out):
                 controller_name=None if acc.controller is None else names.get(acc.controller),
                 watchers=acc.watchers,
                 can_extend=acc.can_extend,
+                turn_ended=acc.turn_ended,
             ),
             queue=None if view.queue is None else [QueueSlotOut.of(q, names) for q in view.queue],
             watcher_list=None
