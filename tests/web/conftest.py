@@ -71,6 +71,16 @@ def browser_skip_reason() -> str | None:
     return None
 
 
+PAGE_DEADLINE_MS = 90_000
+"""How long a page's wait (a selector, a function, a click) may take before it fails.
+
+Each wait ends at its event; the deadline only says when to give up. Playwright's
+30 s ran out on a rig page's first draw on a loaded machine (both cores busy,
+several browsers and servers beside it), so the pages get the time the servers'
+own deadlines give them.
+"""
+
+
 @pytest.fixture(scope="session")
 def browser() -> Iterator[Any]:
     """A headless system Chromium, shared by the session's browser tests."""
@@ -81,6 +91,14 @@ def browser() -> Iterator[Any]:
 
     with sync_playwright() as pw:
         chromium = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        plain_new_context = chromium.new_context
+
+        def new_context(**options: Any) -> Any:
+            context = plain_new_context(**options)
+            context.set_default_timeout(PAGE_DEADLINE_MS)
+            return context
+
+        chromium.new_context = new_context  # type: ignore[method-assign]
         try:
             yield chromium
         finally:
