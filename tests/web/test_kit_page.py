@@ -4,8 +4,9 @@ A Brazilian student at the controls sees T2 (°C) and Q2 (%) in the "Now"
 card and a trace of each on the live charts, beside y and u; she sets Q2 to
 40 % from the page during a run, sees it applied, recorded in the run's CSV
 and warming sensor 2 at the lab's speed-up; a value out of range is refused
-in words before anything is sent. A watcher sees the same numbers and a
-locked control, and the page has no English word.
+in words before anything is sent. The closed-loop panel writes degrees as
+°C, as the readout does. A watcher sees the same numbers and a locked
+control, and the page has no English word.
 """
 
 from __future__ import annotations
@@ -91,6 +92,14 @@ def test_heater_2_and_sensor_2_on_the_rig_page(
         assert page.evaluate(LABEL, "q2") == f"{words['channel.q2']} (%)"
         assert page.evaluate(READ, "q2") == 0
         assert page.evaluate(LABEL, "y").endswith("(°C)")  # sensor 1 too, not "degC"
+        # The closed-loop panel's ranges, labels and axes say °C too.
+        page.wait_for_selector("#loop-setpoint-range")
+        assert page.inner_text("#loop-setpoint-range").endswith(" °C")
+        assert page.inner_text("#loop-kp-range").endswith(" %/°C")
+        loop_words = page.evaluate(
+            "() => document.querySelector('[data-testid=closed-loop]').textContent"
+        )
+        assert "degC" not in loop_words
         # The watcher reads them and cannot set heater 2.
         watcher.wait_for_function(f"() => ({READ})('t2') > 0")
         assert watcher.evaluate(LABEL, "t2") == f"{words['channel.t2']} (°C)"

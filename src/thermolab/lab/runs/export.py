@@ -20,7 +20,7 @@ from thermolab.lab.db import Database
 from thermolab.lab.db.models import Run, Sample
 from thermolab.lab.runs.store import channel_specs
 from thermolab.lab.spreadsheets import SheetDialect
-from thermolab.records import RUN_CHANNELS, ChannelSpec, RecordWriter
+from thermolab.records import RUN_CHANNELS, ChannelSpec, RecordWriter, unit_symbol
 
 __all__ = ["RunExport", "StoredSample", "StoredSampleWithExtra", "samples_csv"]
 
@@ -31,8 +31,6 @@ StoredSampleWithExtra = tuple[int, float, float, float, dict[str, float | None] 
 
 #: The channels of a sample stored before revision 0004 (no timing, no extras).
 _EARLY_CHANNELS: tuple[ChannelSpec, ...] = RUN_CHANNELS[:4]
-#: Units as people write them in a heading (records spell degrees ``degC``).
-_SHOWN_UNITS = {"degC": "°C"}
 #: The standard channels, each a column of ``samples``.
 _COLUMNS = {c.name: getattr(Sample, c.name) for c in RUN_CHANNELS}
 
@@ -76,9 +74,7 @@ def samples_csv(
 def _samples_sheet(
     channels: Sequence[ChannelSpec], rows: Iterable[Sequence[float]], dialect: SheetDialect
 ) -> Iterator[str]:
-    header = [
-        f"{c.name} ({_SHOWN_UNITS.get(c.unit, c.unit)})" if c.unit else c.name for c in channels
-    ]
+    header = [f"{c.name} ({unit_symbol(c.unit)})" if c.unit else c.name for c in channels]
     integer = [c.integer for c in channels]
 
     def cells(row: Sequence[float]) -> list[float | int]:
