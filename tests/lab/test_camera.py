@@ -112,6 +112,29 @@ def test_a_twins_picture_speaks_the_readers_language(
     assert drawn[0] == picture_text("Gêmeo digital da caixa do artigo (livre)")
 
 
+def test_a_kits_picture_writes_degrees_as_a_person_reads_them(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # A kit declares its sensors in "degC" (the API's and the CSV's spelling); its
+    # picture, like the rig page's readout, writes "°C".
+    drawn: list[str] = []
+    text = ImageDraw.ImageDraw.text
+
+    def record(
+        self: ImageDraw.ImageDraw, xy: object, words: str, *args: object, **kw: object
+    ) -> None:
+        drawn.append(words)
+        text(self, xy, words, *args, **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(ImageDraw.ImageDraw, "text", record)
+    draw_twin(Picture("Kit", "in_use", 50.0, 31.25, 0, 100, "%", "degC"))
+    assert drawn[1:] == ["output 31.250 °C", "input +50.00 %"]
+    monkeypatch.setattr(camera, "_font_file", lambda: None)  # Pillow's own font has "°" too
+    drawn.clear()
+    draw_twin(Picture("Kit", "in_use", 50.0, 31.25, 0, 100, "%", "degC"))
+    assert drawn[1] == "output 31.250 °C"
+
+
 class _Camera(http.server.BaseHTTPRequestHandler):
     frame = b"\xff\xd8" + b"not really a picture" + b"\xff\xd9"
 

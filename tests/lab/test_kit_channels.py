@@ -2,24 +2,29 @@
 
 The controller sets heater 2 (``PUT /api/rigs/{rig}/channels/q2``) on the idle
 rig or into its run, reads sensor 2 beside sensor 1, the run's record has
-``t2`` and ``q2``, and every end of a run or a turn hands heater 2 over at 0.
+``t2`` and ``q2``, a watcher who joins the run late is replayed them, and every
+end of a run or a turn hands heater 2 over at 0.
 """
 
 from __future__ import annotations
 
 import csv
 import io
+import math
 from collections.abc import Mapping
 
 from fastapi.testclient import TestClient
 
 from thermolab.lab.clock import ManualClock
+from thermolab.lab.config import RigConfig
+from thermolab.lab.http.app import create_app
 from thermolab.lab.service import Lab
-from thermolab.rigs import KitTwinRig
+from thermolab.rigs import KitTwinRig, Rig, TwinRig, VirtualClock
 
 from .conftest import LabFactory
 from .test_handover import SPEEDUP
-from .test_runs import api_client, person, until
+from .test_live import login
+from .test_runs import StepClock, api_client, person, until
 
 RIG = "twin"
 
@@ -170,3 +175,50 @@ def test_the_idle_monitoring_tells_listeners_sensor_2_and_heater_2(
     assert last is not None
     assert last["q2"] == 30.0
     assert isinstance(last["t2"], float)
+
+
+def test_a_late_watcher_is_replayed_sensor_2_and_heater_2_from_the_store(
+    make_lab: LabFactory,
+) -> None:
+    clock = StepClock()
+
+    def opener(rig: RigConfig) -> Rig:
+        if rig.id == RIG:
+            return KitTwinRig(clock=clock, seed=1)
+        return TwinRig("paper", clock=VirtualClock())
+
+    lab = make_lab(opener=opener, spec="sim:kit")
+    person(lab, "ana")
+    client = TestClient(create_app(lab.config, lab=lab, sweep_interval=None))
+    try:
+        with client:
+            ana = login(lab, "ana")
+            assert client.post(f"/api/rigs/{RIG}/control", headers=ana).status_code == 200
+            body = {"dt": 1.0, "samples": 100, "setpoint": 0.0, "methods": ["lsm"]}
+            run_id = client.post(f"/api/rigs/{RIG}/runs", headers=ana, json=body).json()["id"]
+            put = client.put(f"/api/rigs/{RIG}/channels/q2", headers=ana, json={"level": 40.0})
+            assert put.status_code == 200, put.text
+            clock.allow(19.0)
+            until(lambda: lab.runs.record(run_id).samples_stored == 20)
+            # since=0, as a page that opens the run half-way asks: its samples come from the store.
+            with client.websocket_connect(f"/api/rigs/{RIG}/live?since=0", headers=ana) as ws:
+                assert ws.receive_json()["type"] == "hello"
+                stored = ws.receive_json()
+            assert stored["type"] == "samples"
+            items = stored["items"]
+            assert [item["k"] for item in items] == list(range(20))
+            assert all(set(item["channels"]) == {"t2", "q2"} for item in items)
+            assert all(10.0 < item["channels"]["t2"] < 40.0 for item in items)
+            assert items[-1]["channels"]["q2"] == 40.0  # the level set into the run
+            # The other rig's one-channel run is replayed as before, with no channels.
+            clock.allow(math.inf)
+            lab.runs.wait(RIG, timeout=30)
+            assert client.post("/api/rigs/other/control", headers=ana).status_code == 200
+            other = {"dt": 1.0, "samples": 5, "methods": ["lsm"]}
+            other_id = client.post("/api/rigs/other/runs", headers=ana, json=other).json()["id"]
+            lab.runs.wait("other", timeout=30)
+        page = lab.runs.stored_samples.sample_page(other_id, None, 5)
+        assert len(page) == 5
+        assert lab.runs.stored_samples.further_channels(other_id) == ()
+    finally:
+        clock.allow(math.inf)

@@ -4,8 +4,10 @@ A Brazilian student at the controls sees T2 (°C) and Q2 (%) in the "Now"
 card and a trace of each on the live charts, beside y and u; she sets Q2 to
 40 % from the page during a run, sees it applied, recorded in the run's CSV
 and warming sensor 2 at the lab's speed-up; a value out of range is refused
-in words before anything is sent. A watcher sees the same numbers and a
-locked control, and the page has no English word.
+in words before anything is sent. The Q2 field follows the rig's level (back
+to 0 when the run ends), but not while she is typing in it. The closed-loop
+panel writes degrees as °C, as the readout does. A watcher sees the same
+numbers and a locked control, and the page has no English word.
 """
 
 from __future__ import annotations
@@ -91,6 +93,14 @@ def test_heater_2_and_sensor_2_on_the_rig_page(
         assert page.evaluate(LABEL, "q2") == f"{words['channel.q2']} (%)"
         assert page.evaluate(READ, "q2") == 0
         assert page.evaluate(LABEL, "y").endswith("(°C)")  # sensor 1 too, not "degC"
+        # The closed-loop panel's ranges, labels and axes say °C too.
+        page.wait_for_selector("#loop-setpoint-range")
+        assert page.inner_text("#loop-setpoint-range").endswith(" °C")
+        assert page.inner_text("#loop-kp-range").endswith(" %/°C")
+        loop_words = page.evaluate(
+            "() => document.querySelector('[data-testid=closed-loop]').textContent"
+        )
+        assert "degC" not in loop_words
         # The watcher reads them and cannot set heater 2.
         watcher.wait_for_function(f"() => ({READ})('t2') > 0")
         assert watcher.evaluate(LABEL, "t2") == f"{words['channel.t2']} (°C)"
@@ -113,6 +123,8 @@ def test_heater_2_and_sensor_2_on_the_rig_page(
         page.wait_for_function(f"() => ({READ})('q2') === 40")
         assert page.inner_text("[data-testid=channel-q2-error]") == ""
         watcher.wait_for_function(f"() => ({READ})('q2') === 40")
+        # The watcher's (locked) field follows the rig's level.
+        watcher.wait_for_function("sel => document.querySelector(sel).value === '40'", arg=FIELD)
         # Sensor 2 warms (the twin runs 200 times faster than real time).
         page.wait_for_function(f"() => ({READ})('t2') > {t2_before + 2}", timeout=60_000)
         # The charts: T2 beside y, Q2 beside u, each with its number drawn.
@@ -123,8 +135,16 @@ def test_heater_2_and_sensor_2_on_the_rig_page(
         assert heater["last"][-1] == "40", heater
         found = ana.english("the kit's rig page, controller") + ben.english("watcher")
         page.screenshot(path=str(artifacts / "kit-rig-page.png"), full_page=True)
+        # A level typed and not sent stays while she is in the field, though the run's
+        # end puts heater 2 back at 0; once she leaves it, the field follows the rig.
+        page.fill(FIELD, "55")
         status, _ = page.evaluate(CALL, ["POST", f"/api/rigs/{RIG}/runs/current/stop", None])
         assert status == 200
+        page.wait_for_function(f"() => ({READ})('q2') === 0")
+        assert page.input_value(FIELD) == "55"
+        page.locator(FIELD).blur()
+        page.wait_for_function("sel => document.querySelector(sel).value === '0'", arg=FIELD)
+        watcher.wait_for_function("sel => document.querySelector(sel).value === '0'", arg=FIELD)
         # The run recorded heater 2's step and sensor 2's rise.
         status, text = page.evaluate(CALL, ["GET", f"/api/runs/{started['id']}/samples.csv", None])
         assert status == 200

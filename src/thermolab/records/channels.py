@@ -22,6 +22,7 @@ __all__ = [
     "ChannelRole",
     "ChannelSpec",
     "channel_names",
+    "unit_symbol",
 ]
 
 ChannelRole = Literal["time", "input", "output", "setpoint", "error", "index", "timing", "other"]
@@ -155,3 +156,21 @@ def checked_channels(channels: Sequence[ChannelSpec]) -> tuple[ChannelSpec, ...]
             raise InvalidParameterError(f"channel {name!r} appears twice in the record")
         seen.add(name)
     return channels
+
+
+#: Units as people write them; a record and a rig spell degrees Celsius ``degC``
+#: (plain ASCII, for files and the API), a person reads ``°C``.
+_UNIT_SYMBOLS: Mapping[str, str] = {"degC": "°C"}
+
+
+def unit_symbol(unit: str) -> str:
+    """A channel's unit as a person reads it (a heading, a picture, a message).
+
+    The same rule as the browser's ``unitSymbol`` (``js/quantities.js``).
+
+    Examples
+    --------
+    >>> unit_symbol("degC"), unit_symbol("%"), unit_symbol("V")
+    ('°C', '%', 'V')
+    """
+    return _UNIT_SYMBOLS.get(unit, unit)

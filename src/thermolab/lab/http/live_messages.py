@@ -54,7 +54,11 @@ class SampleMessage(SampleItem):
 
 
 class SamplesMessage(TypedDict, total=False):
-    """``samples``: a replayed gap, in batches (``seq`` absent for samples from the store)."""
+    """``samples``: a replayed gap, in batches (``seq`` absent for samples from the store).
+
+    An item from the store has ``run``, ``k``, ``t``, ``u``, ``y`` and, for a
+    run with further channels (a kit's ``t2``, ``q2``), ``channels`` with those.
+    """
 
     type: Literal["samples"]
     seq: int

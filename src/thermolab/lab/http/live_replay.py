@@ -11,6 +11,10 @@ nobody else:
   never the whole run, and at most ``limit`` samples a socket: the run's first
   sample (the page's model starts from it), then — when the run is longer —
   a ``truncated`` message saying where the newest begin, then the newest.
+  A run with further channels (a kit's ``t2``, ``q2``, kept in the samples'
+  ``extra``) has them in each item's ``channels``, as its live samples do, so
+  a watcher who joins late sees their traces from the start; a one-channel
+  run's pages are read and written as before, without them.
 * **Off the event loop.** Pages are read and encoded in the thread pool, and
   at most ``concurrent`` replays read the store at once in the whole server;
   the event loop only hands finished frames to the socket.
@@ -28,6 +32,7 @@ from __future__ import annotations
 import asyncio
 import collections
 import contextlib
+import json
 import math
 from collections.abc import AsyncIterator, Callable
 from typing import Any, TypeVar
@@ -163,13 +168,13 @@ async def _send_stored(
     span = await budget.read(_stored_span, store, run_id, limit)
     if span is None:
         return 0
-    first, start, last = span
+    first, start, last, further = span
     sent = 0
     after: int | None = None
     if start > first + 1:
         # Too long for one socket: the first sample (where the run started from), a
         # notice of what is skipped, then the newest samples.
-        page = await budget.read(_stored_frame, store, run_id, None, first, 1)
+        page = await budget.read(_stored_frame, store, run_id, None, first, 1, further)
         assert page is not None
         await _send(websocket, page[0])
         truncated: TruncatedMessage = {
@@ -181,7 +186,7 @@ async def _send_stored(
         await _send(websocket, encode(truncated))
         sent, after = 1, start - 1
     while True:
-        page = await budget.read(_stored_frame, store, run_id, after, last, PAGE)
+        page = await budget.read(_stored_frame, store, run_id, after, last, PAGE, further)
         if page is None:
             return sent
         frame, after, count = page
@@ -190,19 +195,34 @@ async def _send_stored(
         await budget.pace(started, sent, count)
 
 
-def _stored_span(store: RunExport, run_id: int, limit: int) -> tuple[int, int, int] | None:
-    """``(first k, first k sent after it, last k)`` of a replay of at most ``limit`` samples."""
+def _stored_span(
+    store: RunExport, run_id: int, limit: int
+) -> tuple[int, int, int, tuple[str, ...]] | None:
+    """``(first k, first k sent after it, last k, further channels)`` of a replay of at most
+    ``limit`` samples; the further channels are the names the run keeps in ``extra``."""
     newest = store.newest_samples(run_id, max(1, limit - 1))
     if newest is None:
         return None
     head = store.sample_page(run_id, None, 1)
-    return head[0][0], newest[0], newest[1]
+    return head[0][0], newest[0], newest[1], store.further_channels(run_id)
 
 
 def _stored_frame(
-    store: RunExport, run_id: int, after: int | None, upto: int, rows: int
+    store: RunExport,
+    run_id: int,
+    after: int | None,
+    upto: int,
+    rows: int,
+    further: tuple[str, ...] = (),
 ) -> tuple[str, int, int] | None:
-    """One page of stored samples as a ``samples`` frame: ``(text, last k, count)``."""
+    """One page of stored samples as a ``samples`` frame: ``(text, last k, count)``.
+
+    A run with ``further`` channels (a kit's ``t2`` and ``q2``) has them in each
+    item's ``channels``, as its live samples do; a one-channel run's pages are
+    read and written without them (the common case, and the replay's main cost).
+    """
+    if further:
+        return _stored_frame_with_channels(store, run_id, after, upto, rows, further)
     page = store.sample_page(run_id, after, rows, upto)
     if not page:
         return None
@@ -212,6 +232,27 @@ def _stored_frame(
         f'{{"run":{run_id},"k":{k},"t":{_number(t)},"u":{_number(u)},"y":{_number(y)}}}'
         for k, t, u, y in page
     )
+    return f'{{"type":"samples","items":[{items}]}}', page[-1][0], len(page)
+
+
+def _stored_frame_with_channels(
+    store: RunExport, run_id: int, after: int | None, upto: int, rows: int, further: tuple[str, ...]
+) -> tuple[str, int, int] | None:
+    """:func:`_stored_frame` for a run with further channels: each item with ``channels``."""
+    page = store.sample_page_with_extra(run_id, after, rows, upto)
+    if not page:
+        return None
+    keys = [(name, json.dumps(name)) for name in further]  # names as JSON strings, once a page
+
+    def item(k: int, t: float, u: float, y: float, extra: dict[str, float | None] | None) -> str:
+        stored = extra or {}
+        channels = ",".join(f"{key}:{_number(stored.get(name))}" for name, key in keys)
+        return (
+            f'{{"run":{run_id},"k":{k},"t":{_number(t)},"u":{_number(u)},"y":{_number(y)},'
+            f'"channels":{{{channels}}}}}'
+        )
+
+    items = ",".join(item(*row) for row in page)
     return f'{{"type":"samples","items":[{items}]}}', page[-1][0], len(page)
 
 

@@ -25,6 +25,7 @@ from pathlib import Path
 from PIL import Image, ImageDraw, ImageFont
 
 from thermolab.errors import RigError
+from thermolab.records import unit_symbol
 
 __all__ = [
     "CAMERA_WORDS",
@@ -79,6 +80,8 @@ class Picture:
     input_min, input_max : float
         The input range (scales the lamp and the fan).
     input_unit, output_unit : str
+        As the rig declares them (``degC``); the picture writes them as a person
+        reads them (``°C``), a sign Pillow's built-in font has too.
     say : callable
         The words in the reader's language (a gettext function; English by default).
     decimal_mark : str
@@ -183,10 +186,10 @@ def draw_twin(picture: Picture) -> bytes:
     # The output to the millivolt, the input to 10 mV: what the box's converters resolve.
     reading = "-" if picture.y is None or not math.isfinite(picture.y) else f"{picture.y:.3f}"
     output = say(CAMERA_WORDS["output"])
-    output = output.format(value=reading.replace(".", mark), unit=picture.output_unit)
+    output = output.format(value=reading.replace(".", mark), unit=unit_symbol(picture.output_unit))
     draw.text((16, 286), picture_text(output), fill=(255, 220, 120), font=font)
     shown = "-" if picture.u is None else f"{u:+.2f}".replace(".", mark)
-    words = say(CAMERA_WORDS["input"]).format(value=shown, unit=picture.input_unit)
+    words = say(CAMERA_WORDS["input"]).format(value=shown, unit=unit_symbol(picture.input_unit))
     draw.text((300, 290), picture_text(words), fill=(170, 210, 255), font=small)
     out = io.BytesIO()
     image.save(out, format="JPEG", quality=80)

@@ -13,24 +13,24 @@ import math
 from collections.abc import Iterable, Iterator, Sequence
 from typing import Any
 
-from sqlalchemy import select
+from sqlalchemy import ColumnElement, select
 
 from thermolab.jsonsafe import json_safe
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Run, Sample
 from thermolab.lab.runs.store import channel_specs
 from thermolab.lab.spreadsheets import SheetDialect
-from thermolab.records import RUN_CHANNELS, ChannelSpec, RecordWriter
+from thermolab.records import RUN_CHANNELS, ChannelSpec, RecordWriter, unit_symbol
 
-__all__ = ["RunExport", "StoredSample", "samples_csv"]
+__all__ = ["RunExport", "StoredSample", "StoredSampleWithExtra", "samples_csv"]
 
 StoredSample = tuple[int, float, float, float]
 """``(k, t, u, y)`` of a stored sample."""
+StoredSampleWithExtra = tuple[int, float, float, float, dict[str, float | None] | None]
+"""``(k, t, u, y, extra)`` of a stored sample: ``extra`` its further channels by name (or None)."""
 
 #: The channels of a sample stored before revision 0004 (no timing, no extras).
 _EARLY_CHANNELS: tuple[ChannelSpec, ...] = RUN_CHANNELS[:4]
-#: Units as people write them in a heading (records spell degrees ``degC``).
-_SHOWN_UNITS = {"degC": "°C"}
 #: The standard channels, each a column of ``samples``.
 _COLUMNS = {c.name: getattr(Sample, c.name) for c in RUN_CHANNELS}
 
@@ -74,9 +74,7 @@ def samples_csv(
 def _samples_sheet(
     channels: Sequence[ChannelSpec], rows: Iterable[Sequence[float]], dialect: SheetDialect
 ) -> Iterator[str]:
-    header = [
-        f"{c.name} ({_SHOWN_UNITS.get(c.unit, c.unit)})" if c.unit else c.name for c in channels
-    ]
+    header = [f"{c.name} ({unit_symbol(c.unit)})" if c.unit else c.name for c in channels]
     integer = [c.integer for c in channels]
 
     def cells(row: Sequence[float]) -> list[float | int]:
@@ -114,14 +112,27 @@ class RunExport:
         Keyset paging on the primary key ``(run_id, k)``: each page is one
         bounded index range, however long the run (``after=None``: from the first).
         """
-        query = select(Sample.k, Sample.t, Sample.u, Sample.y).where(Sample.run_id == run_id)
-        if after is not None:
-            query = query.where(Sample.k > after)
-        if upto is not None:
-            query = query.where(Sample.k <= upto)
+        query = (
+            select(Sample.k, Sample.t, Sample.u, Sample.y)
+            .where(*_page_of(run_id, after, upto))
+            .order_by(Sample.k)
+            .limit(limit)
+        )
         with self._db.read() as session:
-            rows = session.execute(query.order_by(Sample.k).limit(limit))
-            return [(row[0], row[1], row[2], row[3]) for row in rows]
+            return [(row[0], row[1], row[2], row[3]) for row in session.execute(query)]
+
+    def sample_page_with_extra(
+        self, run_id: int, after: int | None, limit: int, upto: int | None = None
+    ) -> list[StoredSampleWithExtra]:
+        """:meth:`sample_page` with each sample's further channels (its ``extra``) as well."""
+        query = (
+            select(Sample.k, Sample.t, Sample.u, Sample.y, Sample.extra)
+            .where(*_page_of(run_id, after, upto))
+            .order_by(Sample.k)
+            .limit(limit)
+        )
+        with self._db.read() as session:
+            return [(row[0], row[1], row[2], row[3], row[4]) for row in session.execute(query)]
 
     def newest_samples(self, run_id: int, count: int) -> tuple[int, int] | None:
         """``(first k, last k)`` of a run's ``count`` newest stored samples (fewer if it has fewer).
@@ -160,6 +171,11 @@ class RunExport:
         if first is None or first[0] is None:
             return _EARLY_CHANNELS
         return (*RUN_CHANNELS, *(ChannelSpec(name) for name in first[1] or {}))
+
+    def further_channels(self, run_id: int) -> tuple[str, ...]:
+        """The names of a run's further channels, those kept in its samples' ``extra``
+        (a kit's ``t2`` and ``q2``; none for a one-channel run), in record order."""
+        return tuple(c.name for c in self.channels(run_id) if c.name not in _COLUMNS)
 
     def channel_rows(
         self, run_id: int, channels: Sequence[ChannelSpec]
@@ -203,3 +219,13 @@ class RunExport:
             if c.integer:
                 samples[c.name] = [int(v) for v in samples[c.name]]
         return {"channels": [c.to_dict() for c in channels], "samples": json_safe(samples)}
+
+
+def _page_of(run_id: int, after: int | None, upto: int | None) -> list[ColumnElement[bool]]:
+    """The conditions of one keyset page of a run's samples (``after < k <= upto``)."""
+    conditions = [Sample.run_id == run_id]
+    if after is not None:
+        conditions.append(Sample.k > after)
+    if upto is not None:
+        conditions.append(Sample.k <= upto)
+    return conditions

@@ -18,6 +18,7 @@ import { Chart, COLORS } from "../charts.js";
 import { h, replaceChildren, setText, tParts } from "../dom.js";
 import { formatNumber, t } from "../i18n.js";
 import { loopNotes, loopWord } from "../loopwords.js";
+import { unitSymbol } from "../quantities.js";
 import { checkNumber, rangeText } from "../validate.js";
 
 const enc = encodeURIComponent;
@@ -108,7 +109,7 @@ export class ClosedLoopPanel {
   _spec(name, label, unit = "") {
     const p = this.declared.parameters.find((q) => q.name === name);
     const max = p.maximum ?? Infinity;
-    return { label, min: p.magnitude ? -max : p.minimum ?? -Infinity, max, unit: unit || p.unit, exclusiveMin: p.exclusiveMinimum };
+    return { label, min: p.magnitude ? -max : p.minimum ?? -Infinity, max, unit: unitSymbol(unit || p.unit), exclusiveMin: p.exclusiveMinimum };
   }
 
   _field(name, label, spec, value) {
@@ -142,7 +143,9 @@ export class ClosedLoopPanel {
 
   _build() {
     const rig = this.rig;
-    const out = rig.outputUnit;
+    // Units as a person reads them (a kit's "degC" is °C), in ranges, labels and axes.
+    const out = unitSymbol(rig.outputUnit);
+    const inUnit = unitSymbol(rig.inputUnit);
     const [uMin, uMax] = rig.inputRange;
     // Below the output limit; any value under it (the server refuses one at the step's start).
     const setpointSpec = { label: t("loop.setpoint"), min: -Infinity, max: rig.outputLimit ?? Infinity, exclusiveMax: true, unit: out };
@@ -171,11 +174,11 @@ export class ClosedLoopPanel {
       h("p", { class: "hint" }, t("loop.tuningHint")),
       h("div", { class: "fields" }, this.modelRun, this.tableButton), this.table,
       h("div", { class: "fields" },
-        this._field("kp", t("loop.kp"), this._spec("kp", t("loop.kp"), `${rig.inputUnit}/${out}`)),
+        this._field("kp", t("loop.kp"), this._spec("kp", t("loop.kp"), `${inUnit}/${out}`)),
         this._field("ti", t("loop.ti"), this._spec("ti", t("loop.ti"))),
         this._field("td", t("loop.td"), this._spec("td", t("loop.td")), 0),
         this._field("setpoint", t("loop.setpoint"), setpointSpec),
-        this._field("u", t("loop.manualInput"), { label: t("loop.manualInput"), min: uMin, max: uMax, unit: rig.inputUnit }, rest),
+        this._field("u", t("loop.manualInput"), { label: t("loop.manualInput"), min: uMin, max: uMax, unit: inUnit }, rest),
         this._field("dt", t("loop.dt"), { label: t("loop.dt"), min: 0.01, max: 3600, unit: "s" }, 1),
         this._field("samples", t("loop.samples"), { label: t("loop.samples"), min: 1, max: 200000, integer: true }, 1200)),
       h("div", { class: "field" }, h("label", { for: "loop-mode" }, t("loop.mode")), modeSelect),
@@ -197,7 +200,7 @@ export class ClosedLoopPanel {
       button("loop-manual", "loop.toManual", () => loopApi.mode(this.rigId, { mode: "manual" })),
       button("loop-end", "loop.end", () => api.stopRun(this.rigId))];
     if (rig.fan) {
-      live.push(this._field("fan", t("loop.fan"), { label: t("loop.fan"), min: rig.fan.minimum, max: rig.fan.maximum, unit: rig.fan.unit }, 50),
+      live.push(this._field("fan", t("loop.fan"), { label: t("loop.fan"), min: rig.fan.minimum, max: rig.fan.maximum, unit: unitSymbol(rig.fan.unit) }, 50),
         button("loop-fan", "loop.fanSet", () => {
           const v = this._read(["fan"]);
           return v && loopApi.fan(this.rigId, v.fan);
@@ -215,7 +218,7 @@ export class ClosedLoopPanel {
       source: () => [this.series.t, this.series.r, this.series.y, this.series.p],
     });
     this.uChart = new Chart(this.chartHost, {
-      label: t("loop.inputChart"), xLabel: t("loop.time"), yLabel: t("axis.withUnit", { axis: t("axis.input"), unit: rig.inputUnit }),
+      label: t("loop.inputChart"), xLabel: t("loop.time"), yLabel: t("axis.withUnit", { axis: t("axis.input"), unit: inUnit }),
       series: [{ label: "u", color: COLORS[2] }], source: () => [this.series.t, this.series.u], height: 140,
     });
     this.gainHost = h("div", { hidden: true });
@@ -266,7 +269,7 @@ export class ClosedLoopPanel {
     if (!table) return;
     this.tuning = table;
     this.model = table.model;
-    const out = this.rig.outputUnit;
+    const out = unitSymbol(this.rig.outputUnit);
     // The step the rows predict: the server's default, or the one typed.
     this.fields.setpoint.input.value = plain(table.setpoint);
     const rows = table.rows.map((row) => {
@@ -284,7 +287,7 @@ export class ClosedLoopPanel {
     const heads = ["loop.rule", "loop.kp", "loop.ti", "loop.td", "loop.overshoot", "loop.settling", "loop.iae"];
     replaceChildren(this.table,
       h("p", {}, t("loop.model", { K: num(m.K), tau: num(m.tau), theta: num(m.theta), method: table.method.toUpperCase() })),
-      h("p", { "data-testid": "tuning-step" }, t("loop.tuningStep", { from: num(table.y0), to: num(table.setpoint), unit: out, u0: num(table.u0), inputUnit: this.rig.inputUnit })),
+      h("p", { "data-testid": "tuning-step" }, t("loop.tuningStep", { from: num(table.y0), to: num(table.setpoint), unit: out, u0: num(table.u0), inputUnit: unitSymbol(this.rig.inputUnit) })),
       h("table", {}, h("thead", {}, h("tr", {}, ...heads.map((k) => h("th", { scope: "col" }, t(k))), h("th", {}))),
         h("tbody", {}, ...rows)));
   }

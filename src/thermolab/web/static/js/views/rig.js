@@ -30,7 +30,7 @@ import { RigHeader } from "./rig/header.js";
 import { paceText } from "./rig/pace.js";
 import { lockReason, lockRepeatsRole } from "./rig/lock.js";
 import { Readout } from "./rig/readout.js";
-import { FurtherInputs } from "./rig/furtherinputs.js";
+import { FurtherInputs, levelsOf } from "./rig/furtherinputs.js";
 import { TurnNotice } from "./rig/notice.js";
 import { NextChance } from "./rig/chance.js";
 import { Reachability } from "./rig/reach.js";
@@ -179,7 +179,9 @@ class RigPage {
   async _readActuators() {
     try {
       const rig = readRig(await api.rig(this.rigId));
-      if (!this._destroyed) this.readout.setFurther(rig.actuators);
+      if (this._destroyed) return;
+      this.readout.setFurther(rig.actuators);
+      this.further.follow(levelsOf(rig.actuators), true);
     } catch {
       // the next poll or hello brings them
     }
@@ -229,6 +231,7 @@ class RigPage {
         break;
       case "sample":
         this.readout.update(msg);
+        this.further.follow(msg.channels ?? {});
         this.show.sample(msg);
         this.loop.sample(msg);
         break;
@@ -279,6 +282,7 @@ class RigPage {
       });
     }
     this.readout.setFurther(rig.actuators, rig.outputs);
+    this.further.follow(levelsOf(rig.actuators), true);
     this._setState(rig.state, rig.detail);
   }
 

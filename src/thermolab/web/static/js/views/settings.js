@@ -9,6 +9,7 @@
 import { api } from "../api.js";
 import { announce, h, setText } from "../dom.js";
 import { formatDecimal, t } from "../i18n.js";
+import { unitSymbol } from "../quantities.js";
 import { checkNumber, rangeText } from "../validate.js";
 
 /** Catalogue keys of each declared setting: [label, help] (the course page uses them too). */
@@ -129,7 +130,8 @@ function settingsForm(rigId, data, reload) {
   const rows = [];
   for (const s of data.settings) {
     const id = `settings-${rigId}-${s.name}`;
-    const unit = s.unit === "s" ? "s" : s.unit === "input" ? data.inputUnit : s.unit === "output" ? data.outputUnit : "";
+    const declared = s.unit === "s" ? "s" : s.unit === "input" ? data.inputUnit : s.unit === "output" ? data.outputUnit : "";
+    const unit = unitSymbol(declared); // as a person reads it: a kit's "degC" is °C
     const { label, help } = settingTexts(s);
     const field =
       s.type === "choice"

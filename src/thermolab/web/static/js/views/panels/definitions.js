@@ -8,6 +8,7 @@
 import { panelMethods, settingRange } from "../../methods.js";
 import { enumValues, hasProperty, numericRange } from "../../schema.js";
 import { t } from "../../i18n.js";
+import { unitSymbol } from "../../quantities.js";
 
 /**
  * @typedef {import("../../validate.js").FieldSpec & {name: string, value: number | string,
@@ -98,7 +99,7 @@ export function panelDefinitions(limits) {
   /** @type {Record<string, any>} */
   const r = { ...defaultRanges(), ...limits.ranges };
   const w0 = /** @type {number[]} */ (settingRange("wlsm", "w0").value ?? [Number.NaN, Number.NaN]);
-  const u = { min: limits.inputMin, max: limits.inputMax, unit: limits.inputUnit };
+  const u = { min: limits.inputMin, max: limits.inputMax, unit: unitSymbol(limits.inputUnit) };
   const common = [
     { name: "dt", label: t("field.dt"), ...r.dt, unit: "s", value: 1 },
     { name: "n", label: t("field.samples"), ...r.samples, integer: true, value: 2000 },

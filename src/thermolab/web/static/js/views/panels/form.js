@@ -8,6 +8,7 @@ import { fmt } from "../../model.js";
 import { checkAll, parseDecimal, rangeText } from "../../validate.js";
 import { OFFSET_HINT, OFFSET_LABELS } from "./definitions.js";
 import { formatDecimal, t } from "../../i18n.js";
+import { unitSymbol } from "../../quantities.js";
 
 /**
  * @typedef {object} PanelView  one panel's elements and definition
@@ -128,7 +129,7 @@ export function buildPanelView(def, limits, panelId, tabId, on) {
 /** The run controls: change the set point while running, END. */
 function runControls(view, def, limits, on) {
   const spId = nextId("sp");
-  const spSpec = { label: t("panel.setpoint"), min: limits.inputMin, max: limits.inputMax, unit: limits.inputUnit };
+  const spSpec = { label: t("panel.setpoint"), min: limits.inputMin, max: limits.inputMax, unit: unitSymbol(limits.inputUnit) };
   view.spInput = h("input", {
     id: spId,
     name: "setpoint-live",

@@ -5,6 +5,8 @@
 // next sample). Only the controller sets them: for everyone else the card is
 // locked, as the panels are. A twin's fan, which only a closed loop records,
 // is set in the closed-loop panel (closedloop.js), as a disturbance.
+// Each field follows the rig's level (a run's or a turn's end puts heater 2
+// back at 0), except while the user is editing it: focused and changed since.
 
 import { api } from "../../api.js";
 import { channelLabel } from "../../channelwords.js";
@@ -14,6 +16,20 @@ import { unitSymbol } from "../../quantities.js";
 import { checkNumber, rangeText } from "../../validate.js";
 
 /** @typedef {{name: string, unit: string, min: number, max: number, default: number, level: number | null, recorded: boolean}} Actuator */
+/**
+ * A field's state: `edited` since the rig's level was last shown in it, and the
+ * level `sent` that the rig's readings have not shown yet (null: none).
+ * @typedef {{input: HTMLInputElement, error: HTMLElement, edited: boolean, sent: number | null}} LevelField
+ */
+
+/**
+ * The levels of a rig's actuators by name, as `FurtherInputs.follow` takes them.
+ * @param {{name: string, level: number | null}[]} actuators
+ * @returns {Record<string, number | null>}
+ */
+export function levelsOf(actuators) {
+  return Object.fromEntries(actuators.map((a) => [a.name, a.level]));
+}
 
 export class FurtherInputs {
   /**
@@ -27,6 +43,8 @@ export class FurtherInputs {
     this.locked = true;
     /** @type {HTMLButtonElement[]} */
     this.buttons = [];
+    /** @type {Map<string, LevelField>} */
+    this.fields = new Map();
     this.fieldset = h("fieldset", { disabled: true });
     this.el = h(
       "section",
@@ -57,6 +75,12 @@ export class FurtherInputs {
     const done = h("span", { class: "hint", role: "status", "data-testid": `${id}-status` });
     const button = h("button", { type: "submit", "data-action": "set-channel", "data-channel": a.name }, t("furtherInputs.set"));
     this.buttons.push(button);
+    /** @type {LevelField} */
+    const field = { input, error, edited: false, sent: null };
+    this.fields.set(a.name, field);
+    input.addEventListener("input", () => {
+      field.edited = true;
+    });
     // A form of its own: Enter in the field sets the level, as the button does.
     const form = h(
       "form",
@@ -99,6 +123,8 @@ export class FurtherInputs {
       const applied = typeof answer?.applied === "number" ? answer.applied : null;
       // Off, the rig takes it when powered: the record has it already.
       setText(done, applied === null ? t("furtherInputs.recorded") : "");
+      const field = this.fields.get(a.name);
+      if (field) Object.assign(field, { edited: false, sent: checked.value });
       this.onSet(a.name, applied);
     } catch (err) {
       setText(error, err instanceof Error ? err.message : String(err));
@@ -109,5 +135,31 @@ export class FurtherInputs {
   setLocked(locked) {
     this.locked = locked;
     this.fieldset.disabled = locked;
+    // A level sent before the turn ended may never show: the rig's readings rule again.
+    if (locked) for (const field of this.fields.values()) field.sent = null;
+  }
+
+  /**
+   * Show the rig's levels in the fields, but not in one the user is editing
+   * (focused and changed since). A level just sent reaches the rig at a run's
+   * next sample, so readings before it are skipped until one shows it, unless
+   * `settled` (the rig's own account of its inputs, read after a run's end).
+   * @param {Record<string, number | null | undefined>} levels  by channel name
+   * @param {boolean} [settled]
+   */
+  follow(levels, settled = false) {
+    for (const [name, field] of this.fields) {
+      const level = levels[name];
+      if (typeof level !== "number" || !Number.isFinite(level)) continue;
+      if (field.sent !== null && !settled && level !== field.sent) continue;
+      field.sent = null;
+      if (field.edited && document.activeElement === field.input) continue;
+      field.edited = false;
+      const shown = formatDecimal(level);
+      if (field.input.value === shown) continue;
+      field.input.value = shown;
+      field.input.removeAttribute("aria-invalid"); // a refused value typed earlier is gone
+      setText(field.error, "");
+    }
   }
 }

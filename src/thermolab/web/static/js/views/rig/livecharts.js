@@ -256,7 +256,7 @@ export class LiveCharts {
     if (this.ring.length && !(time > lastT)) this.ring.clear(); // a new time base
     /** @type {Record<string, number | null | undefined>} */
     const row = { t: time, u: s.u, y: s.y };
-    // Samples replayed from the store carry no channels: a gap in the further traces.
+    // A sample without the channel (from the store, of a run that did not record it): a gap.
     for (const name of this.further.outputs) row[name] = s.channels?.[name];
     for (const name of this.further.inputs) row[name] = s.channels?.[name];
     this.ring.push(row);
