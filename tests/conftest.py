@@ -108,7 +108,10 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     with short tests, which are what the others take. The order is the
     same in every worker, as xdist requires.
     """
-    workers = getattr(config.option, "numprocesses", None)
+    # The collection that counts is the workers' (xdist's scheduler takes theirs), and a
+    # worker's own options say no ``-n``: it reads the count from what xdist tells it.
+    worker_input = getattr(config, "workerinput", None)
+    workers = worker_input["workercount"] if worker_input is not None else None
     if not isinstance(workers, int) or workers < 2:
         return
     by_module: dict[str, list[pytest.Item]] = {}
