@@ -19,6 +19,7 @@ from thermolab.errors import IncompatibleLabError, InvalidParameterError
 from .conftest import ServedLab, free_port
 
 
+@pytest.mark.slow
 def test_a_script_waits_in_the_queue_behind_another_user_and_gets_the_turn(
     served_lab: ServedLab,
 ) -> None:

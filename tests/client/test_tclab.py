@@ -88,6 +88,7 @@ def rig_seen_by_teacher(served_lab: ServedLab) -> tuple[dict[str, Any], dict[str
         return rig, reading
 
 
+@pytest.mark.slow
 def test_a_kit_notebook_runs_against_the_lab_with_only_its_import_changed(
     served_lab: ServedLab, tmp_path: Path
 ) -> None:

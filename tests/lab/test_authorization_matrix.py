@@ -441,6 +441,7 @@ def test_every_route_is_in_the_expected_table(world: dict[str, Any]) -> None:
     assert sorted(set(EXPECTED) - set(routes)) == [], "expected routes the app lacks"
 
 
+@pytest.mark.slow
 def test_no_route_answers_2xx_outside_its_scope(world: dict[str, Any]) -> None:
     clients = world["clients"]
     tries = [

@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 from datetime import timedelta
 
+import pytest
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, rule, run_state_machine_as_test
@@ -31,6 +32,7 @@ MEMBERS = ("ana", "ben")
 OUTSIDERS = ("carla", "dan")
 
 
+@pytest.mark.slow
 def test_no_outsider_controls_or_waits_during_a_slot_whatever_happens(
     make_lab: LabFactory, clock: ManualClock
 ) -> None:

@@ -216,6 +216,7 @@ def test_two_teachers_booking_overlapping_slots_at_once_exactly_one_wins(
         assert session.scalar(select(func.count()).select_from(Booking)) == 1
 
 
+@pytest.mark.slow
 def test_a_slot_hands_the_rig_to_its_course_and_refuses_outsiders(
     lab: Lab, clock: ManualClock, school: dict[str, Principal], app_client: Clients
 ) -> None:

@@ -160,6 +160,7 @@ def test_a_body_that_is_not_utf8_is_a_documented_422(
         assert (problem["loc"][0], problem["type"]) == ("body", "json_invalid")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("static", [False, True], ids=["api-only", "with-pages"])
 def test_a_wrong_method_names_every_method_of_the_path(
     lab: Lab, spec: dict[str, Any], static: bool

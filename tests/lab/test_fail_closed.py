@@ -196,6 +196,7 @@ class Scene:
             )
 
 
+@pytest.mark.slow
 @settings(
     max_examples=4,
     deadline=None,

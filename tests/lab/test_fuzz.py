@@ -91,6 +91,7 @@ def operations(spec: dict[str, Any]) -> list[tuple[str, str]]:
     ]
 
 
+@pytest.mark.slow
 def test_no_request_makes_the_server_fail(
     fuzz_client: tuple[TestClient, dict[str, dict[str, str]]],
 ) -> None:

@@ -139,6 +139,7 @@ def test_a_hand_over_without_a_run_rests_every_declared_actuator(make_lab: LabFa
 STUDENTS = ("ana", "ben", "carla")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("spec", ["sim", "sim:kit"])  # the paper's fan; the kit's heater 2
 def test_every_hand_over_leaves_the_rig_at_its_declared_defaults_whatever_happens(
     make_lab: LabFactory, clock: ManualClock, spec: str
