@@ -16,10 +16,12 @@ before; ``dev`` explores afresh (``--hypothesis-profile`` picks one).
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import os
 import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 from pathlib import Path
 
 import pytest
@@ -40,6 +42,7 @@ _RUN_DATABASE: list[str] = []
 
 def pytest_configure(config: pytest.Config) -> None:
     """Compile the source once; make this process's PostgreSQL database before collection."""
+    config.pluginmanager.register(_IdleLoopGuard(), "thermolab-idle-loop-guard")
     if not hasattr(config, "workerinput"):
         _compile_source()
     if getattr(config.option, "numprocesses", None) and not hasattr(config, "workerinput"):
@@ -79,7 +82,7 @@ def _compile_source() -> None:
 @pytest.hookimpl(wrapper=True)
 def pytest_collect_file(
     file_path: Path, parent: pytest.Collector
-) -> Iterator[list[pytest.Collector]]:
+) -> Generator[None, list[pytest.Collector], list[pytest.Collector]]:
     """Collect a test module once: not a second time as a module of doctests.
 
     ``--doctest-modules`` (for the package's examples) also imported every
@@ -88,7 +91,7 @@ def pytest_collect_file(
     the collection's 20 s in each worker. None of them has a doctest; a
     helper module beside them (``web/jsscan.py``) keeps its own.
     """
-    collectors: list[pytest.Collector] = yield
+    collectors = yield
     if file_path.name.startswith("test_") or file_path.name == "conftest.py":
         return [c for c in collectors if not isinstance(c, DoctestModule)]
     return collectors
@@ -146,7 +149,9 @@ def _weight(items: list[pytest.Item]) -> int:
 
 
 @pytest.hookimpl(wrapper=True)
-def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Iterator[object]:
+def pytest_runtest_protocol(
+    item: pytest.Item, nextitem: pytest.Item | None
+) -> Generator[None, object, object]:
     """With ``THERMOLAB_TEST_TIMELINE=FILE``: a line per test (worker, start, end, id).
 
     Where a run's minutes go across its workers (``.ci/run``'s duration table
@@ -160,6 +165,44 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
         with open(path, "a", encoding="utf-8") as timeline:
             timeline.write(f"{worker}\t{began:.3f}\t{time.time():.3f}\t{item.nodeid}\n")
     return result
+
+
+class _IdleLoopGuard:
+    """Every test, the package's doctests included, runs as if no event loop ran here.
+
+    A plugin of its own, registered at configure time: a conftest's hooks reach
+    only the tests beside it, not ``src/thermolab``'s doctests. See
+    :func:`_no_idle_loop`.
+    """
+
+    @pytest.hookimpl(wrapper=True)
+    def pytest_runtest_setup(self, item: pytest.Item) -> Generator[None, None, None]:
+        with _no_idle_loop(item):
+            return (yield)
+
+    @pytest.hookimpl(wrapper=True)
+    def pytest_runtest_call(self, item: pytest.Item) -> Generator[None, None, None]:
+        with _no_idle_loop(item):
+            return (yield)
+
+
+@contextlib.contextmanager
+def _no_idle_loop(item: pytest.Item) -> Iterator[None]:
+    # The browser tests' Playwright (session-wide, tests/web/conftest.py) keeps its event
+    # loop "running" in the worker's main thread between its calls, while its greenlet
+    # waits: a later test's asyncio.run() then raised "cannot be called from a running
+    # event loop" (the order of the run decides which tests come after a browser test).
+    # Nothing runs that loop during another test, so that test sees none; a browser
+    # test keeps it, and teardown (which may close Playwright) is left alone.
+    idle = asyncio.events._get_running_loop()
+    if idle is None or item.get_closest_marker("browser") or item.nodeid.startswith("tests/web/"):
+        yield
+        return
+    asyncio.events._set_running_loop(None)
+    try:
+        yield
+    finally:
+        asyncio.events._set_running_loop(idle)
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
