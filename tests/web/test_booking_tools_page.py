@@ -109,7 +109,10 @@ def _cli(lab: LabServer, *args: str) -> None:
 def _midday_zone() -> str:
     """A zone where it is about noon now, so slots of a few hours never cross midnight."""
     hours = (12 - datetime.now(UTC).hour + 12) % 24 - 12  # -12 .. 11
-    return "Etc/GMT" + ("+" if hours <= 0 else "-") + str(abs(hours))  # Etc/GMT-N is UTC+N
+    if hours == 0:
+        # Chromium names "Etc/GMT+0" "UTC" (its ICU alias); at noon UTC ask for UTC itself.
+        return "UTC"
+    return "Etc/GMT" + ("+" if hours < 0 else "-") + str(abs(hours))  # Etc/GMT-N is UTC+N
 
 
 def _page(browser: Any, lab: LabServer, user: str, zone: str) -> Any:
@@ -179,7 +182,9 @@ def test_quota_series_feed_own_booking_and_reminder(
         with tess.expect_request(lambda r: r.url.endswith("/api/booking-series")) as sent:
             tess.click("#booking-submit")
         # The weeks keep the page's wall-clock time: it sends the browser's zone.
-        assert json.loads(sent.value.post_data or "{}")["zone"] == zone
+        browser_zone = tess.evaluate("Intl.DateTimeFormat().resolvedOptions().timeZone")
+        assert browser_zone == zone
+        assert json.loads(sent.value.post_data or "{}")["zone"] == browser_zone
         tess.wait_for_function(
             "(p) => document.querySelector('#booking-error').textContent.startsWith(p)",
             arg=words["calendar.seriesSkipped"].split("{")[0],
