@@ -38,6 +38,8 @@ from argon2 import PasswordHasher
 
 from thermolab.web import STATIC_DIR
 
+from .page_diary import DIARY, keep_diary, start_diary
+
 # The headless shell ran the same browser tests in about 30 % less CPU than the full
 # browser's headless mode (tests/web/test_e2e.py and test_phone_layout.py: 54 -> 37
 # CPU-s, wall 111 -> 79 s): CI is CPU-bound on two cores (issue #20).
@@ -96,7 +98,7 @@ def browser() -> Iterator[Any]:
         def new_context(**options: Any) -> Any:
             context = plain_new_context(**options)
             context.set_default_timeout(PAGE_DEADLINE_MS)
-            return context
+            return keep_diary(context)
 
         chromium.new_context = new_context  # type: ignore[method-assign]
         try:
@@ -164,11 +166,15 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     A failure seen once in a full CI run (a page that never showed a state) cannot be
     rerun: this section of the report is all that is left of it.
     """
+    if call.when == "setup":
+        start_diary()
     report = yield
     funcargs = getattr(item, "funcargs", {})
     if report.when == "call" and report.failed and "browser" in funcargs:
         with contextlib.suppress(Exception):
             report.sections.append(("what the pages showed", _pages_now(funcargs)))
+        diary = "\n".join(f"{at:7.2f} s  page {page}: {what}" for at, page, what in DIARY)
+        report.sections.append(("what the pages did (tests/web/page_diary.py)", diary))
     return report
 
 
@@ -182,10 +188,15 @@ def _pages_now(funcargs: dict[str, Any]) -> str:
             errors = getattr(page, "errors", None)  # what tests record of uncaught errors
             if errors:
                 lines.append(f"  uncaught errors in that page: {errors}")
-    server = funcargs.get("lab")
-    if isinstance(server, LabServer) and server.log.exists():
-        lines.append("--- the lab's log, last lines ---")
-        lines.extend(server.log.read_text(encoding="utf-8", errors="replace").splitlines()[-40:])
+    servers = [v for v in funcargs.values() if isinstance(v, LabServer)]
+    servers += [  # fixtures that yield (lab, something)
+        x for v in funcargs.values() if isinstance(v, tuple) for x in v if isinstance(x, LabServer)
+    ]
+    for server in servers:
+        if server.log.exists():
+            log = server.log.read_text(encoding="utf-8", errors="replace")
+            lines.append(f"--- the lab's log ({server.url}), last lines ---")
+            lines.extend(log.splitlines()[-40:])
     return "\n".join(lines)
 
 

@@ -15,30 +15,11 @@ from typing import Any
 
 import pytest
 
+from .guide_drawer import open_panel_guide
+
 pytestmark = pytest.mark.browser
 
 RIG = "twin-keys"
-
-
-def open_panel_1_guide(page: Any) -> None:
-    """Click panel 1's guide button until the guide's drawer shows.
-
-    A click that reached the button before the rig page had finished drawing was
-    lost (the drawer never opened: two of four CI runs this session, at either
-    page); a person clicks again, and so does this.
-    """
-    from playwright.sync_api import TimeoutError as PlaywrightTimeout
-
-    opener = page.locator("#panel-srm-lsm button[data-guide=panel-1]")
-    drawer = page.locator("[data-testid=guide]")
-    for _ in range(5):
-        opener.click()
-        try:
-            drawer.wait_for(timeout=10_000)
-            return
-        except PlaywrightTimeout:
-            continue
-    drawer.wait_for()
 
 
 @pytest.mark.parametrize(
@@ -76,7 +57,7 @@ def test_a_teacher_edits_panel_1_guide_and_a_student_sees_it_beside_panel_1(
 
         page.route(f"**/api/rigs/{RIG}/guide?*", hold)
         page.goto(f"{lab.url}/#/rig/{RIG}")
-        open_panel_1_guide(page)
+        open_panel_guide(page, loaded=False)
         for _ in range(100):
             if held:
                 break
@@ -110,7 +91,7 @@ def test_a_teacher_edits_panel_1_guide_and_a_student_sees_it_beside_panel_1(
 
         seen = student.new_page()
         seen.goto(f"{lab.url}/#/rig/{RIG}")
-        open_panel_1_guide(seen)
+        open_panel_guide(seen)
         shown = seen.locator("[data-testid=guide-text]")
         shown.locator("h2").wait_for()
         assert words in shown.inner_text()
@@ -146,11 +127,7 @@ def test_a_teacher_inserts_a_picture_and_the_student_sees_it_loaded(
     try:
         page = teacher.new_page()
         page.goto(f"{lab.url}/#/rig/{RIG}")
-        page.locator("#panel-srm-lsm button[data-guide=panel-1]").click()
-        page.wait_for_function(
-            "() => document.querySelector('[data-testid=guide-meta]').textContent.length > 0",
-            timeout=30_000,
-        )  # the guide was read
+        open_panel_guide(page)  # the guide was read
         page.click("[data-testid=guide-edit]")
         source = page.locator("[data-testid=guide-source]")
         source.wait_for()
@@ -189,7 +166,7 @@ def test_a_teacher_inserts_a_picture_and_the_student_sees_it_loaded(
 
         seen = student.new_page()
         seen.goto(f"{lab.url}/#/rig/{RIG}")
-        seen.locator("#panel-srm-lsm button[data-guide=panel-1]").click()
+        open_panel_guide(seen)
         image = seen.locator("[data-testid=guide-text] img")
         image.wait_for()
         assert image.get_attribute("alt") == "The rig from the front"

@@ -40,6 +40,7 @@ import pytest
 
 from .axe import serious_violations
 from .conftest import audited
+from .guide_drawer import open_panel_guide
 from .test_language_pages import visible_text
 from .test_messages import catalogue
 from .test_no_english import ENGLISH, MACHINE_NAMES, english_words, words
@@ -219,8 +220,8 @@ def teacher_uploads_a_class_list(j: Journey) -> None:
 def teacher_writes_a_guide_page(j: Journey) -> None:
     page = j.teacher
     page.goto(f"{j.lab.url}/#/rig/{j.rig}")
-    page.locator("#panel-srm-lsm button[data-guide=panel-1]").click()
-    page.locator("[data-testid=guide-text] h1").wait_for()  # the guide is loaded
+    open_panel_guide(page)
+    page.locator("[data-testid=guide-text] h1").wait_for()  # the default text
     page.click("[data-testid=guide-edit]")
     page.fill("[data-testid=guide-source]", f"## {j.course}\n\n{TYPED[j.language][2]}")
     page.locator(".guide-editor button").first.click()  # preview, rendered by the server
@@ -295,7 +296,7 @@ def student_logs_in_from_the_class_list(j: Journey) -> None:
 def student_reads_the_guide(j: Journey) -> None:
     page = j.student
     page.goto(f"{j.lab.url}/#/rig/{j.rig}")
-    page.locator("#panel-srm-lsm button[data-guide=panel-1]").click()
+    open_panel_guide(page)
     shown = page.locator("[data-testid=guide-text]")
     shown.locator("h2").wait_for()
     assert j.course in shown.inner_text()
