@@ -23,6 +23,7 @@ from thermolab.errors import (
     ConflictError,
 )
 from thermolab.lab import error_messages
+from thermolab.lab.access.views import TURN_END_WORDS
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.classes.reminders import REMINDER_WORDS
 from thermolab.lab.error_messages import (
@@ -59,7 +60,8 @@ def cli_msgids() -> set[str]:
 
 #: Every msgid the server's catalogue holds: error sentences, class-list problems,
 #: the spreadsheet forms' words, a password's refusals, the camera picture's words,
-#: the booking reminders' words, the command line's own words and its prefix.
+#: the booking reminders' words, how a turn ended, the command line's own words and
+#: its prefix.
 SERVER_WORDS = [
     *CLASS_LIST_PROBLEMS.values(),
     *SHEET_WORDS,
@@ -67,6 +69,7 @@ SERVER_WORDS = [
     *CAMERA_WORDS.values(),
     *REMINDER_WORDS,
     *TAKEN_NAMES.values(),
+    *TURN_END_WORDS,
     *sorted(cli_msgids()),
 ]
 MSGIDS = {*ERROR_SENTENCES.values(), *SERVER_WORDS, "error"}

@@ -151,3 +151,26 @@ def test_a_script_cut_because_someone_waits_is_told_why_by_its_heartbeat_and_its
     tina = lab.users.add("tina", PASSWORD, "teacher")
     lab.access.kick("twin", Principal(tina.id, tina.username, tina.role))
     assert lab.access.heartbeat("twin", ben).access.turn_ended == "a teacher (tina) ended it"
+
+
+@pytest.mark.parametrize(
+    ("language", "said"),
+    [("pt-BR", "um professor (tina) a encerrou"), ("es", "un profesor (tina) lo terminó")],
+)
+def test_the_heartbeat_says_how_the_turn_ended_in_the_requests_language(
+    make_lab: LabFactory, language: str, said: str
+) -> None:
+    lab = make_lab(control_time_limit=120, idle_limit=None)
+    lab.users.add("ana", PASSWORD, "student")
+    tina = lab.users.add("tina", PASSWORD, "teacher")
+    app = create_app(lab.config, lab=lab, sweep_interval=None)
+    with TestClient(app) as ana:
+        ana.post("/api/session", json={"username": "ana", "password": PASSWORD})
+        assert ana.post("/api/rigs/twin/control").status_code == 200
+        lab.access.kick("twin", Principal(tina.id, tina.username, tina.role))
+        asked = {"Accept-Language": language}
+        access = ana.post("/api/rigs/twin/heartbeat", headers=asked).json()["access"]
+        assert access["turnEnded"] == said
+        # Without a language the answer is English, as before.
+        plain = ana.post("/api/rigs/twin/heartbeat").json()["access"]
+        assert plain["turnEnded"] == "a teacher (tina) ended it"

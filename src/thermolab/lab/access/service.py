@@ -130,12 +130,12 @@ class AccessService(RigTransactions):
 
         return self._write(rig_id, who, act)
 
-    def heartbeat(self, rig_id: str, who: Principal) -> RigView:
+    def heartbeat(self, rig_id: str, who: Principal, language: str = "en") -> RigView:
         """Say the caller's client is still there; return the rig as they see it.
 
         To someone who does not control the rig the answer says how their last
-        turn at it ended (``access.turn_ended``): a script's heartbeat is how it
-        learns that its turn was ended from outside, and why.
+        turn at it ended (``access.turn_ended``, in ``language``): a script's
+        heartbeat is how it learns that its turn was ended from outside, and why.
         """
         view = self._write(rig_id, who, lambda s, rig, now: None)
         if view.access.role == "controller":
@@ -144,7 +144,9 @@ class AccessService(RigTransactions):
             ended = q.last_turn_end(session, rig_id, who.user_id)
         if ended is None:
             return view
-        return replace(view, access=replace(view.access, turn_ended=turn_end_words(*ended)))
+        return replace(
+            view, access=replace(view.access, turn_ended=turn_end_words(*ended, language))
+        )
 
     def record_input(
         self, rig_id: str, who: Principal, u: float, *, run_id: int | None = None

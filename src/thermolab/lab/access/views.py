@@ -24,10 +24,12 @@ from thermolab.lab.accounts.users import Principal
 from thermolab.lab.config import RigConfig
 from thermolab.lab.config.teacher_settings import course_override, with_values
 from thermolab.lab.db.models import PowerState, TurnEndReason
+from thermolab.lab.error_messages import translate
 from thermolab.lab.live.presence import Watcher
 from thermolab.lab.rigs.devices import PublishedRig
 
 __all__ = [
+    "TURN_END_WORDS",
     "AccessRole",
     "AccessView",
     "CommandRecord",
@@ -294,10 +296,18 @@ _END_WORDS = {
     TurnEndReason.SERVER_RESTART: "the lab restarted",
     TurnEndReason.BOOKED: "a course's booked slot on the rig began",
 }
+_KICKED_BY = "a teacher ({by}) ended it"
+_CUT_BY = "a teacher ({by}) cut its time"  # a teacher's extension to now or earlier
+
+#: Every way a turn's end is told (msgids of the server's catalogue, locale/).
+TURN_END_WORDS = (*_END_WORDS.values(), _KICKED_BY, _CUT_BY)
 
 
-def turn_end_words(reason: str, by: str | None) -> str:
-    """How a turn ended, in a user's words (English, as an answer's ``detail``).
+def turn_end_words(reason: str, by: str | None, language: str = "en") -> str:
+    """How a turn ended, in a user's words, in ``language``.
+
+    A script learns it from its heartbeat's answer and shows it to the student
+    who ran it, so it speaks the language the script's request asked for.
 
     Examples
     --------
@@ -305,12 +315,15 @@ def turn_end_words(reason: str, by: str | None) -> str:
     'a teacher (tina) ended it'
     >>> turn_end_words("time_limit", None)[:26]
     'its time limit ran out (a '
+    >>> turn_end_words("kicked", "tina", "pt-BR")
+    'um professor (tina) a encerrou'
     """
     if reason == TurnEndReason.KICKED and by:
-        return f"a teacher ({by}) ended it"
+        return translate(_KICKED_BY, language).format(by=by)
     if reason == TurnEndReason.TIME_LIMIT and by:
-        return f"a teacher ({by}) cut its time"  # a teacher's extension to now or earlier
-    return _END_WORDS.get(TurnEndReason(reason), reason)
+        return translate(_CUT_BY, language).format(by=by)
+    words = _END_WORDS.get(TurnEndReason(reason))
+    return reason if words is None else translate(words, language)
 
 
 def in_force(cfg: RigConfig, snap: RigSnapshot, now: datetime) -> RigConfig:

@@ -92,9 +92,14 @@ def release_control(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
     summary="I am still here",
     responses=documented_errors(404),
 )
-def heartbeat(rig_id: RigId, who: UserDep, lab: LabDep) -> RigOut:
-    """Keep the caller's control or queue place alive (any request for the rig does too)."""
-    return _out(lab.access.heartbeat(rig_id, who), lab)
+def heartbeat(rig_id: RigId, request: Request, who: UserDep, lab: LabDep) -> RigOut:
+    """Keep the caller's control or queue place alive (any request for the rig does too).
+
+    To a caller without the controls the answer says how their last turn ended,
+    in the request's language (``Accept-Language``, or the lab's language cookie).
+    """
+    language = request_language(request.headers, request.cookies)
+    return _out(lab.access.heartbeat(rig_id, who, language), lab)
 
 
 @router.post(
