@@ -21,7 +21,7 @@ from thermolab.lab.db.models import ControlSession
 from thermolab.lab.http.bodies import In as _In
 from thermolab.lab.http.bodies import Out as _Out
 from thermolab.lab.live.presence import Watcher
-from thermolab.lab.service import InputResult
+from thermolab.lab.outcomes import InputResult
 
 __all__ = [
     "AccessOut",
