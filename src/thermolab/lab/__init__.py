@@ -20,7 +20,9 @@ One folder per domain:
 * :mod:`.http` — the app factory, routers, schemas, errors and the live socket.
 
 At the top: :mod:`.service` (:class:`~thermolab.lab.service.Lab`, everything
-wired together), :mod:`.clock` (the injected clock), :mod:`.error_messages`
+wired together), with :mod:`.listener` (what it tells the live stream),
+:mod:`.outcomes` (what its calls return) and :mod:`.rig_image` (a rig's live
+image, camera or twin drawn), :mod:`.clock` (the injected clock), :mod:`.error_messages`
 (the server's words in each language) and :mod:`.spreadsheets` (every CSV for
 people in the reader's spreadsheet form; a leaf that analytics, assignments,
 audit and runs share, worded through :mod:`.error_messages`, so no one domain

@@ -9,10 +9,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import threading
-from collections.abc import Mapping
-from dataclasses import dataclass, field
 from datetime import datetime, timedelta
-from typing import Protocol
 
 from argon2 import PasswordHasher
 
@@ -40,13 +37,15 @@ from thermolab.lab.classes.term import TermService
 from thermolab.lab.clock import LabClock, SystemClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
-from thermolab.lab.db.models import Role
-from thermolab.lab.error_messages import DEFAULT_LANGUAGE, decimal_mark, translate
+from thermolab.lab.error_messages import DEFAULT_LANGUAGE
 from thermolab.lab.fleet.lease import DatabaseLease
 from thermolab.lab.guides import SECTIONS, GuideImageService, GuideService
+from thermolab.lab.listener import LabListener
 from thermolab.lab.live.presence import Presence
 from thermolab.lab.lti import LtiService
-from thermolab.lab.rigs.camera import Picture, PictureCache, draw_twin, fetch_camera
+from thermolab.lab.outcomes import InputResult, OutputReading, StartupReport
+from thermolab.lab.rig_image import rig_image
+from thermolab.lab.rigs.camera import PictureCache
 from thermolab.lab.rigs.devices import DesiredState, DeviceHub
 from thermolab.lab.rigs.opener import RigOpener
 from thermolab.lab.rigs.rig_settings import RigSettingsService
@@ -55,114 +54,11 @@ from thermolab.lab.runs.channels import ChannelResult, set_channel
 from thermolab.lab.runs.where import RunsByRig
 from thermolab.runner import Event
 
-__all__ = ["InputResult", "Lab", "LabListener", "StartupReport"]
+__all__ = ["Lab"]
 
 log = logging.getLogger(__name__)
 
 _PURGE_INTERVAL = timedelta(minutes=10)
-
-
-class LabListener(Protocol):
-    """Something told about what happens in the lab (the live stream is one).
-
-    Every method is called from a worker thread and must return quickly.
-    """
-
-    def access_changed(self, rig_id: str) -> None:
-        """The rig's controller, queue, power or state may have changed."""
-        ...
-
-    def run_changed(self, rig_id: str, event: str, record: RunRecord) -> None:
-        """A run ``"started"`` or ``"ended"``."""
-        ...
-
-    def run_event(self, rig_id: str, run_id: int, event: Event) -> None:
-        """A runner event of a run (sample, estimate, state, fault)."""
-        ...
-
-    def reading(
-        self,
-        rig_id: str,
-        u: float | None,
-        y: float,
-        at: datetime,
-        channels: Mapping[str, float | None] | None = None,
-    ) -> None:
-        """A reading of a powered rig with no run (the lab's idle monitoring).
-
-        ``channels``: the rig's further channels with it (a kit's ``t2``, ``q2``).
-        """
-        ...
-
-
-@dataclass(frozen=True, slots=True)
-class StartupReport:
-    """What :meth:`Lab.start` found.
-
-    Attributes
-    ----------
-    teachers : int
-        Teacher accounts in the database (0: tell the operator how to add one).
-    faults : dict
-        Rig id -> why the rig could not be opened.
-    """
-
-    teachers: int
-    faults: dict[str, str] = field(default_factory=dict)
-
-
-@dataclass(frozen=True, slots=True)
-class OutputReading:
-    """A rig's output as :meth:`Lab.read_output` gives it.
-
-    Attributes
-    ----------
-    rig_id : str
-    y : float or None
-        The output (``None``: never read, e.g. the rig is off).
-    at : datetime or None
-        When it was read.
-    u : float or None
-        The input the lab last applied.
-    fresh : bool
-        Read from the device for this request (the controller's reads).
-    channels : mapping of str to float or None
-        The rig's further channels (a kit's ``t2`` read with ``y``, ``q2``'s
-        level); empty for a rig that declares none.
-    """
-
-    rig_id: str
-    y: float | None
-    at: datetime | None
-    u: float | None
-    fresh: bool
-    channels: Mapping[str, float | None] = field(default_factory=dict)
-
-
-@dataclass(frozen=True, slots=True)
-class InputResult:
-    """An input command as the lab handled it.
-
-    Attributes
-    ----------
-    rig_id : str
-    u : float
-        The value asked for.
-    applied : float or None
-        The value the device applied, or ``None`` when it reached no device.
-    at : datetime
-        When the command was accepted.
-    command_id : int
-    run_id : int or None
-        The run the input went to, if one was going.
-    """
-
-    rig_id: str
-    u: float
-    applied: float | None
-    at: datetime
-    command_id: int
-    run_id: int | None = None
 
 
 class Lab:
@@ -470,32 +366,7 @@ class Lab:
         CameraError
             If the rig's camera cannot be read.
         """
-        cfg = self.config.rig(rig_id)
-        if cfg.camera is not None:
-            url = cfg.camera
-            return self._pictures.get(rig_id, lambda: fetch_camera(url))
-
-        def draw() -> bytes:
-            snap = self.access.snapshot(rig_id)
-            view = self.access.render(snap, _VIEWER)
-            published = self.hub.published(rig_id)
-            reading = self.hub.reading(rig_id)
-            return draw_twin(
-                Picture(
-                    title=cfg.title,
-                    state=view.state,
-                    u=self.hub.applied(rig_id),
-                    y=reading[0] if reading is not None else None,
-                    input_min=published.input_min,
-                    input_max=published.input_max,
-                    input_unit=published.input_unit,
-                    output_unit=published.output_unit,
-                    say=lambda text: translate(text, language),
-                    decimal_mark=decimal_mark(language),
-                )
-            )
-
-        return self._pictures.get(f"{rig_id}\n{language}", draw)
+        return rig_image(self.config, self.access, self.hub, self._pictures, rig_id, language)
 
     def remove_user(self, username: str) -> UserInfo:
         """Remove an account; rigs it controlled go to the next in their queues."""
@@ -556,7 +427,3 @@ class Lab:
                 self.agents.sync_power(rig_id, hand_over=handed_over)
         for listener in self.listeners:
             listener.access_changed(rig_id)
-
-
-# Whose eyes the camera picture is drawn for: the state, which is the same for everyone.
-_VIEWER = Principal(user_id=-1, username="(camera)", role=Role.TEACHER)

@@ -17,18 +17,18 @@ from __future__ import annotations
 from thermolab.tclab.diagnose import diagnose
 from thermolab.tclab.experiment import Experiment, runexperiment
 from thermolab.tclab.historian import Historian, NoDatabaseError
-from thermolab.tclab.labtime import LabTime, LabTimeStoppedError, clock, labtime, setnow
-from thermolab.tclab.model import TCLabModel
-from thermolab.tclab.plotter import Plotter
-from thermolab.tclab.remote import (
-    ENV_RIG,
+from thermolab.tclab.kit_errors import (
     AlreadyConnectedError,
     NotAKitError,
     NotOnThisRigError,
     PortError,
     SecondHeaterError,
-    TCLab,
 )
+from thermolab.tclab.labtime import LabTime, LabTimeStoppedError, clock, labtime, setnow
+from thermolab.tclab.model import TCLabModel
+from thermolab.tclab.plotter import Plotter
+from thermolab.tclab.remote import TCLab
+from thermolab.tclab.rig_choice import ENV_RIG
 from thermolab.tclab.switch import SpeedupRefusedError, setup
 from thermolab.tclab.tagdb import TagDB
 

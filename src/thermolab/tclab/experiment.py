@@ -13,10 +13,11 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from thermolab.tclab.historian import Historian
+from thermolab.tclab.kit_errors import NotOnThisRigError
 from thermolab.tclab.labtime import clock, labtime
 from thermolab.tclab.model import TCLabModel
 from thermolab.tclab.plotter import Plotter
-from thermolab.tclab.remote import NotOnThisRigError, TCLab
+from thermolab.tclab.remote import TCLab
 from thermolab.tclab.switch import uses_lab_twin
 
 __all__ = ["Experiment", "runexperiment"]

@@ -30,49 +30,16 @@ from types import FrameType
 from typing import Any, ClassVar
 
 from thermolab.client import Lab, LabRequestError, Reading, Turn
+from thermolab.tclab.kit_errors import (
+    AlreadyConnectedError,
+    NotOnThisRigError,
+    PortError,
+    SecondHeaterError,
+)
 from thermolab.tclab.labtime import labtime
+from thermolab.tclab.rig_choice import ENV_RIG, check_kit, describe_rig, pick_rig
 
-__all__ = [
-    "ENV_RIG",
-    "KIT_P1",
-    "AlreadyConnectedError",
-    "NotAKitError",
-    "NotOnThisRigError",
-    "PortError",
-    "SecondHeaterError",
-    "TCLab",
-]
-
-ENV_RIG = "THERMOLAB_RIG"
-
-
-class NotOnThisRigError(NotImplementedError):
-    """What the ``tclab`` package does on a kit, this lab rig cannot (the message says why).
-
-    A ``NotImplementedError`` (as :class:`SecondHeaterError` always was): the name
-    exists and works on a kit; it is this rig that lacks it, not the call that is wrong.
-    """
-
-
-class SecondHeaterError(NotOnThisRigError):
-    """The rig has one heater and one sensor: ``Q2``/``T2``/``U2``/``P2`` do not exist there.
-
-    A rig that declares heater 2 (``q2``) and sensor 2 (``t2``) — a kit, the
-    kit's twin ``sim:kit`` — has them all.
-    """
-
-
-class NotAKitError(ValueError):
-    """The rig is not a heater (%) and a temperature sensor (°C): ``TCLab`` cannot drive it."""
-
-
-class AlreadyConnectedError(RuntimeError):
-    """This process already has an open ``TCLab`` on that rig (close it first), as in ``tclab``."""
-
-
-class PortError(RuntimeError):
-    """``TCLab(port=...)``: a lab rig has no serial port (the ``tclab`` package's RuntimeError)."""
-
+__all__ = ["KIT_P1", "TCLab"]
 
 KIT_P1 = 200.0
 """Heater 1's PWM limit (counts of 255) at which a kit's 100 % is a lab rig's 100 %."""
@@ -82,9 +49,6 @@ KIT_P2 = 100.0
 
 HEATER_2, SENSOR_2 = "q2", "t2"
 """The names a rig declares the kit's heater 2 and sensor 2 by (``thermolab.rigs.tclab``)."""
-
-TEMPERATURE_UNITS = frozenset({"°C", "degC", "C", "ºC"})
-"""Output units ``T1`` reads as a temperature in °C."""
 
 _open: weakref.WeakSet[TCLab] = weakref.WeakSet()
 _guard = threading.Lock()
@@ -115,54 +79,10 @@ def _install_exit_hooks() -> None:
                     signal.signal(number, _exit_on_signal)
 
 
-def _kit_like(rig: dict[str, Any]) -> bool:
-    return bool(rig["input"]["unit"] == "%" and rig.get("outputUnit") in TEMPERATURE_UNITS)
-
-
-def _pick_rig(rigs: list[dict[str, Any]], simulated: bool | None) -> str:
-    if not rigs:
-        raise LabRequestError("GET", "/api/rigs", None, "no_rigs", "the lab has no rigs")
-    if simulated is True:
-        twins = [r for r in rigs if r["kind"] == "sim"]
-        heated = [r for r in twins if _kit_like(r)]
-        if not twins:
-            raise LabRequestError(
-                "GET",
-                "/api/rigs",
-                None,
-                "no_twin",
-                "the lab has no simulated rig for connected=False",
-            )
-        return str((heated or twins)[0]["id"])
-    kits = [r for r in rigs if r["kind"] == "tclab"]
-    alike = [r for r in rigs if _kit_like(r)]
-    return str((kits or alike or rigs)[0]["id"])
-
-
-def _describe(info: dict[str, Any]) -> str:
-    """What a rig has, in a user's words: ``rig 'box' (The box): input u 0–10 V, output y in V``."""
-    inp = info["input"]
-    return (
-        f"rig {info['id']!r} ({info.get('title') or info['kind']}) has one input "
-        f"(from {inp['min']:g} to {inp['max']:g} {inp['unit']}) and one output "
-        f"(in {info.get('outputUnit') or '?'})"
-    )
-
-
 def _channel(reading: Reading, name: str) -> float:
     """A further channel of ``reading`` (NaN if the lab did not know it yet)."""
     value = reading.channels.get(name)
     return math.nan if value is None else float(value)
-
-
-def _check_kit(info: dict[str, Any]) -> None:
-    unit_in, unit_out = info["input"]["unit"], info.get("outputUnit")
-    if not _kit_like(info):
-        raise NotAKitError(
-            f"{_describe(info)}: TCLab needs a heater in % and a temperature sensor in °C, so "
-            f"T1 would read {unit_out} as °C and Q1 would set {unit_in} as %. Use a TCLab rig "
-            "(or the kit's twin, spec sim:tclab), or drive this rig with thermolab.client.Lab"
-        )
 
 
 class TCLab:
@@ -233,7 +153,7 @@ class TCLab:
         self.lab = Lab(url, token)
         try:
             rigs = self.lab.rigs()
-            self.rig_id = rig or os.environ.get(ENV_RIG) or _pick_rig(rigs, self._simulated)
+            self.rig_id = rig or os.environ.get(ENV_RIG) or pick_rig(rigs, self._simulated)
             info = next((r for r in rigs if r["id"] == self.rig_id), None)
             if info is None:
                 known = ", ".join(r["id"] for r in rigs)
@@ -245,7 +165,7 @@ class TCLab:
                     f"no rig {self.rig_id!r}; the lab has {known}",
                 )
             self.info = info
-            _check_kit(info)
+            check_kit(info)
             # Heater 2 and sensor 2 as the rig declares them: both, or the kit's one pair.
             inputs = {a["name"] for a in info.get("actuators") or ()}
             outputs = {o["name"] for o in info.get("outputs") or ()}
@@ -305,7 +225,7 @@ class TCLab:
 
     def _missing(self, name: str) -> SecondHeaterError:
         return SecondHeaterError(
-            f"{_describe(self.info)}: one heater (Q1, U1, P1) and one sensor (T1), so {name} "
+            f"{describe_rig(self.info)}: one heater (Q1, U1, P1) and one sensor (T1), so {name} "
             "does not exist there. The kit's second heater and sensor need a two-heater rig; "
             "scan() and sources give NaN for T2 and Q2 here"
         )

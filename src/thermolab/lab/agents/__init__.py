@@ -2,7 +2,7 @@
 
 :mod:`.secrets` issues and checks the per-rig secrets (stored hashed);
 :mod:`.hub` serves the rig hosts' WebSocket, stores what they send and
-judges their health; :mod:`.runs` carries START, END and inputs to them.
+judges their health (the rule: :mod:`.health`); :mod:`.runs` carries START, END and inputs to them.
 The messages are :mod:`thermolab.agent.protocol`'s, declared once for both ends.
 
 How a remote run goes. START on a remote rig is planned and stored by the same
@@ -30,7 +30,8 @@ protocol version is closed with 4401, and a second host for a rig replaces the
 first. User-facing set-up: ``docs/operator.md``, "Rigs on their own computers".
 """
 
-from thermolab.lab.agents.hub import HEALTH_FAULT, AgentHub, HostStatus
+from thermolab.lab.agents.health import HEALTH_FAULT, HostStatus
+from thermolab.lab.agents.hub import AgentHub
 from thermolab.lab.agents.runs import RemoteRuns
 from thermolab.lab.agents.secrets import check_secret, issue_secret
 

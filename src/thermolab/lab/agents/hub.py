@@ -12,13 +12,8 @@ the samples' key ``(run_id, k)``) and acknowledged by their ``seq`` only
 once committed, so a backlog sent again after a link loss, or an Ack lost
 with the link, never stores a sample twice nor loses one.
 
-Health (the monitor, :meth:`AgentHub.check`, once a sweep): a rig whose host
-has been away (not connected, or linked and silent) for longer than its
-``grace``, reports a fault, or reads outside its safe range gets a fault that starts with
-:data:`HEALTH_FAULT` — control ends and none is granted (the access model's
-rule for a faulted rig), the teachers' page shows it, an e-mail goes out
-where SMTP is configured (:mod:`.notify`) — and the fault clears by itself
-when the host is healthy again.
+Health (the monitor, :meth:`AgentHub.check`, once a sweep) is judged by
+:mod:`.health`; the hub puts its faults on the rigs and clears them.
 
 **One rule for a lost link**: the ``grace`` the lab gives a host (sent in
 ``Welcome``) is both how long the host's run outlives a lost link and how
@@ -65,6 +60,7 @@ from thermolab.agent.protocol import (
     encode,
 )
 from thermolab.lab.access import AccessService
+from thermolab.lab.agents.health import HEALTH_FAULT, HostStatus, host_problem
 from thermolab.lab.agents.samples import store_samples
 from thermolab.lab.agents.secrets import check_secret
 from thermolab.lab.clock import LabClock
@@ -73,12 +69,9 @@ from thermolab.lab.db import Database
 from thermolab.lab.db.agent_models import AgentHost
 from thermolab.lab.rigs.devices import DeviceHub
 
-__all__ = ["HEALTH_FAULT", "AgentHub", "HostStatus"]
+__all__ = ["AgentHub"]
 
 log = logging.getLogger(__name__)
-
-HEALTH_FAULT = "rig host: "
-"""How the monitor's faults begin (they clear by themselves; others wait for a teacher)."""
 
 LINK_SILENCE = 5.0
 """Seconds without a message (a host beats every second) after which its link is dropped.
@@ -93,38 +86,6 @@ DEFAULT_GRACE = 30.0
 Above a takeover's longest gap (the lease's 15 s and two announcements), so
 that a run on a rig host outlives its owner's death on another machine.
 """
-
-
-@dataclass
-class HostStatus:
-    """A rig host as the lab sees it (the status page's line)."""
-
-    rig: str
-    online: bool = False
-    last_contact: datetime | None = None
-    version: str | None = None
-    spec: str | None = None
-    fault: str | None = None
-    powered: bool = False
-    u: float | None = None
-    y: float | None = None
-    pending: int = 0
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready."""
-        y = self.y if self.y is None or math.isfinite(self.y) else None
-        return {
-            "rig": self.rig,
-            "online": self.online,
-            "lastContact": None if self.last_contact is None else self.last_contact.isoformat(),
-            "version": self.version,
-            "spec": self.spec,
-            "fault": self.fault,
-            "powered": self.powered,
-            "u": self.u,
-            "y": y,
-            "pending": self.pending,
-        }
 
 
 @dataclass
@@ -295,7 +256,16 @@ class AgentHub:
                 log.warning("rig host %s: its secret was rotated; its link is dropped", rig_id)
                 linked.loop.call_soon_threadsafe(linked.closed.set)
         for rig_id, status in self._status.items():
-            problem = self._problem(rig_id, status, now)
+            with self._lock:
+                online = rig_id in self._links
+            problem = host_problem(
+                status,
+                now,
+                linked=online,
+                grace=self.grace,
+                limit=self._limits[rig_id],
+                expected_until=self._expected_until,
+            )
             if problem is None:
                 if self._access.clear_healed_fault(rig_id, HEALTH_FAULT) and self.notify:
                     self.notify(rig_id, "back in service (its host is healthy)")
@@ -311,34 +281,6 @@ class AgentHub:
                 # Gone quiet (a cut cable): offline now, out of service only after the grace.
                 log.warning("rig host %s: silent for over %g s; link dropped", rig_id, LINK_SILENCE)
                 linked.loop.call_soon_threadsafe(linked.closed.set)
-
-    def _problem(self, rig_id: str, status: HostStatus, now: datetime) -> str | None:
-        with self._lock:
-            link = self._links.get(rig_id)
-        if link is None:
-            expected = self._expected_until
-            if expected is not None and now < expected:
-                return None
-            # A host redialling (a Wi-Fi blip, a cut cable, a lab worker restarted): offline
-            # at once, but out of service — which ends the turn — only once it has been away
-            # for the grace its run has on the host, counted from its last message. The host
-            # keeps its rig safe meanwhile (an idle rig off, a run within its grace).
-            heard = status.last_contact
-            if heard is not None and now - heard <= timedelta(seconds=self.grace):
-                return None
-            return "offline (not connected)"
-        if status.last_contact is not None and now - status.last_contact > timedelta(
-            seconds=self.grace
-        ):
-            return f"stopped answering (silent for over {self.grace:g} s)"
-        if status.fault is not None:
-            return f"reports a fault: {status.fault}"
-        limit = self._limits[rig_id]
-        if status.y is not None and (
-            not math.isfinite(status.y) or (limit is not None and status.y > limit)
-        ):
-            return f"reading {status.y:g} is outside the rig's safe range (limit {limit})"
-        return None
 
     # -- the WebSocket ---------------------------------------------------------------------
 

@@ -58,7 +58,8 @@ from thermolab.lab.access import AccessService
 from thermolab.lab.access.queries import SERVER_STOPPED
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.agents.estimates import RemoteIdentification
-from thermolab.lab.agents.hub import HEALTH_FAULT, AgentHub
+from thermolab.lab.agents.health import HEALTH_FAULT
+from thermolab.lab.agents.hub import AgentHub
 from thermolab.lab.agents.loop import RemoteLoop, commanded_request
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig

@@ -33,7 +33,8 @@ from thermolab.lab.config import LabConfig
 from thermolab.lab.config.rig_kinds import PublishedRig
 from thermolab.lab.db.models import ControlSession, QueueEntry, Run, RunStatus
 from thermolab.lab.fleet.lease import LeaseHeldError
-from thermolab.lab.service import Lab, StartupReport
+from thermolab.lab.outcomes import StartupReport
+from thermolab.lab.service import Lab
 
 __all__ = ["FollowerLab"]
 

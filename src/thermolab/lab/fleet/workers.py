@@ -61,8 +61,9 @@ from thermolab.lab.fleet.shared_limits import (
 )
 from thermolab.lab.fleet.worker_hashes import figures_client
 from thermolab.lab.live.shared_presence import SharedPresence
+from thermolab.lab.outcomes import StartupReport
 from thermolab.lab.rigs.opener import RigOpener
-from thermolab.lab.service import Lab, StartupReport
+from thermolab.lab.service import Lab
 
 if TYPE_CHECKING:
     from thermolab.lab.live.fanout import LiveFanout

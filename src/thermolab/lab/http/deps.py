@@ -17,7 +17,7 @@ from thermolab.lab.accounts.users import Principal
 from thermolab.lab.audit.log import AuditAction
 from thermolab.lab.config.model import RIG_ID
 from thermolab.lab.http.credentials import resolve_principal
-from thermolab.lab.http.schemas import ErrorOut, ValidationErrorOut
+from thermolab.lab.http.error_schemas import ErrorOut, ValidationErrorOut
 from thermolab.lab.service import Lab
 from thermolab.lab.spreadsheets import SheetDialect, sheet_dialect
 

@@ -88,7 +88,7 @@ from thermolab.lab.guides.images import (
 )
 from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.http.deps import COOKIE_NAME
-from thermolab.lab.http.schemas import ValidationErrorOut
+from thermolab.lab.http.error_schemas import ValidationErrorOut
 from thermolab.lab.live.fanout import CLOSE_BAD_REQUEST, CLOSE_UNAUTHORIZED, MAX_SEQ
 from thermolab.lab.lti.errors import (
     LtiClaimError,

@@ -81,7 +81,7 @@ def _dump(model: RigOut | RunOut) -> dict[str, Any]:
 
 
 class LiveEndpoint:
-    """The lab's live stream: a :class:`~thermolab.lab.service.LabListener` and the endpoint.
+    """The lab's live stream: a :class:`~thermolab.lab.listener.LabListener` and the endpoint.
 
     Parameters
     ----------

@@ -1,9 +1,13 @@
-"""JSON bodies of the lab's HTTP API (pydantic models, camelCase on the wire).
+"""JSON bodies of the rigs: a rig as a user sees it, and what is sent to it.
 
-Request bodies refuse unknown fields and values of the wrong type, so a typo
-is a 422 naming the field rather than a silently ignored setting (the base
-models are :mod:`.bodies`). A run's bodies are beside its routes, in
-:mod:`.routers.runs`.
+A rig's state, limits, access, queue and watchers; an input, a turn's
+extension, a kick, taking it out of service; a past turn at its controls.
+The closed loop's bodies are in :mod:`.control_schemas`, a script's reading
+in :mod:`.script_schemas`, a run's beside its routes in :mod:`.routers.runs`.
+
+The module keeps its first name, not ``rig_schemas``: FastAPI names the
+``RigOut`` component after its module (``thermolab__lab__http__schemas__RigOut``,
+as another ``RigOut`` exists), and /openapi.json is what clients generate from.
 """
 
 from __future__ import annotations
@@ -15,21 +19,17 @@ from typing import Annotated, Literal
 from pydantic import Field
 
 from thermolab.lab.access import QueueSlot, RigView
-from thermolab.lab.accounts.security import MAX_PASSWORD_LENGTH, MIN_PASSWORD_LENGTH
-from thermolab.lab.accounts.users import Principal, UserInfo
 from thermolab.lab.db.models import ControlSession
 from thermolab.lab.http.bodies import In as _In
 from thermolab.lab.http.bodies import Out as _Out
 from thermolab.lab.live.presence import Watcher
-from thermolab.lab.service import InputResult
+from thermolab.lab.outcomes import InputResult
 
 __all__ = [
     "AccessOut",
     "ActuatorOut",
     "ControlSessionOut",
     "CooldownOut",
-    "CredentialsIn",
-    "ErrorOut",
     "ExtendIn",
     "FurtherOutputOut",
     "InputIn",
@@ -37,182 +37,12 @@ __all__ = [
     "InputRangeOut",
     "KickIn",
     "LimitsOut",
-    "NewUserIn",
-    "PasswordIn",
-    "ProblemOut",
     "QueueSlotOut",
     "RigOut",
     "ServiceIn",
-    "SessionOut",
-    "UserOut",
-    "ValidationErrorOut",
     "WatcherOut",
     "people_named",
 ]
-
-
-# -- errors --------------------------------------------------------------------------------
-
-
-class ErrorOut(_Out):
-    """Every 4xx answer: ``detail`` says what was wrong and what is allowed; ``code`` is stable."""
-
-    detail: str
-    code: str = Field(
-        description="stable name of the error: not_authenticated, access_denied, "
-        "cross_origin, not_found, method_not_allowed, conflict, turn_ended, run_in_progress, "
-        "previous_run_ending, rig_unavailable, body_too_large, rate_limited, "
-        "camera_unavailable..."
-    )
-    message: str | None = Field(
-        default=None,
-        description="the code's sentence in the reader's language (the thermolab_lang cookie, "
-        "else Accept-Language; Content-Language names it)",
-    )
-
-
-class ProblemOut(_Out):
-    """One problem of a request that was refused with 422."""
-
-    loc: list[str] = Field(
-        description="where: ['body', field...], ['path', name], ['query', name]; "
-        "empty when the problem is the settings together"
-    )
-    type: str = Field(description="pydantic's error type, or the error's code")
-    msg: str
-    params: dict[str, str | int] | None = Field(
-        None, description="a class list's problem: the values its sentence names"
-    )
-    message: str | None = Field(None, description="a class list's problem in the reader's language")
-
-
-class ValidationErrorOut(_Out):
-    """Every 422 (a body, path or query value the API refuses): ``detail`` in words,
-    ``errors`` one per problem."""
-
-    detail: str
-    code: Literal[
-        "invalid_request",
-        "invalid_parameter",
-        "class_list_invalid",
-        "gain_out_of_range",
-        "setpoint_out_of_range",
-        "setpoint_no_step",
-        "no_output_unit",
-        "setting_out_of_range",
-        "image_invalid",
-        "image_too_many_pixels",
-        "setting_not_for_rig",
-        "speedup_refused",
-        "channel_not_on_rig",
-        "slot_ends_before_start",
-        "slot_too_long",
-        "slot_zone_missing",
-        "time_zone_unknown",
-    ] = Field(
-        description="invalid_request: the request does not match the schema (a body that is "
-        "not UTF-8 JSON included); invalid_parameter: the values match the schema but the lab "
-        "refuses them (a signal outside the rig's range, a run too long...); "
-        "class_list_invalid: a class list with bad lines (one entry of errors per line); "
-        "gain_out_of_range, setpoint_out_of_range, setpoint_no_step, no_output_unit: the "
-        "closed loop's refusals; "
-        "setting_out_of_range: a teacher setting outside the rig's allowed range (the message "
-        "names the range); image_invalid, image_too_many_pixels: a guide picture that is not "
-        "a readable picture, or has too many pixels; setting_not_for_rig: a setting this rig "
-        "does not have (the twin speed-up of hardware or of a rig host's twin); "
-        "speedup_refused: a script's speed-up the rig does not allow (the message names what "
-        "it allows); channel_not_on_rig: an input the rig does not have (a second heater on a "
-        "one-heater rig; the message names what it has); slot_ends_before_start, "
-        "slot_too_long, slot_zone_missing: a booking's "
-        "times (an end at or before the start, longer than a day unless said longer, a time "
-        "without its zone); time_zone_unknown: a time zone that is not a known IANA name "
-        "(a weekly series' zone)"
-    )
-    message: str | None = Field(
-        default=None, description="the code's sentence in the reader's language"
-    )
-    errors: list[ProblemOut]
-
-
-# -- sessions and users ----------------------------------------------------------------------
-
-
-class CredentialsIn(_In):
-    """Login: user name and password."""
-
-    username: Annotated[str, Field(min_length=1, max_length=64)]
-    password: Annotated[str, Field(min_length=1, max_length=1024)]
-
-
-class SessionOut(_Out):
-    """Who is logged in."""
-
-    username: str
-    display_name: str | None = Field(default=None, description="the name the user is shown by")
-    role: Literal["student", "teacher"]
-    expires_at: datetime | None
-    must_change_password: bool = False
-    admin: bool = Field(default=False, description="a lab administrator (accounts, rigs, LTI)")
-
-    @classmethod
-    def of(cls, who: Principal, display_name: str | None = None) -> SessionOut:
-        """Build from a principal (and the display name, when known)."""
-        return cls(
-            username=who.username,
-            display_name=display_name,
-            role=who.role.value,
-            expires_at=who.expires_at,
-            must_change_password=who.must_change_password,
-            admin=who.is_admin,
-        )
-
-
-class UserOut(_Out):
-    """An account: its login name (normal form) and the name it is shown by."""
-
-    username: str
-    display_name: str | None
-    role: Literal["student", "teacher"]
-    created_at: datetime
-    admin: bool = Field(default=False, description="a lab administrator (accounts, rigs, LTI)")
-
-    @classmethod
-    def of(cls, user: UserInfo) -> UserOut:
-        """Build from a user record."""
-        return cls(
-            username=user.username,
-            display_name=user.display_name,
-            role=user.role.value,
-            created_at=user.created_at,
-            admin=user.admin,
-        )
-
-
-class NewUserIn(_In):
-    """A new account (teachers only): the login name is normalised, the display name kept."""
-
-    username: Annotated[str, Field(min_length=1, max_length=64)]
-    display_name: Annotated[str | None, Field(max_length=256)] = None
-    password: Annotated[str, Field(min_length=MIN_PASSWORD_LENGTH, max_length=MAX_PASSWORD_LENGTH)]
-    role: Literal["student", "teacher"]
-    admin: bool = Field(default=False, description="make this teacher a lab administrator")
-
-
-class PasswordIn(_In):
-    """A new password, with the acting user's current password (re-authentication)."""
-
-    password: Annotated[str, Field(min_length=MIN_PASSWORD_LENGTH, max_length=MAX_PASSWORD_LENGTH)]
-    current_password: Annotated[
-        str | None,
-        Field(
-            max_length=MAX_PASSWORD_LENGTH,
-            description="the password of the user making the change (required, also for "
-            "a teacher changing someone else's)",
-        ),
-    ] = None
-
-
-# -- rigs ---------------------------------------------------------------------------------------
 
 
 class InputRangeOut(_Out):

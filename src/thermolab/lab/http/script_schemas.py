@@ -14,8 +14,8 @@ from thermolab.lab.accounts.tokens import (
     TokenInfo,
 )
 from thermolab.lab.http.bodies import In, Out
+from thermolab.lab.outcomes import OutputReading
 from thermolab.lab.runs.channels import ChannelResult
-from thermolab.lab.service import OutputReading
 
 __all__ = ["LabVersionOut", "NewTokenOut", "ReadingOut", "SpeedupIn", "TokenIn", "TokenOut"]
 

@@ -5,7 +5,7 @@ declared here. The identification methods, their settings, defaults and
 ranges are the registry's (:mod:`thermolab.ident.registry`):
 :data:`RUN_SETTINGS` picks the settings a run request carries and is the one
 place the lab narrows a registry range (:data:`LAB_NARROWING`, each with its
-reason). The HTTP schema (:class:`thermolab.lab.http.schemas.RunIn`) is built
+reason). The HTTP schema (:class:`thermolab.lab.http.routers.runs.RunIn`) is built
 from :data:`RUN_SETTINGS` and :func:`check_request` enforces it, once;
 ``tests/ident/test_registry.py`` checks both against the registry.
 

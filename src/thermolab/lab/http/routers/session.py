@@ -8,6 +8,7 @@ from fastapi import APIRouter, Request, Response, status
 
 from thermolab.lab.accounts.names import username_form
 from thermolab.lab.accounts.security import AuthenticationError, RateLimitedError
+from thermolab.lab.http.account_schemas import CredentialsIn, SessionOut
 from thermolab.lab.http.deps import (
     AUTHENTICATED,
     COOKIE_NAME,
@@ -15,7 +16,6 @@ from thermolab.lab.http.deps import (
     UserDep,
     documented_errors,
 )
-from thermolab.lab.http.schemas import CredentialsIn, SessionOut
 
 __all__ = ["router"]
 

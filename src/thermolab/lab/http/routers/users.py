@@ -9,6 +9,7 @@ from thermolab.lab.accounts.policy import Action
 from thermolab.lab.accounts.security import AuthenticationError, normalize_username
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.audit.log import AuditAction
+from thermolab.lab.http.account_schemas import NewUserIn, PasswordIn, UserOut
 from thermolab.lab.http.bodies import In
 from thermolab.lab.http.deps import (
     AUTHENTICATED,
@@ -19,7 +20,6 @@ from thermolab.lab.http.deps import (
     client_address,
     documented_errors,
 )
-from thermolab.lab.http.schemas import NewUserIn, PasswordIn, UserOut
 
 __all__ = ["router"]
 
