@@ -21,6 +21,7 @@ __all__ = [
     "BookingClashError",
     "BookingQuotaError",
     "BookingSeriesClashError",
+    "ChannelInLoopError",
     "ChannelNotOnRigError",
     "ClassListError",
     "ClassListProblem",
@@ -37,6 +38,7 @@ __all__ = [
     "InvalidDataError",
     "InvalidParameterError",
     "LabStartingError",
+    "LoopPairNotOnRigError",
     "ModelValueError",
     "NameTakenError",
     "NoOutputUnitError",
@@ -103,6 +105,10 @@ class InvalidParameterError(ThermoLabError, ValueError):
 
 class ChannelNotOnRigError(InvalidParameterError):
     """A further input or output the rig does not declare (``q2`` on a one-heater rig)."""
+
+
+class LoopPairNotOnRigError(ChannelNotOnRigError):
+    """A closed loop on a heater and sensor the rig does not pair (``q2/t2`` on one heater)."""
 
 
 class IdentifierStateError(ThermoLabError, RuntimeError):
@@ -298,6 +304,10 @@ class SetpointNoStepError(SetpointRangeError):
 
 class NoOutputUnitError(InvalidParameterError):
     """PID control asked of a rig that has no measured output (no output unit)."""
+
+
+class ChannelInLoopError(ConflictError):
+    """A hand setting of the heater a closed loop drives: the loop's PID sets it."""
 
 
 class NoRunError(ConflictError):
