@@ -55,7 +55,7 @@ def test_the_loop_drives_heater_2_from_sensor_2_while_heater_1_is_stepped(
     ana = at_the_controls(lab)
     pairs = ana.get(f"/api/rigs/{RIG}/loop").json()["pairs"]
     assert [(p["heater"], p["sensor"]) for p in pairs] == [("u", "y"), ("q2", "t2")]
-    assert (pairs[1]["input_range"], pairs[1]["output_limit"]) == ([0.0, 100.0], 90.0)
+    assert (pairs[1]["inputRange"], pairs[1]["outputLimit"]) == ([0.0, 100.0], 90.0)
     control = {"setpoint": SETPOINT, **GAINS, "heater": "q2", "sensor": "t2"}
     answer = start(ana, control)
     assert answer.status_code == 201, answer.text

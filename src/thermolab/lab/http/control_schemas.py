@@ -144,7 +144,7 @@ class LoopOut(Out):
     pairs: list[dict[str, Any]] = Field(
         default_factory=list,
         description="the heater and sensor pairs a closed loop may control, the run's own "
-        "(u, y) first: heater, sensor, input_unit, input_range, output_unit, output_limit "
+        "(u, y) first: heater, sensor, inputUnit, inputRange, outputUnit, outputLimit "
         "(a kit: u/y and q2/t2; the panel offers a choice when there are more than one)",
     )
     loop: dict[str, Any] | None = Field(

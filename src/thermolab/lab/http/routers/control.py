@@ -75,12 +75,12 @@ def rig_loop(rig_id: RigId, who: UserDep, lab: LabDep) -> LoopOut:
             {
                 "heater": heater,
                 "sensor": sensor,
-                "input_unit": published.input_unit if own else info.inputs[heater].unit,
-                "input_range": [published.input_min, published.input_max]
+                "inputUnit": published.input_unit if own else info.inputs[heater].unit,
+                "inputRange": [published.input_min, published.input_max]
                 if own
                 else list(info.inputs[heater].range),
-                "output_unit": published.output_unit if own else info.outputs[sensor].unit,
-                "output_limit": info.output_limit if own else info.outputs[sensor].limit,
+                "outputUnit": published.output_unit if own else info.outputs[sensor].unit,
+                "outputLimit": info.output_limit if own else info.outputs[sensor].limit,
             }
             for heater, sensor in info.loop_pairs
             for own in (heater == PRIMARY_PAIR[0],)

@@ -30,7 +30,7 @@ import { RigHeader } from "./rig/header.js";
 import { paceText } from "./rig/pace.js";
 import { lockReason, lockRepeatsRole } from "./rig/lock.js";
 import { Readout } from "./rig/readout.js";
-import { FurtherInputs, levelsOf } from "./rig/furtherinputs.js";
+import { FurtherInputs, levelsOf, loopHeaterOf } from "./rig/furtherinputs.js";
 import { TurnNotice } from "./rig/notice.js";
 import { NextChance } from "./rig/chance.js";
 import { Reachability } from "./rig/reach.js";
@@ -243,8 +243,11 @@ class RigPage {
         break;
       case "run":
         this.show.event(msg);
-        if (msg.event === "started") this.loop.started(msg.run);
-        else {
+        if (msg.event === "started") {
+          this.loop.started(msg.run);
+          this.further.setDriven(loopHeaterOf(msg.run));
+        } else {
+          this.further.setDriven(null);
           void this.loop.ended(msg.run);
           void this._readActuators(); // the run's end rested them: the rig says where
         }
