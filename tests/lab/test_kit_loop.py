@@ -99,6 +99,11 @@ def test_the_loop_drives_heater_2_from_sensor_2_while_heater_1_is_stepped(
         "t2",
     )
     assert (run["control"]["heater"], run["control"]["sensor"]) == ("q2", "t2")
+    # The measured figures are sensor 2's step to the set point, not sensor 1's.
+    measured = ana.get(f"/api/runs/{run_id}/tuning").json()["closedLoop"]["measured"]
+    assert 15.0 < measured["step"] < 25.0  # from the kit at rest to the set point
+    # Sensor 1 never gets near 40 °C (an IAE of most of step x duration); sensor 2 does.
+    assert measured["iae"] < 0.3 * measured["step"] * SAMPLES * DT
 
 
 def test_a_loop_on_heater_1_leaves_heater_2_to_the_hand(make_lab: LabFactory) -> None:

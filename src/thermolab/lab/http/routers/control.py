@@ -257,7 +257,9 @@ def run_tuning(
         out["table"] = {**table, "method": name, "trusted": trusted}
     control = (record.settings or {}).get("control")
     if control is not None and us:
-        out["closedLoop"] = closed_loop_figures(
-            samples, record.dt, control, limits, published.safe_input
-        )
+        rest = published.safe_input
+        heater = lab.config.rig(record.rig_id).rig_spec.actuators.get(control.get("heater") or "")
+        if heater is not None:  # a loop on a further pair: that heater's range and rest
+            limits, rest = heater.range, heater.default
+        out["closedLoop"] = closed_loop_figures(samples, record.dt, control, limits, rest)
     return out
