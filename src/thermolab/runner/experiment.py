@@ -100,9 +100,8 @@ class Experiment(ControlRequests, SamplingLoop):
         input drives and the PID tracks it. Its channels (``r, u_pid, e,
         auto``...) come after the standard ones, before the sources'. The
         interlocks and the safe state are checked before and after it, as
-        for any input. A loop on a further pair (``ControlLoop(heater="q2",
-        sensor="t2")``) drives that input from that output at each sample,
-        and the run's input ``u`` is the open loop's (a disturbance).
+        for any input. A loop on a further pair (``heater="q2", sensor="t2"``)
+        drives that input from that output; ``u`` is then a disturbance.
 
     Raises
     ------
@@ -179,14 +178,12 @@ class Experiment(ControlRequests, SamplingLoop):
             )
         self._control = controller
         control_channels: tuple[ChannelSpec, ...] = ()
+        self._loop_level = math.nan  # a loop on a further pair's (a kit's q2/t2)
         if controller is not None:
             controller.bind(self._info, self._interlocks, (np.arange(samples) * dt).tolist())
             control_channels = controller.channels()
-        # A loop on a further pair (a kit's q2/t2): the level its heater holds in MANUAL,
-        # from the heater's declared default; the run's input u stays the open loop's.
-        self._loop_level = math.nan
-        if controller is not None and controller.drives_further:
-            self._loop_level = self._info.inputs[controller.heater].default
+            if controller.drives_further:  # its heater's level in MANUAL, from its default
+                self._loop_level = self._info.inputs[controller.heater].default
         self._control_channels = control_channels
         self._channels = (
             *RUN_CHANNELS,
