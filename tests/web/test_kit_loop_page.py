@@ -104,6 +104,11 @@ def test_the_panel_chooses_heater_2_and_heater_1_disturbs_it(
         status, refused = page.evaluate(CALL, ["PUT", "/api/rigs/kit/channels/q2", {"level": 10}])
         assert (status, refused["code"]) == (409, "channel_in_loop")
         assert refused["message"] == words["error.channel_in_loop"]
+        # A page opened during the run says the same.
+        again = page.context.new_page()
+        again.goto(f"{loop_lab.url}/#/rig/kit")
+        again.wait_for_function("() => document.querySelector('#channel-q2')?.disabled")
+        again.close()
         # The PID warms sensor 2 towards 40 °C; then heater 1 is stepped from the panel.
         page.wait_for_function(f"() => ({READ})('t2') > 35", timeout=60_000)
         assert page.is_visible("#loop-other")

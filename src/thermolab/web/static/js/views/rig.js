@@ -222,6 +222,8 @@ class RigPage {
       case "hello":
         this._setRig(readRig(msg.rig));
         this.access.update(readAccess(msg.access));
+        // Joined during a closed loop on heater 2: its field is the PID's.
+        this.further.setDriven(msg.run?.status === "running" ? loopHeaterOf(msg.run) : null);
         if (this.show.set(readRun(msg.run)) && !this._askedHistory) {
           // Joined half-way through a run: ask the server for all it holds (the
           // run's samples from the store, the recent estimates) once.
