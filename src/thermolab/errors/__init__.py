@@ -20,6 +20,7 @@ from thermolab.errors.base import (
     InsufficientExcitationError,
     InvalidDataError,
     InvalidParameterError,
+    LoopPairNotOnRigError,
     NotFoundError,
     RecordFormatError,
     RigError,
@@ -43,6 +44,7 @@ from thermolab.errors.bookings import (
     TimeZoneError,
 )
 from thermolab.errors.closed_loop import (
+    ChannelInLoopError,
     GainRangeError,
     ModelValueError,
     NoOutputUnitError,
@@ -94,6 +96,7 @@ __all__ = [
     "BookingClashError",
     "BookingQuotaError",
     "BookingSeriesClashError",
+    "ChannelInLoopError",
     "ChannelNotOnRigError",
     "ClassListError",
     "ClassListProblem",
@@ -111,6 +114,7 @@ __all__ = [
     "InvalidDataError",
     "InvalidParameterError",
     "LabStartingError",
+    "LoopPairNotOnRigError",
     "ModelValueError",
     "NameTakenError",
     "NoOutputUnitError",

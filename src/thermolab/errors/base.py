@@ -19,6 +19,7 @@ __all__ = [
     "InsufficientExcitationError",
     "InvalidDataError",
     "InvalidParameterError",
+    "LoopPairNotOnRigError",
     "NotFoundError",
     "RecordFormatError",
     "RigError",
@@ -57,6 +58,10 @@ class InvalidParameterError(ThermoLabError, ValueError):
 
 class ChannelNotOnRigError(InvalidParameterError):
     """A further input or output the rig does not declare (``q2`` on a one-heater rig)."""
+
+
+class LoopPairNotOnRigError(ChannelNotOnRigError):
+    """A closed loop on a heater and sensor the rig does not pair (``q2/t2`` on one heater)."""
 
 
 class IdentifierStateError(ThermoLabError, RuntimeError):

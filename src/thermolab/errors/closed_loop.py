@@ -11,6 +11,7 @@ from collections.abc import Mapping
 from thermolab.errors.base import ConflictError, InvalidParameterError
 
 __all__ = [
+    "ChannelInLoopError",
     "GainRangeError",
     "ModelValueError",
     "NoOutputUnitError",
@@ -63,6 +64,10 @@ class SetpointNoStepError(SetpointRangeError):
 
 class NoOutputUnitError(InvalidParameterError):
     """PID control asked of a rig that has no measured output (no output unit)."""
+
+
+class ChannelInLoopError(ConflictError):
+    """A hand setting of the heater a closed loop drives: the loop's PID sets it."""
 
 
 class NoRunError(ConflictError):

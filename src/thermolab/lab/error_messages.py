@@ -77,6 +77,10 @@ ERROR_SENTENCES: Mapping[str, str] = {
     "setting_not_for_rig": "This rig does not have that setting.",
     "speedup_refused": "This rig does not allow that speed-up.",
     "channel_not_on_rig": "This rig does not have that input (a second heater, a fan).",
+    "loop_pair_not_on_rig": "This rig has no such heater and sensor pair for the closed loop.",
+    "channel_in_loop": (
+        "The closed loop drives this heater: set the other one, or switch the loop to manual."
+    ),
     "settings_changed": "Someone changed these settings meanwhile: load them again.",
     # The closed loop and the runs' precise conflicts.
     "gain_out_of_range": "A controller setting is not a finite number within its published range.",

@@ -27,7 +27,15 @@ from thermolab.rigs.clock import (
     VirtualClock,
     make_clock,
 )
-from thermolab.rigs.contract import InputChannel, OutputChannel, Reading, Rig, RigInfo, RigState
+from thermolab.rigs.contract import (
+    PRIMARY_PAIR,
+    InputChannel,
+    OutputChannel,
+    Reading,
+    Rig,
+    RigInfo,
+    RigState,
+)
 from thermolab.rigs.kit_twin import KitTwinRig
 from thermolab.rigs.spec import RIG_KINDS, RigKind, RigSpec
 from thermolab.rigs.tclab import TCLabRig, tclab_info
@@ -36,6 +44,7 @@ from thermolab.rigs.twin import PRESETS, TwinParams, TwinRig, twin_info, twin_pa
 
 __all__ = [
     "PRESETS",
+    "PRIMARY_PAIR",
     "RIG_KINDS",
     "RIG_SPECS",
     "BaseRig",

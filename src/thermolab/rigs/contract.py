@@ -36,10 +36,21 @@ from dataclasses import asdict, dataclass, field
 from types import MappingProxyType, TracebackType
 from typing import Any, Protocol, Self, runtime_checkable
 
-from thermolab.errors import ChannelNotOnRigError, InvalidParameterError
+from thermolab.errors import ChannelNotOnRigError, InvalidParameterError, LoopPairNotOnRigError
 from thermolab.rigs.clock import Clock
 
-__all__ = ["InputChannel", "OutputChannel", "Reading", "Rig", "RigInfo", "RigState"]
+__all__ = [
+    "PRIMARY_PAIR",
+    "InputChannel",
+    "OutputChannel",
+    "Reading",
+    "Rig",
+    "RigInfo",
+    "RigState",
+]
+
+#: The primary pair's names (the record's columns): a closed loop's pair unless it names another.
+PRIMARY_PAIR = ("u", "y")
 
 
 class RigState(enum.Enum):
@@ -89,6 +100,10 @@ class InputChannel:
         ``True``: every run records the level as a channel. ``False``: only a
         closed-loop run does (the paper's twins' fan, a disturbance for a
         controller: the open-loop records of the paper stay ``t,u,y``).
+    sensor : str or None
+        The further output this input drives (a kit's heater 2 heats sensor 2,
+        ``t2``): with it, a pair a closed loop may control
+        (:attr:`RigInfo.loop_pairs`); ``None``: a disturbance only (the fan).
 
     Examples
     --------
@@ -104,6 +119,7 @@ class InputChannel:
     default: float = 0.0
     description: str = ""
     recorded: bool = True
+    sensor: str | None = None
 
     @property
     def range(self) -> tuple[float, float]:
@@ -210,6 +226,51 @@ class RigInfo:
     def outputs(self) -> Mapping[str, OutputChannel]:
         """:attr:`further_outputs` by name."""
         return MappingProxyType({c.name: c for c in self.further_outputs})
+
+    @property
+    def loop_pairs(self) -> tuple[tuple[str, str], ...]:
+        """The ``(input, output)`` pairs a closed loop may control, the primary pair first.
+
+        ``("u", "y")``, then each further input that names a further output of
+        the rig as its ``sensor`` (a kit's ``("q2", "t2")``).
+
+        Examples
+        --------
+        >>> from thermolab.rigs import tclab_info
+        >>> tclab_info(None).loop_pairs
+        (('u', 'y'), ('q2', 't2'))
+        """
+        further = tuple(
+            (c.name, c.sensor)
+            for c in self.further_inputs
+            if c.sensor is not None and c.sensor in self.outputs
+        )
+        return (PRIMARY_PAIR, *further)
+
+    def check_loop_pair(self, heater: str, sensor: str) -> tuple[str, str]:
+        """Return ``(heater, sensor)`` if it is one of :attr:`loop_pairs`.
+
+        Raises
+        ------
+        LoopPairNotOnRigError
+            Naming the pairs the rig has (422 ``loop_pair_not_on_rig``).
+
+        Examples
+        --------
+        >>> info = RigInfo("box", "twin", -10, 10, "V", "V", 0, None)
+        >>> info.check_loop_pair("q2", "t2")
+        Traceback (most recent call last):
+        ...
+        thermolab.errors.LoopPairNotOnRigError: rig 'box' has no heater and sensor q2/t2 ... u/y
+        """
+        pair = (heater, sensor)
+        pairs = self.loop_pairs
+        if pair not in pairs:
+            raise LoopPairNotOnRigError(
+                f"rig {self.name!r} has no heater and sensor {heater}/{sensor} to control in "
+                f"closed loop; its pairs: {', '.join(f'{i}/{o}' for i, o in pairs)}"
+            )
+        return pair
 
     def further_level(self, name: str, value: object) -> float:
         """Return ``value`` as a level of the further input ``name``.

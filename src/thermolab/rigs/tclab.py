@@ -73,7 +73,7 @@ _MIN_PLAUSIBLE_TEMPERATURE = -20.0
 
 
 #: A kit's heater 2: its further input, as the kit and its twin (``sim:kit``) declare it.
-HEATER_2 = InputChannel("q2", description="heater 2, % of its power")
+HEATER_2 = InputChannel("q2", description="heater 2, % of its power", sensor="t2")
 
 
 def kit_sensor_2(max_temperature: float) -> OutputChannel:

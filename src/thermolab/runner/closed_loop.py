@@ -27,7 +27,7 @@ import numpy as np
 from thermolab.control import PID, AdaptiveTuner, GainBounds, PIDGains
 from thermolab.errors import InvalidParameterError, NoOutputUnitError, SetpointRangeError
 from thermolab.records import ChannelSpec
-from thermolab.rigs import RigInfo
+from thermolab.rigs import PRIMARY_PAIR, RigInfo
 from thermolab.runner.interlocks import Interlocks
 
 __all__ = ["ControlLoop", "SetpointProfile", "adaptive_tuner", "estimate_trust"]
@@ -122,6 +122,11 @@ class ControlLoop:
         ``N`` of the derivative filter (default 10).
     tuner : AdaptiveTuner, optional
         Retunes the gains from an online identifier (default: none, fixed gains).
+    heater, sensor : str, optional
+        The pair the loop controls, by the rig's names (:attr:`RigInfo.loop_pairs`):
+        ``"u"``, ``"y"`` (default) the run's own input and output; a kit's
+        ``"q2"``, ``"t2"`` its heater 2 from its sensor 2, the run's input ``u``
+        (heater 1) then staying the open loop's, a disturbance set by hand.
 
     Notes
     -----
@@ -156,6 +161,8 @@ class ControlLoop:
         auto: bool = True,
         derivative_filter: float = 10.0,
         tuner: AdaptiveTuner | None = None,
+        heater: str = PRIMARY_PAIR[0],
+        sensor: str = PRIMARY_PAIR[1],
     ) -> None:
         if not isinstance(gains, PIDGains):
             raise InvalidParameterError(f"gains must be PIDGains, got {type(gains).__name__}")
@@ -182,6 +189,11 @@ class ControlLoop:
         self._want_gains: PIDGains | None = None
         self._switches = 0
         self._last_r: float | None = None
+        self._pair = (str(heater), str(sensor))
+        # The pair's ranges and units (bind): the rig's input and output, or a further pair's.
+        self._limits = (-math.inf, math.inf)
+        self._units = ("", "")
+        self._output_limit: float | None = None
 
     # -- binding to a rig -------------------------------------------------------------------
 
@@ -200,8 +212,20 @@ class ControlLoop:
         InvalidParameterError
             If the rig has no output unit, or the set point is outside the
             rig's output range (its output limit and the interlocks).
+        LoopPairNotOnRigError
+            If the rig has no such heater and sensor pair.
         """
-        if not info.output_unit:
+        heater, sensor = info.check_loop_pair(*self._pair)
+        if heater == PRIMARY_PAIR[0]:
+            self._limits = (info.input_min, info.input_max)
+            self._units = (info.input_unit, info.output_unit)
+            self._output_limit = info.output_limit
+        else:
+            channel, output = info.inputs[heater], info.outputs[sensor]
+            self._limits = channel.range
+            self._units = (channel.unit, output.unit)
+            self._output_limit = output.limit
+        if not self._units[1]:
             raise NoOutputUnitError(
                 f"rig {info.name!r} has no output unit: PID control needs a measured output"
             )
@@ -225,18 +249,17 @@ class ControlLoop:
         self._last_r = None
         self._want_auto = self._want_gains = None
         if self.tuner is not None:
-            self.tuner.set_input_range(info.input_min, info.input_max)
+            self.tuner.set_input_range(*self._limits)
         self._pid = PID(
             self._initial_gains,
-            info.input_min,
-            info.input_max,
+            *self._limits,
             derivative_filter=self._derivative_filter,
         )
 
     def channels(self) -> tuple[ChannelSpec, ...]:
         """The channels this loop records, in order (after :meth:`bind`)."""
-        info = self._require_info()
-        out, inp = info.output_unit, info.input_unit
+        self._require_info()
+        inp, out = self._units
         specs = [
             ChannelSpec("r", out, "setpoint", "set point of the PID"),
             ChannelSpec("u_pid", inp, "other", "the PID's output (tracks the input in manual)"),
@@ -252,6 +275,26 @@ class ControlLoop:
         return tuple(specs)
 
     # -- state -----------------------------------------------------------------------------
+
+    @property
+    def heater(self) -> str:
+        """The input the loop drives: ``"u"``, the run's own, or a further input (``"q2"``)."""
+        return self._pair[0]
+
+    @property
+    def sensor(self) -> str:
+        """The output the loop controls: ``"y"``, the run's own, or a further output (``"t2"``)."""
+        return self._pair[1]
+
+    @property
+    def drives_further(self) -> bool:
+        """``True`` when the loop drives a further input, not the run's input ``u``."""
+        return self._pair[0] != PRIMARY_PAIR[0]
+
+    @property
+    def input_range(self) -> tuple[float, float]:
+        """The range of the input the loop drives (after :meth:`bind`)."""
+        return self._limits
 
     @property
     def setpoint(self) -> float:
@@ -295,9 +338,12 @@ class ControlLoop:
         r = self._finite_setpoint(value)
         if self._info is None:
             return r
-        unit = self._info.output_unit
-        high = [x for x in (self._info.output_limit, self._interlocks.output_max) if x is not None]
-        low = self._interlocks.output_min
+        unit = self._units[1]
+        # The interlocks guard the run's output y; a further sensor has its own limit.
+        own = not self.drives_further
+        interlock_max = self._interlocks.output_max if own else None
+        high = [x for x in (self._output_limit, interlock_max) if x is not None]
+        low = self._interlocks.output_min if own else None
         if (high and r >= min(high)) or (low is not None and r <= low):
             allowed = (
                 f"({'-inf' if low is None else f'{low:g}'}, {min(high) if high else math.inf:g})"
@@ -386,6 +432,8 @@ class ControlLoop:
     def to_dict(self) -> dict[str, Any]:
         """Return the mode, set point, gains and PID state (JSON-ready)."""
         return {
+            "heater": self._pair[0],
+            "sensor": self._pair[1],
             "mode": "auto" if self._auto else "manual",
             "setpoint": self._setpoint,
             "setpoint_profile": None

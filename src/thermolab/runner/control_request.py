@@ -21,7 +21,7 @@ from typing import Any
 
 from thermolab.control import FOPDT, PARAMETERS, GainBounds, PIDGains
 from thermolab.errors import InvalidParameterError, SetpointRangeError
-from thermolab.rigs import RigInfo
+from thermolab.rigs import PRIMARY_PAIR, RigInfo
 from thermolab.runner.closed_loop import ControlLoop, adaptive_tuner
 from thermolab.runner.interlocks import Interlocks
 
@@ -53,6 +53,12 @@ class ControlRequest:
     model : tuple of float or None
         ``(K, tau, theta)`` the gains were tuned from (the prediction shown
         beside the measured run).
+    heater, sensor : str
+        The pair the PID controls, by the rig's names
+        (:attr:`thermolab.rigs.RigInfo.loop_pairs`): ``"u"``, ``"y"`` (default)
+        the run's own input and output; a kit's ``"q2"``, ``"t2"`` its heater 2
+        from its sensor 2 (heater 1 is then the run's input, set by hand as a
+        disturbance). Stored with the run, so its record says which pair.
     """
 
     setpoint: float
@@ -72,6 +78,8 @@ class ControlRequest:
     ti_range: tuple[float, float] | None = None
     derivative_filter: float | None = None
     model: tuple[float, ...] | None = None
+    heater: str = PRIMARY_PAIR[0]
+    sensor: str = PRIMARY_PAIR[1]
 
     def settings(self) -> dict[str, Any]:
         """The request as stored with the run."""
@@ -125,6 +133,8 @@ def build_control_loop(
         The set point outside the rig's output range.
     NoOutputUnitError
         The rig has no output unit.
+    LoopPairNotOnRigError
+        The rig has no such heater and sensor pair.
     InvalidParameterError
         Any other bad value (mode, model).
     """
@@ -163,6 +173,8 @@ def build_control_loop(
         if request.derivative_filter is None
         else request.derivative_filter,
         tuner=tuner,
+        heater=request.heater,
+        sensor=request.sensor,
     )
     loop.bind(info, Interlocks(), times)
     return loop

@@ -14,7 +14,7 @@ import threading
 from typing import Protocol
 
 from thermolab.control import PIDGains
-from thermolab.errors import InvalidParameterError
+from thermolab.errors import ChannelInLoopError, InvalidParameterError
 from thermolab.records import ChannelSpec
 from thermolab.rigs import RigInfo
 from thermolab.runner.closed_loop import ControlLoop
@@ -25,6 +25,7 @@ __all__ = [
     "LoopCommands",
     "closed_loop_channels",
     "fan_level",
+    "refuse_loop_heater",
 ]
 
 #: The disturbance fan's channel (recorded by a closed-loop run on a rig with a fan).
@@ -61,6 +62,22 @@ def fan_level(info: RigInfo, has_fan: bool, percent: float) -> float:
     if not (math.isfinite(level) and 0.0 <= level <= 100.0):
         raise InvalidParameterError(f"the fan takes 0-100 %, got {percent!r}")
     return level
+
+
+def refuse_loop_heater(loop: ControlLoop | None, name: str) -> None:
+    """Refuse a hand setting of the further input ``name`` if the run's loop drives it.
+
+    Raises
+    ------
+    ChannelInLoopError
+        ``loop`` drives ``name`` (409 ``channel_in_loop``): its PID sets it;
+        the other heater stays settable by hand, as a disturbance.
+    """
+    if loop is not None and loop.drives_further and loop.heater == name:
+        raise ChannelInLoopError(
+            f"{name} is driven by this run's closed loop (its PID sets it from {loop.sensor}); "
+            f"to hold {name} at a level of your own, switch the loop to manual with that input"
+        )
 
 
 class LoopCommands(Protocol):
@@ -105,6 +122,7 @@ class ControlRequests:
     _info: RigInfo
     _fan_request: float | None
     _further_requests: dict[str, float]
+    _loop_level: float
     _request_lock: threading.Lock
 
     def set_input(self, u: float) -> None:  # the experiment's
@@ -150,6 +168,8 @@ class ControlRequests:
         """Switch the controller to MANUAL; hold its last output unless ``u`` is given.
 
         Holding the last output is the bumpless transfer from AUTO to MANUAL.
+        A loop on a further pair (a kit's ``q2``/``t2``) holds its own heater
+        there; the run's input ``u`` stays as it is.
 
         Raises
         ------
@@ -160,6 +180,13 @@ class ControlRequests:
         """
         control = self._require_control("switch to manual")
         held = control.output if u is None else u
+        if control.drives_further:
+            # The loop's own heater holds the level; the run's input u is not the loop's.
+            if u is None and not math.isfinite(held):
+                held = self._info.inputs[control.heater].default  # nothing applied yet
+            self._loop_level = self._info.further_level(control.heater, held)
+            control.request_manual()
+            return
         if u is None and not math.isfinite(held):
             held = self._info.safe_input  # nothing applied yet
         self.set_input(held)
@@ -214,15 +241,19 @@ class ControlRequests:
         at the sample's instant (``rig.set_channel(name, value, at=...)``), in
         an open or a closed loop, and the run records its level when the rig
         declares it ``recorded`` (:func:`thermolab.runner.further.further_channels`).
+        The input a closed loop drives (:attr:`ControlLoop.heater`) is its PID's.
 
         Raises
         ------
         InvalidParameterError
             If the rig has no such input or ``value`` is outside its range.
+        ChannelInLoopError
+            If the run's closed loop drives ``name``.
         RunStateError
             If the run is already over.
         """
         level = self._info.further_level(name, value)
+        refuse_loop_heater(self._control, name)
         self._refuse_when_over(f"set {name}")
         with self._request_lock:
             self._further_requests[name] = level

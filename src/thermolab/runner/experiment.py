@@ -100,7 +100,8 @@ class Experiment(ControlRequests, SamplingLoop):
         input drives and the PID tracks it. Its channels (``r, u_pid, e,
         auto``...) come after the standard ones, before the sources'. The
         interlocks and the safe state are checked before and after it, as
-        for any input.
+        for any input. A loop on a further pair (``heater="q2", sensor="t2"``)
+        drives that input from that output; ``u`` is then a disturbance.
 
     Raises
     ------
@@ -177,9 +178,12 @@ class Experiment(ControlRequests, SamplingLoop):
             )
         self._control = controller
         control_channels: tuple[ChannelSpec, ...] = ()
+        self._loop_level = math.nan  # a loop on a further pair's (a kit's q2/t2)
         if controller is not None:
             controller.bind(self._info, self._interlocks, (np.arange(samples) * dt).tolist())
             control_channels = controller.channels()
+            if controller.drives_further:  # its heater's level in MANUAL, from its default
+                self._loop_level = self._info.inputs[controller.heater].default
         self._control_channels = control_channels
         self._channels = (
             *RUN_CHANNELS,
@@ -289,7 +293,8 @@ class Experiment(ControlRequests, SamplingLoop):
         """Switch to manual input ``u`` (a set point), from the next sample on.
 
         With a controller, this also switches it to MANUAL (its PID then
-        tracks ``u``).
+        tracks ``u``), unless it drives a further pair (a kit's ``q2``/``t2``):
+        ``u`` is then the other heater, a disturbance to the loop.
 
         Parameters
         ----------
@@ -307,7 +312,7 @@ class Experiment(ControlRequests, SamplingLoop):
         value = self._checked_input(u)
         self._refuse_when_over("change the input")
         self._manual = value
-        if self._control is not None:
+        if self._control is not None and not self._control.drives_further:
             self._control.request_manual()
 
     def set_signal(self, signal: InputSignal) -> None:
@@ -332,7 +337,7 @@ class Experiment(ControlRequests, SamplingLoop):
         self._refuse_when_over("change the input")
         self._signal = signal
         self._manual = None
-        if self._control is not None:
+        if self._control is not None and not self._control.drives_further:
             self._control.request_manual()
 
     def end(self) -> None:

@@ -84,6 +84,7 @@ class SamplingLoop:
     _fan_request: float | None
     _further_requests: dict[str, float]
     _further_reading: Mapping[str, float]
+    _loop_level: float
     events: EventBus
     _machine: RunStateMachine
     _request: tuple[EndReason, str] | None
@@ -315,6 +316,13 @@ class SamplingLoop:
         active = [(name, ident, self._tracks[name]) for name, ident in self._identifiers.items()]
         sources = [(spec.name, fn, self._extra[spec.name]) for spec, fn in self._sources]
         control = self._control
+        # A loop on a further pair drives that heater from that sensor, not u from y.
+        loop_heater = loop_sensor = None
+        loop_min, loop_max = -math.inf, math.inf
+        if control is not None and control.drives_further:
+            loop_heater, loop_sensor = control.heater, control.sensor
+            loop_min, loop_max = control.input_range
+        q = y_loop = math.nan
         control_arrays = [(spec.name, self._extra[spec.name]) for spec in self._control_channels]
         with_extra = bool(sources) or control is not None
         extra: Mapping[str, float] = NO_EXTRA
@@ -372,7 +380,24 @@ class SamplingLoop:
                     table, table_signal, table_start = signal_table(signal, k, n, dt), signal, k
                     table_end = k + len(table) if table else k
                 u = table[k - table_start] if table else float(signal.value(t_k))
-            if control is not None:
+            if loop_heater is not None:
+                assert control is not None
+                assert loop_sensor is not None
+                # The further sensor's limit is the rig's own (it faults above it); its
+                # heater's range is checked here, as u's is below.
+                y_loop = float(reading.further.get(loop_sensor, math.nan))
+                if not math.isfinite(y_loop):
+                    raise _TripError(
+                        EndReason.INTERLOCK, "interlock", f"interlock: {loop_sensor} is {y_loop}"
+                    )
+                q = control.command(y_loop, self._loop_level, dt, t_k)
+                if not loop_min <= q <= loop_max:
+                    raise _TripError(
+                        EndReason.INTERLOCK,
+                        "interlock",
+                        f"interlock: {loop_heater} {q:g} outside {loop_min:g}-{loop_max:g}",
+                    )
+            elif control is not None:
                 # The interlock on y was checked above and the input range is checked
                 # below: the controller can never override either.
                 u = control.command(y, u, dt, t_k)
@@ -388,6 +413,8 @@ class SamplingLoop:
                     requested, self._further_requests = self._further_requests, {}
                 for name, level in requested.items():
                     rig.set_channel(name, level, at=deadline)
+            if loop_heater is not None:
+                q = float(rig.set_channel(loop_heater, q, at=deadline))
             u = float(rig.apply(u, at=deadline))
 
             t_read = reading.t - t0
@@ -401,9 +428,10 @@ class SamplingLoop:
             if with_extra:
                 extra = {}
                 if control is not None:
-                    for (name, values), value in zip(
-                        control_arrays, control.after(u, y), strict=True
-                    ):
+                    looped = (
+                        control.after(u, y) if loop_heater is None else control.after(q, y_loop)
+                    )
+                    for (name, values), value in zip(control_arrays, looped, strict=True):
                         values[k] = extra[name] = value
                 for name, source, values in sources:
                     values[k] = extra[name] = float(source(t_k, u, y))

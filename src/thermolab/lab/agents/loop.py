@@ -34,7 +34,7 @@ from thermolab.errors import HostOfflineError, InvalidParameterError
 from thermolab.rigs import RigInfo
 from thermolab.runner import ControlLoop, Interlocks
 from thermolab.runner.control_request import ControlRequest
-from thermolab.runner.control_requests import fan_level
+from thermolab.runner.control_requests import fan_level, refuse_loop_heater
 
 __all__ = ["RemoteLoop", "commanded_request"]
 
@@ -116,8 +116,10 @@ class RemoteLoop:
 
     def set_manual(self, u: float | None = None) -> None:
         """Switch the host's controller to MANUAL (``u`` checked against the input range)."""
-        self._require()
-        if u is not None:
+        loop = self._require()
+        if u is not None and loop.drives_further:
+            self._info.further_level(loop.heater, u)
+        elif u is not None:
             problem = Interlocks.check_input(float(u), self._info)
             if problem is not None:
                 raise InvalidParameterError(problem)
@@ -141,6 +143,7 @@ class RemoteLoop:
     def set_further(self, name: str, value: float) -> None:
         """Set the rig's further input ``name`` (a rig without it, a level out of range: 422)."""
         level = self._info.further_level(name, value)
+        refuse_loop_heater(self._loop, name)
         self._forward(SetChannel(run=self._run, name=name, level=level))
 
     def _require(self) -> ControlLoop:

@@ -15,9 +15,12 @@ from pydantic import Field
 
 from thermolab.control import PARAMETERS
 from thermolab.lab.http.bodies import In, Out
-from thermolab.lab.runs.control import ControlRequest
+from thermolab.lab.runs.control import PRIMARY_PAIR, ControlRequest
 
 __all__ = ["ControlIn", "FanIn", "GainsIn", "LoopOut", "ModeIn", "SetpointIn"]
+
+#: A channel's name (thermolab.records.ChannelSpec), as the rig declares it.
+_CHANNEL = r"^[a-z][a-z0-9_]*$"
 
 
 def _declared(name: str) -> Any:
@@ -63,6 +66,23 @@ class ControlIn(GainsIn):
         description="[K, tau, theta]: the model the gains came from (its prediction is shown "
         "beside the measured run)",
     )
+    heater: str = Field(
+        default=PRIMARY_PAIR[0],
+        min_length=1,
+        max_length=40,
+        pattern=_CHANNEL,
+        description="the input the PID drives, by the rig's name: u (default, the run's "
+        "input) or a further input that has a sensor (a kit's q2); the other heater stays "
+        "settable by hand, a disturbance (422 loop_pair_not_on_rig for a pair the rig lacks)",
+    )
+    sensor: str = Field(
+        default=PRIMARY_PAIR[1],
+        min_length=1,
+        max_length=40,
+        pattern=_CHANNEL,
+        description="the output the PID controls, paired with heater: y (default) or a "
+        "further output (a kit's t2)",
+    )
 
     def request(self) -> ControlRequest:
         """The run service's request."""
@@ -84,6 +104,8 @@ class ControlIn(GainsIn):
             ti_range=None if self.ti_range is None else tuple(self.ti_range),  # type: ignore[arg-type]
             derivative_filter=self.derivative_filter,
             model=None if self.model is None else tuple(self.model),
+            heater=self.heater,
+            sensor=self.sensor,
         )
 
 
@@ -119,6 +141,12 @@ class LoopOut(Out):
     output_limit: float | None
     closed_loop: bool = Field(description="the rig can be controlled (it has an output unit)")
     fan: dict[str, Any] | None = Field(description="the disturbance fan (unit, range), or null")
+    pairs: list[dict[str, Any]] = Field(
+        default_factory=list,
+        description="the heater and sensor pairs a closed loop may control, the run's own "
+        "(u, y) first: heater, sensor, inputUnit, inputRange, outputUnit, outputLimit "
+        "(a kit: u/y and q2/t2; the panel offers a choice when there are more than one)",
+    )
     loop: dict[str, Any] | None = Field(
         description="the current run's loop (mode, setpoint, gains, pid, adaptive with "
         "last_reason: why it holds the gains), or null"

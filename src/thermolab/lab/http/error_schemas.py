@@ -66,6 +66,7 @@ class ValidationErrorOut(_Out):
         "setting_not_for_rig",
         "speedup_refused",
         "channel_not_on_rig",
+        "loop_pair_not_on_rig",
         "slot_ends_before_start",
         "slot_too_long",
         "slot_zone_missing",
@@ -83,7 +84,8 @@ class ValidationErrorOut(_Out):
         "does not have (the twin speed-up of hardware or of a rig host's twin); "
         "speedup_refused: a script's speed-up the rig does not allow (the message names what "
         "it allows); channel_not_on_rig: an input the rig does not have (a second heater on a "
-        "one-heater rig; the message names what it has); slot_ends_before_start, "
+        "one-heater rig; the message names what it has); loop_pair_not_on_rig: a closed "
+        "loop's heater and sensor the rig does not pair; slot_ends_before_start, "
         "slot_too_long, slot_zone_missing: a booking's "
         "times (an end at or before the start, longer than a day unless said longer, a time "
         "without its zone); time_zone_unknown: a time zone that is not a known IANA name "

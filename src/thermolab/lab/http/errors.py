@@ -35,6 +35,7 @@ from thermolab.errors import (
     BookingClashError,
     BookingQuotaError,
     BookingSeriesClashError,
+    ChannelInLoopError,
     ChannelNotOnRigError,
     ClassListError,
     ConflictError,
@@ -44,6 +45,7 @@ from thermolab.errors import (
     GainRangeError,
     HostOfflineError,
     LabStartingError,
+    LoopPairNotOnRigError,
     NameTakenError,
     NobodyControlsError,
     NoOutputUnitError,
@@ -169,6 +171,9 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     SpeedupRefusedError: HttpFault(422, "speedup_refused"),
     # A rig's further channels (issue #22, item 1): a kit's heater 2 on a one-heater rig.
     ChannelNotOnRigError: HttpFault(422, "channel_not_on_rig"),
+    # The closed loop's pair (issue #22, item 3): one the rig has; its heater is the PID's.
+    LoopPairNotOnRigError: HttpFault(422, "loop_pair_not_on_rig"),
+    ChannelInLoopError: HttpFault(409, "channel_in_loop"),
     # Bookings (issue #10, item 5).
     BookingClashError: HttpFault(409, "booking_clash"),
     RigBookedError: HttpFault(409, "rig_booked"),

@@ -7,6 +7,7 @@ the lab's modules.
 
 from __future__ import annotations
 
+from thermolab.rigs import PRIMARY_PAIR
 from thermolab.runner.control_request import CONTROL_MODES, ControlRequest, build_control_loop
 
-__all__ = ["CONTROL_MODES", "ControlRequest", "build_control_loop"]
+__all__ = ["CONTROL_MODES", "PRIMARY_PAIR", "ControlRequest", "build_control_loop"]

@@ -151,7 +151,8 @@ def closed_loop_figures(
     """A closed-loop run's measured step figures beside its model's prediction.
 
     ``samples`` are the run's channels by name (``t``, ``y``, ``u``, ``r``);
-    ``control`` the run's control request (its starting gains and ``model``).
+    ``control`` the run's control request (its starting gains, ``model`` and the
+    pair it controlled: a further pair's columns stand for ``u`` and ``y``).
     The prediction is :func:`thermolab.control.predict_record_step`'s, as
     ``thermolab run``'s: from the record's operating point just before the
     step, with the gains the run started with; a run that starts in AUTO
@@ -159,8 +160,10 @@ def closed_loop_figures(
     and its first output.
     """
     t = np.asarray(samples.get("t") or [], dtype=np.float64)
-    y = np.asarray(samples.get("y") or [], dtype=np.float64)
-    u = np.asarray(samples.get("u") or [], dtype=np.float64)
+    # The loop's pair: the run's own u and y, or a further pair's columns (a kit's q2, t2).
+    heater, sensor = control.get("heater") or "u", control.get("sensor") or "y"
+    y = np.asarray(samples.get(sensor) or [], dtype=np.float64)
+    u = np.asarray(samples.get(heater) or [], dtype=np.float64)
     r_values = samples.get("r")
     out: dict[str, Any] = {
         "measured": None, "predicted": None, "note": None, "notes": [], "model": None,

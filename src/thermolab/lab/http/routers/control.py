@@ -18,6 +18,7 @@ from thermolab.errors import SetpointNoStepError, SetpointRangeError
 from thermolab.lab.http.control_schemas import FanIn, GainsIn, LoopOut, ModeIn, SetpointIn
 from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, RunId, UserDep, documented_errors
 from thermolab.lab.http.routers.runs import RunOut
+from thermolab.lab.runs.control import PRIMARY_PAIR
 from thermolab.lab.runs.tuning_table import closed_loop_figures, run_model, tuning_table
 from thermolab.lab.service import Lab
 from thermolab.runner import LoopCommands
@@ -52,7 +53,8 @@ def control_parameters() -> dict[str, Any]:
 )
 def rig_loop(rig_id: RigId, who: UserDep, lab: LabDep) -> LoopOut:
     """Units, ranges, the output limit (a set point must stay below it), the disturbance
-    fan if the rig has one, and the current run's control loop (mode, set point, gains,
+    fan if the rig has one, the heater and sensor pairs a loop may control (a kit's
+    two), and the current run's control loop (mode, set point, gains,
     adaptive state and why it holds the gains).
     """
     cfg = lab.config.rig(rig_id)
@@ -69,6 +71,20 @@ def rig_loop(rig_id: RigId, who: UserDep, lab: LabDep) -> LoopOut:
         output_limit=info.output_limit,
         closed_loop=bool(published.output_unit),
         fan=None if spec.fan is None else spec.fan.to_dict(),
+        pairs=[
+            {
+                "heater": heater,
+                "sensor": sensor,
+                "inputUnit": published.input_unit if own else info.inputs[heater].unit,
+                "inputRange": [published.input_min, published.input_max]
+                if own
+                else list(info.inputs[heater].range),
+                "outputUnit": published.output_unit if own else info.outputs[sensor].unit,
+                "outputLimit": info.output_limit if own else info.outputs[sensor].limit,
+            }
+            for heater, sensor in info.loop_pairs
+            for own in (heater == PRIMARY_PAIR[0],)
+        ],
         loop=lab.rig_runs.loop_state(rig_id),
     )
 
@@ -241,7 +257,9 @@ def run_tuning(
         out["table"] = {**table, "method": name, "trusted": trusted}
     control = (record.settings or {}).get("control")
     if control is not None and us:
-        out["closedLoop"] = closed_loop_figures(
-            samples, record.dt, control, limits, published.safe_input
-        )
+        rest = published.safe_input
+        heater = lab.config.rig(record.rig_id).rig_spec.actuators.get(control.get("heater") or "")
+        if heater is not None:  # a loop on a further pair: that heater's range and rest
+            limits, rest = heater.range, heater.default
+        out["closedLoop"] = closed_loop_figures(samples, record.dt, control, limits, rest)
     return out

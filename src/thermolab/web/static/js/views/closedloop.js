@@ -12,8 +12,12 @@
 // runs: set-point steps, manual/auto, the fan, END. The chart draws r, y, u and
 // the prediction; in adaptive mode the gains' trajectories and why the tuner
 // holds them. At the end the measured figures are shown beside the predicted.
+// A rig with more than one heater and sensor pair (a kit: Q1/T1, Q2/T2) gets a
+// chooser of the heater the PID drives; the other is a disturbance set by hand
+// (heater 2 in the "Further inputs" card, heater 1 here while the loop drives 2).
 
 import { api, request } from "../api.js";
+import { channelName } from "../channelwords.js";
 import { Chart, COLORS } from "../charts.js";
 import { h, replaceChildren, setText, tParts } from "../dom.js";
 import { formatNumber, t } from "../i18n.js";
@@ -36,6 +40,17 @@ const loopApi = {
   gains: (rig, body) => request("PUT", `/api/rigs/${enc(rig)}/runs/current/gains`, body),
   fan: (rig, percent) => request("PUT", `/api/rigs/${enc(rig)}/runs/current/fan`, { percent }),
 };
+
+/** The run's own pair: its input u and output y (a kit's heater 1 and sensor 1). */
+const OWN = "u";
+
+/**
+ * A heater and sensor pair in the reader's words.
+ * @param {{heater: string, sensor: string}} pair
+ */
+function pairLabel(pair) {
+  return pair.heater === OWN ? t("loop.pairOwn") : t("loop.pair", { heater: channelName(pair.heater), sensor: channelName(pair.sensor) });
+}
 
 /** The modes' labels (the server's words are "manual" and "auto"). */
 const MODE_KEYS = { manual: "loop.modeManual", auto: "loop.modeAuto" };
@@ -80,6 +95,10 @@ export class ClosedLoopPanel {
     /** @type {any} */ this.rig = null;
     /** @type {any} */ this.modeSelect = null;
     /** @type {any} */ this.adaptive = null;
+    /** The heater chooser (a rig with more than one pair), and the pair of the run shown. */
+    /** @type {any} */ this.pairSelect = null;
+    /** @type {any} */ this.otherHost = null;
+    /** @type {{heater: string, sensor: string}} */ this.runPair = { heater: OWN, sensor: "y" };
     /** The table shown, the run it came from and the row picked (its prediction follows the set point). */
     /** @type {any} */ this.tuning = null;
     /** @type {any} */ this.tuningRun = null;
@@ -167,6 +186,17 @@ export class ClosedLoopPanel {
     modeSelect.value = "auto"; // a set-point step from rest; manual starts open-loop
     this.modeSelect = modeSelect;
     this.adaptive = h("input", { id: "loop-adaptive", type: "checkbox", name: "adaptive" });
+    // Which heater the PID drives: only where there is a choice (a one-heater rig looks as before).
+    const pairs = Array.isArray(rig.pairs) ? rig.pairs : [];
+    /** @type {any[]} */
+    const chooser = [];
+    if (pairs.length > 1) {
+      this.pairSelect = h("select", { id: "loop-heater", name: "heater", "data-testid": "loop-heater" },
+        ...pairs.map((p) => h("option", { value: p.heater, "data-sensor": p.sensor }, pairLabel(p))));
+      this.pairSelect.addEventListener("change", () => this._pairChanged());
+      chooser.push(h("div", { class: "field" }, h("label", { for: "loop-heater" }, t("loop.heater")), this.pairSelect),
+        h("p", { class: "hint" }, t("loop.heaterHint")));
+    }
     this.startButton = h("button", { type: "button", "data-action": "loop-start" }, t("loop.start"));
     this.startButton.addEventListener("click", () => void this._start());
     this.form = h("fieldset", {},
@@ -181,6 +211,7 @@ export class ClosedLoopPanel {
         this._field("u", t("loop.manualInput"), { label: t("loop.manualInput"), min: uMin, max: uMax, unit: inUnit }, rest),
         this._field("dt", t("loop.dt"), { label: t("loop.dt"), min: 0.01, max: 3600, unit: "s" }, 1),
         this._field("samples", t("loop.samples"), { label: t("loop.samples"), min: 1, max: 200000, integer: true }, 1200)),
+      ...chooser,
       h("div", { class: "field" }, h("label", { for: "loop-mode" }, t("loop.mode")), modeSelect),
       h("div", { class: "field" }, h("label", { for: "loop-adaptive" }, t("loop.adaptive")), this.adaptive),
       this.startButton);
@@ -199,6 +230,16 @@ export class ClosedLoopPanel {
       button("loop-auto", "loop.toAuto", () => loopApi.mode(this.rigId, { mode: "auto" })),
       button("loop-manual", "loop.toManual", () => loopApi.mode(this.rigId, { mode: "manual" })),
       button("loop-end", "loop.end", () => api.stopRun(this.rigId))];
+    if (this.pairSelect) {
+      // While the PID drives another heater, the run's own input (heater 1) is the disturbance.
+      this.otherHost = h("div", { class: "fields", hidden: true },
+        this._field("other", t("loop.otherHeater"), { label: t("loop.otherHeater"), min: uMin, max: uMax, unit: inUnit }, rest),
+        button("loop-other", "loop.otherSet", () => {
+          const v = this._read(["other"]);
+          return v && api.setInput(this.rigId, v.other);
+        }));
+      live.push(this.otherHost);
+    }
     if (rig.fan) {
       live.push(this._field("fan", t("loop.fan"), { label: t("loop.fan"), min: rig.fan.minimum, max: rig.fan.maximum, unit: unitSymbol(rig.fan.unit) }, 50),
         button("loop-fan", "loop.fanSet", () => {
@@ -323,6 +364,8 @@ export class ClosedLoopPanel {
     /** @type {Record<string, unknown>} */
     const control = { mode: this.modeSelect.value, setpoint: v.setpoint, kp: v.kp, ti: v.ti, td: v.td, adaptive: this.adaptive.checked };
     if (this.model) control.model = [this.model.K, this.model.tau, this.model.theta];
+    const pair = this._pair();
+    if (pair.heater !== OWN) Object.assign(control, pair);
     this.startButton.disabled = true;
     try {
       // LSM fits the whole record, the set-point step included: it identifies in closed
@@ -341,6 +384,9 @@ export class ClosedLoopPanel {
     if (!run || !run.settings?.control) return;
     this.runId = run.id;
     this.running = true;
+    const c = run.settings.control;
+    this.runPair = { heater: c.heater ?? OWN, sensor: c.sensor ?? "y" };
+    if (this.otherHost) this.otherHost.hidden = this.runPair.heater === OWN;
     this.dt = run.dt;
     for (const key of Object.keys(this.series)) this.series[key] = [];
     replaceChildren(this.figures);
@@ -378,7 +424,9 @@ export class ClosedLoopPanel {
     if (!this.running || msg.run !== this.runId || !c || c.r === undefined) return;
     const s = this.series;
     if (s.t.length >= KEEP) for (const key of Object.keys(s)) s[key].splice(0, KEEP / 4);
-    s.t.push(msg.t); s.r.push(c.r); s.y.push(msg.y); s.u.push(msg.u);
+    // A loop on a further pair draws that sensor and heater (a kit's T2, Q2), not y and u.
+    const own = this.runPair.heater === OWN;
+    s.t.push(msg.t); s.r.push(c.r); s.y.push(own ? msg.y : c[this.runPair.sensor] ?? NaN); s.u.push(own ? msg.u : c[this.runPair.heater] ?? c.u_pid);
     s.kp.push(c.kp ?? NaN); s.ti.push(c.ti ?? NaN);
     s.p.push(this._predictedAt(msg.t));
     if (c.kp !== undefined) this.gainHost.hidden = false;
@@ -409,6 +457,23 @@ export class ClosedLoopPanel {
       // the next poll tries again
     }
     if (this.running) this._timer = setTimeout(() => void this._poll(), POLL_MS);
+  }
+
+  /** The pair chosen (the run's own where there is no choice). */
+  _pair() {
+    const select = this.pairSelect;
+    if (!select) return { heater: OWN, sensor: "y" };
+    const option = select.selectedOptions[0];
+    return { heater: select.value, sensor: option?.dataset.sensor ?? "y" };
+  }
+
+  /** Another heater chosen: the manual field starts heater 1 then, a disturbance; the manual input otherwise. */
+  _pairChanged() {
+    const field = this.fields.u;
+    const words = this._pair().heater === OWN ? t("loop.manualInput") : t("loop.otherStart");
+    field.spec.label = words;
+    const label = field.input.closest(".field")?.querySelector("label");
+    if (label) setText(label, words);
   }
 
   setLocked(locked) {

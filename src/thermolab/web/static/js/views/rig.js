@@ -30,7 +30,7 @@ import { RigHeader } from "./rig/header.js";
 import { paceText } from "./rig/pace.js";
 import { lockReason, lockRepeatsRole } from "./rig/lock.js";
 import { Readout } from "./rig/readout.js";
-import { FurtherInputs, levelsOf } from "./rig/furtherinputs.js";
+import { FurtherInputs, levelsOf, loopHeaterOf } from "./rig/furtherinputs.js";
 import { TurnNotice } from "./rig/notice.js";
 import { NextChance } from "./rig/chance.js";
 import { Reachability } from "./rig/reach.js";
@@ -222,6 +222,8 @@ class RigPage {
       case "hello":
         this._setRig(readRig(msg.rig));
         this.access.update(readAccess(msg.access));
+        // Joined during a closed loop on heater 2: its field is the PID's.
+        this.further.setDriven(msg.run?.status === "running" ? loopHeaterOf(msg.run) : null);
         if (this.show.set(readRun(msg.run)) && !this._askedHistory) {
           // Joined half-way through a run: ask the server for all it holds (the
           // run's samples from the store, the recent estimates) once.
@@ -243,8 +245,11 @@ class RigPage {
         break;
       case "run":
         this.show.event(msg);
-        if (msg.event === "started") this.loop.started(msg.run);
-        else {
+        if (msg.event === "started") {
+          this.loop.started(msg.run);
+          this.further.setDriven(loopHeaterOf(msg.run));
+        } else {
+          this.further.setDriven(null);
           void this.loop.ended(msg.run);
           void this._readActuators(); // the run's end rested them: the rig says where
         }

@@ -7,6 +7,8 @@
 // is set in the closed-loop panel (closedloop.js), as a disturbance.
 // Each field follows the rig's level (a run's or a turn's end puts heater 2
 // back at 0), except while the user is editing it: focused and changed since.
+// The heater a closed loop drives (a kit's Q2, chosen in the closed-loop panel)
+// is its PID's while the run goes: its field is disabled and says so.
 
 import { api } from "../../api.js";
 import { channelLabel } from "../../channelwords.js";
@@ -19,8 +21,18 @@ import { checkNumber, rangeText } from "../../validate.js";
 /**
  * A field's state: `edited` since the rig's level was last shown in it, and the
  * level `sent` that the rig's readings have not shown yet (null: none).
- * @typedef {{input: HTMLInputElement, error: HTMLElement, edited: boolean, sent: number | null}} LevelField
+ * @typedef {{input: HTMLInputElement, error: HTMLElement, edited: boolean, sent: number | null, button: HTMLButtonElement, note: HTMLElement}} LevelField
  */
+
+/**
+ * The further input a run's closed loop drives (its `settings.control.heater`), or null.
+ * @param {any} run
+ * @returns {string | null}
+ */
+export function loopHeaterOf(run) {
+  const heater = run?.settings?.control?.heater;
+  return typeof heater === "string" && heater !== "u" ? heater : null;
+}
 
 /**
  * The levels of a rig's actuators by name, as `FurtherInputs.follow` takes them.
@@ -73,10 +85,11 @@ export class FurtherInputs {
     const input = h("input", { id, name: a.name, type: "text", inputmode: "decimal", value: formatDecimal(a.level ?? a.default), "aria-describedby": `${id}-range` });
     const error = h("span", { class: "field-error", role: "alert", "data-testid": `${id}-error` });
     const done = h("span", { class: "hint", role: "status", "data-testid": `${id}-status` });
+    const note = h("span", { class: "hint", "data-testid": `${id}-driven` });
     const button = h("button", { type: "submit", "data-action": "set-channel", "data-channel": a.name }, t("furtherInputs.set"));
     this.buttons.push(button);
     /** @type {LevelField} */
-    const field = { input, error, edited: false, sent: null };
+    const field = { input, error, edited: false, sent: null, button, note };
     this.fields.set(a.name, field);
     input.addEventListener("input", () => {
       field.edited = true;
@@ -90,6 +103,7 @@ export class FurtherInputs {
       h("small", { id: `${id}-range` }, rangeText(spec)),
       error,
       done,
+      note,
     );
     form.addEventListener("submit", (e) => {
       e.preventDefault();
@@ -128,6 +142,19 @@ export class FurtherInputs {
       this.onSet(a.name, applied);
     } catch (err) {
       setText(error, err instanceof Error ? err.message : String(err));
+    }
+  }
+
+  /**
+   * The input a closed loop drives now (null: none): its field is the PID's, disabled.
+   * @param {string | null} name
+   */
+  setDriven(name) {
+    for (const [channel, field] of this.fields) {
+      const driven = channel === name;
+      field.input.disabled = driven;
+      field.button.disabled = driven;
+      setText(field.note, driven ? t("furtherInputs.driven") : "");
     }
   }
 
