@@ -45,6 +45,8 @@ __all__ = [
     "NotClosedLoopError",
     "NotControllerError",
     "NotFoundError",
+    "PairChannelUnknownError",
+    "PairRoleError",
     "PasswordChangeRequiredError",
     "PasswordRejectedError",
     "PreviousRunEndingError",
@@ -103,6 +105,14 @@ class InvalidParameterError(ThermoLabError, ValueError):
 
 class ChannelNotOnRigError(InvalidParameterError):
     """A further input or output the rig does not declare (``q2`` on a one-heater rig)."""
+
+
+class PairChannelUnknownError(InvalidParameterError):
+    """A run's input/output pair names a channel the rig does not declare (``q3``)."""
+
+
+class PairRoleError(InvalidParameterError):
+    """A run's pair whose input is not an input the run records, or whose output is no sensor."""
 
 
 class IdentifierStateError(ThermoLabError, RuntimeError):

@@ -51,6 +51,8 @@ from thermolab.errors import (
     NotClosedLoopError,
     NotControllerError,
     NotFoundError,
+    PairChannelUnknownError,
+    PairRoleError,
     PasswordChangeRequiredError,
     PasswordRejectedError,
     PreviousRunEndingError,
@@ -169,6 +171,9 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     SpeedupRefusedError: HttpFault(422, "speedup_refused"),
     # A rig's further channels (issue #22, item 1): a kit's heater 2 on a one-heater rig.
     ChannelNotOnRigError: HttpFault(422, "channel_not_on_rig"),
+    # A run's input/output pair (issue #22): a channel the rig lacks, or one in the wrong role.
+    PairChannelUnknownError: HttpFault(422, "pair_channel_unknown"),
+    PairRoleError: HttpFault(422, "pair_wrong_role"),
     # Bookings (issue #10, item 5).
     BookingClashError: HttpFault(409, "booking_clash"),
     RigBookedError: HttpFault(409, "rig_booked"),

@@ -105,6 +105,8 @@ class ValidationErrorOut(_Out):
         "setting_not_for_rig",
         "speedup_refused",
         "channel_not_on_rig",
+        "pair_channel_unknown",
+        "pair_wrong_role",
         "slot_ends_before_start",
         "slot_too_long",
         "slot_zone_missing",
@@ -122,7 +124,9 @@ class ValidationErrorOut(_Out):
         "does not have (the twin speed-up of hardware or of a rig host's twin); "
         "speedup_refused: a script's speed-up the rig does not allow (the message names what "
         "it allows); channel_not_on_rig: an input the rig does not have (a second heater on a "
-        "one-heater rig; the message names what it has); slot_ends_before_start, "
+        "one-heater rig; the message names what it has); pair_channel_unknown, pair_wrong_role: "
+        "a run's input/output pair naming a channel the rig lacks, or an input that is no "
+        "recorded actuator or an output that is no sensor; slot_ends_before_start, "
         "slot_too_long, slot_zone_missing: a booking's "
         "times (an end at or before the start, longer than a day unless said longer, a time "
         "without its zone); time_zone_unknown: a time zone that is not a known IANA name "
