@@ -233,6 +233,14 @@ def test_panel_1_identifies_the_pair_she_chooses(context_for: Any, kit_lab: Any)
             """sel => !['', '–'].includes(document.querySelector(sel)?.textContent ?? '')""",
             arg="[data-panel-view=srm-lsm] tr[data-method=lsm] td[data-field=K]",
         )
+        # The charts draw the model of heater 2 -> sensor 2 over T2 (not over y, from u).
+        page.wait_for_selector("#overlay-method option[value=lsm]", state="attached")
+        page.select_option("#overlay-method", "lsm")
+        output = page.evaluate(TRACES, 0)
+        model_at = output["names"].index(words["series.model"])
+        t2_at = output["names"].index(words["channel.t2"])
+        last = [float(v.replace(",", ".").replace("−", "-")) for v in output["last"]]
+        assert abs(last[model_at] - last[t2_at]) < 2.0, output
         assert ana.english("the pair chooser") == []
         assert ana.errors == []
     finally:

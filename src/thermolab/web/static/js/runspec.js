@@ -99,6 +99,17 @@ export function buildRunSpec(panel, v, automatic, server = {}) {
   return spec;
 }
 
+/**
+ * The input/output pair a run identified (RunIn.input, RunIn.output: a kit's "q2", "t2"),
+ * by its record's column names; "u", "y" for a run that named none.
+ * @param {{settings?: Record<string, any>} | null | undefined} run
+ * @returns {{input: string, output: string}}
+ */
+export function runPair(run) {
+  const s = run?.settings ?? {};
+  return { input: typeof s.input === "string" ? s.input : "u", output: typeof s.output === "string" ? s.output : "y" };
+}
+
 /** The panel of the step and least-squares methods, which a run belongs to by default. */
 const FIRST_PANEL = "srm-lsm";
 

@@ -4,7 +4,7 @@
 
 import { duration, durationWords, h, setText, tParts } from "../../dom.js";
 import { fmtFigure } from "../../model.js";
-import { isPlannedStep, methodName, methodTitle, panelOfRun, runStatusText } from "../../runspec.js";
+import { isPlannedStep, methodName, methodTitle, panelOfRun, runPair, runStatusText } from "../../runspec.js";
 import { DEFAULT_LANGUAGE, formatDecimal, formatTime, language, t } from "../../i18n.js";
 import { OFFSET_LABELS } from "./definitions.js";
 import { endReasonNode } from "../../runwords.js";
@@ -183,8 +183,7 @@ export function lastSampleGain(est) {
 export function renderResults(view, run) {
   const found = run ? operatingPointsFound(run.methods.map(methodName), run.estimates) : [];
   // A run that identified another pair than u -> y says which (a kit's heater 2 -> sensor 2).
-  const input = run?.settings?.input ?? "u";
-  const output = run?.settings?.output ?? "y";
+  const { input, output } = runPair(run);
   const pair = input !== "u" || output !== "y" ? t("panel.pairUsed", { pair: pairLabel(input, output) }) : "";
   setText(view.operatingPoint, [pair, operatingPointText(run?.operatingPoint), ...found].filter(Boolean).join(" "));
   view.operatingPoint.hidden = !view.operatingPoint.textContent;
