@@ -241,6 +241,20 @@ def test_panel_1_identifies_the_pair_she_chooses(context_for: Any, kit_lab: Any)
         t2_at = output["names"].index(words["channel.t2"])
         last = [float(v.replace(",", ".").replace("−", "-")) for v in output["last"]]
         assert abs(last[model_at] - last[t2_at]) < 2.0, output
+        # The run's page says the pair and draws Q2, T2 and the model of them.
+        page.goto(f"{kit_lab.url}/#/runs/{run['id']}")
+        page.wait_for_selector("#run-model")
+        facts = page.inner_text("dl.facts")
+        assert words["panel.pair"] in facts
+        assert pair.format(input=words["channel.q2"], output=words["channel.t2"]) in facts
+        assert "input" not in facts  # the setting is said as the pair, not by its name
+        run_traces = TRACES.replace(".live-charts figure.chart", "main figure.chart")
+        output, heater = page.evaluate(run_traces, 0), page.evaluate(run_traces, 1)
+        assert output["names"][1:] == [words["channel.t2"], words["series.model"]], output
+        assert heater["names"][1:] == [words["channel.q2"]], heater
+        assert heater["last"][-1] == "50", heater
+        last = [float(v.replace(",", ".").replace("−", "-")) for v in output["last"]]
+        assert abs(last[1] - last[2]) < 2.0, output
         assert ana.english("the pair chooser") == []
         assert ana.errors == []
     finally:

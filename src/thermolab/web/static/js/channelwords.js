@@ -36,10 +36,19 @@ export function channelLabel(name, unit) {
  * @param {string} name  "u", "y" or a further channel's name
  * @param {boolean} kit  whether the rig is a kit (it declares heater 2)
  */
-function pairEnd(name, kit) {
+export function pairEnd(name, kit) {
   if (name === "u") return kit ? t("channel.q1") : t("channel.u");
   if (name === "y") return kit ? t("channel.t1") : t("channel.y");
   return channelName(name);
+}
+
+/**
+ * Whether a pair is a kit's (either end heater 2 or sensor 2): its u and y are then heater 1 and sensor 1.
+ * @param {string} input
+ * @param {string} output
+ */
+export function kitPair(input, output) {
+  return [input, output].some((n) => n === "q2" || n === "t2");
 }
 
 /**
@@ -48,7 +57,7 @@ function pairEnd(name, kit) {
  * @param {string} output
  * @param {boolean} [kit]
  */
-export function pairLabel(input, output, kit = [input, output].some((n) => n === "q2" || n === "t2")) {
+export function pairLabel(input, output, kit = kitPair(input, output)) {
   return t("panel.pairOption", { input: pairEnd(input, kit), output: pairEnd(output, kit) });
 }
 
