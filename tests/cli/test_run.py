@@ -422,3 +422,27 @@ def test_a_run_on_the_kits_two_heater_twin_records_sensor_2_and_heater_2(tmp_pat
     assert list(rows[0])[-2:] == ["t2", "q2"]
     assert {row["q2"] for row in rows} == {"0.0"}  # heater 2 stays off
     assert float(rows[-1]["y"]) > float(rows[-1]["t2"]) + 10.0  # heater 1 warms sensor 1
+
+
+def test_a_kit_run_identifies_the_pair_chosen_heater_2_to_sensor_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "pair.csv"
+    argv = ["run", "--rig", "sim:kit", "--fast", "--samples", "300", "--dt", "2", "--seed", "1"]
+    pair = ["--input", "q2", "--output", "t2"]
+    status = main([*argv, *pair, "--signal", "step:0:60@20", "--method", "lsm", "--json"])
+    assert status == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["pair"] == {"input": "q2", "output": "t2"}
+    latest = report["methods"]["lsm"]["latest"]
+    assert 0.2 < latest["K"] < 0.45, latest  # heater 2 -> sensor 2: half heater 1's 0.6 °C/%
+    assert 60.0 < latest["tau"] < 400.0, latest
+    status = main([*argv, *pair, "--signal", "step:0:60@20", "--method", "lsm", "--out", str(out)])
+    assert status == 0
+    assert "identified pair: q2 -> t2" in capsys.readouterr().out
+    rows = _rows(out)
+    assert {row["u"] for row in rows} == {"0.0"}  # heater 1 rests
+    assert rows[-1]["q2"] == "60.0"
+    # A name the kit does not have: one line, naming what it has.
+    assert main([*argv, "--input", "q3", "--signal", "step:0:60@20", "--method", "lsm"]) == 1
+    assert "no channel 'q3'; its inputs: u, q2" in capsys.readouterr().err

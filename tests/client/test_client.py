@@ -100,6 +100,23 @@ def test_a_run_is_started_followed_live_and_fetched_as_arrays(served_lab: Served
     assert data.methods["lsm"]
 
 
+def test_a_script_identifies_the_kits_heater_2_to_sensor_2(served_lab: ServedLab) -> None:
+    _, token = served_lab.token("ana")
+    with Lab(served_lab.url, token) as lab, lab.control("dual") as turn:
+        with pytest.raises(LabRequestError) as refused:
+            turn.start_run(dt=1, samples=20, signal="step:0:50@5", input="q3", output="t2")
+        assert (refused.value.status, refused.value.code) == (422, "pair_channel_unknown")
+        run = turn.start_run(
+            dt=1, samples=20, signal="step:0:50@5", methods=["lsm"], input="q2", output="t2"
+        )
+        list(lab.follow("dual", run["id"], timeout=60))
+    data = lab_data(served_lab, token, run["id"])
+    assert (data.run["settings"]["input"], data.run["settings"]["output"]) == ("q2", "t2")
+    np.testing.assert_array_equal(data.u, np.zeros(20))  # heater 1 rests; heater 2 steps
+    np.testing.assert_array_equal(data.columns["q2"], np.where(np.arange(20) >= 5, 50.0, 0.0))
+    assert data.run["status"] == "finished"
+
+
 def lab_data(served_lab: ServedLab, token: str, run_id: int) -> RunData:
     with Lab(served_lab.url, token) as lab:
         return lab.run_data(run_id)

@@ -7,7 +7,9 @@ and warming sensor 2 at the lab's speed-up; a value out of range is refused
 in words before anything is sent. The Q2 field follows the rig's level (back
 to 0 when the run ends), but not while she is typing in it. The closed-loop
 panel writes degrees as °C, as the readout does. A watcher sees the same
-numbers and a locked control, and the page has no English word.
+numbers and a locked control, and the page has no English word. Panel 1
+lets her choose the pair it identifies (heater 2 → sensor 2); a one-heater
+rig's panels have no such choice.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from __future__ import annotations
 import csv
 import io
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -35,6 +38,11 @@ title = "Laboratório de controle"
 id = "{RIG}"
 title = "Kit de duas resistências"
 spec = "sim:kit"
+
+[[rigs]]
+id = "paper"
+title = "Gêmeo do artigo"
+spec = "sim"
 """
 USERS = {"ana": "student", "ben": "student"}
 ROLE = "[data-testid=access-role]"
@@ -161,3 +169,93 @@ def test_heater_2_and_sensor_2_on_the_rig_page(
     finally:
         ana.page.context.close()
         ben.page.context.close()
+
+
+PAIR = "#srm-lsm-pair"
+
+
+def test_panel_1_identifies_the_pair_she_chooses(context_for: Any, kit_lab: Any) -> None:
+    words = catalogue("pt-BR")
+    ana = reader(context_for, kit_lab, "ana")
+    try:
+        page = ana.page
+        page.goto(f"{kit_lab.url}/#/rig/paper")
+        page.wait_for_selector("#srm-lsm-dt")
+        page.wait_for_function("sel => document.querySelector(sel)?.dataset.role", arg=ROLE)
+        assert page.locator(PAIR).count() == 0  # one pair: the panels look as before
+        page.goto(f"{kit_lab.url}/#/rig/{RIG}")
+        page.wait_for_selector(PAIR)
+        options = page.eval_on_selector_all(
+            f"{PAIR} option", "os => os.map((o) => [o.value, o.textContent])"
+        )
+        pair = words["panel.pairOption"]
+        assert options == [
+            ["u>y", pair.format(input=words["channel.q1"], output=words["channel.t1"])],
+            ["u>t2", pair.format(input=words["channel.q1"], output=words["channel.t2"])],
+            ["q2>y", pair.format(input=words["channel.q2"], output=words["channel.t1"])],
+            ["q2>t2", pair.format(input=words["channel.q2"], output=words["channel.t2"])],
+        ]
+        assert page.input_value(PAIR) == "u>y"  # the first pair by default
+        assert page.inner_text(f"label[for='{PAIR[1:]}']") == words["panel.pair"]
+        page.wait_for_function("sel => document.querySelector(sel)?.dataset.role", arg=ROLE)
+        if page.get_attribute(ROLE, "data-role") != "controller":  # alone, or after the test above
+            page.click("button[data-action=ask]")
+        page.wait_for_function(
+            "sel => document.querySelector(sel)?.dataset.role === 'controller'", arg=ROLE
+        )
+        page.select_option(PAIR, "q2>t2")
+        page.fill("#srm-lsm-dt", "2")
+        page.fill("#srm-lsm-n", "300")
+        page.fill("#srm-lsm-setpoint", "50")
+        page.click("[data-panel-view=srm-lsm] button[data-action=start]")
+        # The run identifies heater 2 -> sensor 2 (the twin runs its 600 s in seconds).
+        deadline = time.monotonic() + 60
+        while True:
+            status, runs = page.evaluate(CALL, ["GET", f"/api/runs?rig={RIG}", None])
+            assert status == 200, runs
+            run = runs[0] if runs else None  # newest first: hers, once START is in
+            if run and run["settings"]["input"] != "u" and run["status"] != "running":
+                break
+            assert time.monotonic() < deadline, run
+            page.wait_for_timeout(500)
+        assert (run["settings"]["input"], run["settings"]["output"]) == ("q2", "t2"), run
+        assert run["status"] == "finished", run
+        assert run["settings"]["setpoint"] == 50
+        # Panel 1 says which pair its model is of, and shows the model.
+        used = words["panel.pairUsed"].format(
+            pair=pair.format(input=words["channel.q2"], output=words["channel.t2"])
+        )
+        page.wait_for_function(
+            """([sel, text]) => document.querySelector(sel)?.textContent.includes(text)""",
+            arg=["[data-testid=operating-point-srm-lsm]", used],
+        )
+        page.wait_for_function(
+            """sel => !['', '–'].includes(document.querySelector(sel)?.textContent ?? '')""",
+            arg="[data-panel-view=srm-lsm] tr[data-method=lsm] td[data-field=K]",
+        )
+        # The charts draw the model of heater 2 -> sensor 2 over T2 (not over y, from u).
+        page.wait_for_selector("#overlay-method option[value=lsm]", state="attached")
+        page.select_option("#overlay-method", "lsm")
+        output = page.evaluate(TRACES, 0)
+        model_at = output["names"].index(words["series.model"])
+        t2_at = output["names"].index(words["channel.t2"])
+        last = [float(v.replace(",", ".").replace("−", "-")) for v in output["last"]]
+        assert abs(last[model_at] - last[t2_at]) < 2.0, output
+        # The run's page says the pair and draws Q2, T2 and the model of them.
+        page.goto(f"{kit_lab.url}/#/runs/{run['id']}")
+        page.wait_for_selector("#run-model")
+        facts = page.inner_text("dl.facts")
+        assert words["panel.pair"] in facts
+        assert pair.format(input=words["channel.q2"], output=words["channel.t2"]) in facts
+        assert "input" not in facts  # the setting is said as the pair, not by its name
+        run_traces = TRACES.replace(".live-charts figure.chart", "main figure.chart")
+        output, heater = page.evaluate(run_traces, 0), page.evaluate(run_traces, 1)
+        assert output["names"][1:] == [words["channel.t2"], words["series.model"]], output
+        assert heater["names"][1:] == [words["channel.q2"]], heater
+        assert heater["last"][-1] == "50", heater
+        last = [float(v.replace(",", ".").replace("−", "-")) for v in output["last"]]
+        assert abs(last[1] - last[2]) < 2.0, output
+        assert ana.english("the pair chooser") == []
+        assert ana.errors == []
+    finally:
+        ana.page.context.close()

@@ -408,7 +408,13 @@ def test_each_panel_builds_its_run_request(module_page: Any) -> None:
         const p2old = buildRunSpec({ id: 'malsm' },
                                    { dt: 1, n: 500, window: 100, low: 4, high: 6, offset: 'fit' },
                                    true);
-        return { p1, p1b, p2, p3, p3w0, p3fit, p2old, sig: automaticSignal(4, 6, 1),
+        // The pair chosen (a kit): sent when it is not the standard one.
+        const p1pair = buildRunSpec({ id: 'srm-lsm' },
+                                    { dt: 1, n: 20, setpoint: 50, block: 0, pair: 'q2>t2' }, false);
+        const p1std = buildRunSpec({ id: 'srm-lsm' },
+                                   { dt: 1, n: 20, setpoint: 50, block: 0, pair: 'u>y' }, false);
+        return { p1, p1b, p2, p3, p3w0, p3fit, p2old, p1pair, p1std,
+                 sig: automaticSignal(4, 6, 1),
                  panels: [panelOfRun(p1), panelOfRun(p2), panelOfRun(p3)] };
         """.replace("SERVED", _served_methods()),
     )
@@ -437,6 +443,9 @@ def test_each_panel_builds_its_run_request(module_page: Any) -> None:
         "pmax": 1e4,
     }
     assert r["p3w0"]["w0"] == [0.96329, 9.9082e-4]
+    assert (r["p1pair"]["input"], r["p1pair"]["output"]) == ("q2", "t2")
+    assert "input" not in r["p1std"]
+    assert "output" not in r["p1std"]
     assert (r["p3fit"]["offset"], r["p3fit"]["w0"]) == ("fit", [0.96329, 9.9082e-4])
     assert "offset" not in r["p2old"]  # a server whose schema has no offset is not sent one
     assert r["panels"] == ["srm-lsm", "malsm", "wlsm"]

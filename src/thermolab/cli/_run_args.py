@@ -80,6 +80,24 @@ def add_run_options(parser: argparse.ArgumentParser) -> None:
             methods=", ".join(METHOD_NAMES)
         ),
     )
+    parser.add_argument(
+        "--input",
+        default="u",
+        metavar="NAME",
+        help=_(
+            "the input the signal drives and the methods identify from: u (default) or a "
+            "further input of the rig, such as the kit's q2 (u then rests; open loop only)"
+        ),
+    )
+    parser.add_argument(
+        "--output",
+        default="y",
+        metavar="NAME",
+        help=_(
+            "the output the methods identify: y (default) or a further output of the rig, "
+            "such as the kit's t2"
+        ),
+    )
     # The identifiers' settings, from the registry; each goes to the methods that take it.
     add_setting_options(parser.add_argument_group(_("method settings")), identifier_settings())
     speed = parser.add_mutually_exclusive_group()

@@ -4,7 +4,8 @@ Opens a rig (the digital twin or a TCLab kit), applies an excitation signal for
 a number of samples, writes every sample to a CSV file as it is taken (columns
 ``t,u,y`` first, so the file feeds straight into ``thermolab identify``), runs
 the chosen online identifiers at every sample and prints each method's Ks and
-Ts at the end (a table, or JSON with ``--json``).
+Ts at the end (a table, or JSON with ``--json``). ``--input``/``--output`` choose
+the pair identified (a kit's ``q2``/``t2``; default ``u``/``y``).
 
 With ``--control pid`` the run is closed-loop: a PID holds the output at
 ``--setpoint`` (a number or a profile such as ``step:21:50@60``, in the rig's
@@ -80,6 +81,7 @@ def _run(args: argparse.Namespace) -> int:
         Experiment,
         Interlocks,
         RunResult,
+        check_pair,
         extra_channels,
         interrupt_signal,
         termination_signals,
@@ -100,7 +102,9 @@ def _run(args: argparse.Namespace) -> int:
     # handlers the rig's driver installed are back as they were.
     with open_rig(args.rig, clock=clock, seed=args.seed) as rig, termination_signals():
         info = rig.describe()
-        signal = None if args.signal is None else parse_signal(args.signal, limits=info.input_range)
+        pair = check_pair(info, args.input, args.output)  # the pair identified (u, y: default)
+        limits = pair.input_range(info)
+        signal = None if args.signal is None else parse_signal(args.signal, limits=limits)
         identifiers = build_identifiers(
             methods, args.dt, **given_settings(args, identifier_settings())
         )
@@ -119,6 +123,7 @@ def _run(args: argparse.Namespace) -> int:
             recorder=recorder,
             interlocks=interlocks,
             controller=loop,
+            pair=pair,
         )
         progress = Progress(experiment, sys.stderr) if sys.stderr.isatty() else None
         try:
@@ -146,6 +151,7 @@ def _run(args: argparse.Namespace) -> int:
     figures, notes = (None, ()) if loop is None else closed_loop_figures(result, loop, model)
     if args.json:
         report = json_report(result, args.out, None if signal is None else signal.spec)
+        report["pair"] = pair.to_dict()
         if loop is not None:
             report["control"] = {
                 **report.get("control", {}),
@@ -155,6 +161,8 @@ def _run(args: argparse.Namespace) -> int:
             }
         print(json.dumps(json_safe(report), indent=2))
     else:
+        if not pair.standard:
+            print(_("identified pair: {input} -> {output}").format(**pair.to_dict()))
         print(summary_table(result, args.out))
         if loop is not None:
             assert figures is not None

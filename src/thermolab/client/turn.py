@@ -196,9 +196,15 @@ class Turn:
         signal: str | None = None,
         setpoint: float | None = None,
         methods: Sequence[str] = ("srm", "lsm"),
+        input: str = "u",
+        output: str = "y",
         **settings: Any,
     ) -> dict[str, Any]:
         """START a run (the lab's panels); ``settings`` are the registry's (``window``...).
+
+        ``input``, ``output``: the pair the run identifies, by the rig's channel names
+        (a kit's ``"q2"``, ``"t2"``: the signal drives heater 2, the methods are fed
+        sensor 2); default the rig's ``u`` and ``y``.
 
         Raises
         ------
@@ -219,6 +225,8 @@ class Turn:
             body["signal"] = signal
         if setpoint is not None:
             body["setpoint"] = setpoint
+        if (input, output) != ("u", "y"):  # the standard pair is the lab's default
+            body |= {"input": input, "output": output}
         path = f"/api/rigs/{self.rig_id}/runs"
         answer: dict[str, Any] = self.lab.request("POST", path, json=body)
         return answer

@@ -21,6 +21,8 @@ __all__ = [
     "InvalidParameterError",
     "LoopPairNotOnRigError",
     "NotFoundError",
+    "PairChannelUnknownError",
+    "PairRoleError",
     "RecordFormatError",
     "RigError",
     "RigFaultError",
@@ -62,6 +64,14 @@ class ChannelNotOnRigError(InvalidParameterError):
 
 class LoopPairNotOnRigError(ChannelNotOnRigError):
     """A closed loop on a heater and sensor the rig does not pair (``q2/t2`` on one heater)."""
+
+
+class PairChannelUnknownError(InvalidParameterError):
+    """A run's input/output pair names a channel the rig does not declare (``q3``)."""
+
+
+class PairRoleError(InvalidParameterError):
+    """A run's pair whose input is not an input the run records, or whose output is no sensor."""
 
 
 class IdentifierStateError(ThermoLabError, RuntimeError):

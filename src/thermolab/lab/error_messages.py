@@ -81,6 +81,13 @@ ERROR_SENTENCES: Mapping[str, str] = {
     "channel_in_loop": (
         "The closed loop drives this heater: set the other one, or switch the loop to manual."
     ),
+    "pair_channel_unknown": (
+        "This rig has no channel of that name: choose the pair among its inputs and outputs."
+    ),
+    "pair_wrong_role": (
+        "The pair's input must be one of the rig's heaters (inputs) and its output one of its "
+        "sensors (outputs)."
+    ),
     "settings_changed": "Someone changed these settings meanwhile: load them again.",
     # The closed loop and the runs' precise conflicts.
     "gain_out_of_range": "A controller setting is not a finite number within its published range.",

@@ -29,6 +29,7 @@ from thermolab.runner.experiment import (
 )
 from thermolab.runner.further import extra_channels, further_channels
 from thermolab.runner.interlocks import Interlocks, Watchdog
+from thermolab.runner.pair import IOPair, check_pair, pair_choices
 from thermolab.runner.recorder import CSV_COLUMNS, CsvRecorder, Recorder
 from thermolab.runner.state import EndReason, RunState, RunStateMachine
 from thermolab.runner.termination import Terminated, interrupt_signal, termination_signals
@@ -43,6 +44,7 @@ __all__ = [
     "EventBus",
     "Experiment",
     "FaultEvent",
+    "IOPair",
     "IdentifierLike",
     "InputSignal",
     "Interlocks",
@@ -58,10 +60,12 @@ __all__ = [
     "Terminated",
     "Watchdog",
     "adaptive_tuner",
+    "check_pair",
     "closed_loop_channels",
     "estimate_trust",
     "extra_channels",
     "further_channels",
     "interrupt_signal",
+    "pair_choices",
     "termination_signals",
 ]

@@ -44,6 +44,7 @@ from thermolab.runner.events import SupportsToDict
 from thermolab.runner.further import further_channels
 from thermolab.runner.inputs import ChannelSource, IdentifierLike, InputSignal
 from thermolab.runner.interlocks import Interlocks
+from thermolab.runner.pair import IOPair, check_pair
 from thermolab.runner.recorder import Recorder
 from thermolab.runner.results import MethodResult, MethodTrack, RunResult
 from thermolab.runner.sampling import SamplingLoop
@@ -139,6 +140,7 @@ class Experiment(ControlRequests, SamplingLoop):
         events: EventBus | None = None,
         sources: Sequence[ChannelSource] = (),
         controller: ControlLoop | None = None,
+        pair: IOPair | None = None,
     ) -> None:
         if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0):
             raise InvalidParameterError(f"dt must be a positive number of seconds, got {dt!r}")
@@ -153,6 +155,9 @@ class Experiment(ControlRequests, SamplingLoop):
                 f"late_tolerance must be a number of seconds >= 0, got {late_tolerance!r}"
             )
         self._info = rig.describe()
+        self._pair = IOPair() if pair is None else check_pair(self._info, pair.input, pair.output)
+        if controller is not None and not self._pair.standard:
+            raise InvalidParameterError(f"a closed loop controls u and y, not {self._pair}")
         # Every run records the rig's further channels (a kit's T2, Q2) after the loop's;
         # set_further() applies a further input at a sample's instant.
         self._further_reading: Mapping[str, float] = {}
@@ -218,9 +223,8 @@ class Experiment(ControlRequests, SamplingLoop):
         self._signal = signal
         self._manual: float | None = None
         if signal is None:
-            self._manual = self._checked_input(
-                self._info.safe_input if set_point is None else set_point
-            )
+            rest = self._pair.rest(self._info) if set_point is None else set_point
+            self._manual = self._checked_input(rest)
         self.events = events if events is not None else EventBus()
         self._machine = RunStateMachine("run")
         self._request: tuple[EndReason, str] | None = None
@@ -271,6 +275,11 @@ class Experiment(ControlRequests, SamplingLoop):
     def channels(self) -> tuple[ChannelSpec, ...]:
         """The run's channels in record order: ``RUN_CHANNELS``, then the sources'."""
         return self._channels
+
+    @property
+    def pair(self) -> IOPair:
+        """The input/output pair the run identifies."""
+        return self._pair
 
     @property
     def k(self) -> int:
@@ -482,7 +491,7 @@ class Experiment(ControlRequests, SamplingLoop):
             value = float(u)
         except (TypeError, ValueError):
             raise InvalidParameterError(f"the input must be a number, got {u!r}") from None
-        problem = Interlocks.check_input(value, self._info)
+        problem = self._pair.input_problem(value, self._info)
         if problem is not None:
             raise InvalidParameterError(problem)
         return value

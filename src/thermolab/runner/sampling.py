@@ -39,6 +39,7 @@ from thermolab.runner.events import (
 )
 from thermolab.runner.inputs import ChannelSource, IdentifierLike, InputSignal, signal_table
 from thermolab.runner.interlocks import Interlocks, Watchdog
+from thermolab.runner.pair import IOPair
 from thermolab.runner.recorder import Recorder
 from thermolab.runner.results import MethodTrack, RunResult
 from thermolab.runner.state import EndReason, RunState, RunStateMachine
@@ -80,6 +81,7 @@ class SamplingLoop:
     _channels: tuple[ChannelSpec, ...]
     _control: ControlLoop | None
     _control_channels: tuple[ChannelSpec, ...]
+    _pair: IOPair
     _set_fan: Any
     _fan_request: float | None
     _further_requests: dict[str, float]
@@ -304,7 +306,12 @@ class SamplingLoop:
         dt, n, t0 = self._dt, self._samples, self._t0
         out_max = self._interlocks.output_max
         out_min = self._interlocks.output_min
-        in_min, in_max = info.input_min, info.input_max
+        # The pair identified (.pair): a further input driven instead of u, a further output.
+        pair = self._pair
+        drive = pair.input if pair.drives_further else None
+        output_of = None if pair.output == "y" else pair.output_of
+        in_min, in_max = pair.input_range(info)
+        safe = info.safe_input
         tolerance = self._late_tolerance
         t_arr, u_arr, y_arr = self._t, self._u, self._y
         t_read_arr, jitter_arr, late_arr, busy_arr = (
@@ -402,7 +409,7 @@ class SamplingLoop:
                 # below: the controller can never override either.
                 u = control.command(y, u, dt, t_k)
             if not in_min <= u <= in_max:
-                problem = Interlocks.check_input(u, info)
+                problem = pair.input_problem(u, info)
                 raise _TripError(EndReason.INTERLOCK, "interlock", f"interlock: {problem}")
             fan = self._fan_request
             if fan is not None:
@@ -413,9 +420,14 @@ class SamplingLoop:
                     requested, self._further_requests = self._further_requests, {}
                 for name, level in requested.items():
                     rig.set_channel(name, level, at=deadline)
-            if loop_heater is not None:
+            if loop_heater is not None:  # a closed loop on a further pair: its PID's heater
                 q = float(rig.set_channel(loop_heater, q, at=deadline))
-            u = float(rig.apply(u, at=deadline))
+            if drive is None:
+                u = u_id = float(rig.apply(u, at=deadline))
+            else:  # the pair's input takes the signal, u rests
+                u_id = float(rig.set_channel(drive, u, at=deadline))
+                u = float(rig.apply(safe, at=deadline))
+            y_id = y if output_of is None else output_of(y, reading.further)
 
             t_read = reading.t - t0
             jitter = t_read - t_k
@@ -450,7 +462,7 @@ class SamplingLoop:
 
             for name, ident, track in active:
                 try:
-                    estimate = ident.update(u, y)
+                    estimate = ident.update(u_id, y_id)
                 except ThermoLabError as exc:
                     self._method_failed(name, exc)
                     active = [entry for entry in active if entry[0] != name]

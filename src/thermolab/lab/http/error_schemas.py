@@ -67,6 +67,8 @@ class ValidationErrorOut(_Out):
         "speedup_refused",
         "channel_not_on_rig",
         "loop_pair_not_on_rig",
+        "pair_channel_unknown",
+        "pair_wrong_role",
         "slot_ends_before_start",
         "slot_too_long",
         "slot_zone_missing",
@@ -85,7 +87,9 @@ class ValidationErrorOut(_Out):
         "speedup_refused: a script's speed-up the rig does not allow (the message names what "
         "it allows); channel_not_on_rig: an input the rig does not have (a second heater on a "
         "one-heater rig; the message names what it has); loop_pair_not_on_rig: a closed "
-        "loop's heater and sensor the rig does not pair; slot_ends_before_start, "
+        "loop's heater and sensor the rig does not pair; pair_channel_unknown, pair_wrong_role: "
+        "a run's input/output pair naming a channel the rig lacks, or an input that is no "
+        "recorded actuator or an output that is no sensor; slot_ends_before_start, "
         "slot_too_long, slot_zone_missing: a booking's "
         "times (an end at or before the start, longer than a day unless said longer, a time "
         "without its zone); time_zone_unknown: a time zone that is not a known IANA name "

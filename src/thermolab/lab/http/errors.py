@@ -53,6 +53,8 @@ from thermolab.errors import (
     NotClosedLoopError,
     NotControllerError,
     NotFoundError,
+    PairChannelUnknownError,
+    PairRoleError,
     PasswordChangeRequiredError,
     PasswordRejectedError,
     PreviousRunEndingError,
@@ -174,6 +176,9 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     # The closed loop's pair (issue #22, item 3): one the rig has; its heater is the PID's.
     LoopPairNotOnRigError: HttpFault(422, "loop_pair_not_on_rig"),
     ChannelInLoopError: HttpFault(409, "channel_in_loop"),
+    # A run's input/output pair (issue #22): a channel the rig lacks, or one in the wrong role.
+    PairChannelUnknownError: HttpFault(422, "pair_channel_unknown"),
+    PairRoleError: HttpFault(422, "pair_wrong_role"),
     # Bookings (issue #10, item 5).
     BookingClashError: HttpFault(409, "booking_clash"),
     RigBookedError: HttpFault(409, "rig_booked"),

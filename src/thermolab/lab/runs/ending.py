@@ -154,8 +154,9 @@ def end_of_run(active: ActiveRun, result: RunResult, *, simulated: bool) -> RunE
         reason = f"{reason}: {result.message}"
     if result.end_reason is EndReason.ENDED and active.stopped_by:
         reason = f"ended by {active.stopped_by}"
-    units = (result.rig.input_unit, result.rig.output_unit)
-    record = (result.t, result.u, result.y, result.dt)
+    pair = active.experiment.pair  # the identified pair, in its own units
+    units = pair.units(result.rig)
+    record = (result.t, *pair.columns(result.u, result.y, result.extra), result.dt)
     results = method_results(active.run_id, result.methods, active.identifiers, units, record)
     timing = timing_summary(result.t_read, result.lateness, result.dt, simulated=simulated)
     control = None if result.control is None else json_safe(result.control)

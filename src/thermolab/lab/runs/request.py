@@ -142,6 +142,9 @@ class RunRequest:
         from the data, see :func:`choose_operating_point`),
         ``"initial"``, ``"fit"``,
         ``"none"``, or a number (the known ambient output).
+    input, output : str
+        The pair identified (:mod:`thermolab.runner.pair`): ``"u"``, ``"y"`` (the
+        default) or the rig's further channels (a kit's ``"q2"``, ``"t2"``).
     """
 
     dt: float
@@ -156,6 +159,8 @@ class RunRequest:
     w0: tuple[float, ...] | None = None
     offset: str | float = "auto"
     control: ControlRequest | None = None
+    input: str = "u"
+    output: str = "y"
 
     def settings(self) -> dict[str, Any]:
         """The request as stored with the run."""
@@ -172,6 +177,8 @@ class RunRequest:
             "w0": None if self.w0 is None else list(self.w0),
             "offset": self.offset,
             "control": None if self.control is None else self.control.settings(),
+            "input": self.input,
+            "output": self.output,
         }
 
 

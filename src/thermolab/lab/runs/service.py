@@ -32,6 +32,7 @@ import numpy as np
 from thermolab.errors import (
     AccessDeniedError,
     ConflictError,
+    InvalidParameterError,
     PreviousRunEndingError,
     RunInProgressError,
     TurnEndedError,
@@ -64,8 +65,10 @@ from thermolab.runner import (
     Event,
     EventBus,
     Experiment,
+    IOPair,
     LoopCommands,
     RunResult,
+    check_pair,
     extra_channels,
 )
 
@@ -91,11 +94,15 @@ class StartPlan:
 def plan_on_rig(
     config: LabConfig, hub: DeviceHub, rig_id: str, request: RunRequest
 ) -> tuple[RunPlan, PublishedRig]:
-    """:func:`.request.plan_run` on the rig: its published input range and, for the live
-    block and recursive methods, its kind's typical dead time as their delay."""
-    published = hub.published(rig_id)
-    dead_time = config.rig(rig_id).rig_spec.typical_dead_time
-    return plan_run(request, (published.input_min, published.input_max), dead_time), published
+    """:func:`.request.plan_run` on the rig: its published input range (its pair's input's, a
+    further one), its kind's typical dead time as the live methods' delay. The pair first
+    (:func:`~thermolab.runner.check_pair`), open loop and in-process only."""
+    published, rig = hub.published(rig_id), config.rig(rig_id)
+    pair = check_pair(info := rig.rig_spec.describe(), request.input, request.output)
+    if not pair.standard and (request.control is not None or rig.agent):
+        raise InvalidParameterError(f"the pair {pair} is open loop on the lab's own rigs only")
+    limits = pair.limits(info, (published.input_min, published.input_max))
+    return plan_run(request, limits, rig.rig_spec.typical_dead_time), published
 
 
 def plan_start(config: LabConfig, hub: DeviceHub, rig_id: str, request: RunRequest) -> StartPlan:
@@ -292,6 +299,7 @@ class RunService(RunReading):
                 recorder=recorder,
                 events=EventBus(),
                 controller=loop,
+                pair=IOPair(request.input, request.output),
                 **plan.inputs,
             )
             active = ActiveRun(run_id, rig_id, control_id, experiment, plan.identifiers)

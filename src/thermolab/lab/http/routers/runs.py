@@ -161,6 +161,26 @@ class RunIn(In):
         description="a PID on the output (a closed-loop run): mode, set point, gains, "
         "adaptive; null: open loop (GET /api/control publishes every range)",
     )
+    input: Annotated[
+        str,
+        Field(
+            min_length=1,
+            max_length=40,
+            description="the input of the pair identified: 'u' (the rig's input, the default) "
+            "or a further input the rig declares and records (a kit's 'q2'); the signal or "
+            "the manual input drives it and u rests. Open loop only",
+        ),
+    ] = "u"
+    output: Annotated[
+        str,
+        Field(
+            min_length=1,
+            max_length=40,
+            description="the output of the pair identified: 'y' (the default) or a further "
+            "output the rig declares (a kit's 't2'); 422 pair_channel_unknown for a name the "
+            "rig lacks, pair_wrong_role for an input or output in the wrong place",
+        ),
+    ] = "y"
 
     def request(self) -> RunRequest:
         """The run service's request."""
@@ -175,6 +195,8 @@ class RunIn(In):
             methods=tuple(self.methods),
             offset=self.offset,
             control=None if self.control is None else self.control.request(),
+            input=self.input,
+            output=self.output,
             **settings,
         )
 

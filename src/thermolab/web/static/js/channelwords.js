@@ -29,3 +29,50 @@ export function channelName(name) {
 export function channelLabel(name, unit) {
   return unit ? t("channel.withUnit", { name: channelName(name), unit: unitSymbol(unit) }) : channelName(name);
 }
+
+/**
+ * One end of a run's identified pair for people: a further channel by its words,
+ * u and y as a kit's heater 1 and sensor 1 on a kit, else as the input and output.
+ * @param {string} name  "u", "y" or a further channel's name
+ * @param {boolean} kit  whether the rig is a kit (it declares heater 2)
+ */
+export function pairEnd(name, kit) {
+  if (name === "u") return kit ? t("channel.q1") : t("channel.u");
+  if (name === "y") return kit ? t("channel.t1") : t("channel.y");
+  return channelName(name);
+}
+
+/**
+ * Whether a pair is a kit's (either end heater 2 or sensor 2): its u and y are then heater 1 and sensor 1.
+ * @param {string} input
+ * @param {string} output
+ */
+export function kitPair(input, output) {
+  return [input, output].some((n) => n === "q2" || n === "t2");
+}
+
+/**
+ * A pair's words ("Heater 2, Q2 → Temperature 2, T2"), the rig a kit when either end is q2 or t2.
+ * @param {string} input
+ * @param {string} output
+ * @param {boolean} [kit]
+ */
+export function pairLabel(input, output, kit = kitPair(input, output)) {
+  return t("panel.pairOption", { input: pairEnd(input, kit), output: pairEnd(output, kit) });
+}
+
+/**
+ * The input/output pairs a run on the rig may identify (RunIn.input, RunIn.output):
+ * its input u or a further input it records, by its output y or a further output,
+ * the standard pair first (thermolab.runner.pair). One pair only for a rig without
+ * further channels.
+ * @param {{actuators: {name: string, unit: string, recorded: boolean}[],
+ *   outputs: {name: string, unit: string}[]}} rig
+ * @returns {{input: string, output: string, label: string}[]}
+ */
+export function pairChoices(rig) {
+  const kit = rig.actuators.some((a) => a.name === "q2");
+  const inputs = ["u", ...rig.actuators.filter((a) => a.recorded).map((a) => a.name)];
+  const outputs = ["y", ...rig.outputs.map((o) => o.name)];
+  return inputs.flatMap((input) => outputs.map((output) => ({ input, output, label: pairLabel(input, output, kit) })));
+}

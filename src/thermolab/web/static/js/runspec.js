@@ -61,7 +61,7 @@ export function isPlannedStep(run) {
  * checked values.
  * @param {{id: string}} panel
  * @param {Record<string, any>} v  checked values (dt, n, setpoint [stepTo, stepAt] | low/high,
- *   block, window, gamma, pmax, a0, b0; offset: the operating-point mode)
+ *   block, window, gamma, pmax, a0, b0; offset: the operating-point mode; pair: "input>output")
  * @param {boolean} automatic
  * @param {{w0?: boolean, offset?: boolean}} [server]  what the server accepts beyond the basics
  */
@@ -90,7 +90,24 @@ export function buildRunSpec(panel, v, automatic, server = {}) {
     throw new RangeError(`unknown panel ${panel.id}`);
   }
   if (server.offset && typeof v.offset === "string" && v.offset) spec.offset = v.offset;
+  // The pair chosen ("q2>t2"); the standard pair is the request's default, not sent.
+  if (typeof v.pair === "string" && v.pair && v.pair !== "u>y") {
+    const [input, output] = v.pair.split(">");
+    spec.input = input;
+    spec.output = output;
+  }
   return spec;
+}
+
+/**
+ * The input/output pair a run identified (RunIn.input, RunIn.output: a kit's "q2", "t2"),
+ * by its record's column names; "u", "y" for a run that named none.
+ * @param {{settings?: Record<string, any>} | null | undefined} run
+ * @returns {{input: string, output: string}}
+ */
+export function runPair(run) {
+  const s = run?.settings ?? {};
+  return { input: typeof s.input === "string" ? s.input : "u", output: typeof s.output === "string" ? s.output : "y" };
 }
 
 /** The panel of the step and least-squares methods, which a run belongs to by default. */

@@ -96,7 +96,8 @@ const SETTING_LABELS = {
   pmax: "setting.pmax",
 };
 /** Settings shown elsewhere on the run's page (sample time, samples, input, methods, W0, operating point). */
-const SHOWN_ELSEWHERE = new Set(["dt", "samples", "signal", "setpoint", "methods", "w0", "offset"]);
+// The pair identified (input, output) is said on its own where it is not u -> y (channelwords.pairLabel).
+const SHOWN_ELSEWHERE = new Set(["dt", "samples", "signal", "setpoint", "methods", "w0", "offset", "input", "output"]);
 
 /**
  * A run's method settings as "label: value" pieces in the reader's language,

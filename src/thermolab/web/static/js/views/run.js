@@ -7,7 +7,8 @@ import { Chart, TIME_WINDOWS } from "../charts.js";
 import { h, setText, when } from "../dom.js";
 import { fmt, fmtFigure, predict, predictionBase } from "../model.js";
 import { readResult } from "../results.js";
-import { inputText, methodTitle, readRun, runStatusText } from "../runspec.js";
+import { inputText, methodTitle, readRun, runPair, runStatusText } from "../runspec.js";
+import { kitPair, pairEnd, pairLabel } from "../channelwords.js";
 import { settingsText, statusParts } from "../runwords.js";
 import { identReason, identWarning } from "../identwords.js";
 import { lastSampleGain, operatingPointHow, timingText } from "./panels/results.js";
@@ -88,6 +89,10 @@ function render(main, exported, charts) {
   add(t("runs.samples"), run.nSamples ? t("run.samplesOf", { samples: run.samples, of: run.nSamples }) : String(run.samples));
   add(t("runs.input"), inputText(run));
   add(t("runs.methods"), run.methods.map(methodTitle).join(", "));
+  // The pair identified, where it is not u -> y (a kit's heater 2 -> sensor 2).
+  const pair = runPair(run);
+  const paired = pair.input !== "u" || pair.output !== "y";
+  if (paired) add(t("panel.pair"), pairLabel(pair.input, pair.output));
   const settings = settingsText(run.settings ?? {});
   if (settings.length) add(t("run.settings"), settings.join("; "));
   const w0 = run.settings?.w0;
@@ -117,8 +122,9 @@ function render(main, exported, charts) {
 
   const samples = exported.samples ?? {};
   const time = Float64Array.from(samples.t ?? []);
-  const u = Float64Array.from(samples.u ?? []);
-  const y = Float64Array.from(samples.y ?? []);
+  // The charts and the model are of the pair identified (its columns are in the record).
+  const u = Float64Array.from(samples[pair.input] ?? samples.u ?? []);
+  const y = Float64Array.from(samples[pair.output] ?? samples.y ?? []);
   const chartBox = h("section", { class: "card", "aria-labelledby": "run-charts" }, h("h2", { id: "run-charts" }, t("run.charts")));
   const modelPick = h("select", { id: "run-model" });
   const withModel = figures.filter((f) => f.valid && f.final.K !== null && (f.final.tau ?? 0) > 0);
@@ -142,7 +148,7 @@ function render(main, exported, charts) {
     label: t("run.outputChart", { run: run.id }),
     xLabel: t("axis.time"),
     yLabel: t("run.outputAxis"),
-    series: [{ label: t("axis.output") }, { label: t("series.model"), dash: [6, 4], color: "#D55E00", width: 2, auto: false }],
+    series: [{ label: paired ? pairEnd(pair.output, kitPair(pair.input, pair.output)) : t("axis.output") }, { label: t("series.model"), dash: [6, 4], color: "#D55E00", width: 2, auto: false }],
     source: () => [thin(time), thin(y), thin(yhat)],
     // A long square wave is a solid block at full width: its last periods on request,
     // the input chart showing the same time.
@@ -154,7 +160,7 @@ function render(main, exported, charts) {
     xLabel: t("axis.time"),
     yLabel: t("run.inputAxis"),
     height: 160,
-    series: [{ label: t("axis.input"), color: "#009E73" }],
+    series: [{ label: paired ? pairEnd(pair.input, kitPair(pair.input, pair.output)) : t("axis.input"), color: "#009E73" }],
     source: () => [thin(time), thin(u)],
   });
   charts.push(out, inp);

@@ -9,6 +9,7 @@ import { panelMethods, settingRange } from "../../methods.js";
 import { enumValues, hasProperty, numericRange } from "../../schema.js";
 import { t } from "../../i18n.js";
 import { unitSymbol } from "../../quantities.js";
+import { pairChoices } from "../../channelwords.js";
 
 /**
  * @typedef {import("../../validate.js").FieldSpec & {name: string, value: number | string,
@@ -69,7 +70,9 @@ export const OFFSET_HINT = "offset.hint";
 /**
  * What the panels may accept: the rig's published input range, and the run
  * settings' ranges from the server's own schema (RunIn in /openapi.json).
- * @param {{inputMin: number, inputMax: number, inputUnit: string} | null} rig
+ * @param {{inputMin: number, inputMax: number, inputUnit: string,
+ *   actuators: {name: string, unit: string, recorded: boolean}[],
+ *   outputs: {name: string, unit: string}[]} | null} rig
  * @param {any} doc  the server's OpenAPI document, or null while unknown
  */
 export function panelLimits(rig, doc) {
@@ -85,6 +88,8 @@ export function panelLimits(rig, doc) {
     ranges,
     w0: Boolean(doc && hasProperty(doc, "RunIn", "w0")),
     offsets: doc ? enumValues(doc, "RunIn", "offset") : null,
+    // The pairs a run may identify, when the server takes a pair (a kit: Q1/Q2 by T1/T2).
+    pairs: rig && doc && hasProperty(doc, "RunIn", "input") ? pairChoices(rig) : [],
   };
 }
 

@@ -20,6 +20,7 @@ import { unitSymbol } from "../../quantities.js";
  * @property {HTMLInputElement} [planned]  the planned-step box (panels with plannedOnly fields)
  * @property {HTMLElement} [plannedRow]
  * @property {HTMLSelectElement} [offset]  the operating-point mode, when the server takes one
+ * @property {HTMLSelectElement} [pair]  the input/output pair, when the rig has more than one
  * @property {HTMLFieldSetElement} fieldset
  * @property {HTMLButtonElement} startButton
  * @property {HTMLElement} formError
@@ -38,7 +39,8 @@ import { unitSymbol } from "../../quantities.js";
 /**
  * Build one panel's view.
  * @param {any} def  a panelDefinitions entry
- * @param {{inputMin: number, inputMax: number, inputUnit: string, offsets?: string[] | null}} limits
+ * @param {{inputMin: number, inputMax: number, inputUnit: string, offsets?: string[] | null,
+ *   pairs?: {input: string, output: string, label: string}[]}} limits
  * @param {string} panelId
  * @param {string} tabId
  * @param {{start: (view: PanelView) => void, setpoint: (view: PanelView) => void, end: (view: PanelView) => void}} on
@@ -52,6 +54,18 @@ export function buildPanelView(def, limits, panelId, tabId, on) {
   const autoId = nextId("auto");
   const autoBox = h("input", { type: "checkbox", id: autoId, name: "automatic", checked: Boolean(def.automaticDefault) });
   const autoHint = h("span", { class: "hint", id: `${autoId}-hint` });
+  if ((limits.pairs?.length ?? 0) > 1) {
+    // The pair the run identifies: shown only where the rig has more than one (a kit).
+    const id = `${def.id}-pair`;
+    view.pair = h(
+      "select",
+      { id, name: "pair", "aria-describedby": `${id}-hint` },
+      (limits.pairs ?? []).map((p) => h("option", { value: `${p.input}>${p.output}` }, p.label)),
+    );
+    fieldset.append(
+      h("div", { class: "field" }, h("label", { for: id }, t("panel.pair")), view.pair, h("span", { class: "hint", id: `${id}-hint` }, t("panel.pairHint"))),
+    );
+  }
   for (const f of def.fields) {
     if (f.automaticOnly && !view.autoRow) {
       view.autoRow = h("div", { class: "field check" }, autoBox, h("label", { for: autoId }, t("panel.automatic")), autoHint);
@@ -255,5 +269,6 @@ export function checkPanel(view) {
   }
   setText(view.formError, "");
   if (view.offset) values.offset = view.offset.value;
+  if (view.pair) values.pair = view.pair.value;
   return { values, automatic };
 }

@@ -4,12 +4,13 @@
 
 import { duration, durationWords, h, setText, tParts } from "../../dom.js";
 import { fmtFigure } from "../../model.js";
-import { isPlannedStep, methodName, methodTitle, panelOfRun, runStatusText } from "../../runspec.js";
+import { isPlannedStep, methodName, methodTitle, panelOfRun, runPair, runStatusText } from "../../runspec.js";
 import { DEFAULT_LANGUAGE, formatDecimal, formatTime, language, t } from "../../i18n.js";
 import { OFFSET_LABELS } from "./definitions.js";
 import { endReasonNode } from "../../runwords.js";
 import { identReason, identWarning } from "../../identwords.js";
 import { formatQuantity } from "../../quantities.js";
+import { pairLabel } from "../../channelwords.js";
 
 /**
  * How a run handled the operating point (RunOut.operatingPoint), in words,
@@ -181,7 +182,10 @@ export function lastSampleGain(est) {
  */
 export function renderResults(view, run) {
   const found = run ? operatingPointsFound(run.methods.map(methodName), run.estimates) : [];
-  setText(view.operatingPoint, [operatingPointText(run?.operatingPoint), ...found].filter(Boolean).join(" "));
+  // A run that identified another pair than u -> y says which (a kit's heater 2 -> sensor 2).
+  const { input, output } = runPair(run);
+  const pair = input !== "u" || output !== "y" ? t("panel.pairUsed", { pair: pairLabel(input, output) }) : "";
+  setText(view.operatingPoint, [pair, operatingPointText(run?.operatingPoint), ...found].filter(Boolean).join(" "));
   view.operatingPoint.hidden = !view.operatingPoint.textContent;
   const asked = new Set(run ? run.methods.map(methodName) : []);
   const shown = view.def.methods.filter((m) => !(view.def.optional ?? []).includes(m) || asked.has(m));

@@ -15,7 +15,7 @@ import { parseCsv } from "../../csv.js";
 import { h, setText } from "../../dom.js";
 import { predict, predictionBase } from "../../model.js";
 import { RingBuffer } from "../../ring.js";
-import { methodName, methodTitle, runStatusText } from "../../runspec.js";
+import { methodName, methodTitle, runPair, runStatusText } from "../../runspec.js";
 import { t } from "../../i18n.js";
 
 /** Samples shown by the live charts (the 2000-sample window). */
@@ -293,20 +293,24 @@ export class LiveCharts {
 
   _outputData() {
     const time = this.ring.column("t");
-    const u = this.ring.column("u");
     const y = this.ring.column("y");
     const model = this._overlayModel();
-    if (!model || y.length === 0) {
+    // The model is of the run's pair (a kit's Q2 -> T2): driven by its input, from its output.
+    const pair = runPair(this.getRun());
+    const kept = ["u", "y", ...this.further.outputs, ...this.further.inputs];
+    if (!model || y.length === 0 || !kept.includes(pair.input) || !kept.includes(pair.output)) {
       this.yhat.fill(Number.NaN);
       return [time, y, this.yhat.subarray(0, y.length), ...this._furtherOutputs()];
     }
     const run = this.getRun();
+    const u = this.ring.column(pair.input);
+    const out = pair.output === "y" ? y : this.ring.column(pair.output);
     const seg = this.segment;
     const fromStart = seg.firstK === 0 && this.ring.length === seg.lastK + 1;
-    const y0 = Number.isFinite(seg.y0) ? seg.y0 : y[0];
+    const y0 = pair.output === "y" && Number.isFinite(seg.y0) ? seg.y0 : out[0];
     // A warm rig's run fits its operating point: the model settles there, not at y0.
     const base = predictionBase(run.operatingPoint?.used, model.W, y0);
-    const yhat = predict(u, base, model, run.dt, this.yhat, (fromStart ? y0 : y[0]) - base);
+    const yhat = predict(u, base, model, run.dt, this.yhat, (fromStart ? y0 : out[0]) - base);
     return [time, y, yhat, ...this._furtherOutputs()];
   }
 
