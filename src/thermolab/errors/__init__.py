@@ -158,3 +158,11 @@ __all__ = [
     "TurnExtensionRefusedError",
     "WrongEnrolCodeError",
 ]
+
+# The errors are the library's public API under this one name: tracebacks, doctests,
+# pickles and ``repr`` show ``thermolab.errors.X``, wherever a family's module declares it.
+for _name in __all__:
+    _declared = globals()[_name]
+    if isinstance(_declared, type):
+        _declared.__module__ = __name__
+del _name, _declared
