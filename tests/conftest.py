@@ -37,6 +37,9 @@ POSTGRES_SERVER_URL = os.environ.get(
     "THERMOLAB_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/postgres"
 )
 os.environ.setdefault("THERMOLAB_TEST_REDIS_URL", "redis://127.0.0.1:6379/11")
+# The suite's servers do not warm the identification methods up as they start (2 s of
+# CPU each, for ~150 servers most of which never start a run); tests/client's lab does.
+os.environ.setdefault("THERMOLAB_WARM_UP", "0")
 _RUN_DATABASE: list[str] = []
 
 

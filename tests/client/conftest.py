@@ -8,6 +8,7 @@ a script does: HTTP and WebSockets on loopback, nothing injected.
 from __future__ import annotations
 
 import contextlib
+import os
 import socket
 import subprocess
 import sys
@@ -139,9 +140,14 @@ def serve_lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServedLab]:
             str(config),
             "--speedup",
             str(SPEEDUP),
+            "--log-format",
+            "json",
         ],
         stdout=log,
         stderr=subprocess.STDOUT,
+        # These tests start runs: the lab warms its methods up as a lab does (the
+        # suite's other servers skip it, tests/conftest.py).
+        env={**os.environ, "THERMOLAB_WARM_UP": "1"},
     )
     url = f"http://127.0.0.1:{port}"
     try:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import json
 import threading
 import time
 from collections.abc import Iterator
@@ -15,6 +16,7 @@ from fastapi import FastAPI
 
 from thermolab.client import Lab, LabRequestError, RunData
 from thermolab.errors import IncompatibleLabError, InvalidParameterError
+from thermolab.ident.registry import METHOD_NAMES
 
 from .conftest import ServedLab, free_port
 
@@ -221,3 +223,25 @@ def test_a_server_that_is_not_a_lab_and_a_lab_that_is_not_there(served_lab: Serv
     assert gone.value.status is None
     with pytest.raises(InvalidParameterError, match="THERMOLAB_URL"):
         Lab(None, "tlab_x")
+
+
+def test_the_lab_loads_the_methods_kernels_as_it_starts_not_at_the_first_start(
+    served_lab: ServedLab,
+) -> None:
+    # The first START after a restart would otherwise load them while a script
+    # waits (past its 10 s HTTP timeout on a loaded machine). The server says in
+    # its log when they are ready; every method is named there.
+    log = served_lab.data_dir / "server.log"
+    deadline = time.monotonic() + 120
+    ready = None
+    while ready is None and time.monotonic() < deadline:
+        for line in log.read_text(encoding="utf-8", errors="replace").splitlines():
+            if line.startswith("{") and "identification methods ready" in line:
+                ready = json.loads(line)
+                break
+        else:
+            time.sleep(0.2)
+    assert ready is not None, "the lab never said its methods were ready"
+    assert ready["logger"] == "thermolab.serve"
+    named = ready["message"].split("(", 1)[1].split(")", 1)[0].split(", ")
+    assert tuple(named) == METHOD_NAMES

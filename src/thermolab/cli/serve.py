@@ -22,6 +22,7 @@ import os
 import socket
 import stat
 import sys
+import threading
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -365,6 +366,8 @@ def _serve(args: argparse.Namespace) -> int:
 
         collector = CollectorPolicy(lambda: all(lab.running(rig.id) is None for rig in config.rigs))
         collector.start()
+        if os.environ.get(WARM_UP_VARIABLE, "1") != "0":
+            threading.Thread(target=_warm_up_methods, name="warm-up", daemon=True).start()
         run_server(
             app,
             args.host,
@@ -379,6 +382,27 @@ def _serve(args: argparse.Namespace) -> int:
             collector.stop()
         lab.close()
     return 0
+
+
+WARM_UP_VARIABLE = "THERMOLAB_WARM_UP"
+"""``0`` in the environment: no warm-up of the methods' kernels at start (the test
+suite's many short-lived servers, most of which never start a run)."""
+
+
+def _warm_up_methods() -> None:
+    """Load the identification kernels while nobody waits (runner/methods.py)."""
+    import logging
+    import time
+
+    from thermolab.runner.methods import warm_up_every_method
+
+    started = time.perf_counter()
+    methods = warm_up_every_method()
+    logging.getLogger("thermolab.serve").info(
+        "identification methods ready (%s) in %.1f s",
+        ", ".join(methods),
+        time.perf_counter() - started,
+    )
 
 
 def _check_ca(cafile: str) -> None:

@@ -30,6 +30,7 @@ __all__ = [
     "build_identifiers",
     "parse_methods",
     "warm_up",
+    "warm_up_every_method",
 ]
 
 
@@ -183,3 +184,26 @@ def warm_up(identifiers: Iterable[OnlineIdentifier]) -> None:
             copy.update(u, y)
             y = a * y + (1.0 - a) * u
         copy.finish()
+
+
+def warm_up_every_method(dt: float = 1.0) -> tuple[str, ...]:
+    """Load (or compile) the kernels of every method, with its default settings.
+
+    A lab server calls it once, in a thread of its own, as it starts: the first
+    START after a restart then finds the kernels loaded instead of loading them
+    while the student waits (2 s of CPU on an idle machine, past a script's
+    10 s HTTP timeout on a loaded one). A START with other settings warms what
+    it still needs itself (:func:`build_identifiers`).
+
+    Returns
+    -------
+    tuple of str
+        The methods warmed, in :data:`METHOD_NAMES`' order.
+
+    Examples
+    --------
+    >>> warm_up_every_method() == METHOD_NAMES
+    True
+    """
+    warm_up(build_identifiers(METHOD_NAMES, dt, warm=False).values())
+    return tuple(METHOD_NAMES)
