@@ -51,8 +51,11 @@ def _serving_lab(tmp_path: Path, database_url: str, clock: ManualClock | None) -
     return lab
 
 
-def _sweep_while(lab: Lab, serving: threading.Event) -> None:
+def _sweep_while(lab: Lab, serving: threading.Event, controller: Principal) -> None:
     while serving.is_set():
+        # The controller's page keeps its turn alive, as a browser does: else the sweep
+        # itself would end it (client gone) when the second server is slow to answer.
+        lab.access.heartbeat("twin", controller)
         lab.sweep()
         time.sleep(1.0)  # a server's sweep interval (lab/http/app.py)
 
@@ -81,7 +84,7 @@ def test_a_second_server_on_a_served_database_refuses_to_start(
         # The first sweeps as its server does, renewing its lease: on a loaded machine the
         # second took longer than the lease's 15 s to start, found it expired and served.
         serving = threading.Event()
-        sweeper = threading.Thread(target=_sweep_while, args=(first, serving))
+        sweeper = threading.Thread(target=_sweep_while, args=(first, serving, ana))
         serving.set()
         sweeper.start()
         try:
