@@ -446,3 +446,42 @@ def test_a_kit_run_identifies_the_pair_chosen_heater_2_to_sensor_2(
     # A name the kit does not have: one line, naming what it has.
     assert main([*argv, "--input", "q3", "--signal", "step:0:60@20", "--method", "lsm"]) == 1
     assert "no channel 'q3'; its inputs: u, q2" in capsys.readouterr().err
+
+
+def test_a_kit_closed_loop_on_heater_2_from_sensor_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "loop2.csv"
+    argv = ["run", "--rig", "sim:kit", "--fast", "--samples", "600", "--dt", "2", "--seed", "1",
+            "--control", "pid", "--setpoint", "step:23:35@20", "--kp", "8", "--ti", "160",
+            "--model", "0.3,150,10"]  # fmt: skip
+    pair = ["--heater", "q2", "--sensor", "t2"]
+    assert main([*argv, *pair, "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "closed loop: q2 from t2" in said
+    rows = _rows(out)
+    assert {row["u"] for row in rows} == {"0.0"}  # heater 1 rests: the PID drives heater 2
+    assert max(float(row["q2"]) for row in rows) > 10.0
+    assert abs(float(rows[-1]["t2"]) - 35.0) < 1.5  # sensor 2 follows the set point
+    assert abs(float(rows[-1]["y"]) - 35.0) > 3.0  # sensor 1 does not
+    assert main([*argv, *pair, "--json"]) == 0
+    control = json.loads(capsys.readouterr().out)["control"]
+    assert (control["heater"], control["sensor"]) == ("q2", "t2")
+    assert control["closed_loop"]["measured"]["overshoot"] is not None
+    assert control["closed_loop"]["predicted"] is not None
+    # A pair the rig does not have: one line and status 1; half a pair: a usage error.
+    assert main([*argv, "--heater", "q2", "--sensor", "y"]) == 1
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1
+    assert "no heater and sensor q2/y" in err
+    assert main([*argv, "--heater", "q2"]) == 2
+    assert "--heater and --sensor go together" in capsys.readouterr().err
+    # Only with --control pid.
+    assert main(["run", "--rig", "sim:kit", "--fast", "--samples", "5", "--signal", "const:1",
+                 "--heater", "q2", "--sensor", "t2"]) == 2  # fmt: skip
+    assert "--heater, --sensor need --control pid" in capsys.readouterr().err
+    # A one-heater rig has no heater 2 pair.
+    one = ["run", "--rig", "sim", "--fast", "--samples", "5", "--control", "pid",
+           "--setpoint", "1", "--kp", "1", "--ti", "10", *pair]  # fmt: skip
+    assert main(one) == 1
+    assert "no heater and sensor q2/t2" in capsys.readouterr().err

@@ -194,10 +194,23 @@ def _add_control_options(group: Any) -> None:
     )
     group.add_argument("--kp-range", metavar="LOW,HIGH", help=_("bounds of |Kp| when adaptive"))
     group.add_argument("--ti-range", metavar="LOW,HIGH", help=_("bounds of Ti (s) when adaptive"))
+    # The loop's own pair, not --input/--output: those name the pair a run identifies,
+    # and a closed-loop run identifies u -> y (heater 1 a disturbance when the PID drives q2).
+    group.add_argument(
+        "--heater",
+        metavar="NAME",
+        help=_("the heater the PID drives: u (default) or one the rig pairs, such as the kit's q2"),
+    )
+    group.add_argument(
+        "--sensor",
+        metavar="NAME",
+        help=_("the sensor the PID reads: y (default) or the heater's pair, such as the kit's t2"),
+    )
 
 
 _PID_OPTIONS = (
     "setpoint", "kp", "ti", "td", "tune", "model", "tau_c", "pid_form", "kp_range", "ti_range",
+    "heater", "sensor",
 )  # fmt: skip
 # A set-point profile's own range check is the control loop's (the rig's output range).
 _PROFILE_LIMITS = (-1e9, 1e9)
@@ -245,6 +258,8 @@ def control_loop(args: argparse.Namespace) -> tuple[Any, Any, Any]:
         return None, None, None
     if args.setpoint is None:
         raise CliError(_("--control pid needs --setpoint (a number or a profile)"), status=2)
+    if (args.heater is None) != (args.sensor is None):
+        raise CliError(_("--heater and --sensor go together (a kit's q2 with t2)"), status=2)
     model = None
     if args.model is not None:
         model = FOPDT(*_numbers("--model", args.model, (2, 3)))
@@ -292,7 +307,8 @@ def control_loop(args: argparse.Namespace) -> tuple[Any, Any, Any]:
         setpoint: Any = float(args.setpoint)
     except ValueError:
         setpoint = parse_signal(args.setpoint, limits=_PROFILE_LIMITS)
-    return ControlLoop(gains, setpoint, tuner=tuner), tuning, model
+    pair = {} if args.heater is None else {"heater": args.heater, "sensor": args.sensor}
+    return ControlLoop(gains, setpoint, tuner=tuner, **pair), tuning, model
 
 
 def identifier_settings() -> tuple[Setting, ...]:

@@ -44,22 +44,29 @@ def closed_loop_figures(
 
     figures: dict[str, Any] = {"measured": None, "predicted": None, "note": None}
     r = result.extra["r"]
+    rig = result.rig
+    # The loop's pair: the run's u and y, or a further pair's columns (a kit's q2, t2).
+    y = result.y if loop.sensor == "y" else result.extra[loop.sensor]
+    u = result.u if loop.heater == "u" else result.extra[loop.heater]
+    rest, limits = rig.safe_input, (rig.input_min, rig.input_max)
+    if loop.heater != "u":
+        heater = rig.inputs[loop.heater]
+        rest, limits = heater.default, (heater.minimum, heater.maximum)
     try:
         if model is None:
-            figures["measured"] = step_metrics(result.t, r, result.y).to_dict()
+            figures["measured"] = step_metrics(result.t, r, y).to_dict()
             return figures, ()
-        rig = result.rig
         # The lab's figures come from the same function: one operating point rule.
         measured, predicted = predict_record_step(
             model,
             loop.initial_gains,
             result.t,
             r,
-            result.y,
-            result.u,
+            y,
+            u,
             dt=result.dt,
-            u_rest=rig.safe_input,
-            u_limits=(rig.input_min, rig.input_max),
+            u_rest=rest,
+            u_limits=limits,
             derivative_filter=loop.derivative_filter,
         )
     except InvalidDataError as exc:
@@ -70,7 +77,7 @@ def closed_loop_figures(
     notes = tuple(
         n
         for n in (
-            rest_warning(model, measured, result.t, result.y),
+            rest_warning(model, measured, result.t, y),
             settling_warning(measured, predicted.metrics),
         )
         if n

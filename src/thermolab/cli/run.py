@@ -14,6 +14,8 @@ model (``--tune simc --model K,TAU,THETA [--tau-c S]``), optionally retuned
 live from WLSM (``--adaptive``). The set point, the PID's output, the error and
 the mode are columns of the CSV; the summary adds the closed-loop figures
 (overshoot, 2 % settling time, IAE) measured and, with ``--model``, predicted.
+``--heater``/``--sensor`` name the loop's pair (a kit's ``q2``/``t2``; default
+``u``/``y``): the run's input ``u`` then rests, a disturbance.
 
 Exit status: 0 when the run completes; 1 when it stops on a device fault or an
 interlock (one line on standard error; the samples already taken stay in the
@@ -167,6 +169,8 @@ def _run(args: argparse.Namespace) -> int:
         if loop is not None:
             assert figures is not None
             print()
+            if loop.drives_further:  # a kit's heater 2 from sensor 2
+                print(_("closed loop: {heater} from {sensor}").format(**loop.to_dict()))
             print(control_table(result, loop, tuning, figures, notes))
     if not result.ok:
         words = {

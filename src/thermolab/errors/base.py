@@ -20,6 +20,7 @@ __all__ = [
     "InvalidDataError",
     "InvalidParameterError",
     "LoopPairNotOnRigError",
+    "ModelPairError",
     "NotFoundError",
     "PairChannelUnknownError",
     "PairRoleError",
@@ -68,6 +69,11 @@ class LoopPairNotOnRigError(ChannelNotOnRigError):
 
 class PairChannelUnknownError(InvalidParameterError):
     """A run's input/output pair names a channel the rig does not declare (``q3``)."""
+
+
+class ModelPairError(InvalidParameterError):
+    """A tuning table asked for a loop whose heater and sensor are not the model's pair
+    (a Q2 -> T2 model for the Q1/T1 loop)."""
 
 
 class PairRoleError(InvalidParameterError):

@@ -88,6 +88,10 @@ ERROR_SENTENCES: Mapping[str, str] = {
         "The pair's input must be one of the rig's heaters (inputs) and its output one of its "
         "sensors (outputs)."
     ),
+    "model_pair_mismatch": (
+        "This run identified another heater and sensor pair: tune the loop with a model of "
+        "its own pair."
+    ),
     "settings_changed": "Someone changed these settings meanwhile: load them again.",
     # The closed loop and the runs' precise conflicts.
     "gain_out_of_range": "A controller setting is not a finite number within its published range.",

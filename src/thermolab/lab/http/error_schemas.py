@@ -69,6 +69,7 @@ class ValidationErrorOut(_Out):
         "loop_pair_not_on_rig",
         "pair_channel_unknown",
         "pair_wrong_role",
+        "model_pair_mismatch",
         "slot_ends_before_start",
         "slot_too_long",
         "slot_zone_missing",
@@ -89,7 +90,9 @@ class ValidationErrorOut(_Out):
         "one-heater rig; the message names what it has); loop_pair_not_on_rig: a closed "
         "loop's heater and sensor the rig does not pair; pair_channel_unknown, pair_wrong_role: "
         "a run's input/output pair naming a channel the rig lacks, or an input that is no "
-        "recorded actuator or an output that is no sensor; slot_ends_before_start, "
+        "recorded actuator or an output that is no sensor; model_pair_mismatch: a tuning "
+        "table asked for a loop whose heater and sensor are not the pair the run identified; "
+        "slot_ends_before_start, "
         "slot_too_long, slot_zone_missing: a booking's "
         "times (an end at or before the start, longer than a day unless said longer, a time "
         "without its zone); time_zone_unknown: a time zone that is not a known IANA name "

@@ -46,6 +46,7 @@ from thermolab.errors import (
     HostOfflineError,
     LabStartingError,
     LoopPairNotOnRigError,
+    ModelPairError,
     NameTakenError,
     NobodyControlsError,
     NoOutputUnitError,
@@ -179,6 +180,8 @@ _FAULTS: dict[type[BaseException], HttpFault] = {
     # A run's input/output pair (issue #22): a channel the rig lacks, or one in the wrong role.
     PairChannelUnknownError: HttpFault(422, "pair_channel_unknown"),
     PairRoleError: HttpFault(422, "pair_wrong_role"),
+    # A tuning table for a loop of another pair than its model's (a Q2 -> T2 model, Q1/T1).
+    ModelPairError: HttpFault(422, "model_pair_mismatch"),
     # Bookings (issue #10, item 5).
     BookingClashError: HttpFault(409, "booking_clash"),
     RigBookedError: HttpFault(409, "rig_booked"),

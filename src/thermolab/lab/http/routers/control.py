@@ -19,6 +19,7 @@ from thermolab.lab.http.control_schemas import FanIn, GainsIn, LoopOut, ModeIn, 
 from thermolab.lab.http.deps import AUTHENTICATED, LabDep, RigId, RunId, UserDep, documented_errors
 from thermolab.lab.http.routers.runs import RunOut
 from thermolab.lab.runs.control import PRIMARY_PAIR
+from thermolab.lab.runs.model_pair import check_loop_model, model_pair, output_limit
 from thermolab.lab.runs.tuning_table import closed_loop_figures, run_model, tuning_table
 from thermolab.lab.service import Lab
 from thermolab.runner import LoopCommands
@@ -218,33 +219,65 @@ def run_tuning(
         str | None,
         Query(min_length=1, max_length=16, pattern="^[a-z]+$", description="the model's method"),
     ] = None,
+    heater: Annotated[
+        str | None,
+        Query(
+            min_length=1,
+            max_length=32,
+            pattern="^[a-z0-9_]+$",
+            description="the heater of the loop to tune (default u, or the sensor's pair's)",
+        ),
+    ] = None,
+    sensor: Annotated[
+        str | None,
+        Query(
+            min_length=1,
+            max_length=32,
+            pattern="^[a-z0-9_]+$",
+            description="the sensor of the loop to tune (default y, or the heater's pair's)",
+        ),
+    ] = None,
 ) -> dict[str, Any]:
     """From the run's identified FOPDT model (Ks, Ts, θ): each rule's Kp, Ti, Td, the
     predicted closed-loop step from the run's starting point and its overshoot, 2 %
     settling time and IAE. For a closed-loop run, ``closedLoop`` has its measured figures
     beside the prediction of the model its gains came from.
+
+    The table says which pair its model is of (``pair``: the run's ``input`` and
+    ``output``, ``u``/``y`` for a run from before pairs). Given the loop's
+    ``heater`` and ``sensor``, a model of another pair is refused (422
+    ``model_pair_mismatch``): a kit's Q2 -> T2 model never tunes the Q1/T1 loop.
     """
     TAU_C.check(tau_c)
     record = lab.runs.get(run_id, who)
+    info = lab.config.rig(record.rig_id).rig_spec.describe()
+    if heater is not None or sensor is not None:
+        # One named: the other is its loop pair's (a kit's q2 goes with t2).
+        paired = dict(info.loop_pairs) if heater is not None else {}
+        by_sensor = {s: h for h, s in info.loop_pairs}
+        heater = heater or by_sensor.get(sensor or "", PRIMARY_PAIR[0])
+        sensor = sensor or paired.get(heater, PRIMARY_PAIR[1])
+        check_loop_model(info, record.settings, heater, sensor, run_id)
     exported = lab.runs.export(run_id, who)
     samples = exported.get("samples") or {}
     published = lab.hub.published(record.rig_id)
-    limits = (published.input_min, published.input_max)
+    # The model's pair: its input's range and rest, its output's first sample and limit.
+    pair = model_pair(record.settings)
+    limits = pair.limits(info, (published.input_min, published.input_max))
     out: dict[str, Any] = {"run": run_id, "table": None, "closedLoop": None, "note": None}
-    ys, us = samples.get("y") or [], samples.get("u") or []
+    ys, us = samples.get(pair.output) or [], samples.get("u") or []
     y0 = float(ys[0]) if ys else 0.0
-    u0 = published.safe_input
+    u0 = pair.rest(info) if pair.drives_further else published.safe_input
+    unit = published.output_unit if pair.standard else pair.units(info)[1]
     try:
         name, model, trusted = run_model(record.results, method)
-        output_limit = lab.config.rig(record.rig_id).rig_spec.describe().output_limit
+        limit = output_limit(info, pair)
         target = setpoint
         if target is None:
             # From the rig's declared ranges: a step of the input from rest, never
             # the middle of a range centred on rest (the ±10 V box: no step at all).
-            target = step_setpoint(
-                model, y0=y0, u_rest=u0, u_limits=limits, output_limit=output_limit
-            )
-        _check_step(target, y0, output_limit, published.output_unit)
+            target = step_setpoint(model, y0=y0, u_rest=u0, u_limits=limits, output_limit=limit)
+        _check_step(target, y0, limit, unit)
         table = tuning_table(
             model, dt=record.dt, y0=y0, u0=u0, setpoint=target, u_limits=limits, tau_c=tau_c
         )
@@ -254,12 +287,12 @@ def run_tuning(
             raise
         out["note"] = str(exc)
     else:
-        out["table"] = {**table, "method": name, "trusted": trusted}
+        out["table"] = {**table, "method": name, "trusted": trusted, "pair": pair.to_dict()}
     control = (record.settings or {}).get("control")
     if control is not None and us:
-        rest = published.safe_input
-        heater = lab.config.rig(record.rig_id).rig_spec.actuators.get(control.get("heater") or "")
-        if heater is not None:  # a loop on a further pair: that heater's range and rest
-            limits, rest = heater.range, heater.default
+        limits, rest = (published.input_min, published.input_max), published.safe_input
+        actuator = lab.config.rig(record.rig_id).rig_spec.actuators.get(control.get("heater") or "")
+        if actuator is not None:  # a loop on a further pair: that heater's range and rest
+            limits, rest = actuator.range, actuator.default
         out["closedLoop"] = closed_loop_figures(samples, record.dt, control, limits, rest)
     return out

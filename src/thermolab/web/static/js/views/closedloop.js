@@ -17,7 +17,7 @@
 // (heater 2 in the "Further inputs" card, heater 1 here while the loop drives 2).
 
 import { api, request } from "../api.js";
-import { channelName } from "../channelwords.js";
+import { channelName, pairEnd } from "../channelwords.js";
 import { Chart, COLORS } from "../charts.js";
 import { h, replaceChildren, setText, tParts } from "../dom.js";
 import { formatNumber, t } from "../i18n.js";
@@ -296,7 +296,8 @@ export class ClosedLoopPanel {
     if (setpoint === null) return;
     setText(this.error, "");
     try {
-      const answer = await loopApi.tuning(v.modelRun, setpoint === undefined ? "" : `?setpoint=${enc(String(setpoint))}`);
+      // For the loop's pair only: the server refuses a model of another (a Q2 -> T2 model, Q1/T1).
+      const answer = await loopApi.tuning(v.modelRun, this._query(setpoint));
       this.tuningRun = v.modelRun;
       this.usedRule = null;
       this.predicted = null;
@@ -304,6 +305,11 @@ export class ClosedLoopPanel {
     } catch (err) {
       setText(this.error, err.message);
     }
+  }
+
+  /** The table's query: the loop's heater and sensor, the set point typed (if any). @param {number} [setpoint] */
+  _query(setpoint) {
+    return `?${new URLSearchParams({ ...this._pair(), ...(setpoint === undefined ? {} : { setpoint: String(setpoint) }) })}`;
   }
 
   _showTable(table) {
@@ -328,6 +334,8 @@ export class ClosedLoopPanel {
     const heads = ["loop.rule", "loop.kp", "loop.ti", "loop.td", "loop.overshoot", "loop.settling", "loop.iae"];
     replaceChildren(this.table,
       h("p", {}, t("loop.model", { K: num(m.K), tau: num(m.tau), theta: num(m.theta), method: table.method.toUpperCase() })),
+      // Which heater and sensor the model is of, where the rig has more than one pair.
+      ...(this.pairSelect && table.pair ? [h("p", { "data-testid": "tuning-pair" }, t("loop.modelPair", { input: pairEnd(table.pair.input, true), output: pairEnd(table.pair.output, true) }))] : []),
       h("p", { "data-testid": "tuning-step" }, t("loop.tuningStep", { from: num(table.y0), to: num(table.setpoint), unit: out, u0: num(table.u0), inputUnit: unitSymbol(this.rig.inputUnit) })),
       h("table", {}, h("thead", {}, h("tr", {}, ...heads.map((k) => h("th", { scope: "col" }, t(k))), h("th", {}))),
         h("tbody", {}, ...rows)));
@@ -345,7 +353,7 @@ export class ClosedLoopPanel {
   async _predictionFor(setpoint) {
     const table = this.tuning;
     if (!this.usedRule || !table || setpoint === table.setpoint) return;
-    const answer = await loopApi.tuning(this.tuningRun, `?setpoint=${enc(String(setpoint))}`);
+    const answer = await loopApi.tuning(this.tuningRun, this._query(setpoint));
     const row = answer.table?.rows.find((r) => `${r.rule}-${r.form}` === this.usedRule && !r.error);
     this.predicted = row ? row.response : null;
   }
@@ -469,6 +477,9 @@ export class ClosedLoopPanel {
 
   /** Another heater chosen: the manual field starts heater 1 then, a disturbance; the manual input otherwise. */
   _pairChanged() {
+    // A table of the other pair's model no longer applies: the student asks for this pair's.
+    this.tuning = this.model = this.usedRule = this.predicted = null;
+    replaceChildren(this.table);
     const field = this.fields.u;
     const words = this._pair().heater === OWN ? t("loop.manualInput") : t("loop.otherStart");
     field.spec.label = words;
