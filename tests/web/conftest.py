@@ -415,7 +415,7 @@ def _wait_until_up(url: str, proc: subprocess.Popen[bytes], log: Path) -> None:
     raise RuntimeError(f"thermolab serve did not answer within 60 s:\n{log.read_text()[-3000:]}")
 
 
-_LOGINS: dict[str, Any] = {}
+_LOGINS: dict[tuple[str, str], Any] = {}
 
 
 def audited(page: Any, actor: str) -> set[tuple[str, str]]:
@@ -439,7 +439,11 @@ def logged_in_context(browser: Any, lab: LabServer, user: str, **options: Any) -
     reuse that session's cookie (as a second tab would), which spares a
     password hash per test.
     """
-    if user not in _LOGINS:
+    # By lab and user: a browser sends 127.0.0.1's cookies to every port, so a session
+    # of one lab's "ana" reused on another lab's page was a stranger there (the page
+    # stayed on its login form, in whichever module met "ana" second in a worker).
+    key = (lab.url, user)
+    if key not in _LOGINS:
         context = browser.new_context()
         page = context.new_page()
         page.goto(f"{lab.url}/")
@@ -447,9 +451,9 @@ def logged_in_context(browser: Any, lab: LabServer, user: str, **options: Any) -
         page.fill("#login-password", lab.password(user))
         page.click("form button[type=submit]")
         page.wait_for_selector("#nav:not([hidden])")
-        _LOGINS[user] = context.storage_state()
+        _LOGINS[key] = context.storage_state()
         context.close()
-    return browser.new_context(storage_state=_LOGINS[user], **options)
+    return browser.new_context(storage_state=_LOGINS[key], **options)
 
 
 @pytest.fixture(scope="session")
