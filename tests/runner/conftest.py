@@ -1,4 +1,4 @@
-"""Shared pieces for the runner's tests: a twin with hooks, fake identifiers."""
+"""Shared pieces for the runner's tests: twins with hooks (box and kit), fake identifiers."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 
-from thermolab.rigs import Reading, VirtualClock
+from thermolab.rigs import KitTwinRig, Reading, VirtualClock
 from thermolab.rigs.twin import TwinRig
 
 
@@ -22,6 +22,22 @@ class HookedTwin(TwinRig):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
+        self.hooks: dict[int, Callable[[], object]] = {}
+        self.reads = 0
+
+    def _read_output(self) -> Reading:
+        hook = self.hooks.get(self.reads)
+        self.reads += 1
+        if hook is not None:
+            hook()
+        return super()._read_output()
+
+
+class HookedKit(KitTwinRig):
+    """The kit's twin calling ``hooks[n]()`` just before its ``n``-th reading."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
         self.hooks: dict[int, Callable[[], object]] = {}
         self.reads = 0
 

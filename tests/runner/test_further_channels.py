@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
@@ -12,24 +10,10 @@ import pytest
 from thermolab.control import PIDGains
 from thermolab.errors import InvalidParameterError
 from thermolab.records import read_record
-from thermolab.rigs import KitTwinRig, Reading, TwinRig, VirtualClock
+from thermolab.rigs import KitTwinRig, TwinRig, VirtualClock
 from thermolab.runner import ControlLoop, CsvRecorder, Experiment
 
-
-class HookedKit(KitTwinRig):
-    """The kit's twin calling ``hooks[n]()`` just before its ``n``-th reading."""
-
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(**kwargs)
-        self.hooks: dict[int, Callable[[], object]] = {}
-        self.reads = 0
-
-    def _read_output(self) -> Reading:
-        hook = self.hooks.get(self.reads)
-        self.reads += 1
-        if hook is not None:
-            hook()
-        return super()._read_output()
+from .conftest import HookedKit
 
 
 def test_a_q2_step_mid_run_is_recorded_and_warms_t2_not_the_run_input() -> None:

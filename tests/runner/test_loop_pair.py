@@ -2,38 +2,23 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
-from typing import Any
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
 
 from thermolab.control import PIDGains
 from thermolab.errors import ChannelInLoopError, InvalidParameterError, LoopPairNotOnRigError
-from thermolab.rigs import KitTwinRig, Reading, VirtualClock
+from thermolab.rigs import KitTwinRig, VirtualClock
 from thermolab.rigs.twin import TwinRig
 from thermolab.runner import ControlLoop, Experiment
 from thermolab.runner.control_request import ControlRequest, build_control_loop
 
+from .conftest import HookedKit
+
 GAINS = PIDGains(5.0, 150.0)  # a PI for either heater of the kit's twin
 SETPOINT = 40.0
 DT, SAMPLES = 2.0, 700
-
-
-class HookedKit(KitTwinRig):
-    """The kit's twin calling ``hooks[n]()`` just before its ``n``-th reading."""
-
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(**kwargs)
-        self.hooks: dict[int, Callable[[], object]] = {}
-        self.reads = 0
-
-    def _read_output(self) -> Reading:
-        hook = self.hooks.get(self.reads)
-        self.reads += 1
-        if hook is not None:
-            hook()
-        return super()._read_output()
 
 
 @pytest.fixture
