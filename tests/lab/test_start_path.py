@@ -39,6 +39,7 @@ START_PATH = (
     "runs.where",  # RunsByRig: the rig's runs are in this process (not on a rig host)
     "runs.service",  # RunService.start: plan_start, then store_start in the turn's transaction
     "rigs.devices",  # the rig's published range and driver, the hub's lock
+    "rigs.slot",  # RigSlot: the one rig the hub holds (its levels; claim sets its pace)
     "runs.request",  # plan_run: the one check, the operating point, the identifiers
     "runs.store",  # run_channels, add_run, read
     "access.transactions",  # caller_turn (a lost race is told apart), controlled()
