@@ -39,15 +39,8 @@ from thermolab.lab.classes.class_list import read_class_list
 from thermolab.lab.classes.closed import require_open
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
-from thermolab.lab.db.models import (
-    Course,
-    CourseMember,
-    CourseRig,
-    LoginSession,
-    MemberRole,
-    Role,
-    User,
-)
+from thermolab.lab.db.login_models import LoginSession
+from thermolab.lab.db.models import Course, CourseMember, CourseRig, MemberRole, Role, User
 
 __all__ = [
     "COURSE_NAME",
