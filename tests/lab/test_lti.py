@@ -19,8 +19,9 @@ from fastapi.testclient import TestClient
 from sqlalchemy import func, select
 
 from thermolab.lab.clock import ManualClock
+from thermolab.lab.db.login_models import LoginSession
 from thermolab.lab.db.lti_models import GradeStatus, LtiIdentity, LtiLoginState
-from thermolab.lab.db.models import Course, CourseMember, LoginSession, User
+from thermolab.lab.db.models import Course, CourseMember, User
 from thermolab.lab.service import Lab
 
 from .conftest import PASSWORD

@@ -22,7 +22,8 @@ from sqlalchemy import create_engine, func, select, text
 
 from thermolab.lab.accounts.security import hash_token, new_token
 from thermolab.lab.accounts.users import Principal
-from thermolab.lab.db.models import ControlSession, LoginSession, QueueEntry, Role, User
+from thermolab.lab.db.login_models import LoginSession
+from thermolab.lab.db.models import ControlSession, QueueEntry, Role, User
 from thermolab.lab.http.app import create_app
 from thermolab.lab.http.deps import COOKIE_NAME
 from thermolab.lab.service import Lab

@@ -37,8 +37,10 @@ pytestmark = pytest.mark.sqlite_only
 START_PATH = (
     "http.routers.runs",  # the route and its bodies: RunIn.request(), RunOut.of()
     "runs.where",  # RunsByRig: the rig's runs are in this process (not on a rig host)
-    "runs.service",  # RunService.start: plan_start, then store_start in the turn's transaction
+    "runs.service",  # RunService.start: the previous turn's run, the hub's claim, the runner
+    "runs.starting",  # plan_start, then store_start in the turn's transaction
     "rigs.devices",  # the rig's published range and driver, the hub's lock
+    "rigs.slot",  # RigSlot: the one rig the hub holds (its levels; claim sets its pace)
     "runs.request",  # plan_run: the one check, the operating point, the identifiers
     "runs.store",  # run_channels, add_run, read
     "access.transactions",  # caller_turn (a lost race is told apart), controlled()

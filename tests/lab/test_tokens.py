@@ -7,7 +7,7 @@ from sqlalchemy import select
 
 from thermolab.lab.accounts.security import hash_token
 from thermolab.lab.clock import ManualClock
-from thermolab.lab.db.models import ApiToken
+from thermolab.lab.db.login_models import ApiToken
 
 from .conftest import PASSWORD, LabFactory
 from .test_live import closed_with, login, make, receive, still_open

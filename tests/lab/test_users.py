@@ -15,7 +15,8 @@ from thermolab.lab.accounts.security import (
 )
 from thermolab.lab.accounts.users import UserService
 from thermolab.lab.clock import ManualClock
-from thermolab.lab.db.models import LoginSession, Role, User
+from thermolab.lab.db.login_models import LoginSession
+from thermolab.lab.db.models import Role, User
 from thermolab.lab.service import Lab
 
 from .conftest import PASSWORD

@@ -49,7 +49,8 @@ if TYPE_CHECKING:
         FirstOrderModel,
         discrete_to_first_order,
     )
-    from .oe import OutputErrorResult, output_error
+    from .oe import output_error
+    from .oe_result import OutputErrorResult
     from .online import Estimate, OnlineIdentifier, make_identifier
     from .operating_point import OperatingPoint, decide_operating_point
     from .recursive import moving_window_least_squares, weighted_least_squares
@@ -110,7 +111,7 @@ _HOME = {
     "ResidualTest": "diagnostics",
     "OperatingPoint": "operating_point",
     "decide_operating_point": "operating_point",
-    "OutputErrorResult": "oe",
+    "OutputErrorResult": "oe_result",
     "output_error": "oe",
 }
 

@@ -18,6 +18,7 @@ from thermolab.errors import ChannelInLoopError, InvalidParameterError
 from thermolab.records import ChannelSpec
 from thermolab.rigs import RigInfo
 from thermolab.runner.closed_loop import ControlLoop
+from thermolab.runner.inputs import ChannelSource
 
 __all__ = [
     "FAN_CHANNEL",
@@ -25,11 +26,17 @@ __all__ = [
     "LoopCommands",
     "closed_loop_channels",
     "fan_level",
+    "fan_source",
     "refuse_loop_heater",
 ]
 
 #: The disturbance fan's channel (recorded by a closed-loop run on a rig with a fan).
 FAN_CHANNEL = ChannelSpec("fan", "%", "other", "disturbance fan, % of full speed")
+
+
+def fan_source(rig: object) -> ChannelSource:
+    """The fan's channel and its level, read from the rig at each sample (NaN if it cannot say)."""
+    return (FAN_CHANNEL, lambda t, u, y: float(getattr(rig, "fan", math.nan)))
 
 
 def closed_loop_channels(

@@ -23,25 +23,32 @@ On every way out — all samples taken, END, a rig fault, an interlock, the
 watchdog, an exception, :meth:`Experiment.abort`, SIGINT/SIGTERM — the rig is
 powered off (actuator at its safe value) before anything else happens.
 The loop and the ways out are the worker thread's, :mod:`.sampling`; the
-closed-loop requests, :mod:`.control_requests`.
+closed-loop requests, :mod:`.control_requests`; the checks of the arguments,
+:mod:`.arguments`; the further channels' sources, :mod:`.further`.
 """
 
 from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
 from thermolab.errors import InvalidParameterError, RunStateError
-from thermolab.records import RUN_CHANNELS, ChannelSpec, channel_names
-from thermolab.rigs import Rig, RigInfo
+from thermolab.records import RUN_CHANNELS, ChannelSpec
+from thermolab.rigs import Rig
+from thermolab.runner.arguments import (
+    check_channels,
+    check_controller,
+    check_schedule,
+    checked_identifiers,
+)
 from thermolab.runner.closed_loop import ControlLoop
-from thermolab.runner.control_requests import FAN_CHANNEL, ControlRequests
+from thermolab.runner.control_requests import ControlRequests, fan_source
 from thermolab.runner.event_bus import EventBus
 from thermolab.runner.events import SupportsToDict
-from thermolab.runner.further import further_channels
+from thermolab.runner.further import further_sources
 from thermolab.runner.inputs import ChannelSource, IdentifierLike, InputSignal
 from thermolab.runner.interlocks import Interlocks
 from thermolab.runner.pair import IOPair, check_pair
@@ -142,28 +149,16 @@ class Experiment(ControlRequests, SamplingLoop):
         controller: ControlLoop | None = None,
         pair: IOPair | None = None,
     ) -> None:
-        if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0):
-            raise InvalidParameterError(f"dt must be a positive number of seconds, got {dt!r}")
-        if isinstance(samples, bool) or not isinstance(samples, int | np.integer) or samples < 1:
-            raise InvalidParameterError(f"samples must be an integer >= 1, got {samples!r}")
-        if signal is not None and set_point is not None:
-            raise InvalidParameterError("give either a signal or a set point, not both")
-        if late_tolerance is None:
-            late_tolerance = dt / 10.0
-        if not (math.isfinite(late_tolerance) and late_tolerance >= 0):
-            raise InvalidParameterError(
-                f"late_tolerance must be a number of seconds >= 0, got {late_tolerance!r}"
-            )
+        late_tolerance = check_schedule(dt, samples, signal, set_point, late_tolerance)
         self._info = rig.describe()
         self._pair = IOPair() if pair is None else check_pair(self._info, pair.input, pair.output)
-        if controller is not None and not self._pair.standard:
-            raise InvalidParameterError(f"a closed loop controls u and y, not {self._pair}")
+        check_controller(controller, self._pair)
         # Every run records the rig's further channels (a kit's T2, Q2) after the loop's;
         # set_further() applies a further input at a sample's instant.
         self._further_reading: Mapping[str, float] = {}
         self._further_requests: dict[str, float] = {}
         self._sources = (
-            *self._further_sources(rig, self._info),
+            *further_sources(rig, self._info, lambda: self._further_reading),
             *((spec, fn) for spec, fn in sources),
         )
         # A closed-loop run on a rig with a disturbance fan records it (after the loop's
@@ -171,16 +166,8 @@ class Experiment(ControlRequests, SamplingLoop):
         self._set_fan = getattr(rig, "set_fan", None)
         self._fan_request: float | None = None
         if controller is not None and callable(self._set_fan):
-            fan_of = rig
-            self._sources = (
-                (FAN_CHANNEL, lambda t, u, y: float(getattr(fan_of, "fan", math.nan))),
-                *self._sources,
-            )
+            self._sources = (fan_source(rig), *self._sources)
         self._interlocks = interlocks if interlocks is not None else Interlocks()
-        if controller is not None and not isinstance(controller, ControlLoop):
-            raise InvalidParameterError(
-                f"controller must be a ControlLoop, got {type(controller).__name__}"
-            )
         self._control = controller
         control_channels: tuple[ChannelSpec, ...] = ()
         self._loop_level = math.nan  # a loop on a further pair's (a kit's q2/t2)
@@ -195,31 +182,14 @@ class Experiment(ControlRequests, SamplingLoop):
             *control_channels,
             *(spec for spec, _ in self._sources),
         )
-        names = channel_names(self._channels)
-        for name in names[len(RUN_CHANNELS) :]:
-            if names.count(name) > 1:
-                raise InvalidParameterError(
-                    f"extra channel {name!r} is taken or repeated; a run's channels are "
-                    f"{', '.join(names)}"
-                )
-        recorded = getattr(recorder, "channels", RUN_CHANNELS)
-        if recorder is not None and channel_names(recorded) != channel_names(self._channels):
-            raise InvalidParameterError(
-                f"the recorder writes the channels {','.join(channel_names(recorded))} but "
-                f"the run has {','.join(names)}; give the recorder channels=Experiment.channels"
-            )
+        check_channels(self._channels, recorder)
         self._rig = rig
         self._clock = rig.clock
         self._dt = float(dt)
         self._samples = int(samples)
         self._late_tolerance = float(late_tolerance)
         self._recorder = recorder
-        self._identifiers = dict(identifiers or {})
-        for name, ident in self._identifiers.items():
-            if not isinstance(ident, IdentifierLike):
-                raise InvalidParameterError(
-                    f"identifier {name!r} ({type(ident).__name__}) lacks update/finish/to_dict"
-                )
+        self._identifiers = checked_identifiers(identifiers)
         self._signal = signal
         self._manual: float | None = None
         if signal is None:
@@ -466,25 +436,6 @@ class Experiment(ControlRequests, SamplingLoop):
         )
 
     # -- internals (the worker thread's: thermolab.runner.sampling) ---------------------------
-
-    def _further_sources(self, rig: Rig, info: RigInfo) -> tuple[ChannelSource, ...]:
-        """A source per further channel the run records, in :func:`further_channels`' order.
-
-        An output's value comes from the sample's reading (the sampling loop
-        keeps its ``further``), an input's from the rig once the sample's
-        inputs are applied.
-        """
-
-        def output(name: str) -> Callable[[float, float, float], float]:
-            return lambda t, u, y: float(self._further_reading.get(name, math.nan))
-
-        def input_level(name: str) -> Callable[[float, float, float], float]:
-            return lambda t, u, y: float(rig.level(name))
-
-        return tuple(
-            (spec, output(spec.name) if spec.role == "output" else input_level(spec.name))
-            for spec in further_channels(info)
-        )
 
     def _checked_input(self, u: float) -> float:
         try:

@@ -13,12 +13,16 @@ further channels were declared.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable, Mapping
+
 from thermolab.records import ChannelSpec
-from thermolab.rigs import RigInfo
+from thermolab.rigs import Rig, RigInfo
 from thermolab.runner.closed_loop import ControlLoop
 from thermolab.runner.control_requests import closed_loop_channels
+from thermolab.runner.inputs import ChannelSource
 
-__all__ = ["extra_channels", "further_channels"]
+__all__ = ["extra_channels", "further_channels", "further_sources"]
 
 
 def further_channels(info: RigInfo) -> tuple[ChannelSpec, ...]:
@@ -66,3 +70,25 @@ def extra_channels(
     """
     looped = () if loop is None else closed_loop_channels(rig, loop, fan=fan)
     return (*looped, *further_channels(info))
+
+
+def further_sources(
+    rig: Rig, info: RigInfo, reading: Callable[[], Mapping[str, float]]
+) -> tuple[ChannelSource, ...]:
+    """A source per further channel the run records, in :func:`further_channels`' order.
+
+    An output's value comes from the sample's reading (``reading()``: the
+    further values the sampling loop kept of it), an input's from the rig once
+    the sample's inputs are applied.
+    """
+
+    def output(name: str) -> Callable[[float, float, float], float]:
+        return lambda t, u, y: float(reading().get(name, math.nan))
+
+    def input_level(name: str) -> Callable[[float, float, float], float]:
+        return lambda t, u, y: float(rig.level(name))
+
+    return tuple(
+        (spec, output(spec.name) if spec.role == "output" else input_level(spec.name))
+        for spec in further_channels(info)
+    )

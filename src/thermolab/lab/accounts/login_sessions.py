@@ -15,7 +15,8 @@ from thermolab.lab.accounts.security import hash_token, new_token
 from thermolab.lab.accounts.users import LoginsEnded, Principal, UserInfo
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
-from thermolab.lab.db.models import LoginSession, Role, User
+from thermolab.lab.db.login_models import LoginSession
+from thermolab.lab.db.models import Role, User
 
 __all__ = ["SessionService"]
 

@@ -28,7 +28,8 @@ from thermolab.lab.accounts.security import hash_token
 from thermolab.lab.accounts.users import LoginsEnded, Principal
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
-from thermolab.lab.db.models import ApiToken, Role, User
+from thermolab.lab.db.login_models import ApiToken
+from thermolab.lab.db.models import Role, User
 
 __all__ = [
     "DEFAULT_TOKEN_DAYS",
@@ -76,7 +77,7 @@ class TokenInfo:
 
     @classmethod
     def of(cls, row: ApiToken) -> TokenInfo:
-        """Build from an :class:`~thermolab.lab.db.models.ApiToken` row."""
+        """Build from an :class:`~thermolab.lab.db.login_models.ApiToken` row."""
         return cls(
             row.id,
             row.name,

@@ -35,14 +35,8 @@ from thermolab.lab.accounts.security import (
 )
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
-from thermolab.lab.db.models import (
-    ControlSession,
-    LoginSession,
-    QueueEntry,
-    Role,
-    TurnEndReason,
-    User,
-)
+from thermolab.lab.db.login_models import LoginSession
+from thermolab.lab.db.models import ControlSession, QueueEntry, Role, TurnEndReason, User
 
 __all__ = [
     "LoginsEnded",

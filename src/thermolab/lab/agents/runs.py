@@ -80,7 +80,7 @@ from thermolab.lab.runs.ending import (
 )
 from thermolab.lab.runs.export import RunExport
 from thermolab.lab.runs.request import RUN_SETTINGS, RunRequest
-from thermolab.lab.runs.service import plan_on_rig, plan_start, store_start
+from thermolab.lab.runs.starting import plan_on_rig, plan_start, store_start
 from thermolab.lab.runs.store import RunStore
 from thermolab.rigs import RigInfo
 from thermolab.runner import (

@@ -65,7 +65,7 @@ from thermolab.lab.assignments.rows import (
 from thermolab.lab.assignments.standing import Standing, standings
 from thermolab.lab.classes.authorize import require_in_course
 from thermolab.lab.classes.closed import require_open
-from thermolab.lab.classes.courses import require_member
+from thermolab.lab.classes.course_access import require_member
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database

@@ -18,7 +18,7 @@ from sqlalchemy import delete, select
 from thermolab.errors import ConflictError, NotFoundError
 from thermolab.lab.accounts.users import user_named
 from thermolab.lab.classes.closed import require_open
-from thermolab.lab.classes.courses import course_named
+from thermolab.lab.classes.course_access import course_named
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import CourseMember, MemberRole

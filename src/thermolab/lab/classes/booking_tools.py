@@ -44,7 +44,7 @@ from thermolab.lab.accounts.policy import Action, Scope, scope_of, who_may
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.classes.bookings import BookingInfo, BookingService, booking_info, refuse_clash
 from thermolab.lab.classes.closed import require_open
-from thermolab.lab.classes.courses import course_named, require_member
+from thermolab.lab.classes.course_access import course_named, require_member
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.config.time_zones import zone_named

@@ -33,7 +33,7 @@ from sqlalchemy.orm import Session
 from thermolab.errors import BookingClashError, InvalidParameterError, NotFoundError
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.classes.closed import require_open
-from thermolab.lab.classes.courses import course_named, require_member
+from thermolab.lab.classes.course_access import course_named, require_member
 from thermolab.lab.classes.slot_times import MAX_SLOT_HOURS, check_slot
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig

@@ -27,7 +27,7 @@ from sqlalchemy import or_, select
 from thermolab.errors import AccessDeniedError, InvalidParameterError, NotFoundError
 from thermolab.lab.accounts.policy import Action, Scope, scope_of, who_may
 from thermolab.lab.accounts.users import Principal
-from thermolab.lab.classes.courses import course_named, require_member
+from thermolab.lab.classes.course_access import course_named, require_member
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
 from thermolab.lab.db.booking_models import Booking, BookingRig

@@ -27,7 +27,7 @@ from sqlalchemy.orm import Session
 from thermolab.errors import SettingsChangedError
 from thermolab.lab.accounts.users import Principal
 from thermolab.lab.classes.closed import require_open
-from thermolab.lab.classes.courses import course_named, require_member
+from thermolab.lab.classes.course_access import course_named, require_member
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config.teacher_settings import (
     COURSE_SETTINGS,

@@ -12,7 +12,6 @@ password reset gives a temporary password the same way.
 from __future__ import annotations
 
 import builtins
-import re
 import secrets
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -34,42 +33,23 @@ from thermolab.errors import (
 )
 from thermolab.lab.accounts.names import normalize_display_name, normalize_username
 from thermolab.lab.accounts.security import validate_password
-from thermolab.lab.accounts.users import LoginsEnded, Principal, UserInfo
+from thermolab.lab.accounts.users import LoginsEnded, UserInfo
 from thermolab.lab.classes.class_list import read_class_list
 from thermolab.lab.classes.closed import require_open
+from thermolab.lab.classes.course_access import course_named
+from thermolab.lab.classes.course_names import course_name, course_title, new_enrol_code
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database
-from thermolab.lab.db.models import (
-    Course,
-    CourseMember,
-    CourseRig,
-    LoginSession,
-    MemberRole,
-    Role,
-    User,
-)
+from thermolab.lab.db.login_models import LoginSession
+from thermolab.lab.db.models import Course, CourseMember, CourseRig, MemberRole, Role, User
 
 __all__ = [
-    "COURSE_NAME",
     "CourseInfo",
     "CourseService",
     "ImportReport",
     "Member",
-    "course_named",
-    "new_enrol_code",
-    "require_member",
     "temporary_password",
 ]
-
-COURSE_NAME = re.compile(r"^[a-z0-9][a-z0-9._-]{0,63}$")
-# No 0/O or 1/I/L: a code is read aloud in a classroom and typed from a slide.
-_CODE_ALPHABET = "ABCDEFGHJKMNPQRSTUVWXYZ23456789"
-_CODE_LENGTH = 10
-
-
-def new_enrol_code() -> str:
-    """A random enrolment code: 10 characters, about 50 bits, easy to read aloud."""
-    return "".join(secrets.choice(_CODE_ALPHABET) for _ in range(_CODE_LENGTH))
 
 
 def temporary_password() -> str:
@@ -161,8 +141,8 @@ class CourseService:
         AccessDeniedError
             If ``teacher`` is a student's account.
         """
-        name = _course_name(name)
-        title = _title(title)
+        name = course_name(name)
+        title = course_title(title)
         now = self._clock.now()
         try:
             with self._db.write() as session:
@@ -423,38 +403,6 @@ class CourseService:
         return password
 
 
-def _course_name(name: str) -> str:
-    from thermolab.errors import InvalidParameterError
-
-    cleaned = name.strip().lower()
-    if not COURSE_NAME.fullmatch(cleaned):
-        raise InvalidParameterError(
-            f"course name {name!r} is not valid: use 1 to 64 letters, digits, '.', '_' or '-' "
-            "(no spaces; the title may have them)"
-        )
-    return cleaned
-
-
-def _title(title: str) -> str:
-    from thermolab.errors import InvalidParameterError
-
-    cleaned = " ".join(title.split())
-    if not 0 < len(cleaned) <= 200:
-        raise InvalidParameterError("a course title must have 1 to 200 characters")
-    return cleaned
-
-
-def course_named(session: Session, name: str, *, lock: bool = False) -> Course:
-    """The course called ``name`` (lower case; ``NotFoundError`` if none); ``lock``: its row
-    held to the transaction's end (``FOR UPDATE``), so no close slips in after a check."""
-    query = select(Course).where(Course.name == name.strip().lower())
-    course = session.scalars(query.with_for_update() if lock else query)
-    found = course.one_or_none()
-    if found is None:
-        raise NotFoundError(f"no course called {name!r}")
-    return found
-
-
 def _user(session: Session, username: str) -> User:
     user = session.scalars(
         select(User).where(User.username == normalize_username(username))
@@ -494,29 +442,3 @@ def _info(session: Session, course: Course, *, roster: bool) -> CourseInfo:
         course.closed_at,
         course.closed_by,
     )
-
-
-def require_member(
-    session: Session, course: Course, who: Principal, role: Role | None, action: str
-) -> None:
-    """Refuse ``action`` unless ``who`` is in ``course`` (as ``role``, if given).
-
-    Raises
-    ------
-    AccessDeniedError
-        Naming the course, and for a teacher's action who can let them in.
-
-    A lab administrator reaches every course (:mod:`thermolab.lab.accounts.policy`)
-    for everything but a student's own acts (handing in).
-    """
-    if who.is_admin and role is not Role.STUDENT:
-        return
-    held = session.scalar(
-        select(CourseMember.role).where(
-            CourseMember.course_id == course.id, CourseMember.user_id == who.user_id
-        )
-    )
-    if held is None or (role is not None and held != role.value):
-        what = "a member" if role is None else f"a {role.value}"
-        hint = "; ask one of them to add you as a teacher" if role is Role.TEACHER else ""
-        raise AccessDeniedError(f"only {what} of course {course.name!r} may {action}{hint}")

@@ -44,12 +44,8 @@ from thermolab.lab.accounts.users import Principal
 from thermolab.lab.assignments.service import assignment_with_course
 from thermolab.lab.classes.bookings import BookingService
 from thermolab.lab.classes.closed import require_open
-from thermolab.lab.classes.courses import (
-    COURSE_NAME,
-    course_named,
-    new_enrol_code,
-    require_member,
-)
+from thermolab.lab.classes.course_access import course_named, require_member
+from thermolab.lab.classes.course_names import COURSE_NAME, new_enrol_code
 from thermolab.lab.classes.slot_times import MAX_SLOT_HOURS
 from thermolab.lab.clock import LabClock
 from thermolab.lab.db import Database

@@ -15,6 +15,8 @@ from thermolab.lab.db import (  # noqa: F401
     course_settings_models,
     grading_models,
     guide_image_models,
+    guide_models,
+    login_models,
     lti_models,
     power_models,
     settings_models,

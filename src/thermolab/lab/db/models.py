@@ -43,17 +43,13 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 from sqlalchemy.types import TypeDecorator
 
 __all__ = [
-    "ApiToken",
     "Base",
     "Command",
     "ControlSession",
     "Course",
     "CourseMember",
     "CourseRig",
-    "GuidePage",
-    "GuideRevision",
     "LeaveReason",
-    "LoginSession",
     "MemberRole",
     "MethodResultRow",
     "PowerState",
@@ -245,41 +241,6 @@ class CourseRig(Base):
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     course_id: Mapped[int] = mapped_column(ForeignKey("courses.id", ondelete="CASCADE"), index=True)
     rig_id: Mapped[str] = mapped_column(String(64))
-
-
-class LoginSession(Base):
-    """A server-side login: the cookie holds a random token, the table its SHA-256."""
-
-    __tablename__ = "sessions"
-
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    token_hash: Mapped[str] = mapped_column(String(64), unique=True)
-    user_id: Mapped[int] = mapped_column(ForeignKey("users.id", ondelete="CASCADE"), index=True)
-    created_at: Mapped[datetime] = mapped_column(UTCDateTime)
-    last_seen_at: Mapped[datetime] = mapped_column(UTCDateTime)
-    expires_at: Mapped[datetime] = mapped_column(UTCDateTime)
-    client_address: Mapped[str | None] = mapped_column(String(64))
-    user_agent: Mapped[str | None] = mapped_column(String(256))
-
-
-class ApiToken(Base):
-    """A personal API token for scripts: the secret is shown once, the table keeps its SHA-256.
-
-    A token acts as its user (``read_only``: GET requests only); revoking
-    deletes the row, so the next request with it is refused.
-    """
-
-    __tablename__ = "api_tokens"
-
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    token_hash: Mapped[str] = mapped_column(String(64), unique=True)
-    user_id: Mapped[int] = mapped_column(ForeignKey("users.id", ondelete="CASCADE"), index=True)
-    name: Mapped[str] = mapped_column(String(64))
-    prefix: Mapped[str] = mapped_column(String(16))
-    read_only: Mapped[bool] = mapped_column(Boolean)
-    created_at: Mapped[datetime] = mapped_column(UTCDateTime)
-    last_used_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
-    expires_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
 
 
 class RigRow(Base):
@@ -483,39 +444,3 @@ class ServerLease(Base):
     token: Mapped[str] = mapped_column(String(128))
     acquired_at: Mapped[datetime] = mapped_column(UTCDateTime)
     expires_at: Mapped[datetime] = mapped_column(UTCDateTime)
-
-
-class GuidePage(Base):
-    """One section of a rig's guide in one language, as teachers edited it.
-
-    The text is the newest of its :class:`GuideRevision` rows; a section no
-    teacher has edited has no row (the package's default is shown).
-    """
-
-    __tablename__ = "guide_pages"
-    __table_args__ = (UniqueConstraint("rig_id", "lang", "section"),)
-
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    rig_id: Mapped[str] = mapped_column(String(64))
-    lang: Mapped[str] = mapped_column(String(8))
-    section: Mapped[str] = mapped_column(String(32))
-    created_at: Mapped[datetime] = mapped_column(UTCDateTime)
-
-
-class GuideRevision(Base):
-    """A guide section's text as one teacher saved it; never changed, never deleted.
-
-    Restoring an older revision adds a new one with its text (``restored_from``
-    names it), so the history stays a line.
-    """
-
-    __tablename__ = "guide_revisions"
-
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    page_id: Mapped[int] = mapped_column(
-        ForeignKey("guide_pages.id", ondelete="CASCADE"), index=True
-    )
-    markdown: Mapped[str] = mapped_column(Text)
-    author: Mapped[str] = mapped_column(String(64))
-    created_at: Mapped[datetime] = mapped_column(UTCDateTime)
-    restored_from: Mapped[int | None] = mapped_column(Integer)

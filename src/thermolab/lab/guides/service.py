@@ -26,7 +26,7 @@ from thermolab.lab.accounts.users import Principal
 from thermolab.lab.clock import LabClock
 from thermolab.lab.config.model import LabConfig
 from thermolab.lab.db import Database
-from thermolab.lab.db.models import GuidePage, GuideRevision
+from thermolab.lab.db.guide_models import GuidePage, GuideRevision
 from thermolab.lab.guides.render import MAX_MARKDOWN_CHARS, render_markdown
 
 __all__ = [

@@ -29,7 +29,7 @@ from sqlalchemy import select
 
 from thermolab.lab.accounts.security import hash_token
 from thermolab.lab.accounts.users import Principal
-from thermolab.lab.db.models import LoginSession
+from thermolab.lab.db.login_models import LoginSession
 from thermolab.lab.http.credentials import resolve_principal
 from thermolab.lab.live.fanout import CLOSE_UNAUTHORIZED, LiveFanout
 from thermolab.lab.service import Lab

@@ -33,7 +33,7 @@ from sqlalchemy.orm import Session
 
 from thermolab.errors import InvalidParameterError
 from thermolab.lab.accounts.names import normalize_display_name, normalize_username
-from thermolab.lab.classes.courses import new_enrol_code
+from thermolab.lab.classes.course_names import new_enrol_code
 from thermolab.lab.db.lti_models import URL_LENGTH, LtiContext, LtiIdentity, LtiResourceLink
 from thermolab.lab.db.models import Course, CourseMember, MemberRole, Role, User
 from thermolab.lab.lti.claims import CLAIM, course_role, lab_role

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import threading
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -41,7 +40,8 @@ from thermolab.lab.config.rig_kinds import (
 )
 from thermolab.lab.db.models import PowerState
 from thermolab.lab.rigs.opener import RigOpener
-from thermolab.rigs import RateClock, Reading, Rig
+from thermolab.lab.rigs.slot import RigSlot, level_of
+from thermolab.rigs import RateClock, Rig
 
 __all__ = [
     "DesiredState",
@@ -66,32 +66,6 @@ class DesiredState:
 
     power: PowerState
     controller_session: int | None
-
-
-class _Slot:
-    """One rig as the hub holds it."""
-
-    def __init__(self, config: RigConfig) -> None:
-        self.config = config
-        self.lock = threading.RLock()
-        self.driver: Rig | None = None
-        self.published = published_defaults(config)
-        self.powered = False
-        self.controller_session: int | None = None
-        self.output: float | None = None
-        self.output_at: datetime | None = None
-        self.fault: str | None = None
-        self.claimed = False
-        self.input: float | None = None
-        self.host_speedup: float | None = None  # a rig host's, as its Hello said
-        # A rig host's further actuators (a fan), as its run's samples and its rests
-        # tell them (None: not known yet); an in-process driver is read instead.
-        self.host_levels: dict[str, float | None] = dict.fromkeys(config.rig_spec.actuators)
-        # The further outputs (a kit's T2) the rig declares, and the latest reading's.
-        self.output_names = tuple(config.rig_spec.describe().outputs)
-        self.further_outputs: dict[str, float] = {}
-        # A controller's own speed-up of a twin for their turn: (control session, speed-up).
-        self.turn_pace: tuple[int, float] | None = None
 
 
 class DeviceHub:
@@ -123,7 +97,7 @@ class DeviceHub:
         self._opener = opener
         self._clock = clock
         self._config = config
-        self._slots = {rig.id: _Slot(rig) for rig in config.rigs}
+        self._slots = {rig.id: RigSlot(rig) for rig in config.rigs}
 
     def open_all(self) -> dict[str, str]:
         """Open every rig's driver and put it in its safe state.
@@ -140,7 +114,7 @@ class DeviceHub:
                 faults[rig_id] = fault
         return faults
 
-    def _open(self, slot: _Slot) -> str | None:
+    def _open(self, slot: RigSlot) -> str | None:
         with slot.lock:
             if self._opener is None or slot.driver is not None or slot.config.agent:
                 return None  # a remote rig's driver is on its host (thermolab.lab.agents)
@@ -164,7 +138,7 @@ class DeviceHub:
         """
         slot = self._slots[rig_id]
         with slot.lock:
-            self._pace(slot, self._config.rig(rig_id))
+            slot.pace(self._config.rig(rig_id))
             slot.claimed = True
 
     def release(self, rig_id: str, *, left_off: bool = False) -> None:
@@ -187,8 +161,8 @@ class DeviceHub:
                 slot.powered, slot.input = False, None
             if left_off:
                 slot.powered, slot.input = False, None
-                self._host_at_rest(slot)  # its runner powered it off: the rig's safe state
-            self._pace(slot, self._config.rig(rig_id))
+                slot.host_at_rest()  # its runner powered it off: the rig's safe state
+            slot.pace(self._config.rig(rig_id))
 
     def follow_settings(self, rig: RigConfig) -> None:
         """A rig's teacher settings were put in force: a twin with no run takes its speed-up.
@@ -200,7 +174,7 @@ class DeviceHub:
             return
         with slot.lock:
             if not slot.claimed:
-                self._pace(slot, rig)
+                slot.pace(rig)
 
     def clock_rate(self, rig_id: str) -> float | None:
         """The rate of the rig's clock if the hub sets it (a twin the lab runs), else ``None``."""
@@ -244,14 +218,8 @@ class DeviceHub:
                     case="pace_fixed_during_run",
                 )
             slot.turn_pace = (controller_session, float(speedup))
-            self._pace(slot, rig)
+            slot.pace(rig)
         return speedup
-
-    @staticmethod
-    def _pace(slot: _Slot, rig: RigConfig) -> None:
-        clock = None if slot.driver is None else slot.driver.clock
-        if isinstance(clock, RateClock) and rig.lab_twin:
-            clock.set_rate(_speedup_in_force(slot, rig))
 
     def note_sample(
         self,
@@ -297,7 +265,7 @@ class DeviceHub:
         rig = self._config.rig(rig_id)
         speedup = slot.host_speedup if rig.agent else rig.speedup
         if rig.lab_twin and slot.turn_pace is not None:
-            speedup = _speedup_in_force(slot, rig)
+            speedup = slot.speedup_in_force(rig)
         levels = self.actuators(rig_id)
         actuators = tuple(
             ActuatorLevel(name, spec.unit, spec.default, levels[name])
@@ -333,11 +301,9 @@ class DeviceHub:
             if driver is None or slot.claimed or slot.fault is not None or not driver.powered:
                 return None
             try:
-                value = _take(slot, driver.read())
+                value = slot.take(driver.read())
             except RigError as exc:
-                slot.fault = str(exc)
-                slot.powered = False
-                slot.controller_session = None
+                slot.fail(exc)
                 return None
             slot.output_at = self._clock.now() if self._clock is not None else slot.output_at
             return None if slot.output_at is None else (value, slot.output_at)
@@ -374,10 +340,12 @@ class DeviceHub:
         """Make the rig match ``desired``; return whether the rig was handed over.
 
         Powers the rig on or off; on a change of controller (or none) hands the
-        rig over (:meth:`_hand_over`: every actuator at its declared default);
-        while cooling holds ``cooldown_input``. Errors of the device become the
-        rig's fault (see :meth:`fault`). A rig host's rig is handed over by its
-        host when the lab says so (``AgentHub.sync_power(hand_over=True)``).
+        rig over (:meth:`~thermolab.lab.rigs.slot.RigSlot.hand_over`: every
+        actuator at its declared default); while cooling holds
+        ``cooldown_input`` (:meth:`~thermolab.lab.rigs.slot.RigSlot.follow_power`).
+        Errors of the device become the rig's fault (see :meth:`fault`). A rig
+        host's rig is handed over by its host when the lab says so
+        (``AgentHub.sync_power(hand_over=True)``).
         """
         slot = self._slots[rig_id]
         with slot.lock:
@@ -385,72 +353,13 @@ class DeviceHub:
                 return False
             if slot.turn_pace is not None and slot.turn_pace[0] != desired.controller_session:
                 slot.turn_pace = None  # the turn that chose it is over: the teacher's pace again
-                self._pace(slot, self._config.rig(rig_id))
-            driver = slot.driver
-            if driver is not None:
-                # The device's own state wins: a run powers the rig off when it ends.
-                slot.powered = driver.powered
+                slot.pace(self._config.rig(rig_id))
             try:
-                if desired.power is PowerState.OFF:
-                    if driver is not None and slot.powered:
-                        driver.power_off()
-                    slot.powered = False
-                    slot.controller_session = None
-                    slot.input = None
-                    if driver is None and slot.config.agent:
-                        self._host_at_rest(slot)  # told Power(off): its rig's safe state
-                    return False
-                handed_over = False
-                if not slot.powered:
-                    if driver is not None:
-                        driver.power_on()
-                    slot.powered = True
-                    slot.controller_session = None
-                    self._apply(slot, slot.published.safe_input)
-                if desired.power is PowerState.COOLING:
-                    handed_over = slot.controller_session is not None
-                    if handed_over:
-                        self._hand_over(slot)
-                    slot.controller_session = None
-                    target = slot.published.safe_input if cooldown_input is None else cooldown_input
-                    self._apply(
-                        slot, min(max(target, slot.published.input_min), slot.published.input_max)
-                    )
-                elif desired.controller_session != slot.controller_session:
-                    handed_over = True
-                    slot.controller_session = desired.controller_session
-                    self._hand_over(slot)
-                return handed_over
+                return slot.follow_power(desired.power, desired.controller_session, cooldown_input)
             except RigError as exc:
-                slot.fault = str(exc)
-                slot.powered = False
-                slot.controller_session = None
+                slot.fail(exc)
                 log.warning("rig %s: %s", rig_id, exc)
                 return False
-
-    def _hand_over(self, slot: _Slot) -> None:
-        """The one hand-over of a powered rig between turns: the rig's own safe state.
-
-        Powering the driver off puts every actuator its kind declares at its
-        declared default (the input at its safe value, a twin's fan off: the
-        :mod:`thermolab.rigs.contract` rule), so nothing a turn set reaches the
-        next one, whatever the rig has; then it is powered again at its safe
-        input. A rig host's rig (no driver here) is handed over by its host.
-        """
-        if slot.driver is not None:
-            slot.driver.power_off()
-            slot.driver.power_on()
-        slot.input = None
-        self._apply(slot, slot.published.safe_input)
-        if slot.driver is None and slot.config.agent:
-            slot.input = slot.published.safe_input  # what the host is told to hold
-            self._host_at_rest(slot)
-
-    @staticmethod
-    def _host_at_rest(slot: _Slot) -> None:
-        """A rig host's rig was powered off: by the rig contract, at its declared defaults."""
-        for name, spec in slot.config.rig_spec.actuators.items():
-            slot.host_levels[name] = spec.default
 
     def apply(self, rig_id: str, u: float, *, controller_session: int) -> float | None:
         """Apply a controller's input; return the value applied, or ``None`` if not applied.
@@ -465,11 +374,9 @@ class DeviceHub:
             if slot.controller_session != controller_session:
                 return None
             try:
-                return self._apply(slot, u)
+                return slot.apply(u)
             except RigError as exc:
-                slot.fault = str(exc)
-                slot.powered = False
-                slot.controller_session = None
+                slot.fail(exc)
                 return None
 
     def set_channel(
@@ -490,9 +397,7 @@ class DeviceHub:
             try:
                 return float(driver.set_channel(name, level))
             except RigError as exc:
-                slot.fault = str(exc)
-                slot.powered = False
-                slot.controller_session = None
+                slot.fail(exc)
                 return None
 
     def channels(self, rig_id: str) -> dict[str, float | None]:
@@ -511,12 +416,10 @@ class DeviceHub:
                 if slot.driver is None or slot.fault is not None or slot.claimed:
                     continue
                 try:
-                    _take(slot, slot.driver.read())
+                    slot.take(slot.driver.read())
                     slot.output_at = now
                 except RigError as exc:
-                    slot.fault = str(exc)
-                    slot.powered = False
-                    slot.controller_session = None
+                    slot.fail(exc)
 
     def close(self) -> None:
         """Close every driver, leaving each actuator at its safe value."""
@@ -548,36 +451,4 @@ class DeviceHub:
         driver = slot.driver  # one attribute read, no lock: views read it in a transaction
         if driver is None and slot.config.agent:
             return dict(slot.host_levels)
-        return {name: _level(driver, name) for name in slot.config.rig_spec.actuators}
-
-    @staticmethod
-    def _apply(slot: _Slot, u: float) -> float | None:
-        if slot.driver is None:
-            return None
-        slot.input = slot.driver.apply(u)
-        return slot.input
-
-
-def _take(slot: _Slot, reading: Reading) -> float:
-    """Keep a reading the hub took: ``y`` (returned), and the further outputs it carries."""
-    slot.output = reading.value
-    slot.further_outputs = dict(reading.further)
-    return reading.value
-
-
-def _level(driver: object, name: str) -> float | None:
-    """The driver's further input ``name`` now; ``None`` with no driver or one that cannot say."""
-    level_of = getattr(driver, "level", None)
-    if not callable(level_of):
-        return None
-    try:
-        return float(level_of(name))
-    except ThermoLabError:  # a stand-in driver that does not declare it
-        return None
-
-
-def _speedup_in_force(slot: _Slot, rig: RigConfig) -> float:
-    """The twin's pace now: the turn's own (capped by the teacher's), else the teacher's."""
-    if slot.turn_pace is None:
-        return rig.twin_speedup
-    return min(slot.turn_pace[1], rig.twin_speedup)
+        return {name: level_of(driver, name) for name in slot.config.rig_spec.actuators}

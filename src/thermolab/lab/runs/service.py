@@ -13,7 +13,8 @@ instead START refuses a run longer than the rig's ``max_run_seconds``
 kicked, released...) the run is ended as by END, so that its data and
 estimates are kept. While a run holds a rig, the lab's device hub leaves the
 device to the runner. Storage is :mod:`.store` (reading back by channel: :mod:`.export`); the
-request's checks and its operating point are :mod:`.request`; what is stored when a run
+request's checks and its operating point are :mod:`.request`; what a START decides and
+stores, the same on a rig host, :mod:`.starting`; what is stored when a run
 ends, :mod:`.ending`; what is sent to it while it runs (END, an input, a closed loop's
 commands), :mod:`.commands`; reading runs back for the routes, :mod:`.reading`.
 """
@@ -23,8 +24,6 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass
-from datetime import timedelta
 from typing import Any
 
 import numpy as np
@@ -32,7 +31,6 @@ import numpy as np
 from thermolab.errors import (
     AccessDeniedError,
     ConflictError,
-    InvalidParameterError,
     PreviousRunEndingError,
     RunInProgressError,
     TurnEndedError,
@@ -43,7 +41,7 @@ from thermolab.lab.clock import LabClock
 from thermolab.lab.config import LabConfig
 from thermolab.lab.db import Database
 from thermolab.lab.db.models import Run
-from thermolab.lab.rigs.devices import DeviceHub, PublishedRig
+from thermolab.lab.rigs.devices import DeviceHub
 from thermolab.lab.runs.active import ActiveRun
 from thermolab.lab.runs.commands import end_run, hand_input, loop_state, send_command
 from thermolab.lab.runs.control import build_control_loop
@@ -51,15 +49,9 @@ from thermolab.lab.runs.ending import SERVER_STOPPED, end_of_run, save_end
 from thermolab.lab.runs.export import RunExport
 from thermolab.lab.runs.reading import RunReading
 from thermolab.lab.runs.recorder import DatabaseRecorder, ride_out
-from thermolab.lab.runs.request import RunPlan, RunRequest, check_run_length, plan_run
-from thermolab.lab.runs.store import (
-    RunRecord,
-    RunStore,
-    add_run,
-    record_of,
-    run_channels,
-)
-from thermolab.records import ChannelSpec
+from thermolab.lab.runs.request import RunRequest
+from thermolab.lab.runs.starting import plan_start, store_start
+from thermolab.lab.runs.store import RunRecord, RunStore, record_of
 from thermolab.runner import (
     EndReason,
     Event,
@@ -68,90 +60,16 @@ from thermolab.runner import (
     IOPair,
     LoopCommands,
     RunResult,
-    check_pair,
     extra_channels,
 )
 
-__all__ = ["RunService", "StartPlan", "plan_on_rig", "plan_start", "store_start"]
+__all__ = ["RunService"]
 
 log = logging.getLogger(__name__)
 
 # How long a START waits for the previous turn's run to store its end (seconds), beyond
 # the quarter of that run's period the runner may take to notice its END.
 HANDOVER_WAIT = 30.0
-
-
-@dataclass(frozen=True, slots=True)
-class StartPlan:
-    """What a START decides before it stores the run, in-process or on a rig host."""
-
-    request: RunRequest  #: as the controller asked
-    speedup: float | None  #: the rig's pace (its published ``speedup``)
-    plan: RunPlan  #: the checked request and its identifiers (:func:`.request.plan_run`)
-    channels: tuple[ChannelSpec, ...]  #: in the rig's units (a closed loop adds its own)
-
-
-def plan_on_rig(
-    config: LabConfig, hub: DeviceHub, rig_id: str, request: RunRequest
-) -> tuple[RunPlan, PublishedRig]:
-    """:func:`.request.plan_run` on the rig: its published input range (its pair's input's, a
-    further one), its kind's typical dead time as the live methods' delay. The pair first
-    (:func:`~thermolab.runner.check_pair`), open loop and in-process only."""
-    published, rig = hub.published(rig_id), config.rig(rig_id)
-    pair = check_pair(info := rig.rig_spec.describe(), request.input, request.output)
-    if not pair.standard and (request.control is not None or rig.agent):
-        raise InvalidParameterError(f"the pair {pair} is open loop on the lab's own rigs only")
-    limits = pair.limits(info, (published.input_min, published.input_max))
-    return plan_run(request, limits, rig.rig_spec.typical_dead_time), published
-
-
-def plan_start(config: LabConfig, hub: DeviceHub, rig_id: str, request: RunRequest) -> StartPlan:
-    """Check a START on the rig: the plan, the length the rig allows, the channels.
-
-    Both STARTs (:meth:`RunService.start`, :class:`thermolab.lab.agents.RemoteRuns`)
-    decide it here, before they take the rig's lock. Errors: :func:`.request.plan_run`,
-    :func:`.request.check_run_length`.
-    """
-    plan, published = plan_on_rig(config, hub, rig_id, request)
-    check_run_length(request, rig_id, config, published.speedup)  # the rig's own, at once
-    channels = run_channels(published.input_unit, published.output_unit)
-    return StartPlan(request, published.speedup, plan, channels)
-
-
-def store_start(
-    config: LabConfig,
-    access: AccessService,
-    rig_id: str,
-    who: Principal,
-    start: StartPlan,
-    channels: tuple[ChannelSpec, ...],
-) -> tuple[int, int]:
-    """Store the run in the locked transaction of ``who``'s turn; ``(run id, turn id)``.
-
-    A course's slot going on now may lower the longest run: it is read in the
-    same transaction, so a slot that begins while the START is decided counts.
-
-    ``AccessDeniedError`` when ``who`` does not control the rig;
-    :func:`.request.check_run_length`'s and :func:`.store.add_run`'s errors.
-    """
-    with access.controlled(rig_id, who, "start a run") as turn:
-        limits = turn.course_limits()
-        length = check_run_length(start.request, rig_id, config, start.speedup, limits)
-        meta = {
-            "operating_point": start.plan.operating_point.to_dict(),
-            # The run's planned end: the queue's estimated wait counts it.
-            "ends_at": (turn.now + timedelta(seconds=length)).isoformat(),
-        }
-        run_id = add_run(
-            turn.session,
-            turn.control,
-            who,
-            turn.now,
-            settings=start.plan.settings,
-            meta=meta,
-            channels=channels,
-        )
-        return run_id, turn.control.id
 
 
 class RunService(RunReading):
