@@ -273,6 +273,8 @@ COMMAND_OPTIONS = {
     "identify": {"help", "file", "method", "dt", "json", "plot", "columns", "units"},
     "run": {"help", "rig", "dt", "duration", "samples", "signal", "method", "speedup", "fast",
             "seed", "out", "json", "max_output", "watchdog",
+            # the channels a run identifies, and those a closed loop drives and reads
+            "input", "output", "heater", "sensor",
             # closed-loop control (thermolab.control), not identifier settings
             "control", "setpoint", "kp", "ti", "td", "tune", "model", "tau_c", "pid_form",
             "adaptive", "retune_every", "max_change", "kp_range", "ti_range"},
