@@ -9,15 +9,16 @@ from typing import Any
 import pytest
 
 from thermolab.rigs import KitTwinRig, Reading, VirtualClock
+from thermolab.rigs.base import BaseRig
 from thermolab.rigs.twin import TwinRig
 
 
-class HookedTwin(TwinRig):
-    """A twin that calls ``hooks[n]()`` just before its ``n``-th reading (0-based).
+class _ReadingHooks(BaseRig):
+    """Calls ``hooks[n]()`` just before the rig's ``n``-th reading (0-based).
 
     The hook runs inside the sampling loop, at a known sample, so a test can
     act "mid-run" (change the set point, request END, stall the clock, read
-    the CSV) deterministically on a virtual clock.
+    the CSV) deterministically on a virtual clock. Mixed in before a rig class.
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -33,20 +34,12 @@ class HookedTwin(TwinRig):
         return super()._read_output()
 
 
-class HookedKit(KitTwinRig):
-    """The kit's twin calling ``hooks[n]()`` just before its ``n``-th reading."""
+class HookedTwin(_ReadingHooks, TwinRig):
+    """The paper's twin, with reading hooks (:class:`_ReadingHooks`)."""
 
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(**kwargs)
-        self.hooks: dict[int, Callable[[], object]] = {}
-        self.reads = 0
 
-    def _read_output(self) -> Reading:
-        hook = self.hooks.get(self.reads)
-        self.reads += 1
-        if hook is not None:
-            hook()
-        return super()._read_output()
+class HookedKit(_ReadingHooks, KitTwinRig):
+    """The kit's twin, with reading hooks (:class:`_ReadingHooks`)."""
 
 
 @dataclass(frozen=True)
