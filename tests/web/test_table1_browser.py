@@ -331,8 +331,13 @@ def test_the_paper_practical_twin_scatters_and_the_page_says_why(
     # real kit's record passes either; judged as a whole record (issue #21: it follows
     # the record and agrees with the output-error fit), the model is trusted, and the
     # residual test is listed as a note, saying to compare with OE.
+    # The step comes after 50 s at rest, not at the row's first second: on a noisy record a
+    # step at once leaves the operating point and the dead time to the noise, and the verdict
+    # rightly says so ("operating point undetermined", "dead time uncertain") on 12 of 300
+    # seeds of the practical twin; with 50 s before it, on none of 300.
     srm = table1["SRM"]
-    low, high, at = re.fullmatch(r"step:([-\d.]+):([-\d.]+)@([\d.]+)", srm.row.signal).groups()
+    low, high, _ = re.fullmatch(r"step:([-\d.]+):([-\d.]+)@([\d.]+)", srm.row.signal).groups()
+    at = "50"
     take_control(page, fast_lab, RIGS["practical-2"])
     run_panel(
         page,
