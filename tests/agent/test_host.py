@@ -16,7 +16,14 @@ import pytest
 from thermolab.agent.host import RigHost
 from thermolab.agent.link import AgentLink, LinkSettings
 from thermolab.agent.outbox import Outbox
-from thermolab.agent.protocol import SetChannel, SetGains, SetSetpoint, StartRun
+from thermolab.agent.protocol import (
+    SetChannel,
+    SetGains,
+    SetSetpoint,
+    StartRun,
+    decode_lab,
+    encode,
+)
 from thermolab.control import PIDGains
 from thermolab.errors import SetpointRangeError, ThermoLabError
 from thermolab.rigs import RigSpec, make_clock
@@ -142,6 +149,31 @@ def test_a_kit_host_sets_heater_2_idle_and_in_its_run_and_records_t2_and_q2() ->
         assert samples[-1]["extra"]["q2"] == 70.0
         with pytest.raises(ThermoLabError, match="no input 'fan'"):
             host.set_channel("fan", 10.0, 3)
+    finally:
+        host.close()
+    assert host.rig.level("q2") == 0.0
+
+
+def test_a_kit_host_drives_the_pair_a_start_names_and_refuses_one_the_kit_lacks() -> None:
+    # A START without a pair is the frame a host of an earlier release reads: no new key.
+    assert "pair" not in json.loads(encode(StartRun(run=1, dt=1.0, samples=5)))
+    start = decode_lab(encode(StartRun(run=4, dt=0.05, samples=40, signal="const:30",
+                                       pair=("q2", "t2"))))  # fmt: skip
+    assert isinstance(start, StartRun)
+    assert start.pair == ("q2", "t2")
+    rig = RigSpec.parse("sim:kit").open(clock=make_clock(1.0))
+    host = RigHost(rig, Outbox(":memory:"), grace=5.0)
+    try:
+        host.start_run(start)
+        _wait(lambda: host.heartbeat().run is None and host.outbox.count() >= 41)
+        samples = [
+            json.loads(body) for _, kind, body in host.outbox.pending(0, 10**6) if kind == "sample"
+        ]
+        assert len(samples) == 40
+        assert {s["u"] for s in samples} == {0.0}  # heater 1 rests
+        assert {s["extra"]["q2"] for s in samples} == {30.0}  # the signal drives heater 2
+        with pytest.raises(ThermoLabError, match="q3"):
+            host.start_run(StartRun(run=5, dt=0.05, samples=10, pair=("q3", "t2")))
     finally:
         host.close()
     assert host.rig.level("q2") == 0.0

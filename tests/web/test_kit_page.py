@@ -177,7 +177,12 @@ PAIR = "#srm-lsm-pair"
 def test_panel_1_identifies_the_pair_she_chooses(context_for: Any, kit_lab: Any) -> None:
     words = catalogue("pt-BR")
     ana = reader(context_for, kit_lab, "ana")
+    ben = reader(context_for, kit_lab, "ben")
     try:
+        # Ben watches the kit: his chooser shows the pair of the run going, not his own default.
+        ben.page.goto(f"{kit_lab.url}/#/rig/{RIG}")
+        ben.page.wait_for_selector(PAIR)
+        assert ben.page.input_value(PAIR) == "u>y"
         page = ana.page
         page.goto(f"{kit_lab.url}/#/rig/paper")
         page.wait_for_selector("#srm-lsm-dt")
@@ -221,6 +226,7 @@ def test_panel_1_identifies_the_pair_she_chooses(context_for: Any, kit_lab: Any)
         assert (run["settings"]["input"], run["settings"]["output"]) == ("q2", "t2"), run
         assert run["status"] == "finished", run
         assert run["settings"]["setpoint"] == 50
+        ben.page.wait_for_function("sel => document.querySelector(sel).value === 'q2>t2'", arg=PAIR)
         # Panel 1 says which pair its model is of, and shows the model.
         used = words["panel.pairUsed"].format(
             pair=pair.format(input=words["channel.q2"], output=words["channel.t2"])
@@ -257,5 +263,7 @@ def test_panel_1_identifies_the_pair_she_chooses(context_for: Any, kit_lab: Any)
         assert abs(last[1] - last[2]) < 2.0, output
         assert ana.english("the pair chooser") == []
         assert ana.errors == []
+        assert ben.errors == []
     finally:
         ana.page.context.close()
+        ben.page.context.close()

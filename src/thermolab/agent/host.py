@@ -44,6 +44,7 @@ from thermolab.records import RUN_CHANNELS, ChannelSpec
 from thermolab.rigs import Rig
 from thermolab.runner import EventBus, Experiment, extra_channels
 from thermolab.runner.control_request import build_control_loop
+from thermolab.runner.pair import IOPair, check_pair
 from thermolab.signals import parse_signal
 
 __all__ = ["RigHost"]
@@ -150,7 +151,8 @@ class RigHost:
             if self._run is not None:
                 raise ThermoLabError(f"run {self._run_id} is still going on this rig")
             info = self.rig.describe()
-            limits = (info.input_min, info.input_max)
+            pair = check_pair(info, *command.pair) if command.pair is not None else IOPair()
+            limits = pair.limits(info, (info.input_min, info.input_max))
             signal = parse_signal(command.signal, limits) if command.signal is not None else None
             loop = None
             recorder = _OutboxRecorder(self, command.run)
@@ -167,6 +169,7 @@ class RigHost:
                 recorder=recorder,
                 events=EventBus(),
                 controller=loop,
+                pair=pair,
             )
             self._run, self._run_id = experiment, command.run
             experiment.start()

@@ -92,6 +92,11 @@ the new owner is decided: ``Welcome`` if it took the rigs over,
 """
 
 _Finite = Annotated[float, Field(allow_inf_nan=False)]
+_Channel = Annotated[str, Field(min_length=1, max_length=32)]
+
+# Fields added since protocol 2 first shipped: left out of a frame while unset, so that a
+# host of an earlier release still reads every message that does not use them.
+_LEFT_OUT_WHEN_UNSET = frozenset({"pair"})
 
 
 class _Message(BaseModel):
@@ -215,6 +220,13 @@ class StartRun(_Message):
     control: ControlRequest | None = Field(
         default=None, description="a closed-loop run's controller (checked again by the host)"
     )
+    pair: tuple[_Channel, _Channel] | None = Field(
+        default=None,
+        description=(
+            "the pair (input, output) the run identifies when not the rig's standard u -> y "
+            "(a kit's q2 -> t2): the signal drives that input (checked again by the host)"
+        ),
+    )
 
 
 class EndRun(_Message):
@@ -296,7 +308,8 @@ _LAB: TypeAdapter[_LabUnion] = TypeAdapter(LabMessage)
 
 def encode(message: _Message) -> str:
     """Return the message as its JSON text frame."""
-    return message.model_dump_json()
+    unset = {name for name in _LEFT_OUT_WHEN_UNSET if getattr(message, name, 0) is None}
+    return message.model_dump_json(exclude=unset or None)
 
 
 def decode_agent(text: str | bytes) -> Hello | Heartbeat | SampleBatch | RunEnded:

@@ -9,17 +9,25 @@ loss is already counted and is skipped, so the estimates are the ones an
 in-process run of the same samples gives. At the end each method's result,
 with the paper's figures (:func:`~thermolab.lab.runs.statistics.method_statistics`),
 is what the run stores.
+
+A run that identifies another pair than the rig's standard one (a kit's heater
+2 and sensor 2, :mod:`thermolab.runner.pair`) is fed that pair's columns of
+each sample, as the in-process runner feeds them.
 """
 
 from __future__ import annotations
 
 import logging
+import math
+from collections.abc import Mapping
 from typing import Any
 
 from thermolab.errors import ThermoLabError
 from thermolab.ident.online import OnlineIdentifier
 from thermolab.lab.runs.ending import Record, method_results
+from thermolab.lab.runs.export import RunExport
 from thermolab.runner import EstimateEvent
+from thermolab.runner.pair import IOPair
 from thermolab.runner.results import MethodTrack
 
 __all__ = ["RemoteIdentification"]
@@ -35,25 +43,37 @@ class RemoteIdentification:
     identifiers : dict
         Method name -> online identifier (``plan_run(...).identifiers``).
     units : (str, str), optional
-        The rig's input and output units, which the stored results speak of.
+        The pair's input and output units, which the stored results speak of.
+    pair : IOPair, optional
+        The pair the run identifies (default the standard ``u`` → ``y``).
     """
 
     def __init__(
-        self, identifiers: dict[str, OnlineIdentifier], units: tuple[str, str] | None = None
+        self,
+        identifiers: dict[str, OnlineIdentifier],
+        units: tuple[str, str] | None = None,
+        pair: IOPair | None = None,
     ) -> None:
         self._identifiers = identifiers
         self._units = units
+        self.pair = IOPair() if pair is None else pair
         self._tracks = {name: MethodTrack() for name in identifiers}
         self._errors: dict[str, str] = {}
         self._final: dict[str, Any] = {}
         self._finished = False
         self.next_k = 0
 
-    def feed(self, k: int, u: float, y: float) -> list[EstimateEvent]:
-        """Give sample ``k`` to every method; return their estimates (none for a repeat)."""
+    def feed(
+        self, k: int, u: float, y: float, extra: Mapping[str, float | None] | None = None
+    ) -> list[EstimateEvent]:
+        """Give sample ``k`` (its pair's columns) to every method; return their estimates
+        (none for a repeat). ``extra``: the sample's further channels (JSON's null: NaN)."""
         if k != self.next_k or self._finished:
             return []  # a resend of a sample already counted
         self.next_k = k + 1
+        if not self.pair.standard:
+            further = {n: math.nan if v is None else v for n, v in (extra or {}).items()}
+            u, y = self.pair.columns(u, y, _Columns(further))
         events = []
         for name, ident in self._identifiers.items():
             if name in self._errors:
@@ -67,6 +87,31 @@ class RemoteIdentification:
                 self._tracks[name].add(k, estimate)
                 events.append(EstimateEvent(k, k, name, estimate, False))
         return events
+
+    def feed_stored(self, export: RunExport, run_id: int) -> None:
+        """Feed the run's stored samples, in order (a run the lab identifies after a restart)."""
+        after = None
+        while page := export.sample_page_with_extra(run_id, after, 2000):
+            for k, _, u, y, extra in page:
+                self.feed(k, u, y, extra)
+            after = page[-1][0]
+
+    def stored_record(self, export: RunExport, run_id: int, dt: float) -> Record:
+        """The run's stored samples (all of them by its end: the host sends its outbox in
+        order), the pair's columns, as the verdict on its models reads them."""
+        t: list[float] = []
+        u: list[float] = []
+        y: list[float] = []
+        after = None
+        while page := export.sample_page_with_extra(run_id, after, 2000):
+            for _, t_k, u_k, y_k, extra in page:
+                further = {n: math.nan if v is None else v for n, v in (extra or {}).items()}
+                u_k, y_k = self.pair.columns(u_k, y_k, _Columns(further))
+                t.append(t_k)
+                u.append(u_k)
+                y.append(y_k)
+            after = page[-1][0]
+        return (t, u, y, dt)
 
     def finish(self) -> list[EstimateEvent]:
         """END: every method's final estimate (SRM and LSM give theirs only now)."""
@@ -102,3 +147,11 @@ class RemoteIdentification:
             for name in self._identifiers
         }
         return method_results(run_id, methods, self._identifiers, self._units, record)
+
+
+class _Columns(dict[str, float]):
+    """A sample's further channels, a channel it lacks read as NaN (a sample stored before
+    the channel was recorded, or sent without it): the methods skip a NaN sample."""
+
+    def __missing__(self, name: str) -> float:
+        return math.nan

@@ -71,7 +71,6 @@ from thermolab.lab.runs.commands import loop_state, send_command
 from thermolab.lab.runs.control import ControlRequest, build_control_loop
 from thermolab.lab.runs.ending import (
     EndCause,
-    Record,
     RunEnd,
     host_end_words,
     save_end,
@@ -91,6 +90,7 @@ from thermolab.runner import (
     SampleEvent,
     extra_channels,
 )
+from thermolab.runner.pair import STANDARD_INPUT, STANDARD_OUTPUT, IOPair
 
 __all__ = ["RemoteRuns"]
 
@@ -182,9 +182,8 @@ class RemoteRuns:
             run_id, control_id = store_start(
                 self._config, self._access, rig_id, who, start, channels
             )
-            identification = RemoteIdentification(
-                start.plan.identifiers, (info.input_unit, info.output_unit)
-            )
+            pair = IOPair(request.input, request.output)  # checked by plan_start
+            identification = RemoteIdentification(start.plan.identifiers, pair.units(info), pair)
             commands = RemoteLoop(run_id, loop, info, fan, lambda c: self._agents.send(rig_id, c))
             self._remote[rig_id] = _RemoteRun(run_id, control_id, identification, commands)
             self._hub.claim(rig_id)
@@ -197,6 +196,7 @@ class RemoteRuns:
                     signal=request.signal,
                     input=request.setpoint,
                     control=request.control,
+                    pair=None if pair.standard else (pair.input, pair.output),
                 ),
             )
         record = self._runs.record(run_id)
@@ -347,13 +347,6 @@ class RemoteRuns:
             )
             return [(kind, payload) for kind, payload in rows]
 
-    def _record(self, run_id: int, dt: float) -> Record:
-        """The run's stored samples (all of them by its end: the host sends its outbox in
-        order), as the verdict on its models reads them."""
-        rows = list(RunExport(self._db).samples(run_id))
-        t, u, y = ([row[i] for row in rows] for i in (1, 2, 3))
-        return (t, u, y, dt)
-
     def _identification_of(self, run_id: int) -> RemoteIdentification:
         try:
             run, _ = self._store.read(run_id)
@@ -383,7 +376,7 @@ class RemoteRuns:
         for s in batch.samples:
             estimates: list[Event] = []
             if remote is not None and remote.run_id == s.run:
-                estimates = list(remote.identification.feed(s.k, s.u, s.y))
+                estimates = list(remote.identification.feed(s.k, s.u, s.y, s.extra))
             if on_event is None:
                 continue
             event = SampleEvent(
@@ -438,7 +431,9 @@ class RemoteRuns:
         results: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {}
         if remote is not None and remote.run_id == ended.run:
             finals = remote.identification.finish()
-            results = remote.identification.results(ended.run, self._record(ended.run, run.dt))
+            identification = remote.identification
+            record = identification.stored_record(RunExport(self._db), ended.run, run.dt)
+            results = identification.results(ended.run, record)
             if self._on_event is not None:
                 for event in finals:
                     self._on_event(rig_id, ended.run, event)
@@ -448,7 +443,8 @@ class RemoteRuns:
             late = self._identify_stored(run)
             if late is not None:
                 late.finish()
-                results = late.results(ended.run, self._record(ended.run, run.dt))
+                record = late.stored_record(RunExport(self._db), ended.run, run.dt)
+                results = late.results(ended.run, record)
         # Judged on the stored samples: all of them are stored by now (the host sends its
         # outbox in order), also for a late end, whose run's samples came before a restart.
         simulated = self._config.rig(rig_id).kind == "sim"
@@ -486,6 +482,8 @@ class RemoteRuns:
                 setpoint=settings["setpoint"],
                 methods=tuple(settings["methods"]),
                 offset=settings["offset"],
+                input=settings.get("input") or STANDARD_INPUT,
+                output=settings.get("output") or STANDARD_OUTPUT,
                 **tuned,
             )
             plan, _ = plan_on_rig(self._config, self._hub, run.rig_id, request)
@@ -493,7 +491,7 @@ class RemoteRuns:
         except (ThermoLabError, KeyError, TypeError) as exc:
             log.warning("run %s: its methods cannot be rebuilt to identify it: %r", run.id, exc)
             return None
-        identification = RemoteIdentification(plan.identifiers, (info.input_unit, info.output_unit))
-        for k, _, u, y in RunExport(self._db).samples(run.id):
-            identification.feed(k, u, y)
+        pair = IOPair(request.input, request.output)
+        identification = RemoteIdentification(plan.identifiers, pair.units(info), pair)
+        identification.feed_stored(RunExport(self._db), run.id)
         return identification

@@ -39,11 +39,11 @@ def plan_on_rig(
 ) -> tuple[RunPlan, PublishedRig]:
     """:func:`.request.plan_run` on the rig: its published input range (its pair's input's, a
     further one), its kind's typical dead time as the live methods' delay. The pair first
-    (:func:`~thermolab.runner.check_pair`), open loop and in-process only."""
+    (:func:`~thermolab.runner.check_pair`), open loop only (a closed loop names its own)."""
     published, rig = hub.published(rig_id), config.rig(rig_id)
     pair = check_pair(info := rig.rig_spec.describe(), request.input, request.output)
-    if not pair.standard and (request.control is not None or rig.agent):
-        raise InvalidParameterError(f"the pair {pair} is open loop on the lab's own rigs only")
+    if not pair.standard and request.control is not None:
+        raise InvalidParameterError(f"the pair {pair} is open loop only")
     limits = pair.limits(info, (published.input_min, published.input_max))
     return plan_run(request, limits, rig.rig_spec.typical_dead_time), published
 

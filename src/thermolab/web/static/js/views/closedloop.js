@@ -17,13 +17,14 @@
 // (heater 2 in the "Further inputs" card, heater 1 here while the loop drives 2).
 
 import { api, request } from "../api.js";
-import { channelName, pairEnd } from "../channelwords.js";
+import { channelName } from "../channelwords.js";
 import { Chart, COLORS } from "../charts.js";
 import { h, replaceChildren, setText, tParts } from "../dom.js";
 import { formatNumber, t } from "../i18n.js";
 import { loopNotes, loopWord } from "../loopwords.js";
 import { unitSymbol } from "../quantities.js";
 import { checkNumber, rangeText } from "../validate.js";
+import { num, tuningTable } from "./loop/tuning.js";
 
 const enc = encodeURIComponent;
 /** Points kept for the chart (a closed-loop lesson is a few thousand samples). */
@@ -58,11 +59,6 @@ const MODE_KEYS = { manual: "loop.modeManual", auto: "loop.modeAuto" };
 /** A number as a field holds it: the page's decimal mark, six significant digits, no grouping. @param {number} v */
 function plain(v) {
   return formatNumber(v, { maximumSignificantDigits: 6, useGrouping: false });
-}
-
-/** @param {number | null | undefined} v @param {number} [digits] */
-function num(v, digits = 4) {
-  return v === null || v === undefined || !Number.isFinite(v) ? "–" : formatNumber(v, { maximumSignificantDigits: digits });
 }
 
 export class ClosedLoopPanel {
@@ -316,29 +312,9 @@ export class ClosedLoopPanel {
     if (!table) return;
     this.tuning = table;
     this.model = table.model;
-    const out = unitSymbol(this.rig.outputUnit);
     // The step the rows predict: the server's default, or the one typed.
     this.fields.setpoint.input.value = plain(table.setpoint);
-    const rows = table.rows.map((row) => {
-      const name = h("th", { scope: "row" }, `${row.rule.toUpperCase()} ${row.form.toUpperCase()}`);
-      // A rule that cannot tune this model says why (ZN and CC need a dead time), in the page's language.
-      if (row.error) return h("tr", { "data-refused": `${row.rule}-${row.form}` }, name, h("td", { colspan: "7", class: "hint" }, loopWord(row.why, row.error)));
-      const use = h("button", { type: "button", "data-action": "use", "data-rule": `${row.rule}-${row.form}` }, t("loop.use"));
-      use.addEventListener("click", () => this._use(row));
-      const p = row.predicted;
-      return h("tr", {}, name,
-        h("td", {}, num(row.Kp)), h("td", {}, num(row.Ti)), h("td", {}, num(row.Td)),
-        h("td", {}, num(p.overshoot, 3)), h("td", {}, num(p.settling_time, 4)), h("td", {}, num(p.iae)), h("td", {}, use));
-    });
-    const m = table.model;
-    const heads = ["loop.rule", "loop.kp", "loop.ti", "loop.td", "loop.overshoot", "loop.settling", "loop.iae"];
-    replaceChildren(this.table,
-      h("p", {}, t("loop.model", { K: num(m.K), tau: num(m.tau), theta: num(m.theta), method: table.method.toUpperCase() })),
-      // Which heater and sensor the model is of, where the rig has more than one pair.
-      ...(this.pairSelect && table.pair ? [h("p", { "data-testid": "tuning-pair" }, t("loop.modelPair", { input: pairEnd(table.pair.input, true), output: pairEnd(table.pair.output, true) }))] : []),
-      h("p", { "data-testid": "tuning-step" }, t("loop.tuningStep", { from: num(table.y0), to: num(table.setpoint), unit: out, u0: num(table.u0), inputUnit: unitSymbol(this.rig.inputUnit) })),
-      h("table", {}, h("thead", {}, h("tr", {}, ...heads.map((k) => h("th", { scope: "col" }, t(k))), h("th", {}))),
-        h("tbody", {}, ...rows)));
+    replaceChildren(this.table, ...tuningTable(table, this.rig, Boolean(this.pairSelect), (row) => this._use(row)));
   }
 
   _use(row) {

@@ -17,7 +17,7 @@
 
 import { h, setParts, setText } from "../dom.js";
 import { checkNumber } from "../validate.js";
-import { panelOfRun } from "../runspec.js";
+import { panelOfRun, runPair } from "../runspec.js";
 import { panelDefinitions } from "./panels/definitions.js";
 import { buildPanelView, checkPanel } from "./panels/form.js";
 import { idleParts, otherRunText, renderProgress, renderResults, runningText } from "./panels/results.js";
@@ -188,6 +188,11 @@ export class Panels {
       view.fieldset.disabled = this.locked || running;
       view.startButton.disabled = this.locked || running;
       const mine = running && runPanel === view.def.id;
+      if (mine && view.pair) {
+        // The run's own pair, whoever started it (a watcher, a page opened mid-run).
+        const pair = runPair(this.run);
+        view.pair.value = `${pair.input}>${pair.output}`;
+      }
       view.runFieldset.disabled = this.locked || !mine;
       const automaticRun = mine && Boolean(this.run.signal);
       view.spInput.disabled = view.spButton.disabled = this.locked || !mine || automaticRun;
