@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import io
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -143,6 +144,53 @@ def test_the_panel_chooses_heater_2_and_heater_1_disturbs_it(
         assert u[0] == 0.0
         assert max(float(r["q2"]) for r in rows) > 30.0
         assert found == []
+        assert ana.errors == []
+    finally:
+        page.context.close()
+
+
+def test_the_tuning_table_of_a_heater_2_model_tunes_heater_2s_loop_only(
+    context_for: Any, loop_lab: Any
+) -> None:
+    words = catalogue("pt-BR")
+    ana = reader(context_for, loop_lab, "ana")
+    page = ana.page
+    try:
+        _open(page, loop_lab.url, "kit")
+        if page.get_attribute(ROLE, "data-role") != "controller":  # alone, or after the test above
+            page.click("button[data-action=ask]")
+        page.wait_for_function(
+            "sel => document.querySelector(sel)?.dataset.role === 'controller'", arg=ROLE
+        )
+        # A model of heater 2 -> sensor 2, identified by an open-loop run of that pair.
+        body = {"dt": 2.0, "samples": 400, "signal": "step:0:50@10", "methods": ["lsm"],
+                "input": "q2", "output": "t2"}  # fmt: skip
+        status, run = page.evaluate(CALL, ["POST", "/api/rigs/kit/runs", body])
+        assert status == 201, run
+        deadline = time.monotonic() + 60
+        while (shown := page.evaluate(CALL, ["GET", f"/api/runs/{run['id']}", None])[1])[
+            "status"
+        ] == "running":
+            assert time.monotonic() < deadline, shown
+            page.wait_for_timeout(300)
+        assert shown["status"] == "finished", shown
+        # The table for heater 2's loop says which pair its model is of, in her words.
+        page.select_option(CHOOSER, "q2")
+        page.fill("#loop-modelRun", str(run["id"]))
+        page.click("button[data-action=tuning]")
+        page.wait_for_selector("[data-testid=tuning-table] table")
+        said = words["loop.modelPair"].format(input=words["channel.q2"], output=words["channel.t2"])
+        assert page.inner_text("[data-testid=tuning-pair]") == said
+        assert page.locator("[data-testid=tuning-table] button[data-action=use]").count() > 0
+        assert page.inner_text("[data-testid=loop-error]") == ""
+        # Heater 1's loop refuses that model, and says why.
+        page.select_option(CHOOSER, "u")
+        page.click("button[data-action=tuning]")
+        page.wait_for_function(
+            "([sel, text]) => document.querySelector(sel)?.textContent === text",
+            arg=["[data-testid=loop-error]", words["error.model_pair_mismatch"]],
+        )
+        assert ana.english("the tuning table of heater 2's model") == []
         assert ana.errors == []
     finally:
         page.context.close()
