@@ -150,8 +150,8 @@ class RemoteIdentification:
 
 
 class _Columns(dict[str, float]):
-    """A sample's further channels, a channel it lacks read as NaN (a sample stored before
-    the channel was recorded, or sent without it): the methods skip a NaN sample."""
+    """A sample's further channels, a channel it lacks read as NaN (a sample sent without
+    it): a method refuses a NaN sample and stops with the reason, as in-process."""
 
     def __missing__(self, name: str) -> float:
         return math.nan
