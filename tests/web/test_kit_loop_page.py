@@ -58,6 +58,15 @@ def _open(page: Any, url: str, rig: str) -> None:
     page.wait_for_selector("#loop-setpoint")
 
 
+def _at_the_controls(page: Any) -> None:
+    """Ask for the rig's controls, unless already holding them (after the test before)."""
+    if page.get_attribute(ROLE, "data-role") != "controller":
+        page.click("button[data-action=ask]")
+    page.wait_for_function(
+        "sel => document.querySelector(sel)?.dataset.role === 'controller'", arg=ROLE
+    )
+
+
 def test_the_panel_chooses_heater_2_and_heater_1_disturbs_it(
     context_for: Any, loop_lab: Any, artifacts: Path
 ) -> None:
@@ -72,10 +81,7 @@ def test_the_panel_chooses_heater_2_and_heater_1_disturbs_it(
         assert page.locator("label[for=loop-u]").inner_text() == words["loop.manualInput"]
         # The kit: both pairs, in the reader's words, the run's own first.
         _open(page, loop_lab.url, "kit")
-        page.click("button[data-action=ask]")
-        page.wait_for_function(
-            "sel => document.querySelector(sel)?.dataset.role === 'controller'", arg=ROLE
-        )
+        _at_the_controls(page)
         options = page.eval_on_selector_all(
             f"{CHOOSER} option", "os => os.map((o) => [o.value, o.textContent])"
         )
@@ -157,11 +163,7 @@ def test_the_tuning_table_of_a_heater_2_model_tunes_heater_2s_loop_only(
     page = ana.page
     try:
         _open(page, loop_lab.url, "kit")
-        if page.get_attribute(ROLE, "data-role") != "controller":  # alone, or after the test above
-            page.click("button[data-action=ask]")
-        page.wait_for_function(
-            "sel => document.querySelector(sel)?.dataset.role === 'controller'", arg=ROLE
-        )
+        _at_the_controls(page)
         # A model of heater 2 -> sensor 2, identified by an open-loop run of that pair.
         body = {"dt": 2.0, "samples": 400, "signal": "step:0:50@10", "methods": ["lsm"],
                 "input": "q2", "output": "t2"}  # fmt: skip
