@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 from thermolab.errors import ThermoLabError
@@ -68,12 +68,12 @@ class RemoteIdentification:
     ) -> list[EstimateEvent]:
         """Give sample ``k`` (its pair's columns) to every method; return their estimates
         (none for a repeat). ``extra``: the sample's further channels (JSON's null: NaN)."""
+        return self._feed_pair(k, *self._columns(u, y, extra))
+
+    def _feed_pair(self, k: int, u: float, y: float) -> list[EstimateEvent]:
         if k != self.next_k or self._finished:
             return []  # a resend of a sample already counted
         self.next_k = k + 1
-        if not self.pair.standard:
-            further = {n: math.nan if v is None else v for n, v in (extra or {}).items()}
-            u, y = self.pair.columns(u, y, _Columns(further))
         events = []
         for name, ident in self._identifiers.items():
             if name in self._errors:
@@ -90,28 +90,35 @@ class RemoteIdentification:
 
     def feed_stored(self, export: RunExport, run_id: int) -> None:
         """Feed the run's stored samples, in order (a run the lab identifies after a restart)."""
-        after = None
-        while page := export.sample_page_with_extra(run_id, after, 2000):
-            for k, _, u, y, extra in page:
-                self.feed(k, u, y, extra)
-            after = page[-1][0]
+        for k, _, u, y in self._stored(export, run_id):
+            self._feed_pair(k, u, y)
 
     def stored_record(self, export: RunExport, run_id: int, dt: float) -> Record:
         """The run's stored samples (all of them by its end: the host sends its outbox in
         order), the pair's columns, as the verdict on its models reads them."""
-        t: list[float] = []
-        u: list[float] = []
-        y: list[float] = []
+        rows = list(self._stored(export, run_id))
+        t, u, y = ([row[i] for row in rows] for i in (1, 2, 3))
+        return (t, u, y, dt)
+
+    def _stored(self, export: RunExport, run_id: int) -> Iterator[tuple[int, float, float, float]]:
+        """``(k, t, input, output)`` of the run's stored samples, the pair's columns."""
+        if self.pair.standard:  # no further channel read: u and y are the pair
+            yield from export.samples(run_id)
+            return
         after = None
         while page := export.sample_page_with_extra(run_id, after, 2000):
-            for _, t_k, u_k, y_k, extra in page:
-                further = {n: math.nan if v is None else v for n, v in (extra or {}).items()}
-                u_k, y_k = self.pair.columns(u_k, y_k, _Columns(further))
-                t.append(t_k)
-                u.append(u_k)
-                y.append(y_k)
+            for k, t, u, y, extra in page:
+                yield (k, t, *self._columns(u, y, extra))
             after = page[-1][0]
-        return (t, u, y, dt)
+
+    def _columns(
+        self, u: float, y: float, extra: Mapping[str, float | None] | None
+    ) -> tuple[float, float]:
+        """The pair's input and output in a sample (``extra``: its further channels)."""
+        if self.pair.standard:
+            return u, y
+        further = {n: math.nan if v is None else v for n, v in (extra or {}).items()}
+        return self.pair.columns(u, y, _Columns(further))
 
     def finish(self) -> list[EstimateEvent]:
         """END: every method's final estimate (SRM and LSM give theirs only now)."""
